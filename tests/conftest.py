@@ -1,0 +1,47 @@
+"""Shared fixtures: bundled robots loaded once per session."""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+import planner
+from planner.robots import BUNDLED_ROBOTS, EXAMPLE_ROBOTS, example_robot_data_dir
+
+BUNDLED = tuple(BUNDLED_ROBOTS)
+EXAMPLES = tuple(EXAMPLE_ROBOTS)
+HAVE_EXAMPLE_ROBOT_DATA = example_robot_data_dir() is not None
+needs_example_robot_data = pytest.mark.skipif(
+    not HAVE_EXAMPLE_ROBOT_DATA, reason="example-robot-data is not installed (pip install 'planner[bench]')"
+)
+
+_cache: dict[str, planner.Robot] = {}
+
+
+def get_robot(name: str) -> planner.Robot:
+    """A robot loaded once per test session (do not mutate it)."""
+    if name not in _cache:
+        _cache[name] = planner.load_robot(name)
+    return _cache[name]
+
+
+@pytest.fixture(params=BUNDLED)
+def bundled_robot(request) -> planner.Robot:
+    return get_robot(request.param)
+
+
+def run_cli(*args: str, cwd: Path | None = None, timeout: float = 120) -> subprocess.CompletedProcess:
+    """Run ``python -m planner ARGS`` in a scratch directory (so the installed package is used)."""
+    env = dict(os.environ)
+    return subprocess.run(
+        [sys.executable, "-m", "planner", *args],
+        capture_output=True,
+        text=True,
+        cwd=cwd or Path(__file__).parent,
+        env=env,
+        timeout=timeout,
+    )

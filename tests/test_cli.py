@@ -1,0 +1,65 @@
+"""The command line: robots, fk, errors as one line on stderr."""
+
+from __future__ import annotations
+
+import json
+import math
+
+import numpy as np
+
+import planner
+from conftest import BUNDLED, run_cli
+
+
+def test_robots_json_lists_bundled_arms_with_limits():
+    result = run_cli("robots", "--json")
+    assert result.returncode == 0, result.stderr
+    info = json.loads(result.stdout)
+    assert list(info)[:4] == list(BUNDLED)
+    dh3 = info["dh3"]
+    assert dh3["joints"] == ["base_yaw", "shoulder", "elbow"]
+    assert dh3["tip"] == "hand" and dh3["dof"] == 3
+    np.testing.assert_allclose(dh3["lower"], [-math.radians(135)] * 3)
+    np.testing.assert_allclose(dh3["upper"], [math.radians(135)] * 3)
+    assert set(info) == set(planner.available_robots())
+
+
+def test_robots_table():
+    result = run_cli("robots")
+    assert result.returncode == 0
+    assert "three_joint" in result.stdout and "dof" in result.stdout
+
+
+def test_fk_json_in_degrees_is_the_seed_example():
+    result = run_cli("fk", "dh3", "45", "90", "90", "--deg", "--json")
+    assert result.returncode == 0, result.stderr
+    out = json.loads(result.stdout)
+    np.testing.assert_allclose(np.round(np.array(out["position"]) * 100, 2), [7.78, 7.78, 9.0])
+    assert np.array(out["matrix"]).shape == (4, 4)
+    np.testing.assert_allclose(np.array(out["matrix"])[:3, 3], out["position"])
+
+
+def test_fk_other_tip_and_radians():
+    result = run_cli("fk", "al5c", "0", "0", "0", "0", "0", "--tip", "wrist_rotate_link", "--json")
+    out = json.loads(result.stdout)
+    np.testing.assert_allclose(out["position"], [0.14605 + 0.187325, 0, 0.06731], atol=1e-12)
+
+
+def test_errors_are_one_line_without_traceback():
+    for args, text in [
+        (("fk", "puma", "0"), "unknown robot 'puma'; valid names: shelley, al5c"),
+        (("fk", "dh3", "0", "0"), "q has shape (2,)"),
+        (("fk", "dh3", "0", "0", "0", "--tip", "claw"), "unknown frame 'claw'; valid frames:"),
+        (("fk", "dh3", "nan", "0", "0"), "q holds nan for joint 'base_yaw'"),
+    ]:
+        result = run_cli(*args)
+        assert result.returncode == 1, args
+        assert result.stderr.count("\n") == 1, result.stderr
+        assert text in result.stderr and "Traceback" not in result.stderr
+
+
+def test_version_and_help():
+    result = run_cli("--version")
+    assert result.returncode == 0 and planner.__version__ in result.stdout
+    result = run_cli("--help")
+    assert result.returncode == 0 and "fk" in result.stdout and "robots" in result.stdout

@@ -1,0 +1,88 @@
+"""Bad input raises a clear error from the root PlannerError, with a message that helps."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+import planner
+from conftest import get_robot
+
+GOOD = """<robot name="r"><link name="a"/><link name="b"/>
+<joint name="j" type="revolute"><parent link="a"/><child link="b"/><axis xyz="0 0 1"/>
+<limit lower="{lower}" upper="{upper}" effort="1" velocity="{velocity}"/></joint></robot>"""
+
+
+def make(lower="-1", upper="1", velocity="1") -> str:
+    return GOOD.format(lower=lower, upper=upper, velocity=velocity)
+
+
+def test_every_error_derives_from_planner_error():
+    for name in planner.__all__:
+        obj = getattr(planner, name)
+        if isinstance(obj, type) and issubclass(obj, Exception):
+            assert issubclass(obj, planner.PlannerError), name
+
+
+def test_malformed_urdf_text():
+    with pytest.raises(planner.URDFError, match=r"<urdf>: malformed XML: .*line 1"):
+        planner.Robot("<robot name='x'><link")
+
+
+def test_urdf_with_wrong_root_and_dangling_link():
+    with pytest.raises(planner.URDFError, match=r"root element is <foo>, a URDF's must be <robot>"):
+        planner.Robot("<foo/>")
+    dangling = make().replace('<child link="b"/>', '<child link="c"/>')
+    with pytest.raises(planner.URDFError, match=r"joint 'j' names child link 'c', which is not defined; links: a, b"):
+        planner.Robot(dangling)
+
+
+def test_urdf_with_lower_above_upper():
+    with pytest.raises(planner.InvalidLimitsError, match=r"joint 'j' has lower limit 1 > upper limit -1") as info:
+        planner.Robot(make(lower="1", upper="-1"))
+    assert info.value.joint == "j"
+
+
+def test_urdf_with_negative_or_nan_speed():
+    with pytest.raises(planner.InvalidLimitsError, match=r"joint 'j' has a negative velocity limit -2"):
+        planner.Robot(make(velocity="-2"))
+    with pytest.raises(planner.InvalidLimitsError, match=r"joint 'j' lower limit is NaN"):
+        planner.Robot(make(lower="nan"))
+
+
+def test_urdf_file_that_does_not_exist(tmp_path):
+    with pytest.raises(planner.URDFError, match=r"cannot read URDF file .*missing.urdf"):
+        planner.load_robot(tmp_path / "missing.urdf")
+
+
+def test_unknown_tip_frame_lists_the_frames():
+    with pytest.raises(planner.UnknownFrameError, match=r"unknown frame 'claw'; valid frames: .*base_link.*hand") as info:
+        planner.load_robot("dh3", tip="claw")
+    assert "hand" in info.value.choices
+    with pytest.raises(planner.UnknownFrameError, match=r"unknown frame 'nope'; valid frames: .*gripper"):
+        get_robot("al5c").fk(np.zeros(5), frame="nope")
+
+
+def test_q_of_wrong_length():
+    with pytest.raises(
+        planner.InvalidConfigurationError,
+        match=r"q has shape \(2,\); dh3 expects \(3,\) or \(N, 3\) for joints base_yaw, shoulder, elbow",
+    ):
+        get_robot("dh3").fk([0.1, 0.2])
+
+
+def test_nan_in_q_names_the_joint():
+    with pytest.raises(planner.InvalidConfigurationError, match=r"q holds nan for joint 'shoulder'; values must be finite"):
+        get_robot("dh3").fk([0.1, math.nan, 0.2])
+    with pytest.raises(planner.InvalidConfigurationError, match=r"q holds inf for joint 'elbow'"):
+        get_robot("dh3").jacobian([0.1, 0.2, math.inf])
+
+
+def test_unknown_robot_name_lists_the_names():
+    with pytest.raises(
+        planner.UnknownRobotError, match=r"unknown robot 'puma'; valid names: shelley, al5c, three_joint, dh3"
+    ) as info:
+        planner.load_robot("puma")
+    assert info.value.choices[:4] == ("shelley", "al5c", "three_joint", "dh3")
