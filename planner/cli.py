@@ -135,9 +135,8 @@ def _run_demo(args: argparse.Namespace) -> int:
         q = robot.random_configurations(rng, 200)
         pos = robot.position(q)
         w = robot.manipulability(q)
-        rows.append(
-            (name, robot.dof, robot.tip, f"{np.max(np.linalg.norm(pos, axis=1)):.4f}", f"{np.min(w):.3g}", f"{np.max(w):.3g}")
-        )
+        reach = f"{np.max(np.linalg.norm(pos, axis=1)):.4f}"
+        rows.append((name, robot.dof, robot.tip, reach, f"{np.min(w):.3g}", f"{np.max(w):.3g}"))
     print("Forward kinematics of 200 random configurations within limits per bundled arm")
     print(_table(["robot", "dof", "tip", "max reach seen [m]", "min manip.", "max manip."], rows))
     return 0

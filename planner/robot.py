@@ -429,6 +429,21 @@ class Robot:
         """Position of a frame (default: the tip) in the base frame, shape (3,) or (N, 3) [m]."""
         return self.fk(q, frame)[..., :3, 3]
 
+    def joint_positions(self, q: Sequence[float] | np.ndarray) -> np.ndarray:
+        """Origins of the base, every chain joint and the tip, for drawing the arm.
+
+        Args:
+            q: Shape (dof,) [rad or m].
+
+        Returns:
+            Shape (dof + 2, 3) [m]: the base origin, each joint origin base to tip, the tip.
+        """
+        arr = self.check_configuration(q, batch=False)
+        pin.forwardKinematics(self.model, self.data, self._pin_q(arr))
+        tip = pin.updateFramePlacement(self.model, self.data, self.tip_frame_id).translation
+        joints = [self.data.oMi[j].translation for j in range(1, self.model.njoints)]
+        return np.array([np.zeros(3), *joints, tip])
+
     def jacobian(
         self,
         q: Sequence[float] | np.ndarray,

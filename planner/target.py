@@ -110,7 +110,9 @@ def rotation_error(rotation_a: np.ndarray, rotation_b: np.ndarray) -> np.ndarray
     rel = np.swapaxes(rotation_a, -1, -2) @ rotation_b
     cos = (np.trace(rel, axis1=-2, axis2=-1) - 1.0) / 2.0
     # arccos loses precision near 0; the antisymmetric part keeps small angles accurate.
-    skew = np.stack([rel[..., 2, 1] - rel[..., 1, 2], rel[..., 0, 2] - rel[..., 2, 0], rel[..., 1, 0] - rel[..., 0, 1]], -1)
+    skew = np.stack(
+        [rel[..., 2, 1] - rel[..., 1, 2], rel[..., 0, 2] - rel[..., 2, 0], rel[..., 1, 0] - rel[..., 0, 1]], axis=-1
+    )
     sin = np.linalg.norm(skew, axis=-1) / 2.0
     angle = np.arctan2(sin, np.clip(cos, -1.0, 1.0))
     return float(angle) if np.ndim(angle) == 0 else angle

@@ -8,6 +8,7 @@ import math
 import numpy as np
 
 import planner
+
 from conftest import BUNDLED, run_cli
 
 

@@ -11,6 +11,7 @@ import pytest
 import planner
 from planner.description import dh_transform
 from planner.robots import BUNDLED_ROBOTS
+
 from conftest import run_cli
 
 

@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 
 import planner
+
 from conftest import get_robot
 
 GOOD = """<robot name="r"><link name="a"/><link name="b"/>
@@ -58,7 +59,8 @@ def test_urdf_file_that_does_not_exist(tmp_path):
 
 
 def test_unknown_tip_frame_lists_the_frames():
-    with pytest.raises(planner.UnknownFrameError, match=r"unknown frame 'claw'; valid frames: .*base_link.*hand") as info:
+    message = r"unknown frame 'claw'; valid frames: .*base_link.*hand"
+    with pytest.raises(planner.UnknownFrameError, match=message) as info:
         planner.load_robot("dh3", tip="claw")
     assert "hand" in info.value.choices
     with pytest.raises(planner.UnknownFrameError, match=r"unknown frame 'nope'; valid frames: .*gripper"):
@@ -74,7 +76,8 @@ def test_q_of_wrong_length():
 
 
 def test_nan_in_q_names_the_joint():
-    with pytest.raises(planner.InvalidConfigurationError, match=r"q holds nan for joint 'shoulder'; values must be finite"):
+    message = r"q holds nan for joint 'shoulder'; values must be finite"
+    with pytest.raises(planner.InvalidConfigurationError, match=message):
         get_robot("dh3").fk([0.1, math.nan, 0.2])
     with pytest.raises(planner.InvalidConfigurationError, match=r"q holds inf for joint 'elbow'"):
         get_robot("dh3").jacobian([0.1, 0.2, math.inf])

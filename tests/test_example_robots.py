@@ -9,8 +9,9 @@ import numpy as np
 import pinocchio as pin
 import pytest
 
-from conftest import EXAMPLES, get_robot, needs_example_robot_data
 from planner.robots import EXAMPLE_ROBOTS, example_robot_data_dir
+
+from conftest import EXAMPLES, get_robot, needs_example_robot_data
 
 pytestmark = needs_example_robot_data
 

@@ -9,6 +9,7 @@ import pinocchio as pin
 import pytest
 
 import planner
+
 from conftest import BUNDLED, get_robot
 
 RNG_SEED = 20261122
@@ -162,7 +163,8 @@ def test_manipulability_equals_yoshikawa_formula(bundled_robot):
     for q in bundled_robot.random_configurations(rng, 5):
         jac = bundled_robot.jacobian(q)[:3]
         gram = jac @ jac.T if jac.shape[0] <= jac.shape[1] else jac.T @ jac
-        assert bundled_robot.manipulability(q) == pytest.approx(math.sqrt(abs(np.linalg.det(gram))), rel=1e-9, abs=1e-15)
+        expected = math.sqrt(abs(np.linalg.det(gram)))
+        assert bundled_robot.manipulability(q) == pytest.approx(expected, rel=1e-9, abs=1e-15)
 
 
 def test_planar_two_link_manipulability_is_r1_r2_sin_elbow_without_offset():
@@ -209,7 +211,8 @@ def test_random_configurations_need_a_generator():
 
 def test_check_limits_names_the_joint():
     robot = get_robot("al5c")
-    with pytest.raises(planner.JointLimitError, match=r"joint 'elbow' value 0 is outside its range \[-2.87979, -0.436332\]"):
+    message = r"joint 'elbow' value 0 is outside its range \[-2.87979, -0.436332\]"
+    with pytest.raises(planner.JointLimitError, match=message):
         robot.check_limits(np.radians([0, 30, 0, 0, 0]))
     assert robot.within_limits(np.radians([0, 30, -60, 0, 0])) is True
 
