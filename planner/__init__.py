@@ -4,6 +4,8 @@ Data flows one way: URDF -> :class:`Robot` (Pinocchio model) -> IK -> waypoints 
 trajectory -> samples / servo commands. SI units throughout (m, rad, s).
 """
 
+from .analytic import AnalyticBatchResult, AnalyticIK, AnalyticResult, AnalyticSolution, solve_analytic
+from .casadi_kinematics import CasadiKinematics
 from .description import dh_transform, load_arm_description, servo_speed_to_velocity, urdf_from_dh
 from .exceptions import (
     InvalidArgumentError,
@@ -16,10 +18,16 @@ from .exceptions import (
     UnsupportedChainError,
     URDFError,
 )
+from .ik import CrossCheck, cross_check, solve_ik
+from .nlp_ik import IKResult, NlpIK
 from .robot import Robot
 from .robots import available_robots, load_robot
 from .sensing import range_bearing_to_base
+from .servo import ServoCalibration, default_calibrations, pulse_table, ssc32_group_moves
+from .singularity import check_singularities, plan_clear_of_singularities
 from .target import Target, quaternion_to_matrix, rotation_error, rpy_to_matrix
+from .trajectory import JointLimits, JointTrajectory, plan_trajectory
+from .waypoints import MotionPlan, load_motion_request, plan_motion
 
 __version__ = "0.1.0"
 
@@ -40,6 +48,32 @@ __all__ = [
     "quaternion_to_matrix",
     "rotation_error",
     "range_bearing_to_base",
+    # closed-form IK
+    "AnalyticIK",
+    "solve_analytic",
+    "AnalyticResult",
+    "AnalyticSolution",
+    "AnalyticBatchResult",
+    # numerical IK, dispatcher and cross-check
+    "NlpIK",
+    "IKResult",
+    "CasadiKinematics",
+    "solve_ik",
+    "cross_check",
+    "CrossCheck",
+    # trajectories, singularities, servo export
+    "JointLimits",
+    "JointTrajectory",
+    "plan_trajectory",
+    "check_singularities",
+    "plan_clear_of_singularities",
+    "ServoCalibration",
+    "default_calibrations",
+    "pulse_table",
+    "ssc32_group_moves",
+    "MotionPlan",
+    "load_motion_request",
+    "plan_motion",
     # errors
     "PlannerError",
     "URDFError",

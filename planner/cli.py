@@ -17,8 +17,10 @@ from pathlib import Path
 import numpy as np
 
 from .description import urdf_from_dh
-from .exceptions import PlannerError
+from .exceptions import InvalidArgumentError, PlannerError
+from .robot import Robot
 from .robots import BUNDLED_ROBOTS, available_robots, load_robot
+from .target import Target
 
 __all__ = ["main", "build_parser"]
 
@@ -142,11 +144,242 @@ def _run_demo(args: argparse.Namespace) -> int:
     return 0
 
 
+# ---------------------------------------------------------------------------- plan
+def _add_plan(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser(
+        "plan",
+        help="a smooth, limit-honouring trajectory through waypoints or Cartesian targets",
+        description="Plan a jerk-limited trajectory through the waypoints of a plan file (YAML or JSON; "
+        "the format is in the README and planner.waypoints).",
+    )
+    p.add_argument("robot", help="robot name (see `planner robots`) or URDF path")
+    p.add_argument("waypoints_file", type=Path, help="plan file (.yaml or .json)")
+    p.add_argument(
+        "--out", type=Path, default=None, help="directory for trajectory.csv, servo files and summary.json"
+    )
+    p.add_argument(
+        "--rate", type=float, default=1000.0, help="sample rate of the checks and the CSV [Hz] (default 1000)"
+    )
+    p.add_argument("--json", action="store_true", help="print the summary as JSON")
+
+
+def _run_plan(args: argparse.Namespace) -> int:
+    from .exceptions import InvalidArgumentError
+    from .servo import pulse_table, ssc32_group_moves
+    from .waypoints import load_motion_request, plan_motion
+
+    if not (np.isfinite(args.rate) and args.rate > 0):
+        raise InvalidArgumentError(f"--rate must be a positive number [Hz], got {args.rate}")
+    robot = load_robot(args.robot)
+    request = load_motion_request(args.waypoints_file)
+    plan = plan_motion(robot, request, rate=args.rate)
+    summary = plan.summary(args.rate)
+    if args.out is not None:
+        out = args.out
+        try:
+            out.mkdir(parents=True, exist_ok=True)
+        except OSError as exc:
+            raise InvalidArgumentError(f"cannot create output directory {str(out)!r}: {exc.strerror}") from exc
+        plan.trajectory.to_csv(out / "trajectory.csv", rate=args.rate)
+        period = plan.servo_period_ms
+        t, pulses = pulse_table(plan.trajectory, plan.calibrations, rate=1000.0 / period)
+        with (out / "servo_pulses.csv").open("w") as fh:
+            fh.write(",".join(["t"] + [f"ch{c.channel}_{c.joint}" for c in plan.calibrations]) + "\n")
+            for ti, row in zip(t, pulses):
+                fh.write(f"{ti:.6f}," + ",".join(str(int(x)) for x in row) + "\n")
+        commands = ssc32_group_moves(plan.trajectory, plan.calibrations, period_ms=period)
+        (out / "ssc32.txt").write_bytes("".join(c + "\r" for c in commands).encode("ascii"))
+        names = ("trajectory.csv", "servo_pulses.csv", "ssc32.txt", "summary.json")
+        summary["files"] = sorted(str(out / f) for f in names)
+        (out / "summary.json").write_text(json.dumps(summary, indent=2, allow_nan=False) + "\n")
+    if args.json:
+        _print_json(summary)
+        return 0
+    print(f"{robot.name}: {len(plan.waypoints)} waypoints, duration {plan.trajectory.duration:.4f} s "
+          f"({plan.trajectory.strategy} via states)")
+    rows = []
+    for k, (tk, q) in enumerate(zip(plan.waypoint_times, plan.waypoints)):
+        rows.append((k, f"{tk:.4f}", " ".join(f"{x:+.4f}" for x in q), plan.branches[k] or "-",
+                     "SINGULAR" if k in plan.singular_waypoints else ""))
+    print(_table(["#", "t [s]", "q [rad]", "branch", ""], rows))
+    print(f"peak / limit: velocity {summary['max_velocity_ratio']:.4f}, acceleration "
+          f"{summary['max_acceleration_ratio']:.4f}, jerk {summary['max_jerk_ratio']:.4f} "
+          f"(sampled at {args.rate:g} Hz)")
+    print(f"min manipulability {summary['min_manipulability']:.4g}, min inverse condition number "
+          f"{summary['min_inverse_condition']:.4g} (threshold 1/{summary['condition_number_threshold']:g})")
+    if plan.detours:
+        print(f"detours inserted: {len(plan.detours)} (segments {sorted({d.segment for d in plan.detours})})")
+    if plan.unresolved:
+        print(f"segments still passing near a singularity: {list(plan.unresolved)}")
+    if args.out is not None:
+        print(f"wrote {', '.join(summary['files'])}")
+    return 0
+
+
+# ---------------------------------------------------------------------------- ik
+def _add_ik(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser(
+        "ik",
+        help="inverse kinematics: joint values that put the tip on a target",
+        description="Solve inverse kinematics for a tip position, optionally with an approach pitch "
+        "(--pitch) or a full orientation (--rpy). An unreachable target is a result (exit code 0) whose "
+        "status says why; bad input exits 1.",
+    )
+    p.add_argument("robot", help="robot name (see `planner robots`) or URDF path")
+    p.add_argument("x", type=float, help="target x [m]")
+    p.add_argument("y", type=float, help="target y [m]")
+    p.add_argument("z", type=float, help="target z [m]")
+    p.add_argument("--pitch", type=float, default=None, help="approach pitch [rad; deg with --deg]: 0 horizontal "
+                   "away from the base axis, -90 deg straight down")
+    p.add_argument("--rpy", type=float, nargs=3, metavar=("R", "P", "Y"), default=None,
+                   help="tip orientation as URDF roll-pitch-yaw [rad; deg with --deg]")
+    p.add_argument("--deg", action="store_true", help="angles (--pitch, --rpy, --current, output table) in degrees")
+    p.add_argument("--method", choices=("analytic", "nlp", "both"), default="analytic",
+                   help="closed form (default), CasADi optimisation, or both")
+    p.add_argument("--current", type=float, nargs="+", default=None, metavar="Q",
+                   help="current joint values: solutions are sorted by distance to them [rad; deg with --deg]")
+    p.add_argument("--tip", default=None, help="tip frame (default: the arm's tool frame)")
+    p.add_argument("--all", action="store_true", help="every solution (default: the best one within limits)")
+    p.add_argument("--time-budget", type=float, default=0.05, metavar="S",
+                   help="NLP: wall time after which no new restart begins [s] (default 0.05)")
+    p.add_argument("--json", action="store_true", help="print JSON")
+
+
+def _ik_target(args: argparse.Namespace) -> Target:
+    position = [args.x, args.y, args.z]
+    if args.rpy is not None:
+        if args.pitch is not None:
+            raise InvalidArgumentError("give either --pitch or --rpy, not both")
+        return Target.from_rpy(position, _angles(args.rpy, args.deg))
+    pitch = None if args.pitch is None else float(_angles([args.pitch], args.deg)[0])
+    return Target(position, pitch=pitch)
+
+
+def _ik_current(args: argparse.Namespace, robot: Robot) -> np.ndarray | None:
+    if args.current is None:
+        return None
+    q = np.asarray(args.current, dtype=float)
+    if args.deg and q.shape == (robot.dof,):
+        q = np.where(np.array(robot.joint_kinds) == "prismatic", q, np.radians(q))
+    return robot.check_configuration(q, batch=False)
+
+
+def _ik_analytic(robot: Robot, target: Target, args: argparse.Namespace) -> dict:
+    """Closed-form IK as a JSON-ready dict (every solution; `_run_ik` keeps the best unless --all)."""
+    from .analytic import solve_analytic
+
+    result = solve_analytic(robot, target, _ik_current(args, robot))
+    out = result.as_dict()
+    best = result.best
+    out["best"] = None if best is None else result.solutions.index(best)
+    return out
+
+
+def _nlp_solution(robot: Robot, target: Target, result, branch: str) -> dict:
+    """The NLP answer in the shape of a closed-form solution (see AnalyticSolution.as_dict)."""
+    return {
+        "q": result.q.tolist(),
+        "branch": branch,
+        "within_limits": True,
+        "singular": bool(robot.inverse_condition_number(result.q) < 1e-7),
+        "position_error": result.position_error,
+        "orientation_error": None if target.kind == "position" else result.orientation_error,
+        "status": "ok" if result.success else result.status,
+    }
+
+
+def _ik_nlp(robot: Robot, target: Target, args: argparse.Namespace) -> dict:
+    """CasADi IK as a JSON-ready dict shaped like the closed form's, plus attempts and time."""
+    from .ik import nlp_solver
+
+    result = nlp_solver(robot).solve(target, _ik_current(args, robot), time_budget=args.time_budget)
+    solution = _nlp_solution(robot, target, result, "nlp")
+    return {
+        "status": "ok" if result.success else result.status,
+        "reason": "" if result.success else result.reason,
+        "singular": solution["singular"],
+        "solutions": [solution],
+        "best": 0 if result.success else None,
+        "attempts": result.attempts,
+        "attempt_kind": result.attempt_kind,
+        "iterations": result.iterations,
+        "time_ms": result.wall_time * 1e3,
+    }
+
+
+def _ik_both(robot: Robot, target: Target, args: argparse.Namespace) -> dict:
+    """Closed form and NLP cross-checked: the NLP answer first, then every closed-form branch."""
+    from .ik import cross_check
+
+    check = cross_check(robot, target, _ik_current(args, robot), time_budget=args.time_budget)
+    analytic = _ik_analytic(robot, target, args)
+    nlp = check.nlp
+    label = f"nlp = {check.branch}" if check.verdict == "match" else "nlp"
+    solutions = [_nlp_solution(robot, target, nlp, label)] + analytic["solutions"]
+    best = 0 if nlp.success else (None if analytic["best"] is None else analytic["best"] + 1)
+    return {
+        "status": analytic["status"],
+        "reason": check.reason,
+        "singular": analytic["singular"],
+        "solutions": solutions,
+        "best": best,
+        "agree": check.agree,
+        "cross_check": check.as_dict(),
+        "attempts": nlp.attempts,
+        "time_ms": nlp.wall_time * 1e3,
+    }
+
+
+_IK_METHODS: dict[str, Callable[[Robot, Target, argparse.Namespace], dict]] = {
+    "analytic": _ik_analytic,
+    "nlp": _ik_nlp,
+    "both": _ik_both,
+}
+
+
+def _run_ik(args: argparse.Namespace) -> int:
+    robot = load_robot(args.robot, tip=args.tip)
+    target = _ik_target(args)
+    out = _IK_METHODS[args.method](robot, target, args)
+    if not args.all:
+        best = out.get("best")
+        out["solutions"] = [] if best is None else [out["solutions"][best]]
+        out["best"] = None if best is None else 0
+    result = {
+        "robot": robot.name,
+        "tip": robot.tip,
+        "method": args.method,
+        "target": {
+            "position": target.position.tolist(),
+            "pitch": target.pitch,
+            "rotation": None if target.rotation is None else target.rotation.tolist(),
+        },
+        **out,
+    }
+    if args.json:
+        _print_json(result)
+        return 0
+    unit = "deg" if args.deg else "rad"
+    print(f"{robot.name} {args.method} IK, target {np.round(target.position, 6).tolist()} m: {result['status']}")
+    if result.get("reason"):
+        print(f"  {result['reason']}")
+    rows = []
+    for s in result["solutions"]:
+        q = np.degrees(s["q"]) if args.deg else np.asarray(s["q"])
+        rows.append((s.get("branch", "-"), " ".join(f"{v:+.4f}" for v in q), "yes" if s["within_limits"] else "NO",
+                     "yes" if s.get("singular") else "", f"{s['position_error']:.3g}"))
+    if rows:
+        print(_table(["branch", f"q [{unit}]", "within limits", "singular", "position error [m]"], rows))
+    return 0
+
+
 _COMMANDS: dict[str, tuple[Callable[[argparse._SubParsersAction], None], Callable[[argparse.Namespace], int]]] = {
     "robots": (_add_robots, _run_robots),
     "fk": (_add_fk, _run_fk),
     "urdf-from-dh": (_add_urdf_from_dh, _run_urdf_from_dh),
     "demo": (_add_demo, _run_demo),
+    "plan": (_add_plan, _run_plan),
+    "ik": (_add_ik, _run_ik),
 }
 
 

@@ -1,0 +1,238 @@
+"""Benchmark: multi-waypoint trajectories against stop-and-go Ruckig and TOPPRA.
+
+For every arm (the bundled seed arms, and the example-robot-data arms when installed), random
+paths of 5 waypoints within the joint limits (fixed seed) are planned with limits
+v = the URDF's speed, a = 2 v, j = 10 a:
+
+- ``planner``: :func:`planner.plan_trajectory` (Ruckig segments, chosen via states), which
+  honours v, a, j and the position range at every instant;
+- ``stop``: the same Ruckig segments resting at every waypoint;
+- ``toppra``: TOPPRA's time-optimal parametrisation of a cubic spline through the same
+  waypoints (uniform path parameter, TOPPRA's default ``not-a-knot`` spline) with the same v
+  and a limits. It ignores jerk, and the spline can leave the joint range: both are counted.
+
+Goals (from the issue): median duration <= 0.9 x TOPPRA's, median plan time <= 5 ms for 5
+waypoints on a 6-dof arm. Prints a Markdown table and writes JSON to benchmarks/results/.
+
+    python benchmarks/bench_trajectory.py [--paths 100] [--seed 0]
+"""
+
+from __future__ import annotations
+
+import argparse
+import datetime
+import json
+import logging
+import os
+import platform
+import sys
+import time
+from importlib import metadata
+from pathlib import Path
+
+import numpy as np
+
+from planner import available_robots, load_robot
+from planner.robots import BUNDLED_ROBOTS
+from planner.trajectory import LIMIT_TOLERANCE, JointLimits, plan_trajectory
+
+RESULTS = Path(__file__).resolve().parent / "results"
+
+
+def toppra_plan(q: np.ndarray, limits: JointLimits):
+    """TOPPRA through a cubic spline of the waypoints; returns (trajectory or None, wall time)."""
+    import toppra
+    import toppra.algorithm
+    import toppra.constraint
+
+    t0 = time.perf_counter()
+    path = toppra.SplineInterpolator(np.linspace(0.0, 1.0, len(q)), q)
+    vel = toppra.constraint.JointVelocityConstraint(np.column_stack([-limits.velocity, limits.velocity]))
+    acc = toppra.constraint.JointAccelerationConstraint(np.column_stack([-limits.acceleration, limits.acceleration]))
+    instance = toppra.algorithm.TOPPRA([vel, acc], path, parametrizer="ParametrizeConstAccel")
+    traj = instance.compute_trajectory()
+    return traj, time.perf_counter() - t0
+
+
+def toppra_checks(traj, limits: JointLimits, rate: float = 1000.0) -> dict:
+    """Sampled range excursion and peak ratios of a TOPPRA trajectory (jerk by differences)."""
+    t = np.arange(0.0, traj.duration, 1.0 / rate)
+    q = traj(t)
+    qd = traj(t, 1)
+    qdd = traj(t, 2)
+    jerk = np.diff(qdd, axis=0) * rate
+    return {
+        "leaves_range": bool(np.any(q < limits.lower - 1e-9) or np.any(q > limits.upper + 1e-9)),
+        "velocity": float(np.max(np.abs(qd) / limits.velocity)),
+        "acceleration": float(np.max(np.abs(qdd) / limits.acceleration)),
+        "jerk": float(np.max(np.abs(jerk) / limits.jerk)) if len(jerk) else 0.0,
+    }
+
+
+def bench_robot(name: str, paths: int, rng: np.random.Generator, have_toppra: bool) -> dict:
+    robot = load_robot(name)
+    limits = JointLimits.from_robot(robot)  # v from the URDF, a = 2 v, j = 10 a
+    q0 = robot.random_configurations(rng, 5)
+    plan_trajectory(q0, limits)  # warm-up
+    rows = []
+    for _ in range(paths):
+        q = robot.random_configurations(rng, 5)
+        t0 = time.perf_counter()
+        ours = plan_trajectory(q, limits)
+        plan_time = time.perf_counter() - t0
+        stop = plan_trajectory(q, limits, strategy="stop")
+        peaks = ours.peak_ratios(1000.0)
+        exact = ours.peak_ratios(None)
+        row = {
+            "duration": ours.duration,
+            "stop_duration": stop.duration,
+            "plan_time": plan_time,
+            "velocity": max(peaks["velocity"], exact["velocity"]),
+            "acceleration": max(peaks["acceleration"], exact["acceleration"]),
+            "jerk": max(peaks["jerk"], exact["jerk"]),
+            "position_excess": max(peaks["position"], exact["position"]),
+            "passes_waypoints": bool(np.max(np.abs(ours.sample(ours.waypoint_times).q - q)) <= 1e-12),
+        }
+        if have_toppra:
+            traj, toppra_time = toppra_plan(q, limits)
+            row["toppra_time"] = toppra_time
+            if traj is None:
+                row["toppra_duration"] = None
+            else:
+                row["toppra_duration"] = float(traj.duration)
+                row.update({f"toppra_{k}": v for k, v in toppra_checks(traj, limits).items()})
+        rows.append(row)
+    return {"robot": name, "dof": robot.dof, "source": "bundled" if name in BUNDLED_ROBOTS else "example-robot-data", "rows": rows}
+
+
+def summarise(result: dict) -> dict:
+    rows = result["rows"]
+    dur = np.array([r["duration"] for r in rows])
+    stop = np.array([r["stop_duration"] for r in rows])
+    times = np.array([r["plan_time"] for r in rows]) * 1e3
+    out = {
+        "robot": result["robot"],
+        "dof": result["dof"],
+        "source": result["source"],
+        "paths": len(rows),
+        "median_duration": float(np.median(dur)),
+        "median_ratio_to_stop": float(np.median(dur / stop)),
+        "plan_ms_mean": float(np.mean(times)),
+        "plan_ms_median": float(np.median(times)),
+        "plan_ms_worst": float(np.max(times)),
+        "max_velocity_ratio": max(r["velocity"] for r in rows),
+        "max_acceleration_ratio": max(r["acceleration"] for r in rows),
+        "max_jerk_ratio": max(r["jerk"] for r in rows),
+        "max_position_excess": max(r["position_excess"] for r in rows),
+        "all_pass_waypoints": all(r["passes_waypoints"] for r in rows),
+    }
+    ok = [r for r in rows if r.get("toppra_duration")]
+    if ok:
+        ratio = np.array([r["duration"] / r["toppra_duration"] for r in ok])
+        out.update(
+            {
+                "toppra_solved": len(ok),
+                "toppra_failed": len(rows) - len(ok),
+                "median_ratio_to_toppra": float(np.median(ratio)),
+                "share_faster_than_toppra": float(np.mean(ratio < 1.0)),
+                "toppra_leaves_range": int(sum(r["toppra_leaves_range"] for r in ok)),
+                "toppra_median_jerk_ratio": float(np.median([r["toppra_jerk"] for r in ok])),
+                "toppra_max_velocity_ratio": float(max(r["toppra_velocity"] for r in ok)),
+                "toppra_max_acceleration_ratio": float(max(r["toppra_acceleration"] for r in ok)),
+                "toppra_ms_median": float(np.median([r["toppra_time"] for r in ok]) * 1e3),
+            }
+        )
+    return out
+
+
+def markdown(summaries: list[dict]) -> str:
+    head = (
+        "| robot | dof | paths | median T / TOPPRA | median T / stop | plan ms median (worst) "
+        "| peak v, a, j / limit | TOPPRA out of range | TOPPRA median peak jerk / limit |"
+    )
+    lines = [head, "|" + "---|" * 9]
+    for s in summaries:
+        toppra = s.get("median_ratio_to_toppra")
+        lines.append(
+            f"| {s['robot']} | {s['dof']} | {s['paths']} | "
+            + (f"{toppra:.3f}" if toppra is not None else "n/a")
+            + f" | {s['median_ratio_to_stop']:.3f} | {s['plan_ms_median']:.2f} ({s['plan_ms_worst']:.1f}) | "
+            f"{s['max_velocity_ratio']:.4f}, {s['max_acceleration_ratio']:.4f}, {s['max_jerk_ratio']:.4f} | "
+            + (f"{s['toppra_leaves_range']}/{s['toppra_solved']}" if toppra is not None else "n/a")
+            + " | "
+            + (f"{s['toppra_median_jerk_ratio']:.1f}" if toppra is not None else "n/a")
+            + " |"
+        )
+    return "\n".join(lines)
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--paths", type=int, default=100, help="random paths per robot")
+    parser.add_argument("--seed", type=int, default=0, help="seed of the random waypoints")
+    parser.add_argument("--robots", nargs="*", default=None, help="robots (default: every available one)")
+    args = parser.parse_args(argv)
+    logging.getLogger("toppra").setLevel(logging.ERROR)
+    try:
+        import toppra  # noqa: F401
+
+        have_toppra = True
+    except ImportError:
+        have_toppra = False
+        print("toppra is not installed (pip install 'planner[bench]'): TOPPRA columns are skipped")
+    names = args.robots or list(available_robots())
+    skipped = [n for n in ("ur5", "panda", "so101", "z1") if n not in available_robots()]
+    if skipped:
+        print(f"example-robot-data not installed: skipping {', '.join(skipped)}")
+    rng = np.random.default_rng(args.seed)
+    results = [bench_robot(name, args.paths, rng, have_toppra) for name in names]
+    summaries = [summarise(r) for r in results]
+    table = markdown(summaries)
+    print(table)
+    six = [s for s in summaries if s["dof"] == 6]
+    all_ratios = [
+        r["duration"] / r["toppra_duration"] for res in results for r in res["rows"] if r.get("toppra_duration")
+    ]
+    overall = {
+        "median_ratio_to_toppra_all": float(np.median(all_ratios)) if all_ratios else None,
+        "median_plan_ms_6dof": float(np.median([r["plan_time"] for res in results if res["dof"] == 6 for r in res["rows"]]) * 1e3)
+        if six
+        else None,
+        "limit_tolerance": LIMIT_TOLERANCE,
+    }
+    print()
+    if overall["median_ratio_to_toppra_all"] is not None:
+        print(f"median duration / TOPPRA over all paths: {overall['median_ratio_to_toppra_all']:.3f} (goal <= 0.9)")
+    if overall["median_plan_ms_6dof"] is not None:
+        print(f"median plan time, 5 waypoints, 6-dof arms: {overall['median_plan_ms_6dof']:.2f} ms (goal <= 5 ms)")
+    versions = {}
+    for pkg in ("ruckig", "numpy", "pin", "toppra", "example-robot-data"):
+        try:
+            versions[pkg] = metadata.version(pkg)
+        except metadata.PackageNotFoundError:
+            versions[pkg] = None
+    record = {
+        "benchmark": "bench_trajectory",
+        "date": datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds"),
+        "command": " ".join([Path(sys.executable).name, *sys.argv]),
+        "machine": {
+            "platform": platform.platform(),
+            "processor": platform.processor() or platform.machine(),
+            "cpus": os.cpu_count(),
+            "python": platform.python_version(),
+        },
+        "versions": versions,
+        "settings": {"paths": args.paths, "seed": args.seed, "waypoints": 5, "limits": "v = URDF, a = 2 v, j = 10 a"},
+        "summary": summaries,
+        "overall": overall,
+        "table": table,
+    }
+    RESULTS.mkdir(parents=True, exist_ok=True)
+    out = RESULTS / "bench_trajectory.json"
+    out.write_text(json.dumps(record, indent=2) + "\n")
+    print(f"\nwrote {out}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

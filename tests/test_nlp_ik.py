@@ -1,0 +1,363 @@
+"""Numerical IK (planner.nlp_ik): round trips checked by Pinocchio FK, limits, restarts,
+secondary objectives, the compile cache, and bad input with its messages."""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import os
+import time
+
+import numpy as np
+import pytest
+from test_casadi_kinematics import MIXED_URDF
+
+from planner import InvalidArgumentError, InvalidConfigurationError, JointLimitError, PlannerError, Robot, Target
+from planner.nlp_ik import IKResult, NlpIK, as_target, compile_function, target_errors
+from planner.target import approach_direction, rotation_error
+
+from conftest import get_robot, needs_example_robot_data
+
+_SOLVERS: dict[str, NlpIK] = {}
+
+
+def solver(name: str) -> NlpIK:
+    if name not in _SOLVERS:
+        _SOLVERS[name] = NlpIK(get_robot(name))
+    return _SOLVERS[name]
+
+
+def approach_pitch(robot: Robot, q: np.ndarray) -> float:
+    pose = robot.fk(q)
+    a = pose[:3, :3] @ robot.approach_axis
+    p = pose[:3, 3]
+    radial = math.hypot(p[0], p[1])
+    return math.atan2(a[2], (a[0] * p[0] + a[1] * p[1]) / radial)
+
+
+def make_target(robot: Robot, kind: str, q: np.ndarray) -> Target:
+    pose = robot.fk(q)
+    if kind == "pose":
+        return Target.from_pose(pose)
+    if kind == "pitch":
+        return Target(pose[:3, 3], pitch=approach_pitch(robot, q))
+    return Target(pose[:3, 3])
+
+
+def assert_reached(robot: Robot, target: Target, result: IKResult, tol: float = 1e-6) -> None:
+    """Check a successful result independently: Pinocchio FK, limits, and the reported errors."""
+    assert result.success, result.reason
+    assert result.status == "solved"
+    assert robot.within_limits(result.q)
+    pose = robot.fk(result.q)
+    position_error = np.linalg.norm(pose[:3, 3] - target.position)
+    assert position_error <= tol
+    assert result.position_error == pytest.approx(position_error, abs=1e-15)
+    if target.rotation is not None:
+        angle = rotation_error(pose[:3, :3], target.rotation)
+        assert angle <= tol
+        assert result.orientation_error == pytest.approx(angle, abs=1e-12)
+    elif target.pitch is not None:
+        wanted = approach_direction(target.position, target.pitch)
+        approach = pose[:3, :3] @ robot.approach_axis
+        assert np.linalg.norm(approach - wanted) <= 2 * tol
+    else:
+        assert result.orientation_error == 0.0
+
+
+BUNDLED_CASES = [
+    ("shelley", "position"),
+    ("dh3", "position"),
+    ("three_joint", "position"),
+    ("three_joint", "pitch"),
+    ("al5c", "position"),
+    ("al5c", "pitch"),
+]
+
+
+@pytest.mark.parametrize(("name", "kind"), BUNDLED_CASES)
+def test_round_trip_on_bundled_arms(name, kind):
+    robot = get_robot(name)
+    rng = np.random.default_rng(10)
+    for q, seed in zip(robot.random_configurations(rng, 25), robot.random_configurations(rng, 25)):
+        target = make_target(robot, kind, q)
+        assert_reached(robot, target, solver(name).solve(target, seed))
+
+
+@needs_example_robot_data
+@pytest.mark.parametrize("name", ["ur5", "panda", "so101", "z1"])
+def test_pose_round_trip_on_example_arms(name):
+    # so101 has 5 joints: a 6-D pose from FK is reachable, so it must be solved too.
+    robot = get_robot(name)
+    rng = np.random.default_rng(11)
+    for q, seed in zip(robot.random_configurations(rng, 40), robot.random_configurations(rng, 40)):
+        target = make_target(robot, "pose", q)
+        result = solver(name).solve(target, seed, time_budget=1.0)
+        assert_reached(robot, target, result)
+        assert result.attempt_kind in ("seed", "random")
+        assert 0 <= result.attempt < result.attempts
+
+
+@needs_example_robot_data
+def test_position_target_on_a_redundant_arm():
+    robot = get_robot("ur5")
+    rng = np.random.default_rng(12)
+    for q in robot.random_configurations(rng, 10):
+        target = make_target(robot, "position", q)
+        assert_reached(robot, target, solver("ur5").solve(target))
+
+
+def test_pitch_target_on_the_base_axis_fixes_only_the_elevation():
+    robot = get_robot("three_joint")
+    # Straight above the base, pointing 30 deg up: any yaw will do.
+    target = Target([0.0, 0.0, 5.0], pitch=math.radians(30))
+    result = solver("three_joint").solve(target)
+    assert result.success
+    approach = robot.fk(result.q)[:3, :3] @ robot.approach_axis
+    assert math.asin(approach[2]) == pytest.approx(math.radians(30), abs=1e-6)
+    assert target_errors(robot, target, result.q)[1] <= 1e-6
+
+
+def test_seed_at_a_solution_needs_no_iteration():
+    robot = get_robot("al5c")
+    q = np.array([0.3, 1.0, -1.2, 0.4, 0.2])
+    target = make_target(robot, "pitch", q)
+    result = solver("al5c").solve(target, q)
+    assert result.success and result.attempt == 0 and result.attempt_kind == "seed"
+    assert result.iterations == 0
+    np.testing.assert_array_equal(result.q, q)
+
+
+def test_extra_seeds_are_closed_form_attempts():
+    robot = get_robot("dh3")
+    q = np.array([0.4, 0.6, 0.9])
+    target = make_target(robot, "position", q)
+    result = solver("dh3").solve(target, extra_seeds=[q])
+    assert result.attempt == 0 and result.attempt_kind == "closed_form"
+    far_seed = np.array([-2.0, -2.0, -2.0])
+    result = solver("dh3").solve(target, far_seed, extra_seeds=np.array([q]))
+    assert result.success and result.attempt_kind in ("seed", "closed_form")
+
+
+def test_unreachable_target_is_a_result_within_limits():
+    robot = get_robot("shelley")
+    target = Target([1.0, 0.0, 0.0])  # reach is 0.18 m
+    result = solver("shelley").solve(target, max_attempts=16)
+    assert not result.success
+    assert result.status == "not_converged"
+    assert "none of 16 attempts reached the target before the attempt cap" in result.reason
+    assert result.attempts == 16 and result.attempt is None and result.attempt_kind is None
+    assert robot.within_limits(result.q)
+    # The best attempt stretches towards the target.
+    assert result.position_error == pytest.approx(1.0 - np.linalg.norm(robot.position(np.zeros(2))), abs=1e-3)
+
+
+def test_time_budget_stops_the_restarts():
+    target = Target([1.0, 0.0, 0.0])
+    start = time.perf_counter()
+    result = solver("shelley").solve(target, time_budget=0.02)
+    assert not result.success and "time budget" in result.reason
+    assert time.perf_counter() - start < 1.0  # finishes the batch under way, starts no other
+
+
+def test_results_are_frozen_and_reproducible():
+    robot = get_robot("three_joint")
+    target = make_target(robot, "pitch", np.array([0.5, 1.0, -0.5, 0.3]))
+    a = solver("three_joint").solve(target)
+    b = solver("three_joint").solve(target)
+    np.testing.assert_array_equal(a.q, b.q)
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        a.success = False  # type: ignore[misc]
+    with pytest.raises(ValueError):
+        a.q[0] = 1.0
+    d = a.as_dict()
+    assert d["method"] == "nlp" and d["time_ms"] == pytest.approx(a.wall_time * 1e3)
+    assert set(d) >= {"q", "success", "status", "position_error", "orientation_error", "iterations", "attempts"}
+
+
+def test_explicit_rng_draws_other_restarts():
+    robot = get_robot("dh3")
+    target = make_target(robot, "position", np.array([0.4, 0.6, 0.9]))
+    a = solver("dh3").solve(target, rng=np.random.default_rng(1))
+    b = solver("dh3").solve(target, rng=np.random.default_rng(1))
+    np.testing.assert_array_equal(a.q, b.q)
+    assert a.success
+
+
+def test_continuous_and_prismatic_joints():
+    robot = Robot(MIXED_URDF, tip="tool")
+    ik = NlpIK(robot)
+    rng = np.random.default_rng(13)
+    for q in robot.random_configurations(rng, 10):
+        target = make_target(robot, "position", q)
+        result = ik.solve(target, time_budget=0.5)
+        assert_reached(robot, target, result)
+        assert -math.pi <= result.q[1] < math.pi  # the continuous joint is wrapped
+
+
+@needs_example_robot_data
+def test_near_seed_on_a_redundant_arm_is_nearer_than_the_plain_answer():
+    robot = get_robot("panda")
+    rng = np.random.default_rng(14)
+    middle = (robot.lower + robot.upper) / 2  # keeps every joint clear of its limits
+    q_target = middle + rng.uniform(-0.4, 0.4, robot.dof)
+    seed = q_target + rng.uniform(-0.6, 0.6, robot.dof)
+    target = make_target(robot, "pose", q_target)
+    plain = solver("panda").solve(target, seed, time_budget=1.0)
+    near = solver("panda").solve(target, seed, near_seed=True, time_budget=1.0)
+    assert_reached(robot, target, near)
+    assert np.linalg.norm(near.q - seed) <= np.linalg.norm(plain.q - seed) + 1e-7
+    # Stationary on the solution set: moving along the redundancy gets no nearer the seed.
+    jac = robot.jacobian(near.q)
+    null = np.linalg.svd(jac)[2][-1]
+    assert abs(null @ (near.q - seed)) <= 1e-4 * max(1.0, np.linalg.norm(near.q - seed))
+
+
+def test_near_seed_on_a_non_redundant_target_picks_the_nearest_branch():
+    robot = get_robot("dh3")
+    seed = np.array([0.3, 0.2, 0.5])
+    target = make_target(robot, "position", np.array([0.35, 0.3, 0.4]))
+    near = solver("dh3").solve(target, seed, near_seed=True)
+    assert_reached(robot, target, near)
+    np.testing.assert_allclose(near.q, [0.35, 0.3, 0.4], atol=1e-6)
+
+
+@needs_example_robot_data
+def test_near_seed_takes_angles_a_whole_turn_nearer_the_seed():
+    robot = get_robot("ur5")  # ranges of +-2 pi except the elbow's +-pi
+    rng = np.random.default_rng(15)
+    for q, seed in zip(robot.random_configurations(rng, 10), robot.random_configurations(rng, 10)):
+        target = make_target(robot, "pose", q)
+        result = solver("ur5").solve(target, seed, near_seed=True)
+        assert_reached(robot, target, result)
+        for j in range(robot.dof):  # no whole turn within the limits brings a joint nearer
+            for shifted in (result.q[j] - 2 * math.pi, result.q[j] + 2 * math.pi):
+                if robot.lower[j] <= shifted <= robot.upper[j]:
+                    assert abs(shifted - seed[j]) >= abs(result.q[j] - seed[j])
+
+
+def test_near_seed_keeps_continuous_joints_near_the_seed():
+    robot = Robot(MIXED_URDF, tip="tool")
+    q = np.array([0.3, 7.5, 0.1, -0.1, 1.0])
+    result = NlpIK(robot).solve(make_target(robot, "pose", q), q + 0.05, near_seed=True, time_budget=0.5)
+    assert result.success and abs(result.q[1] - 7.5) <= math.pi
+    plain = NlpIK(robot).solve(make_target(robot, "pose", q), q + 0.05, time_budget=0.5)
+    assert plain.success and -math.pi <= plain.q[1] < math.pi
+
+
+def test_manipulability_floor():
+    robot = get_robot("three_joint")
+    q = np.array([0.2, 0.8, -1.0, 0.5])
+    target = make_target(robot, "position", q)  # 4 joints for 3 coordinates: redundant
+    floor = 1.1 * float(robot.manipulability(q))  # the best on this target is about 1.18 times
+    result = solver("three_joint").solve(target, q, manipulability_floor=floor)
+    assert_reached(robot, target, result)
+    assert robot.manipulability(result.q) >= floor
+    impossible = solver("three_joint").solve(target, q, manipulability_floor=1e6, max_attempts=8)
+    assert not impossible.success and impossible.status == "below_manipulability_floor"
+    assert "none with manipulability >= 1e+06 (position task)" in impossible.reason
+    assert impossible.position_error <= 1e-6 and robot.within_limits(impossible.q)
+
+
+def test_jit_off_gives_the_same_answers():
+    robot = get_robot("al5c")
+    plain = NlpIK(robot, jit=False)
+    assert not plain.compiled("pitch")
+    target = make_target(robot, "pitch", np.array([0.3, 1.0, -1.2, 0.4, 0.2]))
+    seed = np.array([-0.5, 0.5, -0.8, -0.2, 0.0])
+    a, b = plain.solve(target, seed), solver("al5c").solve(target, seed)
+    assert a.success and b.success and a.attempt == b.attempt
+    np.testing.assert_allclose(a.q, b.q, atol=1e-9)
+
+
+def test_compile_cache(tmp_path, monkeypatch):
+    import casadi as ca
+
+    monkeypatch.setenv("PLANNER_CACHE_DIR", str(tmp_path))
+    x = ca.SX.sym("x", 2)
+    f = ca.Function("square_sum", [x], [ca.sumsqr(x)])
+    compiled = compile_function(f)
+    libraries = list((tmp_path / "casadi").glob("*.so"))
+    assert len(libraries) == 1 and float(compiled([1.0, 2.0])) == 5.0
+    stamp = libraries[0].stat().st_mtime_ns
+    again = compile_function(f)  # loaded from the cache, not rebuilt
+    assert libraries[0].stat().st_mtime_ns == stamp and float(again([3.0, 4.0])) == 25.0
+    monkeypatch.setenv("CC", "false")  # a "compiler" that always fails
+    other = ca.Function("other", [x], [x[0] * x[1]])
+    with pytest.warns(RuntimeWarning, match="cannot compile CasADi function 'other'"):
+        fallback = compile_function(other)
+    assert fallback is other and float(fallback([2.0, 3.0])) == 6.0
+    monkeypatch.setenv("CC", "no-such-compiler-here")
+    assert compile_function(other) is other
+    monkeypatch.setenv("PLANNER_JIT", "0")
+    assert compile_function(f) is f
+
+
+# ------------------------------------------------------------------------------ bad input
+def test_bad_targets_raise_with_clear_messages():
+    ik = solver("dh3")
+    with pytest.raises(InvalidArgumentError, match=r"target position must be finite, got \[nan, 0.0, 0.0\]"):
+        ik.solve([math.nan, 0.0, 0.0])
+    with pytest.raises(InvalidArgumentError, match=r"target position must be finite, got \[0.0, inf, 0.0\]"):
+        ik.solve(np.array([0.0, math.inf, 0.0]))
+    skewed = np.eye(4)
+    skewed[0, 1] = 0.1
+    with pytest.raises(InvalidArgumentError, match="rotation is not a proper orthonormal matrix"):
+        ik.solve(skewed)
+    with pytest.raises(InvalidArgumentError, match=r"quaternion \(x, y, z, w\) has zero norm"):
+        ik.solve(Target.from_quaternion([0.1, 0.0, 0.1], [0.0, 0.0, 0.0, 0.0]))
+    with pytest.raises(InvalidArgumentError, match=r"target must be a planner.Target, a position \(3,\) or a pose"):
+        ik.solve([1.0, 2.0])
+    with pytest.raises(InvalidArgumentError, match="pitch must be finite"):
+        ik.solve(Target([0.1, 0.0, 0.1], pitch=math.inf))
+    assert isinstance(as_target([0.1, 0.2, 0.3]), Target)
+
+
+def test_bad_seeds_raise_with_clear_messages():
+    ik = solver("dh3")
+    target = Target([0.1, 0.0, 0.1])
+    with pytest.raises(InvalidConfigurationError, match=r"q has shape \(2,\); dh3 expects \(3,\) for joints"):
+        ik.solve(target, [0.0, 0.0])
+    with pytest.raises(InvalidConfigurationError, match="q holds nan for joint 'shoulder'"):
+        ik.solve(target, [0.0, math.nan, 0.0])
+    with pytest.raises(
+        JointLimitError, match=r"seed: joint 'elbow' value 3 is outside its range \[-2.35619, 2.35619\]"
+    ):
+        ik.solve(target, [0.0, 0.0, 3.0])
+    with pytest.raises(InvalidConfigurationError, match=r"extra_seeds must have shape \(M, 3\)"):
+        ik.solve(target, extra_seeds=[0.0, 0.0, 0.0])
+
+
+@pytest.mark.parametrize("budget", [0.0, -1.0, math.nan, math.inf])
+def test_time_budget_must_be_positive(budget):
+    with pytest.raises(InvalidArgumentError, match=r"time_budget must be a positive finite number \[s\], got"):
+        solver("dh3").solve(Target([0.1, 0.0, 0.1]), time_budget=budget)
+
+
+def test_other_bad_options():
+    ik = solver("dh3")
+    target = Target([0.1, 0.0, 0.1])
+    with pytest.raises(InvalidArgumentError, match="position_tolerance must be a positive finite number"):
+        ik.solve(target, position_tolerance=0.0)
+    with pytest.raises(InvalidArgumentError, match="max_attempts must be a positive integer or None, got 0"):
+        ik.solve(target, max_attempts=0)
+    with pytest.raises(InvalidArgumentError, match="near_seed=True needs a q_seed"):
+        ik.solve(target, near_seed=True)
+    with pytest.raises(InvalidArgumentError, match="unknown manipulability_task 'twist'; valid: position, pose"):
+        ik.solve(target, manipulability_floor=0.1, manipulability_task="twist")
+    with pytest.raises(InvalidArgumentError, match="rng must be a numpy.random.Generator or None, got int"):
+        ik.solve(target, rng=3)
+    with pytest.raises(InvalidArgumentError, match="batch_size must be a positive integer, got 0"):
+        NlpIK(get_robot("dh3"), batch_size=0)
+    with pytest.raises(InvalidArgumentError, match="NlpIK needs a planner.Robot, got str"):
+        NlpIK("dh3")  # type: ignore[arg-type]
+    assert issubclass(InvalidArgumentError, PlannerError)
+
+
+def test_environment_is_untouched():
+    # Solving must not change the caller's arrays.
+    seed = np.array([0.3, 0.2, 0.5])
+    before = seed.copy()
+    solver("dh3").solve(Target([0.1, 0.0, 0.1]), seed)
+    np.testing.assert_array_equal(seed, before)
+    assert os.environ.get("PLANNER_JIT") in (None, "1", "0")

@@ -1,0 +1,311 @@
+"""Joint trajectories through waypoints: limits, exact passage, continuous motion, range repair."""
+
+from __future__ import annotations
+
+import csv
+import math
+
+import numpy as np
+import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+from ruckig import InputParameter, Ruckig
+from ruckig import Trajectory as RuckigTrajectory
+
+from planner import InvalidArgumentError, InvalidConfigurationError, InvalidLimitsError, JointLimitError
+from planner.trajectory import LIMIT_TOLERANCE, JointLimits, plan_trajectory
+
+from conftest import get_robot
+
+# Sampled peaks may exceed a limit by this relative amount (floating-point rounding only).
+TOL = LIMIT_TOLERANCE
+
+SETTINGS = settings(max_examples=100, deadline=None, derandomize=True, suppress_health_check=[HealthCheck.too_slow])
+
+
+def assert_within_limits(traj, rate=1000.0):
+    lim = traj.limits
+    for peaks in (traj.peak_ratios(rate), traj.peak_ratios(None)):
+        assert peaks["velocity"] <= 1 + TOL
+        assert peaks["acceleration"] <= 1 + TOL
+        assert peaks["jerk"] <= 1 + TOL
+    s = traj.sampled(rate)
+    slack = TOL * np.maximum(1.0, np.abs(np.nan_to_num(lim.upper)))
+    assert np.all(s.q <= lim.upper + slack)
+    assert np.all(s.q >= lim.lower - slack)
+
+
+def assert_passes_waypoints(traj, q):
+    s = traj.sample(traj.waypoint_times)
+    np.testing.assert_allclose(s.q, q, rtol=0, atol=1e-12)
+
+
+@st.composite
+def problems(draw, max_dof=6, max_points=6):
+    dof = draw(st.integers(1, max_dof))
+    n = draw(st.integers(2, max_points))
+    seed = draw(st.integers(0, 2**32 - 1))
+    rng = np.random.default_rng(seed)
+    lower = rng.uniform(-3.0, 0.0, dof)
+    upper = lower + rng.uniform(0.1, 4.0, dof)
+    v = rng.uniform(0.2, 6.0, dof)
+    a = v * rng.uniform(0.5, 10.0, dof)
+    j = a * rng.uniform(2.0, 40.0, dof)
+    limits = JointLimits(v, a, j, lower, upper)
+    style = draw(st.sampled_from(["uniform", "ends", "monotone"]))
+    if style == "uniform":
+        q = rng.uniform(lower, upper, (n, dof))
+    elif style == "ends":  # many waypoints on or next to a range end
+        q = lower + (upper - lower) * rng.choice([0.0, 0.01, 0.5, 0.99, 1.0], (n, dof))
+    else:  # running monotonically into the upper end
+        q = np.sort(rng.uniform(lower, upper, (n, dof)), axis=0)
+        q[-1] = upper
+    return q, limits
+
+
+@SETTINGS
+@given(problems())
+def test_limits_never_exceeded_and_waypoints_exact(problem):
+    q, limits = problem
+    traj = plan_trajectory(q, limits)
+    assert_within_limits(traj)
+    assert_passes_waypoints(traj, q)
+    assert traj.waypoint_times[0] == 0.0 and traj.waypoint_times[-1] == pytest.approx(traj.duration)
+    assert np.all(np.diff(traj.waypoint_times) >= 0)
+    end = traj.sample(traj.duration)
+    np.testing.assert_array_equal(end.qd, 0.0)
+
+
+@SETTINGS
+@given(problems(max_points=5))
+def test_faster_than_stopping_when_a_via_lies_between_its_neighbours(problem):
+    q, limits = problem
+    between = any(np.any((q[i] - q[i - 1]) * (q[i + 1] - q[i]) > 0) for i in range(1, len(q) - 1))
+    optimized = plan_trajectory(q, limits)
+    stop = plan_trajectory(q, limits, strategy="stop")
+    assert_within_limits(stop)
+    np.testing.assert_array_equal(stop.via_velocities, 0.0)
+    if between:
+        assert optimized.duration < stop.duration
+    else:
+        assert optimized.duration <= stop.duration * (1 + 1e-12)
+
+
+def test_continuous_motion_through_vias_on_dh3():
+    robot = get_robot("dh3")
+    limits = JointLimits.from_robot(robot)
+    q = np.array([[-1.0, -0.5, 0.2], [-0.5, 0.0, 0.6], [0.0, 0.5, 1.0], [0.5, 1.0, 1.4]])
+    traj = plan_trajectory(q, limits)
+    stop = plan_trajectory(q, limits, strategy="stop")
+    assert traj.duration < 0.8 * stop.duration
+    assert np.all(np.abs(traj.via_velocities[1:-1]) > 0)  # it does not stop at the vias
+    assert_within_limits(traj)
+
+
+def test_position_overshoot_is_detected_and_repaired():
+    # A fast run up to a waypoint just below the upper end: the via speed of the slope blend
+    # alone would carry the joint past the end before it could stop.
+    limits = JointLimits([2.0], [4.0], [40.0], [-3.0], [1.0])
+    q = np.array([[-3.0], [0.95], [0.999], [-2.0]])
+    for strategy in ("heuristic", "optimized"):
+        traj = plan_trajectory(q, limits, strategy=strategy)
+        assert traj.sampled(1000.0).q.max() <= 1.0 + TOL
+        assert traj.peak_ratios(None)["position"] <= TOL
+        assert traj.via_velocities[1, 0] > 0  # the joint still passes the first via moving
+        assert_passes_waypoints(traj, q)
+        if strategy == "heuristic":
+            assert traj.repaired[1:3].any()  # the blended via state was lowered
+
+
+def test_ruckig_extrema_miss_a_constant_acceleration_turn_and_ours_do_not():
+    # Community Ruckig's position_extrema only looks for turning points in phases with non-zero
+    # jerk; this segment turns round inside a constant-acceleration phase.
+    inp = InputParameter(1)
+    inp.current_position, inp.current_velocity = [1.0367966341996353], [3.2466170303544835]
+    inp.target_position, inp.target_velocity = [1.1100512913641813], [0.2757926180550544]
+    inp.max_velocity, inp.max_acceleration, inp.max_jerk = [5.235987755982988], [10.47197551196598], [104.7197551196598]
+    inp.minimum_duration = 0.9353783171878454
+    traj = RuckigTrajectory(1)
+    Ruckig(1).calculate(inp, traj)
+    sampled = max(traj.at_time(t)[0][0] for t in np.linspace(0, traj.duration, 4001))
+    assert traj.position_extrema[0].max < sampled - 0.05  # Ruckig's figure is too low
+    limits = JointLimits([5.235987755982988], [10.47197551196598], [104.7197551196598], [-2.0], [1.614])
+    q = np.array([[0.0], [1.0367966341996353], [1.1100512913641813], [0.0]])
+    ours = plan_trajectory(q, limits, strategy="heuristic")
+    assert ours.sampled(1000.0).q.max() <= 1.614 + TOL
+
+
+def test_pieces_match_ruckig_at_time():
+    limits = JointLimits([1.0, 2.0], [3.0, 2.0], [30.0, 10.0], [-5, -5], [5, 5])
+    q = np.array([[0.0, 0.0], [1.0, -0.5]])
+    traj = plan_trajectory(q, limits, start_velocity=[0.5, -0.3], start_acceleration=[1.0, 0.0])
+    inp = InputParameter(2)
+    inp.current_position, inp.current_velocity, inp.current_acceleration = [0, 0], [0.5, -0.3], [1.0, 0.0]
+    inp.target_position = [1.0, -0.5]
+    inp.max_velocity, inp.max_acceleration, inp.max_jerk = [1, 2], [3, 2], [30, 10]
+    ref = RuckigTrajectory(2)
+    Ruckig(2).calculate(inp, ref)
+    assert traj.duration == pytest.approx(ref.duration, abs=1e-12)
+    for t in np.linspace(0, ref.duration, 57):
+        p, v, a = ref.at_time(t)
+        s = traj.sample(t)
+        np.testing.assert_allclose(s.q, p, atol=1e-10)
+        np.testing.assert_allclose(s.qd, v, atol=1e-9)
+        np.testing.assert_allclose(s.qdd, a, atol=1e-8)
+
+
+def test_start_state_is_honoured():
+    limits = JointLimits([1.0, 1.0], [2.0, 2.0], [20.0, 20.0], [-2, -2], [2, 2])
+    q = np.array([[0.0, 0.0], [1.0, 0.5], [0.0, 1.0]])
+    traj = plan_trajectory(q, limits, start_velocity=[0.8, -0.2], start_acceleration=[0.5, 0.0])
+    s = traj.sample(0.0)
+    np.testing.assert_allclose(s.qd, [0.8, -0.2])
+    np.testing.assert_allclose(s.qdd, [0.5, 0.0])
+    assert_within_limits(traj)
+    assert_passes_waypoints(traj, q)
+
+
+def test_start_state_braking_first_when_a_stretched_profile_would_leave_the_range():
+    # Joint 1 is fast towards its upper end; joint 0 has far to go, so a synchronised first
+    # segment would stretch joint 1's profile and carry it out of range. It brakes first.
+    limits = JointLimits([1.0, 2.0], [2.0, 4.0], [20.0, 40.0], [-3.0, -1.0], [3.0, 1.0])
+    q = np.array([[-3.0, 0.5], [3.0, 0.6], [0.0, 0.0]])
+    traj = plan_trajectory(q, limits, start_velocity=[0.0, 1.5])
+    assert_within_limits(traj)
+    assert_passes_waypoints(traj, q)
+
+
+def test_start_state_that_cannot_stop_in_range_is_an_error():
+    limits = JointLimits([2.0], [1.0], [10.0], [-1.0], [1.0])
+    with pytest.raises(InvalidArgumentError, match=r"start state carries joint 'joint0' to .* outside its range"):
+        plan_trajectory([[0.99], [0.0]], limits, start_velocity=[1.9])
+
+
+def test_dwell_holds_the_waypoint():
+    limits = JointLimits([1.0], [2.0], [20.0], [-2], [2])
+    traj = plan_trajectory([[0.0], [1.0], [0.0]], limits, dwell=[0.0, 0.4, 0.0])
+    t1 = traj.waypoint_times[1]
+    s = traj.sample(np.linspace(t1, t1 + 0.4, 9))
+    np.testing.assert_array_equal(s.q, 1.0)
+    np.testing.assert_array_equal(s.qd, 0.0)
+
+
+def test_duplicate_waypoints_stop_there():
+    limits = JointLimits([1.0, 1.0], [2.0, 2.0], [20.0, 20.0], [-2, -2], [2, 2])
+    q = [[0, 0], [1, 1], [1, 1], [0, 1]]
+    traj = plan_trajectory(q, limits)
+    assert traj.waypoint_times[1] == traj.waypoint_times[2]
+    np.testing.assert_array_equal(traj.via_velocities[1:3], 0.0)
+    assert_within_limits(traj)
+
+
+def test_sample_shapes_and_csv(tmp_path):
+    limits = JointLimits([1.0, 1.0], [2.0, 2.0], [20.0, 20.0], [-2, -2], [2, 2], ("a", "b"))
+    traj = plan_trajectory([[0, 0], [1, 0.5], [0.5, 1]], limits)
+    s = traj.sample(0.3)
+    assert s.q.shape == (2,) and s.t.shape == ()
+    s = traj.sample(np.array([[0.1, 0.2], [0.3, 0.4]]))
+    assert s.q.shape == (2, 2, 2)
+    times = traj.times(1000.0)
+    assert times[0] == 0.0 and times[-1] == traj.duration
+    assert np.all(np.diff(times) <= 1e-3 + 1e-15)
+    path = traj.to_csv(tmp_path / "traj.csv", rate=100.0)
+    with path.open() as fh:
+        rows = list(csv.reader(fh))
+    assert rows[0] == ["t", "q_a", "q_b", "qd_a", "qd_b", "qdd_a", "qdd_b", "qddd_a", "qddd_b"]
+    assert len(rows) - 1 == len(traj.times(100.0))
+    row = np.array(rows[5], dtype=float)
+    s = traj.sample(row[0])
+    np.testing.assert_allclose(row[1:3], s.q)
+    with pytest.raises(InvalidArgumentError, match="outside the trajectory"):
+        traj.sample(traj.duration + 1.0)
+    with pytest.raises(InvalidArgumentError, match="rate must be positive"):
+        traj.times(0.0)
+
+
+def test_limits_from_robot_defaults_and_servo_speed():
+    robot = get_robot("dh3")
+    lim = JointLimits.from_robot(robot)
+    np.testing.assert_allclose(lim.velocity, robot.velocity_limit)
+    np.testing.assert_allclose(lim.acceleration, 2 * robot.velocity_limit)
+    np.testing.assert_allclose(lim.jerk, 20 * robot.velocity_limit)
+    lim = JointLimits.from_robot(robot, servo_seconds_per_60deg=0.1, acceleration=5.0, jerk=[50, 60, 70])
+    np.testing.assert_allclose(lim.velocity, math.radians(60) / 0.1)
+    np.testing.assert_allclose(lim.acceleration, 5.0)
+    np.testing.assert_allclose(lim.jerk, [50, 60, 70])
+    assert not lim.velocity.flags.writeable
+
+
+# ---------------------------------------------------------------------------- bad input
+LIM = JointLimits([1.0, 1.0], [2.0, 2.0], [20.0, 20.0], [-1.0, -2.0], [1.0, 2.0], ("shoulder", "elbow"))
+
+
+def test_waypoint_outside_range_names_joint_and_value():
+    with pytest.raises(JointLimitError, match=r"waypoint 1: joint 'elbow' value 2.5 is outside its range \[-2, 2\]"):
+        plan_trajectory([[0, 0], [0.5, 2.5]], LIM)
+
+
+@pytest.mark.parametrize("value", [0.0, -1.0, float("nan")])
+def test_zero_negative_or_nan_limits(value):
+    with pytest.raises(InvalidLimitsError, match=r"velocity limit of joint 'joint1' must be positive and finite"):
+        JointLimits([1.0, value], [1.0, 1.0], [1.0, 1.0], [-1, -1], [1, 1])
+    with pytest.raises(InvalidLimitsError, match=r"jerk limit of joint 'joint0' must be positive and finite"):
+        JointLimits([1.0, 1.0], [1.0, 1.0], [value, 1.0], [-1, -1], [1, 1])
+    robot = get_robot("dh3")
+    with pytest.raises(InvalidLimitsError, match=r"acceleration limit of joint 'base_yaw' must be positive"):
+        JointLimits.from_robot(robot, acceleration=value)
+
+
+def test_limit_lengths_and_ranges():
+    with pytest.raises(InvalidLimitsError, match=r"velocity limit has 3 values; give one number or 2"):
+        JointLimits([1.0, 1.0, 1.0], [1.0, 1.0], [1.0, 1.0], [-1, -1], [1, 1])
+    with pytest.raises(InvalidLimitsError, match=r"joint 'joint0' has lower limit 1 > upper limit -1"):
+        JointLimits([1.0], [1.0], [1.0], [1.0], [-1.0])
+
+
+def test_nan_waypoint():
+    with pytest.raises(InvalidConfigurationError, match=r"waypoint 1 holds nan for joint 'elbow'"):
+        plan_trajectory([[0, 0], [0, float("nan")]], LIM)
+
+
+def test_fewer_than_two_waypoints():
+    with pytest.raises(InvalidArgumentError, match="at least two waypoints, got 1"):
+        plan_trajectory([[0, 0]], LIM)
+    with pytest.raises(InvalidArgumentError, match="at least two waypoints, got 0"):
+        plan_trajectory([], LIM)
+
+
+def test_mismatched_dof():
+    with pytest.raises(
+        InvalidConfigurationError, match=r"waypoint 1 has 3 values; expected 2, one per joint \(shoulder, elbow\)"
+    ):
+        plan_trajectory([[0, 0], [0, 0, 0]], LIM)
+
+
+def test_bad_start_state_strategy_and_dwell():
+    with pytest.raises(InvalidArgumentError, match=r"start velocity of joint 'elbow' is 3, beyond its limit \+-1"):
+        plan_trajectory([[0, 0], [0.5, 0.5]], LIM, start_velocity=[0, 3])
+    with pytest.raises(InvalidArgumentError, match="unknown strategy 'fast'; valid: optimized, heuristic, stop"):
+        plan_trajectory([[0, 0], [0.5, 0.5]], LIM, strategy="fast")
+    with pytest.raises(InvalidArgumentError, match=r"dwell at waypoint 1 must be >= 0"):
+        plan_trajectory([[0, 0], [0.5, 0.5]], LIM, dwell=[0, -1])
+    with pytest.raises(InvalidArgumentError, match=r"stop index 5 is not a waypoint index"):
+        plan_trajectory([[0, 0], [0.5, 0.5]], LIM, stops=[5])
+
+
+@pytest.mark.slow
+@settings(max_examples=1500, deadline=None, derandomize=True, suppress_health_check=[HealthCheck.too_slow])
+@given(problems(), st.integers(0, 2**32 - 1), st.sampled_from(["optimized", "heuristic", "stop"]))
+def test_many_problems_with_start_states_and_dwell(problem, seed, strategy):
+    q, limits = problem
+    rng = np.random.default_rng(seed)
+    kwargs = {"dwell": rng.uniform(0, 0.3, len(q)) * (rng.random(len(q)) < 0.3)}
+    if strategy != "stop" and rng.random() < 0.5:
+        kwargs = {"start_velocity": rng.uniform(-0.5, 0.5, q.shape[1]) * limits.velocity}
+    try:
+        traj = plan_trajectory(q, limits, strategy=strategy, **kwargs)
+    except InvalidArgumentError as exc:  # a start state that cannot stop within the range
+        assert "even braking at once" in str(exc)
+        return
+    assert_within_limits(traj)
+    assert_passes_waypoints(traj, q)
