@@ -125,22 +125,22 @@ def _run_urdf_from_dh(args: argparse.Namespace) -> int:
 
 # ---------------------------------------------------------------------------- demo
 def _add_demo(sub: argparse._SubParsersAction) -> None:
-    p = sub.add_parser("demo", help="the main job: a planning run on the bundled arms")
-    p.add_argument("--seed", type=int, default=0, help="seed of the random configurations")
+    p = sub.add_parser(
+        "demo",
+        help="the main job: the seeds' pick-and-place tasks planned on the bundled arms",
+        description="Plan the 004 seed's pick-and-place on dh3 (closed-form IK checked by the NLP, one smooth "
+        "servo-limited trajectory, stretched states flagged singular) and the 001 seed's range-bearing "
+        "pick-and-place on al5c (approach from above, straight-line lowering, SSC-32 commands); print a summary "
+        "table and write CSV, servo commands and PNG plots.",
+    )
+    p.add_argument("--out", type=Path, default=Path("planner-demo"), help="output directory (default: planner-demo)")
+    p.add_argument("--no-plots", action="store_true", help="skip the PNG plots (no matplotlib needed)")
 
 
 def _run_demo(args: argparse.Namespace) -> int:
-    rng = np.random.default_rng(args.seed)
-    rows = []
-    for name in BUNDLED_ROBOTS:
-        robot = load_robot(name)
-        q = robot.random_configurations(rng, 200)
-        pos = robot.position(q)
-        w = robot.manipulability(q)
-        reach = f"{np.max(np.linalg.norm(pos, axis=1)):.4f}"
-        rows.append((name, robot.dof, robot.tip, reach, f"{np.min(w):.3g}", f"{np.max(w):.3g}"))
-    print("Forward kinematics of 200 random configurations within limits per bundled arm")
-    print(_table(["robot", "dof", "tip", "max reach seen [m]", "min manip.", "max manip."], rows))
+    from .demo import run_demo
+
+    run_demo(args.out, plots=not args.no_plots)
     return 0
 
 
@@ -161,11 +161,12 @@ def _add_plan(sub: argparse._SubParsersAction) -> None:
         "--rate", type=float, default=1000.0, help="sample rate of the checks and the CSV [Hz] (default 1000)"
     )
     p.add_argument("--json", action="store_true", help="print the summary as JSON")
+    p.add_argument(
+        "--plot", action="store_true", help="also draw joints.png, singularity.png and arm.png (into --out or .)"
+    )
 
 
 def _run_plan(args: argparse.Namespace) -> int:
-    from .exceptions import InvalidArgumentError
-    from .servo import pulse_table, ssc32_group_moves
     from .waypoints import load_motion_request, plan_motion
 
     if not (np.isfinite(args.rate) and args.rate > 0):
@@ -174,24 +175,15 @@ def _run_plan(args: argparse.Namespace) -> int:
     request = load_motion_request(args.waypoints_file)
     plan = plan_motion(robot, request, rate=args.rate)
     summary = plan.summary(args.rate)
+    files: list[Path] = []
     if args.out is not None:
-        out = args.out
-        try:
-            out.mkdir(parents=True, exist_ok=True)
-        except OSError as exc:
-            raise InvalidArgumentError(f"cannot create output directory {str(out)!r}: {exc.strerror}") from exc
-        plan.trajectory.to_csv(out / "trajectory.csv", rate=args.rate)
-        period = plan.servo_period_ms
-        t, pulses = pulse_table(plan.trajectory, plan.calibrations, rate=1000.0 / period)
-        with (out / "servo_pulses.csv").open("w") as fh:
-            fh.write(",".join(["t"] + [f"ch{c.channel}_{c.joint}" for c in plan.calibrations]) + "\n")
-            for ti, row in zip(t, pulses):
-                fh.write(f"{ti:.6f}," + ",".join(str(int(x)) for x in row) + "\n")
-        commands = ssc32_group_moves(plan.trajectory, plan.calibrations, period_ms=period)
-        (out / "ssc32.txt").write_bytes("".join(c + "\r" for c in commands).encode("ascii"))
-        names = ("trajectory.csv", "servo_pulses.csv", "ssc32.txt", "summary.json")
-        summary["files"] = sorted(str(out / f) for f in names)
-        (out / "summary.json").write_text(json.dumps(summary, indent=2, allow_nan=False) + "\n")
+        files += plan.write_files(args.out, rate=args.rate)
+    if args.plot:
+        from .plots import plot_plan
+
+        files += plot_plan(args.out or Path("."), robot, plan)
+    if files:
+        summary["files"] = sorted(str(f) for f in files)
     if args.json:
         _print_json(summary)
         return 0
@@ -211,7 +203,7 @@ def _run_plan(args: argparse.Namespace) -> int:
         print(f"detours inserted: {len(plan.detours)} (segments {sorted({d.segment for d in plan.detours})})")
     if plan.unresolved:
         print(f"segments still passing near a singularity: {list(plan.unresolved)}")
-    if args.out is not None:
+    if files:
         print(f"wrote {', '.join(summary['files'])}")
     return 0
 
@@ -373,6 +365,56 @@ def _run_ik(args: argparse.Namespace) -> int:
     return 0
 
 
+# ---------------------------------------------------------------------------- bench
+def _add_bench(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser(
+        "bench",
+        help="benchmark closed-form vs numerical IK on random reachable targets",
+        description="Time closed-form and CasADi IK on N random targets per robot (FK of random configurations "
+        "within the limits, fixed seed); success is checked by Pinocchio FK. Prints a Markdown table. The full "
+        "benchmark with its recorded results is benchmarks/bench_ik.py.",
+    )
+    p.add_argument("robots", nargs="*", help="robots (default: every bundled arm)")
+    p.add_argument("--n", type=int, default=200, help="random targets per robot (default 200)")
+    p.add_argument("--seed", type=int, default=0, help="seed of the targets; the IK seeds use seed + 1 (default 0)")
+    p.add_argument("--time-budget", type=float, default=0.05, metavar="S", help="NLP time budget per call [s]")
+    p.add_argument("--out", type=Path, default=None, help="write bench_ik.json (and with --plot bench_ik.png) here")
+    p.add_argument("--plot", action="store_true", help="draw the solve rate and time chart (into --out or .)")
+    p.add_argument("--json", action="store_true", help="print the summaries as JSON instead of the table")
+
+
+def _run_bench(args: argparse.Namespace) -> int:
+    from .benchmark import bench_robot, markdown
+
+    if args.n < 1:
+        raise InvalidArgumentError(f"--n must be at least 1, got {args.n}")
+    if not (np.isfinite(args.time_budget) and args.time_budget > 0):
+        raise InvalidArgumentError(f"--time-budget must be positive [s], got {args.time_budget}")
+    names = args.robots or list(BUNDLED_ROBOTS)
+    for name in names:
+        load_robot(name)  # fail on an unknown name before any work
+    summaries = []
+    for name in names:
+        summaries += bench_robot(name, args.n, args.seed, args.time_budget)
+    if args.json:
+        _print_json(summaries)
+    else:
+        print(markdown(summaries))
+    written = []
+    if args.out is not None:
+        args.out.mkdir(parents=True, exist_ok=True)
+        path = args.out / "bench_ik.json"
+        path.write_text(json.dumps(summaries, indent=2, allow_nan=False) + "\n")
+        written.append(path)
+    if args.plot:
+        from .plots import plot_ik_benchmark
+
+        written.append(plot_ik_benchmark((args.out or Path(".")) / "bench_ik.png", summaries))
+    if written and not args.json:
+        print(f"wrote {', '.join(str(w) for w in written)}")
+    return 0
+
+
 _COMMANDS: dict[str, tuple[Callable[[argparse._SubParsersAction], None], Callable[[argparse.Namespace], int]]] = {
     "robots": (_add_robots, _run_robots),
     "fk": (_add_fk, _run_fk),
@@ -380,6 +422,7 @@ _COMMANDS: dict[str, tuple[Callable[[argparse._SubParsersAction], None], Callabl
     "demo": (_add_demo, _run_demo),
     "plan": (_add_plan, _run_plan),
     "ik": (_add_ik, _run_ik),
+    "bench": (_add_bench, _run_bench),
 }
 
 

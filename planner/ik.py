@@ -441,7 +441,12 @@ def compare(
     a_pe = a_oe = None
     if nearest is not None:
         a_pe, a_oe = target_errors(robot, target, np.asarray(nearest.q))
-    redundant = result.success and task_rank(robot, target, result.q) < robot.dof
+    # At a singular branch (e.g. fully stretched) a task error e allows joint deviations of
+    # order sqrt(e), beyond any linear bound: like redundancy, only "both reach" can be asked.
+    redundant = result.success and (
+        task_rank(robot, target, result.q) < robot.dof
+        or (nearest is not None and task_rank(robot, target, np.asarray(nearest.q)) < robot.dof)
+    )
     branch = None if nearest is None else nearest.branch
 
     def check(agree: bool, verdict: str, reason: str) -> CrossCheck:

@@ -15,7 +15,7 @@ import numpy as np
 
 from .exceptions import PlannerError
 
-__all__ = ["plot_arm_poses", "plot_ik_benchmark", "plot_joint_profiles", "plot_manipulability"]
+__all__ = ["plot_arm_poses", "plot_ik_benchmark", "plot_joint_profiles", "plot_manipulability", "plot_plan"]
 
 
 def _pyplot() -> Any:
@@ -232,3 +232,64 @@ def plot_ik_benchmark(path: str | Path, rows: Sequence[Mapping[str, Any]], *, ti
     fig.suptitle(title or "IK: analytic vs optimised")
     fig.tight_layout()
     return _save(fig, path)
+
+
+def plot_plan(out: str | Path, robot: Any, plan: Any, *, rate: float = 200.0, prefix: str = "") -> tuple[Path, ...]:
+    """The three pictures of a :class:`planner.MotionPlan`, written into a directory.
+
+    ``joints.png`` (position, velocity, acceleration, jerk with limits and waypoints),
+    ``singularity.png`` (inverse condition number along the plan, threshold drawn) and
+    ``arm.png`` (the arm at each waypoint).
+
+    Args:
+        out: Output directory (created if missing).
+        robot: The :class:`planner.Robot` the plan is for.
+        plan: The plan.
+        rate: Sampling rate of the curves [Hz].
+        prefix: Prepended to each file name.
+
+    Returns:
+        The three PNG paths.
+    """
+    from .singularity import conditioning
+
+    folder = Path(out)
+    traj = plan.trajectory
+    t = np.unique(np.concatenate([traj.times(rate), traj.waypoint_times]))
+    s = traj.sample(t)
+    lim = plan.limits
+    limits = {
+        "lower": lim.lower,
+        "upper": lim.upper,
+        "velocity": lim.velocity,
+        "acceleration": lim.acceleration,
+        "jerk": lim.jerk,
+    }
+    name = plan.robot
+    joints = plot_joint_profiles(
+        folder / f"{prefix}joints.png",
+        t,
+        s.q,
+        s.qd,
+        s.qdd,
+        s.qddd,
+        joint_names=robot.joint_names,
+        limits=limits,
+        waypoint_times=plan.waypoint_times,
+        title=f"{name}: joint trajectories, {traj.duration:.2f} s (dashed: limits, dotted: waypoints)",
+    )
+    inverse, _ = conditioning(robot, s.q, plan.singularity.task)
+    singular = plot_manipulability(
+        folder / f"{prefix}singularity.png",
+        t,
+        inverse,
+        threshold=plan.singularity.threshold,
+        waypoint_times=plan.waypoint_times,
+        ylabel=f"inverse condition number ({plan.singularity.task} Jacobian)",
+        title=f"{name}: distance from singularity along the plan",
+    )
+    labels = [f"{k}" + (" (singular)" if k in plan.singular_waypoints else "") for k in range(len(plan.waypoints))]
+    arm = plot_arm_poses(
+        folder / f"{prefix}arm.png", robot, plan.waypoints, labels=labels, title=f"{name} at each waypoint (star: tip)"
+    )
+    return joints, singular, arm

@@ -441,6 +441,52 @@ class MotionPlan:
         }
 
 
+    def write_files(self, out: str | Path, rate: float = 1000.0) -> tuple[Path, ...]:
+        """Write the plan's files into a directory (created if missing).
+
+        Files: ``trajectory.csv`` (t, then q, qd, qdd, qddd per joint, SI units, at `rate`),
+        ``servo_pulses.csv`` (pulse width per servo channel [us] every servo period),
+        ``ssc32.txt`` (Lynxmotion SSC-32 group moves, one per servo period, each ended by a
+        carriage return) and ``summary.json`` (:meth:`summary`).
+
+        Args:
+            out: Output directory.
+            rate: Sample rate of the CSV and of the summary's limit checks [Hz].
+
+        Returns:
+            The paths written.
+
+        Raises:
+            InvalidArgumentError: If the directory cannot be created.
+        """
+        from .servo import pulse_table, ssc32_group_moves
+
+        folder = Path(out)
+        try:
+            folder.mkdir(parents=True, exist_ok=True)
+        except OSError as exc:
+            raise InvalidArgumentError(f"cannot create output directory {str(folder)!r}: {exc.strerror}") from exc
+        paths = [self.trajectory.to_csv(folder / "trajectory.csv", rate=rate)]
+        period = self.servo_period_ms
+        t, pulses = pulse_table(self.trajectory, self.calibrations, rate=1000.0 / period)
+        pulse_path = folder / "servo_pulses.csv"
+        with pulse_path.open("w") as fh:
+            fh.write(",".join(["t"] + [f"ch{c.channel}_{c.joint}" for c in self.calibrations]) + "\n")
+            for ti, row in zip(t, pulses):
+                fh.write(f"{ti:.6f}," + ",".join(str(int(x)) for x in row) + "\n")
+        paths.append(pulse_path)
+        commands = ssc32_group_moves(self.trajectory, self.calibrations, period_ms=period)
+        ssc32_path = folder / "ssc32.txt"
+        ssc32_path.write_bytes("".join(c + "\r" for c in commands).encode("ascii"))
+        paths.append(ssc32_path)
+        summary_path = folder / "summary.json"
+        summary = self.summary(rate)
+        summary["files"] = sorted(str(p) for p in [*paths, summary_path])
+        summary_path.write_text(json.dumps(summary, indent=2, allow_nan=False) + "\n")
+        paths.append(summary_path)
+        return tuple(paths)
+
+
 def _joint_scale(robot: Robot, request: MotionRequest) -> np.ndarray:
     return np.array([request.length_scale if k == "prismatic" else request.angle_scale for k in robot.joint_kinds])
 

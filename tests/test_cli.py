@@ -64,3 +64,28 @@ def test_version_and_help():
     assert result.returncode == 0 and planner.__version__ in result.stdout
     result = run_cli("--help")
     assert result.returncode == 0 and "fk" in result.stdout and "robots" in result.stdout
+
+
+def test_bench_compares_methods_and_draws_the_chart(tmp_path):
+    result = run_cli("bench", "dh3", "--n", "5", "--json", "--plot", "--out", str(tmp_path))
+    assert result.returncode == 0, result.stderr
+    rows = json.loads(result.stdout)
+    assert [(r["robot"], r["method"]) for r in rows] == [("dh3", "analytic"), ("dh3", "nlp")]
+    assert all(r["solve_rate"] == 1.0 and r["n"] == 5 for r in rows)
+    assert rows[1]["cross_check_agreement"] == 1.0
+    assert (tmp_path / "bench_ik.png").read_bytes()[:4] == b"\x89PNG"
+    assert json.loads((tmp_path / "bench_ik.json").read_text()) == rows
+    assert result.stderr == ""  # no progress bar when piped
+
+
+def test_bench_bad_input():
+    result = run_cli("bench", "dh3", "--n", "0")
+    assert result.returncode == 1 and "--n must be at least 1, got 0" in result.stderr
+    result = run_cli("bench", "dh3", "--time-budget", "-1")
+    assert result.returncode == 1 and "--time-budget must be positive" in result.stderr
+
+
+def test_every_subcommand_has_help():
+    for command in ("robots", "fk", "ik", "plan", "demo", "bench", "urdf-from-dh"):
+        result = run_cli(command, "--help")
+        assert result.returncode == 0 and "usage: planner " + command in result.stdout

@@ -2,27 +2,14 @@
 
 from __future__ import annotations
 
-import struct
-
 import numpy as np
 import pytest
 
-from conftest import get_robot
+from conftest import get_robot, png_size
 
 pytest.importorskip("matplotlib")
 
 from planner import plots  # noqa: E402
-
-PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
-
-
-def png_size(path) -> tuple[int, int]:
-    data = path.read_bytes()
-    assert data[:8] == PNG_SIGNATURE, f"{path} is not a PNG"
-    assert data[12:16] == b"IHDR"
-    width, height = struct.unpack(">II", data[16:24])
-    assert data.rstrip(b"\x00")[-8:-4] == b"IEND"
-    return width, height
 
 
 def test_joint_profiles_and_manipulability(tmp_path):
