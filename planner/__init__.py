@@ -27,7 +27,7 @@ from .servo import ServoCalibration, default_calibrations, pulse_table, ssc32_gr
 from .singularity import check_singularities, plan_clear_of_singularities
 from .target import Target, quaternion_to_matrix, rotation_error, rpy_to_matrix
 from .trajectory import JointLimits, JointTrajectory, plan_trajectory
-from .waypoints import MotionPlan, load_motion_request, plan_motion
+from .waypoints import MotionPlan, load_motion_request, parse_motion_request, plan_motion
 
 __version__ = "0.1.0"
 
@@ -74,6 +74,7 @@ __all__ = [
     "MotionPlan",
     "load_motion_request",
     "plan_motion",
+    "parse_motion_request",
     # errors
     "PlannerError",
     "URDFError",

@@ -515,3 +515,22 @@ def test_continuous_joints():
         for sol in res.solutions:
             assert np.linalg.norm(robot.fk(sol.q)[:3, 3] - pose[:3, 3]) < TOL_POS
             assert planner.rotation_error(robot.fk(sol.q)[:3, :3], pose[:3, :3]) < 1e-9
+
+
+def test_pose_target_next_to_the_yaw_axis(robots, solvers):
+    # The wrist centre 1e-9 m from the yaw axis: the position barely fixes the yaw, the
+    # rotation does; the pose is reached and q is among the solutions.
+    robot, solver = robots["al5c"], solvers["al5c"]
+    l1, l2, a = 0.14605, 0.187325, 2.0
+    for eps in (1e-6, 1e-9, 0.0):
+        elbow = -(a - math.acos((eps - l1 * math.cos(a)) / l2))
+        q = np.array([0.3, a, elbow, 0.4, 0.2])
+        assert robot.within_limits(q)
+        pose = robot.fk(q)
+        res = solver.solve(Target.from_pose(pose))
+        assert res.status == STATUS_OK
+        assert any(np.allclose(s.q, q, atol=1e-9) for s in res.solutions)
+        for sol in res.solutions:
+            got = robot.fk(sol.q)
+            assert np.linalg.norm(got[:3, 3] - pose[:3, 3]) < TOL_POS
+            assert planner.rotation_error(got[:3, :3], pose[:3, :3]) < 1e-9

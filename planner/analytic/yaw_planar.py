@@ -30,8 +30,11 @@ Targets:
   exactly the convention). On arms without a wrist pitch (2 pitch joints) the pitch fixes the
   last link: the elbow is the end point minus that link and the shoulder points at it (one
   solution per side, kept if the shoulder link then fits to 1e-9 of the arm's size).
-- ``rotation``: the yaw from the position, the pitch sum and the roll from the rotation; arms
-  without roll or without wrist pitch keep only the branches the rotation allows.
+- ``rotation``: the yaw from the rotation (the azimuth of the pitch axis, or of the roll axis
+  unless that is vertical) where it fixes the yaw better than the position (whose hold on it
+  weakens as the end point nears the yaw axis), the position then checked to lie in that
+  plane; the pitch sum and the roll from the rotation. Arms without roll or without wrist
+  pitch keep only the branches the rotation allows.
 - position only: arms without a wrist pitch solve it directly. Arms with one are redundant:
   the approach pitch is ``q_current``'s when given and reachable, else the wrist centre is put
   on the line from the shoulder to the target (straight out) or, when that is too close, at the
@@ -776,11 +779,14 @@ class YawPlanarIK(AnalyticIK):
         under = rho2 - d * d
         cylinder = ~free & (under < -2.0 * np.abs(d) * len_tol)
         u = np.sqrt(np.maximum(under, 0.0))
+        seeded = np.zeros(n, dtype=bool)
         if not self.exact:
             # Inexact chains, end point next to the cylinder |d| around the yaw axis: the real
             # front and back yaws may differ where the ideal model merges them; start apart.
+            # (The yaw is ill-conditioned there: such solutions are flagged singular.)
             u_seed = np.sqrt(2.0 * np.abs(d) * len_tol)
-            u = np.where(~free & ~cylinder & (u < u_seed), u_seed, u)
+            seeded = ~free & ~cylinder & (u < u_seed)
+            u = np.where(seeded, u_seed, u)
         ang = np.arctan2(hy, hx)
         psi_f = ang - self._mu - np.arctan2(-d, u)
         psi_b = ang - self._mu - np.arctan2(-d, -u)
@@ -792,16 +798,13 @@ class YawPlanarIK(AnalyticIK):
         if np.any(free):
             psi_f = np.where(free, psi0, psi_f)
             u = np.where(free, 0.0, u)
-            if rot is not None:
-                pf, pb, two = self._yaw_from_rotation(m_rot, psi0)
-                psi_f = np.where(free, pf, psi_f)
-                psi_b = np.where(free, pb, psi_b)
-                back_dup = np.where(free, ~two, back_dup)
         psi = np.stack([psi_f, psi_b], axis=1)  # (n, 2)
         ue = np.stack([u, -u], axis=1)
         cat = np.zeros((n, 2), dtype=np.int8)
         cat[cylinder] = _CYLINDER
         cat[:, 1] = np.where(back_dup & ~cylinder, _DUPLICATE, cat[:, 1])
+        if rot is not None:
+            psi, ue, cat = self._yaw_for_rotation(m_rot, hx, hy, d, u, psi, ue, cat, free)
         ze2 = np.broadcast_to(ze[:, None], (n, 2))
         tu2, tz2 = tu[:, None], tz[:, None]
         roll_q = None if roll is None else np.broadcast_to(roll[:, None], (n, 2))
@@ -827,7 +830,9 @@ class YawPlanarIK(AnalyticIK):
             wz = ze2 - (sp * tu2 + cp * tz2)
         else:
             if pit is not None or rot is not None:
-                return self._core_two_oriented(pit, m_rot, psi, ue, ze2, tu, tz, d, cat, free, roll_q, end, orient_tol)
+                return self._core_two_oriented(
+                    pit, m_rot, psi, ue, ze2, tu, tz, d, cat, free | seeded, roll_q, end, orient_tol
+                )
             l2 = np.hypot(tu, tz)[:, None]  # (n, 1): the end vector is the second link
             g2 = np.arctan2(tz, tu)[:, None]
             wu, wz = ue, ze2
@@ -888,7 +893,9 @@ class YawPlanarIK(AnalyticIK):
         if three:
             alpha = self._beta + total
             world_pitch = np.where(np.array([True, True, False, False]), alpha, PI - alpha)
-        singular = elbow_sing[:, rep] | free[:, None] | (np.abs(ue[:, rep]) < SINGULAR_TOL * self._scale)
+        singular = (
+            elbow_sing[:, rep] | (free | seeded)[:, None] | (np.abs(ue[:, rep]) < SINGULAR_TOL * self._scale)
+        )
         return {
             "q": q,
             "cat": cat4,
@@ -961,18 +968,52 @@ class YawPlanarIK(AnalyticIK):
             "tz": tz,
         }
 
-    def _yaw_from_rotation(self, m_rot, psi0):
-        """Yaw candidates from a rotation when the end point is on the yaw axis."""
+    def _yaw_for_rotation(self, m_rot, hx, hy, d, u, psi, ue, cat, free):
+        """Rotation targets: take the yaw from the rotation where it fixes it better.
+
+        The position fixes the yaw only as well as the end point's distance u from the yaw axis
+        allows (a position error e turns it by e / u); the rotation fixes it by the azimuth of
+        the pitch axis (arms without roll: always) or of the roll axis (unless that is
+        vertical). With the yaw from the rotation, the position must lie in the arm's plane:
+        its sideways offset must be the arm's ``d`` (else the branch is not achievable).
+        """
         n_axis = self._n
         if self.has_roll:
             w = m_rot @ self._r0
             horiz = np.hypot(w[:, 0], w[:, 1])
-            has = horiz > 1e-9
-            pf = np.where(has, np.arctan2(w[:, 1], w[:, 0]) - self._mu, psi0)
-            return pf, pf + PI, has
-        w = m_rot @ n_axis
-        pf = np.arctan2(w[:, 1], w[:, 0]) - math.atan2(n_axis[1], n_axis[0])
-        return pf, pf + PI, np.zeros(len(pf), dtype=bool)
+            psi_a = np.arctan2(w[:, 1], w[:, 0]) - self._mu
+            use = (horiz > 1e-9) & (horiz * self._scale >= u)
+        else:
+            w = m_rot @ n_axis
+            psi_a = np.arctan2(w[:, 1], w[:, 0]) - math.atan2(n_axis[1], n_axis[0])
+            use = np.ones(len(psi_a), dtype=bool)
+        if not use.any():
+            return psi, ue, cat
+        cy, sy = np.cos(self._mu + psi_a), np.sin(self._mu + psi_a)
+        ue_a = hx * cy + hy * sy  # in-plane and sideways coordinates of the end point at psi_a
+        lat_a = hx * sy - hy * cy
+        forward = ue_a >= 0.0
+        tol = max(self._consistency_tol, self._core_len_tol)
+        off_plane = np.abs(lat_a - d) > tol
+        cat_rot = np.zeros_like(cat)
+        if self.has_roll:
+            # psi_a and psi_a + pi (the roll axis pointing forward or back in the arm's frame);
+            # the one with the end point in front is the front branch.
+            psi_front = np.where(forward, psi_a, psi_a + PI)
+            psi_rot = np.stack([psi_front, psi_front + PI], axis=1)
+            off_back = np.abs(-lat_a - d) > tol
+            cat_rot[:, 0] = np.where(np.where(forward, off_plane, off_back), _ORIENT, _VALID)
+            cat_rot[:, 1] = np.where(np.where(forward, off_back, off_plane), _ORIENT, _VALID)
+        else:
+            # One yaw: the end point lies in front of the yaw axis or behind it.
+            psi_rot = np.stack([psi_a, psi_a], axis=1)
+            bad = np.where(off_plane, _ORIENT, _VALID)
+            cat_rot[:, 0] = np.where(forward, bad, _DUPLICATE)
+            cat_rot[:, 1] = np.where(forward, _DUPLICATE, bad)
+        ue_rot = np.stack([np.abs(ue_a), -np.abs(ue_a)], axis=1)
+        cat_rot = np.where(cat == _CYLINDER, cat, cat_rot)
+        use2 = use[:, None]
+        return np.where(use2, psi_rot, psi), np.where(use2, ue_rot, ue), np.where(use2, cat_rot, cat)
 
     def _pitch_from_rotation(self, m_rot, psi):
         """Pitch sum phi (n, 2), roll (n, 2) or None, residual [rad] (n, 2) for given yaws."""
