@@ -24,7 +24,6 @@ origin); `tool` then places the tip relative to the last joint.
 
 from __future__ import annotations
 
-import json
 import math
 import re
 from collections.abc import Mapping, Sequence
@@ -35,6 +34,7 @@ from xml.sax.saxutils import escape
 
 import numpy as np
 
+from ._files import read_data_file
 from .exceptions import InvalidArgumentError, InvalidLimitsError
 
 __all__ = [
@@ -106,22 +106,9 @@ def load_arm_description(path: str | Path) -> dict[str, Any]:
     Raises:
         InvalidArgumentError: If the file is missing or does not parse to a mapping.
     """
-    p = Path(path)
-    try:
-        text = p.read_text()
-    except OSError as exc:
-        raise InvalidArgumentError(f"cannot read arm description {str(p)!r}: {exc.strerror}") from exc
-    try:
-        if p.suffix.lower() == ".json":
-            data = json.loads(text)
-        else:
-            import yaml
-
-            data = yaml.safe_load(text)
-    except Exception as exc:  # yaml and json raise several unrelated types
-        raise InvalidArgumentError(f"cannot parse arm description {str(p)!r}: {exc}") from exc
+    data = read_data_file(path, "arm description")
     if not isinstance(data, Mapping):
-        raise InvalidArgumentError(f"arm description {str(p)!r} must be a mapping, got {type(data).__name__}")
+        raise InvalidArgumentError(f"arm description {str(path)!r} must be a mapping, got {type(data).__name__}")
     return dict(data)
 
 

@@ -37,6 +37,7 @@ from typing import Any
 
 import numpy as np
 
+from ._files import read_data_file
 from .exceptions import InvalidArgumentError
 from .robot import Robot
 from .servo import ServoCalibration, default_calibrations
@@ -360,21 +361,7 @@ def load_motion_request(path: str | Path) -> MotionRequest:
     Raises:
         InvalidArgumentError: If the file is missing, does not parse, or is malformed.
     """
-    p = Path(path)
-    try:
-        text = p.read_text()
-    except OSError as exc:
-        raise InvalidArgumentError(f"cannot read plan file {str(p)!r}: {exc.strerror}") from exc
-    try:
-        if p.suffix.lower() == ".json":
-            data = json.loads(text)
-        else:
-            import yaml
-
-            data = yaml.safe_load(text)
-    except Exception as exc:  # yaml and json raise several unrelated types
-        raise InvalidArgumentError(f"cannot parse plan file {str(p)!r}: {exc}") from exc
-    return parse_motion_request(data, source=str(p))
+    return parse_motion_request(read_data_file(path, "plan file"), source=str(path))
 
 
 @dataclass(frozen=True)
