@@ -23,7 +23,14 @@ from .nlp_ik import IKResult, NlpIK
 from .robot import Robot
 from .robots import available_robots, load_robot
 from .sensing import range_bearing_to_base
-from .servo import ServoCalibration, default_calibrations, pulse_table, ssc32_group_moves
+from .servo import (
+    ServoCalibration,
+    angle_to_steps,
+    default_calibrations,
+    pulse_table,
+    ssc32_group_moves,
+    steps_to_angle,
+)
 from .singularity import check_singularities, plan_clear_of_singularities
 from .target import Target, quaternion_to_matrix, rotation_error, rpy_to_matrix
 from .trajectory import JointLimits, JointTrajectory, plan_trajectory
@@ -71,6 +78,8 @@ __all__ = [
     "default_calibrations",
     "pulse_table",
     "ssc32_group_moves",
+    "angle_to_steps",
+    "steps_to_angle",
     "MotionPlan",
     "load_motion_request",
     "plan_motion",

@@ -418,11 +418,11 @@ def _run_bench(args: argparse.Namespace) -> int:
 _COMMANDS: dict[str, tuple[Callable[[argparse._SubParsersAction], None], Callable[[argparse.Namespace], int]]] = {
     "robots": (_add_robots, _run_robots),
     "fk": (_add_fk, _run_fk),
-    "urdf-from-dh": (_add_urdf_from_dh, _run_urdf_from_dh),
-    "demo": (_add_demo, _run_demo),
-    "plan": (_add_plan, _run_plan),
     "ik": (_add_ik, _run_ik),
+    "plan": (_add_plan, _run_plan),
+    "demo": (_add_demo, _run_demo),
     "bench": (_add_bench, _run_bench),
+    "urdf-from-dh": (_add_urdf_from_dh, _run_urdf_from_dh),
 }
 
 
