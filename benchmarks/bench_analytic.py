@@ -5,8 +5,8 @@ is installed, SO-101), random configurations within the joint limits (``--seed``
 targets by forward kinematics:
 
 - ``shelley``, ``dh3`` (no wrist pitch): the tip position;
-- ``three_joint``, ``al5c``, ``so101``: the tip position and its approach pitch (the angle of
-  the approach axis from the horizontal, away from the yaw axis). SO-101's gripper frame sits
+- ``three_joint``, ``al5c``, ``so101``: the tip position and its approach pitch (the elevation
+  of the approach axis, outward from the base z axis: ``planner.target``). SO-101's gripper frame sits
   off its wrist roll axis, so the roll moves the tip: its targets pass the configuration as
   ``q_current`` (the source of the free roll). The others get no ``q_current``.
 
@@ -70,9 +70,11 @@ def fk_targets(robot, q):
     # The first pitch axis turned by the yaw, then the arm plane's horizontal direction.
     n = np.stack([np.cos(ang) * n0[0] - np.sin(ang) * n0[1], np.sin(ang) * n0[0] + np.cos(ang) * n0[1]], axis=1)
     e_u = np.stack([-n[:, 1], n[:, 0]], axis=1) / np.linalg.norm(n, axis=1)[:, None]
-    side = np.sign(np.sum((pos[:, :2] - yaw.point[:2]) * e_u, axis=1))
+    # planner.target: the horizontal part counts positive pointing away from the base z axis.
+    side = np.sign(np.sum(pos[:, :2] * e_u, axis=1))
     side[side == 0] = 1.0
-    horiz = np.sum(approach[:, :2] * e_u, axis=1) * side
+    along = np.sign(np.sum(approach[:, :2] * e_u, axis=1))  # the approach axis lies in the plane
+    horiz = np.hypot(approach[:, 0], approach[:, 1]) * np.where(along == 0, 1.0, along) * side
     return pos, np.arctan2(approach[:, 2], horiz)
 
 

@@ -11,10 +11,22 @@ v = the URDF's speed, a = 2 v, j = 10 a:
   waypoints (uniform path parameter, TOPPRA's default ``not-a-knot`` spline) with the same v
   and a limits. It ignores jerk, and the spline can leave the joint range: both are counted.
 
-Goals (from the issue): median duration <= 0.9 x TOPPRA's, median plan time <= 5 ms for 5
-waypoints on a 6-dof arm. Prints a Markdown table and writes JSON to benchmarks/results/.
+With ``--optimum-every K``, every K-th path is also solved as one nonlinear program
+(CasADi/IPOPT, direct transcription: per segment a free duration and ``--nodes`` intervals of
+constant jerk per joint, v, a, j and position limits at the interval ends, rest to rest),
+started from the planner's trajectory: an estimate of the true jerk-limited time optimum
+through the same waypoints, i.e. of what any planner could reach. The "optimum" column is the
+shorter of that and the planner's own duration (the fixed intervals can make the program a
+little slower than a near-optimal plan). The same program without the jerk limit and the
+position range (a path free to leave the spline TOPPRA follows) shows what a jerk- and
+range-free optimum would reach. Both are references only (about a second per path).
 
-    python benchmarks/bench_trajectory.py [--paths 100] [--seed 0]
+Goals (from the issue): median duration <= 0.9 x TOPPRA's, median plan time <= 5 ms for 5
+waypoints on a 6-dof arm. The headline figure is the median over paths of the per-path ratio
+(duration / TOPPRA's duration); the ratio of the median durations is shown as well. Prints a
+Markdown table and writes JSON to benchmarks/results/.
+
+    python benchmarks/bench_trajectory.py [--paths 100] [--seed 0] [--optimum-every K]
 """
 
 from __future__ import annotations
@@ -69,13 +81,72 @@ def toppra_checks(traj, limits: JointLimits, rate: float = 1000.0) -> dict:
     }
 
 
-def bench_robot(name: str, paths: int, rng: np.random.Generator, have_toppra: bool) -> dict:
+def optimum_reference(
+    q: np.ndarray, limits: JointLimits, init, *, jerk: bool = True, position: bool = True, nodes: int = 24
+) -> float | None:
+    """Shortest duration through waypoints q by direct transcription (IPOPT), or None if it fails.
+
+    Per segment k a duration T_k and `nodes` intervals of constant jerk per joint; the state
+    (q, qd, qdd) is integrated exactly, and |qd| <= v, |qdd| <= a (and the position range) are
+    imposed at the interval ends, |jerk| <= j on the intervals. Rest at both ends, continuous
+    velocity and acceleration at the waypoints. Started from `init` (a JointTrajectory).
+    """
+    import casadi as ca
+
+    n, dof = q.shape
+    opti = ca.Opti()
+    T = opti.variable(n - 1)
+    v_max = np.tile(limits.velocity, (nodes + 1, 1)).T
+    a_max = np.tile(limits.acceleration, (nodes + 1, 1)).T
+    j_max = np.tile(limits.jerk, (nodes, 1)).T if jerk else None
+    lower = np.tile(np.where(np.isfinite(limits.lower), limits.lower, -1e9), (nodes + 1, 1)).T
+    upper = np.tile(np.where(np.isfinite(limits.upper), limits.upper, 1e9), (nodes + 1, 1)).T
+    states = []
+    for k in range(n - 1):
+        x = opti.variable(3 * dof, nodes + 1)  # rows: q, qd, qdd
+        u = opti.variable(dof, nodes)
+        h = T[k] / nodes
+        qq, vv, aa = x[:dof, :-1], x[dof : 2 * dof, :-1], x[2 * dof :, :-1]
+        opti.subject_to(x[:dof, 1:] == qq + h * vv + h**2 / 2 * aa + h**3 / 6 * u)
+        opti.subject_to(x[dof : 2 * dof, 1:] == vv + h * aa + h**2 / 2 * u)
+        opti.subject_to(x[2 * dof :, 1:] == aa + h * u)
+        opti.subject_to(x[:dof, 0] == q[k])
+        opti.subject_to(x[:dof, -1] == q[k + 1])
+        opti.subject_to(opti.bounded(-v_max, x[dof : 2 * dof, :], v_max))
+        opti.subject_to(opti.bounded(-a_max, x[2 * dof :, :], a_max))
+        if jerk:
+            opti.subject_to(opti.bounded(-j_max, u, j_max))
+        if position:
+            opti.subject_to(opti.bounded(lower, x[:dof, :], upper))
+        opti.subject_to(T[k] >= 1e-3)
+        if k > 0:
+            opti.subject_to(x[dof:, 0] == states[-1][0][dof:, -1])
+        states.append((x, u))
+        t0, t1 = init.waypoint_times[k], init.waypoint_times[k + 1]
+        s = init.sample(np.linspace(t0, t1, nodes + 1))
+        opti.set_initial(T[k], max(t1 - t0, 1e-3))
+        opti.set_initial(x, np.vstack([s.q.T, s.qd.T, s.qdd.T]))
+        opti.set_initial(u, np.diff(s.qdd, axis=0).T / max((t1 - t0) / nodes, 1e-9))
+    opti.subject_to(states[0][0][dof:, 0] == 0)
+    opti.subject_to(states[-1][0][dof:, -1] == 0)
+    opti.minimize(ca.sum1(T))
+    opti.solver("ipopt", {"print_time": False}, {"print_level": 0, "max_iter": 3000, "tol": 1e-8, "sb": "yes"})
+    try:
+        sol = opti.solve()
+    except RuntimeError:
+        return None
+    return float(np.sum(sol.value(T)))
+
+
+def bench_robot(
+    name: str, paths: int, rng: np.random.Generator, have_toppra: bool, optimum_every: int = 0, nodes: int = 24
+) -> dict:
     robot = load_robot(name)
     limits = JointLimits.from_robot(robot)  # v from the URDF, a = 2 v, j = 10 a
     q0 = robot.random_configurations(rng, 5)
     plan_trajectory(q0, limits)  # warm-up
     rows = []
-    for _ in range(paths):
+    for index in range(paths):
         q = robot.random_configurations(rng, 5)
         t0 = time.perf_counter()
         ours = plan_trajectory(q, limits)
@@ -101,8 +172,18 @@ def bench_robot(name: str, paths: int, rng: np.random.Generator, have_toppra: bo
             else:
                 row["toppra_duration"] = float(traj.duration)
                 row.update({f"toppra_{k}": v for k, v in toppra_checks(traj, limits).items()})
+        if optimum_every and index % optimum_every == 0:
+            row["optimum_duration"] = optimum_reference(q, limits, ours, nodes=nodes)
+            row["relaxed_optimum_duration"] = optimum_reference(
+                q, limits, ours, jerk=False, position=False, nodes=nodes
+            )
         rows.append(row)
-    return {"robot": name, "dof": robot.dof, "source": "bundled" if name in BUNDLED_ROBOTS else "example-robot-data", "rows": rows}
+    return {
+        "robot": name,
+        "dof": robot.dof,
+        "source": "bundled" if name in BUNDLED_ROBOTS else "example-robot-data",
+        "rows": rows,
+    }
 
 
 def summarise(result: dict) -> dict:
@@ -134,6 +215,8 @@ def summarise(result: dict) -> dict:
                 "toppra_solved": len(ok),
                 "toppra_failed": len(rows) - len(ok),
                 "median_ratio_to_toppra": float(np.median(ratio)),
+                "ratio_of_medians_to_toppra": float(np.median([r["duration"] for r in ok]))
+                / float(np.median([r["toppra_duration"] for r in ok])),
                 "share_faster_than_toppra": float(np.mean(ratio < 1.0)),
                 "toppra_leaves_range": int(sum(r["toppra_leaves_range"] for r in ok)),
                 "toppra_median_jerk_ratio": float(np.median([r["toppra_jerk"] for r in ok])),
@@ -142,21 +225,44 @@ def summarise(result: dict) -> dict:
                 "toppra_ms_median": float(np.median([r["toppra_time"] for r in ok]) * 1e3),
             }
         )
+    ref = [r for r in ok if r.get("optimum_duration") and r.get("relaxed_optimum_duration")]
+    if ref:
+        out.update(
+            {
+                "optimum_paths": len(ref),
+                "optimum_median_ratio_to_toppra": float(
+                    np.median([min(r["optimum_duration"], r["duration"]) / r["toppra_duration"] for r in ref])
+                ),
+                "relaxed_optimum_median_ratio_to_toppra": float(
+                    np.median([r["relaxed_optimum_duration"] / r["toppra_duration"] for r in ref])
+                ),
+                "planner_median_ratio_to_toppra_same_paths": float(
+                    np.median([r["duration"] / r["toppra_duration"] for r in ref])
+                ),
+            }
+        )
     return out
 
 
 def markdown(summaries: list[dict]) -> str:
     head = (
-        "| robot | dof | paths | median T / TOPPRA | median T / stop | plan ms median (worst) "
+        "| robot | dof | paths | median T / TOPPRA (ratio of medians) | optimum / TOPPRA (jerk-free) "
+        "| median T / stop | plan ms median (worst) "
         "| peak v, a, j / limit | TOPPRA out of range | TOPPRA median peak jerk / limit |"
     )
-    lines = [head, "|" + "---|" * 9]
+    lines = [head, "|" + "---|" * 10]
     for s in summaries:
         toppra = s.get("median_ratio_to_toppra")
+        optimum = (
+            f"{s['optimum_median_ratio_to_toppra']:.3f} ({s['relaxed_optimum_median_ratio_to_toppra']:.3f})"
+            if "optimum_paths" in s
+            else "n/a"
+        )
         lines.append(
             f"| {s['robot']} | {s['dof']} | {s['paths']} | "
-            + (f"{toppra:.3f}" if toppra is not None else "n/a")
-            + f" | {s['median_ratio_to_stop']:.3f} | {s['plan_ms_median']:.2f} ({s['plan_ms_worst']:.1f}) | "
+            + (f"{toppra:.3f} ({s['ratio_of_medians_to_toppra']:.3f})" if toppra is not None else "n/a")
+            + f" | {optimum} | {s['median_ratio_to_stop']:.3f} | "
+            f"{s['plan_ms_median']:.2f} ({s['plan_ms_worst']:.1f}) | "
             f"{s['max_velocity_ratio']:.4f}, {s['max_acceleration_ratio']:.4f}, {s['max_jerk_ratio']:.4f} | "
             + (f"{s['toppra_leaves_range']}/{s['toppra_solved']}" if toppra is not None else "n/a")
             + " | "
@@ -171,6 +277,10 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--paths", type=int, default=100, help="random paths per robot")
     parser.add_argument("--seed", type=int, default=0, help="seed of the random waypoints")
     parser.add_argument("--robots", nargs="*", default=None, help="robots (default: every available one)")
+    parser.add_argument(
+        "--optimum-every", type=int, default=0, help="solve every K-th path as an NLP for the optimum (0: none)"
+    )
+    parser.add_argument("--nodes", type=int, default=24, help="constant-jerk intervals per segment in that NLP")
     args = parser.parse_args(argv)
     logging.getLogger("toppra").setLevel(logging.ERROR)
     try:
@@ -185,7 +295,7 @@ def main(argv: list[str] | None = None) -> int:
     if skipped:
         print(f"example-robot-data not installed: skipping {', '.join(skipped)}")
     rng = np.random.default_rng(args.seed)
-    results = [bench_robot(name, args.paths, rng, have_toppra) for name in names]
+    results = [bench_robot(name, args.paths, rng, have_toppra, args.optimum_every, args.nodes) for name in names]
     summaries = [summarise(r) for r in results]
     table = markdown(summaries)
     print(table)
@@ -193,9 +303,43 @@ def main(argv: list[str] | None = None) -> int:
     all_ratios = [
         r["duration"] / r["toppra_duration"] for res in results for r in res["rows"] if r.get("toppra_duration")
     ]
+    pairs = [(r["duration"], r["toppra_duration"]) for res in results for r in res["rows"] if r.get("toppra_duration")]
+    ref = [
+        r
+        for res in results
+        for r in res["rows"]
+        if r.get("toppra_duration") and r.get("optimum_duration") and r.get("relaxed_optimum_duration")
+    ]
     overall = {
         "median_ratio_to_toppra_all": float(np.median(all_ratios)) if all_ratios else None,
-        "median_plan_ms_6dof": float(np.median([r["plan_time"] for res in results if res["dof"] == 6 for r in res["rows"]]) * 1e3)
+        "ratio_of_medians_to_toppra_all": float(np.median([p[0] for p in pairs]) / np.median([p[1] for p in pairs]))
+        if pairs
+        else None,
+        "optimum_paths": len(ref),
+        "optimum_median_ratio_to_toppra_all": float(
+            np.median([min(r["optimum_duration"], r["duration"]) / r["toppra_duration"] for r in ref])
+        )
+        if ref
+        else None,
+        "relaxed_optimum_median_ratio_to_toppra_all": float(
+            np.median([r["relaxed_optimum_duration"] / r["toppra_duration"] for r in ref])
+        )
+        if ref
+        else None,
+        "planner_median_ratio_to_toppra_same_paths": float(
+            np.median([r["duration"] / r["toppra_duration"] for r in ref])
+        )
+        if ref
+        else None,
+        "optimum_failures": sum(
+            1
+            for res in results
+            for r in res["rows"]
+            if "optimum_duration" in r and not (r["optimum_duration"] and r["relaxed_optimum_duration"])
+        ),
+        "median_plan_ms_6dof": float(
+            np.median([r["plan_time"] for res in results if res["dof"] == 6 for r in res["rows"]]) * 1e3
+        )
         if six
         else None,
         "limit_tolerance": LIMIT_TOLERANCE,
@@ -203,6 +347,17 @@ def main(argv: list[str] | None = None) -> int:
     print()
     if overall["median_ratio_to_toppra_all"] is not None:
         print(f"median duration / TOPPRA over all paths: {overall['median_ratio_to_toppra_all']:.3f} (goal <= 0.9)")
+    if overall["ratio_of_medians_to_toppra_all"] is not None:
+        print(
+            f"median duration / median TOPPRA duration over all paths: {overall['ratio_of_medians_to_toppra_all']:.3f}"
+        )
+    if overall["optimum_median_ratio_to_toppra_all"] is not None:
+        print(
+            f"on the {overall['optimum_paths']} paths solved as an NLP: optimum / TOPPRA median "
+            f"{overall['optimum_median_ratio_to_toppra_all']:.3f} (without jerk and range limits "
+            f"{overall['relaxed_optimum_median_ratio_to_toppra_all']:.3f}), planner "
+            f"{overall['planner_median_ratio_to_toppra_same_paths']:.3f}"
+        )
     if overall["median_plan_ms_6dof"] is not None:
         print(f"median plan time, 5 waypoints, 6-dof arms: {overall['median_plan_ms_6dof']:.2f} ms (goal <= 5 ms)")
     versions = {}
@@ -222,7 +377,14 @@ def main(argv: list[str] | None = None) -> int:
             "python": platform.python_version(),
         },
         "versions": versions,
-        "settings": {"paths": args.paths, "seed": args.seed, "waypoints": 5, "limits": "v = URDF, a = 2 v, j = 10 a"},
+        "settings": {
+            "paths": args.paths,
+            "seed": args.seed,
+            "waypoints": 5,
+            "limits": "v = URDF, a = 2 v, j = 10 a",
+            "optimum_every": args.optimum_every,
+            "nodes": args.nodes,
+        },
         "summary": summaries,
         "overall": overall,
         "table": table,

@@ -32,7 +32,7 @@ from .servo import (
     steps_to_angle,
 )
 from .singularity import check_singularities, plan_clear_of_singularities
-from .target import Target, quaternion_to_matrix, rotation_error, rpy_to_matrix
+from .target import Target, approach_pitch, pitch_error, quaternion_to_matrix, rotation_error, rpy_to_matrix
 from .trajectory import JointLimits, JointTrajectory, plan_trajectory
 from .waypoints import MotionPlan, load_motion_request, parse_motion_request, plan_motion
 
@@ -54,6 +54,8 @@ __all__ = [
     "rpy_to_matrix",
     "quaternion_to_matrix",
     "rotation_error",
+    "approach_pitch",
+    "pitch_error",
     "range_bearing_to_base",
     # closed-form IK
     "AnalyticIK",

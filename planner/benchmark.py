@@ -23,7 +23,7 @@ from .casadi_kinematics import CasadiKinematics
 from .ik import analytic_solver, compare
 from .nlp_ik import NlpIK, target_errors
 from .robots import BUNDLED_ROBOTS, load_robot
-from .target import Target, rotation_error
+from .target import Target, approach_pitch, rotation_error
 
 __all__ = ["BUNDLED_KINDS", "bench_robot", "make_target", "markdown", "summarise", "verify"]
 
@@ -31,16 +31,6 @@ POSITION_TOL = 1e-4
 ORIENTATION_TOL = 1e-3
 #: Target kind of each bundled arm (what its joints can reach); example-robot-data arms: pose.
 BUNDLED_KINDS = {"shelley": "position", "dh3": "position", "three_joint": "pitch", "al5c": "pitch"}
-
-
-def approach_pitch(robot, q: np.ndarray) -> float:
-    """The approach pitch of configuration q (planner.target's convention)."""
-    pose = robot.fk(q)
-    a = pose[:3, :3] @ robot.approach_axis
-    p = pose[:3, 3]
-    radial = math.hypot(p[0], p[1])
-    ux, uy = (p[0] / radial, p[1] / radial) if radial > 1e-12 else (1.0, 0.0)
-    return math.atan2(a[2], a[0] * ux + a[1] * uy)
 
 
 def make_target(robot, kind: str, q: np.ndarray) -> Target:
@@ -62,7 +52,7 @@ def verify(robot, target: Target, q: np.ndarray | None) -> tuple[bool, float, fl
     if target.rotation is not None:
         oe = float(rotation_error(pose[:3, :3], target.rotation))
     else:
-        oe = target_errors(robot, target, q)[1]
+        oe = target_errors(robot, target, q)[1]  # planner.target.pitch_error for a pitch
     ok = pe < POSITION_TOL and oe < ORIENTATION_TOL and bool(robot.within_limits(q))
     return ok, pe, oe
 

@@ -190,8 +190,9 @@ def solve_ik(
         method: ``"analytic"``, ``"nlp"``, or ``"auto"``: the closed form where the arm and
             the target kind have one, else the NLP; and the NLP (started from the seed and the
             branches) also when every closed-form branch lies outside the joint limits and the
-            arm is redundant for the target, since the closed form then fixes the free joints
-            at `q_seed`'s values.
+            arm is redundant for the target: the closed form searches the free joints (approach
+            pitch, wrist roll) on its ideal geometry, sampling the roll, so a solution at the
+            very edge of the limits can still escape it.
         closed_form_seeds: For ``"nlp"``, also start from the closed-form branches where there
             are some (reported as ``"closed_form"`` attempts).
         position_tolerance: Success threshold on the position error [m].
@@ -226,8 +227,8 @@ def solve_ik(
             result = _analytic_result(robot, target, seed)
         if result is not None:
             answer = _from_analytic(robot, target, result, seed, position_tolerance, orientation_tolerance, start)
-            # Where the arm is redundant for the target, the closed form takes the free joints from
-            # q_seed; other values may still reach the target within limits: "auto" asks the NLP.
+            # Where the arm is redundant for the target, the closed form's search of the free joints
+            # may miss a solution at the very edge of the limits: "auto" asks the NLP too.
             if (
                 method == "analytic"
                 or answer.success
@@ -320,9 +321,10 @@ def _task_jacobian(robot: Robot, target: Target, q: np.ndarray) -> np.ndarray:
         a = robot.fk(q)[:3, :3] @ robot.approach_axis
         skew = np.array([[0.0, -a[2], a[1]], [a[2], 0.0, -a[0]], [-a[1], a[0], 0.0]])
         turning = -skew @ jac[3:]  # d(approach axis)/dq in base axes
-        if math.hypot(target.position[0], target.position[1]) <= 1e-12:
-            turning = turning[2:3]  # on the base axis only the elevation counts
-        return np.vstack([jac[:3], turning])
+        if abs(math.cos(target.pitch)) <= 1e-12:
+            return np.vstack([jac[:3], turning[:2]])  # straight up or down: one direction
+        # Otherwise the pitch fixes only the elevation asin(a_z) (planner.target).
+        return np.vstack([jac[:3], turning[2:3] / max(math.hypot(a[0], a[1]), 1e-12)])
     return jac[:3]
 
 
@@ -483,7 +485,7 @@ def compare(
             f"{distance:.3g} from the nearest closed-form branch {branch}",
         )
     if result.success:
-        note = " (the arm is redundant for this target; the closed form takes its free joints from q_seed)"
+        note = " (the arm is redundant for this target; the closed form searched its free joints)"
         return check(
             False,
             "analytic_missed",

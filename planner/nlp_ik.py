@@ -4,7 +4,9 @@ How :meth:`NlpIK.solve` works:
 
 1. **Batched damped Gauss-Newton in one compiled CasADi function.** The tip residual (the
    position error, plus for a pose the errors of the tip's x and z axes, or for an approach
-   pitch the error of the approach axis) is built symbolically from
+   pitch the errors of the approach axis's vertical and horizontal parts, the horizontal one
+   counted negative while it points against the outward side; see ``planner.target``) is built
+   symbolically from
    :class:`~planner.casadi_kinematics.CasadiKinematics`, orientation rows weighted by a length
    [m] of the arm. A Levenberg-Marquardt step ``dq = -(J^T J + (1e-6 + |r|^2) I)^-1 J^T r``
    (solved by a symbolic LDL^T factorisation), shortened to at most ``max_step`` and then
@@ -23,7 +25,9 @@ How :meth:`NlpIK.solve` works:
    manipulability floor, the batch runs to the end, its converged solutions are compared
    (nearest to the seed; above the floor) and, where the arm is redundant for the target,
    IPOPT moves along the redundancy: the joint limits are hard bounds, the task is a set of
-   equality constraints, ``det(J J^T) >= floor^2`` an inequality, and the objective the
+   equality constraints (for an approach pitch the elevation, or the direction when straight
+   up or down, with the outward side an inequality), ``det(J J^T) >= floor^2`` an
+   inequality, and the objective the
    squared distance to the seed (or, with only a floor, to the converged solution).
 
 Every answer is verified with Pinocchio: the errors in an :class:`IKResult` are Pinocchio's
@@ -60,7 +64,7 @@ import pinocchio as pin
 from .casadi_kinematics import CasadiKinematics
 from .exceptions import InvalidArgumentError, InvalidConfigurationError
 from .robot import Robot, Task
-from .target import Target, approach_direction
+from .target import RADIAL_EPS, Target, pitch_error
 
 __all__ = [
     "ATTEMPT_KINDS",
@@ -75,13 +79,13 @@ __all__ = [
 #: Where an attempt's starting configuration came from, in the order they are tried.
 ATTEMPT_KINDS = ("seed", "closed_form", "random")
 
-_RADIAL_EPS = 1e-12  # as planner.target.approach_direction
-# Kernel parameters: target position 3, rotation 9 (column-major), approach direction 3,
-# sin(pitch) 1, approach weights (full direction, elevation only) 2, stop threshold 1,
-# orientation weight [m] 1.
+# Kernel parameters: target position 3, rotation 9 (column-major), outward direction 3,
+# sin(pitch) 1, |cos(pitch)| 1, unused 1, stop threshold 1, orientation weight [m] 1.
 _N_PARAMS = 20
 _STOP = 18
 _SCALE = 19
+#: |cos(pitch)| at or below which a pitch target is straight up or down (one direction).
+_VERTICAL = 1e-12
 #: Orientation weights of successive batches, times the chain length: varying the weighting
 #: varies the basins of attraction, which helps arms with fewer joints than the task.
 _SCALES = (0.25, 0.5, 0.12)
@@ -105,8 +109,8 @@ class IKResult:
         reason: Why, in a sentence.
         position_error: Distance of the tip from the target by Pinocchio FK [m].
         orientation_error: By Pinocchio FK [rad]: the rotation angle to the target rotation for
-            a pose, the angle between the approach axis and the approach direction for a
-            pitch target, 0 for a position target.
+            a pose, :func:`planner.target.pitch_error` of the approach axis for a pitch target,
+            0 for a position target.
         iterations: Gauss-Newton iterations run per seed, summed over batches, plus IPOPT's.
         attempts: Seeds tried.
         attempt: Index (0-based, in the order tried) of the attempt whose answer is returned
@@ -177,8 +181,19 @@ def as_target(target: Target | Sequence[float] | np.ndarray) -> Target:
     )
 
 
-def _on_base_axis(position: np.ndarray) -> bool:
-    return math.hypot(position[0], position[1]) <= _RADIAL_EPS
+def _outward(target: Target) -> np.ndarray:
+    """Unit horizontal direction the approach axis of a pitch target must not point against.
+
+    Away from the base z axis (towards it for ``|pitch| > pi/2``); zero where any direction
+    will do: the target on the base z axis, or a straight up or down pitch.
+    """
+    x, y = float(target.position[0]), float(target.position[1])
+    radial = math.hypot(x, y)
+    cos_p = math.cos(float(target.pitch))
+    if radial <= RADIAL_EPS or abs(cos_p) <= _VERTICAL:
+        return np.zeros(3)
+    sign = 1.0 if cos_p > 0.0 else -1.0
+    return np.array([sign * x / radial, sign * y / radial, 0.0])
 
 
 def _errors(
@@ -195,12 +210,7 @@ def _errors(
         )
         return position_error, math.atan2(sin, min(1.0, max(-1.0, cos)))
     if target.pitch is not None:
-        a = rotation @ approach_axis
-        # On the base axis the radial direction is the arm's own: the azimuth of its approach axis.
-        yaw = math.atan2(a[1], a[0]) if math.hypot(a[0], a[1]) > _RADIAL_EPS else 0.0
-        wanted = approach_direction(target.position, target.pitch, yaw)
-        cross = np.cross(a, wanted)
-        return position_error, math.atan2(math.sqrt(float(cross @ cross)), float(a @ wanted))
+        return position_error, pitch_error(rotation @ approach_axis, target.position, target.pitch)
     return position_error, 0.0
 
 
@@ -214,10 +224,9 @@ def target_errors(robot: Robot, target: Target, q: Sequence[float] | np.ndarray)
 
     Returns:
         ``(position_error [m], orientation_error [rad])``. The orientation error is the
-        rotation angle to the target rotation for a pose target; for a pitch target, the angle
-        between the tip's approach axis and the approach direction (on the base axis, with the
-        radial direction taken from the approach axis's own azimuth, so only the elevation
-        counts); 0 for a position target.
+        rotation angle to the target rotation for a pose target; for a pitch target,
+        :func:`planner.target.pitch_error` of the tip's approach axis (the angle to the nearest
+        direction with the target's approach pitch); 0 for a position target.
     """
     pose = robot.fk(q)
     return _errors(target, pose[:3, 3], pose[:3, :3], robot.approach_axis)
@@ -455,8 +464,15 @@ class NlpIK:
             # Two axes fix a rotation; the third row would only add work.
             rows += [s * (rotation[:, 0] - goal[:, 0]), s * (rotation[:, 2] - goal[:, 2])]
         elif kind == "pitch":
-            approach = ca.mtimes(rotation, ca.DM(self._axis))
-            rows += [s * par[16] * (approach - par[12:15]), s * par[17] * (approach[2] - par[15])]
+            # Elevation: the approach axis's vertical part sin(pitch) and horizontal length
+            # |cos(pitch)| (their errors make the chord of the elevation error, well
+            # conditioned at any pitch); a horizontal part pointing against the outward side
+            # counts negative, so for an arm whose plane holds the base axis the residual is
+            # that of the one approach direction, without a local minimum pointing inward.
+            a = ca.mtimes(rotation, ca.DM(self._axis))
+            horizontal = ca.sqrt(a[0] * a[0] + a[1] * a[1] + 1e-30)
+            outward = ca.dot(a, par[12:15])
+            rows += [s * (a[2] - par[15]), s * (horizontal - par[16] + 2.0 * ca.fmin(outward, 0.0))]
         return ca.vertcat(*rows)
 
     def _kernel(self, kind: str) -> _Kernel:
@@ -512,12 +528,9 @@ class NlpIK:
         if target.rotation is not None:
             par[3:12] = target.rotation.ravel(order="F")
         elif target.pitch is not None:
-            if _on_base_axis(target.position):
-                par[15] = math.sin(target.pitch)
-                par[17] = 1.0
-            else:
-                par[12:15] = approach_direction(target.position, target.pitch)
-                par[16] = 1.0
+            par[12:15] = _outward(target)
+            par[15] = math.sin(target.pitch)
+            par[16] = abs(math.cos(target.pitch))
 
     # -------------------------------------------------------------------- Pinocchio checks
     def _pose(self, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -545,22 +558,34 @@ class NlpIK:
             rel = ca.mtimes(ca.reshape(par[3:12], 3, 3).T, rotation)
             rows.append(0.5 * ca.vertcat(rel[2, 1] - rel[1, 2], rel[0, 2] - rel[2, 0], rel[1, 0] - rel[0, 1]))
         elif kind == "pitch":
-            rows.append(ca.vertcat(ca.dot(approach, par[12:15]), ca.dot(approach, par[15:18])))
-        elif kind == "pitch_on_axis":
-            rows.append(approach[2] - par[18])
+            # The elevation; the outward side is an inequality (see _polish).
+            rows += [approach[2] - par[15], ca.dot(approach, par[12:15])]
+        elif kind == "pitch_vertical":
+            rows.append(approach[0:2])
         return ca.vertcat(*rows)
 
     @staticmethod
     def _equality_count(kind: str) -> int:
-        return {"position": 3, "pose": 6, "pitch": 5, "pitch_on_axis": 4}[kind]
+        return {"position": 3, "pose": 6, "pitch": 4, "pitch_vertical": 5}[kind]
+
+    @staticmethod
+    def _task_kind(target: Target) -> str:
+        """The polisher's task: the target kind, or ``"pitch_vertical"``.
+
+        A straight up or down pitch is a single direction, whose elevation alone would be a
+        degenerate constraint.
+        """
+        if target.pitch is not None and abs(math.cos(target.pitch)) <= _VERTICAL:
+            return "pitch_vertical"
+        return target.kind
 
     def _polisher(self, kind: str, task: str, floor: bool) -> ca.Function:
         key = (kind, task, floor)
         if key not in self._polishers:
             n = self.robot.dof
             q = ca.SX.sym("q", n)
-            # target position 3, rotation 9, two normals of the approach direction 6,
-            # sin(pitch) 1, reference configuration n, squared manipulability floor 1
+            # target position 3, rotation 9, outward direction 3, sin(pitch) 1, unused 3,
+            # reference configuration n, squared manipulability floor 1
             par = ca.SX.sym("par", 19 + n + 1)
             constraints = [self._task_equalities(kind, q, par)]
             if floor:
@@ -591,16 +616,16 @@ class NlpIK:
         par[0:3] = target.position
         if target.rotation is not None:
             par[3:12] = target.rotation.ravel(order="F")
-        if kind == "pitch":
-            direction = approach_direction(target.position, float(target.pitch))
-            normal = np.cross(direction, [0.0, 0.0, 1.0])
-            normal /= np.linalg.norm(normal)
-            par[12:15], par[15:18] = normal, np.cross(direction, normal)
-        elif kind == "pitch_on_axis":
-            par[18] = math.sin(float(target.pitch))
-        par[19 : 19 + n] = q_ref
         neq = self._equality_count(kind)
         lbg, ubg = np.zeros(neq), np.zeros(neq)
+        if kind == "pitch":
+            outward = _outward(target)
+            par[12:15] = outward
+            par[15] = math.sin(float(target.pitch))
+            # The approach axis's horizontal part must not point against the outward side.
+            lbg = np.append(lbg, 0.0 if outward.any() else -np.inf)
+            ubg = np.append(ubg, np.inf)
+        par[19 : 19 + n] = q_ref
         if floor is not None:
             par[19 + n] = floor**2
             lbg, ubg = np.append(lbg, 0.0), np.append(ubg, np.inf)
@@ -862,9 +887,7 @@ class NlpIK:
         def good(q: np.ndarray) -> bool:
             return floor is None or float(self.robot.manipulability(q, task)) >= floor
 
-        kind = target.kind
-        if kind == "pitch" and _on_base_axis(target.position):
-            kind = "pitch_on_axis"
+        kind = self._task_kind(target)
         iterations = 0
         if self.robot.dof > self._equality_count(kind):
             for index, q, _, _ in reached[:3]:

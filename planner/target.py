@@ -5,12 +5,21 @@ Orientation conventions used across `planner`:
 - ``rotation`` is the tip frame's 3x3 rotation matrix in the base frame.
 - ``rpy`` is URDF roll-pitch-yaw [rad]: ``R = Rz(yaw) Ry(pitch) Rx(roll)``.
 - A quaternion is given as ``(x, y, z, w)`` (the ROS / SciPy order).
-- ``pitch`` is the *approach pitch* [rad] of the tip's approach axis (see
-  ``Robot.approach_axis``): the axis lies in the vertical plane through the base z axis and
-  the target, at angle `pitch` from the horizontal, 0 pointing radially away from the base
-  axis, +pi/2 straight up, -pi/2 straight down (the 001 seed's parallel and straight-down
-  approaches are 0 and -pi/2). Where the target lies on the base axis the radial direction is
-  the one of the arm's yaw.
+- ``pitch`` is the *approach pitch* [rad] of the tip's approach axis ``a`` (see
+  ``Robot.approach_axis``, in base-frame coordinates): its elevation above the horizontal,
+  ``a_z = sin(pitch)``, with its horizontal part pointing away from the base z axis, i.e. a
+  non-negative dot product with the radial direction from the base z axis to the target (for
+  ``|pitch| > pi/2``: towards it; ``cos(pitch)`` gives the side). So 0 is horizontal and
+  outward, +pi/2 straight up, -pi/2 straight down (the 001 seed's parallel and straight-down
+  approaches are 0 and -pi/2). Which way the horizontal part points within that half plane is
+  left to the arm: for an arm whose pitch plane contains the base z axis it is the radial
+  direction itself (:func:`approach_direction`); an arm whose plane passes beside the axis
+  (SO-101) or whose yaw axis is not the base z axis points it along its own plane. Where the
+  target lies on the base z axis only the elevation counts.
+
+:func:`approach_pitch` measures the approach pitch of a configuration, :func:`pitch_error` how
+far an approach axis is from a target pitch (the orientation error of a pitch target, used by
+every solver and the tests).
 """
 
 from __future__ import annotations
@@ -26,12 +35,17 @@ from .exceptions import InvalidArgumentError
 __all__ = [
     "Target",
     "approach_direction",
+    "approach_pitch",
+    "pitch_error",
     "rotation_error",
     "rpy_to_matrix",
     "quaternion_to_matrix",
 ]
 
 _ORTHONORMAL_TOL = 1e-6
+#: Targets closer than this to the base z axis [m] have no radial direction: only the
+#: elevation of the approach axis counts there.
+RADIAL_EPS = 1e-12
 
 
 def _finite_vector(value: Sequence[float] | np.ndarray, n: int, what: str) -> np.ndarray:
@@ -119,24 +133,116 @@ def rotation_error(rotation_a: np.ndarray, rotation_b: np.ndarray) -> np.ndarray
 
 
 def approach_direction(position: np.ndarray, pitch: float, yaw: float | None = None) -> np.ndarray:
-    """Unit approach direction for an approach pitch at a target position (base frame).
+    """The approach direction of a pitch in the vertical plane through the base z axis and the target.
+
+    For an arm whose pitch plane contains the base z axis (al5c, three_joint) this is the one
+    direction with approach pitch `pitch` that it can take at `position`; in general it is one
+    of many (see the module docstring).
 
     Args:
         position: Target position, shape (3,) [m].
-        pitch: Approach pitch [rad] (see the module docstring).
+        pitch: Approach pitch [rad].
         yaw: Direction of the radial axis [rad] when the target lies on the base z axis;
             None uses 0 there.
 
     Returns:
-        Shape (3,) unit vector.
+        Shape (3,) unit vector (base frame).
     """
     radial = math.hypot(position[0], position[1])
-    if radial > 1e-12:
+    if radial > RADIAL_EPS:
         cy, sy = position[0] / radial, position[1] / radial
     else:
         a = 0.0 if yaw is None else yaw
         cy, sy = math.cos(a), math.sin(a)
     return np.array([math.cos(pitch) * cy, math.cos(pitch) * sy, math.sin(pitch)])
+
+
+def approach_pitch(robot, q: Sequence[float] | np.ndarray) -> float | np.ndarray:
+    """The approach pitch [rad] of a configuration (the module docstring's convention).
+
+    ``atan2(a_z, +-|a_h|)`` of the approach axis ``a`` at FK(q), its horizontal part ``a_h``
+    counted positive when it points away from the base z axis (or when the tip is on that
+    axis), so ``Target(tip position, pitch=approach_pitch(robot, q))`` is reached by q.
+
+    Args:
+        robot: A :class:`~planner.robot.Robot`.
+        q: Shape (dof,) or (N, dof) [rad or m].
+
+    Returns:
+        A float in (-pi, pi], or shape (N,).
+    """
+    pose = np.asarray(robot.fk(q))
+    a = pose[..., :3, :3] @ np.asarray(robot.approach_axis, dtype=float)
+    p = pose[..., :3, 3]
+    horizontal = np.hypot(a[..., 0], a[..., 1])
+    inward = (np.hypot(p[..., 0], p[..., 1]) > RADIAL_EPS) & (a[..., 0] * p[..., 0] + a[..., 1] * p[..., 1] < 0.0)
+    pitch = np.arctan2(a[..., 2], np.where(inward, -horizontal, horizontal))
+    return float(pitch) if np.ndim(pitch) == 0 else pitch
+
+
+def _pitch_error_one(
+    ax: float, ay: float, az: float, px: float, py: float, cos_p: float, sin_p: float, elevation: float
+) -> float:
+    """:func:`pitch_error` of one axis (ax, ay, az) at (px, py).
+
+    The pitch is given by its cosine, sine and elevation ``atan2(sin, |cos|)`` (callers with many
+    axes compute them once).
+    """
+    error = abs(math.atan2(az, math.hypot(ax, ay)) - elevation)
+    if cos_p * (ax * px + ay * py) < 0.0 and (radial := math.hypot(px, py)) > RADIAL_EPS:
+        # The horizontal part points to the wrong side: the nearest allowed direction has its
+        # horizontal part perpendicular to the radial direction, on the side of a's.
+        tx, ty = -py / radial, px / radial
+        if ax * tx + ay * ty < 0.0:
+            tx, ty = -tx, -ty
+        bx, by, bz = abs(cos_p) * tx, abs(cos_p) * ty, sin_p
+        cx, cy, cz = ay * bz - az * by, az * bx - ax * bz, ax * by - ay * bx
+        error = math.atan2(math.sqrt(cx * cx + cy * cy + cz * cz), ax * bx + ay * by + az * bz)
+    return error
+
+
+def pitch_error(
+    approach: Sequence[float] | np.ndarray, position: Sequence[float] | np.ndarray, pitch: float | np.ndarray
+) -> float | np.ndarray:
+    """Orientation error [rad] of an approach axis for a pitch target.
+
+    The angle between `approach` and the nearest direction that has approach pitch `pitch` at
+    `position` (module docstring): ``|elevation - pitch's elevation|`` when the horizontal part
+    points to the right side (away from the base z axis for ``|pitch| < pi/2``), else the angle
+    to the nearest direction of that elevation whose horizontal part is perpendicular to the
+    radial direction. 0 exactly when the approach axis satisfies the convention; continuous.
+
+    Args:
+        approach: Approach axis in the base frame, unit, shape (3,) or (N, 3).
+        position: Target position, shape (3,) or (N, 3) [m].
+        pitch: Target approach pitch [rad], a scalar or shape (N,).
+
+    Returns:
+        A float in [0, pi], or shape (N,) for batches.
+    """
+    a = np.asarray(approach, dtype=float)
+    p = np.asarray(position, dtype=float)
+    if a.ndim == 1 and p.ndim == 1 and np.ndim(pitch) == 0:
+        cos_p, sin_p = math.cos(pitch), math.sin(pitch)
+        return _pitch_error_one(
+            float(a[0]), float(a[1]), float(a[2]), float(p[0]), float(p[1]), cos_p, sin_p, math.atan2(sin_p, abs(cos_p))
+        )
+    pitch = np.asarray(pitch, dtype=float)
+    ax, ay, az = a[..., 0], a[..., 1], a[..., 2]
+    px, py = p[..., 0], p[..., 1]
+    cos_p, sin_p = np.cos(pitch), np.sin(pitch)
+    error = np.abs(np.arctan2(az, np.hypot(ax, ay)) - np.arctan2(sin_p, np.abs(cos_p)))
+    radial = np.hypot(px, py)
+    wrong = (radial > RADIAL_EPS) & (cos_p * (ax * px + ay * py) < 0.0)
+    if np.any(wrong):
+        safe = np.where(radial > RADIAL_EPS, radial, 1.0)
+        tx, ty = -py / safe, px / safe
+        side = np.where(ax * tx + ay * ty < 0.0, -1.0, 1.0)
+        bx, by, bz = np.abs(cos_p) * side * tx, np.abs(cos_p) * side * ty, sin_p
+        cross = np.stack(np.broadcast_arrays(ay * bz - az * by, az * bx - ax * bz, ax * by - ay * bx), axis=-1)
+        to_edge = np.arctan2(np.linalg.norm(cross, axis=-1), ax * bx + ay * by + az * bz)
+        error = np.where(wrong, to_edge, error)
+    return float(error) if np.ndim(error) == 0 else error
 
 
 @dataclass(frozen=True)

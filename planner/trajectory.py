@@ -10,22 +10,29 @@ chooses the state (velocity and acceleration) at every via waypoint itself:
 1. **Spline-like via states.** From the current segment durations T1, T2 and the slopes
    s1 = dq1 / T1, s2 = dq2 / T2 of the two neighbouring segments, each joint gets the slope
    blend ``(s1 T2 + s2 T1) / (T1 + T2)`` (what a cubic spline through the waypoint times has
-   there, also where the joint turns round: a joint with time to spare may pass its
-   waypoint still moving and turn just beyond it, as a spline does) and the acceleration
-   ``2 (s2 - s1) / (T1 + T2)``, both within the joint's limits.
-2. **A search per via waypoint.** Scaling time by 1/x multiplies velocities by x and
-   accelerations by x^2, so candidates ``(x v, x^2 a)`` (each joint saturating at its limits)
-   are tried on a grid and refined by golden-section search, minimising the duration of the
-   two segments next to the waypoint. A second search moves joints that turn round at the
-   waypoint towards a time-optimal turn: at rest, still braking at full deceleration. One
-   sweep over the via waypoints (more sweeps gained under 1 % in the benchmark).
+   there) as its via velocity and the acceleration ``2 (s2 - s1) / (T1 + T2)``, both within
+   the joint's limits (the ``"heuristic"`` strategy stops here).
+2. **A joint choice, then a search per via waypoint.** All via states between two fixed
+   waypoints are then chosen together: the C2 cubic spline through the waypoints at the
+   segment durations gives every via a velocity and an acceleration consistent with all
+   the others (a joint with time to spare may pass its waypoint still moving and turn just
+   beyond it, as a spline does); the durations are scaled by a common factor, found by
+   golden-section search, to minimise the chained Ruckig durations. Then each via is refined
+   on its own: scaling time by 1/x multiplies velocities by x and accelerations by x^2, so
+   candidates ``(x v, x^2 a)`` of the slope blend (each joint saturating at its limits) are
+   tried on a grid and refined by golden-section search, minimising the duration of the two
+   segments next to the waypoint. A second search moves joints that turn round at the
+   waypoint towards a time-optimal turn: at rest, still braking at full deceleration. Each
+   search keeps the current state unless a candidate is faster, and stopping at the via
+   is one of the candidates.
 3. **Range repair.** A non-zero via state can carry a joint past its range inside a segment.
    The search discards such candidates (halving the offending joints' via state), and every
    final segment is checked exactly: the per-joint extrema of its constant-jerk pieces
    (:func:`_piece_position_range`; Ruckig's own ``position_extrema`` misses turning points
    inside constant-acceleration phases). Where one lies outside the range, that joint's via
-   state at the segment's ends is halved until it fits. Samples are never clipped: a joint at
-   rest at both ends of a segment moves monotonically, so the repair ends inside the range.
+   state at the segment's ends is halved until it fits (after six halvings it is set to
+   rest). Samples are never clipped: a joint at rest at both ends of a segment moves
+   monotonically, so the repair ends inside the range.
    A given start state that would run a joint out of range first brakes every joint as hard
    as it can (each on its own), or is rejected if even that leaves the range.
 
@@ -76,9 +83,16 @@ _OVERSHOOT_TOL = 1e-10
 # Scale factors tried first for each via state (1 = the slope blend itself).
 _GRID = (0.0, 0.5, 1.0, 1.4, 2.0, 3.0)
 _GOLDEN_STEPS = 5
+# Spline stage: range of the common log time-scale of the segment durations searched, and
+# golden-section evaluations (a simplex over every duration gained nothing on top).
+_SPLINE_SCALE = (-0.5, 0.1)
+_SPLINE_SCALE_EVALS = 8
+# A segment whose Ruckig extrema leave the range counts this much longer in the search.
+_SPLINE_PENALTY = 1.5
 _TURN_GRID = (0.0, 0.5, 1.0)
 _TURN_STEPS = 3
 _REPAIR_HALVINGS = 24
+_REPAIR_HALVINGS_BEFORE_REST = 6
 _SEARCH_HALVINGS = 6
 
 
@@ -667,6 +681,64 @@ def _via_directions(
     return u, np.clip(w, -limits.acceleration, limits.acceleration)
 
 
+def _spline_via_states(
+    q: np.ndarray, h: np.ndarray, v_start: np.ndarray, v_end: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """Velocities and accelerations at the inner knots of a cubic spline through waypoints.
+
+    The C2 cubic spline through ``q[k]`` at the times ``cumsum(h)``, with the given end
+    velocities (a clamped spline), couples every via to all others through the knot times.
+
+    Args:
+        q: Waypoints of the run, shape (m+1, dof), m >= 2.
+        h: Segment durations, shape (m,) [s], positive.
+        v_start: Velocity at ``q[0]``, shape (dof,).
+        v_end: Velocity at ``q[m]``, shape (dof,).
+
+    Returns:
+        Velocities and accelerations at ``q[1:m]``, shapes (m-1, dof).
+    """
+    m = len(h)
+    slope = np.diff(q, axis=0) / h[:, None]  # (m, dof)
+    inv = 1.0 / h
+    # Tridiagonal system for v_1 .. v_{m-1} (Thomas algorithm, one right-hand side per joint).
+    diag = 2.0 * (inv[:-1] + inv[1:])
+    rhs = 3.0 * (slope[:-1] * inv[:-1, None] + slope[1:] * inv[1:, None])
+    rhs[0] -= inv[0] * v_start
+    rhs[-1] -= inv[-1] * v_end
+    c = np.empty(m - 1)
+    d = np.empty_like(rhs)
+    c[0], d[0] = inv[1] / diag[0], rhs[0] / diag[0]
+    for r in range(1, m - 1):
+        den = diag[r] - inv[r] * c[r - 1]
+        c[r] = inv[r + 1] / den
+        d[r] = (rhs[r] - inv[r] * d[r - 1]) / den
+    v = np.empty_like(rhs)
+    v[-1] = d[-1]
+    for r in range(m - 3, -1, -1):
+        v[r] = d[r] - c[r] * v[r + 1]
+    v_next = np.vstack([v[1:], v_end[None]])
+    acc = (6.0 * slope[1:] - 4.0 * v - 2.0 * v_next) * inv[1:, None]
+    return v, acc
+
+
+def _golden_minimum(f: Callable[[float], float], lo: float, hi: float, evals: int) -> float:
+    """Golden-section search for a minimum of f on [lo, hi] with `evals` evaluations."""
+    g = (math.sqrt(5.0) - 1.0) / 2.0
+    x1, x2 = hi - g * (hi - lo), lo + g * (hi - lo)
+    f1, f2 = f(x1), f(x2)
+    for _ in range(max(evals - 2, 0)):
+        if f1 <= f2:
+            hi, x2, f2 = x2, x1, f1
+            x1 = hi - g * (hi - lo)
+            f1 = f(x1)
+        else:
+            lo, x1, f1 = x1, x2, f2
+            x2 = lo + g * (hi - lo)
+            f2 = f(x2)
+    return x1 if f1 <= f2 else x2
+
+
 def _admissible_acceleration(v: np.ndarray, a: np.ndarray, limits: JointLimits) -> np.ndarray:
     """Limit a via acceleration so the state can be reached and left within the limits.
 
@@ -675,7 +747,7 @@ def _admissible_acceleration(v: np.ndarray, a: np.ndarray, limits: JointLimits) 
     """
     room = np.maximum(limits.velocity - np.abs(v), 0.0)
     amax = np.minimum(limits.acceleration, np.sqrt(2.0 * limits.jerk * room) * (1.0 - 1e-9))
-    return np.clip(a, -amax, amax)
+    return np.maximum(np.minimum(a, amax), -amax)
 
 
 class _Planner:
@@ -818,6 +890,51 @@ class _Planner:
             if not changed:
                 return
 
+    def search_spline(self, a: int, b: int, durations: np.ndarray) -> None:
+        """Choose the via states between fixed waypoints a and b jointly, from a timed spline.
+
+        Given segment durations, the C2 cubic spline through the waypoints at those times
+        gives every via a velocity and an acceleration that fit all the others (a joint that
+        turns round at a waypoint may pass it still moving, turning just beyond, as on the
+        spline). A common time scale of the durations is searched (golden section, in log
+        scale) to minimise the Ruckig durations of segments a..b-1 with those via states;
+        the best states whose segments stay within the range (by Ruckig's extrema) replace
+        the current ones if they are faster.
+        """
+        lim = self.limits
+        h0 = durations[a:b]
+        if not np.all(np.isfinite(h0)) or np.any(h0 <= 0):
+            return
+        q_run = self.q[a : b + 1]
+        v_a, v_b = self.v[a], self.v[b]
+        best: list = [math.inf, None, None]
+
+        def cost(log_h: np.ndarray) -> float:
+            v, acc = _spline_via_states(q_run, np.exp(log_h), v_a, v_b)
+            v = np.clip(v, -lim.velocity, lim.velocity)
+            acc = _admissible_acceleration(v, acc, lim)
+            total, inside = 0.0, True
+            for k in range(a, b):
+                va, aa = (self.v[a], self.acc[a]) if k == a else (v[k - a - 1], acc[k - a - 1])
+                vb, ab = (self.v[b], self.acc[b]) if k == b - 1 else (v[k - a], acc[k - a])
+                d, bad, _ = self.seg.solve(k, va, aa, vb, ab)
+                if bad is not None:
+                    inside = False
+                    d *= _SPLINE_PENALTY
+                total += d
+            if inside and total < best[0]:
+                best[:] = [total, v, acc]
+            return total
+
+        current = 0.0
+        for k in range(a, b):
+            d, bad, _ = self.seg.solve(k, self.v[k], self.acc[k], self.v[k + 1], self.acc[k + 1])
+            current += math.inf if bad is not None else d
+        log_h = np.log(h0)
+        _golden_minimum(lambda x: cost(log_h + x), *_SPLINE_SCALE, _SPLINE_SCALE_EVALS)
+        if best[0] < current:
+            self.v[a + 1 : b], self.acc[a + 1 : b] = best[1], best[2]
+
     def search_turn(self, i: int) -> None:
         """Let joints that turn round at via i pass it at rest but still braking.
 
@@ -855,8 +972,14 @@ class _Planner:
         if strategy == "heuristic":
             return
         self._settle(free)
-        # One sweep: the slope blend from the durations with blended via speeds, then a
-        # search per via (more sweeps or per-joint refinement gained about 1 % in tests).
+        # All via states of a run between fixed waypoints at once, from a timed spline.
+        durations = self.durations()
+        fixed = [i for i in range(self.n) if self.fixed[i]]
+        for a, b in zip(fixed[:-1], fixed[1:]):
+            if b - a >= 2:
+                self.search_spline(a, b, durations)
+        # Then one sweep: the slope blend from the durations, time-scaled per via, and the
+        # turn search (more sweeps or per-joint refinement gained about 1 % in tests).
         durations = self.durations()
         for i in free:
             u, w = _via_directions(self.q, i, durations, self.limits, self.stop)
@@ -873,7 +996,8 @@ class _Planner:
             Per segment: its duration, local knot times and stacked (p, v, a, j) pieces.
         """
         before = np.hstack([self.v, self.acc])
-        for _ in range(4 * _REPAIR_HALVINGS):
+        halved = np.zeros(self.v.shape, dtype=int)
+        for _ in range(4 * _REPAIR_HALVINGS + self.n):
             segments, any_bad = [], False
             for k in range(self.n - 1):
                 start = (self.q[k], self.v[k], self.acc[k])
@@ -903,9 +1027,12 @@ class _Planner:
                 if not movable:
                     raise _StartOvershoot
                 for idx in movable:
+                    # Halve a few times, then rest: a joint running along its range end over
+                    # many samples would otherwise pass the overshoot on from via to via.
                     small = (np.abs(self.v[idx]) < 1e-6 * self.limits.velocity) & (
                         np.abs(self.acc[idx]) < 1e-6 * self.limits.acceleration
-                    )
+                    ) | (halved[idx] >= _REPAIR_HALVINGS_BEFORE_REST)
+                    halved[idx] += bad
                     factor = np.where(bad, np.where(small, 0.0, 0.5), 1.0)
                     self.v[idx] *= factor
                     self.acc[idx] *= factor
@@ -958,15 +1085,19 @@ def _merge_segment(
     knots = np.unique(starts[starts < duration])
     if knots[0] != 0.0:  # pragma: no cover - every profile starts at 0
         knots = np.insert(knots, 0, 0.0)
-    out = np.empty((4, len(knots), dof))
-    for d in range(dof):
-        idx = np.searchsorted(starts[d], knots, side="right") - 1
-        dt = knots - starts[d, idx]
-        p0, v0, a0, j0 = pos[d, idx], vel[d, idx], acc[d, idx], jerk[d, idx]
-        out[0, :, d] = p0 + dt * (v0 + dt * (a0 / 2.0 + dt * j0 / 6.0))
-        out[1, :, d] = v0 + dt * (a0 + dt * j0 / 2.0)
-        out[2, :, d] = a0 + dt * j0
-        out[3, :, d] = j0
+    # The phase of each joint in force at each knot (the last one starting at or before it).
+    idx = np.sum(starts[:, None, :] <= knots[None, :, None], axis=2).T - 1  # (K, dof)
+    cols = np.arange(dof)
+    dt = knots[:, None] - starts.T[idx, cols]
+    p0, v0, a0, j0 = pos.T[idx, cols], vel.T[idx, cols], acc.T[idx, cols], jerk.T[idx, cols]
+    out = np.stack(
+        [
+            p0 + dt * (v0 + dt * (a0 / 2.0 + dt * j0 / 6.0)),
+            v0 + dt * (a0 + dt * j0 / 2.0),
+            a0 + dt * j0,
+            j0,
+        ]
+    )
     # The segment starts exactly at its waypoint state.
     out[0, 0], out[1, 0], out[2, 0] = start
     return knots, out

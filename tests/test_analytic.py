@@ -27,6 +27,7 @@ from planner.analytic import (
 from planner.exceptions import InvalidArgumentError, InvalidConfigurationError, UnsupportedChainError
 from planner.robots import BUNDLED_ROBOTS, example_robot_data_dir
 from planner.servo import angle_to_steps, steps_to_angle
+from planner.target import approach_pitch, pitch_error
 
 TOL_POS = 1e-9
 
@@ -399,6 +400,38 @@ def test_offset_arm_inside_its_sideways_offset():
     assert "sideways offset" in res.reason
 
 
+def test_pitch_outward_from_the_base_axis_not_the_yaw_axis():
+    # offset_arm's yaw axis stands 22 mm from the base z axis. For targets whose arm-plane
+    # direction points away from the yaw axis but towards the base z axis, "outward" (the
+    # planner.target convention) is the other side: the approach axis's in-plane angle is
+    # pi - pitch there. Every solution follows the convention, in single and batch calls.
+    robot = offset_arm()
+    solver = AnalyticIK.from_robot(robot)
+    q_all = robot.random_configurations(np.random.default_rng(12), 4000)
+    poses = robot.fk(q_all)
+    yaw_point = np.array(solver.describe()["yaw_axis_point"])
+    plane = np.array([np.cross([0.0, 0.0, 1.0], robot.jacobian(q)[3:, 1])[:2] for q in q_all])
+    from_yaw = np.sum((poses[:, :2, 3] - yaw_point) * plane, axis=1)
+    from_base = np.sum(poses[:, :2, 3] * plane, axis=1)
+    flipped = np.nonzero(np.sign(from_yaw) != np.sign(from_base))[0][:25]
+    assert len(flipped) == 25
+    q_sel = q_all[flipped]
+    pitch = approach_pitch(robot, q_sel)
+    batch = solver.solve_batch(poses[flipped, :3, 3], pitch=pitch, q_current=q_sel)
+    for i, q in enumerate(q_sel):
+        target = Target(poses[flipped[i], :3, 3], pitch=float(pitch[i]))
+        res = solver.solve(target, q_current=q)
+        assert res.status == STATUS_OK and any(np.allclose(s.q, q, atol=1e-9) for s in res.solutions)
+        for sol in res.solutions:
+            got = robot.fk(sol.q)
+            a = got[:3, :3] @ robot.approach_axis
+            assert np.linalg.norm(got[:3, 3] - target.position) < TOL_POS
+            assert math.cos(target.pitch) * (a[:2] @ target.position[:2]) >= 0.0
+            assert pitch_error(a, target.position, target.pitch) < 1e-9
+            assert sol.orientation_error < 1e-9
+            np.testing.assert_allclose(batch.q[i, solver.branches.index(sol.branch)], sol.q, atol=1e-12)
+
+
 # ---------------------------------------------------------------------------- batches
 @pytest.mark.parametrize("name", ["dh3", "three_joint", "al5c", "shelley"])
 def test_batch_agrees_with_single_solves(name, robots, solvers):
@@ -431,6 +464,43 @@ def test_batch_agrees_with_single_solves(name, robots, solvers):
                 assert batch.best[i] == -1 and np.all(np.isnan(batch.best_q[i]))
             else:
                 np.testing.assert_allclose(batch.best_q[i], single.best.q, atol=1e-12)
+
+
+@pytest.mark.parametrize("name", ["al5c", "offset_arm", "so101"])
+def test_batch_searches_free_joints_like_single_solves(name):
+    # Random q_current: its approach pitch (and roll, which moves offset_arm's and so101's tip)
+    # often leaves no branch within the limits; batch and single calls search alike.
+    if name == "so101" and example_robot_data_dir() is None:
+        pytest.skip("example-robot-data is not installed")
+    robot = offset_arm() if name == "offset_arm" else load_robot(name)
+    solver = AnalyticIK.from_robot(robot)
+    rng = np.random.default_rng(3)
+    q, q_current = robot.random_configurations(rng, 30), robot.random_configurations(rng, 30)
+    pos = robot.position(q)
+    kinds = [None] if name == "al5c" else [None, approach_pitch(robot, q)]
+    searched = 0
+    for pitch in kinds:
+        batch = solver.solve_batch(pos, pitch=pitch, q_current=q_current)
+        assert np.all(batch.status == STATUS_CODES[STATUS_OK])  # FK targets: always within reach
+        for i in range(len(q)):
+            target = Target(pos[i], pitch=None if pitch is None else float(pitch[i]))
+            single = solver.solve(target, q_current=q_current[i])
+            assert single.status == STATUS_OK
+            got = batch.q[i][batch.valid[i]]
+            assert len(got) == len(single.solutions)
+            for sol in single.solutions:
+                k = solver.branches.index(sol.branch)
+                np.testing.assert_allclose(batch.q[i, k], sol.q, atol=1e-9)
+                assert batch.within_limits[i, k] == sol.within_limits == bool(robot.within_limits(sol.q))
+            np.testing.assert_allclose(batch.best_q[i], single.best.q, atol=1e-9)
+            # The search ran where the best solution left q_current's free joints.
+            best = single.best.q
+            moved_roll = solver.has_roll and abs(best[-1] - q_current[i, -1]) > 1e-9
+            moved_pitch = pitch is None and abs(
+                (approach_pitch(robot, best) - approach_pitch(robot, q_current[i]) + math.pi) % (2 * math.pi) - math.pi
+            ) > 1e-6
+            searched += (moved_roll and name != "al5c") or moved_pitch
+    assert searched >= 5
 
 
 def test_batch_pitch_targets_reproduce_the_target(robots, solvers):
@@ -482,20 +552,47 @@ def test_shelley_solutions_in_servo_steps(robots, solvers):
 
 
 def test_position_only_searches_another_pitch_within_limits(robots, solvers):
-    # al5c, straight out from the shoulder the wrist would need more than its +-90 deg; the
-    # solver falls back to the nearest approach pitch (5-degree grid) that fits the limits.
+    # al5c, straight out from the shoulder the wrist would need more than its +-90 deg: with
+    # q_current's approach pitch no branch fits the limits; each branch takes the approach pitch
+    # nearest q_current's that puts it within them.
     robot, solver = robots["al5c"], solvers["al5c"]
     target = Target([0.071, 0.026, 0.008])
-    res = solver.solve(target)
+    q_current = np.array([0.3, 1.0, -1.2, 0.2, 0.0])
+    preferred = approach_pitch(robot, q_current)
+    assert not solver.solve(Target(target.position, pitch=preferred), q_current).ok
+    res = solver.solve(target, q_current)
     assert res.status == STATUS_OK
-    best = res.best
-    assert np.linalg.norm(fk_position(robot, best.q) - target.position) < TOL_POS
-    assert best.orientation_error is None and robot.within_limits(best.q)
-    pitch = best.q[1] + best.q[2] + best.q[3]
-    assert abs(math.degrees(pitch) / 5.0 - round(math.degrees(pitch) / 5.0)) < 1e-9
-    # The batch keeps the default pitch and reports the limits honestly.
+    within = [s for s in res.solutions if s.within_limits]
+    assert within and res.best is within[0]
+    step = math.radians(0.05)
+    for sol in within:
+        assert np.linalg.norm(fk_position(robot, sol.q) - target.position) < TOL_POS
+        assert sol.orientation_error is None and robot.within_limits(sol.q)
+        # No approach pitch nearer q_current's puts this branch within the limits (0.05 deg scan).
+        offset = approach_pitch(robot, sol.q) - preferred
+        offset = (offset + math.pi) % (2 * math.pi) - math.pi
+        for p in preferred + np.arange(0.0, abs(offset) - 1e-6, step) * np.sign(offset):
+            same = [s for s in solver.solve(Target(target.position, pitch=p), q_current).solutions
+                    if s.branch == sol.branch]
+            assert not any(s.within_limits for s in same), (sol.branch, p)
+    # Without q_current, from the default pitch; the batch finds the same.
+    res = solver.solve(target)
+    assert res.status == STATUS_OK and robot.within_limits(res.best.q)
     batch = solver.solve_batch(target.position[None])
-    assert STATUS_NAMES[batch.status[0]] == STATUS_OUTSIDE_JOINT_LIMITS
+    assert STATUS_NAMES[batch.status[0]] == STATUS_OK
+    np.testing.assert_allclose(batch.best_q[0], res.best.q, atol=1e-12)
+
+
+def test_position_only_without_any_pitch_within_limits(solvers):
+    # Far below the shoulder and behind it: reachable by the links, but the shoulder would have
+    # to turn below its 5 deg (or the base beyond its 90 deg) for every approach pitch.
+    solver = solvers["al5c"]
+    for position in ([0.15, 0.0, -0.25], [-0.2, 0.0, -0.1]):
+        res = solver.solve(Target(position))
+        assert res.status == STATUS_OUTSIDE_JOINT_LIMITS and res.solutions and res.best is None
+        assert "no other approach pitch brings a branch within them" in res.reason
+        for p in np.radians(np.arange(-180.0, 180.0, 0.5)):
+            assert not solver.solve(Target(position, pitch=p)).ok
 
 
 def test_continuous_joints():

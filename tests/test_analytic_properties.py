@@ -12,7 +12,7 @@ from hypothesis import strategies as st
 
 from planner import AnalyticIK, Robot, Target, load_robot, rotation_error
 from planner.robots import BUNDLED_ROBOTS, example_robot_data_dir
-from planner.target import approach_direction
+from planner.target import approach_direction, approach_pitch, pitch_error
 
 TOL_POS = 1e-9
 TOL_ROT = 1e-9
@@ -65,20 +65,6 @@ def configuration(data, robot: Robot) -> np.ndarray:
                      for name, lo, hi in zip(robot.joint_names, robot.lower, robot.upper)])
 
 
-def approach_pitch(robot: Robot, q: np.ndarray) -> float:
-    """World approach pitch of q, from Pinocchio alone: elevation of the approach axis, measured
-    from the arm's plane direction that points away from the yaw axis (the Target convention
-    for arms whose plane contains the base axis)."""
-    pose = robot.fk(q)
-    approach = pose[:3, :3] @ robot.approach_axis
-    pitch_axis = robot.jacobian(q)[3:, 1]  # world axis of the first pitch joint
-    e_u = np.cross([0.0, 0.0, 1.0], pitch_axis)
-    e_u /= np.linalg.norm(e_u)
-    yaw_point = robot.fk(q, frame=robot.joint_names[0])[:3, 3]
-    radial = e_u if (pose[:3, 3] - yaw_point) @ e_u >= 0 else -e_u
-    return math.atan2(approach[2], approach @ radial)
-
-
 def same_configuration(a: np.ndarray, b: np.ndarray) -> bool:
     return bool(np.max(np.abs((a - b + np.pi) % (2 * np.pi) - np.pi)) < TOL_Q)
 
@@ -95,8 +81,13 @@ def check(robot, solver, target, q, q_current=None, pitch=False):
         if target.rotation is not None:
             assert rotation_error(pose[:3, :3], target.rotation) < TOL_ROT, sol
         if pitch:
-            err = (approach_pitch(robot, sol.q) - target.pitch + math.pi) % (2 * math.pi) - math.pi
-            assert abs(err) < TOL_ROT, sol
+            # planner.target's convention: the elevation, the horizontal part pointing outward.
+            a = pose[:3, :3] @ robot.approach_axis
+            assert abs(a[2] - math.sin(target.pitch)) < TOL_ROT, sol
+            assert math.cos(target.pitch) * (a[:2] @ target.position[:2]) >= -TOL_ROT, sol
+            error = pitch_error(a, target.position, target.pitch)
+            assert error < TOL_ROT, sol
+            assert sol.orientation_error == pytest.approx(error, abs=TOL_ROT)
     if not any(same_configuration(s.q, q) for s in res.solutions):
         # Only a free joint (the yaw on the base axis) may differ: with q_current it is q's.
         assert res.singular, f"{robot.name}: q = {q.tolist()} not among {[s.q.tolist() for s in res.solutions]}"
@@ -143,6 +134,31 @@ def test_position_targets(name, data):
     redundant = getattr(solver, "n_pitch", 2) == 3
     # Redundant arms take q_current's approach pitch (and roll): with q's, q is among the answers.
     check(robot, solver, target, q, q_current=q if redundant else None)
+
+
+@pytest.mark.parametrize("name", ["three_joint", "al5c", "offset_arm", "so101"])
+@SETTINGS
+@given(data=st.data())
+def test_redundant_targets_within_limits_from_any_current_configuration(name, data):
+    # FK(q) is reachable within the limits, so whatever approach pitch (and, where the wrist roll
+    # moves the tip, roll) q_current has, the closed form finds a solution within them.
+    robot, solver = arm(name)
+    q = configuration(data, robot)
+    q_current = configuration(data, robot)
+    pose = robot.fk(q)
+    targets = [Target(pose[:3, 3])]
+    if solver.has_roll and not solver.describe()["tip_on_roll_axis"]:
+        targets.append(Target(pose[:3, 3], pitch=approach_pitch(robot, q)))
+    for target in targets:
+        res = solver.solve(target, q_current=q_current)
+        assert res.ok, f"{robot.name}: FK({q.tolist()}) from {q_current.tolist()}: {res.status} {res.reason}"
+        for sol in res.solutions:
+            got = robot.fk(sol.q)
+            assert np.linalg.norm(got[:3, 3] - target.position) < TOL_POS, sol
+            assert sol.within_limits == bool(robot.within_limits(sol.q))
+            if target.pitch is not None:
+                a = got[:3, :3] @ robot.approach_axis
+                assert pitch_error(a, target.position, target.pitch) < TOL_ROT, sol
 
 
 @pytest.mark.parametrize("name", ARMS)

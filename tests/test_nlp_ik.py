@@ -14,7 +14,7 @@ from test_casadi_kinematics import MIXED_URDF
 
 from planner import InvalidArgumentError, InvalidConfigurationError, JointLimitError, PlannerError, Robot, Target
 from planner.nlp_ik import IKResult, NlpIK, as_target, compile_function, target_errors
-from planner.target import approach_direction, rotation_error
+from planner.target import approach_direction, approach_pitch, pitch_error, rotation_error
 
 from conftest import get_robot, needs_example_robot_data
 
@@ -27,12 +27,8 @@ def solver(name: str) -> NlpIK:
     return _SOLVERS[name]
 
 
-def approach_pitch(robot: Robot, q: np.ndarray) -> float:
-    pose = robot.fk(q)
-    a = pose[:3, :3] @ robot.approach_axis
-    p = pose[:3, 3]
-    radial = math.hypot(p[0], p[1])
-    return math.atan2(a[2], (a[0] * p[0] + a[1] * p[1]) / radial)
+# Arms whose pitch plane contains the base z axis: a pitch fixes the approach direction.
+IN_PLANE_ARMS = ("al5c", "three_joint")
 
 
 def make_target(robot: Robot, kind: str, q: np.ndarray) -> Target:
@@ -58,9 +54,17 @@ def assert_reached(robot: Robot, target: Target, result: IKResult, tol: float = 
         assert angle <= tol
         assert result.orientation_error == pytest.approx(angle, abs=1e-12)
     elif target.pitch is not None:
-        wanted = approach_direction(target.position, target.pitch)
         approach = pose[:3, :3] @ robot.approach_axis
-        assert np.linalg.norm(approach - wanted) <= 2 * tol
+        # The convention: the elevation, the horizontal part on the outward side.
+        assert abs(approach[2] - math.sin(target.pitch)) <= tol
+        assert math.cos(target.pitch) * (approach[:2] @ target.position[:2]) >= -tol
+        if robot.name in IN_PLANE_ARMS:
+            # There it is the direction in the vertical plane through the base axis and the tip.
+            wanted = approach_direction(pose[:3, 3], target.pitch)
+            assert np.linalg.norm(approach - wanted) <= 2 * tol
+        error = pitch_error(approach, target.position, target.pitch)
+        assert error <= tol
+        assert result.orientation_error == pytest.approx(error, abs=1e-12)
     else:
         assert result.orientation_error == 0.0
 
@@ -99,6 +103,16 @@ def test_pose_round_trip_on_example_arms(name):
 
 
 @needs_example_robot_data
+def test_pitch_round_trip_on_so101():
+    # Its arm plane passes beside the base z axis: the pitch is the elevation, outward.
+    robot = get_robot("so101")
+    rng = np.random.default_rng(13)
+    for q, seed in zip(robot.random_configurations(rng, 40), robot.random_configurations(rng, 40)):
+        target = make_target(robot, "pitch", q)
+        assert_reached(robot, target, solver("so101").solve(target, seed, time_budget=1.0))
+
+
+@needs_example_robot_data
 def test_position_target_on_a_redundant_arm():
     robot = get_robot("ur5")
     rng = np.random.default_rng(12)
@@ -116,6 +130,24 @@ def test_pitch_target_on_the_base_axis_fixes_only_the_elevation():
     approach = robot.fk(result.q)[:3, :3] @ robot.approach_axis
     assert math.asin(approach[2]) == pytest.approx(math.radians(30), abs=1e-6)
     assert target_errors(robot, target, result.q)[1] <= 1e-6
+
+
+def test_pitch_targets_straight_down_and_beyond_vertical():
+    robot = get_robot("three_joint")
+    # Straight down: the one direction -z (an elevation residual alone would converge slowly).
+    q = np.array([0.3, 1.0, -0.5, -math.pi / 2 - 0.5])
+    target = Target(robot.position(q), pitch=-math.pi / 2)
+    result = solver("three_joint").solve(target, np.zeros(4))
+    assert_reached(robot, target, result)
+    np.testing.assert_allclose(robot.fk(result.q)[:3, :3] @ robot.approach_axis, [0.0, 0.0, -1.0], atol=1e-6)
+    # Past vertical (|pitch| > 90 deg): the horizontal part points towards the base axis.
+    q = np.array([-0.4, 0.5, 0.3, 1.2])
+    target = make_target(robot, "pitch", q)
+    assert abs(target.pitch) > math.pi / 2
+    result = solver("three_joint").solve(target, np.zeros(4))
+    assert_reached(robot, target, result)
+    approach = robot.fk(result.q)[:3, :3] @ robot.approach_axis
+    assert approach[:2] @ target.position[:2] < 0.0
 
 
 def test_seed_at_a_solution_needs_no_iteration():

@@ -13,7 +13,7 @@ from ruckig import InputParameter, Ruckig
 from ruckig import Trajectory as RuckigTrajectory
 
 from planner import InvalidArgumentError, InvalidConfigurationError, InvalidLimitsError, JointLimitError
-from planner.trajectory import LIMIT_TOLERANCE, JointLimits, plan_trajectory
+from planner.trajectory import LIMIT_TOLERANCE, JointLimits, _spline_via_states, plan_trajectory
 
 from conftest import get_robot
 
@@ -100,6 +100,23 @@ def test_continuous_motion_through_vias_on_dh3():
     assert traj.duration < 0.8 * stop.duration
     assert np.all(np.abs(traj.via_velocities[1:-1]) > 0)  # it does not stop at the vias
     assert_within_limits(traj)
+
+
+@pytest.mark.parametrize("segments", [2, 3, 6])
+def test_spline_via_states_are_those_of_the_c2_cubic_spline(segments):
+    # The cubic through each segment from its end positions and velocities (Hermite) must have
+    # the same acceleration on both sides of every inner knot: that is the C2 spline.
+    rng = np.random.default_rng(segments)
+    q = rng.uniform(-1, 1, (segments + 1, 3))
+    h = rng.uniform(0.2, 2.0, segments)
+    v_start, v_end = rng.uniform(-1, 1, 3), rng.uniform(-1, 1, 3)
+    v, acc = _spline_via_states(q, h, v_start, v_end)
+    vel = np.vstack([v_start, v, v_end])
+    dq, hh = np.diff(q, axis=0), h[:, None]
+    acc_start = 6 * dq / hh**2 - (4 * vel[:-1] + 2 * vel[1:]) / hh
+    acc_end = -6 * dq / hh**2 + (2 * vel[:-1] + 4 * vel[1:]) / hh
+    np.testing.assert_allclose(acc_end[:-1], acc_start[1:], atol=1e-9)
+    np.testing.assert_allclose(acc, acc_start[1:], atol=1e-9)
 
 
 def test_position_overshoot_is_detected_and_repaired():

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from planner import InvalidArgumentError, Target, rotation_error
-from planner.cartesian import TargetSolver, line_deviation, line_waypoints, time_line
+from planner.cartesian import TargetSolver, line_deviation, line_trajectory, line_waypoints, time_line
 from planner.trajectory import LIMIT_TOLERANCE, JointLimits
 from planner.waypoints import parse_motion_request, plan_motion
 
@@ -17,6 +17,13 @@ def assert_within_limits(traj):
     peaks = traj.peak_ratios(1000.0)
     assert max(peaks["velocity"], peaks["acceleration"], peaks["jerk"]) <= 1 + LIMIT_TOLERANCE
     assert peaks["position"] <= LIMIT_TOLERANCE
+
+
+def assert_within_limits_sampled_and_exact(traj):
+    # 1 kHz samples, and the piecewise polynomials at every knot and interior extremum.
+    for peaks in (traj.peak_ratios(1000.0), traj.peak_ratios(None)):
+        assert max(peaks["velocity"], peaks["acceleration"], peaks["jerk"]) <= 1 + LIMIT_TOLERANCE
+        assert peaks["position"] <= LIMIT_TOLERANCE
 
 
 def test_branch_nearest_the_previous_configuration():
@@ -79,6 +86,69 @@ def test_line_slows_down_approaching_a_singularity():
     assert_within_limits(plan.trajectory)
     assert plan.singular_waypoints == (1,)
     assert plan.line_deviation[0] < 2e-4
+
+
+def test_line_past_a_singularity_slows_down_only_near_it():
+    # The line passes 5 mm from dh3's base axis: there the yaw joint moves the tip by only 5 mm
+    # per radian (the position Jacobian nearly loses rank) and must swing through most of its
+    # travel over a few millimetres of line. A uniform profile is set by the worst stretch for
+    # the whole line; the local one is fast elsewhere and slows down only near the axis.
+    robot = get_robot("dh3")
+    limits = JointLimits.from_robot(robot)
+    solver = TargetSolver(robot)
+    a, b = np.array([0.005, -0.06, 0.13]), np.array([0.005, 0.06, 0.13])
+    start = Target(a)
+    path = line_waypoints(solver, start, Target(b), solver.choose(start, None).q)
+    assert path.min_inverse_condition < 0.05  # condition number > 20 near the axis
+    local, uniform = time_line(path, limits), time_line(path, limits, local=False)
+    assert len(local.zones) > 1 and len(uniform.zones) == 1
+    # The speed limit of the path parameter varies along the line, and the local profile uses it.
+    assert local.speed_limit.max() > 3 * local.speed_limit.min()
+    assert local.path_velocity.max() > 1.5 * uniform.path_velocity.max()
+    fast, slow = line_trajectory(path, limits, local), line_trajectory(path, limits, uniform)
+    for traj, timing in ((fast, local), (slow, uniform)):
+        # The joints keep the timing (every sample passed exactly, at its planned time) ...
+        np.testing.assert_allclose(traj.waypoint_times, timing.t, rtol=0, atol=1e-9)
+        np.testing.assert_allclose(traj.sample(traj.waypoint_times).q, path.q, rtol=0, atol=1e-12)
+        # ... within every limit at every 1 kHz sample, and on the line.
+        assert_within_limits_sampled_and_exact(traj)
+        assert line_deviation(robot, traj.sampled(1000.0).q, a, b) < 1e-4
+    assert fast.duration < 0.8 * slow.duration
+    # Tip speed from FK of the 1 kHz samples: it dips where the line passes the axis.
+    q = fast.sampled(1000.0).q
+    tip = robot.position(q)
+    speed = np.linalg.norm(np.diff(tip, axis=0), axis=1) * 1000.0
+    y = (tip[:-1, 1] + tip[1:, 1]) / 2.0
+    assert speed[np.abs(y) < 0.002].max() < 0.25 * speed.max()
+    assert speed[np.abs(y) > 0.02].max() > 0.9 * speed.max()
+    # The timing's own tip speed shows the same dip.
+    nearest = int(np.argmin(np.abs(path.points[:, 1])))
+    assert local.tip_speed[nearest] < 0.25 * local.tip_speed.max()
+
+
+@pytest.mark.parametrize(("name", "seed"), [("dh3", 1), ("dh3", 2), ("al5c", 3), ("shelley", 4)])
+def test_random_lines_keep_their_timing_within_the_limits(name, seed):
+    robot = get_robot(name)
+    limits = JointLimits.from_robot(robot)
+    solver = TargetSolver(robot)
+    rng = np.random.default_rng(seed)
+    done = 0
+    while done < 3:
+        qa, qb = robot.random_configurations(rng, 2)
+        pa, pb = robot.position(qa), robot.position(qb)
+        start, end = (Target(pa, pitch=-0.5), Target(pb, pitch=-0.5)) if name == "al5c" else (Target(pa), Target(pb))
+        try:
+            path = line_waypoints(solver, start, end, solver.choose(start, None).q)
+        except InvalidArgumentError:  # the line leaves the workspace
+            continue
+        local, uniform = time_line(path, limits), time_line(path, limits, local=False)
+        assert local.t[-1] <= uniform.t[-1] * (1 + 1e-12)
+        traj = line_trajectory(path, limits, local)
+        np.testing.assert_allclose(traj.waypoint_times, local.t, rtol=0, atol=1e-9)
+        assert_within_limits_sampled_and_exact(traj)
+        assert np.all(np.abs(local.velocity) <= limits.velocity)
+        assert line_deviation(robot, traj.sampled(1000.0).q, pa, pb) < 1e-3
+        done += 1
 
 
 def test_line_leaving_the_workspace_is_an_error():

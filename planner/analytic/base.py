@@ -127,7 +127,8 @@ class AnalyticIK(ABC):
         Args:
             target: The target (position, plus an approach pitch or a rotation).
             q_current: The current configuration, shape (dof,) [rad]: solutions are sorted by
-                distance to it, angles wrapped nearest to it, and free joints take its values.
+                distance to it, angles wrapped nearest to it, and free joints take its values
+                (where that leaves no branch within the limits, the nearest values that do).
 
         Returns:
             The result; unreachable targets give a status, not an exception.

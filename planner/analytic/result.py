@@ -72,8 +72,9 @@ class AnalyticSolution(NamedTuple):
         singular: Whether the configuration is (within 1e-7 relative) at a singularity:
             a stretched or folded elbow, or the end point on the base yaw axis.
         position_error: Distance from the tip to the target [m], by the solver's forward model.
-        orientation_error: Angle to the asked orientation or approach direction [rad], or
-            None for a position-only target.
+        orientation_error: Angle to the asked orientation, or for an approach pitch
+            :func:`planner.target.pitch_error` of the approach axis [rad]; None for a
+            position-only target.
     """
 
     q: np.ndarray

@@ -24,12 +24,14 @@ wrist point from the approach angle; then the shoulder-elbow pair by the law of 
 
 Targets:
 
-- ``pitch``: the approach axis in the arm's vertical plane at `pitch` from the horizontal
-  (``planner.target`` convention; "radially away" is away from the yaw axis along the arm's
-  plane, which for arms whose yaw axis is the base z axis and without sideways offset is
-  exactly the convention). On arms without a wrist pitch (2 pitch joints) the pitch fixes the
-  last link: the elbow is the end point minus that link and the shoulder points at it (one
-  solution per side, kept if the shoulder link then fits to 1e-9 of the arm's size).
+- ``pitch`` (``planner.target``'s convention: the elevation of the approach axis, its
+  horizontal part pointing away from the base z axis): the approach axis lies in the arm's
+  plane, so per branch its in-plane angle is `pitch` where the plane's direction ``e_u`` (at
+  that branch's yaw) points away from the base z axis, else pi - `pitch`; this holds for arms
+  whose plane passes beside the yaw axis and whose yaw axis is not the base z axis as well
+  (SO-101). On arms without a wrist pitch (2 pitch joints) the pitch fixes the last link: the
+  elbow is the end point minus that link and the shoulder points at it (one solution per
+  side, kept if the shoulder link then fits to 1e-9 of the arm's size).
 - ``rotation``: the yaw from the rotation (the azimuth of the pitch axis, or of the roll axis
   unless that is vertical) where it fixes the yaw better than the position (whose hold on it
   weakens as the end point nears the yaw axis), the position then checked to lie in that
@@ -38,12 +40,24 @@ Targets:
 - position only: arms without a wrist pitch solve it directly. Arms with one are redundant:
   the approach pitch is ``q_current``'s when given and reachable, else the wrist centre is put
   on the line from the shoulder to the target (straight out) or, when that is too close, at the
-  nearest reachable distance, approaching from above. If no solution at that pitch lies within
-  the joint limits, :meth:`YawPlanarIK.solve` tries the nearest approach pitches on a 5-degree
-  grid (``solve_batch`` does not).
+  nearest reachable distance, approaching from above.
 
 A free wrist roll (no rotation given) takes ``q_current``'s value, else 0; a free yaw (the end
 point on the yaw axis) takes ``q_current``'s, else 0, and the solution is flagged singular.
+
+Free joints within the limits: where no branch lies within the joint limits at those choices,
+``solve`` and ``solve_batch`` search the joints the target leaves free, per branch. The
+approach pitch of a position-only target: the pitch joints are continuous functions of the
+in-plane end angle, and the angles where a branch appears or a pitch joint meets a limit are
+the roots of ``|V - R(phi) m|^2 = k`` (closed form, up to 16 per branch side); testing one
+point inside each interval between them (and the roots themselves, where a joint's extreme
+value just meets its limit) gives every interval within the limits, and the branch takes the
+angle nearest the preferred one. The wrist roll, where it moves the tip (SO-101, for position
+and pitch targets): rolls outwards from ``q_current``'s every 2.5 deg until one admits the
+branch, then the boundary by bisection, so the nearest such roll (a window narrower than a
+step may be missed). On inexact chains the search runs on the ideal geometry, keeps clear of
+its boundaries (1e-4 rad in pitch, 1e-3 rad in roll) and the result is checked on the real
+one.
 
 Chains whose axes deviate from the ideal directions by round-off (up to
 :data:`~planner.analytic.base.FAMILY_ANGLE_TOL`, e.g. SO-101's URDF, a few micro-radians) are
@@ -56,7 +70,8 @@ finished by damped Gauss-Newton steps. Only branches that then reproduce the tar
 Speed: :meth:`YawPlanarIK.solve` runs position and pitch targets on exact chains in scalar
 arithmetic (tens of microseconds); rotation targets and inexact chains go through the
 vectorised path (hundreds of microseconds for one target). ``solve_batch`` is vectorised over
-targets (in slices of 16384 to stay in cache).
+targets (in slices of 16384 to stay in cache). The search within the limits, only for targets
+that need it, costs about 1.5 ms for the approach pitch and 3-12 ms with SO-101's roll.
 """
 
 from __future__ import annotations
@@ -68,7 +83,7 @@ import numpy as np
 
 from ..exceptions import UnsupportedChainError
 from ..robot import Robot
-from ..target import Target, rotation_error
+from ..target import Target, _pitch_error_one, approach_pitch, pitch_error, rotation_error
 from .base import FAMILY_ANGLE_TOL, AnalyticIK, _angle_to_line, _angle_to_plane
 from .chain import ChainAtZero, describe_violation, poe_fk, rotation_about, wrap_array, wrap_scalar
 from .result import (
@@ -331,37 +346,41 @@ class YawPlanarIK(AnalyticIK):
         qc = self._q_current_list(q_current)
         if target.pitch is not None and not self._pitch_supported:
             self._raise_pitch_unsupported()
-        result = self._solve_one(target, qc)
-        if target.kind == "position" and self.n_pitch == 3 and not result.ok:
-            return self._search_pitch(target, qc) or result
+        arrays = None
+        if self.exact and target.rotation is None:
+            result = self._solve_scalar(target, qc)
+        else:
+            arrays = self._solve_arrays(*self._one_target_arrays(target, qc))
+            result = self._result_from_arrays(arrays, 0, target, qc)
+        if not result.ok and any(self._free_joints(target.pitch, target.rotation)):
+            return self._search_one(target, qc, result, arrays)
         return result
 
-    def _solve_one(self, target: Target, qc: list[float] | None) -> AnalyticResult:
-        if self.exact and target.rotation is None:
-            return self._solve_scalar(target, qc)
+    @staticmethod
+    def _one_target_arrays(target: Target, qc: list[float] | None):
+        """A target and q_current as the arrays of a batch of one: positions, pitch, rotations, q_current."""
         pos = np.asarray(target.position, dtype=float)[None, :]
         pit = None if target.pitch is None else np.array([target.pitch])
         rot = None if target.rotation is None else np.asarray(target.rotation)[None]
-        qca = None if qc is None else np.asarray(qc)[None, :]
-        arrays = self._solve_arrays(pos, pit, rot, qca)
-        return self._result_from_arrays(arrays, 0, target, qc)
+        qca = None if qc is None else np.asarray(qc, dtype=float)[None, :]
+        return pos, pit, rot, qca
 
-    def _search_pitch(self, target: Target, qc: list[float] | None) -> AnalyticResult | None:
-        """The nearest grid pitch that puts a position-only target within the limits, or None.
+    def _search_one(self, target: Target, qc: list[float] | None, result: AnalyticResult, base) -> AnalyticResult:
+        """The result at free joint values within the limits (see `_search`), else `result`.
 
-        For wristed arms whose chosen approach pitch gives no solution within the joint limits;
-        the grid has 5-degree steps.
+        `base` holds `result`'s arrays, or None when the scalar path solved it.
         """
-        ref = 0.0
-        if qc is not None:
-            ref = float(self._current_alpha(np.asarray([qc]))[0])
-        grid = np.radians(np.arange(-175.0, 181.0, 5.0))
-        for pitch in sorted(grid.tolist(), key=lambda p: abs(_wrap_pi(p - ref))):
-            res = self._solve_one(Target(target.position, pitch=pitch), qc)
-            if res.ok:
-                sols = tuple(s._replace(orientation_error=None) for s in res.solutions)
-                return AnalyticResult(res.status, "", sols, res.singular)
-        return None
+        pos, pit, _, qca = self._one_target_arrays(target, qc)
+        if base is None:
+            base = self._solve_arrays(pos, pit, None, qca)
+        arrays = self._solve_searched(pos, pit, qca, base)
+        if arrays is base or arrays["status"][0] != STATUS_CODES[STATUS_OK]:
+            if result.status != STATUS_OUTSIDE_JOINT_LIMITS:
+                return result
+            free_phi, free_roll = self._free_joints(target.pitch, None)
+            what = " or ".join(w for w, f in (("approach pitch", free_phi), ("wrist roll", free_roll)) if f)
+            return result._replace(reason=f"{result.reason} (no other {what} brings a branch within them)")
+        return self._result_from_arrays(arrays, 0, target, qc)
 
     def solve_batch(
         self,
@@ -394,7 +413,7 @@ class YawPlanarIK(AnalyticIK):
         """`_solve_arrays` over slices of the targets (keeps the temporaries in cache)."""
         n = pos.shape[0]
         if n <= chunk:
-            return self._solve_arrays(pos, pit, rot, qc, orientation_errors=False)
+            return self._solve_arrays_within(pos, pit, rot, qc)
         out = {
             "q": np.empty((n, 4, self.dof)),
             "valid": np.empty((n, 4), dtype=bool),
@@ -406,13 +425,20 @@ class YawPlanarIK(AnalyticIK):
         }
         for start in range(0, n, chunk):
             sl = slice(start, start + chunk)
-            part = self._solve_arrays(
+            part = self._solve_arrays_within(
                 pos[sl], None if pit is None else pit[sl], None if rot is None else rot[sl],
-                None if qc is None else qc[sl], orientation_errors=False,
+                None if qc is None else qc[sl],
             )
             for key, arr in out.items():
                 arr[sl] = part[key]
         return out
+
+    def _solve_arrays_within(self, pos, pit, rot, qc):
+        """`_solve_arrays` for a batch, then the search within the limits where targets leave joints free."""
+        arrays = self._solve_arrays(pos, pit, rot, qc, orientation_errors=False)
+        if any(self._free_joints(pit, rot)):
+            arrays = self._solve_searched(pos, pit, qc, arrays, orientation_errors=False)
+        return arrays
 
     def _raise_pitch_unsupported(self) -> None:
         raise UnsupportedChainError(
@@ -428,6 +454,9 @@ class YawPlanarIK(AnalyticIK):
         """Position or pitch targets on an exact chain, in scalar arithmetic (no NumPy per step)."""
         px, py, pz = target.position.tolist()
         pitch = target.pitch
+        if pitch is not None:
+            cos_p, sin_p = math.cos(pitch), math.sin(pitch)
+            elevation_p = math.atan2(sin_p, abs(cos_p))
         dof = self.dof
         three = self.n_pitch == 3
         cos, sin, atan2, sqrt, hypot = math.cos, math.sin, math.atan2, math.sqrt, math.hypot
@@ -475,10 +504,15 @@ class YawPlanarIK(AnalyticIK):
             # Candidates (slot, shoulder link angle a1, relative elbow angle e, elbow singular).
             cands: list[tuple[int, float, float, bool]] = []
             phi = 0.0
+            cy, sy = cos(psi + mu), sin(psi + mu)
+            if pitch is not None:
+                # In-plane approach angle: the pitch, or pi - pitch where the arm's plane
+                # direction points towards the base z axis (planner.target's outward side).
+                alpha_t = pitch if cy * px + sy * py >= 0.0 else PI - pitch
             if three:
                 l2, g2 = self._l2, self._g2
                 if pitch is not None:
-                    phi = (pitch if side == 0 else PI - pitch) - beta
+                    phi = alpha_t - beta
                 else:
                     phi = self._free_pitch_scalar(psi, ue, pz, tu, tz, hypot(tu, tz), atan2(tz, tu), qc)
                     if phi is None:
@@ -502,7 +536,7 @@ class YawPlanarIK(AnalyticIK):
             if not three and pitch is not None:
                 # The pitch fixes the last link: the elbow is the end point minus that link,
                 # the shoulder points at the elbow (one solution, well conditioned).
-                phi = (pitch if side == 0 else PI - pitch) - beta
+                phi = alpha_t - beta
                 cp, sp = cos(phi), sin(phi)
                 ex = ue - (cp * tu - sp * tz) - su
                 ez = pz - (sp * tu + cp * tz) - sz
@@ -538,7 +572,6 @@ class YawPlanarIK(AnalyticIK):
                     else:
                         cands.append((3, base + half, -e_abs, False))
             q0 = sigma * psi
-            cy, sy = cos(psi + mu), sin(psi + mu)
             for slot, a1, e, elbow_singular in cands:
                 phi2 = a1 - g1
                 phi3 = a1 + e - g2
@@ -567,7 +600,8 @@ class YawPlanarIK(AnalyticIK):
                 perr = sqrt((fx - px) ** 2 + (fy - py) ** 2 + (fz - pz) ** 2)
                 oerr = None
                 if pitch is not None:
-                    oerr = abs(_wrap_pi(beta + f4 - (pitch if side == 0 else PI - pitch)))
+                    c_alpha, s_alpha = cos(beta + f4), sin(beta + f4)
+                    oerr = _pitch_error_one(c_alpha * cy, c_alpha * sy, s_alpha, px, py, cos_p, sin_p, elevation_p)
                 singular = elbow_singular or free or abs(ue) < axis_tol
                 sols.append((slot, q, singular, perr, oerr))
         return self._finish_scalar(sols, cats, dist, qc, target)
@@ -720,10 +754,7 @@ class YawPlanarIK(AnalyticIK):
         name = self.robot.name
         plain = self.solve(Target(target.position), q_current=qc).solutions
         if target.pitch is not None:
-            got = []
-            for sol in plain:
-                alpha = self._beta + sum(s * sol.q[i] for s, i in zip(self._signs, self._pitch_idx))
-                got.append(math.degrees(_wrap_pi(alpha if sol.branch.startswith("front") else PI - alpha)))
+            got = [math.degrees(approach_pitch(self.robot, sol.q)) for sol in plain]
             return (
                 f"{name} has no wrist pitch joint: at this position its approach pitch can only be "
                 f"{', '.join(f'{g:.2f}' for g in sorted(set(round(g, 6) for g in got)))} deg, "
@@ -744,7 +775,14 @@ class YawPlanarIK(AnalyticIK):
         return None, None
 
     # ------------------------------------------------------------------ vectorised core
-    def _end_geometry(self, n, rot, qc):
+    def _roll_values(self, n, qc, roll_free):
+        """The free wrist roll (n,): `roll_free` where finite, else q_current's, else 0."""
+        roll = qc[:, self._roll_idx] if qc is not None else np.zeros(n)
+        if roll_free is not None:
+            roll = np.where(np.isfinite(roll_free), roll_free, roll)
+        return roll
+
+    def _end_geometry(self, n, rot, qc, roll_free=None):
         """Per-target end vector (tu, tz), lateral offset d, end-point shift, roll value."""
         if self.has_roll and rot is not None:
             tu, tz, d = self._centre
@@ -752,7 +790,7 @@ class YawPlanarIK(AnalyticIK):
             return np.full(n, tu), np.full(n, tz), np.full(n, d), shift, None
         roll = None
         if self.has_roll:
-            roll = qc[:, self._roll_idx] if qc is not None else np.zeros(n)
+            roll = self._roll_values(n, qc, roll_free)
         if self._tip_on_roll_axis:
             tu, tz, d = self._tip_fixed
             return np.full(n, tu), np.full(n, tz), np.full(n, d), None, roll
@@ -762,12 +800,19 @@ class YawPlanarIK(AnalyticIK):
         d = self._tip0[2] + self._tipc[2] * cr + self._tips[2] * sr
         return tu, tz, d, None, roll
 
-    def _core(self, pos, pit, rot, qc, orient_tol):
-        """The ideal-geometry closed form for N targets; returns a dict of (N, 4) arrays."""
+    def _core(self, pos, pit, rot, qc, orient_tol, internal_pitch=False, phi_free=None, roll_free=None):
+        """The ideal-geometry closed form for N targets; returns a dict of (N, 4) arrays.
+
+        `pit` is the target's approach pitch, or with `internal_pitch` each row's branch pitch
+        (the in-plane approach angle alpha on the front side, pi - alpha on the back side, as
+        the ``world_pitch`` this returns). `phi_free` (N, 2), where finite, sets the in-plane
+        end angle of position-only targets per side instead of the default choice; `roll_free`
+        (N,), where finite, the free wrist roll instead of q_current's.
+        """
         n = pos.shape[0]
         dof = self.dof
         three = self.n_pitch == 3
-        tu, tz, d, shift, roll = self._end_geometry(n, rot, qc)
+        tu, tz, d, shift, roll = self._end_geometry(n, rot, qc, roll_free)
         end = pos if shift is None else pos + shift
         hx = end[:, 0] - self._bx
         hy = end[:, 1] - self._by
@@ -780,6 +825,7 @@ class YawPlanarIK(AnalyticIK):
         cylinder = ~free & (under < -2.0 * np.abs(d) * len_tol)
         u = np.sqrt(np.maximum(under, 0.0))
         seeded = np.zeros(n, dtype=bool)
+        u_end = u  # the end point's own, for the outward side of pitch targets
         if not self.exact:
             # Inexact chains, end point next to the cylinder |d| around the yaw axis: the real
             # front and back yaws may differ where the ideal model merges them; start apart.
@@ -805,6 +851,22 @@ class YawPlanarIK(AnalyticIK):
         cat[:, 1] = np.where(back_dup & ~cylinder, _DUPLICATE, cat[:, 1])
         if rot is not None:
             psi, ue, cat = self._yaw_for_rotation(m_rot, hx, hy, d, u, psi, ue, cat, free)
+        alpha_t = None
+        if pit is not None:
+            # In-plane approach angle per side.
+            if internal_pitch:
+                alpha_t = np.stack([pit, PI - pit], axis=1)
+            else:
+                # The side from the yaws the end point itself gives (not the seeded ones: next to
+                # the yaw axis those turn the plane enough to flip it).
+                psi_end = psi
+                if seeded.any():
+                    psi_end = np.where(
+                        seeded[:, None],
+                        np.stack([ang - np.arctan2(-d, u_end), ang - np.arctan2(-d, -u_end)], axis=1) - self._mu,
+                        psi,
+                    )
+                alpha_t = self._branch_alpha(end, psi_end, pit)
         ze2 = np.broadcast_to(ze[:, None], (n, 2))
         tu2, tz2 = tu[:, None], tz[:, None]
         roll_q = None if roll is None else np.broadcast_to(roll[:, None], (n, 2))
@@ -813,25 +875,26 @@ class YawPlanarIK(AnalyticIK):
         if three:
             l2, g2 = self._l2, self._g2
             if pit is not None:
-                # phi = alpha - beta with alpha = pitch (front) or pi - pitch (back).
-                phi = np.stack([pit - self._beta, PI - pit - self._beta], axis=1)
-                cpb, spb = np.cos(pit + self._beta), np.sin(pit + self._beta)
-                cmb, smb = np.cos(pit - self._beta), np.sin(pit - self._beta)
-                cp, sp = np.stack([cmb, -cpb], axis=1), np.stack([smb, spb], axis=1)
+                phi = alpha_t - self._beta
             elif rot is not None:
                 phi, roll_q, orient_res = self._pitch_from_rotation(m_rot, psi)
                 cat = np.where((cat == _VALID) & (orient_res > orient_tol), _ORIENT, cat)
+            elif phi_free is not None and np.isfinite(phi_free).all():
+                phi = phi_free
             else:
                 phi, fail = self._free_pitch_array(psi, ue, ze2, tu2, tz2, qc)
+                if phi_free is not None:
+                    given = np.isfinite(phi_free)
+                    phi = np.where(given, phi_free, phi)
+                    fail = np.where(given, _VALID, fail)
                 cat = np.where((cat == _VALID) & (fail != _VALID), fail, cat)
-            if pit is None:
-                cp, sp = np.cos(phi), np.sin(phi)
+            cp, sp = np.cos(phi), np.sin(phi)
             wu = ue - (cp * tu2 - sp * tz2)
             wz = ze2 - (sp * tu2 + cp * tz2)
         else:
             if pit is not None or rot is not None:
                 return self._core_two_oriented(
-                    pit, m_rot, psi, ue, ze2, tu, tz, d, cat, free | seeded, roll_q, end, orient_tol
+                    alpha_t, m_rot, psi, ue, ze2, tu, tz, d, cat, free | seeded, roll_q, end, orient_tol
                 )
             l2 = np.hypot(tu, tz)[:, None]  # (n, 1): the end vector is the second link
             g2 = np.arctan2(tz, tu)[:, None]
@@ -906,9 +969,13 @@ class YawPlanarIK(AnalyticIK):
             "d": d,
             "tu": tu,
             "tz": tz,
+            "ue": ue,
+            "ze": ze,
+            "phi": phi,
+            "seeded": seeded,
         }
 
-    def _core_two_oriented(self, pit, m_rot, psi, ue, ze2, tu, tz, d, cat, free, roll_q, end, orient_tol):
+    def _core_two_oriented(self, alpha_t, m_rot, psi, ue, ze2, tu, tz, d, cat, free, roll_q, end, orient_tol):
         """Arms without a wrist pitch, with a pitch or rotation target: one solution per side.
 
         The orientation fixes the last link, so the elbow is the end point minus that link and
@@ -926,8 +993,8 @@ class YawPlanarIK(AnalyticIK):
         de = np.hypot(ue - su, ze2 - sz)
         cat = np.where((cat == _VALID) & (de > l1 + l2 + len_tol), _BEYOND, cat)
         cat = np.where((cat == _VALID) & (de < np.abs(l1 - l2) - len_tol), _INSIDE, cat)
-        if pit is not None:
-            phi = np.stack([pit - self._beta, PI - pit - self._beta], axis=1)
+        if alpha_t is not None:
+            phi = alpha_t - self._beta
         else:
             phi, _, residual = self._pitch_from_rotation(m_rot, psi)
             cat = np.where((cat == _VALID) & (residual > orient_tol), _ORIENT, cat)
@@ -967,6 +1034,17 @@ class YawPlanarIK(AnalyticIK):
             "tu": tu,
             "tz": tz,
         }
+
+    def _branch_alpha(self, pos, psi, pit):
+        """In-plane approach angle (n, 2) per side for approach pitch `pit` (n,) at `pos` (n, 3).
+
+        The pitch where the arm's plane direction at yaw psi points away from the base z axis
+        (non-negative dot product with the target's horizontal position), else pi - pitch: the
+        approach axis's horizontal part then points outward (planner.target).
+        """
+        yaw = psi + self._mu
+        outward = np.cos(yaw) * pos[:, 0:1] + np.sin(yaw) * pos[:, 1:2] >= 0.0
+        return np.where(outward, pit[:, None], PI - pit[:, None])
 
     def _yaw_for_rotation(self, m_rot, hx, hy, d, u, psi, ue, cat, free):
         """Rotation targets: take the yaw from the rotation where it fixes it better.
@@ -1102,9 +1180,8 @@ class YawPlanarIK(AnalyticIK):
         if self.exact:
             return self._beta + sum(s * qc[:, i] for s, i in zip(self._signs, self._pitch_idx))
         _, rot = self._true_fk(qc)
-        a = rot @ self._approach_local
-        yaw = self._mu + self._sigma * qc[:, 0]
-        return np.arctan2(a[:, 2], np.cos(yaw) * a[:, 0] + np.sin(yaw) * a[:, 1])
+        front = self._true_pitch(qc[:, None, :], rot[:, None])  # (n, 1): alpha as a front branch
+        return front[:, 0]
 
     # ------------------------------------------------------------------ arrays pipeline
     def _true_fk(self, q):
@@ -1137,19 +1214,23 @@ class YawPlanarIK(AnalyticIK):
         dz = fz - pos[:, 2:3]
         return np.sqrt(dx * dx + dy * dy + dz * dz)
 
-    def _solve_arrays(self, pos, pit, rot, qc, orientation_errors: bool = True):
-        """Solve N targets: ideal closed form, correction when inexact, limits, status."""
+    def _solve_arrays(self, pos, pit, rot, qc, orientation_errors: bool = True, phi_free=None, roll_free=None):
+        """Solve N targets: ideal closed form, correction when inexact, limits, status.
+
+        `phi_free` (N, 2) and `roll_free` (N,): the free in-plane end angle per side and the
+        free wrist roll where finite (see `_core`).
+        """
         n = pos.shape[0]
-        core = self._core(pos, pit, rot, qc, self._orient_tol)
+        core = self._core(pos, pit, rot, qc, self._orient_tol, phi_free=phi_free, roll_free=roll_free)
         q = core["q"]
         cat = core["cat"]
         oerr = None
         if self.exact and rot is None:
             perr = self._ideal_position_error(core, pos)
             if pit is not None and orientation_errors:
-                oerr = self._pitch_error(q, pit)
+                oerr = self._pitch_error(q, pos, pit)
         else:
-            q, cat, perr, oerr = self._refine(core, pos, pit, rot, qc)
+            q, cat, perr, oerr = self._refine(core, pos, pit, rot, qc, roll_free)
         valid = cat == _VALID
         # Wrap into the joint ranges, nearest q_current.
         within = valid.copy()
@@ -1157,7 +1238,7 @@ class YawPlanarIK(AnalyticIK):
         copied_roll = False
         if self.has_roll and rot is None:
             lo, hi = self._lower[self._roll_idx], self._upper[self._roll_idx]
-            roll = qc[:, self._roll_idx] if qc is not None else np.zeros(1)
+            roll = self._roll_values(n, qc, roll_free)
             copied_roll = bool(np.all((roll >= lo) & (roll <= hi)))
         for j in range(self.dof):
             if copied_roll and j == self._roll_idx:
@@ -1192,12 +1273,14 @@ class YawPlanarIK(AnalyticIK):
             "dist": core["dist"],
         }
 
-    def _pitch_error(self, q, pit):
+    def _pitch_error(self, q, pos, pit):
+        """planner.target.pitch_error (n, 4) of the ideal model's approach axis at q."""
         sg, idx = self._signs, self._pitch_idx
-        total = sum(s * q[..., i] for s, i in zip(sg, idx))
-        alpha = self._beta + total
-        target = np.stack([pit, pit, PI - pit, PI - pit], axis=1)
-        return np.abs(_wrap_pi(alpha - target))
+        alpha = self._beta + sum(s * q[..., i] for s, i in zip(sg, idx))
+        yaw = self._mu + self._sigma * q[..., 0]
+        ca = np.cos(alpha)
+        approach = np.stack([ca * np.cos(yaw), ca * np.sin(yaw), np.sin(alpha)], axis=-1)
+        return pitch_error(approach, pos[:, None, :], pit[:, None])
 
     def _status_codes(self, cat, valid, within, dist):
         n = cat.shape[0]
@@ -1228,7 +1311,7 @@ class YawPlanarIK(AnalyticIK):
         return np.where(any_within, STATUS_CODES[STATUS_OK], status)
 
     # ------------------------------------------------------------------ correction on the real geometry
-    def _refine(self, core, pos, pit, rot, qc, max_rounds: int = 8):
+    def _refine(self, core, pos, pit, rot, qc, roll_free=None, max_rounds: int = 8):
         """Errors by the real (product of exponentials) model; correct inexact chains.
 
         Each branch is re-solved for its target shifted by the error its last solution left
@@ -1244,12 +1327,12 @@ class YawPlanarIK(AnalyticIK):
         dist = core["dist"]
         branch_pitch = core["world_pitch"]
         p_eff = np.broadcast_to(pos[:, None, :], (n, 4, 3)).copy()
-        pitch_t = None if pit is None else np.stack([pit, pit, pit, pit], axis=1)
-        # The approach pitch each branch must keep: the target's, or for a position-only target
-        # the one chosen for it (q_current's, measured on the real arm, or the default rule's).
+        # The branch pitch each branch must keep (see _core): the target's in the arm's plane, or
+        # for a position-only target the one chosen for it (q_current's, measured on the real
+        # arm, the default rule's, or the one the search within the limits found).
         pitch_eff = pitch_goal = None
         if self.n_pitch == 3 and rot is None:
-            pitch_goal = (pitch_t if pitch_t is not None else branch_pitch).copy()
+            pitch_goal = branch_pitch.copy()
             pitch_eff = pitch_goal.copy()
         rot_t = None if rot is None else np.broadcast_to(rot[:, None], (n, 4, 3, 3))
         rot_eff = None if rot is None else rot_t.copy()
@@ -1262,7 +1345,7 @@ class YawPlanarIK(AnalyticIK):
         for round_ in range(max_rounds + 1):
             fk_p, fk_r = self._true_fk(q)
             perr = np.linalg.norm(fk_p - pos[:, None, :], axis=-1)
-            oerr = self._orientation_errors(q, fk_r, pit, rot)
+            oerr = self._orientation_errors(fk_r, pos, pit, rot)
             settled = perr <= settle_tol
             if oerr is not None:
                 settled &= oerr <= 1e-13
@@ -1286,6 +1369,8 @@ class YawPlanarIK(AnalyticIK):
                 None if rot_eff is None else rot_eff.reshape(-1, 3, 3),
                 None if qc4 is None else qc4.reshape(-1, self.dof),
                 self._orient_tol,
+                internal_pitch=True,
+                roll_free=None if roll_free is None else np.repeat(roll_free, 4),
             )
             q_new = sub["q"][rows, slot].reshape(n, 4, self.dof)
             took = valid & (sub["cat"][rows, slot].reshape(n, 4) == _VALID)
@@ -1300,7 +1385,7 @@ class YawPlanarIK(AnalyticIK):
                 q[idx] = q_sub
                 fk_p, fk_r = self._true_fk(q)
                 perr = np.linalg.norm(fk_p - pos[:, None, :], axis=-1)
-                oerr = self._orientation_errors(q, fk_r, pit, rot)
+                oerr = self._orientation_errors(fk_r, pos, pit, rot)
         ok = perr <= pos_tol
         if oerr is not None:
             ok &= oerr <= (1e-9 if not self.exact else self._orient_tol)
@@ -1367,20 +1452,346 @@ class YawPlanarIK(AnalyticIK):
         return q
 
     def _true_pitch(self, q, fk_r):
-        """World approach pitch per branch (front: alpha, back: pi - alpha) of the real tip."""
+        """Branch pitch (front: alpha, back: pi - alpha; see `_core`) of the real tip.
+
+        alpha is the elevation of the real approach axis, its horizontal part counted positive
+        along the arm's plane direction: the elevation itself, not its angle within the ideal
+        plane, which differs (near vertical, by the square of the axis's small tilt out of that
+        plane over its horizontal part) and would leave the target's elevation missed.
+        """
         a = fk_r @ self._approach_local
         yaw = self._mu + self._sigma * q[..., 0]
-        horiz = np.cos(yaw) * a[..., 0] + np.sin(yaw) * a[..., 1]
-        alpha = np.arctan2(a[..., 2], horiz)
+        along = np.cos(yaw) * a[..., 0] + np.sin(yaw) * a[..., 1]
+        horiz = np.hypot(a[..., 0], a[..., 1])
+        alpha = np.arctan2(a[..., 2], np.where(along >= 0.0, horiz, -horiz))
         return np.where(np.array([True, True, False, False]), alpha, PI - alpha)
 
-    def _orientation_errors(self, q, fk_r, pit, rot):
+    def _orientation_errors(self, fk_r, pos, pit, rot):
+        """Orientation errors (n, 4) of the real tip rotations for rotation or pitch targets, else None."""
         if rot is not None:
             return np.asarray(rotation_error(fk_r, np.broadcast_to(rot[:, None], fk_r.shape)))
         if pit is not None:
-            target = np.stack([pit, pit, pit, pit], axis=1)
-            return np.abs(_wrap_pi(self._true_pitch(q, fk_r) - target))
+            return pitch_error(fk_r @ self._approach_local, pos[:, None, :], pit[:, None])
         return None
+
+    # ------------------------------------------------------------------ free joints within the limits
+    def _free_joints(self, pit, rot) -> tuple[bool, bool]:
+        """What a target leaves free that moves the arm: (the in-plane end angle, the wrist roll).
+
+        The end angle of position-only targets on wristed arms; the roll where the tip sits off
+        the roll axis.
+        """
+        if rot is not None:
+            return False, False
+        return pit is None and self.n_pitch == 3, self.has_roll and not self._tip_on_roll_axis
+
+    def _limit_values(self, j: int) -> tuple[float, ...]:
+        """Joint j's limits, or () when every angle has an equivalent within them."""
+        lo, hi = self._lower[j], self._upper[j]
+        return (lo, hi) if hi - lo < TWO_PI else ()
+
+    def _within_ideal(self, core, pos, qc):
+        """Mask (n, 4): the ideal core's branch reaches the target and lies within the limits.
+
+        Reaches `pos` (n, 3) to 1e-10 m (not merely within the core's reach tolerance); the
+        limits checked after wrapping as in `_solve_arrays`. On inexact chains, also clear of
+        the yaw axis's cylinder by more than the start separation of `_core` (closer, the
+        correction onto the real geometry is unreliable).
+        """
+        q = core["q"]
+        within = core["cat"] == _VALID
+        within &= self._ideal_position_error(core, pos) <= 1e-10 * max(1.0, self._scale)
+        if not self.exact:
+            within &= ~core["seeded"][:, None]
+        for j in range(self.dof):
+            if self._limit_values(j):
+                lo, hi = self._lower[j], self._upper[j]
+                col = wrap_array(q[..., j], lo, hi, qc[:, j][:, None] if qc is not None else 0.0)
+                within &= (col >= lo) & (col <= hi)
+        return within
+
+    def _phi_boundaries(self, ue, ze, tu, tz):
+        """In-plane end angles (n, 2, K) [rad] where a branch appears or a pitch joint meets a limit.
+
+        Between two of them (on the circle) every branch exists or not throughout and keeps each
+        pitch joint within its limits or outside them, since the joints are continuous functions
+        of the end angle phi there. Each boundary is a root of ``|V - R(phi) m|^2 = k`` for an
+        in-plane vector V fixed by the end point and m by the end vector, i.e. of
+        ``cos(phi + angle(m) - angle(V)) = (|V|^2 + |m|^2 - k) / (2 |V| |m|)``: the wrist point
+        at the reach of the shoulder-elbow pair (its ends, and the elbow at a limit: the law of
+        cosines), at link 2's length from the elbow of the shoulder at a limit, or the elbow at
+        link 1's length from the shoulder with the wrist at a limit (links 2 and 3 then one
+        rigid vector m). NaN pads rows with fewer roots.
+        """
+        su, sz, l1, l2, g1, g2 = self._su, self._sz, self._l1, self._l2, self._g1, self._g2
+        s0, s1, s2 = self._signs
+        i0, i1, i2 = self._pitch_idx
+        # Per equation: the offset of V from (end point - shoulder), m - (end vector), and k.
+        eqs = [(0.0, 0.0, 0.0, 0.0, (l1 + l2) ** 2), (0.0, 0.0, 0.0, 0.0, (l1 - l2) ** 2)]
+        for limit in self._limit_values(i1):
+            e = s1 * limit - g1 + g2
+            eqs.append((0.0, 0.0, 0.0, 0.0, l1 * l1 + l2 * l2 + 2.0 * l1 * l2 * math.cos(e)))
+        for limit in self._limit_values(i0):
+            a = s0 * limit + g1
+            eqs.append((-l1 * math.cos(a), -l1 * math.sin(a), 0.0, 0.0, l2 * l2))
+        for limit in self._limit_values(i2):
+            c = g2 - s2 * limit
+            eqs.append((0.0, 0.0, l2 * math.cos(c), l2 * math.sin(c), l1 * l1))
+        dvx, dvz, dmx, dmz, k = (np.array(col) for col in zip(*eqs))
+        ax = (ue - su)[..., None] + dvx  # (n, 2, E)
+        az = (ze[:, None] - sz)[..., None] + dvz
+        mx = tu[:, None, None] + dmx
+        mz = tz[:, None, None] + dmz
+        v2, m2 = ax * ax + az * az, mx * mx + mz * mz
+        denom = 2.0 * np.sqrt(v2 * m2)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            c = (v2 + m2 - k) / denom
+        # A tangency (a joint's extreme value exactly at its limit) may round to |c| just above 1.
+        ok = (denom > 0.0) & (np.abs(c) <= 1.0 + 1e-12)
+        base = np.arctan2(az, ax) - np.arctan2(mz, mx)
+        half = np.arccos(np.clip(np.where(ok, c, 0.0), -1.0, 1.0))
+        roots = np.concatenate([np.where(ok, base + half, np.nan), np.where(ok, base - half, np.nan)], axis=-1)
+        return _wrap_pi(roots)
+
+    @staticmethod
+    def _intervals(bounds, pref):
+        """The circular intervals between boundary angles.
+
+        Args:
+            bounds: Shape S + (K,) [rad], NaN-padded.
+            pref: Shape S [rad].
+
+        Returns:
+            start, end, valid (S + (K,)): interval j runs from the j-th smallest boundary to the
+            next (the last one to the first + 2 pi); without boundaries, one interval, the whole
+            circle centred on `pref`.
+        """
+        b = np.sort(bounds, axis=-1)
+        k = b.shape[-1]
+        count = np.sum(np.isfinite(b), axis=-1)[..., None]
+        j = np.arange(k)
+        following = np.concatenate([b[..., 1:], b[..., :1]], axis=-1)
+        end = np.where(j == count - 1, b[..., :1] + TWO_PI, following)
+        whole = (count == 0) & (j == 0)
+        start = np.where(whole, pref[..., None] - PI, b)
+        end = np.where(whole, pref[..., None] + PI, end)
+        return start, end, (j < count) | whole
+
+    def _phi_choices(self, pos, qc, roll_free, margin):
+        """Per branch, the in-plane end angle within the limits nearest the default one.
+
+        For position-only targets on wristed arms, on the ideal model.
+
+        Returns:
+            feasible (n, 4): some end angle puts the branch within the limits; phi (n, 4) [rad]:
+            the default angle where it does, else the nearest end of the nearest interval that
+            does, moved `margin` (at most half the interval) into it; phi_mid (n, 4) [rad]: the
+            default angle or the middle of that interval. NaN where not feasible.
+        """
+        n = pos.shape[0]
+        core = self._core(pos, None, None, qc, self._orient_tol, roll_free=roll_free)
+        pref = np.nan_to_num(core["phi"])
+        bounds = self._phi_boundaries(core["ue"], core["ze"], core["tu"], core["tz"])
+        start, end, valid = self._intervals(bounds, pref)
+        if self.exact:
+            # The boundaries themselves too, as intervals of zero width: where a joint's extreme
+            # value just meets its limit, the one point there may be all there is. (Inexact
+            # chains keep only intervals wide enough for the real arm to share.)
+            start = np.concatenate([start, bounds], axis=-1)
+            end = np.concatenate([end, bounds], axis=-1)
+            valid = np.concatenate([valid, np.isfinite(bounds)], axis=-1)
+        mid = 0.5 * (start + end)
+        k = start.shape[-1]
+
+        def rep(a):
+            return None if a is None else np.repeat(a, k, axis=0)
+
+        sub = self._core(
+            rep(pos), None, None, rep(qc), self._orient_tol,
+            phi_free=np.where(valid, mid, 0.0).transpose(0, 2, 1).reshape(n * k, 2), roll_free=rep(roll_free),
+        )  # fmt: skip
+        side = [0, 0, 1, 1]
+        ok = self._within_ideal(sub, rep(pos), rep(qc)).reshape(n, k, 4).transpose(0, 2, 1) & valid[:, side]
+        start, end, mid, pref = start[:, side], end[:, side], mid[:, side], pref[:, side]
+        width = end - start
+        if not self.exact:
+            ok &= width >= 2.0 * margin  # narrower, the real arm may have none
+        inset = np.minimum(margin, 0.5 * width)
+        # The point of each interval nearest pref (at least `inset` inside it), unwrapped near pref.
+        shifted = start + (pref[..., None] - start) % TWO_PI
+        near = np.where(
+            shifted <= end,
+            np.clip(shifted, start + inset, end - inset),
+            np.where(shifted - end <= start + TWO_PI - shifted, end - inset, start + inset + TWO_PI),
+        )
+        dist = np.where(ok, np.abs(near - shifted), np.inf)
+        best = np.argmin(dist, axis=-1)[..., None]
+        feasible = np.isfinite(np.take_along_axis(dist, best, axis=-1)[..., 0])
+        phi = _wrap_pi(np.take_along_axis(near, best, axis=-1)[..., 0])
+        inside = np.take_along_axis(shifted <= end, best, axis=-1)[..., 0]
+        phi_mid = np.where(inside, phi, _wrap_pi(np.take_along_axis(mid, best, axis=-1)[..., 0]))
+        return feasible, np.where(feasible, phi, np.nan), np.where(feasible, phi_mid, np.nan)
+
+    def _search(self, pos, pit, qc, roll_step: float = math.radians(2.5)):
+        """Free joint values that put each branch within the limits, per target (ideal model).
+
+        The wrist roll, where it moves the tip: q_current's (else 0) when some end angle (or, for
+        pitch targets, the target itself) allows the branch there, else the nearest roll that
+        does: sampled every `roll_step` outwards, then bisected to the boundary. The in-plane end
+        angle of position-only targets: see `_phi_choices`.
+
+        Returns:
+            found (n, 4); phi, roll (n, 4): the nearest values [rad] (NaN where not free or not
+            found); phi_safe, roll_safe (n, 4): values further inside (the middle of the end
+            angle's interval, the roll sample), for inexact chains whose real joints may differ
+            from the ideal ones at a boundary.
+        """
+        free_phi, free_roll = self._free_joints(pit, None)
+        n = pos.shape[0]
+        # Steps into the intervals with solutions, past their ends: within round-off on exact
+        # chains; on inexact ones, past the ideal model's deviation from the real one.
+        margin = 1e-9 if self.exact else 1e-4
+        margin_roll = 1e-3
+        nan4 = np.full((n, 4), np.nan)
+
+        def oracle(rows, roll):
+            q_rows = None if qc is None else qc[rows]
+            if free_phi:
+                return self._phi_choices(pos[rows], q_rows, roll, margin)
+            core = self._core(pos[rows], None if pit is None else pit[rows], None, q_rows, self._orient_tol,
+                              roll_free=roll)  # fmt: skip
+            ok = self._within_ideal(core, pos[rows], q_rows)
+            return ok, np.full(ok.shape, np.nan), np.full(ok.shape, np.nan)
+
+        roll0 = None
+        if free_roll:
+            lo, hi = self._lower[self._roll_idx], self._upper[self._roll_idx]
+            bounded = hi - lo < TWO_PI
+            roll0 = self._roll_values(n, qc, None)
+            if bounded:
+                roll0 = np.clip(roll0, lo, hi)
+        found, phi, phi_safe = oracle(np.arange(n), roll0)
+        roll = nan4.copy() if roll0 is None else np.repeat(roll0[:, None], 4, axis=1)
+        roll_safe = roll.copy()
+        pending = ~found
+        if not free_roll or not pending.any():
+            return found, phi, roll, phi_safe, roll_safe
+        # Roll samples outwards from roll0: k steps up, then k steps down, k = 1, 2, ...
+        steps = int(math.ceil((hi - lo if bounded else TWO_PI) / roll_step))
+        inner = np.full((n, 4), np.nan)
+        first = 1
+        while first <= steps:
+            # A few steps first (often enough), then all the others at once (cheaper than many calls).
+            ks = np.arange(first, min(first + 4, steps + 1) if first == 1 else steps + 1)
+            first = ks[-1] + 1
+            offsets = np.stack([ks, -ks], axis=1).ravel() * roll_step  # (m,)
+            samples = roll0[:, None] + offsets
+            previous = roll0[:, None] + offsets - np.sign(offsets) * roll_step
+            if bounded:
+                usable = (previous > lo) & (previous < hi) | (np.abs(previous - roll0[:, None]) < 1e-15)
+                usable &= (previous >= lo) & (previous <= hi)
+                samples = np.clip(samples, lo, hi)
+            else:
+                usable = np.ones(samples.shape, dtype=bool)
+            targets = np.nonzero(pending.any(axis=1))[0]
+            if targets.size == 0:
+                break
+            m = offsets.size
+            rows = np.repeat(targets, m)
+            ok, ph, ph_mid = oracle(rows, samples[targets].ravel())
+            ok = ok.reshape(targets.size, m, 4) & usable[targets][..., None]
+            for a, i in enumerate(targets):
+                for s in np.nonzero(pending[i])[0]:
+                    hit = np.nonzero(ok[a, :, s])[0]
+                    if hit.size:
+                        h = hit[0]
+                        found[i, s], pending[i, s] = True, False
+                        roll[i, s] = roll_safe[i, s] = samples[i, h]
+                        phi[i, s], phi_safe[i, s] = ph[a * m + h, s], ph_mid[a * m + h, s]
+                        inner[i, s] = np.clip(previous[i, h], lo, hi) if bounded else previous[i, h]
+        # Bisect between the last roll without and the first with a solution, nearest roll0; on
+        # inexact chains, then step a little back into the rolls with one (towards the sample).
+        pairs = np.nonzero(np.isfinite(inner))
+        if pairs[0].size:
+            bad, good = inner[pairs].copy(), roll[pairs].copy()
+            sample = good.copy()
+            # 15 rolls between per round, the bracket 16 times shorter each: to 3e-9 rad on exact
+            # chains, on inexact ones to well within the step back.
+            parts = 16
+            fractions = np.arange(1, parts) / parts
+            index = np.arange(len(bad))
+            for _ in range(6 if self.exact else 2):
+                trial = bad[:, None] + (good - bad)[:, None] * fractions  # (p, parts - 1)
+                ok = oracle(np.repeat(pairs[0], parts - 1), trial.ravel())[0]
+                hit = ok[np.arange(trial.size), np.repeat(pairs[1], parts - 1)].reshape(trial.shape)
+                # The first trial with a solution (from the bad end): the bracket ends there.
+                k = np.where(hit.any(axis=1), np.argmax(hit, axis=1), parts - 1)
+                good = np.where(k < parts - 1, trial[index, np.minimum(k, parts - 2)], good)
+                bad = np.where(k > 0, trial[index, np.maximum(k - 1, 0)], bad)
+            if not self.exact:
+                good = good + np.clip(sample - good, -margin_roll, margin_roll)
+            ok, ph, _ = oracle(pairs[0], good)
+            hit = ok[np.arange(len(good)), pairs[1]]
+            roll[pairs] = np.where(hit, good, roll[pairs])
+            phi[pairs] = np.where(hit, ph[np.arange(len(good)), pairs[1]], phi[pairs])
+        return found, phi, roll, phi_safe, roll_safe
+
+    def _solve_searched(self, pos, pit, qc, base, orientation_errors: bool = True):
+        """`_solve_arrays`' result `base`, re-solved at free joint values within the limits.
+
+        For the targets without a solution within the limits, each branch at the values `_search`
+        finds. Branches the search finds nothing for keep their solution at the default values.
+        """
+        todo = np.nonzero(base["status"] != STATUS_CODES[STATUS_OK])[0]
+        if todo.size == 0:
+            return base
+        sub_pit = None if pit is None else pit[todo]
+        sub_qc = None if qc is None else qc[todo]
+        found, phi, roll, phi_safe, roll_safe = self._search(pos[todo], sub_pit, sub_qc)
+        if not found.any():
+            return base
+        m = todo.size
+        slots = np.tile(np.arange(4), m)
+        use = np.zeros((m, 4), dtype=bool)
+        chosen = None
+        for phi_s, roll_s in ((phi, roll), (phi_safe, roll_safe)):
+            retry = found & ~use
+            if not retry.any():
+                break
+            phi_rows = np.full((4 * m, 2), np.nan)
+            phi_rows[np.arange(4 * m), slots // 2] = phi_s.ravel()
+            a = self._solve_arrays(
+                np.repeat(pos[todo], 4, axis=0), None if sub_pit is None else np.repeat(sub_pit, 4),
+                None, None if sub_qc is None else np.repeat(sub_qc, 4, axis=0), orientation_errors,
+                phi_free=phi_rows, roll_free=roll_s.ravel(),
+            )  # fmt: skip
+            a = {key: _diagonal(value, m) for key, value in a.items() if key not in ("status", "best")}
+            ok = retry & a["within"]
+            if chosen is None:
+                chosen = {key: None if value is None else value.copy() for key, value in a.items()}
+            else:
+                for key, value in a.items():
+                    if value is not None:
+                        chosen[key][ok] = value[ok]
+            use |= ok
+        if not use.any():
+            return base
+        out = {key: (value.copy() if isinstance(value, np.ndarray) else value) for key, value in base.items()}
+        for key, value in chosen.items():
+            if value is not None and out.get(key) is not None:
+                part = out[key][todo]
+                part[use] = value[use]
+                out[key][todo] = part
+        rows = out["q"][todo]
+        status = self._status_codes(out["cat"][todo], out["valid"][todo], out["within"][todo], out["dist"][todo])
+        out["status"][todo] = status
+        if sub_qc is not None:
+            dist2 = np.sum((rows - sub_qc[:, None, :]) ** 2, axis=-1)
+        else:
+            dist2 = np.broadcast_to(np.arange(4.0), (m, 4))
+        within = out["within"][todo]
+        out["best"][todo] = np.where(within.any(axis=1), np.argmin(np.where(within, dist2, np.inf), axis=1), -1)
+        return out
 
     # ------------------------------------------------------------------ arrays -> result
     def _result_from_arrays(self, a, i, target, qc) -> AnalyticResult:
@@ -1413,3 +1824,15 @@ def _orthonormalize(r: np.ndarray) -> np.ndarray:
     det = np.linalg.det(out)
     u[..., :, 2] *= np.where(det < 0, -1.0, 1.0)[..., None]
     return u @ vt
+
+
+def _diagonal(a, m):
+    """Branch s of row 4 i + s, from arrays over 4 m rows and 4 branches: shape (m, 4, ...).
+
+    None stays None.
+    """
+    if a is None:
+        return None
+    a = a.reshape((m, 4) + a.shape[1:])
+    k = np.arange(4)
+    return a[:, k, k]
