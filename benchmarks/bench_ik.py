@@ -37,7 +37,7 @@ from importlib import metadata
 from pathlib import Path
 
 from planner import available_robots, load_robot
-from planner.benchmark import BUNDLED_KINDS, ORIENTATION_TOL, POSITION_TOL, bench_robot, markdown
+from planner.benchmark import BUNDLED_KINDS, KINDS, ORIENTATION_TOL, POSITION_TOL, bench_robot, markdown
 from planner.nlp_ik import NlpIK
 
 RESULTS = Path(__file__).resolve().parent / "results"
@@ -61,7 +61,8 @@ def main(argv: list[str] | None = None) -> int:
         print(f"example-robot-data not installed: skipping {', '.join(skipped)}")
     summaries = []
     for name in names:
-        summaries += bench_robot(name, args.n, args.seed, args.time_budget, args.ipopt_baseline)
+        for kind in KINDS.get(name, ("pose",)):
+            summaries += bench_robot(name, args.n, args.seed, args.time_budget, args.ipopt_baseline, kind)
     table = markdown(summaries)
     print(table)
 

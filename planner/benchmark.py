@@ -25,12 +25,15 @@ from .nlp_ik import NlpIK, target_errors
 from .robots import BUNDLED_ROBOTS, load_robot
 from .target import Target, approach_pitch, rotation_error
 
-__all__ = ["BUNDLED_KINDS", "bench_robot", "make_target", "markdown", "summarise", "verify"]
+__all__ = ["BUNDLED_KINDS", "KINDS", "bench_robot", "make_target", "markdown", "summarise", "verify"]
 
 POSITION_TOL = 1e-4
 ORIENTATION_TOL = 1e-3
 #: Target kind of each bundled arm (what its joints can reach); example-robot-data arms: pose.
 BUNDLED_KINDS = {"shelley": "position", "dh3": "position", "three_joint": "pitch", "al5c": "pitch"}
+#: Target kinds benchmarked per robot: its own kind, and for the 5-dof so101 (a servo arm of
+#: the seeds' family) the position + approach pitch targets a user of such an arm would give.
+KINDS = {**{name: (kind,) for name, kind in BUNDLED_KINDS.items()}, "so101": ("pose", "pitch")}
 
 
 def make_target(robot, kind: str, q: np.ndarray) -> Target:
@@ -118,7 +121,9 @@ def summarise(name: str, kind: str, method: str, dof: int, rows: list[dict], set
     return out
 
 
-def bench_robot(name: str, n: int, seed: int, time_budget: float, baseline: bool = False) -> list[dict]:
+def bench_robot(
+    name: str, n: int, seed: int, time_budget: float, baseline: bool = False, kind: str | None = None
+) -> list[dict]:
     """Benchmark one robot: closed form (where it has one), NLP, and optionally one plain IPOPT solve.
 
     Args:
@@ -127,12 +132,14 @@ def bench_robot(name: str, n: int, seed: int, time_budget: float, baseline: bool
         seed: Seed of the target configurations; the seeds/current configurations use seed + 1.
         time_budget: NLP time budget per call [s].
         baseline: Also time one bounded IPOPT solve from the seed (pose targets only).
+        kind: Target kind (``"pose"``, ``"pitch"``, ``"position"``); None is the robot's first
+            kind in :data:`KINDS` (pose for arms not listed).
 
     Returns:
         One summary mapping per method (see :func:`summarise`).
     """
     robot = load_robot(name)
-    kind = BUNDLED_KINDS.get(name, "pose")
+    kind = kind or KINDS.get(name, ("pose",))[0]
     q_targets = robot.random_configurations(np.random.default_rng(seed), n)
     q_seeds = robot.random_configurations(np.random.default_rng(seed + 1), n)
     targets = [make_target(robot, kind, q) for q in q_targets]
