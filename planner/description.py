@@ -34,7 +34,7 @@ from xml.sax.saxutils import escape
 
 import numpy as np
 
-from ._files import read_data_file
+from ._files import ANGLE_UNITS, LENGTH_UNITS, read_data_file
 from .exceptions import InvalidArgumentError, InvalidLimitsError
 
 __all__ = [
@@ -44,8 +44,6 @@ __all__ = [
     "urdf_from_dh",
 ]
 
-_LENGTH_UNITS = {"m": 1.0, "cm": 0.01, "mm": 0.001, "in": 0.0254}
-_ANGLE_UNITS = {"rad": 1.0, "deg": math.pi / 180.0}
 _JOINT_TYPES = ("revolute", "prismatic", "continuous")
 _NAME = re.compile(r"^[A-Za-z_][A-Za-z0-9_.\-]*$")
 
@@ -291,11 +289,11 @@ def urdf_from_dh(description: Mapping[str, Any] | str | Path) -> str:
     name = str(desc.get("name", "arm"))
     units = desc.get("units", {}) or {}
     length_unit, angle_unit = str(units.get("length", "m")), str(units.get("angle", "rad"))
-    if length_unit not in _LENGTH_UNITS:
-        raise InvalidArgumentError(f"unknown length unit {length_unit!r}; valid units: {', '.join(_LENGTH_UNITS)}")
-    if angle_unit not in _ANGLE_UNITS:
-        raise InvalidArgumentError(f"unknown angle unit {angle_unit!r}; valid units: {', '.join(_ANGLE_UNITS)}")
-    length, angle = _LENGTH_UNITS[length_unit], _ANGLE_UNITS[angle_unit]
+    if length_unit not in LENGTH_UNITS:
+        raise InvalidArgumentError(f"unknown length unit {length_unit!r}; valid units: {', '.join(LENGTH_UNITS)}")
+    if angle_unit not in ANGLE_UNITS:
+        raise InvalidArgumentError(f"unknown angle unit {angle_unit!r}; valid units: {', '.join(ANGLE_UNITS)}")
+    length, angle = LENGTH_UNITS[length_unit], ANGLE_UNITS[angle_unit]
 
     joints, last_fixed = _parse_joints(desc, length, angle)
     tool = desc.get("tool", {}) or {}

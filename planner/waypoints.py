@@ -37,7 +37,7 @@ from typing import Any
 
 import numpy as np
 
-from ._files import read_data_file
+from ._files import ANGLE_UNITS, LENGTH_UNITS, read_data_file
 from .exceptions import InvalidArgumentError
 from .robot import Robot
 from .servo import ServoCalibration, default_calibrations
@@ -53,8 +53,6 @@ __all__ = [
     "plan_motion",
 ]
 
-_LENGTH_UNITS = {"m": 1.0, "cm": 0.01, "mm": 0.001, "in": 0.0254}
-_ANGLE_UNITS = {"rad": 1.0, "deg": math.pi / 180.0}
 _TOP_KEYS = (
     "units",
     "waypoints",
@@ -237,11 +235,11 @@ def parse_motion_request(data: Mapping[str, Any], source: str = "<request>") -> 
         raise _fail(source, f"units must be a mapping like {{length: cm, angle: deg}}, got {units!r}")
     _unknown_keys(units, ("length", "angle"), "units", source)
     lu, au = units.get("length", "m"), units.get("angle", "rad")
-    if lu not in _LENGTH_UNITS:
-        raise _fail(source, f"unknown length unit {lu!r}; valid: {', '.join(_LENGTH_UNITS)}")
-    if au not in _ANGLE_UNITS:
-        raise _fail(source, f"unknown angle unit {au!r}; valid: {', '.join(_ANGLE_UNITS)}")
-    length, angle = _LENGTH_UNITS[lu], _ANGLE_UNITS[au]
+    if lu not in LENGTH_UNITS:
+        raise _fail(source, f"unknown length unit {lu!r}; valid: {', '.join(LENGTH_UNITS)}")
+    if au not in ANGLE_UNITS:
+        raise _fail(source, f"unknown angle unit {au!r}; valid: {', '.join(ANGLE_UNITS)}")
+    length, angle = LENGTH_UNITS[lu], ANGLE_UNITS[au]
 
     has_w, has_t = "waypoints" in data, "targets" in data
     if has_w == has_t:

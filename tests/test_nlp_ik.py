@@ -13,8 +13,9 @@ import pytest
 from test_casadi_kinematics import MIXED_URDF
 
 from planner import InvalidArgumentError, InvalidConfigurationError, JointLimitError, PlannerError, Robot, Target
+from planner.benchmark import make_target
 from planner.nlp_ik import IKResult, NlpIK, as_target, compile_function, target_errors
-from planner.target import approach_direction, approach_pitch, pitch_error, rotation_error
+from planner.target import approach_direction, pitch_error, rotation_error
 
 from conftest import get_robot, needs_example_robot_data
 
@@ -29,15 +30,6 @@ def solver(name: str) -> NlpIK:
 
 # Arms whose pitch plane contains the base z axis: a pitch fixes the approach direction.
 IN_PLANE_ARMS = ("al5c", "three_joint")
-
-
-def make_target(robot: Robot, kind: str, q: np.ndarray) -> Target:
-    pose = robot.fk(q)
-    if kind == "pose":
-        return Target.from_pose(pose)
-    if kind == "pitch":
-        return Target(pose[:3, 3], pitch=approach_pitch(robot, q))
-    return Target(pose[:3, 3])
 
 
 def assert_reached(robot: Robot, target: Target, result: IKResult, tol: float = 1e-6) -> None:
