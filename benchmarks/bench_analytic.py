@@ -60,8 +60,9 @@ def fk_targets(robot, q):
     """Tip positions (N, 3) and approach pitches (N,) of configurations, by the product of
     exponentials of the model's screws (vectorised; equal to Pinocchio's FK to 1e-12)."""
     chain = chain_at_zero(robot)
-    pos, rot = poe_fk([j.axis for j in chain.joints], [j.point for j in chain.joints], chain.tip_position,
-                      chain.tip_rotation, q)
+    pos, rot = poe_fk(
+        [j.axis for j in chain.joints], [j.point for j in chain.joints], chain.tip_position, chain.tip_rotation, q
+    )
     approach = rot @ robot.approach_axis
     yaw = chain.joints[0]
     sign = 1.0 if yaw.axis[2] > 0 else -1.0
@@ -132,8 +133,9 @@ def bench_arm(name, n_single, n_batch, seed):
     q2 = robot.random_configurations(rng, n_batch)
     p2, pitch2 = fk_targets(robot, q2)
     kwargs = {"pitch": pitch2 if use_pitch else None, "q_current": q2 if use_current else None}
-    solver.solve_batch(p2[:10], pitch=None if not use_pitch else pitch2[:10],
-                       q_current=None if not use_current else q2[:10])  # warm-up
+    solver.solve_batch(
+        p2[:10], pitch=None if not use_pitch else pitch2[:10], q_current=None if not use_current else q2[:10]
+    )  # warm-up
     best = math.inf
     for _ in range(3):
         t0 = time.perf_counter()
@@ -242,6 +244,7 @@ def main(argv=None):
         print(f"{name}: done", file=sys.stderr)
     table = markdown(rows)
     goal = [r for r in rows if r["robot"] in GOAL_ARMS]
+
     def meets(ok):
         return "meets" if ok else "misses"
 

@@ -154,9 +154,7 @@ def _add_plan(sub: argparse._SubParsersAction) -> None:
     )
     p.add_argument("robot", help="robot name (see `planner robots`) or URDF path")
     p.add_argument("waypoints_file", type=Path, help="plan file (.yaml or .json)")
-    p.add_argument(
-        "--out", type=Path, default=None, help="directory for trajectory.csv, servo files and summary.json"
-    )
+    p.add_argument("--out", type=Path, default=None, help="directory for trajectory.csv, servo files and summary.json")
     p.add_argument(
         "--rate", type=float, default=1000.0, help="sample rate of the checks and the CSV [Hz] (default 1000)"
     )
@@ -187,18 +185,31 @@ def _run_plan(args: argparse.Namespace) -> int:
     if args.json:
         _print_json(summary)
         return 0
-    print(f"{robot.name}: {len(plan.waypoints)} waypoints, duration {plan.trajectory.duration:.4f} s "
-          f"({plan.trajectory.strategy} via states)")
+    print(
+        f"{robot.name}: {len(plan.waypoints)} waypoints, duration {plan.trajectory.duration:.4f} s "
+        f"({plan.trajectory.strategy} via states)"
+    )
     rows = []
     for k, (tk, q) in enumerate(zip(plan.waypoint_times, plan.waypoints)):
-        rows.append((k, f"{tk:.4f}", " ".join(f"{x:+.4f}" for x in q), plan.branches[k] or "-",
-                     "SINGULAR" if k in plan.singular_waypoints else ""))
+        rows.append(
+            (
+                k,
+                f"{tk:.4f}",
+                " ".join(f"{x:+.4f}" for x in q),
+                plan.branches[k] or "-",
+                "SINGULAR" if k in plan.singular_waypoints else "",
+            )
+        )
     print(_table(["#", "t [s]", "q [rad]", "branch", ""], rows))
-    print(f"peak / limit: velocity {summary['max_velocity_ratio']:.4f}, acceleration "
-          f"{summary['max_acceleration_ratio']:.4f}, jerk {summary['max_jerk_ratio']:.4f} "
-          f"(sampled at {args.rate:g} Hz)")
-    print(f"min manipulability {summary['min_manipulability']:.4g}, min inverse condition number "
-          f"{summary['min_inverse_condition']:.4g} (threshold 1/{summary['condition_number_threshold']:g})")
+    print(
+        f"peak / limit: velocity {summary['max_velocity_ratio']:.4f}, acceleration "
+        f"{summary['max_acceleration_ratio']:.4f}, jerk {summary['max_jerk_ratio']:.4f} "
+        f"(sampled at {args.rate:g} Hz)"
+    )
+    print(
+        f"min manipulability {summary['min_manipulability']:.4g}, min inverse condition number "
+        f"{summary['min_inverse_condition']:.4g} (threshold 1/{summary['condition_number_threshold']:g})"
+    )
     if plan.detours:
         print(f"detours inserted: {len(plan.detours)} (segments {sorted({d.segment for d in plan.detours})})")
     if plan.unresolved:
@@ -221,19 +232,44 @@ def _add_ik(sub: argparse._SubParsersAction) -> None:
     p.add_argument("x", type=float, help="target x [m]")
     p.add_argument("y", type=float, help="target y [m]")
     p.add_argument("z", type=float, help="target z [m]")
-    p.add_argument("--pitch", type=float, default=None, help="approach pitch [rad; deg with --deg]: 0 horizontal "
-                   "away from the base axis, -90 deg straight down")
-    p.add_argument("--rpy", type=float, nargs=3, metavar=("R", "P", "Y"), default=None,
-                   help="tip orientation as URDF roll-pitch-yaw [rad; deg with --deg]")
+    p.add_argument(
+        "--pitch",
+        type=float,
+        default=None,
+        help="approach pitch [rad; deg with --deg]: 0 horizontal away from the base axis, -90 deg straight down",
+    )
+    p.add_argument(
+        "--rpy",
+        type=float,
+        nargs=3,
+        metavar=("R", "P", "Y"),
+        default=None,
+        help="tip orientation as URDF roll-pitch-yaw [rad; deg with --deg]",
+    )
     p.add_argument("--deg", action="store_true", help="angles (--pitch, --rpy, --current, output table) in degrees")
-    p.add_argument("--method", choices=("analytic", "nlp", "both"), default="analytic",
-                   help="closed form (default), CasADi optimisation, or both")
-    p.add_argument("--current", type=float, nargs="+", default=None, metavar="Q",
-                   help="current joint values: solutions are sorted by distance to them [rad; deg with --deg]")
+    p.add_argument(
+        "--method",
+        choices=("analytic", "nlp", "both"),
+        default="analytic",
+        help="closed form (default), CasADi optimisation, or both",
+    )
+    p.add_argument(
+        "--current",
+        type=float,
+        nargs="+",
+        default=None,
+        metavar="Q",
+        help="current joint values: solutions are sorted by distance to them [rad; deg with --deg]",
+    )
     p.add_argument("--tip", default=None, help="tip frame (default: the arm's tool frame)")
     p.add_argument("--all", action="store_true", help="every solution (default: the best one within limits)")
-    p.add_argument("--time-budget", type=float, default=0.05, metavar="S",
-                   help="NLP: wall time after which no new restart begins [s] (default 0.05)")
+    p.add_argument(
+        "--time-budget",
+        type=float,
+        default=0.05,
+        metavar="S",
+        help="NLP: wall time after which no new restart begins [s] (default 0.05)",
+    )
     p.add_argument("--json", action="store_true", help="print JSON")
 
 
@@ -358,8 +394,15 @@ def _run_ik(args: argparse.Namespace) -> int:
     rows = []
     for s in result["solutions"]:
         q = np.degrees(s["q"]) if args.deg else np.asarray(s["q"])
-        rows.append((s.get("branch", "-"), " ".join(f"{v:+.4f}" for v in q), "yes" if s["within_limits"] else "NO",
-                     "yes" if s.get("singular") else "", f"{s['position_error']:.3g}"))
+        rows.append(
+            (
+                s.get("branch", "-"),
+                " ".join(f"{v:+.4f}" for v in q),
+                "yes" if s["within_limits"] else "NO",
+                "yes" if s.get("singular") else "",
+                f"{s['position_error']:.3g}",
+            )
+        )
     if rows:
         print(_table(["branch", f"q [{unit}]", "within limits", "singular", "position error [m]"], rows))
     return 0

@@ -104,8 +104,7 @@ class JointLimitError(PlannerError):
         self.upper = float(upper)
         where = f"{context}: " if context else ""
         super().__init__(
-            f"{where}joint {joint!r} value {self.value:.6g} is outside its range "
-            f"[{self.lower:.6g}, {self.upper:.6g}]"
+            f"{where}joint {joint!r} value {self.value:.6g} is outside its range [{self.lower:.6g}, {self.upper:.6g}]"
         )
 
 

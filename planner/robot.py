@@ -109,8 +109,14 @@ def _find_frame(model: pin.Model, name: str) -> int | None:
     matches = [i for i, f in enumerate(model.frames) if f.name == name]
     if not matches:
         return None
-    return min(matches, key=lambda i: _FRAME_PREFERENCE.index(model.frames[i].type)
-               if model.frames[i].type in _FRAME_PREFERENCE else len(_FRAME_PREFERENCE))
+    return min(
+        matches,
+        key=lambda i: (
+            _FRAME_PREFERENCE.index(model.frames[i].type)
+            if model.frames[i].type in _FRAME_PREFERENCE
+            else len(_FRAME_PREFERENCE)
+        ),
+    )
 
 
 def _default_tip(model: pin.Model) -> str:
@@ -516,9 +522,7 @@ class Robot:
         t = self._task(task)
         return self._per_configuration(q, lambda row: np.prod(self._singular_values(row, t)))
 
-    def inverse_condition_number(
-        self, q: Sequence[float] | np.ndarray, task: Task | None = None
-    ) -> np.ndarray | float:
+    def inverse_condition_number(self, q: Sequence[float] | np.ndarray, task: Task | None = None) -> np.ndarray | float:
         """Smallest over largest singular value of the task Jacobian, in [0, 1].
 
         1 is isotropic, 0 singular; a condition number of 30 is an inverse of 1/30.

@@ -18,8 +18,10 @@ def _pose_matrix(sensor_pose: Sequence[float] | np.ndarray) -> np.ndarray:
         if not np.all(np.isfinite(arr)):
             raise InvalidArgumentError("sensor_pose holds NaN or infinite values")
         rot = arr[:3, :3]
-        if not np.allclose(rot.T @ rot, np.eye(3), atol=1e-9) or np.linalg.det(rot) < 0 or not np.allclose(
-            arr[3], [0, 0, 0, 1]
+        if (
+            not np.allclose(rot.T @ rot, np.eye(3), atol=1e-9)
+            or np.linalg.det(rot) < 0
+            or not np.allclose(arr[3], [0, 0, 0, 1])
         ):
             raise InvalidArgumentError("sensor_pose is not a rigid transform (rotation not orthonormal)")
         return arr

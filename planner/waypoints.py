@@ -425,7 +425,6 @@ class MotionPlan:
             "sample_rate": rate,
         }
 
-
     def write_files(self, out: str | Path, rate: float = 1000.0) -> tuple[Path, ...]:
         """Write the plan's files into a directory (created if missing).
 

@@ -107,8 +107,9 @@ def test_product_of_exponentials_matches_pinocchio(name):
     robot = load_robot(name)
     chain = chain_at_zero(robot)
     q = robot.random_configurations(np.random.default_rng(3), 20)
-    pos, rot = poe_fk([j.axis for j in chain.joints], [j.point for j in chain.joints], chain.tip_position,
-                      chain.tip_rotation, q)
+    pos, rot = poe_fk(
+        [j.axis for j in chain.joints], [j.point for j in chain.joints], chain.tip_position, chain.tip_rotation, q
+    )
     ref = robot.fk(q)
     np.testing.assert_allclose(pos, ref[:, :3, 3], atol=1e-12)
     np.testing.assert_allclose(rot, ref[:, :3, :3], atol=1e-12)
@@ -128,8 +129,13 @@ def test_first_joint_must_be_vertical():
 
 
 def test_a_single_pitch_joint_is_named():
-    err = _chain_error([("yaw", "revolute", O3, O3, Z), ("pitch", "revolute", (0, 0, 0.1), O3, Y),
-                        ("roll", "revolute", (0.1, 0, 0), O3, X)])
+    err = _chain_error(
+        [
+            ("yaw", "revolute", O3, O3, Z),
+            ("pitch", "revolute", (0, 0, 0.1), O3, Y),
+            ("roll", "revolute", (0.1, 0, 0), O3, X),
+        ]
+    )
     assert err.joint == "roll"
 
 
@@ -141,16 +147,24 @@ def test_a_fourth_pitch_joint_is_named():
 
 
 def test_a_joint_after_the_roll_is_named():
-    joints = [("yaw", "revolute", O3, O3, Z), ("p0", "revolute", (0, 0, 0.1), O3, Y),
-              ("p1", "revolute", (0.1, 0, 0), O3, Y), ("roll", "revolute", (0.1, 0, 0), O3, X),
-              ("extra", "revolute", (0.05, 0, 0), O3, Y)]
+    joints = [
+        ("yaw", "revolute", O3, O3, Z),
+        ("p0", "revolute", (0, 0, 0.1), O3, Y),
+        ("p1", "revolute", (0.1, 0, 0), O3, Y),
+        ("roll", "revolute", (0.1, 0, 0), O3, X),
+        ("extra", "revolute", (0.05, 0, 0), O3, Y),
+    ]
     assert _chain_error(joints).joint == "extra"
 
 
 def test_a_skew_joint_is_named():
     skew = (0.0, 1 / math.sqrt(2), 1 / math.sqrt(2))
-    joints = [("yaw", "revolute", O3, O3, Z), ("p0", "revolute", (0, 0, 0.1), O3, Y),
-              ("p1", "revolute", (0.1, 0, 0), O3, Y), ("skew", "revolute", (0.1, 0, 0), O3, skew)]
+    joints = [
+        ("yaw", "revolute", O3, O3, Z),
+        ("p0", "revolute", (0, 0, 0.1), O3, Y),
+        ("p1", "revolute", (0.1, 0, 0), O3, Y),
+        ("skew", "revolute", (0.1, 0, 0), O3, skew),
+    ]
     err = _chain_error(joints)
     assert err.joint == "skew"
     assert "neither parallel" in str(err)
@@ -162,8 +176,11 @@ def test_a_tilted_second_joint_is_named():
 
 
 def test_a_prismatic_joint_is_named():
-    joints = [("yaw", "revolute", O3, O3, Z), ("slide", "prismatic", (0, 0, 0.1), O3, Z),
-              ("p1", "revolute", (0.1, 0, 0), O3, Y)]
+    joints = [
+        ("yaw", "revolute", O3, O3, Z),
+        ("slide", "prismatic", (0, 0, 0.1), O3, Z),
+        ("p1", "revolute", (0.1, 0, 0), O3, Y),
+    ]
     err = _chain_error(joints)
     assert err.joint == "slide"
     assert "prismatic" in str(err)
@@ -211,7 +228,11 @@ def test_results_are_frozen(solvers, robots):
 def test_status_names_and_codes():
     assert STATUS_NAMES[STATUS_CODES[STATUS_OK]] == STATUS_OK
     assert set(STATUS_NAMES) == {
-        "ok", "outside_joint_limits", "orientation_not_achievable", "beyond_max_reach", "inside_min_reach",
+        "ok",
+        "outside_joint_limits",
+        "orientation_not_achievable",
+        "beyond_max_reach",
+        "inside_min_reach",
         "out_of_plane",
     }
 
@@ -496,9 +517,14 @@ def test_batch_searches_free_joints_like_single_solves(name):
             # The search ran where the best solution left q_current's free joints.
             best = single.best.q
             moved_roll = solver.has_roll and abs(best[-1] - q_current[i, -1]) > 1e-9
-            moved_pitch = pitch is None and abs(
-                (approach_pitch(robot, best) - approach_pitch(robot, q_current[i]) + math.pi) % (2 * math.pi) - math.pi
-            ) > 1e-6
+            moved_pitch = (
+                pitch is None
+                and abs(
+                    (approach_pitch(robot, best) - approach_pitch(robot, q_current[i]) + math.pi) % (2 * math.pi)
+                    - math.pi
+                )
+                > 1e-6
+            )
             searched += (moved_roll and name != "al5c") or moved_pitch
     assert searched >= 5
 
@@ -572,8 +598,9 @@ def test_position_only_searches_another_pitch_within_limits(robots, solvers):
         offset = approach_pitch(robot, sol.q) - preferred
         offset = (offset + math.pi) % (2 * math.pi) - math.pi
         for p in preferred + np.arange(0.0, abs(offset) - 1e-6, step) * np.sign(offset):
-            same = [s for s in solver.solve(Target(target.position, pitch=p), q_current).solutions
-                    if s.branch == sol.branch]
+            same = [
+                s for s in solver.solve(Target(target.position, pitch=p), q_current).solutions if s.branch == sol.branch
+            ]
             assert not any(s.within_limits for s in same), (sol.branch, p)
     # Without q_current, from the default pitch; the batch finds the same.
     res = solver.solve(target)
@@ -596,8 +623,12 @@ def test_position_only_without_any_pitch_within_limits(solvers):
 
 
 def test_continuous_joints():
-    joints = [("yaw", "continuous", O3, O3, Z), ("shoulder", "revolute", (0, 0, 0.1), O3, Y),
-              ("elbow", "revolute", (0.2, 0, 0), O3, Y), ("roll", "continuous", (0.15, 0, 0), O3, X)]
+    joints = [
+        ("yaw", "continuous", O3, O3, Z),
+        ("shoulder", "revolute", (0, 0, 0.1), O3, Y),
+        ("elbow", "revolute", (0.2, 0, 0), O3, Y),
+        ("roll", "continuous", (0.15, 0, 0), O3, X),
+    ]
     robot = Robot(serial_urdf(joints, tip_xyz=(0.05, 0.0, 0.0)), tip="tip", approach_axis=(1.0, 0.0, 0.0))
     assert robot.joint_kinds == ("continuous", "revolute", "revolute", "continuous")
     solver = AnalyticIK.from_robot(robot)

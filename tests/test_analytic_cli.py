@@ -51,8 +51,11 @@ def test_ik_rpy_target(capsys):
     q = [0.2, 0.7, -0.9, 0.4]
     pose = robot.fk(q)
     r = pose[:3, :3]
-    rpy = [math.atan2(r[2, 1], r[2, 2]), math.atan2(-r[2, 0], math.hypot(r[0, 0], r[1, 0])),
-           math.atan2(r[1, 0], r[0, 0])]
+    rpy = [
+        math.atan2(r[2, 1], r[2, 2]),
+        math.atan2(-r[2, 0], math.hypot(r[0, 0], r[1, 0])),
+        math.atan2(r[1, 0], r[0, 0]),
+    ]
     x, y, z = pose[:3, 3].tolist()
     code, out, _ = run(capsys, "ik", "three_joint", repr(x), repr(y), repr(z), "--rpy", *map(repr, rpy), "--json")
     data = json.loads(out)

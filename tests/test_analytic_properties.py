@@ -61,8 +61,12 @@ def arm(name: str) -> tuple[Robot, AnalyticIK]:
 
 
 def configuration(data, robot: Robot) -> np.ndarray:
-    return np.array([data.draw(st.floats(float(lo), float(hi)), label=name)
-                     for name, lo, hi in zip(robot.joint_names, robot.lower, robot.upper)])
+    return np.array(
+        [
+            data.draw(st.floats(float(lo), float(hi)), label=name)
+            for name, lo, hi in zip(robot.joint_names, robot.lower, robot.upper)
+        ]
+    )
 
 
 def same_configuration(a: np.ndarray, b: np.ndarray) -> bool:

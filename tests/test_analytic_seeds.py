@@ -138,8 +138,9 @@ def test_001_approach_modes(al5c, mode, pitch, d, h, yaw):
     assert sol.q[1] + sol.q[2] + sol.q[3] == pytest.approx(pitch, abs=1e-12)
     assert np.linalg.norm(fk_position(robot, sol.q) - target) < TOL_POS
     approach = robot.fk(sol.q)[:3, :3] @ robot.approach_axis
-    np.testing.assert_allclose(approach, [math.cos(pitch) * math.cos(yaw), math.cos(pitch) * math.sin(yaw),
-                                          math.sin(pitch)], atol=1e-12)
+    np.testing.assert_allclose(
+        approach, [math.cos(pitch) * math.cos(yaw), math.cos(pitch) * math.sin(yaw), math.sin(pitch)], atol=1e-12
+    )
     # The garbled equations as printed would put the arm elsewhere (or give no number at all).
     g1, g2 = garbled_seed001(d_a, h_a)
     if math.isfinite(g1) and math.isfinite(g2):

@@ -84,18 +84,36 @@ def test_joint_list_description_prismatic_and_tool():
 @pytest.mark.parametrize(
     ("change", "error", "message"),
     [
-        ({"dh": [{"d": 0, "a": 1, "alpha": 0, "lower": 1, "upper": -1}]}, planner.InvalidLimitsError,
-         r"joint 'joint1' has lower limit 1 > upper limit -1"),
-        ({"dh": [{"d": 0, "a": 1, "alpha": 0, "lower": -1, "upper": 1, "velocity": -3}]}, planner.InvalidLimitsError,
-         r"joint 'joint1' velocity must be positive, got -3"),
-        ({"dh": [{"d": 0, "a": 1, "lower": -1, "upper": 1}]}, planner.InvalidArgumentError,
-         r"DH row 1 \('joint1'\) is missing 'alpha'"),
-        ({"dh": [{"d": 0, "a": 1, "alpha": 0, "lower": -1, "upper": 1, "type": "ball"}]}, planner.InvalidArgumentError,
-         r"unknown type 'ball'; valid types: revolute, prismatic, continuous"),
-        ({"units": {"length": "furlong"}}, planner.InvalidArgumentError,
-         r"unknown length unit 'furlong'; valid units: m, cm, mm, in"),
-        ({"dh": [{"d": "x", "a": 1, "alpha": 0, "lower": -1, "upper": 1}]}, planner.InvalidArgumentError,
-         r"joint 'joint1' d must be a number, got 'x'"),
+        (
+            {"dh": [{"d": 0, "a": 1, "alpha": 0, "lower": 1, "upper": -1}]},
+            planner.InvalidLimitsError,
+            r"joint 'joint1' has lower limit 1 > upper limit -1",
+        ),
+        (
+            {"dh": [{"d": 0, "a": 1, "alpha": 0, "lower": -1, "upper": 1, "velocity": -3}]},
+            planner.InvalidLimitsError,
+            r"joint 'joint1' velocity must be positive, got -3",
+        ),
+        (
+            {"dh": [{"d": 0, "a": 1, "lower": -1, "upper": 1}]},
+            planner.InvalidArgumentError,
+            r"DH row 1 \('joint1'\) is missing 'alpha'",
+        ),
+        (
+            {"dh": [{"d": 0, "a": 1, "alpha": 0, "lower": -1, "upper": 1, "type": "ball"}]},
+            planner.InvalidArgumentError,
+            r"unknown type 'ball'; valid types: revolute, prismatic, continuous",
+        ),
+        (
+            {"units": {"length": "furlong"}},
+            planner.InvalidArgumentError,
+            r"unknown length unit 'furlong'; valid units: m, cm, mm, in",
+        ),
+        (
+            {"dh": [{"d": "x", "a": 1, "alpha": 0, "lower": -1, "upper": 1}]},
+            planner.InvalidArgumentError,
+            r"joint 'joint1' d must be a number, got 'x'",
+        ),
         ({"dh": []}, planner.InvalidArgumentError, r"must be a non-empty list"),
         ({"tool": {"name": "joint1_link"}}, planner.InvalidArgumentError, r"link names must be unique"),
     ],

@@ -111,8 +111,7 @@ class AnalyticIK(ABC):
             )
         if len(joints) < 2:
             raise UnsupportedChainError(
-                f"{robot.name}: the chain has only joint {first.name!r}; the closed-form families need "
-                "2 to 5 joints",
+                f"{robot.name}: the chain has only joint {first.name!r}; the closed-form families need 2 to 5 joints",
                 joint=first.name,
             )
         if _angle_to_line(joints[1].axis, first.axis) <= FAMILY_ANGLE_TOL:

@@ -143,7 +143,10 @@ def rotation_about(axis: np.ndarray, angle: np.ndarray | float) -> np.ndarray:
 
 
 def poe_fk(
-    axes: Sequence[np.ndarray], points: Sequence[np.ndarray], tip_position: np.ndarray, tip_rotation: np.ndarray,
+    axes: Sequence[np.ndarray],
+    points: Sequence[np.ndarray],
+    tip_position: np.ndarray,
+    tip_rotation: np.ndarray,
     q: np.ndarray,
 ) -> tuple[np.ndarray, np.ndarray]:
     """Tip pose by the product of exponentials of revolute screws.

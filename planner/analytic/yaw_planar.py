@@ -426,7 +426,9 @@ class YawPlanarIK(AnalyticIK):
         for start in range(0, n, chunk):
             sl = slice(start, start + chunk)
             part = self._solve_arrays_within(
-                pos[sl], None if pit is None else pit[sl], None if rot is None else rot[sl],
+                pos[sl],
+                None if pit is None else pit[sl],
+                None if rot is None else rot[sl],
                 None if qc is None else qc[sl],
             )
             for key, arr in out.items():
@@ -928,8 +930,9 @@ class YawPlanarIK(AnalyticIK):
         rep = [0, 0, 1, 1]
         # Shoulder: a1 = base - atan2(l2 sin e, l1 + l2 cos e); the sign of e flips the second term.
         half = np.arctan2(l2 * s, l1 + l2 * c)
-        a1 = np.stack([base[:, 0] + half[:, 0], base[:, 0] - half[:, 0], base[:, 1] - half[:, 1],
-                       base[:, 1] + half[:, 1]], axis=1)
+        a1 = np.stack(
+            [base[:, 0] + half[:, 0], base[:, 0] - half[:, 0], base[:, 1] - half[:, 1], base[:, 1] + half[:, 1]], axis=1
+        )
         phi2 = a1 - g1
         phi3 = a1 + e - g2
         q = np.empty((n, 4, dof))
@@ -956,9 +959,7 @@ class YawPlanarIK(AnalyticIK):
         if three:
             alpha = self._beta + total
             world_pitch = np.where(np.array([True, True, False, False]), alpha, PI - alpha)
-        singular = (
-            elbow_sing[:, rep] | (free | seeded)[:, None] | (np.abs(ue[:, rep]) < SINGULAR_TOL * self._scale)
-        )
+        singular = elbow_sing[:, rep] | (free | seeded)[:, None] | (np.abs(ue[:, rep]) < SINGULAR_TOL * self._scale)
         return {
             "q": q,
             "cat": cat4,
@@ -1097,6 +1098,7 @@ class YawPlanarIK(AnalyticIK):
         """Pitch sum phi (n, 2), roll (n, 2) or None, residual [rad] (n, 2) for given yaws."""
         e_u, n_axis = self._e_u, self._n
         cz, sz = np.cos(psi), np.sin(psi)
+
         # N = Rz(-psi) M, applied to a vector v: Rz(-psi) (M v).
         def unyaw(v):
             x, y = v[..., 0], v[..., 1]
@@ -1425,8 +1427,12 @@ class YawPlanarIK(AnalyticIK):
             parts = [(fk_p - pos) * inv_scale]
             if rot is not None:
                 rel = np.swapaxes(rot, -1, -2) @ fk_r
-                parts.append(0.5 * np.stack([rel[:, 2, 1] - rel[:, 1, 2], rel[:, 0, 2] - rel[:, 2, 0],
-                                             rel[:, 1, 0] - rel[:, 0, 1]], axis=-1))
+                parts.append(
+                    0.5
+                    * np.stack(
+                        [rel[:, 2, 1] - rel[:, 1, 2], rel[:, 0, 2] - rel[:, 2, 0], rel[:, 1, 0] - rel[:, 0, 1]], axis=-1
+                    )
+                )
             elif pit is not None and self.n_pitch == 3:
                 qq4 = np.repeat(qq[:, None, :], 4, axis=1)
                 rr4 = np.repeat(fk_r[:, None], 4, axis=1)
@@ -1804,8 +1810,12 @@ class YawPlanarIK(AnalyticIK):
             arr.setflags(write=False)
             oerr = None if a["oerr"] is None else float(a["oerr"][i, slot])
             sol = AnalyticSolution(
-                arr, bool(a["within"][i, slot]), BRANCHES[slot], bool(a["singular"][i, slot]),
-                float(a["perr"][i, slot]), oerr,
+                arr,
+                bool(a["within"][i, slot]),
+                BRANCHES[slot],
+                bool(a["singular"][i, slot]),
+                float(a["perr"][i, slot]),
+                oerr,
             )
             sols.append(sol)
             details.append((slot, sol))
