@@ -36,19 +36,17 @@ for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):  # o
     os.environ.setdefault(_var, "1")
 
 import argparse  # noqa: E402
-import datetime  # noqa: E402
 import json  # noqa: E402
 import math  # noqa: E402
-import platform  # noqa: E402
 import sys  # noqa: E402
 import time  # noqa: E402
-from importlib import metadata  # noqa: E402
 from pathlib import Path  # noqa: E402
 
 import numpy as np  # noqa: E402
 
 from planner import AnalyticIK, Target, load_robot  # noqa: E402
 from planner.analytic import chain_at_zero, poe_fk  # noqa: E402
+from planner.benchmark import run_record  # noqa: E402
 from planner.robots import example_robot_data_dir  # noqa: E402
 
 RESULTS = Path(__file__).resolve().parent / "results"
@@ -257,23 +255,8 @@ def main(argv=None):
     print(table)
     print()
     print("Goal (yaw + 3-link arm): " + verdict)
-    try:
-        load = os.getloadavg()
-    except OSError:
-        load = None
     record = {
-        "benchmark": "bench_analytic",
-        "date": datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds"),
-        "command": " ".join([Path(sys.executable).name, *sys.argv]),
-        "machine": {
-            "platform": platform.platform(),
-            "processor": platform.processor() or platform.machine(),
-            "cpus": os.cpu_count(),
-            "load_average": load,
-            "python": platform.python_version(),
-            "numpy": np.__version__,
-            "pin": metadata.version("pin"),
-        },
+        **run_record("bench_analytic", ("numpy", "pin", "example-robot-data")),
         "settings": {"single": args.single, "batch": args.batch, "seed": args.seed},
         "goal": verdict,
         "rows": rows,

@@ -28,16 +28,12 @@ then < 0.3 ms. Prints a Markdown table, writes JSON to benchmarks/results/bench_
 from __future__ import annotations
 
 import argparse
-import datetime
 import json
-import os
-import platform
 import sys
-from importlib import metadata
 from pathlib import Path
 
 from planner import available_robots, load_robot
-from planner.benchmark import BUNDLED_KINDS, KINDS, ORIENTATION_TOL, POSITION_TOL, bench_robot, markdown
+from planner.benchmark import BUNDLED_KINDS, KINDS, ORIENTATION_TOL, POSITION_TOL, bench_robot, markdown, run_record
 from planner.nlp_ik import NlpIK
 
 RESULTS = Path(__file__).resolve().parent / "results"
@@ -78,24 +74,9 @@ def main(argv: list[str] | None = None) -> int:
             f"NLP on ur5/panda/so101/z1: lowest solve rate {100 * overall['nlp_min_solve_rate_goal_arms']:.2f} % "
             f"(goal 100 %), highest median {overall['nlp_max_median_ms_goal_arms']:.3f} ms (goals <= 1 ms, < 0.3 ms)"
         )
-    versions = {}
-    for pkg in ("casadi", "pin", "numpy", "example-robot-data"):
-        try:
-            versions[pkg] = metadata.version(pkg)
-        except metadata.PackageNotFoundError:
-            versions[pkg] = None
     probe = NlpIK(load_robot(names[0]))
     record = {
-        "benchmark": "bench_ik",
-        "date": datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds"),
-        "command": " ".join([Path(sys.executable).name, *sys.argv]),
-        "machine": {
-            "platform": platform.platform(),
-            "processor": platform.processor() or platform.machine(),
-            "cpus": os.cpu_count(),
-            "python": platform.python_version(),
-        },
-        "versions": versions,
+        **run_record("bench_ik", ("casadi", "pin", "numpy", "example-robot-data")),
         "settings": {
             "n": args.n,
             "seed": args.seed,

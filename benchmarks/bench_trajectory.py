@@ -32,19 +32,16 @@ Markdown table and writes JSON to benchmarks/results/.
 from __future__ import annotations
 
 import argparse
-import datetime
 import json
 import logging
-import os
-import platform
 import sys
 import time
-from importlib import metadata
 from pathlib import Path
 
 import numpy as np
 
 from planner import available_robots, load_robot
+from planner.benchmark import run_record
 from planner.robots import BUNDLED_ROBOTS
 from planner.trajectory import LIMIT_TOLERANCE, JointLimits, plan_trajectory
 
@@ -360,23 +357,8 @@ def main(argv: list[str] | None = None) -> int:
         )
     if overall["median_plan_ms_6dof"] is not None:
         print(f"median plan time, 5 waypoints, 6-dof arms: {overall['median_plan_ms_6dof']:.2f} ms (goal <= 5 ms)")
-    versions = {}
-    for pkg in ("ruckig", "numpy", "pin", "toppra", "example-robot-data"):
-        try:
-            versions[pkg] = metadata.version(pkg)
-        except metadata.PackageNotFoundError:
-            versions[pkg] = None
     record = {
-        "benchmark": "bench_trajectory",
-        "date": datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds"),
-        "command": " ".join([Path(sys.executable).name, *sys.argv]),
-        "machine": {
-            "platform": platform.platform(),
-            "processor": platform.processor() or platform.machine(),
-            "cpus": os.cpu_count(),
-            "python": platform.python_version(),
-        },
-        "versions": versions,
+        **run_record("bench_trajectory", ("ruckig", "numpy", "pin", "toppra", "example-robot-data")),
         "settings": {
             "paths": args.paths,
             "seed": args.seed,

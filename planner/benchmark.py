@@ -12,8 +12,15 @@ of the solve call after a warm-up call.
 from __future__ import annotations
 
 import collections
+import datetime
 import math
+import os
+import platform
+import sys
 import time
+from collections.abc import Sequence
+from importlib import metadata
+from pathlib import Path
 
 import casadi as ca
 import numpy as np
@@ -25,7 +32,7 @@ from .nlp_ik import NlpIK, target_errors
 from .robots import BUNDLED_ROBOTS, load_robot
 from .target import Target, approach_pitch, rotation_error
 
-__all__ = ["BUNDLED_KINDS", "KINDS", "bench_robot", "make_target", "markdown", "summarise", "verify"]
+__all__ = ["BUNDLED_KINDS", "KINDS", "bench_robot", "run_record", "make_target", "markdown", "summarise", "verify"]
 
 POSITION_TOL = 1e-4
 ORIENTATION_TOL = 1e-3
@@ -231,3 +238,38 @@ def markdown(summaries: list[dict]) -> str:
             f"| {'n/a' if agreement is None else f'{100 * agreement:.2f} %'} |"
         )
     return "\n".join(lines)
+
+
+def run_record(benchmark: str, packages: Sequence[str]) -> dict:
+    """What a results file records about its run: name, UTC date, command, machine, versions.
+
+    Args:
+        benchmark: The benchmark's name.
+        packages: Distributions whose installed versions matter (None where not installed).
+
+    Returns:
+        A JSON-ready mapping; the caller adds its settings and figures.
+    """
+    versions: dict[str, str | None] = {}
+    for pkg in packages:
+        try:
+            versions[pkg] = metadata.version(pkg)
+        except metadata.PackageNotFoundError:
+            versions[pkg] = None
+    try:
+        load = list(os.getloadavg())
+    except OSError:
+        load = None
+    return {
+        "benchmark": benchmark,
+        "date": datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds"),
+        "command": " ".join([Path(sys.executable).name, *sys.argv]),
+        "machine": {
+            "platform": platform.platform(),
+            "processor": platform.processor() or platform.machine(),
+            "cpus": os.cpu_count(),
+            "load_average": load,
+            "python": platform.python_version(),
+        },
+        "versions": versions,
+    }
