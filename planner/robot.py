@@ -484,25 +484,46 @@ class Robot:
             raise InvalidArgumentError(f"unknown reference {reference!r}; valid: {', '.join(refs)}")
         return pin.computeFrameJacobian(self.model, self.data, self._pin_q(arr), fid, refs[reference]).copy()
 
-    def _task(self, task: Task | None) -> Task:
+    def resolve_task(self, task: Task | None) -> Task:
+        """The task a singularity measure uses: `task`, or by default pose or position.
+
+        The default is ``"pose"`` (all 6 Jacobian rows) for arms with 6 or more joints and
+        ``"position"`` (the 3 linear rows) for the others.
+
+        Raises:
+            InvalidArgumentError: On a task other than ``"position"`` or ``"pose"``.
+        """
         if task is None:
             return "pose" if self.dof >= 6 else "position"
         if task not in ("position", "pose"):
             raise InvalidArgumentError(f"unknown task {task!r}; valid: position, pose")
         return task
 
-    def _singular_values(self, q: np.ndarray, task: Task) -> np.ndarray:
-        jac = self.jacobian(q)
-        if task == "position":
-            jac = jac[:3]
-        s = np.linalg.svd(jac, compute_uv=False)
-        return s[: min(jac.shape)]
+    def conditioning(self, q: Sequence[float] | np.ndarray, task: Task | None = None) -> tuple[np.ndarray, np.ndarray]:
+        """Inverse condition number and manipulability together, from one SVD per configuration.
 
-    def _per_configuration(self, q: Sequence[float] | np.ndarray, fn) -> np.ndarray | float:
+        Args:
+            q: Shape (dof,) or (N, dof) [rad or m].
+            task: As for :meth:`manipulability`.
+
+        Returns:
+            ``(inverse_condition_number, manipulability)``, float arrays of shape () or (N,).
+        """
+        t = self.resolve_task(task)
         arr = self.check_configuration(q)
-        if arr.ndim == 1:
-            return float(fn(arr))
-        return np.array([fn(row) for row in arr])
+        rows = arr.reshape(-1, self.dof)
+        inverse = np.empty(len(rows))
+        manipulability = np.empty(len(rows))
+        for k, row in enumerate(rows):
+            jac = self.jacobian(row)
+            if t == "position":
+                jac = jac[:3]
+            # Only the min(m, n) largest singular values: a 3x2 Jacobian has two.
+            s = np.linalg.svd(jac, compute_uv=False)[: min(jac.shape)]
+            inverse[k] = 0.0 if s[0] == 0.0 else s[-1] / s[0]
+            manipulability[k] = np.prod(s)
+        shape = () if arr.ndim == 1 else (len(rows),)
+        return inverse.reshape(shape), manipulability.reshape(shape)
 
     def manipulability(self, q: Sequence[float] | np.ndarray, task: Task | None = None) -> np.ndarray | float:
         """Yoshikawa manipulability of the tip, the product of the Jacobian's singular values.
@@ -519,8 +540,8 @@ class Robot:
         Returns:
             A float, or a (N,) array for a batch.
         """
-        t = self._task(task)
-        return self._per_configuration(q, lambda row: np.prod(self._singular_values(row, t)))
+        value = self.conditioning(q, task)[1]
+        return float(value) if value.ndim == 0 else value
 
     def inverse_condition_number(self, q: Sequence[float] | np.ndarray, task: Task | None = None) -> np.ndarray | float:
         """Smallest over largest singular value of the task Jacobian, in [0, 1].
@@ -534,13 +555,8 @@ class Robot:
         Returns:
             A float, or a (N,) array for a batch.
         """
-        t = self._task(task)
-
-        def inverse(row: np.ndarray) -> float:
-            s = self._singular_values(row, t)
-            return 0.0 if s[0] == 0.0 else s[-1] / s[0]
-
-        return self._per_configuration(q, inverse)
+        value = self.conditioning(q, task)[0]
+        return float(value) if value.ndim == 0 else value
 
     def random_configurations(self, rng: np.random.Generator, n: int | None = None) -> np.ndarray:
         """Configurations drawn uniformly within the position limits.

@@ -62,19 +62,6 @@ def _threshold(threshold: float | None) -> float:
     return float(threshold)
 
 
-def _task(robot: Robot, task: Task | None) -> Task:
-    if task is None:
-        return "pose" if robot.dof >= 6 else "position"
-    if task not in ("position", "pose"):
-        raise InvalidArgumentError(f"unknown task {task!r}; valid: position, pose")
-    return task
-
-
-def _task_jacobian(robot: Robot, q: np.ndarray, task: Task) -> np.ndarray:
-    jac = robot.jacobian(q)
-    return jac[:3] if task == "position" else jac
-
-
 def conditioning(
     robot: Robot, q: Sequence[float] | np.ndarray, task: Task | None = None
 ) -> tuple[np.ndarray, np.ndarray]:
@@ -88,19 +75,7 @@ def conditioning(
     Returns:
         ``(inverse_condition, manipulability)``, each a float array of shape () or (N,).
     """
-    t = _task(robot, task)
-    arr = robot.check_configuration(q)
-    rows = arr.reshape(-1, robot.dof)
-    inv = np.empty(len(rows))
-    man = np.empty(len(rows))
-    for k, row in enumerate(rows):
-        jac = _task_jacobian(robot, row, t)
-        s = np.linalg.svd(jac, compute_uv=False)[: min(jac.shape)]
-        inv[k] = 0.0 if s[0] == 0.0 else s[-1] / s[0]
-        man[k] = float(np.prod(s))
-    if arr.ndim == 1:
-        return inv.reshape(()), man.reshape(())
-    return inv, man
+    return robot.conditioning(q, task)
 
 
 @dataclass(frozen=True)
@@ -216,7 +191,7 @@ def check_singularities(
     """
     if trajectory.dof != robot.dof:
         raise InvalidArgumentError(f"the trajectory has {trajectory.dof} joints; {robot.name} has {robot.dof}")
-    return _report(robot, trajectory, _threshold(threshold), _task(robot, task), rate)[0]
+    return _report(robot, trajectory, _threshold(threshold), robot.resolve_task(task), rate)[0]
 
 
 @dataclass(frozen=True)
@@ -302,7 +277,8 @@ def _ascend(robot: Robot, q: np.ndarray, limits: JointLimits, target: float, tas
 
 
 def _det_sign(robot: Robot, q: np.ndarray, task: Task) -> float:
-    jac = _task_jacobian(robot, q, task)
+    jac = robot.jacobian(q)
+    jac = jac[:3] if task == "position" else jac
     return float(np.sign(np.linalg.det(jac))) if jac.shape[0] == jac.shape[1] else 0.0
 
 
@@ -357,7 +333,7 @@ def plan_clear_of_singularities(
         InvalidArgumentError: On bad thresholds or any input :func:`plan_trajectory` rejects.
     """
     thr = _threshold(threshold)
-    t_task = _task(robot, task)
+    t_task = robot.resolve_task(task)
     if isinstance(max_detours, bool) or not isinstance(max_detours, int) or max_detours < 0:
         raise InvalidArgumentError(f"max_detours must be a non-negative integer, got {max_detours!r}")
     if not (isinstance(margin, (int, float)) and math.isfinite(margin) and margin >= 1.0):
