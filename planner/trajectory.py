@@ -831,18 +831,7 @@ class _Planner:
         values = [cost(g) for g in grid]
         b = int(np.argmin(values))
         lo, hi = grid[max(b - 1, 0)], grid[min(b + 1, len(grid) - 1)]
-        g = (math.sqrt(5) - 1) / 2
-        x1, x2 = hi - g * (hi - lo), lo + g * (hi - lo)
-        f1, f2 = cost(x1), cost(x2)
-        for _ in range(steps):
-            if f1 <= f2:
-                hi, x2, f2 = x2, x1, f1
-                x1 = hi - g * (hi - lo)
-                f1 = cost(x1)
-            else:
-                lo, x1, f1 = x1, x2, f2
-                x2 = lo + g * (hi - lo)
-                f2 = cost(x2)
+        _golden_minimum(cost, lo, hi, steps + 2)  # its evaluations fill the cache
         best = min(cache.values(), key=lambda c: c[0])
         if best[0] < current[0]:
             _, self.v[i], self.acc[i] = best
