@@ -157,18 +157,7 @@ class AnalyticIK(ABC):
     def _q_current_list(self, q_current: Sequence[float] | np.ndarray | None) -> list[float] | None:
         if q_current is None:
             return None
-        try:
-            arr = np.asarray(q_current, dtype=float)
-        except (TypeError, ValueError) as exc:
-            raise InvalidConfigurationError(f"q_current must be numbers, got {q_current!r}") from exc
-        if arr.shape != (self.dof,):
-            raise InvalidConfigurationError(
-                f"q_current has shape {arr.shape}; {self.robot.name} expects ({self.dof},) for joints "
-                f"{', '.join(self.joint_names)}"
-            )
-        if not np.all(np.isfinite(arr)):
-            raise InvalidConfigurationError(f"q_current must be finite, got {arr.tolist()}")
-        return arr.tolist()
+        return self.robot.check_configuration(q_current, batch=False).tolist()
 
     def _check_target(self, target: Target) -> None:
         if not isinstance(target, Target):
