@@ -1,4 +1,4 @@
-"""Benchmark: the closed-form IK (:mod:`planner.analytic`), single calls and batches, per arm.
+"""Benchmark: the closed-form IK (:mod:`planner.ik.analytic`), single calls and batches, per arm.
 
 For every arm of the closed-form families (the bundled seed arms and, when example-robot-data
 is installed, SO-101), random configurations within the joint limits (``--seed``) give the
@@ -6,7 +6,7 @@ targets by forward kinematics:
 
 - ``shelley``, ``dh3`` (no wrist pitch): the tip position;
 - ``three_joint``, ``al5c``, ``so101``: the tip position and its approach pitch (the elevation
-  of the approach axis, outward from the base z axis: ``planner.target``). SO-101's gripper frame sits
+  of the approach axis, outward from the base z axis: ``planner.geometry.target``). SO-101's gripper frame sits
   off its wrist roll axis, so the roll moves the tip: its targets pass the configuration as
   ``q_current`` (the source of the free roll). The others get no ``q_current``.
 
@@ -45,9 +45,9 @@ from pathlib import Path  # noqa: E402
 import numpy as np  # noqa: E402
 
 from planner import AnalyticIK, Target, load_robot  # noqa: E402
-from planner.analytic import chain_at_zero, poe_fk  # noqa: E402
-from planner.benchmark import run_record  # noqa: E402
-from planner.robots import example_robot_data_dir  # noqa: E402
+from planner.app.benchmark import run_record  # noqa: E402
+from planner.ik.analytic import chain_at_zero, poe_fk  # noqa: E402
+from planner.model.catalog import example_robot_data_dir  # noqa: E402
 
 RESULTS = Path(__file__).resolve().parent / "results"
 PITCH_ARMS = ("three_joint", "al5c", "so101")
@@ -69,7 +69,7 @@ def fk_targets(robot, q):
     # The first pitch axis turned by the yaw, then the arm plane's horizontal direction.
     n = np.stack([np.cos(ang) * n0[0] - np.sin(ang) * n0[1], np.sin(ang) * n0[0] + np.cos(ang) * n0[1]], axis=1)
     e_u = np.stack([-n[:, 1], n[:, 0]], axis=1) / np.linalg.norm(n, axis=1)[:, None]
-    # planner.target: the horizontal part counts positive pointing away from the base z axis.
+    # planner.geometry.target: the horizontal part counts positive pointing away from the base z axis.
     side = np.sign(np.sum(pos[:, :2] * e_u, axis=1))
     side[side == 0] = 1.0
     along = np.sign(np.sum(approach[:, :2] * e_u, axis=1))  # the approach axis lies in the plane

@@ -6,7 +6,7 @@ their FK pose for the example-robot-data arms (a full 6-D pose, also for the 5-d
 position plus approach pitch for al5c and three_joint, a position for shelley and dh3. The
 seeds / current configurations are another fixed draw (``--seed + 1``). Methods:
 
-- ``analytic``: the closed form (:mod:`planner.analytic`), where the arm has one;
+- ``analytic``: the closed form (:mod:`planner.ik.analytic`), where the arm has one;
 - ``nlp``: :class:`planner.NlpIK` from the seed, random restarts within ``--time-budget``,
   without the closed-form branches (so it stands on its own);
 - ``ipopt-1``: with ``--ipopt-baseline``, one plain bounded least-squares NLP solved by IPOPT
@@ -17,7 +17,7 @@ here, not taken from the solvers), and within the joint limits. Times are wall t
 solve call, after a warm-up call (one-off setup: building, compiling or loading the compiled
 solver, is reported separately). Cross-check: for arms with a closed form, the share of targets
 where the NLP answer coincides with a closed-form branch, or both reach the target where the
-arm is redundant (:func:`planner.ik.compare`).
+arm is redundant (:func:`planner.ik.solve.compare`).
 
 Goals (issue 4): 100 % solve rate on ur5, panda, so101, z1; median time per call <= 1 ms,
 then < 0.3 ms. Prints a Markdown table, writes JSON to benchmarks/results/bench_ik.json.
@@ -33,8 +33,8 @@ import sys
 from pathlib import Path
 
 from planner import available_robots, load_robot
-from planner.benchmark import BUNDLED_KINDS, KINDS, ORIENTATION_TOL, POSITION_TOL, bench_robot, markdown, run_record
-from planner.nlp_ik import NlpIK
+from planner.app.benchmark import BUNDLED_KINDS, KINDS, ORIENTATION_TOL, POSITION_TOL, bench_robot, markdown, run_record
+from planner.ik.numeric.solver import NlpIK
 
 RESULTS = Path(__file__).resolve().parent / "results"
 
@@ -93,7 +93,7 @@ def main(argv: list[str] | None = None) -> int:
     args.out.write_text(json.dumps(record, indent=2, allow_nan=False) + "\n")
     print(f"\nwrote {args.out}")
     if args.plot is not None:
-        from planner.plots import plot_ik_benchmark
+        from planner.app.plots import plot_ik_benchmark
 
         print(f"wrote {plot_ik_benchmark(args.plot, summaries)}")
     return 0

@@ -41,9 +41,9 @@ from pathlib import Path
 import numpy as np
 
 from planner import available_robots, load_robot
-from planner.benchmark import run_record
-from planner.robots import BUNDLED_ROBOTS
-from planner.trajectory import LIMIT_TOLERANCE, JointLimits, plan_trajectory
+from planner.app.benchmark import run_record
+from planner.model.catalog import BUNDLED_ROBOTS
+from planner.motion.trajectory import LIMIT_TOLERANCE, JointLimits, plan_trajectory
 
 RESULTS = Path(__file__).resolve().parent / "results"
 

@@ -4,10 +4,8 @@ Data flows one way: URDF -> :class:`Robot` (Pinocchio model) -> IK -> waypoints 
 trajectory -> samples / servo commands. SI units throughout (m, rad, s).
 """
 
-from .analytic import AnalyticBatchResult, AnalyticIK, AnalyticResult, AnalyticSolution, solve_analytic
-from .casadi_kinematics import CasadiKinematics
-from .description import dh_transform, load_arm_description, servo_speed_to_velocity, urdf_from_dh
-from .exceptions import (
+from planner.app.motion_plan import MotionPlan, load_motion_request, parse_motion_request, plan_motion
+from planner.exceptions import (
     InvalidArgumentError,
     InvalidConfigurationError,
     InvalidLimitsError,
@@ -18,12 +16,7 @@ from .exceptions import (
     UnsupportedChainError,
     URDFError,
 )
-from .ik import CrossCheck, cross_check, solve_ik
-from .nlp_ik import IKResult, NlpIK
-from .robot import Robot
-from .robots import available_robots, load_robot
-from .sensing import range_bearing_to_base
-from .servo import (
+from planner.export.servo import (
     ServoCalibration,
     angle_to_steps,
     default_calibrations,
@@ -31,10 +24,24 @@ from .servo import (
     ssc32_group_moves,
     steps_to_angle,
 )
-from .singularity import check_singularities, plan_clear_of_singularities
-from .target import Target, approach_pitch, pitch_error, quaternion_to_matrix, rotation_error, rpy_to_matrix
-from .trajectory import JointLimits, JointTrajectory, plan_trajectory
-from .waypoints import MotionPlan, load_motion_request, parse_motion_request, plan_motion
+from planner.geometry.sensing import range_bearing_to_base
+from planner.geometry.target import (
+    Target,
+    approach_pitch,
+    pitch_error,
+    quaternion_to_matrix,
+    rotation_error,
+    rpy_to_matrix,
+)
+from planner.ik.analytic import AnalyticBatchResult, AnalyticIK, AnalyticResult, AnalyticSolution, solve_analytic
+from planner.ik.numeric.kinematics import CasadiKinematics
+from planner.ik.numeric.solver import IKResult, NlpIK
+from planner.ik.solve import CrossCheck, cross_check, solve_ik
+from planner.model.catalog import available_robots, load_robot
+from planner.model.description import dh_transform, load_arm_description, servo_speed_to_velocity, urdf_from_dh
+from planner.model.robot import Robot
+from planner.motion.singularity import check_singularities, plan_clear_of_singularities
+from planner.motion.trajectory import JointLimits, JointTrajectory, plan_trajectory
 
 __version__ = "0.1.0"
 

@@ -11,7 +11,7 @@ from pathlib import Path
 import pytest
 
 import planner
-from planner.robots import BUNDLED_ROBOTS, EXAMPLE_ROBOTS, example_robot_data_dir
+from planner.model.catalog import BUNDLED_ROBOTS, EXAMPLE_ROBOTS, example_robot_data_dir
 
 BUNDLED = tuple(BUNDLED_ROBOTS)
 EXAMPLES = tuple(EXAMPLE_ROBOTS)

@@ -8,9 +8,12 @@ import numpy as np
 import pytest
 
 import planner
-import planner.analytic as analytic
+import planner.ik.analytic as analytic
 from planner import AnalyticIK, Robot, Target, load_robot, solve_analytic
-from planner.analytic import (
+from planner.exceptions import InvalidArgumentError, InvalidConfigurationError, UnsupportedChainError
+from planner.export.servo import angle_to_steps, steps_to_angle
+from planner.geometry.target import approach_pitch, pitch_error
+from planner.ik.analytic import (
     BRANCHES,
     STATUS_BEYOND_MAX_REACH,
     STATUS_CODES,
@@ -24,10 +27,7 @@ from planner.analytic import (
     chain_at_zero,
     poe_fk,
 )
-from planner.exceptions import InvalidArgumentError, InvalidConfigurationError, UnsupportedChainError
-from planner.robots import BUNDLED_ROBOTS, example_robot_data_dir
-from planner.servo import angle_to_steps, steps_to_angle
-from planner.target import approach_pitch, pitch_error
+from planner.model.catalog import BUNDLED_ROBOTS, example_robot_data_dir
 
 TOL_POS = 1e-9
 
@@ -424,7 +424,7 @@ def test_offset_arm_inside_its_sideways_offset():
 def test_pitch_outward_from_the_base_axis_not_the_yaw_axis():
     # offset_arm's yaw axis stands 22 mm from the base z axis. For targets whose arm-plane
     # direction points away from the yaw axis but towards the base z axis, "outward" (the
-    # planner.target convention) is the other side: the approach axis's in-plane angle is
+    # planner.geometry.target convention) is the other side: the approach axis's in-plane angle is
     # pi - pitch there. Every solution follows the convention, in single and batch calls.
     robot = offset_arm()
     solver = AnalyticIK.from_robot(robot)

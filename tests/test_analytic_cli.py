@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from planner import load_robot
-from planner.cli import main
+from planner.app.cli import main
 
 
 def run(capsys, *argv):
@@ -109,7 +109,7 @@ def test_ik_bad_input_exits_1(capsys, argv, message):
 
 
 def test_ik_outside_the_family_exits_1(capsys):
-    from planner.robots import example_robot_data_dir
+    from planner.model.catalog import example_robot_data_dir
 
     if example_robot_data_dir() is None:
         pytest.skip("example-robot-data is not installed")

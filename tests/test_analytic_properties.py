@@ -11,8 +11,8 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from planner import AnalyticIK, Robot, Target, load_robot, rotation_error
-from planner.robots import BUNDLED_ROBOTS, example_robot_data_dir
-from planner.target import approach_direction, approach_pitch, pitch_error
+from planner.geometry.target import approach_direction, approach_pitch, pitch_error
+from planner.model.catalog import BUNDLED_ROBOTS, example_robot_data_dir
 
 TOL_POS = 1e-9
 TOL_ROT = 1e-9
@@ -85,7 +85,7 @@ def check(robot, solver, target, q, q_current=None, pitch=False):
         if target.rotation is not None:
             assert rotation_error(pose[:3, :3], target.rotation) < TOL_ROT, sol
         if pitch:
-            # planner.target's convention: the elevation, the horizontal part pointing outward.
+            # planner.geometry.target's convention: the elevation, the horizontal part pointing outward.
             a = pose[:3, :3] @ robot.approach_axis
             assert abs(a[2] - math.sin(target.pitch)) < TOL_ROT, sol
             assert math.cos(target.pitch) * (a[:2] @ target.position[:2]) >= -TOL_ROT, sol
@@ -119,7 +119,7 @@ def test_pitch_targets(name, data):
     pose = robot.fk(q)
     target = Target(pose[:3, 3], pitch=approach_pitch(robot, q))
     if solver.describe()["lateral_offset"] == pytest.approx(0.0, abs=1e-12):
-        # Arms whose plane contains the base axis: exactly the planner.target convention.
+        # Arms whose plane contains the base axis: exactly the planner.geometry.target convention.
         if np.hypot(*pose[:2, 3]) > 1e-6:
             want = pose[:3, :3] @ robot.approach_axis
             np.testing.assert_allclose(approach_direction(pose[:3, 3], target.pitch), want, atol=1e-9)

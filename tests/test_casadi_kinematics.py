@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from planner import InvalidConfigurationError, Robot
-from planner.casadi_kinematics import CasadiKinematics, chain_joints
+from planner.ik.numeric.kinematics import CasadiKinematics, chain_joints
 
 from conftest import BUNDLED, EXAMPLES, get_robot, needs_example_robot_data
 

@@ -11,8 +11,8 @@ import pytest
 from test_nlp_ik import make_target
 
 from planner import InvalidArgumentError, Target, UnsupportedChainError
-from planner.ik import CrossCheck, analytic_solver, cross_check, joint_distance, nlp_solver, solve_ik, task_rank
-from planner.target import approach_direction, approach_pitch
+from planner.geometry.target import approach_direction, approach_pitch
+from planner.ik.solve import CrossCheck, analytic_solver, cross_check, joint_distance, nlp_solver, solve_ik, task_rank
 
 from conftest import HAVE_EXAMPLE_ROBOT_DATA, get_robot, needs_example_robot_data
 
@@ -311,7 +311,7 @@ def test_bad_method_and_inputs():
 
 # ------------------------------------------------------------------------------ CLI
 def run_ik(capsys, *args: str) -> tuple[int, str, str]:
-    from planner.cli import main
+    from planner.app.cli import main
 
     code = main(["ik", *args])
     out, err = capsys.readouterr()

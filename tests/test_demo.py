@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 import planner
-from planner.demo import AL5C_READING, AL5C_SENSOR_POSE, DH3_STATES_CM, run_demo
+from planner.app.demo import AL5C_READING, AL5C_SENSOR_POSE, DH3_STATES_CM, run_demo
 
 from conftest import png_size, run_cli
 

@@ -9,8 +9,8 @@ import numpy as np
 import pytest
 
 import planner
-from planner.description import dh_transform
-from planner.robots import BUNDLED_ROBOTS
+from planner.model.catalog import BUNDLED_ROBOTS
+from planner.model.description import dh_transform
 
 from conftest import run_cli
 

@@ -9,7 +9,7 @@ import numpy as np
 import pinocchio as pin
 import pytest
 
-from planner.robots import EXAMPLE_ROBOTS, example_robot_data_dir
+from planner.model.catalog import EXAMPLE_ROBOTS, example_robot_data_dir
 
 from conftest import EXAMPLES, get_robot, needs_example_robot_data
 

@@ -1,4 +1,4 @@
-"""Numerical IK (planner.nlp_ik): round trips checked by Pinocchio FK, limits, restarts,
+"""Numerical IK (planner.ik.numeric.solver): round trips checked by Pinocchio FK, limits, restarts,
 secondary objectives, the compile cache, and bad input with its messages."""
 
 from __future__ import annotations
@@ -13,9 +13,9 @@ import pytest
 from test_casadi_kinematics import MIXED_URDF
 
 from planner import InvalidArgumentError, InvalidConfigurationError, JointLimitError, PlannerError, Robot, Target
-from planner.benchmark import make_target
-from planner.nlp_ik import IKResult, NlpIK, as_target, compile_function, target_errors
-from planner.target import approach_direction, pitch_error, rotation_error
+from planner.app.benchmark import make_target
+from planner.geometry.target import approach_direction, pitch_error, rotation_error
+from planner.ik.numeric.solver import IKResult, NlpIK, as_target, compile_function, target_errors
 
 from conftest import get_robot, needs_example_robot_data
 

@@ -11,9 +11,9 @@ import numpy as np
 import pytest
 
 from planner import InvalidArgumentError, JointLimitError, PlannerError
-from planner.cli import main
-from planner.trajectory import LIMIT_TOLERANCE
-from planner.waypoints import load_motion_request, parse_motion_request, plan_motion
+from planner.app.cli import main
+from planner.app.motion_plan import load_motion_request, parse_motion_request, plan_motion
+from planner.motion.trajectory import LIMIT_TOLERANCE
 
 from conftest import get_robot, run_cli
 

@@ -9,7 +9,7 @@ from conftest import get_robot, png_size
 
 pytest.importorskip("matplotlib")
 
-from planner import plots  # noqa: E402
+from planner.app import plots  # noqa: E402
 
 
 def test_joint_profiles_and_manipulability(tmp_path):

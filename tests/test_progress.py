@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import io
 
-from planner._progress import progress, progress_enabled
+from planner.app.progress import progress, progress_enabled
 
 
 class FakeTerminal(io.StringIO):

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from planner import InvalidArgumentError
-from planner.servo import (
+from planner.export.servo import (
     SSC32_US_PER_RAD,
     ServoCalibration,
     angle_to_steps,
@@ -19,7 +19,7 @@ from planner.servo import (
     steps_table,
     steps_to_angle,
 )
-from planner.trajectory import JointLimits, plan_trajectory
+from planner.motion.trajectory import JointLimits, plan_trajectory
 
 from conftest import get_robot
 

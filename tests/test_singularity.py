@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 
 from planner import InvalidArgumentError
-from planner.singularity import check_singularities, conditioning, plan_clear_of_singularities
-from planner.trajectory import LIMIT_TOLERANCE, JointLimits, plan_trajectory
+from planner.motion.singularity import check_singularities, conditioning, plan_clear_of_singularities
+from planner.motion.trajectory import LIMIT_TOLERANCE, JointLimits, plan_trajectory
 
 from conftest import get_robot
 

@@ -1,4 +1,4 @@
-"""The approach-pitch convention (planner.target): approach_pitch measures it, pitch_error is the
+"""The approach-pitch convention (planner.geometry.target): approach_pitch measures it, pitch_error is the
 distance of an approach axis from it, checked against a brute-force search of the allowed set."""
 
 from __future__ import annotations
@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from planner import approach_pitch, pitch_error
-from planner.target import approach_direction
+from planner.geometry.target import approach_direction
 
 from conftest import HAVE_EXAMPLE_ROBOT_DATA, get_robot
 

@@ -13,7 +13,7 @@ from ruckig import InputParameter, Ruckig
 from ruckig import Trajectory as RuckigTrajectory
 
 from planner import InvalidArgumentError, InvalidConfigurationError, InvalidLimitsError, JointLimitError
-from planner.trajectory import LIMIT_TOLERANCE, JointLimits, _spline_via_states, plan_trajectory
+from planner.motion.trajectory import LIMIT_TOLERANCE, JointLimits, _spline_via_states, plan_trajectory
 
 from conftest import get_robot
 

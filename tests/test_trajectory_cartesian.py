@@ -6,9 +6,9 @@ import numpy as np
 import pytest
 
 from planner import InvalidArgumentError, Target, rotation_error
-from planner.cartesian import TargetSolver, line_deviation, line_trajectory, line_waypoints, time_line
-from planner.trajectory import LIMIT_TOLERANCE, JointLimits
-from planner.waypoints import parse_motion_request, plan_motion
+from planner.app.motion_plan import parse_motion_request, plan_motion
+from planner.motion.cartesian import TargetSolver, line_deviation, line_trajectory, line_waypoints, time_line
+from planner.motion.trajectory import LIMIT_TOLERANCE, JointLimits
 
 from conftest import get_robot, needs_example_robot_data
 

@@ -1,0 +1,497 @@
+"""The ``planner`` command line.
+
+Every subcommand has a ``_add_<name>`` function that declares its arguments and a
+``_run_<name>`` function that does the work and returns the exit code. Angles on the command
+line are radians unless ``--deg`` is given; lengths are metres. Errors print one line to
+stderr and exit 1 (2 for usage errors, as argparse does).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from collections.abc import Callable, Sequence
+from pathlib import Path
+
+import numpy as np
+
+from planner.exceptions import InvalidArgumentError, PlannerError
+from planner.geometry.target import Target
+from planner.model.catalog import BUNDLED_ROBOTS, available_robots, load_robot
+from planner.model.description import urdf_from_dh
+from planner.model.robot import Robot
+
+__all__ = ["main", "build_parser"]
+
+
+def _print_json(obj: object) -> None:
+    print(json.dumps(obj, indent=2, allow_nan=False))
+
+
+def _angles(values: Sequence[float], deg: bool) -> np.ndarray:
+    arr = np.asarray(values, dtype=float)
+    return np.radians(arr) if deg else arr
+
+
+def _table(headers: Sequence[str], rows: Sequence[Sequence[object]]) -> str:
+    cells = [[str(h) for h in headers]] + [[str(c) for c in r] for r in rows]
+    widths = [max(len(r[k]) for r in cells) for k in range(len(headers))]
+    lines = ["  ".join(c.ljust(w) for c, w in zip(r, widths)).rstrip() for r in cells]
+    lines.insert(1, "  ".join("-" * w for w in widths))
+    return "\n".join(lines)
+
+
+# ---------------------------------------------------------------------------- robots
+def _add_robots(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser("robots", help="list the robots that can be loaded by name")
+    p.add_argument("--json", action="store_true", help="print a JSON object keyed by robot name")
+
+
+def _run_robots(args: argparse.Namespace) -> int:
+    info = {}
+    for name in available_robots():
+        robot = load_robot(name)
+        info[name] = {
+            "dof": robot.dof,
+            "joints": list(robot.joint_names),
+            "lower": robot.lower.tolist(),
+            "upper": robot.upper.tolist(),
+            "velocity": robot.velocity_limit.tolist(),
+            "tip": robot.tip,
+            "bundled": name in BUNDLED_ROBOTS,
+        }
+    if args.json:
+        _print_json(info)
+        return 0
+    rows = [
+        (name, d["dof"], d["tip"], "bundled" if d["bundled"] else "example-robot-data", ", ".join(d["joints"]))
+        for name, d in info.items()
+    ]
+    print(_table(["robot", "dof", "tip", "source", "joints"], rows))
+    return 0
+
+
+# ---------------------------------------------------------------------------- fk
+def _add_fk(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser("fk", help="forward kinematics: the tip pose for joint values")
+    p.add_argument("robot", help="robot name (see `planner robots`) or URDF path")
+    p.add_argument("q", nargs="+", type=float, help="joint values, base to tip [rad or m; deg with --deg]")
+    p.add_argument("--deg", action="store_true", help="revolute joint values are in degrees")
+    p.add_argument("--tip", default=None, help="tip frame (default: the arm's tool frame)")
+    p.add_argument("--json", action="store_true", help="print JSON")
+
+
+def _run_fk(args: argparse.Namespace) -> int:
+    robot = load_robot(args.robot, tip=args.tip)
+    q = np.asarray(args.q, dtype=float)
+    if args.deg and q.shape == (robot.dof,):
+        q = np.where(np.array(robot.joint_kinds) == "prismatic", q, np.radians(q))
+    q = robot.check_configuration(q, batch=False)
+    pose = robot.fk(q)
+    result = {
+        "robot": robot.name,
+        "tip": robot.tip,
+        "q": q.tolist(),
+        "position": pose[:3, 3].tolist(),
+        "matrix": pose.tolist(),
+        "manipulability": robot.manipulability(q),
+        "within_limits": bool(robot.within_limits(q)),
+    }
+    if args.json:
+        _print_json(result)
+    else:
+        x, y, z = result["position"]
+        print(f"{robot.name} tip {robot.tip!r}: position [m] = ({x:.6f}, {y:.6f}, {z:.6f})")
+        print(np.array2string(pose, precision=6, suppress_small=True))
+        print(f"manipulability {result['manipulability']:.6g}, within limits: {result['within_limits']}")
+    return 0
+
+
+# ---------------------------------------------------------------------------- urdf-from-dh
+def _add_urdf_from_dh(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser(
+        "urdf-from-dh",
+        help="write a URDF for an arm described by a DH table (YAML or JSON)",
+        description="Print the URDF for a compact arm description; see planner.model.description for the format.",
+    )
+    p.add_argument("table", type=Path, help="arm description file (.yaml or .json)")
+
+
+def _run_urdf_from_dh(args: argparse.Namespace) -> int:
+    sys.stdout.write(urdf_from_dh(args.table))
+    return 0
+
+
+# ---------------------------------------------------------------------------- demo
+def _add_demo(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser(
+        "demo",
+        help="the main job: the seeds' pick-and-place tasks planned on the bundled arms",
+        description="Plan the 004 seed's pick-and-place on dh3 (closed-form IK checked by the NLP, one smooth "
+        "servo-limited trajectory, stretched states flagged singular) and the 001 seed's range-bearing "
+        "pick-and-place on al5c (approach from above, straight-line lowering, SSC-32 commands); print a summary "
+        "table and write CSV, servo commands and PNG plots.",
+    )
+    p.add_argument("--out", type=Path, default=Path("planner-demo"), help="output directory (default: planner-demo)")
+    p.add_argument("--no-plots", action="store_true", help="skip the PNG plots (no matplotlib needed)")
+
+
+def _run_demo(args: argparse.Namespace) -> int:
+    from planner.app.demo import run_demo
+
+    run_demo(args.out, plots=not args.no_plots)
+    return 0
+
+
+# ---------------------------------------------------------------------------- plan
+def _add_plan(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser(
+        "plan",
+        help="a smooth, limit-honouring trajectory through waypoints or Cartesian targets",
+        description="Plan a jerk-limited trajectory through the waypoints of a plan file (YAML or JSON; "
+        "the format is in the README and planner.app.motion_plan).",
+    )
+    p.add_argument("robot", help="robot name (see `planner robots`) or URDF path")
+    p.add_argument("waypoints_file", type=Path, help="plan file (.yaml or .json)")
+    p.add_argument("--out", type=Path, default=None, help="directory for trajectory.csv, servo files and summary.json")
+    p.add_argument(
+        "--rate", type=float, default=1000.0, help="sample rate of the checks and the CSV [Hz] (default 1000)"
+    )
+    p.add_argument("--json", action="store_true", help="print the summary as JSON")
+    p.add_argument(
+        "--plot", action="store_true", help="also draw joints.png, singularity.png and arm.png (into --out or .)"
+    )
+
+
+def _run_plan(args: argparse.Namespace) -> int:
+    from planner.app.motion_plan import load_motion_request, plan_motion
+
+    if not (np.isfinite(args.rate) and args.rate > 0):
+        raise InvalidArgumentError(f"--rate must be a positive number [Hz], got {args.rate}")
+    robot = load_robot(args.robot)
+    request = load_motion_request(args.waypoints_file)
+    plan = plan_motion(robot, request, rate=args.rate)
+    summary = plan.summary(args.rate)
+    files: list[Path] = []
+    if args.out is not None:
+        files += plan.write_files(args.out, rate=args.rate)
+    if args.plot:
+        from planner.app.plots import plot_plan
+
+        files += plot_plan(args.out or Path("."), robot, plan)
+    if files:
+        summary["files"] = sorted(str(f) for f in files)
+    if args.json:
+        _print_json(summary)
+        return 0
+    print(
+        f"{robot.name}: {len(plan.waypoints)} waypoints, duration {plan.trajectory.duration:.4f} s "
+        f"({plan.trajectory.strategy} via states)"
+    )
+    rows = []
+    for k, (tk, q) in enumerate(zip(plan.waypoint_times, plan.waypoints)):
+        rows.append(
+            (
+                k,
+                f"{tk:.4f}",
+                " ".join(f"{x:+.4f}" for x in q),
+                plan.branches[k] or "-",
+                "SINGULAR" if k in plan.singular_waypoints else "",
+            )
+        )
+    print(_table(["#", "t [s]", "q [rad]", "branch", ""], rows))
+    print(
+        f"peak / limit: velocity {summary['max_velocity_ratio']:.4f}, acceleration "
+        f"{summary['max_acceleration_ratio']:.4f}, jerk {summary['max_jerk_ratio']:.4f} "
+        f"(sampled at {args.rate:g} Hz)"
+    )
+    print(
+        f"min manipulability {summary['min_manipulability']:.4g}, min inverse condition number "
+        f"{summary['min_inverse_condition']:.4g} (threshold 1/{summary['condition_number_threshold']:g})"
+    )
+    if plan.detours:
+        print(f"detours inserted: {len(plan.detours)} (segments {sorted({d.segment for d in plan.detours})})")
+    if plan.unresolved:
+        print(f"segments still passing near a singularity: {list(plan.unresolved)}")
+    if files:
+        print(f"wrote {', '.join(summary['files'])}")
+    return 0
+
+
+# ---------------------------------------------------------------------------- ik
+def _add_ik(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser(
+        "ik",
+        help="inverse kinematics: joint values that put the tip on a target",
+        description="Solve inverse kinematics for a tip position, optionally with an approach pitch "
+        "(--pitch) or a full orientation (--rpy). An unreachable target is a result (exit code 0) whose "
+        "status says why; bad input exits 1.",
+    )
+    p.add_argument("robot", help="robot name (see `planner robots`) or URDF path")
+    p.add_argument("x", type=float, help="target x [m]")
+    p.add_argument("y", type=float, help="target y [m]")
+    p.add_argument("z", type=float, help="target z [m]")
+    p.add_argument(
+        "--pitch",
+        type=float,
+        default=None,
+        help="approach pitch [rad; deg with --deg]: 0 horizontal away from the base axis, -90 deg straight down",
+    )
+    p.add_argument(
+        "--rpy",
+        type=float,
+        nargs=3,
+        metavar=("R", "P", "Y"),
+        default=None,
+        help="tip orientation as URDF roll-pitch-yaw [rad; deg with --deg]",
+    )
+    p.add_argument("--deg", action="store_true", help="angles (--pitch, --rpy, --current, output table) in degrees")
+    p.add_argument(
+        "--method",
+        choices=("analytic", "nlp", "both"),
+        default="analytic",
+        help="closed form (default), CasADi optimisation, or both",
+    )
+    p.add_argument(
+        "--current",
+        type=float,
+        nargs="+",
+        default=None,
+        metavar="Q",
+        help="current joint values: solutions are sorted by distance to them [rad; deg with --deg]",
+    )
+    p.add_argument("--tip", default=None, help="tip frame (default: the arm's tool frame)")
+    p.add_argument("--all", action="store_true", help="every solution (default: the best one within limits)")
+    p.add_argument(
+        "--time-budget",
+        type=float,
+        default=0.05,
+        metavar="S",
+        help="NLP: wall time after which no new restart begins [s] (default 0.05)",
+    )
+    p.add_argument("--json", action="store_true", help="print JSON")
+
+
+def _ik_target(args: argparse.Namespace) -> Target:
+    position = [args.x, args.y, args.z]
+    if args.rpy is not None:
+        if args.pitch is not None:
+            raise InvalidArgumentError("give either --pitch or --rpy, not both")
+        return Target.from_rpy(position, _angles(args.rpy, args.deg))
+    pitch = None if args.pitch is None else float(_angles([args.pitch], args.deg)[0])
+    return Target(position, pitch=pitch)
+
+
+def _ik_current(args: argparse.Namespace, robot: Robot) -> np.ndarray | None:
+    if args.current is None:
+        return None
+    q = np.asarray(args.current, dtype=float)
+    if args.deg and q.shape == (robot.dof,):
+        q = np.where(np.array(robot.joint_kinds) == "prismatic", q, np.radians(q))
+    return robot.check_configuration(q, batch=False)
+
+
+def _ik_analytic(robot: Robot, target: Target, args: argparse.Namespace) -> dict:
+    """Closed-form IK as a JSON-ready dict (every solution; `_run_ik` keeps the best unless --all)."""
+    from planner.ik.analytic import solve_analytic
+
+    result = solve_analytic(robot, target, _ik_current(args, robot))
+    out = result.as_dict()
+    best = result.best
+    out["best"] = None if best is None else result.solutions.index(best)
+    return out
+
+
+def _nlp_solution(robot: Robot, target: Target, result, branch: str) -> dict:
+    """The NLP answer in the shape of a closed-form solution (see AnalyticSolution.as_dict)."""
+    return {
+        "q": result.q.tolist(),
+        "branch": branch,
+        "within_limits": True,
+        "singular": bool(robot.inverse_condition_number(result.q) < 1e-7),
+        "position_error": result.position_error,
+        "orientation_error": None if target.kind == "position" else result.orientation_error,
+        "status": "ok" if result.success else result.status,
+    }
+
+
+def _ik_nlp(robot: Robot, target: Target, args: argparse.Namespace) -> dict:
+    """CasADi IK as a JSON-ready dict shaped like the closed form's, plus attempts and time."""
+    from planner.ik.solve import nlp_solver
+
+    result = nlp_solver(robot).solve(target, _ik_current(args, robot), time_budget=args.time_budget)
+    solution = _nlp_solution(robot, target, result, "nlp")
+    return {
+        "status": "ok" if result.success else result.status,
+        "reason": "" if result.success else result.reason,
+        "singular": solution["singular"],
+        "solutions": [solution],
+        "best": 0 if result.success else None,
+        "attempts": result.attempts,
+        "attempt_kind": result.attempt_kind,
+        "iterations": result.iterations,
+        "time_ms": result.wall_time * 1e3,
+    }
+
+
+def _ik_both(robot: Robot, target: Target, args: argparse.Namespace) -> dict:
+    """Closed form and NLP cross-checked: the NLP answer first, then every closed-form branch."""
+    from planner.ik.solve import cross_check
+
+    check = cross_check(robot, target, _ik_current(args, robot), time_budget=args.time_budget)
+    analytic = _ik_analytic(robot, target, args)
+    nlp = check.nlp
+    label = f"nlp = {check.branch}" if check.verdict == "match" else "nlp"
+    solutions = [_nlp_solution(robot, target, nlp, label)] + analytic["solutions"]
+    best = 0 if nlp.success else (None if analytic["best"] is None else analytic["best"] + 1)
+    return {
+        "status": analytic["status"],
+        "reason": check.reason,
+        "singular": analytic["singular"],
+        "solutions": solutions,
+        "best": best,
+        "agree": check.agree,
+        "cross_check": check.as_dict(),
+        "attempts": nlp.attempts,
+        "time_ms": nlp.wall_time * 1e3,
+    }
+
+
+_IK_METHODS: dict[str, Callable[[Robot, Target, argparse.Namespace], dict]] = {
+    "analytic": _ik_analytic,
+    "nlp": _ik_nlp,
+    "both": _ik_both,
+}
+
+
+def _run_ik(args: argparse.Namespace) -> int:
+    robot = load_robot(args.robot, tip=args.tip)
+    target = _ik_target(args)
+    out = _IK_METHODS[args.method](robot, target, args)
+    if not args.all:
+        best = out.get("best")
+        out["solutions"] = [] if best is None else [out["solutions"][best]]
+        out["best"] = None if best is None else 0
+    result = {
+        "robot": robot.name,
+        "tip": robot.tip,
+        "method": args.method,
+        "target": {
+            "position": target.position.tolist(),
+            "pitch": target.pitch,
+            "rotation": None if target.rotation is None else target.rotation.tolist(),
+        },
+        **out,
+    }
+    if args.json:
+        _print_json(result)
+        return 0
+    unit = "deg" if args.deg else "rad"
+    print(f"{robot.name} {args.method} IK, target {np.round(target.position, 6).tolist()} m: {result['status']}")
+    if result.get("reason"):
+        print(f"  {result['reason']}")
+    rows = []
+    for s in result["solutions"]:
+        q = np.degrees(s["q"]) if args.deg else np.asarray(s["q"])
+        rows.append(
+            (
+                s.get("branch", "-"),
+                " ".join(f"{v:+.4f}" for v in q),
+                "yes" if s["within_limits"] else "NO",
+                "yes" if s.get("singular") else "",
+                f"{s['position_error']:.3g}",
+            )
+        )
+    if rows:
+        print(_table(["branch", f"q [{unit}]", "within limits", "singular", "position error [m]"], rows))
+    return 0
+
+
+# ---------------------------------------------------------------------------- bench
+def _add_bench(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser(
+        "bench",
+        help="benchmark closed-form vs numerical IK on random reachable targets",
+        description="Time closed-form and CasADi IK on N random targets per robot (FK of random configurations "
+        "within the limits, fixed seed); success is checked by Pinocchio FK. Prints a Markdown table. The full "
+        "benchmark with its recorded results is benchmarks/bench_ik.py.",
+    )
+    p.add_argument("robots", nargs="*", help="robots (default: every bundled arm)")
+    p.add_argument("--n", type=int, default=200, help="random targets per robot (default 200)")
+    p.add_argument("--seed", type=int, default=0, help="seed of the targets; the IK seeds use seed + 1 (default 0)")
+    p.add_argument("--time-budget", type=float, default=0.05, metavar="S", help="NLP time budget per call [s]")
+    p.add_argument("--out", type=Path, default=None, help="write bench_ik.json (and with --plot bench_ik.png) here")
+    p.add_argument("--plot", action="store_true", help="draw the solve rate and time chart (into --out or .)")
+    p.add_argument("--json", action="store_true", help="print the summaries as JSON instead of the table")
+
+
+def _run_bench(args: argparse.Namespace) -> int:
+    from planner.app.benchmark import bench_robot, markdown
+
+    if args.n < 1:
+        raise InvalidArgumentError(f"--n must be at least 1, got {args.n}")
+    if not (np.isfinite(args.time_budget) and args.time_budget > 0):
+        raise InvalidArgumentError(f"--time-budget must be positive [s], got {args.time_budget}")
+    names = args.robots or list(BUNDLED_ROBOTS)
+    for name in names:
+        load_robot(name)  # fail on an unknown name before any work
+    summaries = []
+    for name in names:
+        summaries += bench_robot(name, args.n, args.seed, args.time_budget)
+    if args.json:
+        _print_json(summaries)
+    else:
+        print(markdown(summaries))
+    written = []
+    if args.out is not None:
+        args.out.mkdir(parents=True, exist_ok=True)
+        path = args.out / "bench_ik.json"
+        path.write_text(json.dumps(summaries, indent=2, allow_nan=False) + "\n")
+        written.append(path)
+    if args.plot:
+        from planner.app.plots import plot_ik_benchmark
+
+        written.append(plot_ik_benchmark((args.out or Path(".")) / "bench_ik.png", summaries))
+    if written and not args.json:
+        print(f"wrote {', '.join(str(w) for w in written)}")
+    return 0
+
+
+_COMMANDS: dict[str, tuple[Callable[[argparse._SubParsersAction], None], Callable[[argparse.Namespace], int]]] = {
+    "robots": (_add_robots, _run_robots),
+    "fk": (_add_fk, _run_fk),
+    "ik": (_add_ik, _run_ik),
+    "plan": (_add_plan, _run_plan),
+    "demo": (_add_demo, _run_demo),
+    "bench": (_add_bench, _run_bench),
+    "urdf-from-dh": (_add_urdf_from_dh, _run_urdf_from_dh),
+}
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """The argument parser of the ``planner`` command."""
+    from planner import __version__
+
+    parser = argparse.ArgumentParser(
+        prog="planner",
+        description="Inverse kinematics and servo-speed-limited trajectories for robot arms from URDF.",
+    )
+    parser.add_argument("--version", action="version", version=f"planner {__version__}")
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND", required=True)
+    for add, _ in _COMMANDS.values():
+        add(sub)
+    return parser
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Run the ``planner`` command; returns the exit code."""
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    try:
+        return _COMMANDS[args.command][1](args)
+    except PlannerError as exc:
+        print(f"planner {args.command}: error: {exc}", file=sys.stderr)
+        return 1
+    except BrokenPipeError:
+        return 0

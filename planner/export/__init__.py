@@ -1,0 +1,1 @@
+"""Layer 5: export of trajectories to servo controllers (calibration, one module per format)."""

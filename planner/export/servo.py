@@ -1,0 +1,277 @@
+"""Conversions between joint angles [rad] and servo controller units, at the edge of the library.
+
+Two kinds of controller: the 000 seed's step counts (:func:`angle_to_steps`), and hobby
+servos driven by pulse widths, with a per-joint :class:`ServoCalibration`, sampled pulse
+tables (:func:`pulse_table`) and Lynxmotion SSC-32 group-move strings
+(:func:`ssc32_group_moves`, the 001 seed's controller).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from planner.exceptions import InvalidArgumentError
+
+if TYPE_CHECKING:
+    from planner.model.robot import Robot
+    from planner.motion.trajectory import JointTrajectory
+
+__all__ = [
+    "SSC32_US_PER_RAD",
+    "ServoCalibration",
+    "angle_to_steps",
+    "default_calibrations",
+    "pulse_table",
+    "ssc32_group_moves",
+    "steps_table",
+    "steps_to_angle",
+]
+
+
+def _check_span(max_rotation: float, max_steps: int) -> None:
+    if not (math.isfinite(max_rotation) and max_rotation > 0):
+        raise InvalidArgumentError(f"max_rotation must be positive and finite [rad], got {max_rotation!r}")
+    if isinstance(max_steps, bool) or not isinstance(max_steps, (int, np.integer)) or max_steps <= 0:
+        raise InvalidArgumentError(f"max_steps must be a positive integer, got {max_steps!r}")
+
+
+def angle_to_steps(angle: float | np.ndarray, max_rotation: float, max_steps: int) -> np.ndarray | int:
+    """Joint angle to controller steps by the symmetric linear map of the 000 seed.
+
+    The servo turns +-`max_rotation` about a centred zero, and the controller counts
+    +-`max_steps` over the same travel, so ``steps = round(angle / max_rotation * max_steps)``.
+
+    Args:
+        angle: Joint angle(s) [rad].
+        max_rotation: The servo's travel on either side of zero [rad] (e.g. 92.5 deg).
+        max_steps: Controller steps for that travel (the seed gives none: a parameter).
+
+    Returns:
+        Steps as an int, or an int array for array input.
+
+    Raises:
+        InvalidArgumentError: If an angle is NaN or beyond +-`max_rotation` (nothing is clipped),
+            or the span is not positive.
+    """
+    _check_span(max_rotation, max_steps)
+    a = np.asarray(angle, dtype=float)
+    if not np.all(np.isfinite(a)):
+        raise InvalidArgumentError(f"angle must be finite, got {angle!r}")
+    beyond = np.abs(a) > max_rotation * (1 + 1e-12)
+    if np.any(beyond):
+        bad = float(a[beyond].flat[0]) if a.ndim else float(a)
+        raise InvalidArgumentError(
+            f"angle {bad:.6g} rad is beyond the servo's travel +-{max_rotation:.6g} rad; it is not clipped"
+        )
+    steps = np.rint(a / max_rotation * max_steps).astype(int)
+    return int(steps) if steps.ndim == 0 else steps
+
+
+def steps_to_angle(steps: int | np.ndarray, max_rotation: float, max_steps: int) -> np.ndarray | float:
+    """Controller steps back to the joint angle [rad]; the inverse of :func:`angle_to_steps`."""
+    _check_span(max_rotation, max_steps)
+    s = np.asarray(steps, dtype=float)
+    a = s / max_steps * max_rotation
+    return float(a) if a.ndim == 0 else a
+
+
+# ---------------------------------------------------------------------------- pulse widths
+#: The SSC-32 convention of the 001 seed: about 1000 us of pulse per 90 deg of travel.
+SSC32_US_PER_RAD = 1000.0 / (math.pi / 2.0)
+#: Largest channel number of an SSC-32.
+SSC32_MAX_CHANNEL = 31
+
+
+def _positive(value: float, what: str) -> float:
+    if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)):
+        raise InvalidArgumentError(f"{what} must be a number, got {value!r}")
+    x = float(value)
+    if not (math.isfinite(x) and x > 0):
+        raise InvalidArgumentError(f"{what} must be positive and finite, got {value!r}")
+    return x
+
+
+@dataclass(frozen=True)
+class ServoCalibration:
+    """How one joint's angle maps to a hobby servo's pulse width.
+
+    ``pulse = pulse_at_zero + direction * us_per_rad * angle``, valid between `min_pulse` and
+    `max_pulse`; nothing outside is clipped.
+
+    Attributes:
+        channel: Controller channel (0-31 on an SSC-32).
+        pulse_at_zero: Pulse width at joint angle 0 [us].
+        us_per_rad: Pulse change per radian [us/rad] (1000 us per 90 deg is about 636.6).
+        direction: +1, or -1 when the servo turns opposite to the joint.
+        min_pulse: Smallest allowed pulse width [us].
+        max_pulse: Largest allowed pulse width [us].
+        joint: Joint name, for messages.
+    """
+
+    channel: int
+    pulse_at_zero: float = 1500.0
+    us_per_rad: float = SSC32_US_PER_RAD
+    direction: int = 1
+    min_pulse: float = 500.0
+    max_pulse: float = 2500.0
+    joint: str = ""
+
+    def __post_init__(self) -> None:
+        name = f"servo for joint {self.joint!r}" if self.joint else f"servo on channel {self.channel!r}"
+        if isinstance(self.channel, bool) or not isinstance(self.channel, (int, np.integer)) or self.channel < 0:
+            raise InvalidArgumentError(f"{name}: channel must be a non-negative integer, got {self.channel!r}")
+        object.__setattr__(self, "channel", int(self.channel))
+        object.__setattr__(self, "us_per_rad", _positive(self.us_per_rad, f"{name}: us_per_rad"))
+        if self.direction not in (1, -1) or isinstance(self.direction, bool):
+            raise InvalidArgumentError(f"{name}: direction must be +1 or -1, got {self.direction!r}")
+        for attr in ("pulse_at_zero", "min_pulse", "max_pulse"):
+            v = getattr(self, attr)
+            if isinstance(v, bool) or not isinstance(v, (int, float, np.integer, np.floating)) or not math.isfinite(v):
+                raise InvalidArgumentError(f"{name}: {attr} must be a finite number [us], got {v!r}")
+            object.__setattr__(self, attr, float(v))
+        if not 0 < self.min_pulse < self.max_pulse:
+            raise InvalidArgumentError(
+                f"{name}: need 0 < min_pulse < max_pulse, got {self.min_pulse:g} and {self.max_pulse:g} us"
+            )
+
+    @classmethod
+    def fit_range(
+        cls,
+        channel: int,
+        lower: float,
+        upper: float,
+        *,
+        joint: str = "",
+        min_pulse: float = 500.0,
+        max_pulse: float = 2500.0,
+        direction: int = 1,
+    ) -> ServoCalibration:
+        """A centred calibration (joint zero at the middle pulse) that covers a joint range.
+
+        It uses the SSC-32's 1000 us per 90 deg when the range [lower, upper] [rad] fits in
+        [min_pulse, max_pulse], else the largest scale that makes it fit.
+        """
+        centre = (min_pulse + max_pulse) / 2.0
+        reach = max(abs(lower), abs(upper)) if math.isfinite(lower) and math.isfinite(upper) else 0.0
+        scale = SSC32_US_PER_RAD
+        if reach > 0 and centre + SSC32_US_PER_RAD * reach > max_pulse:
+            scale = (max_pulse - centre) / reach
+        return cls(channel, centre, scale, direction, min_pulse, max_pulse, joint)
+
+    def pulse(self, angle: float | np.ndarray) -> float | np.ndarray:
+        """Pulse width [us] for joint angle(s) [rad].
+
+        Raises:
+            InvalidArgumentError: If an angle is NaN or needs a pulse outside [min, max].
+        """
+        a = np.asarray(angle, dtype=float)
+        if not np.all(np.isfinite(a)):
+            raise InvalidArgumentError(f"angle for joint {self.joint!r} must be finite, got {angle!r}")
+        p = self.pulse_at_zero + self.direction * self.us_per_rad * a
+        out = (p < self.min_pulse - 1e-9) | (p > self.max_pulse + 1e-9)
+        if np.any(out):
+            k = np.argmax(out.reshape(-1))
+            bad_a, bad_p = float(a.reshape(-1)[k]), float(p.reshape(-1)[k])
+            raise InvalidArgumentError(
+                f"joint {self.joint!r} (channel {self.channel}) angle {bad_a:.6g} rad needs pulse {bad_p:.1f} us, "
+                f"outside [{self.min_pulse:g}, {self.max_pulse:g}] us; adjust its calibration"
+            )
+        return float(p) if p.ndim == 0 else p
+
+    def angle(self, pulse: float | np.ndarray) -> float | np.ndarray:
+        """Joint angle [rad] for pulse width(s) [us]; the inverse of :meth:`pulse`."""
+        a = (np.asarray(pulse, dtype=float) - self.pulse_at_zero) / (self.direction * self.us_per_rad)
+        return float(a) if a.ndim == 0 else a
+
+
+def default_calibrations(robot: Robot, first_channel: int = 0) -> tuple[ServoCalibration, ...]:
+    """One centred calibration per chain joint on consecutive channels (see :meth:`ServoCalibration.fit_range`)."""
+    return tuple(
+        ServoCalibration.fit_range(first_channel + k, lo, hi, joint=name)
+        for k, (name, lo, hi) in enumerate(zip(robot.joint_names, robot.lower, robot.upper))
+    )
+
+
+def _check_calibrations(calibrations: Sequence[ServoCalibration], dof: int) -> None:
+    if len(calibrations) != dof or not all(isinstance(c, ServoCalibration) for c in calibrations):
+        raise InvalidArgumentError(f"need one ServoCalibration per joint ({dof}), got {len(calibrations)}")
+    channels = [c.channel for c in calibrations]
+    if len(set(channels)) != len(channels):
+        raise InvalidArgumentError(f"servo channels must differ, got {channels}")
+
+
+def pulse_table(
+    trajectory: JointTrajectory, calibrations: Sequence[ServoCalibration], rate: float = 50.0
+) -> tuple[np.ndarray, np.ndarray]:
+    """Pulse widths of every servo along a trajectory.
+
+    Args:
+        trajectory: The joint trajectory.
+        calibrations: One per joint, in joint order.
+        rate: Sampling rate [Hz] (hobby servos take a new pulse every 20 ms: 50 Hz).
+
+    Returns:
+        ``(t, pulses)``: times shape (n,) [s] (the final instant included) and pulse widths
+        rounded to whole microseconds, shape (n, dof) int.
+
+    Raises:
+        InvalidArgumentError: If a calibration is missing or an angle needs a pulse out of range.
+    """
+    _check_calibrations(calibrations, trajectory.dof)
+    t = trajectory.times(rate)
+    q = trajectory.sample(t).q
+    pulses = np.column_stack([np.rint(c.pulse(q[:, k])) for k, c in enumerate(calibrations)]).astype(int)
+    return t, pulses
+
+
+def ssc32_group_moves(
+    trajectory: JointTrajectory, calibrations: Sequence[ServoCalibration], period_ms: int = 20
+) -> list[str]:
+    """Lynxmotion SSC-32 group-move commands that replay a trajectory.
+
+    One command per `period_ms`, ``#<ch>P<pw>#<ch>P<pw>...T<ms>``: every listed servo moves
+    to its pulse width and all arrive together after ``T`` ms (the controller interpolates
+    linearly within it). The first command holds the start pose for one period; send them one
+    period apart, each followed by a carriage return (ASCII 13).
+
+    Args:
+        trajectory: The joint trajectory.
+        calibrations: One per joint (channels 0-31).
+        period_ms: Time per command [ms], a positive integer.
+
+    Returns:
+        The command strings, without terminators.
+
+    Raises:
+        InvalidArgumentError: On a bad period, channel or calibration, or a pulse out of range.
+    """
+    if isinstance(period_ms, bool) or not isinstance(period_ms, (int, np.integer)) or not 1 <= period_ms <= 65535:
+        raise InvalidArgumentError(f"period_ms must be an integer in [1, 65535] ms, got {period_ms!r}")
+    _check_calibrations(calibrations, trajectory.dof)
+    for c in calibrations:
+        if c.channel > SSC32_MAX_CHANNEL:
+            raise InvalidArgumentError(
+                f"joint {c.joint!r} uses channel {c.channel}; an SSC-32 has channels 0-{SSC32_MAX_CHANNEL}"
+            )
+    n = int(math.ceil(trajectory.duration * 1000.0 / period_ms - 1e-9)) + 1
+    t = np.minimum(np.arange(n) * period_ms / 1000.0, trajectory.duration)
+    q = trajectory.sample(t).q
+    pulses = np.column_stack([np.rint(c.pulse(q[:, k])) for k, c in enumerate(calibrations)]).astype(int)
+    return ["".join(f"#{c.channel}P{p}" for c, p in zip(calibrations, row)) + f"T{period_ms}" for row in pulses]
+
+
+def steps_table(
+    trajectory: JointTrajectory, max_rotation: float, max_steps: int, rate: float = 50.0
+) -> tuple[np.ndarray, np.ndarray]:
+    """The 000 seed's controller steps (see :func:`angle_to_steps`) along a trajectory.
+
+    Returns:
+        ``(t, steps)``: times shape (n,) [s] and steps shape (n, dof) int.
+    """
+    t = trajectory.times(rate)
+    return t, np.asarray(angle_to_steps(trajectory.sample(t).q, max_rotation, max_steps))

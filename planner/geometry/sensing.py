@@ -1,0 +1,75 @@
+"""Sensor readings turned into targets in the arm's base frame."""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+
+import numpy as np
+
+from planner.exceptions import InvalidArgumentError
+
+__all__ = ["range_bearing_to_base"]
+
+
+def _pose_matrix(sensor_pose: Sequence[float] | np.ndarray) -> np.ndarray:
+    arr = np.asarray(sensor_pose, dtype=float)
+    if arr.shape == (4, 4):
+        if not np.all(np.isfinite(arr)):
+            raise InvalidArgumentError("sensor_pose holds NaN or infinite values")
+        rot = arr[:3, :3]
+        if (
+            not np.allclose(rot.T @ rot, np.eye(3), atol=1e-9)
+            or np.linalg.det(rot) < 0
+            or not np.allclose(arr[3], [0, 0, 0, 1])
+        ):
+            raise InvalidArgumentError("sensor_pose is not a rigid transform (rotation not orthonormal)")
+        return arr
+    if arr.shape in ((3,), (4,)):
+        if not np.all(np.isfinite(arr)):
+            raise InvalidArgumentError(f"sensor_pose holds NaN or infinite values: {arr.tolist()}")
+        x, y, z = arr[:3]
+        yaw = arr[3] if arr.shape == (4,) else 0.0
+        pose = np.eye(4)
+        pose[:3, :3] = [[math.cos(yaw), -math.sin(yaw), 0.0], [math.sin(yaw), math.cos(yaw), 0.0], [0.0, 0.0, 1.0]]
+        pose[:3, 3] = (x, y, z)
+        return pose
+    raise InvalidArgumentError(
+        f"sensor_pose must be a 4x4 transform, (x, y, z) or (x, y, z, yaw); got shape {arr.shape}"
+    )
+
+
+def range_bearing_to_base(
+    distance: float | np.ndarray,
+    bearing: float | np.ndarray,
+    sensor_pose: Sequence[float] | np.ndarray,
+) -> np.ndarray:
+    """The point a range-bearing sensor sees, in the arm's base frame.
+
+    The sensor measures in its own horizontal plane: bearing 0 along its x axis, positive
+    toward its y axis, so it sees the point ``(d cos(bearing), d sin(bearing), 0)`` in its frame
+    (the 001 seed's equation 5); the sensor's pose in the base frame then moves that point
+    into the base frame (the seed's equation 6, with the mount offsets as a pose).
+
+    Args:
+        distance: Range reading(s) [m], >= 0; scalar or shape (N,).
+        bearing: Bearing reading(s) [rad]; scalar or shape (N,).
+        sensor_pose: Sensor frame in the base frame: a 4x4 transform, or ``(x, y, z)``, or
+            ``(x, y, z, yaw)`` [m, rad] for a sensor turned about the vertical.
+
+    Returns:
+        The point(s) in the base frame, shape (3,) or (N, 3) [m].
+
+    Raises:
+        InvalidArgumentError: On NaN, a negative distance, or a malformed pose.
+    """
+    d = np.asarray(distance, dtype=float)
+    b = np.asarray(bearing, dtype=float)
+    if not (np.all(np.isfinite(d)) and np.all(np.isfinite(b))):
+        raise InvalidArgumentError(f"distance and bearing must be finite, got {distance!r}, {bearing!r}")
+    if np.any(d < 0):
+        raise InvalidArgumentError(f"distance must be >= 0, got {distance!r}")
+    pose = _pose_matrix(sensor_pose)
+    d, b = np.broadcast_arrays(d, b)
+    local = np.stack([d * np.cos(b), d * np.sin(b), np.zeros_like(d)], axis=-1)
+    return local @ pose[:3, :3].T + pose[:3, 3]

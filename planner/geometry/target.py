@@ -1,0 +1,302 @@
+"""IK targets: a tip position, optionally with a full orientation or an approach pitch.
+
+Orientation conventions used across `planner`:
+
+- ``rotation`` is the tip frame's 3x3 rotation matrix in the base frame.
+- ``rpy`` is URDF roll-pitch-yaw [rad]: ``R = Rz(yaw) Ry(pitch) Rx(roll)``.
+- A quaternion is given as ``(x, y, z, w)`` (the ROS / SciPy order).
+- ``pitch`` is the *approach pitch* [rad] of the tip's approach axis ``a`` (see
+  ``Robot.approach_axis``, in base-frame coordinates): its elevation above the horizontal,
+  ``a_z = sin(pitch)``, with its horizontal part pointing away from the base z axis, i.e. a
+  non-negative dot product with the radial direction from the base z axis to the target (for
+  ``|pitch| > pi/2``: towards it; ``cos(pitch)`` gives the side). So 0 is horizontal and
+  outward, +pi/2 straight up, -pi/2 straight down (the 001 seed's parallel and straight-down
+  approaches are 0 and -pi/2). Which way the horizontal part points within that half plane is
+  left to the arm: for an arm whose pitch plane contains the base z axis it is the radial
+  direction itself (:func:`approach_direction`); an arm whose plane passes beside the axis
+  (SO-101) or whose yaw axis is not the base z axis points it along its own plane. Where the
+  target lies on the base z axis only the elevation counts.
+
+:func:`approach_pitch` measures the approach pitch of a configuration, :func:`pitch_error` how
+far an approach axis is from a target pitch (the orientation error of a pitch target, used by
+every solver and the tests).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from planner.exceptions import InvalidArgumentError
+
+__all__ = [
+    "Target",
+    "approach_direction",
+    "approach_pitch",
+    "pitch_error",
+    "rotation_error",
+    "rpy_to_matrix",
+    "quaternion_to_matrix",
+]
+
+_ORTHONORMAL_TOL = 1e-6
+#: Targets closer than this to the base z axis [m] have no radial direction: only the
+#: elevation of the approach axis counts there.
+RADIAL_EPS = 1e-12
+
+
+def _finite_vector(value: Sequence[float] | np.ndarray, n: int, what: str) -> np.ndarray:
+    try:
+        arr = np.array(value, dtype=float, copy=True)
+    except (TypeError, ValueError) as exc:
+        raise InvalidArgumentError(f"{what} must be {n} numbers, got {value!r}") from exc
+    if arr.shape != (n,):
+        raise InvalidArgumentError(f"{what} must have shape ({n},), got {arr.shape}")
+    if not np.all(np.isfinite(arr)):
+        raise InvalidArgumentError(f"{what} must be finite, got {arr.tolist()}")
+    return arr
+
+
+def rpy_to_matrix(rpy: Sequence[float] | np.ndarray) -> np.ndarray:
+    """Rotation matrix of URDF roll-pitch-yaw angles ``R = Rz(y) Ry(p) Rx(r)`` [rad]."""
+    r, p, y = _finite_vector(rpy, 3, "rpy")
+    cr, sr, cp, sp, cy, sy = math.cos(r), math.sin(r), math.cos(p), math.sin(p), math.cos(y), math.sin(y)
+    return np.array(
+        [
+            [cy * cp, cy * sp * sr - sy * cr, cy * sp * cr + sy * sr],
+            [sy * cp, sy * sp * sr + cy * cr, sy * sp * cr - cy * sr],
+            [-sp, cp * sr, cp * cr],
+        ]
+    )
+
+
+def quaternion_to_matrix(quaternion: Sequence[float] | np.ndarray) -> np.ndarray:
+    """Rotation matrix of a quaternion ``(x, y, z, w)``; it is normalised first.
+
+    Raises:
+        InvalidArgumentError: If the quaternion is NaN or has (near) zero norm.
+    """
+    q = _finite_vector(quaternion, 4, "quaternion (x, y, z, w)")
+    norm = float(np.linalg.norm(q))
+    if norm < 1e-12:
+        raise InvalidArgumentError(f"quaternion (x, y, z, w) has zero norm: {q.tolist()}")
+    x, y, z, w = q / norm
+    return np.array(
+        [
+            [1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
+            [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
+            [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)],
+        ]
+    )
+
+
+def _check_rotation(rotation: Sequence[Sequence[float]] | np.ndarray) -> np.ndarray:
+    try:
+        rot = np.array(rotation, dtype=float, copy=True)
+    except (TypeError, ValueError) as exc:
+        raise InvalidArgumentError(f"rotation must be a 3x3 matrix, got {rotation!r}") from exc
+    if rot.shape != (3, 3):
+        raise InvalidArgumentError(f"rotation must have shape (3, 3), got {rot.shape}")
+    if not np.all(np.isfinite(rot)):
+        raise InvalidArgumentError("rotation holds NaN or infinite values")
+    deviation = float(np.max(np.abs(rot.T @ rot - np.eye(3))))
+    if deviation > _ORTHONORMAL_TOL or np.linalg.det(rot) < 0:
+        raise InvalidArgumentError(
+            f"rotation is not a proper orthonormal matrix (|R^T R - I| = {deviation:.3g}, "
+            f"det = {np.linalg.det(rot):.6g}); give a rotation matrix, rpy or a quaternion"
+        )
+    return rot
+
+
+def rotation_error(rotation_a: np.ndarray, rotation_b: np.ndarray) -> np.ndarray | float:
+    """Angle of the rotation between two orientations [rad], in [0, pi].
+
+    Args:
+        rotation_a: Shape (3, 3) or (N, 3, 3).
+        rotation_b: Shape (3, 3) or (N, 3, 3).
+
+    Returns:
+        A float, or shape (N,) for batches.
+    """
+    rel = np.swapaxes(rotation_a, -1, -2) @ rotation_b
+    cos = (np.trace(rel, axis1=-2, axis2=-1) - 1.0) / 2.0
+    # arccos loses precision near 0; the antisymmetric part keeps small angles accurate.
+    skew = np.stack(
+        [rel[..., 2, 1] - rel[..., 1, 2], rel[..., 0, 2] - rel[..., 2, 0], rel[..., 1, 0] - rel[..., 0, 1]], axis=-1
+    )
+    sin = np.linalg.norm(skew, axis=-1) / 2.0
+    angle = np.arctan2(sin, np.clip(cos, -1.0, 1.0))
+    return float(angle) if np.ndim(angle) == 0 else angle
+
+
+def approach_direction(position: np.ndarray, pitch: float, yaw: float | None = None) -> np.ndarray:
+    """The approach direction of a pitch in the vertical plane through the base z axis and the target.
+
+    For an arm whose pitch plane contains the base z axis (al5c, three_joint) this is the one
+    direction with approach pitch `pitch` that it can take at `position`; in general it is one
+    of many (see the module docstring).
+
+    Args:
+        position: Target position, shape (3,) [m].
+        pitch: Approach pitch [rad].
+        yaw: Direction of the radial axis [rad] when the target lies on the base z axis;
+            None uses 0 there.
+
+    Returns:
+        Shape (3,) unit vector (base frame).
+    """
+    radial = math.hypot(position[0], position[1])
+    if radial > RADIAL_EPS:
+        cy, sy = position[0] / radial, position[1] / radial
+    else:
+        a = 0.0 if yaw is None else yaw
+        cy, sy = math.cos(a), math.sin(a)
+    return np.array([math.cos(pitch) * cy, math.cos(pitch) * sy, math.sin(pitch)])
+
+
+def approach_pitch(robot, q: Sequence[float] | np.ndarray) -> float | np.ndarray:
+    """The approach pitch [rad] of a configuration (the module docstring's convention).
+
+    ``atan2(a_z, +-|a_h|)`` of the approach axis ``a`` at FK(q), its horizontal part ``a_h``
+    counted positive when it points away from the base z axis (or when the tip is on that
+    axis), so ``Target(tip position, pitch=approach_pitch(robot, q))`` is reached by q.
+
+    Args:
+        robot: A :class:`~planner.model.robot.Robot`.
+        q: Shape (dof,) or (N, dof) [rad or m].
+
+    Returns:
+        A float in (-pi, pi], or shape (N,).
+    """
+    pose = np.asarray(robot.fk(q))
+    a = pose[..., :3, :3] @ np.asarray(robot.approach_axis, dtype=float)
+    p = pose[..., :3, 3]
+    horizontal = np.hypot(a[..., 0], a[..., 1])
+    inward = (np.hypot(p[..., 0], p[..., 1]) > RADIAL_EPS) & (a[..., 0] * p[..., 0] + a[..., 1] * p[..., 1] < 0.0)
+    pitch = np.arctan2(a[..., 2], np.where(inward, -horizontal, horizontal))
+    return float(pitch) if np.ndim(pitch) == 0 else pitch
+
+
+def _pitch_error_one(
+    ax: float, ay: float, az: float, px: float, py: float, cos_p: float, sin_p: float, elevation: float
+) -> float:
+    """:func:`pitch_error` of one axis (ax, ay, az) at (px, py).
+
+    The pitch is given by its cosine, sine and elevation ``atan2(sin, |cos|)`` (callers with many
+    axes compute them once).
+    """
+    error = abs(math.atan2(az, math.hypot(ax, ay)) - elevation)
+    if cos_p * (ax * px + ay * py) < 0.0 and (radial := math.hypot(px, py)) > RADIAL_EPS:
+        # The horizontal part points to the wrong side: the nearest allowed direction has its
+        # horizontal part perpendicular to the radial direction, on the side of a's.
+        tx, ty = -py / radial, px / radial
+        if ax * tx + ay * ty < 0.0:
+            tx, ty = -tx, -ty
+        bx, by, bz = abs(cos_p) * tx, abs(cos_p) * ty, sin_p
+        cx, cy, cz = ay * bz - az * by, az * bx - ax * bz, ax * by - ay * bx
+        error = math.atan2(math.sqrt(cx * cx + cy * cy + cz * cz), ax * bx + ay * by + az * bz)
+    return error
+
+
+def pitch_error(
+    approach: Sequence[float] | np.ndarray, position: Sequence[float] | np.ndarray, pitch: float | np.ndarray
+) -> float | np.ndarray:
+    """Orientation error [rad] of an approach axis for a pitch target.
+
+    The angle between `approach` and the nearest direction that has approach pitch `pitch` at
+    `position` (module docstring): ``|elevation - pitch's elevation|`` when the horizontal part
+    points to the right side (away from the base z axis for ``|pitch| < pi/2``), else the angle
+    to the nearest direction of that elevation whose horizontal part is perpendicular to the
+    radial direction. 0 exactly when the approach axis satisfies the convention; continuous.
+
+    Args:
+        approach: Approach axis in the base frame, unit, shape (3,) or (N, 3).
+        position: Target position, shape (3,) or (N, 3) [m].
+        pitch: Target approach pitch [rad], a scalar or shape (N,).
+
+    Returns:
+        A float in [0, pi], or shape (N,) for batches.
+    """
+    a = np.asarray(approach, dtype=float)
+    p = np.asarray(position, dtype=float)
+    if a.ndim == 1 and p.ndim == 1 and np.ndim(pitch) == 0:
+        cos_p, sin_p = math.cos(pitch), math.sin(pitch)
+        return _pitch_error_one(
+            float(a[0]), float(a[1]), float(a[2]), float(p[0]), float(p[1]), cos_p, sin_p, math.atan2(sin_p, abs(cos_p))
+        )
+    pitch = np.asarray(pitch, dtype=float)
+    ax, ay, az = a[..., 0], a[..., 1], a[..., 2]
+    px, py = p[..., 0], p[..., 1]
+    cos_p, sin_p = np.cos(pitch), np.sin(pitch)
+    error = np.abs(np.arctan2(az, np.hypot(ax, ay)) - np.arctan2(sin_p, np.abs(cos_p)))
+    radial = np.hypot(px, py)
+    wrong = (radial > RADIAL_EPS) & (cos_p * (ax * px + ay * py) < 0.0)
+    if np.any(wrong):
+        safe = np.where(radial > RADIAL_EPS, radial, 1.0)
+        tx, ty = -py / safe, px / safe
+        side = np.where(ax * tx + ay * ty < 0.0, -1.0, 1.0)
+        bx, by, bz = np.abs(cos_p) * side * tx, np.abs(cos_p) * side * ty, sin_p
+        cross = np.stack(np.broadcast_arrays(ay * bz - az * by, az * bx - ax * bz, ax * by - ay * bx), axis=-1)
+        to_edge = np.arctan2(np.linalg.norm(cross, axis=-1), ax * bx + ay * by + az * bz)
+        error = np.where(wrong, to_edge, error)
+    return float(error) if np.ndim(error) == 0 else error
+
+
+@dataclass(frozen=True)
+class Target:
+    """Where the tip should go.
+
+    Attributes:
+        position: Tip position in the base frame, shape (3,) [m], read-only.
+        rotation: Tip orientation in the base frame, shape (3, 3), or None for position only.
+        pitch: Approach pitch [rad] (see the module docstring), or None.
+    """
+
+    position: np.ndarray
+    rotation: np.ndarray | None = None
+    pitch: float | None = None
+
+    def __post_init__(self) -> None:
+        pos = _finite_vector(self.position, 3, "target position")
+        pos.setflags(write=False)
+        object.__setattr__(self, "position", pos)
+        if self.rotation is not None and self.pitch is not None:
+            raise InvalidArgumentError("give either a rotation or an approach pitch, not both")
+        if self.rotation is not None:
+            rot = _check_rotation(self.rotation)
+            rot.setflags(write=False)
+            object.__setattr__(self, "rotation", rot)
+        if self.pitch is not None:
+            if isinstance(self.pitch, bool) or not isinstance(self.pitch, (int, float, np.floating, np.integer)):
+                raise InvalidArgumentError(f"pitch must be a number [rad], got {self.pitch!r}")
+            if not math.isfinite(self.pitch):
+                raise InvalidArgumentError(f"pitch must be finite, got {self.pitch!r}")
+            object.__setattr__(self, "pitch", float(self.pitch))
+
+    @classmethod
+    def from_rpy(cls, position: Sequence[float], rpy: Sequence[float]) -> Target:
+        """Target from a position [m] and URDF roll-pitch-yaw [rad]."""
+        return cls(position, rotation=rpy_to_matrix(rpy))
+
+    @classmethod
+    def from_quaternion(cls, position: Sequence[float], quaternion: Sequence[float]) -> Target:
+        """Target from a position [m] and a quaternion ``(x, y, z, w)``."""
+        return cls(position, rotation=quaternion_to_matrix(quaternion))
+
+    @classmethod
+    def from_pose(cls, pose: np.ndarray) -> Target:
+        """Target from a 4x4 homogeneous transform [m]."""
+        arr = np.asarray(pose, dtype=float)
+        if arr.shape != (4, 4):
+            raise InvalidArgumentError(f"pose must have shape (4, 4), got {arr.shape}")
+        return cls(arr[:3, 3], rotation=arr[:3, :3])
+
+    @property
+    def kind(self) -> str:
+        """``"pose"``, ``"pitch"`` or ``"position"``."""
+        if self.rotation is not None:
+            return "pose"
+        return "pitch" if self.pitch is not None else "position"

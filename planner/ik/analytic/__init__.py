@@ -1,0 +1,58 @@
+"""Closed-form (geometric) inverse kinematics for the seed arms' kinematic families.
+
+One module per family, all built from the robot's Pinocchio model:
+
+- :mod:`~planner.ik.analytic.planar2`: two joints about parallel vertical axes (000 seed).
+- :mod:`~planner.ik.analytic.yaw_planar`: base yaw + 2 or 3 parallel pitch joints + optional
+  wrist roll (001, 002, 004 seeds, SO-101).
+
+Use :meth:`AnalyticIK.from_robot` (detects the family) or :func:`solve_analytic`::
+
+    solver = AnalyticIK.from_robot(load_robot("al5c"))
+    result = solver.solve(Target([0.25, 0.05, 0.10], pitch=-math.pi / 2), q_current=q)
+    if result.ok:
+        q_next = result.best.q
+"""
+
+from planner.geometry.chain import ChainAtZero, JointScrew, chain_at_zero, poe_fk
+from planner.ik.analytic.base import FAMILY_ANGLE_TOL, AnalyticIK, solve_analytic
+from planner.ik.analytic.planar2 import PLANAR_BRANCHES, Planar2IK
+from planner.ik.analytic.result import (
+    STATUS_BEYOND_MAX_REACH,
+    STATUS_CODES,
+    STATUS_INSIDE_MIN_REACH,
+    STATUS_NAMES,
+    STATUS_OK,
+    STATUS_ORIENTATION_NOT_ACHIEVABLE,
+    STATUS_OUT_OF_PLANE,
+    STATUS_OUTSIDE_JOINT_LIMITS,
+    AnalyticBatchResult,
+    AnalyticResult,
+    AnalyticSolution,
+)
+from planner.ik.analytic.yaw_planar import BRANCHES, YawPlanarIK
+
+__all__ = [
+    "AnalyticIK",
+    "solve_analytic",
+    "AnalyticResult",
+    "AnalyticSolution",
+    "AnalyticBatchResult",
+    "YawPlanarIK",
+    "Planar2IK",
+    "BRANCHES",
+    "PLANAR_BRANCHES",
+    "STATUS_OK",
+    "STATUS_OUTSIDE_JOINT_LIMITS",
+    "STATUS_ORIENTATION_NOT_ACHIEVABLE",
+    "STATUS_BEYOND_MAX_REACH",
+    "STATUS_INSIDE_MIN_REACH",
+    "STATUS_OUT_OF_PLANE",
+    "STATUS_NAMES",
+    "STATUS_CODES",
+    "FAMILY_ANGLE_TOL",
+    "ChainAtZero",
+    "JointScrew",
+    "chain_at_zero",
+    "poe_fk",
+]

@@ -1,0 +1,249 @@
+"""The common interface of the closed-form solvers and the family detection.
+
+:meth:`AnalyticIK.from_robot` reads the robot's chain from its Pinocchio model and returns the
+solver of the family it belongs to:
+
+- :class:`~planner.ik.analytic.planar2.Planar2IK`: two joints about parallel vertical axes (the
+  horizontal 2-link of the 000 seed).
+- :class:`~planner.ik.analytic.yaw_planar.YawPlanarIK`: a base yaw, then 2 or 3 parallel pitch
+  joints, then optionally a wrist roll (the 001, 002 and 004 seeds, SO-101).
+
+A chain outside both raises :class:`~planner.exceptions.UnsupportedChainError` naming the
+first joint that breaks the family.
+"""
+
+from __future__ import annotations
+
+import math
+import weakref
+from abc import ABC, abstractmethod
+from collections.abc import Sequence
+
+import numpy as np
+
+from planner.exceptions import InvalidArgumentError, InvalidConfigurationError, UnsupportedChainError
+from planner.geometry.chain import ChainAtZero, chain_at_zero
+from planner.geometry.target import Target
+from planner.ik.analytic.result import AnalyticBatchResult, AnalyticResult
+from planner.model.robot import Robot
+
+__all__ = ["AnalyticIK", "solve_analytic", "FAMILY_ANGLE_TOL"]
+
+#: Largest deviation [rad] of an axis from the family's ideal directions (vertical, parallel,
+#: perpendicular) that a solver accepts. Deviations above 1e-12 rad (CAD round-off, as in
+#: SO-101's URDF) are solved on the ideal geometry and then corrected on the real one.
+FAMILY_ANGLE_TOL = 1e-4
+
+
+def _angle_to_line(a: np.ndarray, b: np.ndarray) -> float:
+    """Angle [rad] between the lines along unit vectors a and b (0 when parallel or opposite)."""
+    return math.asin(min(1.0, float(np.linalg.norm(np.cross(a, b)))))
+
+
+def _angle_to_plane(a: np.ndarray, normal: np.ndarray) -> float:
+    """Angle [rad] between unit vector a and the plane with unit normal `normal`."""
+    return math.asin(min(1.0, abs(float(a @ normal))))
+
+
+class AnalyticIK(ABC):
+    """Closed-form inverse kinematics of one robot; build it with :meth:`from_robot`.
+
+    Attributes:
+        robot: The robot the solver was built from.
+        family: ``"planar2"`` or ``"yaw_planar"``.
+        dof: Number of joints.
+        joint_names: Joint names in ``q`` order.
+        lower: Lower joint limits [rad], read-only.
+        upper: Upper joint limits [rad], read-only.
+        branches: Names of the branches, in the order of batch results.
+        deviation: Largest deviation [rad] of the model's axes from the family's ideal ones.
+    """
+
+    family: str = ""
+
+    def __init__(self, robot: Robot, chain: ChainAtZero) -> None:
+        self.robot = robot
+        self.chain = chain
+        self.dof = robot.dof
+        self.joint_names = robot.joint_names
+        self.lower = robot.lower
+        self.upper = robot.upper
+        self._lower = [float(v) for v in robot.lower]
+        self._upper = [float(v) for v in robot.upper]
+        self.branches: tuple[str, ...] = ()
+        self.deviation = 0.0
+
+    def __repr__(self) -> str:
+        return f"{type(self).__name__}(robot={self.robot.name!r}, branches={len(self.branches)})"
+
+    @classmethod
+    def from_robot(cls, robot: Robot) -> AnalyticIK:
+        """Detect the robot's closed-form family and build its solver.
+
+        Args:
+            robot: The robot; its chain is read from the Pinocchio model at q = 0.
+
+        Returns:
+            A :class:`~planner.ik.analytic.planar2.Planar2IK` or
+            :class:`~planner.ik.analytic.yaw_planar.YawPlanarIK`.
+
+        Raises:
+            UnsupportedChainError: If the chain is outside both families; ``.joint`` names the
+                first joint that breaks them.
+        """
+        from planner.ik.analytic.planar2 import Planar2IK
+        from planner.ik.analytic.yaw_planar import YawPlanarIK
+
+        if not isinstance(robot, Robot):
+            raise InvalidArgumentError(f"from_robot needs a planner.Robot, got {type(robot).__name__}")
+        chain = chain_at_zero(robot)
+        joints = chain.joints
+        if not joints:
+            raise UnsupportedChainError(f"{robot.name} has no joints on its chain to {robot.tip!r}")
+        first = joints[0]
+        tilt = _angle_to_line(first.axis, np.array([0.0, 0.0, 1.0]))
+        if tilt > FAMILY_ANGLE_TOL:
+            raise UnsupportedChainError(
+                f"{robot.name}: the first joint {first.name!r} turns about {np.round(first.axis, 6).tolist()}, "
+                f"{math.degrees(tilt):.3g} deg from vertical; the closed-form families start with a base "
+                "yaw about the base z axis",
+                joint=first.name,
+            )
+        if len(joints) < 2:
+            raise UnsupportedChainError(
+                f"{robot.name}: the chain has only joint {first.name!r}; the closed-form families need 2 to 5 joints",
+                joint=first.name,
+            )
+        if _angle_to_line(joints[1].axis, first.axis) <= FAMILY_ANGLE_TOL:
+            return Planar2IK(robot, chain)
+        return YawPlanarIK(robot, chain)
+
+    # ------------------------------------------------------------------ interface
+    @abstractmethod
+    def solve(self, target: Target, q_current: Sequence[float] | np.ndarray | None = None) -> AnalyticResult:
+        """Every closed-form solution for one target.
+
+        Args:
+            target: The target (position, plus an approach pitch or a rotation).
+            q_current: The current configuration, shape (dof,) [rad]: solutions are sorted by
+                distance to it, angles wrapped nearest to it, and free joints take its values
+                (where that leaves no branch within the limits, the nearest values that do).
+
+        Returns:
+            The result; unreachable targets give a status, not an exception.
+        """
+
+    @abstractmethod
+    def solve_batch(
+        self,
+        positions: np.ndarray,
+        pitch: np.ndarray | float | None = None,
+        rotations: np.ndarray | None = None,
+        q_current: np.ndarray | None = None,
+    ) -> AnalyticBatchResult:
+        """Closed-form solutions of N targets at once, without a Python loop over targets.
+
+        Args:
+            positions: Target positions, shape (N, 3) [m].
+            pitch: Approach pitch, a scalar or shape (N,) [rad], or None.
+            rotations: Target rotations, shape (N, 3, 3), or None (not with `pitch`).
+            q_current: Current configuration, shape (dof,) or (N, dof) [rad], or None.
+
+        Returns:
+            The batch result.
+        """
+
+    # ------------------------------------------------------------------ input checks
+    def _q_current_list(self, q_current: Sequence[float] | np.ndarray | None) -> list[float] | None:
+        if q_current is None:
+            return None
+        return self.robot.check_configuration(q_current, batch=False).tolist()
+
+    def _check_target(self, target: Target) -> None:
+        if not isinstance(target, Target):
+            raise InvalidArgumentError(
+                f"target must be a planner.Target (e.g. Target(position, pitch=...)), got {type(target).__name__}"
+            )
+
+    def _batch_inputs(
+        self,
+        positions: np.ndarray,
+        pitch: np.ndarray | float | None,
+        rotations: np.ndarray | None,
+        q_current: np.ndarray | None,
+    ) -> tuple[np.ndarray, np.ndarray | None, np.ndarray | None, np.ndarray | None]:
+        """Validate batch inputs; returns float arrays (N,3), (N,)|None, (N,3,3)|None, (N,dof)|None."""
+        try:
+            pos = np.array(positions, dtype=float, copy=True)
+        except (TypeError, ValueError) as exc:
+            raise InvalidArgumentError(f"positions must be an (N, 3) array of numbers, got {positions!r}") from exc
+        if pos.ndim != 2 or pos.shape[1] != 3:
+            raise InvalidArgumentError(f"positions must have shape (N, 3), got {pos.shape}")
+        n = pos.shape[0]
+        if not np.all(np.isfinite(pos)):
+            row = int(np.argwhere(~np.isfinite(pos))[0, 0])
+            raise InvalidArgumentError(f"positions[{row}] = {pos[row].tolist()} is not finite")
+        if pitch is not None and rotations is not None:
+            raise InvalidArgumentError("give either pitch or rotations, not both")
+        pit = None
+        if pitch is not None:
+            pit = np.array(pitch, dtype=float, copy=True)
+            if pit.ndim == 0:
+                pit = np.full(n, float(pit))
+            if pit.shape != (n,):
+                raise InvalidArgumentError(f"pitch must be a scalar or have shape ({n},), got {pit.shape}")
+            if not np.all(np.isfinite(pit)):
+                raise InvalidArgumentError("pitch holds NaN or infinite values")
+        rot = None
+        if rotations is not None:
+            rot = np.array(rotations, dtype=float, copy=True)
+            if rot.shape != (n, 3, 3):
+                raise InvalidArgumentError(f"rotations must have shape ({n}, 3, 3), got {rot.shape}")
+            if not np.all(np.isfinite(rot)):
+                raise InvalidArgumentError("rotations hold NaN or infinite values")
+            dev = np.abs(np.einsum("nji,njk->nik", rot, rot) - np.eye(3)).max(axis=(1, 2)) if n else np.zeros(0)
+            bad = (dev > 1e-6) | (np.linalg.det(rot) < 0) if n else np.zeros(0, bool)
+            if np.any(bad):
+                row = int(np.argmax(bad))
+                raise InvalidArgumentError(
+                    f"rotations[{row}] is not a proper orthonormal matrix (|R^T R - I| = {dev[row]:.3g})"
+                )
+        qc = None
+        if q_current is not None:
+            qc = np.array(q_current, dtype=float, copy=True)
+            if qc.shape == (self.dof,):
+                qc = np.broadcast_to(qc, (n, self.dof))
+            if qc.shape != (n, self.dof):
+                raise InvalidConfigurationError(
+                    f"q_current has shape {qc.shape}; expected ({self.dof},) or ({n}, {self.dof}) for joints "
+                    f"{', '.join(self.joint_names)}"
+                )
+            if not np.all(np.isfinite(qc)):
+                raise InvalidConfigurationError("q_current holds NaN or infinite values")
+        return pos, pit, rot, qc
+
+
+_SOLVERS: weakref.WeakKeyDictionary[Robot, AnalyticIK] = weakref.WeakKeyDictionary()
+
+
+def solve_analytic(
+    robot: Robot, target: Target, q_current: Sequence[float] | np.ndarray | None = None
+) -> AnalyticResult:
+    """Solve one target in closed form; the robot's solver is built once and cached.
+
+    Args:
+        robot: The robot.
+        target: The target.
+        q_current: Current configuration, shape (dof,) [rad], or None.
+
+    Returns:
+        The result (see :meth:`AnalyticIK.solve`).
+
+    Raises:
+        UnsupportedChainError: If the robot is outside the closed-form families.
+    """
+    solver = _SOLVERS.get(robot)
+    if solver is None:
+        solver = AnalyticIK.from_robot(robot)
+        _SOLVERS[robot] = solver
+    return solver.solve(target, q_current)

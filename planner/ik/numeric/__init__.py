@@ -1,0 +1,1 @@
+"""Numerical IK: CasADi kinematics built from the Pinocchio model, the compiled kernel, restarts."""

@@ -1,0 +1,1 @@
+"""Layer 1: the robot model (URDF -> Pinocchio), the catalog of arms and the DH-to-URDF generator."""

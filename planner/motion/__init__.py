@@ -1,0 +1,1 @@
+"""Layer 4: motion: joint limits, trajectories (Ruckig), Cartesian lines, singularity detours."""

@@ -1,0 +1,430 @@
+"""Singularity checks along a joint trajectory, and detours around avoidable ones.
+
+Closeness to a singularity is measured by the inverse condition number of the task Jacobian
+(smallest over largest singular value, see :meth:`Robot.inverse_condition_number`): 1 is
+isotropic, 0 singular. A configuration is *too close* when it falls below a threshold; the
+default, 1/30, is a Jacobian condition number of 30. The Yoshikawa manipulability (product of
+the singular values) is reported beside it.
+
+:func:`check_singularities` measures a trajectory at its waypoints and along samples.
+:func:`plan_clear_of_singularities` plans through joint waypoints and, where a segment dips
+below the threshold although both of its ends are clear, inserts a detour waypoint (the
+configuration of the dip pushed up the gradient of the inverse condition number until it is
+clear) and plans again. A waypoint that is itself singular is kept, as the user asked for it,
+and flagged. For a square task Jacobian a sign change of its determinant between the ends of
+a segment means every path between them crosses a singularity; such segments are reported as
+unresolved instead of detoured (another IK branch is the remedy there).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from planner.exceptions import InvalidArgumentError
+from planner.model.robot import Robot, Task
+from planner.motion.trajectory import (
+    JointLimits,
+    JointTrajectory,
+    ViaStrategy,
+    _check_dwell,
+    _check_given,
+    _check_stops,
+    check_waypoints,
+    plan_trajectory,
+)
+
+__all__ = [
+    "DEFAULT_CONDITION_NUMBER",
+    "Detour",
+    "SingularityAwarePlan",
+    "SingularityReport",
+    "check_singularities",
+    "conditioning",
+    "plan_clear_of_singularities",
+]
+
+#: Default largest acceptable Jacobian condition number (inverse condition number 1/30).
+DEFAULT_CONDITION_NUMBER = 30.0
+
+
+def _threshold(threshold: float | None) -> float:
+    if threshold is None:
+        return 1.0 / DEFAULT_CONDITION_NUMBER
+    if isinstance(threshold, bool) or not isinstance(threshold, (int, float)) or not 0.0 <= threshold < 1.0:
+        raise InvalidArgumentError(
+            f"threshold is an inverse condition number in [0, 1), got {threshold!r} "
+            f"(a condition number of {DEFAULT_CONDITION_NUMBER:g} is {1 / DEFAULT_CONDITION_NUMBER:.6g})"
+        )
+    return float(threshold)
+
+
+def conditioning(
+    robot: Robot, q: Sequence[float] | np.ndarray, task: Task | None = None
+) -> tuple[np.ndarray, np.ndarray]:
+    """Inverse condition number and manipulability of configurations, from one SVD each.
+
+    Args:
+        robot: The robot.
+        q: Shape (dof,) or (N, dof) [rad or m].
+        task: ``"position"`` or ``"pose"``; None as :meth:`Robot.manipulability` chooses.
+
+    Returns:
+        ``(inverse_condition, manipulability)``, each a float array of shape () or (N,).
+    """
+    return robot.conditioning(q, task)
+
+
+@dataclass(frozen=True)
+class SingularityReport:
+    """How close a trajectory comes to singularities.
+
+    Attributes:
+        threshold: Inverse condition number below which a configuration is too close.
+        task: The task Jacobian used (``"position"`` or ``"pose"``).
+        rate: Sampling rate of the check [Hz] (waypoint instants are always included).
+        waypoint_inverse_condition: At each waypoint, shape (N,).
+        waypoint_manipulability: At each waypoint, shape (N,).
+        singular_waypoints: Indices of waypoints below the threshold (kept, but flagged).
+        min_inverse_condition: Minimum along the sampled trajectory.
+        min_manipulability: Minimum manipulability along the sampled trajectory.
+        time_of_minimum: When the inverse condition number is smallest [s].
+        q_at_minimum: The configuration there, shape (dof,).
+        below_threshold: Time intervals ``(start, end)`` [s] spent below the threshold.
+    """
+
+    threshold: float
+    task: str
+    rate: float
+    waypoint_inverse_condition: np.ndarray
+    waypoint_manipulability: np.ndarray
+    singular_waypoints: tuple[int, ...]
+    min_inverse_condition: float
+    min_manipulability: float
+    time_of_minimum: float
+    q_at_minimum: np.ndarray
+    below_threshold: tuple[tuple[float, float], ...]
+
+    @property
+    def clear(self) -> bool:
+        """Whether the whole sampled trajectory stays at or above the threshold."""
+        return self.min_inverse_condition >= self.threshold
+
+
+def _sample_times(trajectory: JointTrajectory, rate: float) -> np.ndarray:
+    return np.unique(np.concatenate([trajectory.times(rate), trajectory.waypoint_times]))
+
+
+def _intervals(t: np.ndarray, low: np.ndarray) -> tuple[tuple[float, float], ...]:
+    out = []
+    k = 0
+    while k < len(t):
+        if low[k]:
+            m = k
+            while m + 1 < len(t) and low[m + 1]:
+                m += 1
+            out.append((float(t[k]), float(t[m])))
+            k = m + 1
+        else:
+            k += 1
+    return tuple(out)
+
+
+def _report(
+    robot: Robot, trajectory: JointTrajectory, threshold: float, task: Task, rate: float
+) -> tuple[SingularityReport, np.ndarray, np.ndarray, np.ndarray]:
+    t = _sample_times(trajectory, rate)
+    q = trajectory.sample(t).q
+    inv, man = conditioning(robot, q, task)
+    w_idx = np.searchsorted(t, trajectory.waypoint_times)
+    w_inv, w_man = inv[w_idx], man[w_idx]
+    k = int(np.argmin(inv))
+    report = SingularityReport(
+        threshold=threshold,
+        task=task,
+        rate=float(rate),
+        waypoint_inverse_condition=_ro(w_inv),
+        waypoint_manipulability=_ro(w_man),
+        singular_waypoints=tuple(int(i) for i in np.nonzero(w_inv < threshold)[0]),
+        min_inverse_condition=float(inv[k]),
+        min_manipulability=float(np.min(man)),
+        time_of_minimum=float(t[k]),
+        q_at_minimum=_ro(q[k]),
+        below_threshold=_intervals(t, inv < threshold),
+    )
+    return report, t, q, inv
+
+
+def _ro(a: np.ndarray) -> np.ndarray:
+    out = np.array(a, dtype=float, copy=True)
+    out.setflags(write=False)
+    return out
+
+
+def check_singularities(
+    robot: Robot,
+    trajectory: JointTrajectory,
+    *,
+    threshold: float | None = None,
+    task: Task | None = None,
+    rate: float = 1000.0,
+) -> SingularityReport:
+    """Measure how close a trajectory comes to singular configurations.
+
+    Args:
+        robot: The robot the trajectory is for.
+        trajectory: A joint trajectory of that robot.
+        threshold: Inverse condition number below which a configuration is too close; None
+            is ``1 / DEFAULT_CONDITION_NUMBER`` (1/30).
+        task: Task Jacobian (``"position"`` or ``"pose"``); None as the robot chooses.
+        rate: Sampling rate [Hz]; the waypoint instants are always checked too.
+
+    Returns:
+        The report.
+
+    Raises:
+        InvalidArgumentError: On a threshold outside [0, 1), an unknown task, a bad rate or a
+            trajectory for another number of joints.
+    """
+    if trajectory.dof != robot.dof:
+        raise InvalidArgumentError(f"the trajectory has {trajectory.dof} joints; {robot.name} has {robot.dof}")
+    return _report(robot, trajectory, _threshold(threshold), robot.resolve_task(task), rate)[0]
+
+
+@dataclass(frozen=True)
+class Detour:
+    """A waypoint inserted to keep a segment clear of a singularity.
+
+    Attributes:
+        segment: Index k of the user segment (from waypoint k to k+1) it belongs to.
+        q: The inserted configuration, shape (dof,) [rad or m].
+        inverse_condition: Its inverse condition number.
+        dip: The minimum inverse condition number of the segment piece it replaced.
+    """
+
+    segment: int
+    q: np.ndarray
+    inverse_condition: float
+    dip: float
+
+
+@dataclass(frozen=True)
+class SingularityAwarePlan:
+    """A trajectory through the user's waypoints plus any detours, and its singularity report.
+
+    Attributes:
+        trajectory: The planned trajectory; its waypoints include the detours.
+        report: Singularity report of the trajectory (its ``singular_waypoints`` index the
+            trajectory's waypoints; see :attr:`singular_waypoints` for the user's).
+        waypoint_indices: Index in ``trajectory.waypoints`` of each user waypoint, shape (N,).
+        detours: The inserted waypoints.
+        unresolved: User segments that still dip below the threshold although both ends are
+            clear (for example because the determinant changes sign between them).
+    """
+
+    trajectory: JointTrajectory
+    report: SingularityReport
+    waypoint_indices: np.ndarray
+    detours: tuple[Detour, ...]
+    unresolved: tuple[int, ...]
+
+    @property
+    def waypoint_times(self) -> np.ndarray:
+        """When each user waypoint is reached, shape (N,) [s]."""
+        return self.trajectory.waypoint_times[self.waypoint_indices]
+
+    @property
+    def singular_waypoints(self) -> tuple[int, ...]:
+        """Indices of the user waypoints that are too close to a singularity."""
+        w = self.report.waypoint_inverse_condition[self.waypoint_indices]
+        return tuple(int(k) for k in np.nonzero(w < self.report.threshold)[0])
+
+
+def _ascend(robot: Robot, q: np.ndarray, limits: JointLimits, target: float, task: Task) -> tuple[np.ndarray, float]:
+    """Push q up the (finite-difference) gradient of the inverse condition number."""
+    lo = np.where(np.isfinite(limits.lower), limits.lower, -np.inf)
+    hi = np.where(np.isfinite(limits.upper), limits.upper, np.inf)
+    inset = 1e-3 * np.where(np.isfinite(hi - lo), hi - lo, 1.0)
+    lo, hi = lo + inset, hi - inset
+    x = np.clip(q, lo, hi)
+    f = float(conditioning(robot, x, task)[0])
+    step = 0.05
+    h = 1e-5
+    for _ in range(200):
+        if f >= target:
+            break
+        grad = np.empty(len(x))
+        for i in range(len(x)):
+            e = x.copy()
+            e[i] += h if e[i] + h <= hi[i] else -h
+            grad[i] = (float(conditioning(robot, e, task)[0]) - f) / (e[i] - x[i])
+        norm = float(np.linalg.norm(grad))
+        if norm == 0.0 or not math.isfinite(norm):
+            break
+        cand = np.clip(x + step * grad / norm, lo, hi)
+        fc = float(conditioning(robot, cand, task)[0])
+        if fc > f:
+            x, f = cand, fc
+            step = min(step * 1.5, 0.5)
+        else:
+            step *= 0.5
+            if step < 1e-6:
+                break
+    return x, f
+
+
+def _det_sign(robot: Robot, q: np.ndarray, task: Task) -> float:
+    jac = robot.jacobian(q)
+    jac = jac[:3] if task == "position" else jac
+    return float(np.sign(np.linalg.det(jac))) if jac.shape[0] == jac.shape[1] else 0.0
+
+
+def plan_clear_of_singularities(
+    robot: Robot,
+    waypoints: Sequence[Sequence[float]] | np.ndarray,
+    limits: JointLimits,
+    *,
+    threshold: float | None = None,
+    task: Task | None = None,
+    rate: float = 1000.0,
+    max_detours: int = 8,
+    margin: float = 3.0,
+    start_velocity: Sequence[float] | np.ndarray | None = None,
+    start_acceleration: Sequence[float] | np.ndarray | None = None,
+    stops: Sequence[int] | None = None,
+    dwell: float | Sequence[float] | None = None,
+    strategy: ViaStrategy = "optimized",
+    keep_segments: Sequence[int] = (),
+    via_velocities: np.ndarray | None = None,
+    via_accelerations: np.ndarray | None = None,
+    min_durations: Sequence[float] | np.ndarray | None = None,
+) -> SingularityAwarePlan:
+    """Plan through joint waypoints, detouring around singularities a segment would pass.
+
+    Args:
+        robot: The robot.
+        waypoints: Joint waypoints, shape (N, dof) [rad or m].
+        limits: Motion limits (see :class:`JointLimits`).
+        threshold: Inverse condition number below which a configuration is too close; None
+            is 1/30.
+        task: Task Jacobian; None as the robot chooses.
+        rate: Sampling rate of the checks [Hz].
+        max_detours: Most waypoints to insert.
+        margin: A detour waypoint is pushed to ``margin * threshold``.
+        start_velocity: As for :func:`plan_trajectory`.
+        start_acceleration: As for :func:`plan_trajectory`.
+        stops: User waypoint indices to stop at, as for :func:`plan_trajectory`.
+        dwell: Dwell per user waypoint [s], as for :func:`plan_trajectory`.
+        strategy: Via strategy, as for :func:`plan_trajectory`.
+        keep_segments: User segments (k: from waypoint k to k+1) that must not get detours,
+            e.g. samples of a straight Cartesian line.
+        via_velocities: Prescribed via velocities per user waypoint (NaN rows free), as for
+            :func:`plan_trajectory`.
+        via_accelerations: Prescribed via accelerations, likewise.
+        min_durations: Shortest duration per user segment [s], as for :func:`plan_trajectory`.
+
+    Returns:
+        The plan with its report, detours and unresolved segments.
+
+    Raises:
+        InvalidArgumentError: On bad thresholds or any input :func:`plan_trajectory` rejects.
+    """
+    thr = _threshold(threshold)
+    t_task = robot.resolve_task(task)
+    if isinstance(max_detours, bool) or not isinstance(max_detours, int) or max_detours < 0:
+        raise InvalidArgumentError(f"max_detours must be a non-negative integer, got {max_detours!r}")
+    if not (isinstance(margin, (int, float)) and math.isfinite(margin) and margin >= 1.0):
+        raise InvalidArgumentError(f"margin must be >= 1, got {margin!r}")
+    if limits.dof != robot.dof:
+        raise InvalidArgumentError(f"the limits are for {limits.dof} joints; {robot.name} has {robot.dof}")
+    user = check_waypoints(waypoints, limits)
+    n = len(user)
+    dw = _check_dwell(dwell, n)
+    stop_mask = _check_stops(stops, n)
+    given = _check_given(via_velocities, via_accelerations, min_durations, n, limits)
+    if given is None:
+        given = (np.full(user.shape, np.nan), np.zeros(user.shape), np.zeros(n - 1))
+    # Per augmented waypoint: prescribed (velocity, acceleration), and the minimum duration of
+    # the segment that starts there (detours split a segment and drop its minimum).
+    states: list[tuple[np.ndarray, np.ndarray, float]] = [
+        (given[0][k], given[1][k], float(given[2][k]) if k < n - 1 else 0.0) for k in range(n)
+    ]
+    # Each augmented waypoint: (q, user index or None, user segment it lies in).
+    nodes: list[tuple[np.ndarray, int | None, int]] = [(user[k], k, min(k, n - 2)) for k in range(n)]
+    detours: list[Detour] = []
+    given_up: set[int] = {int(k) for k in keep_segments}
+
+    def plan_nodes() -> JointTrajectory:
+        q = np.array([nd[0] for nd in nodes])
+        user_pos = [i for i, nd in enumerate(nodes) if nd[1] is not None]
+        d = np.zeros(len(nodes))
+        d[user_pos] = dw
+        st = [user_pos[s] for s in np.nonzero(stop_mask)[0]]
+        return plan_trajectory(
+            q,
+            limits,
+            start_velocity=start_velocity,
+            start_acceleration=start_acceleration,
+            stops=st,
+            dwell=d,
+            strategy=strategy,
+            via_velocities=np.array([st_[0] for st_ in states]),
+            via_accelerations=np.array([st_[1] for st_ in states]),
+            min_durations=np.array([st_[2] for st_ in states[:-1]]),
+        )
+
+    while True:
+        traj = plan_nodes()
+        report, t, _, inv = _report(robot, traj, thr, t_task, rate)
+        if len(detours) >= max_detours:
+            break
+        w_inv = report.waypoint_inverse_condition
+        wt = traj.waypoint_times
+        dips = []
+        for s in range(len(nodes) - 1):
+            if w_inv[s] < thr or w_inv[s + 1] < thr or nodes[s][2] in given_up:
+                continue
+            mask = (t >= wt[s]) & (t <= wt[s + 1])
+            k = int(np.argmin(np.where(mask, inv, np.inf)))
+            if mask.any() and inv[k] < thr:
+                dips.append((float(inv[k]), s, k))
+        inserted = False
+        for dip, s, k in sorted(dips):
+            seg = nodes[s][2]
+            if _det_sign(robot, nodes[s][0], t_task) * _det_sign(robot, nodes[s + 1][0], t_task) < 0:
+                given_up.add(seg)
+                continue
+            q_new, f_new = _ascend(robot, traj.sample(t[k]).q, limits, margin * thr, t_task)
+            if f_new < thr:
+                given_up.add(seg)
+                continue
+            nodes.insert(s + 1, (q_new, None, seg))
+            states[s] = (states[s][0], states[s][1], 0.0)
+            states.insert(s + 1, (np.full(robot.dof, np.nan), np.zeros(robot.dof), 0.0))
+            detours.append(Detour(segment=seg, q=_ro(q_new), inverse_condition=f_new, dip=dip))
+            inserted = True
+            break
+        if not inserted:
+            break
+
+    w_inv = report.waypoint_inverse_condition
+    wt = traj.waypoint_times
+    user_idx = np.array([i for i, nd in enumerate(nodes) if nd[1] is not None])
+    still = set()
+    for s in range(len(nodes) - 1):
+        if w_inv[s] < thr or w_inv[s + 1] < thr:
+            continue
+        mask = (t >= wt[s]) & (t <= wt[s + 1])
+        if mask.any() and float(np.min(inv[mask])) < thr:
+            still.add(nodes[s][2])
+    user_idx.setflags(write=False)
+    return SingularityAwarePlan(
+        trajectory=traj,
+        report=report,
+        waypoint_indices=user_idx,
+        detours=tuple(detours),
+        unresolved=tuple(sorted(still)),
+    )
