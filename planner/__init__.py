@@ -5,6 +5,8 @@ trajectory -> samples / servo commands. SI units throughout (m, rad, s).
 """
 
 from planner.app.motion_plan import MotionPlan, load_motion_request, parse_motion_request, plan_motion
+from planner.core.rotations import quaternion_to_matrix, rotation_error, rpy_to_matrix
+from planner.core.units import servo_speed_to_velocity
 from planner.exceptions import (
     InvalidArgumentError,
     InvalidConfigurationError,
@@ -25,20 +27,13 @@ from planner.export.servo import (
     steps_to_angle,
 )
 from planner.geometry.sensing import range_bearing_to_base
-from planner.geometry.target import (
-    Target,
-    approach_pitch,
-    pitch_error,
-    quaternion_to_matrix,
-    rotation_error,
-    rpy_to_matrix,
-)
+from planner.geometry.target import Target, approach_pitch, pitch_error
 from planner.ik.analytic import AnalyticBatchResult, AnalyticIK, AnalyticResult, AnalyticSolution, solve_analytic
 from planner.ik.numeric.kinematics import CasadiKinematics
 from planner.ik.numeric.solver import IKResult, NlpIK
 from planner.ik.solve import CrossCheck, cross_check, solve_ik
 from planner.model.catalog import available_robots, load_robot
-from planner.model.description import dh_transform, load_arm_description, servo_speed_to_velocity, urdf_from_dh
+from planner.model.description import dh_transform, load_arm_description, urdf_from_dh
 from planner.model.robot import Robot
 from planner.motion.singularity import check_singularities, plan_clear_of_singularities
 from planner.motion.trajectory import JointLimits, JointTrajectory, plan_trajectory

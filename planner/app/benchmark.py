@@ -26,7 +26,8 @@ import casadi as ca
 import numpy as np
 
 from planner.app.progress import progress
-from planner.geometry.target import Target, approach_pitch, rotation_error
+from planner.core.rotations import rotation_error
+from planner.geometry.target import Target, approach_pitch
 from planner.ik.numeric.kinematics import CasadiKinematics
 from planner.ik.numeric.solver import NlpIK, target_errors
 from planner.ik.solve import analytic_solver, compare

@@ -37,7 +37,8 @@ from typing import Any
 
 import numpy as np
 
-from planner.core.files import ANGLE_UNITS, LENGTH_UNITS, read_data_file
+from planner.core.files import read_data_file
+from planner.core.units import ANGLE_UNITS, LENGTH_UNITS
 from planner.exceptions import InvalidArgumentError
 from planner.export.servo import ServoCalibration, default_calibrations
 from planner.geometry.target import Target

@@ -3,18 +3,12 @@
 from __future__ import annotations
 
 import json
-import math
 from pathlib import Path
 from typing import Any
 
 from planner.exceptions import InvalidArgumentError
 
-__all__ = ["ANGLE_UNITS", "LENGTH_UNITS", "read_data_file"]
-
-#: Length units an input file may declare, in metres.
-LENGTH_UNITS = {"m": 1.0, "cm": 0.01, "mm": 0.001, "in": 0.0254}
-#: Angle units an input file may declare, in radians.
-ANGLE_UNITS = {"rad": 1.0, "deg": math.pi / 180.0}
+__all__ = ["read_data_file"]
 
 
 def read_data_file(path: str | Path, what: str) -> Any:

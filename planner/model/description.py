@@ -34,7 +34,9 @@ from xml.sax.saxutils import escape
 
 import numpy as np
 
-from planner.core.files import ANGLE_UNITS, LENGTH_UNITS, read_data_file
+from planner.core.files import read_data_file
+from planner.core.rotations import matrix_to_rpy, rpy_to_matrix
+from planner.core.units import ANGLE_UNITS, LENGTH_UNITS, servo_speed_to_velocity
 from planner.exceptions import InvalidArgumentError, InvalidLimitsError
 
 __all__ = [
@@ -70,26 +72,6 @@ def dh_transform(theta: float, d: float, a: float, alpha: float) -> np.ndarray:
             [0.0, 0.0, 0.0, 1.0],
         ]
     )
-
-
-def servo_speed_to_velocity(seconds: float, degrees: float = 60.0) -> float:
-    """Convert a hobby-servo speed rating ("0.20 s per 60 deg") to a joint speed.
-
-    Args:
-        seconds: Time the servo takes for `degrees` of travel [s].
-        degrees: Travel the rating refers to [deg].
-
-    Returns:
-        The angular speed [rad/s].
-
-    Raises:
-        InvalidLimitsError: If either number is not finite and positive.
-    """
-    if not (math.isfinite(seconds) and seconds > 0.0):
-        raise InvalidLimitsError(f"servo speed time must be positive and finite, got {seconds!r} s", value=seconds)
-    if not (math.isfinite(degrees) and degrees > 0.0):
-        raise InvalidLimitsError(f"servo speed travel must be positive and finite, got {degrees!r} deg", value=degrees)
-    return math.radians(degrees) / seconds
 
 
 def load_arm_description(path: str | Path) -> dict[str, Any]:
@@ -137,33 +119,9 @@ def _vector(value: Any, what: str, scale: float) -> np.ndarray:
     return np.array([_number(v, what) * scale for v in value])
 
 
-def _rpy_matrix(rpy: np.ndarray) -> np.ndarray:
-    r, p, y = rpy
-    cr, sr, cp, sp, cy, sy = math.cos(r), math.sin(r), math.cos(p), math.sin(p), math.cos(y), math.sin(y)
-    return np.array(
-        [
-            [cy * cp, cy * sp * sr - sy * cr, cy * sp * cr + sy * sr],
-            [sy * cp, sy * sp * sr + cy * cr, sy * sp * cr - cy * sr],
-            [-sp, cp * sr, cp * cr],
-        ]
-    )
-
-
-def _matrix_rpy(rot: np.ndarray) -> tuple[float, float, float]:
-    # URDF rpy: R = Rz(yaw) Ry(pitch) Rx(roll).
-    pitch = math.atan2(-rot[2, 0], math.hypot(rot[0, 0], rot[1, 0]))
-    if math.hypot(rot[0, 0], rot[1, 0]) < 1e-12:
-        roll = 0.0
-        yaw = math.atan2(-rot[0, 1], rot[1, 1])
-    else:
-        roll = math.atan2(rot[2, 1], rot[2, 2])
-        yaw = math.atan2(rot[1, 0], rot[0, 0])
-    return roll, pitch, yaw
-
-
 def _pose(xyz: np.ndarray, rpy: np.ndarray) -> np.ndarray:
     t = np.eye(4)
-    t[:3, :3] = _rpy_matrix(rpy)
+    t[:3, :3] = rpy_to_matrix(rpy)
     t[:3, 3] = xyz
     return t
 
@@ -263,7 +221,7 @@ def _fmt(x: float) -> str:
 
 def _origin_xml(t: np.ndarray) -> str:
     xyz = " ".join(_fmt(v) for v in t[:3, 3])
-    rpy = " ".join(_fmt(v) for v in _matrix_rpy(t[:3, :3]))
+    rpy = " ".join(_fmt(v) for v in matrix_to_rpy(t[:3, :3]))
     return f'<origin xyz="{xyz}" rpy="{rpy}"/>'
 
 

@@ -56,8 +56,8 @@ import numpy as np
 from ruckig import ControlInterface, InputParameter, Result, Ruckig, Synchronization
 from ruckig import Trajectory as _RuckigTrajectory
 
+from planner.core.units import servo_speed_to_velocity
 from planner.exceptions import InvalidArgumentError, InvalidConfigurationError, InvalidLimitsError, JointLimitError
-from planner.model.description import servo_speed_to_velocity
 
 if TYPE_CHECKING:
     from planner.model.robot import Robot

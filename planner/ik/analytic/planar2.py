@@ -26,9 +26,10 @@ from collections.abc import Sequence
 
 import numpy as np
 
+from planner.core.rotations import rotation_error
 from planner.exceptions import UnsupportedChainError
 from planner.geometry.chain import ChainAtZero, describe_violation, poe_fk, wrap_array, wrap_scalar
-from planner.geometry.target import Target, rotation_error
+from planner.geometry.target import Target
 from planner.ik.analytic.base import AnalyticIK, _angle_to_line
 from planner.ik.analytic.result import (
     STATUS_BEYOND_MAX_REACH,

@@ -81,9 +81,10 @@ from collections.abc import Sequence
 
 import numpy as np
 
+from planner.core.rotations import rotation_error
 from planner.exceptions import UnsupportedChainError
 from planner.geometry.chain import ChainAtZero, describe_violation, poe_fk, rotation_about, wrap_array, wrap_scalar
-from planner.geometry.target import Target, _pitch_error_one, approach_pitch, pitch_error, rotation_error
+from planner.geometry.target import Target, _pitch_error_one, approach_pitch, pitch_error
 from planner.ik.analytic.base import FAMILY_ANGLE_TOL, AnalyticIK, _angle_to_line, _angle_to_plane
 from planner.ik.analytic.result import (
     STATUS_BEYOND_MAX_REACH,
