@@ -15,8 +15,9 @@ from test_casadi_kinematics import MIXED_URDF
 from planner import InvalidArgumentError, InvalidConfigurationError, JointLimitError, PlannerError, Robot, Target
 from planner.app.benchmark import make_target
 from planner.core.rotations import rotation_error
-from planner.geometry.target import approach_direction, pitch_error
-from planner.ik.numeric.solver import IKResult, NlpIK, as_target, compile_function, target_errors
+from planner.geometry.target import approach_direction, as_target, pitch_error, target_errors
+from planner.ik.numeric.solver import NlpIK, compile_function
+from planner.ik.result import IKResult
 
 from conftest import get_robot, needs_example_robot_data
 

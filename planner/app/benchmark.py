@@ -27,9 +27,9 @@ import numpy as np
 
 from planner.app.progress import progress
 from planner.core.rotations import rotation_error
-from planner.geometry.target import Target, approach_pitch
+from planner.geometry.target import Target, approach_pitch, target_errors
 from planner.ik.numeric.kinematics import CasadiKinematics
-from planner.ik.numeric.solver import NlpIK, target_errors
+from planner.ik.numeric.solver import NlpIK
 from planner.ik.solve import analytic_solver, compare
 from planner.model.catalog import BUNDLED_ROBOTS, load_robot
 

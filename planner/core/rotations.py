@@ -6,6 +6,7 @@ does the arithmetic, this module adds input checks that name the bad value.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
 
 import numpy as np
@@ -104,6 +105,12 @@ def rotation_error(rotation_a: np.ndarray, rotation_b: np.ndarray) -> np.ndarray
         A float, or shape (N,) for batches.
     """
     rel = np.swapaxes(rotation_a, -1, -2) @ rotation_b
+    if rel.shape == (3, 3):  # the common single case without array temporaries
+        cos = 0.5 * (rel[0, 0] + rel[1, 1] + rel[2, 2] - 1.0)
+        sin = 0.5 * math.sqrt(
+            (rel[2, 1] - rel[1, 2]) ** 2 + (rel[0, 2] - rel[2, 0]) ** 2 + (rel[1, 0] - rel[0, 1]) ** 2
+        )
+        return math.atan2(sin, min(1.0, max(-1.0, float(cos))))
     cos = (np.trace(rel, axis1=-2, axis2=-1) - 1.0) / 2.0
     # arccos loses precision near 0; the antisymmetric part keeps small angles accurate.
     skew = np.stack(

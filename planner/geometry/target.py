@@ -30,11 +30,15 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from planner.core.rotations import check_rotation, finite_vector, quaternion_to_matrix, rpy_to_matrix
+from planner.core.rotations import check_rotation, finite_vector, quaternion_to_matrix, rotation_error, rpy_to_matrix
 from planner.exceptions import InvalidArgumentError
+from planner.model.robot import Robot
 
 __all__ = [
     "Target",
+    "as_target",
+    "target_errors",
+    "tip_errors",
     "approach_direction",
     "approach_pitch",
     "pitch_error",
@@ -213,3 +217,58 @@ class Target:
         if self.rotation is not None:
             return "pose"
         return "pitch" if self.pitch is not None else "position"
+
+
+def as_target(target: Target | Sequence[float] | np.ndarray) -> Target:
+    """A :class:`Target` from a Target, a position (3,) [m] or a homogeneous pose (4, 4) [m].
+
+    Raises:
+        InvalidArgumentError: For another shape, NaN or infinite values, or a rotation that is
+            not orthonormal (the :class:`Target` checks).
+    """
+    if isinstance(target, Target):
+        return target
+    try:
+        arr = np.asarray(target, dtype=float)
+    except (TypeError, ValueError) as exc:
+        raise InvalidArgumentError(
+            f"target must be a planner.Target, a position (3,) or a pose (4, 4), got {target!r}"
+        ) from exc
+    if arr.shape == (3,):
+        return Target(arr)
+    if arr.shape == (4, 4):
+        return Target.from_pose(arr)
+    raise InvalidArgumentError(
+        f"target must be a planner.Target, a position (3,) or a pose (4, 4), got shape {arr.shape}"
+    )
+
+
+def tip_errors(
+    target: Target, position: np.ndarray, rotation: np.ndarray, approach_axis: np.ndarray
+) -> tuple[float, float]:
+    """Position [m] and orientation [rad] errors of a tip pose (see :func:`target_errors`)."""
+    d = position - target.position
+    position_error = math.sqrt(float(d @ d))
+    if target.rotation is not None:
+        return position_error, rotation_error(rotation, target.rotation)
+    if target.pitch is not None:
+        return position_error, pitch_error(rotation @ approach_axis, target.position, target.pitch)
+    return position_error, 0.0
+
+
+def target_errors(robot: Robot, target: Target, q: Sequence[float] | np.ndarray) -> tuple[float, float]:
+    """Position and orientation errors of a configuration for a target, by Pinocchio FK.
+
+    Args:
+        robot: The robot.
+        target: The target.
+        q: Shape (dof,) [rad or m].
+
+    Returns:
+        ``(position_error [m], orientation_error [rad])``. The orientation error is the
+        rotation angle to the target rotation for a pose target; for a pitch target,
+        :func:`planner.geometry.target.pitch_error` of the tip's approach axis (the angle to the nearest
+        direction with the target's approach pitch); 0 for a position target.
+    """
+    pose = robot.fk(q)
+    return tip_errors(target, pose[:3, 3], pose[:3, :3], robot.approach_axis)

@@ -24,8 +24,9 @@ from typing import Literal
 import numpy as np
 
 from planner.exceptions import InvalidArgumentError, UnsupportedChainError
-from planner.geometry.target import Target
-from planner.ik.numeric.solver import IKResult, NlpIK, as_target, target_errors
+from planner.geometry.target import Target, as_target, target_errors
+from planner.ik.numeric.solver import NlpIK
+from planner.ik.result import IKResult
 from planner.model.robot import Robot
 
 __all__ = [

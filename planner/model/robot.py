@@ -17,6 +17,7 @@ from typing import Literal
 import numpy as np
 import pinocchio as pin
 
+from planner.core.arrays import read_only
 from planner.exceptions import (
     InvalidArgumentError,
     InvalidConfigurationError,
@@ -25,6 +26,7 @@ from planner.exceptions import (
     UnknownFrameError,
     URDFError,
 )
+from planner.model.derived import DerivedCache
 
 __all__ = ["Robot", "Task"]
 
@@ -33,12 +35,6 @@ Task = Literal["position", "pose"]
 _REVOLUTE = ("JointModelRX", "JointModelRY", "JointModelRZ", "JointModelRevoluteUnaligned")
 _CONTINUOUS = ("JointModelRUBX", "JointModelRUBY", "JointModelRUBZ", "JointModelRevoluteUnboundedUnaligned")
 _PRISMATIC = ("JointModelPX", "JointModelPY", "JointModelPZ", "JointModelPrismaticUnaligned")
-
-
-def _read_only(a: np.ndarray) -> np.ndarray:
-    out = np.array(a, dtype=float, copy=True)
-    out.setflags(write=False)
-    return out
 
 
 def _validate_urdf(text: str, source: str) -> None:
@@ -147,6 +143,8 @@ class Robot:
         approach_axis: Unit approach axis of the tip, in tip-frame coordinates, read-only.
         tip_frame_id: Pinocchio frame index of the tip.
         urdf: The URDF text the robot was built from.
+        derived: Objects built from this robot by higher layers (its IK solvers), kept for
+            reuse and freed with the robot (:class:`~planner.model.derived.DerivedCache`).
     """
 
     def __init__(
@@ -220,7 +218,7 @@ class Robot:
         axis = np.asarray(approach_axis, dtype=float)
         if axis.shape != (3,) or not np.all(np.isfinite(axis)) or np.linalg.norm(axis) == 0.0:
             raise InvalidArgumentError(f"approach_axis must be a non-zero 3-vector, got {approach_axis!r}")
-        self.approach_axis = _read_only(axis / np.linalg.norm(axis))
+        self.approach_axis = read_only(axis / np.linalg.norm(axis))
 
         kinds, lower, upper = [], [], []
         for jid in range(1, model.njoints):
@@ -244,11 +242,12 @@ class Robot:
                     "only revolute, continuous and prismatic joints are supported on the chain"
                 )
         self.joint_kinds: tuple[str, ...] = tuple(kinds)
-        self._lower = _read_only(np.array(lower))
-        self._upper = _read_only(np.array(upper))
-        self._velocity = _read_only(model.velocityLimit)
+        self._lower = read_only(np.array(lower))
+        self._upper = read_only(np.array(upper))
+        self._velocity = read_only(model.velocityLimit)
         self._has_continuous = "continuous" in kinds
         self._idx_q = [model.joints[j].idx_q for j in range(1, model.njoints)]
+        self.derived = DerivedCache()
 
     @classmethod
     def from_urdf(

@@ -54,7 +54,6 @@ import tempfile
 import time
 import warnings
 from collections.abc import Sequence
-from dataclasses import dataclass
 from pathlib import Path
 
 import casadi as ca
@@ -62,18 +61,16 @@ import numpy as np
 import pinocchio as pin
 
 from planner.exceptions import InvalidArgumentError, InvalidConfigurationError
-from planner.geometry.target import RADIAL_EPS, Target, pitch_error
+from planner.geometry.target import RADIAL_EPS, Target, as_target, tip_errors
 from planner.ik.numeric.kinematics import CasadiKinematics
+from planner.ik.result import IKResult
 from planner.model.robot import Robot, Task
 
 __all__ = [
     "ATTEMPT_KINDS",
-    "IKResult",
     "NlpIK",
-    "as_target",
     "casadi_cache_dir",
     "compile_function",
-    "target_errors",
 ]
 
 #: Where an attempt's starting configuration came from, in the order they are tried.
@@ -92,95 +89,7 @@ _SCALES = (0.25, 0.5, 0.12)
 _RANDOM_POOL = 64  # random seeds drawn once per solver for calls without an rng
 
 
-# ------------------------------------------------------------------------------------ results
-@dataclass(frozen=True)
-class IKResult:
-    """Outcome of a numerical IK call.
-
-    Attributes:
-        q: Joint values, shape (dof,) [rad or m], read-only, always within the joint limits
-            (the best attempt when unsuccessful); continuous joints in [-pi, pi), except with
-            ``near_seed``, which takes every angle nearest the seed.
-        success: Whether the target is reached within the tolerances (and the manipulability
-            floor is met, when one was asked for).
-        status: ``"solved"``; ``"not_converged"`` (no attempt reached the target: it may be
-            out of reach); or ``"below_manipulability_floor"`` (reached, but by no solution
-            found above the floor).
-        reason: Why, in a sentence.
-        position_error: Distance of the tip from the target by Pinocchio FK [m].
-        orientation_error: By Pinocchio FK [rad]: the rotation angle to the target rotation for
-            a pose, :func:`planner.geometry.target.pitch_error` of the approach axis for a pitch target,
-            0 for a position target.
-        iterations: Gauss-Newton iterations run per seed, summed over batches, plus IPOPT's.
-        attempts: Seeds tried.
-        attempt: Index (0-based, in the order tried) of the attempt whose answer is returned
-            when successful, else None.
-        attempt_kind: ``"seed"``, ``"closed_form"`` or ``"random"`` for that attempt, else None.
-        wall_time: Time spent in the call [s].
-        method: ``"nlp"``.
-    """
-
-    q: np.ndarray
-    success: bool
-    status: str
-    reason: str
-    position_error: float
-    orientation_error: float
-    iterations: int
-    attempts: int
-    attempt: int | None
-    attempt_kind: str | None
-    wall_time: float
-    method: str = "nlp"
-
-    def __post_init__(self) -> None:
-        q = np.array(self.q, dtype=float, copy=True)
-        q.setflags(write=False)
-        object.__setattr__(self, "q", q)
-
-    def as_dict(self) -> dict:
-        """A JSON-ready mapping (``q`` as a list, the wall time as ``time_ms``)."""
-        return {
-            "method": self.method,
-            "success": self.success,
-            "status": self.status,
-            "reason": self.reason,
-            "q": self.q.tolist(),
-            "position_error": self.position_error,
-            "orientation_error": self.orientation_error,
-            "iterations": self.iterations,
-            "attempts": self.attempts,
-            "attempt": self.attempt,
-            "attempt_kind": self.attempt_kind,
-            "time_ms": self.wall_time * 1e3,
-        }
-
-
 # ------------------------------------------------------------------------------------ targets
-def as_target(target: Target | Sequence[float] | np.ndarray) -> Target:
-    """A :class:`Target` from a Target, a position (3,) [m] or a homogeneous pose (4, 4) [m].
-
-    Raises:
-        InvalidArgumentError: For another shape, NaN or infinite values, or a rotation that is
-            not orthonormal (the :class:`Target` checks).
-    """
-    if isinstance(target, Target):
-        return target
-    try:
-        arr = np.asarray(target, dtype=float)
-    except (TypeError, ValueError) as exc:
-        raise InvalidArgumentError(
-            f"target must be a planner.Target, a position (3,) or a pose (4, 4), got {target!r}"
-        ) from exc
-    if arr.shape == (3,):
-        return Target(arr)
-    if arr.shape == (4, 4):
-        return Target.from_pose(arr)
-    raise InvalidArgumentError(
-        f"target must be a planner.Target, a position (3,) or a pose (4, 4), got shape {arr.shape}"
-    )
-
-
 def _outward(target: Target) -> np.ndarray:
     """Unit horizontal direction the approach axis of a pitch target must not point against.
 
@@ -194,42 +103,6 @@ def _outward(target: Target) -> np.ndarray:
         return np.zeros(3)
     sign = 1.0 if cos_p > 0.0 else -1.0
     return np.array([sign * x / radial, sign * y / radial, 0.0])
-
-
-def _errors(
-    target: Target, position: np.ndarray, rotation: np.ndarray, approach_axis: np.ndarray
-) -> tuple[float, float]:
-    """Position [m] and orientation [rad] errors of a tip pose (see :func:`target_errors`)."""
-    d = position - target.position
-    position_error = math.sqrt(float(d @ d))
-    if target.rotation is not None:
-        rel = rotation.T @ target.rotation
-        cos = 0.5 * (rel[0, 0] + rel[1, 1] + rel[2, 2] - 1.0)
-        sin = 0.5 * math.sqrt(
-            (rel[2, 1] - rel[1, 2]) ** 2 + (rel[0, 2] - rel[2, 0]) ** 2 + (rel[1, 0] - rel[0, 1]) ** 2
-        )
-        return position_error, math.atan2(sin, min(1.0, max(-1.0, cos)))
-    if target.pitch is not None:
-        return position_error, pitch_error(rotation @ approach_axis, target.position, target.pitch)
-    return position_error, 0.0
-
-
-def target_errors(robot: Robot, target: Target, q: Sequence[float] | np.ndarray) -> tuple[float, float]:
-    """Position and orientation errors of a configuration for a target, by Pinocchio FK.
-
-    Args:
-        robot: The robot.
-        target: The target.
-        q: Shape (dof,) [rad or m].
-
-    Returns:
-        ``(position_error [m], orientation_error [rad])``. The orientation error is the
-        rotation angle to the target rotation for a pose target; for a pitch target,
-        :func:`planner.geometry.target.pitch_error` of the tip's approach axis (the angle to the nearest
-        direction with the target's approach pitch); 0 for a position target.
-    """
-    pose = robot.fk(q)
-    return _errors(target, pose[:3, 3], pose[:3, :3], robot.approach_axis)
 
 
 # ------------------------------------------------------------------------------------ compilation
@@ -547,7 +420,7 @@ class NlpIK:
 
     def _errors(self, target: Target, q: np.ndarray) -> tuple[float, float]:
         position, rotation = self._pose(q)
-        return _errors(target, position, rotation, self._axis)
+        return tip_errors(target, position, rotation, self._axis)
 
     # -------------------------------------------------------------------- IPOPT polish
     def _task_equalities(self, kind: str, q: ca.SX, par: ca.SX) -> ca.SX:

@@ -1,0 +1,128 @@
+"""The one result type of :func:`planner.solve_ik`, whatever the method.
+
+An :class:`IKResult` holds the chosen answer (``q``, ``success``, ``status``, errors by Pinocchio
+forward kinematics, the method, timing) and, where the method yields several, all solutions
+found (:class:`IKSolution`: the closed form's branches, or the NLP's distinct converged
+answers), each marked within the joint limits or not, sorted by joint distance to the seed.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from planner.core.arrays import read_only
+from planner.ik.status import IKStatus
+
+__all__ = ["IKResult", "IKSolution"]
+
+
+@dataclass(frozen=True)
+class IKSolution:
+    """One configuration that reaches the target (possibly outside the joint limits).
+
+    Attributes:
+        q: Joint values, shape (dof,) [rad or m], read-only.
+        within_limits: Whether every joint lies within its range.
+        label: Where it came from: the closed-form branch (``"front/elbow-up"``), or the NLP
+            attempt's kind (``"seed"``, ``"closed_form"``, ``"random"``).
+        position_error: Distance of the tip from the target by Pinocchio FK [m].
+        orientation_error: Orientation error by Pinocchio FK [rad] (0 for a position target).
+        distance: Joint distance to the seed [rad, m mixed; angles modulo 2 pi], or None
+            without a seed.
+        singular: Whether the configuration is at a singularity, where the method tells
+            (closed form), else None.
+    """
+
+    q: np.ndarray
+    within_limits: bool
+    label: str
+    position_error: float
+    orientation_error: float
+    distance: float | None = None
+    singular: bool | None = None
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "q", read_only(self.q))
+
+    def as_dict(self) -> dict:
+        """A JSON-ready mapping."""
+        return {
+            "q": self.q.tolist(),
+            "within_limits": self.within_limits,
+            "label": self.label,
+            "position_error": self.position_error,
+            "orientation_error": self.orientation_error,
+            "distance": self.distance,
+            "singular": self.singular,
+        }
+
+
+@dataclass(frozen=True)
+class IKResult:
+    """Outcome of an IK call.
+
+    Attributes:
+        q: Joint values, shape (dof,) [rad or m], read-only, always within the joint limits:
+            the answer when successful, else the best attempt (NLP) or the seed (closed form,
+            when no solution lies within the limits; the solutions are in ``solutions``).
+        success: Whether the target is reached within the tolerances, within the limits (and
+            above the manipulability floor, when one was asked for).
+        status: The outcome (:class:`~planner.ik.status.IKStatus`, a ``str``).
+        reason: Why, in a sentence.
+        position_error: Distance of the tip from the target by Pinocchio FK [m].
+        orientation_error: By Pinocchio FK [rad]: the rotation angle to the target rotation for
+            a pose, :func:`planner.geometry.target.pitch_error` of the approach axis for a pitch
+            target, 0 for a position target.
+        iterations: Iterations run (NLP; 0 for the closed form).
+        attempts: Seeds tried (NLP) or solutions found (closed form).
+        attempt: Index of the attempt (NLP) or of the solution in the closed form's branch order
+            whose answer is returned when successful, else None.
+        attempt_kind: ``"seed"``, ``"closed_form"`` or ``"random"`` for that attempt, else None.
+        wall_time: Time spent in the call [s].
+        method: ``"analytic"`` or ``"nlp"``: which solver answered.
+        solutions: Every solution found, within limits or not, nearest to the seed first.
+    """
+
+    q: np.ndarray
+    success: bool
+    status: IKStatus
+    reason: str
+    position_error: float
+    orientation_error: float
+    iterations: int
+    attempts: int
+    attempt: int | None
+    attempt_kind: str | None
+    wall_time: float
+    method: str = "nlp"
+    solutions: tuple[IKSolution, ...] = field(default=())
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "q", read_only(self.q))
+        object.__setattr__(self, "status", IKStatus(self.status))
+        object.__setattr__(self, "solutions", tuple(self.solutions))
+
+    @property
+    def within_limits(self) -> tuple[IKSolution, ...]:
+        """The solutions within the joint limits, nearest to the seed first."""
+        return tuple(s for s in self.solutions if s.within_limits)
+
+    def as_dict(self) -> dict:
+        """A JSON-ready mapping (``q`` as a list, the wall time as ``time_ms``)."""
+        return {
+            "method": self.method,
+            "success": self.success,
+            "status": self.status.value,
+            "reason": self.reason,
+            "q": self.q.tolist(),
+            "position_error": self.position_error,
+            "orientation_error": self.orientation_error,
+            "iterations": self.iterations,
+            "attempts": self.attempts,
+            "attempt": self.attempt,
+            "attempt_kind": self.attempt_kind,
+            "time_ms": self.wall_time * 1e3,
+            "solutions": [s.as_dict() for s in self.solutions],
+        }
