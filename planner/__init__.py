@@ -31,6 +31,7 @@ from planner.geometry.target import Target, approach_pitch, pitch_error
 from planner.ik.analytic import AnalyticBatchResult, AnalyticIK, AnalyticResult, AnalyticSolution, solve_analytic
 from planner.ik.numeric.kinematics import CasadiKinematics
 from planner.ik.numeric.solver import NlpIK
+from planner.ik.options import IKOptions
 from planner.ik.result import IKResult, IKSolution
 from planner.ik.solve import CrossCheck, cross_check, solve_ik
 from planner.ik.status import IKStatus
@@ -69,6 +70,7 @@ __all__ = [
     "AnalyticBatchResult",
     # numerical IK, dispatcher and cross-check
     "NlpIK",
+    "IKOptions",
     "IKResult",
     "IKSolution",
     "IKStatus",
