@@ -28,12 +28,13 @@ from planner.export.servo import (
 )
 from planner.geometry.sensing import range_bearing_to_base
 from planner.geometry.target import Target, approach_pitch, pitch_error
-from planner.ik.analytic import AnalyticBatchResult, AnalyticIK, AnalyticResult, AnalyticSolution, solve_analytic
+from planner.ik.analytic import AnalyticBatchResult, AnalyticIK, AnalyticResult, AnalyticSolution
+from planner.ik.cross_check import CrossCheck, cross_check
 from planner.ik.numeric.kinematics import CasadiKinematics
 from planner.ik.numeric.solver import NlpIK
 from planner.ik.options import IKOptions
 from planner.ik.result import IKResult, IKSolution
-from planner.ik.solve import CrossCheck, cross_check, solve_ik
+from planner.ik.solve import solve_analytic, solve_ik
 from planner.ik.status import IKStatus
 from planner.model.catalog import available_robots, load_robot
 from planner.model.description import dh_transform, load_arm_description, urdf_from_dh

@@ -240,15 +240,17 @@ def test_status_names_and_codes():
 def test_public_names_resolve():
     for name in analytic.__all__:
         assert getattr(analytic, name) is not None
-    for name in ("AnalyticIK", "solve_analytic", "AnalyticResult", "AnalyticSolution", "AnalyticBatchResult"):
+    for name in ("AnalyticIK", "AnalyticResult", "AnalyticSolution", "AnalyticBatchResult"):
         assert name in planner.__all__ and getattr(planner, name) is getattr(analytic, name)
+    assert "solve_analytic" in planner.__all__  # a thin wrapper of solve_ik
 
 
 def test_solve_analytic_matches_the_solver(robots, solvers):
     target = Target(fk_position(robots["three_joint"], [0.3, 0.8, -0.6, 0.2]), pitch=-0.3)
     a = solve_analytic(robots["three_joint"], target)
     b = solvers["three_joint"].solve(target)
-    assert [s.branch for s in a.solutions] == [s.branch for s in b.solutions]
+    assert a.method == "analytic"
+    assert [s.label for s in a.solutions] == [s.branch for s in b.solutions]
     for sa, sb in zip(a.solutions, b.solutions):
         np.testing.assert_array_equal(sa.q, sb.q)
 

@@ -25,11 +25,11 @@ def test_ik_json_best_solution(capsys):
     code, out, err = run(capsys, "ik", "dh3", repr(x), repr(y), repr(z), "--json")
     assert code == 0 and err == ""
     data = json.loads(out)
-    assert data["status"] == "ok" and data["method"] == "analytic"
-    assert len(data["solutions"]) == 1  # without --all: the best one
+    assert data["status"] == "solved" and data["method"] == "analytic" and data["success"]
+    assert len(data["solutions"]) == 1 and data["best"] == 0  # without --all: the chosen one
     sol = data["solutions"][0]
-    assert set(sol) >= {"q", "position_error", "status", "branch", "within_limits", "singular"}
-    assert sol["status"] == "ok" and sol["within_limits"]
+    assert set(sol) >= {"q", "position_error", "orientation_error", "label", "within_limits", "singular", "distance"}
+    assert sol["within_limits"] and sol["q"] == data["q"]
     np.testing.assert_allclose(sol["q"], q, atol=1e-12)
     assert np.linalg.norm(robot.fk(sol["q"])[:3, 3] - [x, y, z]) < 1e-9
 
@@ -43,7 +43,7 @@ def test_ik_all_with_pitch_in_degrees(capsys):
     robot = load_robot("al5c")
     for sol in data["solutions"]:
         assert np.linalg.norm(robot.fk(sol["q"])[:3, 3] - [0.25, 0.05, 0.12]) < 1e-9
-        assert sum(sol["q"][1:4]) == pytest.approx(math.radians(-60)) or sol["branch"].startswith("back")
+        assert sum(sol["q"][1:4]) == pytest.approx(math.radians(-60)) or sol["label"].startswith("back")
 
 
 def test_ik_rpy_target(capsys):
@@ -59,7 +59,7 @@ def test_ik_rpy_target(capsys):
     x, y, z = pose[:3, 3].tolist()
     code, out, _ = run(capsys, "ik", "three_joint", repr(x), repr(y), repr(z), "--rpy", *map(repr, rpy), "--json")
     data = json.loads(out)
-    assert code == 0 and data["status"] == "ok"
+    assert code == 0 and data["status"] == "solved"
     np.testing.assert_allclose(data["solutions"][0]["q"], q, atol=1e-9)
     assert data["solutions"][0]["orientation_error"] < 1e-9
 
@@ -83,13 +83,13 @@ def test_ik_outside_limits_prints_none_without_all(capsys):
 def test_ik_current_orders_the_solutions(capsys):
     code, out, _ = run(capsys, "ik", "shelley", "0.15", "0", "0", "--all", "--json", "--current", "-30", "60", "--deg")
     sols = json.loads(out)["solutions"]
-    assert sols[0]["branch"] == "elbow-right"
+    assert sols[0]["label"] == "elbow-right"
 
 
 def test_ik_text_output(capsys):
     code, out, _ = run(capsys, "ik", "dh3", "0.11", "0", "0.09", "--deg", "--all")
     assert code == 0
-    assert "dh3 analytic IK" in out and ": ok" in out
+    assert "dh3 analytic IK" in out and ": solved" in out
     assert "front/elbow-up" in out and "q [deg]" in out
 
 
@@ -113,5 +113,7 @@ def test_ik_outside_the_family_exits_1(capsys):
 
     if example_robot_data_dir() is None:
         pytest.skip("example-robot-data is not installed")
-    code, _, err = run(capsys, "ik", "ur5", "0.3", "0.1", "0.2")
+    code, _, err = run(capsys, "ik", "ur5", "0.3", "0.1", "0.2", "--method", "analytic")
     assert code == 1 and "wrist_3_joint" in err
+    code, out, err = run(capsys, "ik", "ur5", "0.3", "0.1", "0.2", "--json")  # the default, auto: the NLP
+    assert code == 0 and err == "" and json.loads(out)["method"] == "nlp"

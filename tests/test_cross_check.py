@@ -10,9 +10,13 @@ import numpy as np
 import pytest
 from test_nlp_ik import make_target
 
-from planner import InvalidArgumentError, Target, UnsupportedChainError
+from planner import IKOptions, InvalidArgumentError, Target, UnsupportedChainError
+from planner.geometry.joint_space import joint_distance
 from planner.geometry.target import approach_direction, approach_pitch
-from planner.ik.solve import CrossCheck, analytic_solver, cross_check, joint_distance, nlp_solver, solve_ik, task_rank
+from planner.ik.cross_check import CrossCheck, cross_check
+from planner.ik.solve import solve_ik
+from planner.ik.solvers import IKSolvers
+from planner.ik.task import task_rank
 
 from conftest import HAVE_EXAMPLE_ROBOT_DATA, get_robot, needs_example_robot_data
 
@@ -40,7 +44,7 @@ def sweep(name: str, kind: str, n: int, seed: int) -> list[CrossCheck]:
     rng = np.random.default_rng(seed)
     checks = []
     for q, q_seed in zip(robot.random_configurations(rng, n), robot.random_configurations(rng, n)):
-        check = cross_check(robot, make_target(robot, kind, q), q_seed, time_budget=1.0)
+        check = cross_check(robot, make_target(robot, kind, q), q_seed, options=IKOptions(time_budget=1.0))
         checks.append(check)
     return checks
 
@@ -73,7 +77,7 @@ def test_long_sweep_agrees(name, kind):
         pytest.skip("example-robot-data is not installed")
     checks = sweep(name, kind, 1000, seed=32)
     assert_all_agree(checks)
-    assert all(c.analytic_status == "ok" for c in checks)
+    assert all(c.analytic_status == "solved" for c in checks)
 
 
 def assert_the_closed_form_reaches_what_the_nlp_reaches(checks: list[CrossCheck]) -> None:
@@ -83,7 +87,7 @@ def assert_the_closed_form_reaches_what_the_nlp_reaches(checks: list[CrossCheck]
     assert_all_agree(checks)
     for check in checks:
         assert check.redundant, check.reason
-        assert check.analytic_status == "ok", check.reason
+        assert check.analytic_status == "solved", check.reason
         assert check.verdict == "both_reach" or (check.verdict == "match" and check.joint_distance <= 1e-4)
 
 
@@ -106,10 +110,10 @@ def test_closed_form_finds_a_solution_within_limits_whenever_the_nlp_does(name):
     points = robot.position(robot.random_configurations(rng, 50)) + rng.normal(0.0, 0.04, (50, 3))
     reached = 0
     for point, q_seed in zip(points, robot.random_configurations(rng, 50)):
-        check = cross_check(robot, Target(point), q_seed, max_attempts=64, time_budget=10.0)
+        check = cross_check(robot, Target(point), q_seed, options=IKOptions(max_attempts=64, time_budget=10.0))
         if check.nlp.success:
             reached += 1
-            assert check.analytic_status == "ok", check.reason
+            assert check.analytic_status == "solved", check.reason
         assert check.agree, check.reason
     assert 10 <= reached < 50  # both outcomes occur
 
@@ -144,8 +148,8 @@ def test_closed_form_finds_redundant_solutions_within_limits(name, q_target, q_s
     target = Target(robot.position(np.array(q_target)))
     check = cross_check(robot, target, np.array(q_seed))
     assert check.nlp.success  # reachable within the limits ...
-    assert check.agree and check.analytic_status == "ok", check.reason  # ... so the closed form finds it too
-    result = analytic_solver(robot).solve(target, np.array(q_seed))
+    assert check.agree and check.analytic_status == "solved", check.reason  # ... so the closed form finds it too
+    result = solve_ik(robot, target, np.array(q_seed), method="analytic")
     for sol in result.solutions:
         assert np.linalg.norm(robot.position(sol.q) - target.position) <= 1e-9
         assert sol.within_limits == bool(robot.within_limits(sol.q))
@@ -159,7 +163,7 @@ def test_so101_pitch_target_follows_the_approach_convention():
     q = np.array([-1.591, -0.9187, 1.0183, 0.2725, -2.2181])
     target = make_target(robot, "pitch", q)
     assert target.pitch == pytest.approx(approach_pitch(robot, q))
-    check = cross_check(robot, target, q, time_budget=0.2)
+    check = cross_check(robot, target, q, options=IKOptions(time_budget=0.2))
     assert check.agree and check.verdict in ("match", "both_reach"), check.reason
     assert check.analytic_orientation_error <= 1e-9 and check.nlp.orientation_error <= 1e-6
     literal = approach_direction(target.position, target.pitch)
@@ -171,7 +175,7 @@ def test_so101_pitch_target_follows_the_approach_convention():
 def test_so101_pitch_sweep_agrees():
     checks = sweep("so101", "pitch", 40, seed=37)
     assert_all_agree(checks)
-    assert all(c.analytic_status == "ok" and c.analytic_orientation_error <= 1e-9 for c in checks)
+    assert all(c.analytic_status == "solved" and c.analytic_orientation_error <= 1e-9 for c in checks)
 
 
 def test_near_singular_targets_match():
@@ -184,7 +188,7 @@ def test_near_singular_targets_match():
 
 def test_unreachable_targets_agree_as_unreachable():
     robot = get_robot("shelley")
-    check = cross_check(robot, Target([0.5, 0.0, 0.0]), max_attempts=16)
+    check = cross_check(robot, Target([0.5, 0.0, 0.0]), options=IKOptions(max_attempts=16))
     assert check.agree and check.verdict == "both_unreachable"
     assert check.analytic_status == "beyond_max_reach" and check.nlp.status == "not_converged"
     assert json.loads(json.dumps(check.as_dict()))["verdict"] == "both_unreachable"
@@ -197,7 +201,7 @@ def test_cross_check_reports_errors_of_both():
     assert check.joint_distance <= 1e-4
     assert check.analytic_position_error <= 1e-12 and check.nlp.position_error <= 1e-6
     d = check.as_dict()
-    assert d["nlp_position_error"] == check.nlp.position_error and d["analytic_status"] == "ok"
+    assert d["nlp_position_error"] == check.nlp.position_error and d["analytic_status"] == "solved"
 
 
 @needs_example_robot_data
@@ -245,7 +249,7 @@ def test_nlp_method_starts_from_the_branches():
     target = make_target(robot, "position", np.array([0.5, 0.7, 0.9]))
     result = solve_ik(robot, target, method="nlp")
     assert result.method == "nlp" and result.success and result.attempt_kind == "closed_form"
-    plain = solve_ik(robot, target, method="nlp", closed_form_seeds=False)
+    plain = solve_ik(robot, target, method="nlp", options=IKOptions(closed_form_seeds=False))
     assert plain.success and plain.attempt_kind == "random"
 
 
@@ -278,8 +282,9 @@ def test_analytic_result_for_an_unreachable_target():
 
 def test_solvers_are_built_once_per_robot():
     robot = get_robot("dh3")
-    assert nlp_solver(robot) is nlp_solver(robot)
-    assert analytic_solver(robot) is analytic_solver(robot) is not None
+    assert IKSolvers.of(robot) is IKSolvers.of(robot)
+    assert IKSolvers.of(robot).nlp is IKSolvers.of(robot).nlp
+    assert IKSolvers.of(robot).analytic is IKSolvers.of(robot).analytic is not None
 
 
 def test_cached_solvers_do_not_keep_robots_alive():
@@ -291,8 +296,9 @@ def test_cached_solvers_do_not_keep_robots_alive():
     from planner import Robot
 
     robot = Robot(MIXED_URDF, tip="tool")
-    nlp_solver(robot)
-    analytic_solver(robot)
+    for method in ("auto", "nlp"):
+        solve_ik(robot, robot.position(np.zeros(robot.dof)), method=method)
+    assert IKSolvers in robot.derived
     ref = weakref.ref(robot)
     del robot
     gc.collect()
@@ -306,7 +312,7 @@ def test_bad_method_and_inputs():
     with pytest.raises(InvalidArgumentError, match="target position must be finite"):
         solve_ik(robot, [math.nan, 0.0, 0.1])
     with pytest.raises(InvalidArgumentError, match="time_budget must be a positive finite number"):
-        solve_ik(robot, Target([0.1, 0.0, 0.1]), method="nlp", time_budget=-1.0)
+        solve_ik(robot, Target([0.1, 0.0, 0.1]), method="nlp", options=IKOptions(time_budget=-1.0))
 
 
 # ------------------------------------------------------------------------------ CLI
@@ -318,21 +324,20 @@ def run_ik(capsys, *args: str) -> tuple[int, str, str]:
     return code, out, err
 
 
-def test_cli_nlp_has_the_closed_form_shape_plus_attempts_and_time(capsys):
+def test_cli_methods_answer_in_one_shape(capsys):
     robot = get_robot("dh3")
     q = np.array([0.5, 0.7, 0.9])
     x, y, z = robot.position(q)
-    code, out, _ = run_ik(capsys, "dh3", str(x), str(y), str(z), "--method", "nlp", "--json")
-    assert code == 0
-    nlp = json.loads(out)
-    code, out, _ = run_ik(capsys, "dh3", str(x), str(y), str(z), "--method", "analytic", "--json")
-    analytic = json.loads(out)
-    assert set(nlp) == set(analytic) | {"attempts", "attempt_kind", "iterations", "time_ms"}
-    assert set(nlp["solutions"][0]) == set(analytic["solutions"][0])
-    assert nlp["status"] == "ok" and nlp["method"] == "nlp" and nlp["attempts"] >= 1 and nlp["time_ms"] > 0
-    solution = nlp["solutions"][0]
-    assert solution["within_limits"] and solution["orientation_error"] is None
-    np.testing.assert_allclose(robot.position(solution["q"]), [x, y, z], atol=1e-6)
+    outputs = {}
+    for method in ("auto", "analytic", "nlp"):
+        code, out, _ = run_ik(capsys, "dh3", str(x), str(y), str(z), "--method", method, "--json")
+        assert code == 0
+        outputs[method] = json.loads(out)
+    assert set(outputs["nlp"]) == set(outputs["analytic"]) == set(outputs["auto"])
+    assert outputs["auto"]["method"] == "analytic"  # the closed form answers where the arm has one
+    nlp = outputs["nlp"]
+    assert nlp["status"] == "solved" and nlp["method"] == "nlp" and nlp["attempts"] >= 1 and nlp["time_ms"] > 0
+    np.testing.assert_allclose(robot.position(nlp["q"]), [x, y, z], atol=1e-6)
 
 
 def test_cli_both_reports_the_cross_check(capsys):
@@ -340,27 +345,14 @@ def test_cli_both_reports_the_cross_check(capsys):
     q = np.array([0.5, 1.0, -0.5, 0.3])
     target = make_target(robot, "pitch", q)
     x, y, z = target.position
-    code, out, _ = run_ik(
-        capsys,
-        "three_joint",
-        str(x),
-        str(y),
-        str(z),
-        "--pitch",
-        repr(target.pitch),
-        "--method",
-        "both",
-        "--json",
-        "--all",
-    )
+    args = ["three_joint", str(x), str(y), str(z), "--pitch", repr(target.pitch), "--method", "both"]
+    code, out, _ = run_ik(capsys, *args, "--json", "--all")
     assert code == 0
     result = json.loads(out)
     assert result["agree"] and result["cross_check"]["verdict"] == "match"
-    assert result["solutions"][0]["branch"] == f"nlp = {result['cross_check']['branch']}"
-    assert len(result["solutions"]) == 1 + 4  # the NLP answer, then the closed-form branches
-    code, out, _ = run_ik(
-        capsys, "three_joint", str(x), str(y), str(z), "--pitch", repr(target.pitch), "--method", "both"
-    )
+    assert len(result["solutions"]) == 4  # every closed-form branch
+    assert result["nlp"]["success"] and result["cross_check"]["branch"] in [s["label"] for s in result["solutions"]]
+    code, out, _ = run_ik(capsys, *args)
     assert code == 0 and "both IK" in out and "closed-form branch" in out
 
 
@@ -376,4 +368,4 @@ def test_cli_nlp_errors(capsys):
 @needs_example_robot_data
 def test_cli_both_needs_a_closed_form(capsys):
     code, _, err = run_ik(capsys, "ur5", "0.3", "0.1", "0.4", "--method", "both")
-    assert code == 1 and "ur5 has no closed-form IK to cross-check" in err
+    assert code == 1 and "ur5 has no closed-form IK" in err

@@ -28,9 +28,12 @@ import numpy as np
 from planner.app.progress import progress
 from planner.core.rotations import rotation_error
 from planner.geometry.target import Target, approach_pitch, target_errors
+from planner.ik.cross_check import compare
 from planner.ik.numeric.kinematics import CasadiKinematics
 from planner.ik.numeric.solver import NlpIK
-from planner.ik.solve import analytic_solver, compare
+from planner.ik.options import IKOptions
+from planner.ik.solve import closed_form_answer
+from planner.ik.solvers import IKSolvers
 from planner.model.catalog import BUNDLED_ROBOTS, load_robot
 
 __all__ = ["BUNDLED_KINDS", "KINDS", "bench_robot", "run_record", "make_target", "markdown", "summarise", "verify"]
@@ -153,7 +156,7 @@ def bench_robot(
     targets = [make_target(robot, kind, q) for q in q_targets]
     summaries = []
 
-    analytic = analytic_solver(robot)
+    analytic = IKSolvers.of(robot).analytic
     t0 = time.perf_counter()
     nlp = NlpIK(robot).prepare([kind])
     nlp_setup = time.perf_counter() - t0
@@ -167,7 +170,7 @@ def bench_robot(
             t = time.perf_counter()
             result = analytic.solve(target, q_seed)
             elapsed = time.perf_counter() - t
-            analytic_results.append(result)
+            analytic_results.append(closed_form_answer(robot, target, result, q_seed, IKOptions(), t))
             best = result.best
             ok, pe, oe = verify(robot, target, None if best is None else np.asarray(best.q))
             rows.append({"time": elapsed, "ok": ok, "pe": pe, "oe": oe})

@@ -13,6 +13,7 @@ import json
 import sys
 from collections.abc import Callable, Sequence
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -21,6 +22,10 @@ from planner.geometry.target import Target
 from planner.model.catalog import BUNDLED_ROBOTS, available_robots, load_robot
 from planner.model.description import urdf_from_dh
 from planner.model.robot import Robot
+
+if TYPE_CHECKING:
+    from planner.ik.options import IKOptions
+    from planner.ik.result import IKResult
 
 __all__ = ["main", "build_parser"]
 
@@ -249,9 +254,10 @@ def _add_ik(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--deg", action="store_true", help="angles (--pitch, --rpy, --current, output table) in degrees")
     p.add_argument(
         "--method",
-        choices=("analytic", "nlp", "both"),
-        default="analytic",
-        help="closed form (default), CasADi optimisation, or both",
+        choices=("auto", "analytic", "nlp", "both"),
+        default="auto",
+        help="auto (default, as planner.solve_ik: the closed form where the arm has one, else the NLP), "
+        "analytic (closed form), nlp (CasADi), or both (cross-check)",
     )
     p.add_argument(
         "--current",
@@ -292,111 +298,62 @@ def _ik_current(args: argparse.Namespace, robot: Robot) -> np.ndarray | None:
     return robot.check_configuration(q, batch=False)
 
 
-def _ik_analytic(robot: Robot, target: Target, args: argparse.Namespace) -> dict:
-    """Closed-form IK as a JSON-ready dict (every solution; `_run_ik` keeps the best unless --all)."""
-    from planner.ik.analytic import solve_analytic
+def _ik_options(args: argparse.Namespace) -> IKOptions:
+    from planner.ik.options import IKOptions
 
-    result = solve_analytic(robot, target, _ik_current(args, robot))
-    out = result.as_dict()
-    best = result.best
-    out["best"] = None if best is None else result.solutions.index(best)
-    return out
+    return IKOptions(time_budget=args.time_budget)
 
 
-def _nlp_solution(robot: Robot, target: Target, result, branch: str) -> dict:
-    """The NLP answer in the shape of a closed-form solution (see AnalyticSolution.as_dict)."""
-    return {
-        "q": result.q.tolist(),
-        "branch": branch,
-        "within_limits": True,
-        "singular": bool(robot.inverse_condition_number(result.q) < 1e-7),
-        "position_error": result.position_error,
-        "orientation_error": None if target.kind == "position" else result.orientation_error,
-        "status": "ok" if result.success else result.status,
-    }
-
-
-def _ik_nlp(robot: Robot, target: Target, args: argparse.Namespace) -> dict:
-    """CasADi IK as a JSON-ready dict shaped like the closed form's, plus attempts and time."""
-    from planner.ik.solve import nlp_solver
-
-    result = nlp_solver(robot).solve(target, _ik_current(args, robot), time_budget=args.time_budget)
-    solution = _nlp_solution(robot, target, result, "nlp")
-    return {
-        "status": "ok" if result.success else result.status,
-        "reason": "" if result.success else result.reason,
-        "singular": solution["singular"],
-        "solutions": [solution],
-        "best": 0 if result.success else None,
-        "attempts": result.attempts,
-        "attempt_kind": result.attempt_kind,
-        "iterations": result.iterations,
-        "time_ms": result.wall_time * 1e3,
-    }
-
-
-def _ik_both(robot: Robot, target: Target, args: argparse.Namespace) -> dict:
-    """Closed form and NLP cross-checked: the NLP answer first, then every closed-form branch."""
-    from planner.ik.solve import cross_check
-
-    check = cross_check(robot, target, _ik_current(args, robot), time_budget=args.time_budget)
-    analytic = _ik_analytic(robot, target, args)
-    nlp = check.nlp
-    label = f"nlp = {check.branch}" if check.verdict == "match" else "nlp"
-    solutions = [_nlp_solution(robot, target, nlp, label)] + analytic["solutions"]
-    best = 0 if nlp.success else (None if analytic["best"] is None else analytic["best"] + 1)
-    return {
-        "status": analytic["status"],
-        "reason": check.reason,
-        "singular": analytic["singular"],
-        "solutions": solutions,
-        "best": best,
-        "agree": check.agree,
-        "cross_check": check.as_dict(),
-        "attempts": nlp.attempts,
-        "time_ms": nlp.wall_time * 1e3,
-    }
-
-
-_IK_METHODS: dict[str, Callable[[Robot, Target, argparse.Namespace], dict]] = {
-    "analytic": _ik_analytic,
-    "nlp": _ik_nlp,
-    "both": _ik_both,
-}
+def _ik_solutions(result: IKResult, every: bool) -> tuple[list[dict], int | None]:
+    """The solutions to print (all with --all, else the chosen one) and the chosen one's index."""
+    chosen = next((i for i, s in enumerate(result.solutions) if result.success and np.array_equal(s.q, result.q)), None)
+    if every:
+        return [s.as_dict() for s in result.solutions], chosen
+    if chosen is None:
+        return [], None
+    return [result.solutions[chosen].as_dict()], 0
 
 
 def _run_ik(args: argparse.Namespace) -> int:
+    from planner.ik.cross_check import cross_check
+    from planner.ik.solve import solve_ik
+
     robot = load_robot(args.robot, tip=args.tip)
     target = _ik_target(args)
-    out = _IK_METHODS[args.method](robot, target, args)
-    if not args.all:
-        best = out.get("best")
-        out["solutions"] = [] if best is None else [out["solutions"][best]]
-        out["best"] = None if best is None else 0
-    result = {
+    current = _ik_current(args, robot)
+    head = {
         "robot": robot.name,
         "tip": robot.tip,
-        "method": args.method,
         "target": {
             "position": target.position.tolist(),
             "pitch": target.pitch,
             "rotation": None if target.rotation is None else target.rotation.tolist(),
         },
-        **out,
     }
+    if args.method == "both":
+        check = cross_check(robot, target, current, options=_ik_options(args))
+        result = check.analytic
+        extra = {"agree": check.agree, "cross_check": check.as_dict(), "nlp": check.nlp.as_dict()}
+    else:
+        result = solve_ik(robot, target, current, method=args.method, options=_ik_options(args))
+        extra = {}
+    out = {**head, **result.as_dict(), **extra}
+    out["solutions"], out["best"] = _ik_solutions(result, args.all)
+    if args.method == "both":
+        out["method"], out["reason"] = "both", check.reason
     if args.json:
-        _print_json(result)
+        _print_json(out)
         return 0
     unit = "deg" if args.deg else "rad"
-    print(f"{robot.name} {args.method} IK, target {np.round(target.position, 6).tolist()} m: {result['status']}")
-    if result.get("reason"):
-        print(f"  {result['reason']}")
+    print(f"{robot.name} {out['method']} IK, target {np.round(target.position, 6).tolist()} m: {out['status']}")
+    if out.get("reason"):
+        print(f"  {out['reason']}")
     rows = []
-    for s in result["solutions"]:
+    for s in out["solutions"]:
         q = np.degrees(s["q"]) if args.deg else np.asarray(s["q"])
         rows.append(
             (
-                s.get("branch", "-"),
+                s["label"],
                 " ".join(f"{v:+.4f}" for v in q),
                 "yes" if s["within_limits"] else "NO",
                 "yes" if s.get("singular") else "",
@@ -404,7 +361,7 @@ def _run_ik(args: argparse.Namespace) -> int:
             )
         )
     if rows:
-        print(_table(["branch", f"q [{unit}]", "within limits", "singular", "position error [m]"], rows))
+        print(_table(["solution", f"q [{unit}]", "within limits", "singular", "position error [m]"], rows))
     return 0
 
 

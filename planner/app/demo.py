@@ -24,7 +24,7 @@ import numpy as np
 
 from planner.app.motion_plan import MotionPlan, MotionRequest, parse_motion_request, plan_motion
 from planner.geometry.sensing import range_bearing_to_base
-from planner.ik.solve import cross_check
+from planner.ik.cross_check import cross_check
 from planner.model.catalog import load_robot
 
 __all__ = ["DH3_STATES_CM", "DemoMove", "DemoReport", "al5c_request", "dh3_request", "run_demo"]

@@ -97,15 +97,14 @@ class TargetSolver:
         self.robot = robot
         self.threshold = float(threshold)
         self.task = task
-        from planner.ik.solve import analytic_solver, nlp_solver
+        from planner.ik.solvers import IKSolvers
 
-        self._analytic = analytic_solver(robot) if method in (None, "analytic") else None
-        if method == "analytic" and self._analytic is None:
-            from planner.ik.analytic import AnalyticIK
-
-            AnalyticIK.from_robot(robot)  # raises UnsupportedChainError naming the joint
+        solvers = IKSolvers.of(robot)
+        if method == "analytic":
+            solvers.require_analytic()  # raises UnsupportedChainError naming the joint
+        self._analytic = solvers.analytic if method in (None, "analytic") else None
         self.method = "analytic" if self._analytic is not None else "nlp"
-        self._nlp = nlp_solver(robot) if self._analytic is None else None
+        self._nlp = solvers.nlp if self._analytic is None else None
         lo = np.where(np.isfinite(robot.lower), robot.lower, 0.0)
         hi = np.where(np.isfinite(robot.upper), robot.upper, 0.0)
         self._home = (lo + hi) / 2.0

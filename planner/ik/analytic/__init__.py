@@ -15,7 +15,7 @@ Use :meth:`AnalyticIK.from_robot` (detects the family) or :func:`solve_analytic`
 """
 
 from planner.geometry.chain import ChainAtZero, JointScrew, chain_at_zero, poe_fk
-from planner.ik.analytic.base import FAMILY_ANGLE_TOL, AnalyticIK, solve_analytic
+from planner.ik.analytic.base import FAMILY_ANGLE_TOL, AnalyticIK
 from planner.ik.analytic.planar2 import PLANAR_BRANCHES, Planar2IK
 from planner.ik.analytic.result import (
     STATUS_BEYOND_MAX_REACH,
@@ -34,7 +34,6 @@ from planner.ik.analytic.yaw_planar import BRANCHES, YawPlanarIK
 
 __all__ = [
     "AnalyticIK",
-    "solve_analytic",
     "AnalyticResult",
     "AnalyticSolution",
     "AnalyticBatchResult",

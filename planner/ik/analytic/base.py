@@ -15,7 +15,6 @@ first joint that breaks the family.
 from __future__ import annotations
 
 import math
-import weakref
 from abc import ABC, abstractmethod
 from collections.abc import Sequence
 
@@ -27,7 +26,7 @@ from planner.geometry.target import Target
 from planner.ik.analytic.result import AnalyticBatchResult, AnalyticResult
 from planner.model.robot import Robot
 
-__all__ = ["AnalyticIK", "solve_analytic", "FAMILY_ANGLE_TOL"]
+__all__ = ["AnalyticIK", "FAMILY_ANGLE_TOL"]
 
 #: Largest deviation [rad] of an axis from the family's ideal directions (vertical, parallel,
 #: perpendicular) that a solver accepts. Deviations above 1e-12 rad (CAD round-off, as in
@@ -221,29 +220,3 @@ class AnalyticIK(ABC):
             if not np.all(np.isfinite(qc)):
                 raise InvalidConfigurationError("q_current holds NaN or infinite values")
         return pos, pit, rot, qc
-
-
-_SOLVERS: weakref.WeakKeyDictionary[Robot, AnalyticIK] = weakref.WeakKeyDictionary()
-
-
-def solve_analytic(
-    robot: Robot, target: Target, q_current: Sequence[float] | np.ndarray | None = None
-) -> AnalyticResult:
-    """Solve one target in closed form; the robot's solver is built once and cached.
-
-    Args:
-        robot: The robot.
-        target: The target.
-        q_current: Current configuration, shape (dof,) [rad], or None.
-
-    Returns:
-        The result (see :meth:`AnalyticIK.solve`).
-
-    Raises:
-        UnsupportedChainError: If the robot is outside the closed-form families.
-    """
-    solver = _SOLVERS.get(robot)
-    if solver is None:
-        solver = AnalyticIK.from_robot(robot)
-        _SOLVERS[robot] = solver
-    return solver.solve(target, q_current)
