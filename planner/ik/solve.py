@@ -19,7 +19,7 @@ import numpy as np
 
 from planner.exceptions import InvalidArgumentError, UnsupportedChainError
 from planner.geometry.joint_space import joint_distance
-from planner.geometry.target import Target, as_target, target_errors
+from planner.geometry.target import Target, as_target, target_errors, tip_errors
 from planner.ik.analytic import AnalyticResult
 from planner.ik.options import IKOptions
 from planner.ik.result import IKResult, IKSolution
@@ -165,12 +165,16 @@ def closed_form_answer(
         family's; with solutions within the limits that all miss the target by Pinocchio FK,
         ``status`` is ``"inaccurate"``.
     """
+    raw = family.solutions
+    distances = [None] * len(raw)
+    if seed is not None and raw:
+        distances = joint_distance(robot, np.array([sol.q for sol in raw]), seed).tolist()
     solutions = []
-    for index, sol in enumerate(family.solutions):
-        position_error, orientation_error = target_errors(robot, target, sol.q)
-        distance = None if seed is None else joint_distance(robot, sol.q, seed)
+    for index, sol in enumerate(raw):
+        position, rotation = robot.tip_pose(sol.q)
+        position_error, orientation_error = tip_errors(target, position, rotation, robot.approach_axis)
         solution = IKSolution(
-            sol.q, sol.within_limits, sol.branch, position_error, orientation_error, distance, sol.singular
+            sol.q, sol.within_limits, sol.branch, position_error, orientation_error, distances[index], sol.singular
         )
         solutions.append((index, solution))
     if seed is not None:

@@ -430,6 +430,22 @@ class Robot:
             return self._placement(arr, fid).copy()
         return np.stack([self._placement(row, fid) for row in arr]) if len(arr) else np.empty((0, 4, 4))
 
+    def tip_pose(self, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Tip position (3,) [m] and rotation (3, 3) for one configuration, without input checks.
+
+        The solvers' inner loops use it on configurations they produced themselves; everyone else
+        calls :meth:`fk`, which checks its input.
+
+        Args:
+            q: A float array of shape (dof,) [rad or m], finite (not checked).
+
+        Returns:
+            Copies of the tip's translation and rotation in the base frame.
+        """
+        pin.forwardKinematics(self.model, self.data, self._pin_q(q))
+        placement = pin.updateFramePlacement(self.model, self.data, self.tip_frame_id)
+        return placement.translation.copy(), placement.rotation.copy()
+
     def position(self, q: Sequence[float] | np.ndarray, frame: str | None = None) -> np.ndarray:
         """Position of a frame (default: the tip) in the base frame, shape (3,) or (N, 3) [m]."""
         return self.fk(q, frame)[..., :3, 3]
