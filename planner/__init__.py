@@ -7,6 +7,7 @@ trajectory -> samples / servo commands. SI units throughout (m, rad, s).
 from planner.app.motion_plan import MotionPlan, load_motion_request, parse_motion_request, plan_motion
 from planner.core.rotations import quaternion_to_matrix, rotation_error, rpy_to_matrix
 from planner.core.units import servo_speed_to_velocity
+from planner.core.version import __version__
 from planner.exceptions import (
     InvalidArgumentError,
     InvalidConfigurationError,
@@ -41,8 +42,6 @@ from planner.model.description import dh_transform, load_arm_description, urdf_f
 from planner.model.robot import Robot
 from planner.motion.singularity import check_singularities, plan_clear_of_singularities
 from planner.motion.trajectory import JointLimits, JointTrajectory, plan_trajectory
-
-__version__ = "0.1.0"
 
 __all__ = [
     "__version__",

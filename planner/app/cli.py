@@ -428,7 +428,7 @@ _COMMANDS: dict[str, tuple[Callable[[argparse._SubParsersAction], None], Callabl
 
 def build_parser() -> argparse.ArgumentParser:
     """The argument parser of the ``planner`` command."""
-    from planner import __version__
+    from planner.core.version import __version__
 
     parser = argparse.ArgumentParser(
         prog="planner",
