@@ -18,14 +18,9 @@ from planner.exceptions import (
     UnsupportedChainError,
     URDFError,
 )
-from planner.export.servo import (
-    ServoCalibration,
-    angle_to_steps,
-    default_calibrations,
-    pulse_table,
-    ssc32_group_moves,
-    steps_to_angle,
-)
+from planner.export.calibration import ServoCalibration, angle_to_steps, default_calibrations, steps_to_angle
+from planner.export.formats.ssc32 import ssc32_group_moves
+from planner.export.tables import pulse_table
 from planner.geometry.sensing import range_bearing_to_base
 from planner.geometry.target import Target, approach_pitch, pitch_error
 from planner.ik.analytic import AnalyticBatchResult, AnalyticIK, AnalyticResult, AnalyticSolution, solve_analytic

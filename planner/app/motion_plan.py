@@ -40,7 +40,7 @@ import numpy as np
 from planner.core.files import read_data_file
 from planner.core.units import ANGLE_UNITS, LENGTH_UNITS
 from planner.exceptions import InvalidArgumentError
-from planner.export.servo import ServoCalibration, default_calibrations
+from planner.export.calibration import ServoCalibration, default_calibrations
 from planner.geometry.target import Target
 from planner.model.robot import Robot
 from planner.motion.singularity import DEFAULT_CONDITION_NUMBER, Detour, SingularityReport, plan_clear_of_singularities
@@ -444,7 +444,7 @@ class MotionPlan:
         Raises:
             InvalidArgumentError: If the directory cannot be created.
         """
-        from planner.export.servo import pulse_table, ssc32_group_moves
+        from planner.export.formats import SERVO_FORMATS
 
         folder = Path(out)
         try:
@@ -452,18 +452,10 @@ class MotionPlan:
         except OSError as exc:
             raise InvalidArgumentError(f"cannot create output directory {str(folder)!r}: {exc.strerror}") from exc
         paths = [self.trajectory.to_csv(folder / "trajectory.csv", rate=rate)]
-        period = self.servo_period_ms
-        t, pulses = pulse_table(self.trajectory, self.calibrations, rate=1000.0 / period)
-        pulse_path = folder / "servo_pulses.csv"
-        with pulse_path.open("w") as fh:
-            fh.write(",".join(["t"] + [f"ch{c.channel}_{c.joint}" for c in self.calibrations]) + "\n")
-            for ti, row in zip(t, pulses):
-                fh.write(f"{ti:.6f}," + ",".join(str(int(x)) for x in row) + "\n")
-        paths.append(pulse_path)
-        commands = ssc32_group_moves(self.trajectory, self.calibrations, period_ms=period)
-        ssc32_path = folder / "ssc32.txt"
-        ssc32_path.write_bytes("".join(c + "\r" for c in commands).encode("ascii"))
-        paths.append(ssc32_path)
+        for fmt in SERVO_FORMATS.values():
+            path = folder / fmt.file_name
+            path.write_bytes(fmt.render(self.trajectory, self.calibrations, self.servo_period_ms).encode(fmt.encoding))
+            paths.append(path)
         summary_path = folder / "summary.json"
         summary = self.summary(rate)
         summary["files"] = sorted(str(p) for p in [*paths, summary_path])
