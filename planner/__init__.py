@@ -4,7 +4,8 @@ Data flows one way: URDF -> :class:`Robot` (Pinocchio model) -> IK -> waypoints 
 trajectory -> samples / servo commands. SI units throughout (m, rad, s).
 """
 
-from planner.app.motion_plan import MotionPlan, load_motion_request, parse_motion_request, plan_motion
+from planner.app.motion_plan import MotionPlan, plan_motion
+from planner.app.plan_file import load_motion_request, parse_motion_request
 from planner.core.rotations import quaternion_to_matrix, rotation_error, rpy_to_matrix
 from planner.core.units import servo_speed_to_velocity
 from planner.exceptions import (

@@ -22,7 +22,8 @@ from typing import Any
 
 import numpy as np
 
-from planner.app.motion_plan import MotionPlan, MotionRequest, parse_motion_request, plan_motion
+from planner.app.motion_plan import MotionPlan, plan_motion
+from planner.app.plan_file import MotionRequest, parse_motion_request
 from planner.geometry.sensing import range_bearing_to_base
 from planner.ik.solve import cross_check
 from planner.model.catalog import load_robot
