@@ -4,7 +4,8 @@ Data flows one way: URDF -> :class:`Robot` (Pinocchio model) -> IK -> waypoints 
 trajectory -> samples / servo commands. SI units throughout (m, rad, s).
 """
 
-from planner.app.motion_plan import MotionPlan, load_motion_request, parse_motion_request, plan_motion
+from planner.app.motion_plan import MotionPlan, plan_motion
+from planner.app.plan_file import load_motion_request, parse_motion_request
 from planner.core.rotations import quaternion_to_matrix, rotation_error, rpy_to_matrix
 from planner.core.units import servo_speed_to_velocity
 from planner.core.version import __version__
@@ -19,14 +20,9 @@ from planner.exceptions import (
     UnsupportedChainError,
     URDFError,
 )
-from planner.export.servo import (
-    ServoCalibration,
-    angle_to_steps,
-    default_calibrations,
-    pulse_table,
-    ssc32_group_moves,
-    steps_to_angle,
-)
+from planner.export.calibration import ServoCalibration, angle_to_steps, default_calibrations, steps_to_angle
+from planner.export.formats.ssc32 import ssc32_group_moves
+from planner.export.tables import pulse_table
 from planner.geometry.sensing import range_bearing_to_base
 from planner.geometry.target import Target, approach_pitch, pitch_error
 from planner.ik.analytic import AnalyticBatchResult, AnalyticIK, AnalyticResult, AnalyticSolution

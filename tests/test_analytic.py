@@ -11,7 +11,7 @@ import planner
 import planner.ik.analytic as analytic
 from planner import AnalyticIK, Robot, Target, load_robot, solve_analytic
 from planner.exceptions import InvalidArgumentError, InvalidConfigurationError, UnsupportedChainError
-from planner.export.servo import angle_to_steps, steps_to_angle
+from planner.export.calibration import angle_to_steps, steps_to_angle
 from planner.geometry.target import approach_pitch, pitch_error
 from planner.ik.analytic import (
     BRANCHES,

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from planner import AnalyticIK, Robot, Target, load_robot
-from planner.export.servo import angle_to_steps
+from planner.export.calibration import angle_to_steps
 from planner.ik.analytic import STATUS_BEYOND_MAX_REACH, STATUS_INSIDE_MIN_REACH, STATUS_OK
 from planner.model.catalog import bundled_urdf_path
 

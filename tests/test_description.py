@@ -115,6 +115,8 @@ def test_joint_list_description_prismatic_and_tool():
             r"joint 'joint1' d must be a number, got 'x'",
         ),
         ({"dh": []}, planner.InvalidArgumentError, r"must be a non-empty list"),
+        ({"tool": {"xyz": [0, 0]}}, planner.InvalidArgumentError, r"tool xyz must have 3 numbers, got 2"),
+        ({"base": {"rpy": [0, "x", 0]}}, planner.InvalidArgumentError, r"base rpy\[1\] must be a number, got 'x'"),
         ({"tool": {"name": "joint1_link"}}, planner.InvalidArgumentError, r"link names must be unique"),
     ],
 )

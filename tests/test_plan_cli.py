@@ -12,7 +12,8 @@ import pytest
 
 from planner import InvalidArgumentError, JointLimitError, PlannerError
 from planner.app.cli import main
-from planner.app.motion_plan import load_motion_request, parse_motion_request, plan_motion
+from planner.app.motion_plan import plan_motion
+from planner.app.plan_file import load_motion_request, parse_motion_request
 from planner.motion.trajectory import LIMIT_TOLERANCE
 
 from conftest import get_robot, run_cli
@@ -212,7 +213,7 @@ def test_servo_speed_limit_key():
         (
             {"waypoints": [[0, 0, 0], [0, 0, 1]], "units": {"angle": "grad"}},
             InvalidArgumentError,
-            r"unknown angle unit 'grad'; valid: rad, deg",
+            r"unknown angle unit 'grad'; valid units: rad, deg",
         ),
     ],
 )

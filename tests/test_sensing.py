@@ -44,3 +44,7 @@ def test_bad_readings():
         planner.range_bearing_to_base(0.1, 0.0, (0, 0))
     with pytest.raises(planner.InvalidArgumentError, match="not a rigid transform"):
         planner.range_bearing_to_base(0.1, 0.0, 2 * np.eye(4))
+    skewed = np.eye(4)
+    skewed[3] = [0.0, 0.0, 0.1, 1.0]
+    with pytest.raises(planner.InvalidArgumentError, match=r"not a rigid transform: last row \[0.0, 0.0, 0.1, 1.0\]"):
+        planner.range_bearing_to_base(0.1, 0.0, skewed)

@@ -9,16 +9,16 @@ import numpy as np
 import pytest
 
 from planner import InvalidArgumentError
-from planner.export.servo import (
+from planner.export.calibration import (
     SSC32_US_PER_RAD,
     ServoCalibration,
     angle_to_steps,
     default_calibrations,
-    pulse_table,
-    ssc32_group_moves,
-    steps_table,
     steps_to_angle,
 )
+from planner.export.formats import SERVO_FORMATS, ServoFormat, servo_format
+from planner.export.formats.ssc32 import ssc32_group_moves
+from planner.export.tables import pulse_table, steps_table
 from planner.motion.trajectory import JointLimits, plan_trajectory
 
 from conftest import get_robot
@@ -132,3 +132,19 @@ def test_steps_table(dh3_trajectory):
     np.testing.assert_array_equal(steps, angle_to_steps(traj.sample(t).q, math.radians(135), 2048))
     with pytest.raises(InvalidArgumentError, match="beyond the servo's travel"):
         steps_table(traj, math.radians(60), 2048)
+
+
+def test_servo_format_registry(dh3_trajectory):
+    robot, traj = dh3_trajectory
+    cals = default_calibrations(robot)
+    assert list(SERVO_FORMATS) == ["pulses", "ssc32"]
+    for name, fmt in SERVO_FORMATS.items():
+        assert isinstance(fmt, ServoFormat) and fmt.name == name and servo_format(name) is fmt
+    text = servo_format("ssc32").render(traj, cals, 20)
+    assert text == "".join(c + "\r" for c in ssc32_group_moves(traj, cals, period_ms=20))
+    rows = servo_format("pulses").render(traj, cals, 40).splitlines()
+    t, pulses = pulse_table(traj, cals, rate=25.0)
+    assert rows[0] == "t,ch0_base_yaw,ch1_shoulder,ch2_elbow"
+    assert rows[1:] == [f"{ti:.6f}," + ",".join(str(x) for x in row) for ti, row in zip(t, pulses)]
+    with pytest.raises(InvalidArgumentError, match=r"unknown servo format 'dmx'; valid formats: pulses, ssc32"):
+        servo_format("dmx")

@@ -6,7 +6,8 @@ import numpy as np
 import pytest
 
 from planner import InvalidArgumentError, Target, rotation_error
-from planner.app.motion_plan import parse_motion_request, plan_motion
+from planner.app.motion_plan import plan_motion
+from planner.app.plan_file import parse_motion_request
 from planner.motion.cartesian import TargetSolver, line_deviation, line_trajectory, line_waypoints, time_line
 from planner.motion.trajectory import LIMIT_TOLERANCE, JointLimits
 

@@ -170,7 +170,8 @@ def _add_plan(sub: argparse._SubParsersAction) -> None:
 
 
 def _run_plan(args: argparse.Namespace) -> int:
-    from planner.app.motion_plan import load_motion_request, plan_motion
+    from planner.app.motion_plan import plan_motion
+    from planner.app.plan_file import load_motion_request
 
     if not (np.isfinite(args.rate) and args.rate > 0):
         raise InvalidArgumentError(f"--rate must be a positive number [Hz], got {args.rate}")

@@ -22,10 +22,12 @@ from typing import Any
 
 import numpy as np
 
-from planner.app.motion_plan import MotionPlan, MotionRequest, parse_motion_request, plan_motion
+from planner.app.motion_plan import MotionPlan, plan_motion
+from planner.app.plan_file import MotionRequest, parse_motion_request
 from planner.geometry.sensing import range_bearing_to_base
 from planner.ik.cross_check import cross_check
 from planner.model.catalog import load_robot
+from planner.model.robot import Robot
 
 __all__ = ["DH3_STATES_CM", "DemoMove", "DemoReport", "al5c_request", "dh3_request", "run_demo"]
 
@@ -98,7 +100,7 @@ class DemoReport:
     wall_time: float
 
 
-def _moves(scenario: str, robot: Any, plan: MotionPlan, request: MotionRequest) -> list[DemoMove]:
+def _moves(scenario: str, robot: Robot, plan: MotionPlan, request: MotionRequest) -> list[DemoMove]:
     """One row per move: the end target's IK (checked by the NLP), timing, peaks, singularity margin."""
     from planner.motion.singularity import conditioning
 

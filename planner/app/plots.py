@@ -9,11 +9,15 @@ from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from planner.exceptions import PlannerError
+
+if TYPE_CHECKING:
+    from planner.app.motion_plan import MotionPlan
+    from planner.model.robot import Robot
 
 __all__ = ["plot_arm_poses", "plot_ik_benchmark", "plot_joint_profiles", "plot_manipulability", "plot_plan"]
 
@@ -145,7 +149,7 @@ def plot_manipulability(
 
 def plot_arm_poses(
     path: str | Path,
-    robot: Any,
+    robot: Robot,
     configurations: np.ndarray,
     *,
     labels: Sequence[str] | None = None,
@@ -234,7 +238,9 @@ def plot_ik_benchmark(path: str | Path, rows: Sequence[Mapping[str, Any]], *, ti
     return _save(fig, path)
 
 
-def plot_plan(out: str | Path, robot: Any, plan: Any, *, rate: float = 200.0, prefix: str = "") -> tuple[Path, ...]:
+def plot_plan(
+    out: str | Path, robot: Robot, plan: MotionPlan, *, rate: float = 200.0, prefix: str = ""
+) -> tuple[Path, ...]:
     """The three pictures of a :class:`planner.MotionPlan`, written into a directory.
 
     ``joints.png`` (position, velocity, acceleration, jerk with limits and waypoints),

@@ -1,14 +1,24 @@
-"""Reading the project's YAML/JSON input files (arm descriptions, plan files)."""
+"""Reading the project's YAML/JSON input files (arm descriptions, plan files) and their values.
+
+The value readers check what a file gave (a number, a list of numbers, a unit name) and
+name the offending key and value in an :class:`InvalidArgumentError`, prefixed with where the
+input came from when a `source` is given.
+"""
 
 from __future__ import annotations
 
 import json
+import math
+from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+
+from planner.core.units import ANGLE_UNITS, LENGTH_UNITS
 from planner.exceptions import InvalidArgumentError
 
-__all__ = ["read_data_file"]
+__all__ = ["input_error", "parse_number", "parse_numbers", "parse_units", "read_data_file"]
 
 
 def read_data_file(path: str | Path, what: str) -> Any:
@@ -37,3 +47,83 @@ def read_data_file(path: str | Path, what: str) -> Any:
         return yaml.safe_load(text)
     except Exception as exc:  # yaml and json raise several unrelated types
         raise InvalidArgumentError(f"cannot parse {what} {str(p)!r}: {exc}") from exc
+
+
+def input_error(source: str | None, message: str) -> InvalidArgumentError:
+    """The error for a bad input value, its message prefixed with ``"<source>: "`` when given.
+
+    Args:
+        source: Where the input came from (a file name, ``"<request>"``), or None.
+        message: What is wrong, naming the key and the value.
+
+    Returns:
+        The error, for the caller to raise.
+    """
+    return InvalidArgumentError(f"{source}: {message}" if source else message)
+
+
+def parse_number(value: Any, what: str, source: str | None = None) -> float:
+    """A finite number from an input file (a bool is not a number).
+
+    Args:
+        value: The value as read.
+        what: The key, for messages (e.g. ``"targets[2].pitch"``).
+        source: Where the input came from, for messages, or None.
+
+    Returns:
+        The value as a float.
+
+    Raises:
+        InvalidArgumentError: If it is not an int or float, or not finite.
+    """
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
+        raise input_error(source, f"{what} must be a number, got {value!r}")
+    x = float(value)
+    if not math.isfinite(x):
+        raise input_error(source, f"{what} must be finite, got {value!r}")
+    return x
+
+
+def parse_numbers(value: Any, what: str, source: str | None = None, length: int | None = None) -> np.ndarray:
+    """A list of finite numbers from an input file (see :func:`parse_number`).
+
+    Args:
+        value: The value as read: a list (not a string or a mapping).
+        what: The key, for messages; an element is named ``what[k]``.
+        source: Where the input came from, for messages, or None.
+        length: The number of values required, or None for any.
+
+    Returns:
+        The values, shape (n,) float.
+
+    Raises:
+        InvalidArgumentError: If it is not a list, an element is not a finite number, or the
+            length differs from `length`.
+    """
+    if isinstance(value, (str, bytes, Mapping)) or not isinstance(value, Sequence):
+        raise input_error(source, f"{what} must be a list of numbers, got {value!r}")
+    arr = np.array([parse_number(v, f"{what}[{k}]", source) for k, v in enumerate(value)], dtype=float)
+    if length is not None and arr.shape != (length,):
+        raise input_error(source, f"{what} must have {length} numbers, got {len(arr)}")
+    return arr
+
+
+def parse_units(length: Any = "m", angle: Any = "rad", source: str | None = None) -> tuple[float, float]:
+    """The scales of the length and angle units an input file declares.
+
+    Args:
+        length: Length unit name, one of :data:`planner.core.units.LENGTH_UNITS`.
+        angle: Angle unit name, one of :data:`planner.core.units.ANGLE_UNITS`.
+        source: Where the input came from, for messages, or None.
+
+    Returns:
+        ``(metres per length unit, radians per angle unit)``.
+
+    Raises:
+        InvalidArgumentError: For an unknown unit (the message lists the valid ones).
+    """
+    if not isinstance(length, str) or length not in LENGTH_UNITS:
+        raise input_error(source, f"unknown length unit {length!r}; valid units: {', '.join(LENGTH_UNITS)}")
+    if not isinstance(angle, str) or angle not in ANGLE_UNITS:
+        raise input_error(source, f"unknown angle unit {angle!r}; valid units: {', '.join(ANGLE_UNITS)}")
+    return LENGTH_UNITS[length], ANGLE_UNITS[angle]

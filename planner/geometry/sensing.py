@@ -2,37 +2,36 @@
 
 from __future__ import annotations
 
-import math
 from collections.abc import Sequence
 
 import numpy as np
 
+from planner.core.rotations import check_rotation, rpy_to_matrix
 from planner.exceptions import InvalidArgumentError
 
 __all__ = ["range_bearing_to_base"]
 
 
 def _pose_matrix(sensor_pose: Sequence[float] | np.ndarray) -> np.ndarray:
+    """The sensor pose as a 4x4 transform in the base frame [m]."""
     arr = np.asarray(sensor_pose, dtype=float)
     if arr.shape == (4, 4):
         if not np.all(np.isfinite(arr)):
             raise InvalidArgumentError("sensor_pose holds NaN or infinite values")
-        rot = arr[:3, :3]
-        if (
-            not np.allclose(rot.T @ rot, np.eye(3), atol=1e-9)
-            or np.linalg.det(rot) < 0
-            or not np.allclose(arr[3], [0, 0, 0, 1])
-        ):
-            raise InvalidArgumentError("sensor_pose is not a rigid transform (rotation not orthonormal)")
+        try:
+            check_rotation(arr[:3, :3])
+        except InvalidArgumentError as exc:
+            raise InvalidArgumentError(f"sensor_pose is not a rigid transform: {exc}") from None
+        if not np.allclose(arr[3], [0, 0, 0, 1]):
+            raise InvalidArgumentError(f"sensor_pose is not a rigid transform: last row {arr[3].tolist()}")
         return arr
     if arr.shape in ((3,), (4,)):
         if not np.all(np.isfinite(arr)):
             raise InvalidArgumentError(f"sensor_pose holds NaN or infinite values: {arr.tolist()}")
-        x, y, z = arr[:3]
         yaw = arr[3] if arr.shape == (4,) else 0.0
         pose = np.eye(4)
-        pose[:3, :3] = [[math.cos(yaw), -math.sin(yaw), 0.0], [math.sin(yaw), math.cos(yaw), 0.0], [0.0, 0.0, 1.0]]
-        pose[:3, 3] = (x, y, z)
+        pose[:3, :3] = rpy_to_matrix((0.0, 0.0, yaw))
+        pose[:3, 3] = arr[:3]
         return pose
     raise InvalidArgumentError(
         f"sensor_pose must be a 4x4 transform, (x, y, z) or (x, y, z, yaw); got shape {arr.shape}"

@@ -34,15 +34,14 @@ from xml.sax.saxutils import escape
 
 import numpy as np
 
-from planner.core.files import read_data_file
+from planner.core.files import parse_number, parse_numbers, parse_units, read_data_file
 from planner.core.rotations import matrix_to_rpy, rpy_to_matrix
-from planner.core.units import ANGLE_UNITS, LENGTH_UNITS, servo_speed_to_velocity
+from planner.core.units import servo_speed_to_velocity
 from planner.exceptions import InvalidArgumentError, InvalidLimitsError
 
 __all__ = [
     "dh_transform",
     "load_arm_description",
-    "servo_speed_to_velocity",
     "urdf_from_dh",
 ]
 
@@ -104,19 +103,8 @@ class _Joint:
     effort: float
 
 
-def _number(value: Any, what: str) -> float:
-    if isinstance(value, bool) or not isinstance(value, (int, float)):
-        raise InvalidArgumentError(f"{what} must be a number, got {value!r}")
-    x = float(value)
-    if not math.isfinite(x):
-        raise InvalidArgumentError(f"{what} must be finite, got {value!r}")
-    return x
-
-
 def _vector(value: Any, what: str, scale: float) -> np.ndarray:
-    if not isinstance(value, Sequence) or isinstance(value, str) or len(value) != 3:
-        raise InvalidArgumentError(f"{what} must be a list of 3 numbers, got {value!r}")
-    return np.array([_number(v, what) * scale for v in value])
+    return parse_numbers(value, what, length=3) * scale
 
 
 def _pose(xyz: np.ndarray, rpy: np.ndarray) -> np.ndarray:
@@ -129,12 +117,12 @@ def _pose(xyz: np.ndarray, rpy: np.ndarray) -> np.ndarray:
 def _joint_velocity(row: Mapping[str, Any], default: Mapping[str, Any], angular: float, name: str) -> float:
     for source in (row, default):
         if "velocity" in source:
-            v = _number(source["velocity"], f"joint {name!r} velocity")
+            v = parse_number(source["velocity"], f"joint {name!r} velocity")
             if v <= 0:
                 raise InvalidLimitsError(f"joint {name!r} velocity must be positive, got {v!r}", joint=name, value=v)
             return v * angular
         if "servo_seconds_per_60deg" in source:
-            s = _number(source["servo_seconds_per_60deg"], f"joint {name!r} servo_seconds_per_60deg")
+            s = parse_number(source["servo_seconds_per_60deg"], f"joint {name!r} servo_seconds_per_60deg")
             if s <= 0:
                 raise InvalidLimitsError(
                     f"joint {name!r} servo_seconds_per_60deg must be positive, got {s!r}", joint=name, value=s
@@ -151,8 +139,8 @@ def _limits(row: Mapping[str, Any], kind: str, scale: float, name: str) -> tuple
     for key in ("lower", "upper"):
         if key not in row:
             raise InvalidArgumentError(f"joint {name!r} needs `lower` and `upper` limits (missing {key!r})")
-    lower = _number(row["lower"], f"joint {name!r} lower") * scale
-    upper = _number(row["upper"], f"joint {name!r} upper") * scale
+    lower = parse_number(row["lower"], f"joint {name!r} lower") * scale
+    upper = parse_number(row["upper"], f"joint {name!r} upper") * scale
     if lower > upper:
         raise InvalidLimitsError(
             f"joint {name!r} has lower limit {lower:.6g} > upper limit {upper:.6g}", joint=name, value=(lower, upper)
@@ -168,7 +156,7 @@ def _parse_joints(desc: Mapping[str, Any], length: float, angle: float) -> tuple
     rows = desc.get("dh", desc.get("joints"))
     if not isinstance(rows, Sequence) or isinstance(rows, str) or not rows:
         raise InvalidArgumentError("`dh`/`joints` must be a non-empty list of rows")
-    effort_default = _number(desc.get("effort", 1.0), "effort")
+    effort_default = parse_number(desc.get("effort", 1.0), "effort")
     previous_fixed = np.eye(4)
     seen: set[str] = set()
     for i, row in enumerate(rows, start=1):
@@ -184,15 +172,15 @@ def _parse_joints(desc: Mapping[str, Any], length: float, angle: float) -> tuple
         limit_scale = length if kind == "prismatic" else angle
         lower, upper = _limits(row, kind, limit_scale, name)
         velocity = _joint_velocity(row, desc, limit_scale, name)
-        effort = _number(row.get("effort", effort_default), f"joint {name!r} effort")
+        effort = parse_number(row.get("effort", effort_default), f"joint {name!r} effort")
         if "dh" in desc:
             for key in ("d", "a", "alpha"):
                 if key not in row:
                     raise InvalidArgumentError(f"DH row {i} ({name!r}) is missing {key!r}")
-            theta = _number(row.get("theta", 0.0), f"joint {name!r} theta") * angle
-            d = _number(row["d"], f"joint {name!r} d") * length
-            a = _number(row["a"], f"joint {name!r} a") * length
-            alpha = _number(row["alpha"], f"joint {name!r} alpha") * angle
+            theta = parse_number(row.get("theta", 0.0), f"joint {name!r} theta") * angle
+            d = parse_number(row["d"], f"joint {name!r} d") * length
+            a = parse_number(row["a"], f"joint {name!r} a") * length
+            alpha = parse_number(row["alpha"], f"joint {name!r} alpha") * angle
             origin, axis = previous_fixed, (0.0, 0.0, 1.0)
             previous_fixed = dh_transform(theta, d, a, alpha)
         else:
@@ -246,12 +234,7 @@ def urdf_from_dh(description: Mapping[str, Any] | str | Path) -> str:
         raise InvalidArgumentError(f"an arm description must be a mapping, got {type(desc).__name__}")
     name = str(desc.get("name", "arm"))
     units = desc.get("units", {}) or {}
-    length_unit, angle_unit = str(units.get("length", "m")), str(units.get("angle", "rad"))
-    if length_unit not in LENGTH_UNITS:
-        raise InvalidArgumentError(f"unknown length unit {length_unit!r}; valid units: {', '.join(LENGTH_UNITS)}")
-    if angle_unit not in ANGLE_UNITS:
-        raise InvalidArgumentError(f"unknown angle unit {angle_unit!r}; valid units: {', '.join(ANGLE_UNITS)}")
-    length, angle = LENGTH_UNITS[length_unit], ANGLE_UNITS[angle_unit]
+    length, angle = parse_units(str(units.get("length", "m")), str(units.get("angle", "rad")))
 
     joints, last_fixed = _parse_joints(desc, length, angle)
     tool = desc.get("tool", {}) or {}

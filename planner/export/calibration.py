@@ -1,9 +1,9 @@
-"""Conversions between joint angles [rad] and servo controller units, at the edge of the library.
+"""Servo calibration: joint angles [rad] to controller units and back, one joint at a time.
 
 Two kinds of controller: the 000 seed's step counts (:func:`angle_to_steps`), and hobby
-servos driven by pulse widths, with a per-joint :class:`ServoCalibration`, sampled pulse
-tables (:func:`pulse_table`) and Lynxmotion SSC-32 group-move strings
-(:func:`ssc32_group_moves`, the 001 seed's controller).
+servos driven by pulse widths, each with a :class:`ServoCalibration` (the 001 seed's SSC-32
+convention of 1000 us per 90 deg by default). Files for a controller are written by the
+formats in :mod:`planner.export.formats`.
 """
 
 from __future__ import annotations
@@ -19,18 +19,19 @@ from planner.exceptions import InvalidArgumentError
 
 if TYPE_CHECKING:
     from planner.model.robot import Robot
-    from planner.motion.trajectory import JointTrajectory
 
 __all__ = [
     "SSC32_US_PER_RAD",
     "ServoCalibration",
     "angle_to_steps",
+    "check_calibrations",
     "default_calibrations",
-    "pulse_table",
-    "ssc32_group_moves",
-    "steps_table",
+    "pulse_widths",
     "steps_to_angle",
 ]
+
+#: The SSC-32 convention of the 001 seed: about 1000 us of pulse per 90 deg of travel.
+SSC32_US_PER_RAD = 1000.0 / (math.pi / 2.0)
 
 
 def _check_span(max_rotation: float, max_steps: int) -> None:
@@ -78,13 +79,6 @@ def steps_to_angle(steps: int | np.ndarray, max_rotation: float, max_steps: int)
     s = np.asarray(steps, dtype=float)
     a = s / max_steps * max_rotation
     return float(a) if a.ndim == 0 else a
-
-
-# ---------------------------------------------------------------------------- pulse widths
-#: The SSC-32 convention of the 001 seed: about 1000 us of pulse per 90 deg of travel.
-SSC32_US_PER_RAD = 1000.0 / (math.pi / 2.0)
-#: Largest channel number of an SSC-32.
-SSC32_MAX_CHANNEL = 31
 
 
 def _positive(value: float, what: str) -> float:
@@ -197,7 +191,16 @@ def default_calibrations(robot: Robot, first_channel: int = 0) -> tuple[ServoCal
     )
 
 
-def _check_calibrations(calibrations: Sequence[ServoCalibration], dof: int) -> None:
+def check_calibrations(calibrations: Sequence[ServoCalibration], dof: int) -> None:
+    """Check that there is one :class:`ServoCalibration` per joint, on distinct channels.
+
+    Args:
+        calibrations: The calibrations, in joint order.
+        dof: Number of joints.
+
+    Raises:
+        InvalidArgumentError: If one is missing or not a calibration, or two share a channel.
+    """
     if len(calibrations) != dof or not all(isinstance(c, ServoCalibration) for c in calibrations):
         raise InvalidArgumentError(f"need one ServoCalibration per joint ({dof}), got {len(calibrations)}")
     channels = [c.channel for c in calibrations]
@@ -205,73 +208,17 @@ def _check_calibrations(calibrations: Sequence[ServoCalibration], dof: int) -> N
         raise InvalidArgumentError(f"servo channels must differ, got {channels}")
 
 
-def pulse_table(
-    trajectory: JointTrajectory, calibrations: Sequence[ServoCalibration], rate: float = 50.0
-) -> tuple[np.ndarray, np.ndarray]:
-    """Pulse widths of every servo along a trajectory.
+def pulse_widths(calibrations: Sequence[ServoCalibration], q: np.ndarray) -> np.ndarray:
+    """Pulse widths of every servo, rounded to whole microseconds.
 
     Args:
-        trajectory: The joint trajectory.
-        calibrations: One per joint, in joint order.
-        rate: Sampling rate [Hz] (hobby servos take a new pulse every 20 ms: 50 Hz).
+        calibrations: One per joint, in joint order (see :func:`check_calibrations`).
+        q: Joint angles, shape (n, dof) [rad].
 
     Returns:
-        ``(t, pulses)``: times shape (n,) [s] (the final instant included) and pulse widths
-        rounded to whole microseconds, shape (n, dof) int.
+        Pulse widths, shape (n, dof) int [us].
 
     Raises:
-        InvalidArgumentError: If a calibration is missing or an angle needs a pulse out of range.
+        InvalidArgumentError: If an angle needs a pulse out of its calibration's range.
     """
-    _check_calibrations(calibrations, trajectory.dof)
-    t = trajectory.times(rate)
-    q = trajectory.sample(t).q
-    pulses = np.column_stack([np.rint(c.pulse(q[:, k])) for k, c in enumerate(calibrations)]).astype(int)
-    return t, pulses
-
-
-def ssc32_group_moves(
-    trajectory: JointTrajectory, calibrations: Sequence[ServoCalibration], period_ms: int = 20
-) -> list[str]:
-    """Lynxmotion SSC-32 group-move commands that replay a trajectory.
-
-    One command per `period_ms`, ``#<ch>P<pw>#<ch>P<pw>...T<ms>``: every listed servo moves
-    to its pulse width and all arrive together after ``T`` ms (the controller interpolates
-    linearly within it). The first command holds the start pose for one period; send them one
-    period apart, each followed by a carriage return (ASCII 13).
-
-    Args:
-        trajectory: The joint trajectory.
-        calibrations: One per joint (channels 0-31).
-        period_ms: Time per command [ms], a positive integer.
-
-    Returns:
-        The command strings, without terminators.
-
-    Raises:
-        InvalidArgumentError: On a bad period, channel or calibration, or a pulse out of range.
-    """
-    if isinstance(period_ms, bool) or not isinstance(period_ms, (int, np.integer)) or not 1 <= period_ms <= 65535:
-        raise InvalidArgumentError(f"period_ms must be an integer in [1, 65535] ms, got {period_ms!r}")
-    _check_calibrations(calibrations, trajectory.dof)
-    for c in calibrations:
-        if c.channel > SSC32_MAX_CHANNEL:
-            raise InvalidArgumentError(
-                f"joint {c.joint!r} uses channel {c.channel}; an SSC-32 has channels 0-{SSC32_MAX_CHANNEL}"
-            )
-    n = int(math.ceil(trajectory.duration * 1000.0 / period_ms - 1e-9)) + 1
-    t = np.minimum(np.arange(n) * period_ms / 1000.0, trajectory.duration)
-    q = trajectory.sample(t).q
-    pulses = np.column_stack([np.rint(c.pulse(q[:, k])) for k, c in enumerate(calibrations)]).astype(int)
-    return ["".join(f"#{c.channel}P{p}" for c, p in zip(calibrations, row)) + f"T{period_ms}" for row in pulses]
-
-
-def steps_table(
-    trajectory: JointTrajectory, max_rotation: float, max_steps: int, rate: float = 50.0
-) -> tuple[np.ndarray, np.ndarray]:
-    """The 000 seed's controller steps (see :func:`angle_to_steps`) along a trajectory.
-
-    Returns:
-        ``(t, steps)``: times shape (n,) [s] and steps shape (n, dof) int.
-    """
-    t = trajectory.times(rate)
-    return t, np.asarray(angle_to_steps(trajectory.sample(t).q, max_rotation, max_steps))
+    return np.column_stack([np.rint(c.pulse(q[:, k])) for k, c in enumerate(calibrations)]).astype(int)

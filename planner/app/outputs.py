@@ -1,0 +1,79 @@
+"""The files a :class:`~planner.app.motion_plan.MotionPlan` is written to.
+
+``trajectory.csv`` (t, then q, qd, qdd, qddd per joint, SI units), one file per registered
+servo format (:data:`planner.export.formats.SERVO_FORMATS`: ``servo_pulses.csv`` with the
+pulse width per servo channel [us] and ``ssc32.txt`` with Lynxmotion SSC-32 group moves, each
+every servo period) and ``summary.json`` (:meth:`MotionPlan.summary`). The PNG plots are in
+:func:`planner.app.plots.plot_plan`.
+"""
+
+from __future__ import annotations
+
+import json
+from collections.abc import Sequence
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+from planner.exceptions import InvalidArgumentError
+from planner.export.formats import SERVO_FORMATS
+
+if TYPE_CHECKING:
+    from planner.app.motion_plan import MotionPlan
+    from planner.export.calibration import ServoCalibration
+    from planner.motion.trajectory import JointTrajectory
+
+__all__ = ["write_plan_files", "write_servo_files"]
+
+
+def write_servo_files(
+    folder: Path, trajectory: JointTrajectory, calibrations: Sequence[ServoCalibration], period_ms: int
+) -> list[Path]:
+    """One file per registered servo format, named by the format, into an existing directory.
+
+    Args:
+        folder: Output directory.
+        trajectory: The joint trajectory.
+        calibrations: One per joint, in joint order.
+        period_ms: Time between two servo updates [ms].
+
+    Returns:
+        The paths written, in registry order.
+
+    Raises:
+        InvalidArgumentError: If a calibration does not fit a format or a pulse is out of range.
+    """
+    paths = []
+    for fmt in SERVO_FORMATS.values():
+        path = folder / fmt.file_name
+        path.write_bytes(fmt.render(trajectory, calibrations, period_ms).encode(fmt.encoding))
+        paths.append(path)
+    return paths
+
+
+def write_plan_files(plan: MotionPlan, out: str | Path, rate: float = 1000.0) -> tuple[Path, ...]:
+    """Write a plan's files into a directory (created if missing); see the module docstring.
+
+    Args:
+        plan: The plan.
+        out: Output directory.
+        rate: Sample rate of the CSV and of the summary's limit checks [Hz].
+
+    Returns:
+        The paths written: the trajectory CSV, the servo files, the summary.
+
+    Raises:
+        InvalidArgumentError: If the directory cannot be created, or a servo file cannot be made.
+    """
+    folder = Path(out)
+    try:
+        folder.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise InvalidArgumentError(f"cannot create output directory {str(folder)!r}: {exc.strerror}") from exc
+    paths = [plan.trajectory.to_csv(folder / "trajectory.csv", rate=rate)]
+    paths += write_servo_files(folder, plan.trajectory, plan.calibrations, plan.servo_period_ms)
+    summary_path = folder / "summary.json"
+    summary = plan.summary(rate)
+    summary["files"] = sorted(str(p) for p in [*paths, summary_path])
+    summary_path.write_text(json.dumps(summary, indent=2, allow_nan=False) + "\n")
+    paths.append(summary_path)
+    return tuple(paths)

@@ -1,0 +1,68 @@
+"""Lynxmotion SSC-32 group-move commands (the 001 seed's controller)."""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from typing import TYPE_CHECKING, ClassVar
+
+import numpy as np
+
+from planner.exceptions import InvalidArgumentError
+from planner.export.calibration import ServoCalibration, check_calibrations, pulse_widths
+from planner.export.formats.base import ServoFormat
+
+if TYPE_CHECKING:
+    from planner.motion.trajectory import JointTrajectory
+
+__all__ = ["SSC32_MAX_CHANNEL", "Ssc32", "ssc32_group_moves"]
+
+#: Largest channel number of an SSC-32.
+SSC32_MAX_CHANNEL = 31
+
+
+def ssc32_group_moves(
+    trajectory: JointTrajectory, calibrations: Sequence[ServoCalibration], period_ms: int = 20
+) -> list[str]:
+    """Lynxmotion SSC-32 group-move commands that replay a trajectory.
+
+    One command per `period_ms`, ``#<ch>P<pw>#<ch>P<pw>...T<ms>``: every listed servo moves
+    to its pulse width and all arrive together after ``T`` ms (the controller interpolates
+    linearly within it). The first command holds the start pose for one period; send them one
+    period apart, each followed by a carriage return (ASCII 13).
+
+    Args:
+        trajectory: The joint trajectory.
+        calibrations: One per joint (channels 0-31).
+        period_ms: Time per command [ms], a positive integer.
+
+    Returns:
+        The command strings, without terminators.
+
+    Raises:
+        InvalidArgumentError: On a bad period, channel or calibration, or a pulse out of range.
+    """
+    if isinstance(period_ms, bool) or not isinstance(period_ms, (int, np.integer)) or not 1 <= period_ms <= 65535:
+        raise InvalidArgumentError(f"period_ms must be an integer in [1, 65535] ms, got {period_ms!r}")
+    check_calibrations(calibrations, trajectory.dof)
+    for c in calibrations:
+        if c.channel > SSC32_MAX_CHANNEL:
+            raise InvalidArgumentError(
+                f"joint {c.joint!r} uses channel {c.channel}; an SSC-32 has channels 0-{SSC32_MAX_CHANNEL}"
+            )
+    n = int(math.ceil(trajectory.duration * 1000.0 / period_ms - 1e-9)) + 1
+    t = np.minimum(np.arange(n) * period_ms / 1000.0, trajectory.duration)
+    pulses = pulse_widths(calibrations, trajectory.sample(t).q)
+    return ["".join(f"#{c.channel}P{p}" for c, p in zip(calibrations, row)) + f"T{period_ms}" for row in pulses]
+
+
+class Ssc32(ServoFormat):
+    """:func:`ssc32_group_moves`, each command ended by a carriage return, in ASCII."""
+
+    name: ClassVar[str] = "ssc32"
+    file_name: ClassVar[str] = "ssc32.txt"
+    encoding: ClassVar[str] = "ascii"
+
+    def render(self, trajectory: JointTrajectory, calibrations: Sequence[ServoCalibration], period_ms: int) -> str:
+        """The commands, one period apart, each followed by a carriage return (ASCII 13)."""
+        return "".join(c + "\r" for c in ssc32_group_moves(trajectory, calibrations, period_ms=period_ms))
