@@ -155,7 +155,7 @@ def _add_plan(sub: argparse._SubParsersAction) -> None:
         "plan",
         help="a smooth, limit-honouring trajectory through waypoints or Cartesian targets",
         description="Plan a jerk-limited trajectory through the waypoints of a plan file (YAML or JSON; "
-        "the format is in the README and planner.app.motion_plan).",
+        "the format is in the README and planner.app.plan_file).",
     )
     p.add_argument("robot", help="robot name (see `planner robots`) or URDF path")
     p.add_argument("waypoints_file", type=Path, help="plan file (.yaml or .json)")
