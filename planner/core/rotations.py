@@ -17,6 +17,7 @@ from planner.exceptions import InvalidArgumentError
 __all__ = [
     "check_rotation",
     "finite_vector",
+    "homogeneous",
     "matrix_to_rpy",
     "quaternion_to_matrix",
     "rotation_error",
@@ -48,6 +49,11 @@ def rpy_to_matrix(rpy: Sequence[float] | np.ndarray) -> np.ndarray:
     """Rotation matrix of URDF roll-pitch-yaw angles ``R = Rz(y) Ry(p) Rx(r)`` [rad]."""
     r, p, y = finite_vector(rpy, 3, "rpy")
     return np.array(pin.rpy.rpyToMatrix(r, p, y))
+
+
+def homogeneous(rotation: np.ndarray, position: Sequence[float] | np.ndarray) -> np.ndarray:
+    """The 4x4 homogeneous transform of a rotation (3, 3) and a translation (3,) [m]."""
+    return np.array(pin.SE3(np.asarray(rotation, dtype=float), np.asarray(position, dtype=float)).homogeneous)
 
 
 def matrix_to_rpy(rotation: np.ndarray) -> np.ndarray:

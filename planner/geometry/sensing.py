@@ -6,7 +6,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from planner.core.rotations import check_rotation, rpy_to_matrix
+from planner.core.rotations import check_rotation, homogeneous, rpy_to_matrix
 from planner.exceptions import InvalidArgumentError
 
 __all__ = ["range_bearing_to_base"]
@@ -29,10 +29,7 @@ def _pose_matrix(sensor_pose: Sequence[float] | np.ndarray) -> np.ndarray:
         if not np.all(np.isfinite(arr)):
             raise InvalidArgumentError(f"sensor_pose holds NaN or infinite values: {arr.tolist()}")
         yaw = arr[3] if arr.shape == (4,) else 0.0
-        pose = np.eye(4)
-        pose[:3, :3] = rpy_to_matrix((0.0, 0.0, yaw))
-        pose[:3, 3] = arr[:3]
-        return pose
+        return homogeneous(rpy_to_matrix((0.0, 0.0, yaw)), arr[:3])
     raise InvalidArgumentError(
         f"sensor_pose must be a 4x4 transform, (x, y, z) or (x, y, z, yaw); got shape {arr.shape}"
     )

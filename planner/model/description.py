@@ -35,7 +35,7 @@ from xml.sax.saxutils import escape
 import numpy as np
 
 from planner.core.files import parse_number, parse_numbers, parse_units, read_data_file
-from planner.core.rotations import matrix_to_rpy, rpy_to_matrix
+from planner.core.rotations import homogeneous, matrix_to_rpy, rpy_to_matrix
 from planner.core.units import servo_speed_to_velocity
 from planner.exceptions import InvalidArgumentError, InvalidLimitsError
 
@@ -108,10 +108,7 @@ def _vector(value: Any, what: str, scale: float) -> np.ndarray:
 
 
 def _pose(xyz: np.ndarray, rpy: np.ndarray) -> np.ndarray:
-    t = np.eye(4)
-    t[:3, :3] = rpy_to_matrix(rpy)
-    t[:3, 3] = xyz
-    return t
+    return homogeneous(rpy_to_matrix(rpy), xyz)
 
 
 def _joint_velocity(row: Mapping[str, Any], default: Mapping[str, Any], angular: float, name: str) -> float:
