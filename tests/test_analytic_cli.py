@@ -25,11 +25,11 @@ def test_ik_json_best_solution(capsys):
     code, out, err = run(capsys, "ik", "dh3", repr(x), repr(y), repr(z), "--json")
     assert code == 0 and err == ""
     data = json.loads(out)
-    assert data["status"] == "ok" and data["method"] == "analytic"
+    assert data["status"] == "solved" and data["method"] == "analytic"
     assert len(data["solutions"]) == 1  # without --all: the best one
     sol = data["solutions"][0]
     assert set(sol) >= {"q", "position_error", "status", "branch", "within_limits", "singular"}
-    assert sol["status"] == "ok" and sol["within_limits"]
+    assert sol["status"] == "solved" and sol["within_limits"]
     np.testing.assert_allclose(sol["q"], q, atol=1e-12)
     assert np.linalg.norm(robot.fk(sol["q"])[:3, 3] - [x, y, z]) < 1e-9
 
@@ -59,7 +59,7 @@ def test_ik_rpy_target(capsys):
     x, y, z = pose[:3, 3].tolist()
     code, out, _ = run(capsys, "ik", "three_joint", repr(x), repr(y), repr(z), "--rpy", *map(repr, rpy), "--json")
     data = json.loads(out)
-    assert code == 0 and data["status"] == "ok"
+    assert code == 0 and data["status"] == "solved"
     np.testing.assert_allclose(data["solutions"][0]["q"], q, atol=1e-9)
     assert data["solutions"][0]["orientation_error"] < 1e-9
 
@@ -89,7 +89,7 @@ def test_ik_current_orders_the_solutions(capsys):
 def test_ik_text_output(capsys):
     code, out, _ = run(capsys, "ik", "dh3", "0.11", "0", "0.09", "--deg", "--all")
     assert code == 0
-    assert "dh3 analytic IK" in out and ": ok" in out
+    assert "dh3 analytic IK" in out and ": solved" in out
     assert "front/elbow-up" in out and "q [deg]" in out
 
 

@@ -73,7 +73,7 @@ def test_long_sweep_agrees(name, kind):
         pytest.skip("example-robot-data is not installed")
     checks = sweep(name, kind, 1000, seed=32)
     assert_all_agree(checks)
-    assert all(c.analytic_status == "ok" for c in checks)
+    assert all(c.analytic_status == "solved" for c in checks)
 
 
 def assert_the_closed_form_reaches_what_the_nlp_reaches(checks: list[CrossCheck]) -> None:
@@ -83,7 +83,7 @@ def assert_the_closed_form_reaches_what_the_nlp_reaches(checks: list[CrossCheck]
     assert_all_agree(checks)
     for check in checks:
         assert check.redundant, check.reason
-        assert check.analytic_status == "ok", check.reason
+        assert check.analytic_status == "solved", check.reason
         assert check.verdict == "both_reach" or (check.verdict == "match" and check.joint_distance <= 1e-4)
 
 
@@ -109,7 +109,7 @@ def test_closed_form_finds_a_solution_within_limits_whenever_the_nlp_does(name):
         check = cross_check(robot, Target(point), q_seed, max_attempts=64, time_budget=10.0)
         if check.nlp.success:
             reached += 1
-            assert check.analytic_status == "ok", check.reason
+            assert check.analytic_status == "solved", check.reason
         assert check.agree, check.reason
     assert 10 <= reached < 50  # both outcomes occur
 
@@ -144,7 +144,7 @@ def test_closed_form_finds_redundant_solutions_within_limits(name, q_target, q_s
     target = Target(robot.position(np.array(q_target)))
     check = cross_check(robot, target, np.array(q_seed))
     assert check.nlp.success  # reachable within the limits ...
-    assert check.agree and check.analytic_status == "ok", check.reason  # ... so the closed form finds it too
+    assert check.agree and check.analytic_status == "solved", check.reason  # ... so the closed form finds it too
     result = analytic_solver(robot).solve(target, np.array(q_seed))
     for sol in result.solutions:
         assert np.linalg.norm(robot.position(sol.q) - target.position) <= 1e-9
@@ -171,7 +171,7 @@ def test_so101_pitch_target_follows_the_approach_convention():
 def test_so101_pitch_sweep_agrees():
     checks = sweep("so101", "pitch", 40, seed=37)
     assert_all_agree(checks)
-    assert all(c.analytic_status == "ok" and c.analytic_orientation_error <= 1e-9 for c in checks)
+    assert all(c.analytic_status == "solved" and c.analytic_orientation_error <= 1e-9 for c in checks)
 
 
 def test_near_singular_targets_match():
@@ -197,7 +197,7 @@ def test_cross_check_reports_errors_of_both():
     assert check.joint_distance <= 1e-4
     assert check.analytic_position_error <= 1e-12 and check.nlp.position_error <= 1e-6
     d = check.as_dict()
-    assert d["nlp_position_error"] == check.nlp.position_error and d["analytic_status"] == "ok"
+    assert d["nlp_position_error"] == check.nlp.position_error and d["analytic_status"] == "solved"
 
 
 @needs_example_robot_data

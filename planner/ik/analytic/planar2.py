@@ -35,10 +35,10 @@ from planner.ik.analytic.result import (
     STATUS_BEYOND_MAX_REACH,
     STATUS_CODES,
     STATUS_INSIDE_MIN_REACH,
-    STATUS_OK,
     STATUS_ORIENTATION_NOT_ACHIEVABLE,
     STATUS_OUT_OF_PLANE,
     STATUS_OUTSIDE_JOINT_LIMITS,
+    STATUS_SOLVED,
     AnalyticBatchResult,
     AnalyticResult,
     AnalyticSolution,
@@ -211,7 +211,7 @@ class Planar2IK(AnalyticIK):
         if qc is not None:
             solutions.sort(key=lambda sol: float(np.sum((sol.q - np.asarray(qc)) ** 2)))
         if any(sol.within_limits for sol in solutions):
-            return AnalyticResult(STATUS_OK, "", tuple(solutions), singular)
+            return AnalyticResult(STATUS_SOLVED, "", tuple(solutions), singular)
         rmin, rmax = self.reach
         if dd < rmin - self._len_tol:
             status = STATUS_INSIDE_MIN_REACH
@@ -357,7 +357,7 @@ class Planar2IK(AnalyticIK):
         status = np.where(beyond, STATUS_CODES[STATUS_BEYOND_MAX_REACH], status)
         status = np.where(orient_fail, STATUS_CODES[STATUS_ORIENTATION_NOT_ACHIEVABLE], status)
         status = np.where(off_plane, STATUS_CODES[STATUS_OUT_OF_PLANE], status)
-        status = np.where(within.any(axis=1), STATUS_CODES[STATUS_OK], status)
+        status = np.where(within.any(axis=1), STATUS_CODES[STATUS_SOLVED], status)
         if qc is not None:
             dist2 = np.sum((q - qc[:, None, :]) ** 2, axis=-1)
         else:

@@ -90,9 +90,9 @@ from planner.ik.analytic.result import (
     STATUS_BEYOND_MAX_REACH,
     STATUS_CODES,
     STATUS_INSIDE_MIN_REACH,
-    STATUS_OK,
     STATUS_ORIENTATION_NOT_ACHIEVABLE,
     STATUS_OUTSIDE_JOINT_LIMITS,
+    STATUS_SOLVED,
     AnalyticBatchResult,
     AnalyticResult,
     AnalyticSolution,
@@ -375,7 +375,7 @@ class YawPlanarIK(AnalyticIK):
         if base is None:
             base = self._solve_arrays(pos, pit, None, qca)
         arrays = self._solve_searched(pos, pit, qca, base)
-        if arrays is base or arrays["status"][0] != STATUS_CODES[STATUS_OK]:
+        if arrays is base or arrays["status"][0] != STATUS_CODES[STATUS_SOLVED]:
             if result.status != STATUS_OUTSIDE_JOINT_LIMITS:
                 return result
             free_phi, free_roll = self._free_joints(target.pitch, None)
@@ -683,7 +683,7 @@ class YawPlanarIK(AnalyticIK):
         """Overall status and its explanation from per-branch categories and solutions."""
         sols = [s for _, s in details]
         if any(s.within_limits for s in sols):
-            return STATUS_OK, ""
+            return STATUS_SOLVED, ""
         if sols:
             rmin, rmax = self._reach_limits()
             reach_fail = []
@@ -1311,7 +1311,7 @@ class YawPlanarIK(AnalyticIK):
             ),
         )
         status = np.where(any_valid, status, none)
-        return np.where(any_within, STATUS_CODES[STATUS_OK], status)
+        return np.where(any_within, STATUS_CODES[STATUS_SOLVED], status)
 
     # ------------------------------------------------------------------ correction on the real geometry
     def _refine(self, core, pos, pit, rot, qc, roll_free=None, max_rounds: int = 8):
@@ -1749,7 +1749,7 @@ class YawPlanarIK(AnalyticIK):
         For the targets without a solution within the limits, each branch at the values `_search`
         finds. Branches the search finds nothing for keep their solution at the default values.
         """
-        todo = np.nonzero(base["status"] != STATUS_CODES[STATUS_OK])[0]
+        todo = np.nonzero(base["status"] != STATUS_CODES[STATUS_SOLVED])[0]
         if todo.size == 0:
             return base
         sub_pit = None if pit is None else pit[todo]
