@@ -2,7 +2,9 @@
 
 from __future__ import annotations
 
+import gc
 import math
+import weakref
 
 import numpy as np
 import pytest
@@ -121,6 +123,43 @@ def _chain_error(joints, tip_xyz=(0.1, 0, 0)):
     with pytest.raises(UnsupportedChainError) as info:
         AnalyticIK.from_robot(robot)
     return info.value
+
+
+def test_family_registry_and_match():
+    assert analytic.FAMILIES == (Planar2IK, YawPlanarIK)
+    chain = chain_at_zero(load_robot("al5c"))
+    assert YawPlanarIK.match(chain) is None
+    assert "not parallel to the first joint" in Planar2IK.match(chain)
+    planar = chain_at_zero(load_robot("shelley"))
+    assert Planar2IK.match(planar) is None
+    assert "like the base yaw" in YawPlanarIK.match(planar)
+
+
+def test_solve_analytic_caches_the_solver_with_the_robot():
+    joints = [
+        ("yaw", "revolute", O3, O3, Z),
+        ("p0", "revolute", (0, 0, 0.1), O3, Y),
+        ("p1", "revolute", (0.1, 0, 0), O3, Y),
+    ]
+    robot = Robot(serial_urdf(joints, (0.1, 0, 0)))
+    assert solve_analytic(robot, Target([0.15, 0.02, 0.12])).ok
+    assert AnalyticIK in robot.derived
+    solver = robot.derived.get(AnalyticIK, lambda: None)
+    assert (
+        solve_analytic(robot, Target([0.15, 0.02, 0.12])).ok and robot.derived.get(AnalyticIK, lambda: None) is solver
+    )
+    ref = weakref.ref(robot)
+    del robot, solver
+    gc.collect()
+    assert ref() is None  # the cache lives and dies with the robot
+
+
+def test_solve_analytic_does_not_cache_unsupported_chains():
+    robot = Robot(serial_urdf([(f"v{k}", "revolute", (0.1 * (k > 0), 0, 0), O3, Z) for k in range(3)], (0.1, 0, 0)))
+    for _ in range(2):
+        with pytest.raises(UnsupportedChainError, match="'v2'"):
+            solve_analytic(robot, Target([0.1, 0.0, 0.0]))
+    assert AnalyticIK not in robot.derived
 
 
 def test_first_joint_must_be_vertical():

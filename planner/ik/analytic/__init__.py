@@ -6,7 +6,9 @@ One module per family, all built from the robot's Pinocchio model:
 - :mod:`~planner.ik.analytic.yaw_planar`: base yaw + 2 or 3 parallel pitch joints + optional
   wrist roll (001, 002, 004 seeds, SO-101).
 
-Use :meth:`AnalyticIK.from_robot` (detects the family) or :func:`solve_analytic`::
+The families are registered in :data:`~planner.ik.analytic.families.FAMILIES`; each says by
+``match(chain)`` whether a chain fits (None) or why not. Use :meth:`AnalyticIK.from_robot`
+(detects the family) or :func:`solve_analytic`::
 
     solver = AnalyticIK.from_robot(load_robot("al5c"))
     result = solver.solve(Target([0.25, 0.05, 0.10], pitch=-math.pi / 2), q_current=q)
@@ -15,7 +17,8 @@ Use :meth:`AnalyticIK.from_robot` (detects the family) or :func:`solve_analytic`
 """
 
 from planner.geometry.chain import ChainAtZero, JointScrew, chain_at_zero, poe_fk
-from planner.ik.analytic.base import FAMILY_ANGLE_TOL, AnalyticIK, solve_analytic
+from planner.ik.analytic.base import FAMILY_ANGLE_TOL, AnalyticIK, ChainMismatch, solve_analytic
+from planner.ik.analytic.families import FAMILIES
 from planner.ik.analytic.planar2 import PLANAR_BRANCHES, Planar2IK
 from planner.ik.analytic.result import (
     STATUS_BEYOND_MAX_REACH,
@@ -35,6 +38,8 @@ from planner.ik.analytic.yaw_planar import BRANCHES, YawPlanarIK
 
 __all__ = [
     "AnalyticIK",
+    "ChainMismatch",
+    "FAMILIES",
     "solve_analytic",
     "AnalyticResult",
     "AnalyticSolution",

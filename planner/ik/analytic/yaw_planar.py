@@ -78,14 +78,33 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
+from dataclasses import dataclass
 
 import numpy as np
 
+from planner.core.arrays import read_only
 from planner.core.rotations import rotation_error
 from planner.exceptions import UnsupportedChainError
-from planner.geometry.chain import ChainAtZero, describe_violation, poe_fk, rotation_about, wrap_array, wrap_scalar
-from planner.geometry.target import Target, _pitch_error_one, approach_pitch, pitch_error
-from planner.ik.analytic.base import FAMILY_ANGLE_TOL, AnalyticIK, _angle_to_line, _angle_to_plane
+from planner.geometry.chain import (
+    ChainAtZero,
+    JointScrew,
+    describe_violation,
+    poe_fk,
+    rotation_about,
+    wrap_array,
+    wrap_scalar,
+)
+from planner.geometry.target import Target, approach_pitch, pitch_error, pitch_error_scalar
+from planner.ik.analytic.base import FAMILY_ANGLE_TOL, AnalyticIK, ChainMismatch, base_yaw_mismatch
+from planner.ik.analytic.geometry import (
+    LENGTH_TOL,
+    ORIENTATION_TOL,
+    SINGULAR_TOL,
+    angle_to_line,
+    angle_to_plane,
+    reach_interval,
+    wrap_pi,
+)
 from planner.ik.analytic.result import (
     STATUS_BEYOND_MAX_REACH,
     STATUS_CODES,
@@ -99,7 +118,7 @@ from planner.ik.analytic.result import (
 )
 from planner.model.robot import Robot
 
-__all__ = ["YawPlanarIK", "BRANCHES"]
+__all__ = ["YawPlanarIK", "BRANCHES", "ChainLayout", "chain_layout"]
 
 PI = math.pi
 TWO_PI = 2.0 * math.pi
@@ -107,48 +126,11 @@ TWO_PI = 2.0 * math.pi
 #: Branch names in batch order.
 BRANCHES = ("front/elbow-up", "front/elbow-down", "back/elbow-up", "back/elbow-down")
 
-#: A stretched/folded elbow with |sin| below this is set exactly singular (the position changes
-#: by its square only); also the relative distance to the yaw axis flagged singular.
-SINGULAR_TOL = 1e-7
-#: Relative (to the arm's size) length tolerance: reach round-off, the yaw axis.
-LENGTH_TOL = 1e-12
-#: Orientation residual [rad] up to which an asked orientation counts as achieved.
-ORIENTATION_TOL = 1e-7
 #: Deviation [rad] below which a chain is treated as exactly of the family.
 EXACT_TOL = 1e-12
 
 # Per-branch failure categories (internal).
 _VALID, _BEYOND, _INSIDE, _CYLINDER, _ORIENT, _DUPLICATE = range(6)
-
-
-def _wrap_pi(x):
-    """Angle(s) wrapped into [-pi, pi)."""
-    return (x + PI) % TWO_PI - PI
-
-
-def _reach_interval(l1: float, l2, delta, lo: float, hi: float, sign: float):
-    """Reach bounds of a 2-link whose relative angle is ``sign * q + delta``, q in [lo, hi].
-
-    Returns (r_min, r_max) [m] (arrays if l2/delta are arrays).
-    """
-    a, b = sorted((sign * lo, sign * hi))
-    width = b - a
-    e_lo = np.asarray(a + delta, dtype=float)
-    e_hi = np.asarray(b + delta, dtype=float)
-    if not math.isfinite(width) or width >= TWO_PI:
-        cmax = np.ones_like(e_lo)
-        cmin = -np.ones_like(e_lo)
-    else:
-        has_zero = np.floor(e_hi / TWO_PI) >= np.ceil(e_lo / TWO_PI)
-        has_pi = np.floor((e_hi - PI) / TWO_PI) >= np.ceil((e_lo - PI) / TWO_PI)
-        ends_max = np.maximum(np.cos(e_lo), np.cos(e_hi))
-        ends_min = np.minimum(np.cos(e_lo), np.cos(e_hi))
-        cmax = np.where(has_zero, 1.0, ends_max)
-        cmin = np.where(has_pi, -1.0, ends_min)
-    base = l1 * l1 + l2 * l2
-    r_max = np.sqrt(np.maximum(base + 2 * l1 * l2 * cmax, 0.0))
-    r_min = np.sqrt(np.maximum(base + 2 * l1 * l2 * cmin, 0.0))
-    return r_min, r_max
 
 
 class YawPlanarIK(AnalyticIK):
@@ -175,60 +157,19 @@ class YawPlanarIK(AnalyticIK):
         self._detect(chain)
 
     # ------------------------------------------------------------------ geometry
+    @classmethod
+    def mismatch(cls, chain: ChainAtZero) -> ChainMismatch | None:
+        """Why a chain is not a base yaw + 2 or 3 pitch joints + optional roll (None when it is)."""
+        layout = chain_layout(chain)
+        return layout if isinstance(layout, ChainMismatch) else None
+
     def _detect(self, chain: ChainAtZero) -> None:
-        name = self.robot.name
-        joints = chain.joints
+        layout = chain_layout(chain)
+        if isinstance(layout, ChainMismatch):
+            raise UnsupportedChainError(f"{self.robot.name}: {layout.reason}", joint=layout.joint)
+        yaw, pitch, roll, deviation = layout.yaw, list(layout.pitch), layout.roll, layout.deviation
         z = np.array([0.0, 0.0, 1.0])
-        yaw = joints[0]
-        deviation = _angle_to_line(yaw.axis, z)
-        n_raw = joints[1].axis
-        off = _angle_to_plane(n_raw, z)
-        if off > FAMILY_ANGLE_TOL:
-            raise UnsupportedChainError(
-                f"{name}: joint {joints[1].name!r} turns about {np.round(n_raw, 6).tolist()}, neither vertical "
-                "(a planar 2-link) nor horizontal (a pitch joint after the base yaw)",
-                joint=joints[1].name,
-            )
-        deviation = max(deviation, off)
-        pitch = [joints[1]]
-        k = 2
-        while k < len(joints) and _angle_to_line(joints[k].axis, n_raw) <= FAMILY_ANGLE_TOL:
-            deviation = max(deviation, _angle_to_line(joints[k].axis, n_raw))
-            pitch.append(joints[k])
-            k += 1
-        if len(pitch) > 3:
-            raise UnsupportedChainError(
-                f"{name}: joint {pitch[3].name!r} is a fourth parallel pitch joint; the family has 2 or 3 "
-                "(more make the arm's plane redundant)",
-                joint=pitch[3].name,
-            )
-        if len(pitch) < 2:
-            bad = joints[k] if k < len(joints) else joints[1]
-            raise UnsupportedChainError(
-                f"{name}: joint {bad.name!r} "
-                + ("is not parallel to the first pitch joint" if k < len(joints) else "ends the chain")
-                + f" after a single pitch joint {joints[1].name!r}; the family needs 2 or 3 parallel pitch joints",
-                joint=bad.name,
-            )
-        roll = None
-        if k < len(joints):
-            cand = joints[k]
-            perp = _angle_to_plane(cand.axis, n_raw)
-            if perp > FAMILY_ANGLE_TOL:
-                raise UnsupportedChainError(
-                    f"{name}: joint {cand.name!r} turns about {np.round(cand.axis, 6).tolist()}, neither parallel "
-                    "to the pitch axes nor perpendicular to them (a wrist roll)",
-                    joint=cand.name,
-                )
-            deviation = max(deviation, perp)
-            roll = cand
-            k += 1
-        if k < len(joints):
-            raise UnsupportedChainError(
-                f"{name}: joint {joints[k].name!r} follows the wrist roll {roll.name!r}; the family ends there "
-                "(base yaw, 2 or 3 pitch joints, optional wrist roll)",
-                joint=joints[k].name,
-            )
+        n_raw = pitch[0].axis
         self.deviation = deviation
         self.exact = deviation <= EXACT_TOL
 
@@ -291,8 +232,8 @@ class YawPlanarIK(AnalyticIK):
         # Approach axis: in the plane, at angle beta; pitch targets need it to stay there.
         a0 = chain.approach
         self._beta = math.atan2(a0[2], a0 @ e_u)
-        in_plane = _angle_to_plane(a0, n) <= FAMILY_ANGLE_TOL
-        along_roll = roll is None or _angle_to_line(a0, self._r0) <= FAMILY_ANGLE_TOL
+        in_plane = angle_to_plane(a0, n) <= FAMILY_ANGLE_TOL
+        along_roll = roll is None or angle_to_line(a0, self._r0) <= FAMILY_ANGLE_TOL
         self._pitch_supported = in_plane and along_roll
         self._rot0 = np.array(chain.tip_rotation)
         self._approach_local = np.array(self.robot.approach_axis)
@@ -305,7 +246,7 @@ class YawPlanarIK(AnalyticIK):
         # Reach of the shoulder-elbow pair within the elbow's range (the 000 seed's min reach).
         elbow = self._pitch_idx[1]
         if self.n_pitch == 3:
-            rmin, rmax = _reach_interval(
+            rmin, rmax = reach_interval(
                 self._l1, self._l2, self._g2 - self._g1, self._lower[elbow], self._upper[elbow], self._signs[1]
             )
             self._rmin_lim, self._rmax_lim = float(rmin), float(rmax)
@@ -547,7 +488,7 @@ class YawPlanarIK(AnalyticIK):
                     cats[2 * side] = cats[2 * side + 1] = _ORIENT
                     continue
                 a1 = atan2(ez, ex)
-                e = _wrap_pi(phi + g2 - a1)
+                e = wrap_pi(phi + g2 - a1)
                 up = e <= 0.0 if side == 0 else e >= 0.0
                 slot = 2 * side + (0 if up else 1)
                 cats[slot ^ 1] = _DUPLICATE
@@ -604,7 +545,7 @@ class YawPlanarIK(AnalyticIK):
                 oerr = None
                 if pitch is not None:
                     c_alpha, s_alpha = cos(beta + f4), sin(beta + f4)
-                    oerr = _pitch_error_one(c_alpha * cy, c_alpha * sy, s_alpha, px, py, cos_p, sin_p, elevation_p)
+                    oerr = pitch_error_scalar(c_alpha * cy, c_alpha * sy, s_alpha, px, py, cos_p, sin_p, elevation_p)
                 singular = elbow_singular or free or abs(ue) < axis_tol
                 sols.append((slot, q, singular, perr, oerr))
         return self._finish_scalar(sols, cats, dist, qc, target)
@@ -665,9 +606,7 @@ class YawPlanarIK(AnalyticIK):
                 q[j] = v
                 if v < lo or v > hi:
                     within = False
-            arr = np.array(q)
-            arr.setflags(write=False)
-            sol = AnalyticSolution(arr, within, BRANCHES[slot], singular, perr, oerr)
+            sol = AnalyticSolution(read_only(q), within, BRANCHES[slot], singular, perr, oerr)
             solutions.append(sol)
             details.append((slot, sol))
         if qc is not None and len(solutions) > 1:
@@ -1006,7 +945,7 @@ class YawPlanarIK(AnalyticIK):
         tol = max(self._consistency_tol, len_tol)
         cat = np.where((cat == _VALID) & (np.abs(np.hypot(ex, ez) - l1) > tol), _ORIENT, cat)
         a1 = np.arctan2(ez, ex)
-        e = _wrap_pi(phi + g2 - a1)
+        e = wrap_pi(phi + g2 - a1)
         up = np.stack([e[:, 0] <= 0.0, e[:, 1] >= 0.0], axis=1)
         rep = [0, 0, 1, 1]
         q2 = np.empty((n, 2, dof))
@@ -1354,7 +1293,7 @@ class YawPlanarIK(AnalyticIK):
                 settled &= oerr <= 1e-13
             if pitch_goal is not None and not self.exact:
                 true_pitch = self._true_pitch(q, fk_r)
-                settled &= np.abs(_wrap_pi(true_pitch - pitch_goal)) <= 1e-13
+                settled &= np.abs(wrap_pi(true_pitch - pitch_goal)) <= 1e-13
             if self.exact or (~valid | settled).all() or round_ == max_rounds:
                 break
             if rot is not None:
@@ -1365,7 +1304,7 @@ class YawPlanarIK(AnalyticIK):
             else:
                 p_eff = p_eff + (pos[:, None, :] - fk_p)
             if pitch_goal is not None:
-                pitch_eff = pitch_eff + _wrap_pi(pitch_goal - true_pitch)
+                pitch_eff = pitch_eff + wrap_pi(pitch_goal - true_pitch)
             sub = self._core(
                 p_eff.reshape(-1, 3),
                 None if pitch_eff is None else pitch_eff.reshape(-1),
@@ -1396,7 +1335,7 @@ class YawPlanarIK(AnalyticIK):
             # Branches that converged onto one solution (a singular target): keep the first.
             for a, b in ((0, 1), (2, 3), (0, 2), (0, 3), (1, 2), (1, 3)):
                 both = (valid[:, a] & ok[:, a]) & (valid[:, b] & ok[:, b])
-                twin = both & (np.max(np.abs(_wrap_pi(q[:, a] - q[:, b])), axis=-1) < 1e-7)
+                twin = both & (np.max(np.abs(wrap_pi(q[:, a] - q[:, b])), axis=-1) < 1e-7)
                 if twin.any():
                     cat[twin, b] = _DUPLICATE
                     valid[twin, b] = False
@@ -1438,7 +1377,7 @@ class YawPlanarIK(AnalyticIK):
                 qq4 = np.repeat(qq[:, None, :], 4, axis=1)
                 rr4 = np.repeat(fk_r[:, None], 4, axis=1)
                 got = self._true_pitch(qq4, rr4)[np.arange(len(qq)), front4]
-                parts.append(_wrap_pi(got - pit)[:, None])
+                parts.append(wrap_pi(got - pit)[:, None])
             return np.concatenate(parts, axis=-1)
 
         step = 1e-7
@@ -1558,7 +1497,7 @@ class YawPlanarIK(AnalyticIK):
         base = np.arctan2(az, ax) - np.arctan2(mz, mx)
         half = np.arccos(np.clip(np.where(ok, c, 0.0), -1.0, 1.0))
         roots = np.concatenate([np.where(ok, base + half, np.nan), np.where(ok, base - half, np.nan)], axis=-1)
-        return _wrap_pi(roots)
+        return wrap_pi(roots)
 
     @staticmethod
     def _intervals(bounds, pref):
@@ -1634,9 +1573,9 @@ class YawPlanarIK(AnalyticIK):
         dist = np.where(ok, np.abs(near - shifted), np.inf)
         best = np.argmin(dist, axis=-1)[..., None]
         feasible = np.isfinite(np.take_along_axis(dist, best, axis=-1)[..., 0])
-        phi = _wrap_pi(np.take_along_axis(near, best, axis=-1)[..., 0])
+        phi = wrap_pi(np.take_along_axis(near, best, axis=-1)[..., 0])
         inside = np.take_along_axis(shifted <= end, best, axis=-1)[..., 0]
-        phi_mid = np.where(inside, phi, _wrap_pi(np.take_along_axis(mid, best, axis=-1)[..., 0]))
+        phi_mid = np.where(inside, phi, wrap_pi(np.take_along_axis(mid, best, axis=-1)[..., 0]))
         return feasible, np.where(feasible, phi, np.nan), np.where(feasible, phi_mid, np.nan)
 
     def _search(self, pos, pit, qc, roll_step: float = math.radians(2.5)):
@@ -1807,8 +1746,7 @@ class YawPlanarIK(AnalyticIK):
         for slot in range(4):
             if not a["valid"][i, slot]:
                 continue
-            arr = np.array(a["q"][i, slot])
-            arr.setflags(write=False)
+            arr = read_only(a["q"][i, slot])
             oerr = None if a["oerr"] is None else float(a["oerr"][i, slot])
             sol = AnalyticSolution(
                 arr,
@@ -1847,3 +1785,99 @@ def _diagonal(a, m):
     a = a.reshape((m, 4) + a.shape[1:])
     k = np.arange(4)
     return a[:, k, k]
+
+
+@dataclass(frozen=True)
+class ChainLayout:
+    """A chain split into the family's joints.
+
+    Attributes:
+        yaw: The base yaw joint.
+        pitch: The 2 or 3 parallel pitch joints.
+        roll: The wrist roll joint, or None.
+        deviation: Largest angle [rad] of the axes from the family's ideal directions.
+    """
+
+    yaw: JointScrew
+    pitch: tuple[JointScrew, ...]
+    roll: JointScrew | None
+    deviation: float
+
+
+def chain_layout(chain: ChainAtZero) -> ChainLayout | ChainMismatch:
+    """Split a chain into base yaw, pitch joints and wrist roll, or say why it does not fit.
+
+    Args:
+        chain: The chain at q = 0.
+
+    Returns:
+        The layout, or the mismatch naming the first joint that breaks the family.
+    """
+    common = base_yaw_mismatch(chain)
+    if common is not None:
+        return common
+    joints = chain.joints
+    z = np.array([0.0, 0.0, 1.0])
+    yaw = joints[0]
+    if angle_to_line(joints[1].axis, yaw.axis) <= FAMILY_ANGLE_TOL:
+        return ChainMismatch(
+            f"joint {joints[1].name!r} turns about the vertical like the base yaw {yaw.name!r}: a planar arm, "
+            "not a pitch joint after the base yaw",
+            joints[1].name,
+            1,
+        )
+    deviation = angle_to_line(yaw.axis, z)
+    n_raw = joints[1].axis
+    off = angle_to_plane(n_raw, z)
+    if off > FAMILY_ANGLE_TOL:
+        return ChainMismatch(
+            f"joint {joints[1].name!r} turns about {np.round(n_raw, 6).tolist()}, neither vertical "
+            "(a planar 2-link) nor horizontal (a pitch joint after the base yaw)",
+            joints[1].name,
+            1,
+        )
+    deviation = max(deviation, off)
+    pitch = [joints[1]]
+    k = 2
+    while k < len(joints) and angle_to_line(joints[k].axis, n_raw) <= FAMILY_ANGLE_TOL:
+        deviation = max(deviation, angle_to_line(joints[k].axis, n_raw))
+        pitch.append(joints[k])
+        k += 1
+    if len(pitch) > 3:
+        return ChainMismatch(
+            f"joint {pitch[3].name!r} is a fourth parallel pitch joint; the family has 2 or 3 "
+            "(more make the arm's plane redundant)",
+            pitch[3].name,
+            4,
+        )
+    if len(pitch) < 2:
+        bad = joints[k] if k < len(joints) else joints[1]
+        return ChainMismatch(
+            f"joint {bad.name!r} "
+            + ("is not parallel to the first pitch joint" if k < len(joints) else "ends the chain")
+            + f" after a single pitch joint {joints[1].name!r}; the family needs 2 or 3 parallel pitch joints",
+            bad.name,
+            2,
+        )
+    roll = None
+    if k < len(joints):
+        cand = joints[k]
+        perp = angle_to_plane(cand.axis, n_raw)
+        if perp > FAMILY_ANGLE_TOL:
+            return ChainMismatch(
+                f"joint {cand.name!r} turns about {np.round(cand.axis, 6).tolist()}, neither parallel "
+                "to the pitch axes nor perpendicular to them (a wrist roll)",
+                cand.name,
+                k,
+            )
+        deviation = max(deviation, perp)
+        roll = cand
+        k += 1
+    if k < len(joints):
+        return ChainMismatch(
+            f"joint {joints[k].name!r} follows the wrist roll {roll.name!r}; the family ends there "
+            "(base yaw, 2 or 3 pitch joints, optional wrist roll)",
+            joints[k].name,
+            k,
+        )
+    return ChainLayout(yaw, tuple(pitch), roll, deviation)
