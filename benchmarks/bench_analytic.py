@@ -16,7 +16,7 @@ mean, 99th percentile, max over ``--single`` targets), and ``solver.solve_batch`
 answers are corrected on its real geometry, at most 20,000). A second table does the same for
 full-pose targets (FK rotation given, no ``q_current``; at most 500 single calls and 100,000
 batched targets). Solve rate: the
-share of targets where the result is "ok", every solution reproduces the target by Pinocchio
+share of targets where the result is "solved", every solution reproduces the target by Pinocchio
 FK (< 1e-9 m, < 1e-9 rad pitch; checked for the single calls) and one solution equals the
 generating configuration modulo 2 pi (< 1e-6 rad; checked for single calls and batches; for
 al5c without the wrist roll, which is free there and set to 0).
@@ -114,7 +114,7 @@ def bench_arm(name, n_single, n_batch, seed):
     worst_pos = 0.0
     worst_pitch = 0.0
     for q, target, res in zip(q1, targets, results):
-        if res.status != "ok" or not res.solutions:
+        if res.status != "solved" or not res.solutions:
             continue
         qs = np.array([s.q for s in res.solutions])
         poses = robot.fk(qs)
@@ -157,7 +157,7 @@ def bench_arm(name, n_single, n_batch, seed):
         res = solver.solve(target)
         pose_times[k] = clock() - t0
         qs = np.array([s.q for s in res.solutions]) if res.solutions else np.zeros((0, robot.dof))
-        pose_ok += res.status == "ok" and bool(np.any(same(qs, q)))
+        pose_ok += res.status == "solved" and bool(np.any(same(qs, q)))
     pose_times *= 1e-3
     n_pose_batch = min(n_batch, 100_000)
     q4 = robot.random_configurations(rng, n_pose_batch)

@@ -2,7 +2,9 @@
 
 from __future__ import annotations
 
+import gc
 import math
+import weakref
 
 import numpy as np
 import pytest
@@ -19,14 +21,16 @@ from planner.ik.analytic import (
     STATUS_CODES,
     STATUS_INSIDE_MIN_REACH,
     STATUS_NAMES,
-    STATUS_OK,
     STATUS_ORIENTATION_NOT_ACHIEVABLE,
     STATUS_OUTSIDE_JOINT_LIMITS,
+    STATUS_SOLVED,
     Planar2IK,
     YawPlanarIK,
     chain_at_zero,
     poe_fk,
 )
+from planner.ik.solvers import IKSolvers
+from planner.ik.status import IKStatus
 from planner.model.catalog import BUNDLED_ROBOTS, example_robot_data_dir
 
 TOL_POS = 1e-9
@@ -120,6 +124,41 @@ def _chain_error(joints, tip_xyz=(0.1, 0, 0)):
     with pytest.raises(UnsupportedChainError) as info:
         AnalyticIK.from_robot(robot)
     return info.value
+
+
+def test_family_registry_and_match():
+    assert analytic.FAMILIES == (Planar2IK, YawPlanarIK)
+    chain = chain_at_zero(load_robot("al5c"))
+    assert YawPlanarIK.match(chain) is None
+    assert "not parallel to the first joint" in Planar2IK.match(chain)
+    planar = chain_at_zero(load_robot("shelley"))
+    assert Planar2IK.match(planar) is None
+    assert "like the base yaw" in YawPlanarIK.match(planar)
+
+
+def test_solve_analytic_caches_the_solver_with_the_robot():
+    joints = [
+        ("yaw", "revolute", O3, O3, Z),
+        ("p0", "revolute", (0, 0, 0.1), O3, Y),
+        ("p1", "revolute", (0.1, 0, 0), O3, Y),
+    ]
+    robot = Robot(serial_urdf(joints, (0.1, 0, 0)))
+    assert solve_analytic(robot, Target([0.15, 0.02, 0.12])).success
+    assert IKSolvers in robot.derived
+    solver = IKSolvers.of(robot).analytic
+    assert solve_analytic(robot, Target([0.15, 0.02, 0.12])).success and IKSolvers.of(robot).analytic is solver
+    ref = weakref.ref(robot)
+    del robot, solver
+    gc.collect()
+    assert ref() is None  # the cache lives and dies with the robot
+
+
+def test_solve_analytic_raises_for_unsupported_chains_every_time():
+    robot = Robot(serial_urdf([(f"v{k}", "revolute", (0.1 * (k > 0), 0, 0), O3, Z) for k in range(3)], (0.1, 0, 0)))
+    for _ in range(2):
+        with pytest.raises(UnsupportedChainError, match="'v2'"):
+            solve_analytic(robot, Target([0.1, 0.0, 0.0]))
+    assert IKSolvers.of(robot).analytic is None  # the reason is kept: the chain does not change
 
 
 def test_first_joint_must_be_vertical():
@@ -220,15 +259,16 @@ def test_results_are_frozen(solvers, robots):
     with pytest.raises(AttributeError):
         sol.q = np.zeros(3)
     with pytest.raises(AttributeError):
-        res.status = "ok"
+        res.status = "solved"
     assert isinstance(res.solutions, tuple)
     assert res.ok and res.best is res.solutions[0]
 
 
 def test_status_names_and_codes():
-    assert STATUS_NAMES[STATUS_CODES[STATUS_OK]] == STATUS_OK
+    assert STATUS_NAMES[STATUS_CODES[STATUS_SOLVED]] == STATUS_SOLVED
+    assert STATUS_CODES[STATUS_SOLVED] == 0 and all(isinstance(name, IKStatus) for name in STATUS_NAMES)
     assert set(STATUS_NAMES) == {
-        "ok",
+        "solved",
         "outside_joint_limits",
         "orientation_not_achievable",
         "beyond_max_reach",
@@ -272,7 +312,7 @@ def test_four_branches_for_a_yaw_two_link_arm(robots, solvers):
     robot = robots["dh3"]
     target = Target(fk_position(robot, np.radians([30, 50, 70])))
     res = solvers["dh3"].solve(target)
-    assert res.status == STATUS_OK
+    assert res.status == STATUS_SOLVED
     assert sorted(s.branch for s in res.solutions) == sorted(BRANCHES)
     assert len({tuple(np.round(s.q, 9)) for s in res.solutions}) == 4
     for sol in res.solutions:
@@ -359,7 +399,7 @@ def test_orientation_not_achievable_without_a_wrist(robots, solvers):
     q = np.radians([30, 50, 70])
     pose = robot.fk(q)
     ok = solver.solve(Target.from_pose(pose))
-    assert ok.status == STATUS_OK and any(np.allclose(s.q, q, atol=1e-9) for s in ok.solutions)
+    assert ok.status == STATUS_SOLVED and any(np.allclose(s.q, q, atol=1e-9) for s in ok.solutions)
     tilted = pose.copy()
     tilted[:3, :3] = pose[:3, :3] @ planner.rpy_to_matrix([0.3, 0.0, 0.0])
     res = solver.solve(Target.from_pose(tilted))
@@ -444,7 +484,7 @@ def test_pitch_outward_from_the_base_axis_not_the_yaw_axis():
     for i, q in enumerate(q_sel):
         target = Target(poses[flipped[i], :3, 3], pitch=float(pitch[i]))
         res = solver.solve(target, q_current=q)
-        assert res.status == STATUS_OK and any(np.allclose(s.q, q, atol=1e-9) for s in res.solutions)
+        assert res.status == STATUS_SOLVED and any(np.allclose(s.q, q, atol=1e-9) for s in res.solutions)
         for sol in res.solutions:
             got = robot.fk(sol.q)
             a = got[:3, :3] @ robot.approach_axis
@@ -504,11 +544,11 @@ def test_batch_searches_free_joints_like_single_solves(name):
     searched = 0
     for pitch in kinds:
         batch = solver.solve_batch(pos, pitch=pitch, q_current=q_current)
-        assert np.all(batch.status == STATUS_CODES[STATUS_OK])  # FK targets: always within reach
+        assert np.all(batch.status == STATUS_CODES[STATUS_SOLVED])  # FK targets: always within reach
         for i in range(len(q)):
             target = Target(pos[i], pitch=None if pitch is None else float(pitch[i]))
             single = solver.solve(target, q_current=q_current[i])
-            assert single.status == STATUS_OK
+            assert single.status == STATUS_SOLVED
             got = batch.q[i][batch.valid[i]]
             assert len(got) == len(single.solutions)
             for sol in single.solutions:
@@ -539,7 +579,7 @@ def test_batch_pitch_targets_reproduce_the_target(robots, solvers):
     radial = poses[:, :2, 3] / np.linalg.norm(poses[:, :2, 3], axis=1)[:, None]
     pitch = np.arctan2(approach[:, 2], np.sum(approach[:, :2] * radial, axis=1))
     batch = solver.solve_batch(poses[:, :3, 3], pitch=pitch)
-    assert np.all(batch.status == STATUS_CODES[STATUS_OK])
+    assert np.all(batch.status == STATUS_CODES[STATUS_SOLVED])
     sol = batch.q[batch.valid]
     target = np.repeat(poses[:, None, :3, 3], 4, axis=1)[batch.valid]
     assert np.max(np.linalg.norm(robot.position(sol) - target, axis=1)) < TOL_POS
@@ -589,7 +629,7 @@ def test_position_only_searches_another_pitch_within_limits(robots, solvers):
     preferred = approach_pitch(robot, q_current)
     assert not solver.solve(Target(target.position, pitch=preferred), q_current).ok
     res = solver.solve(target, q_current)
-    assert res.status == STATUS_OK
+    assert res.status == STATUS_SOLVED
     within = [s for s in res.solutions if s.within_limits]
     assert within and res.best is within[0]
     step = math.radians(0.05)
@@ -606,9 +646,9 @@ def test_position_only_searches_another_pitch_within_limits(robots, solvers):
             assert not any(s.within_limits for s in same), (sol.branch, p)
     # Without q_current, from the default pitch; the batch finds the same.
     res = solver.solve(target)
-    assert res.status == STATUS_OK and robot.within_limits(res.best.q)
+    assert res.status == STATUS_SOLVED and robot.within_limits(res.best.q)
     batch = solver.solve_batch(target.position[None])
-    assert STATUS_NAMES[batch.status[0]] == STATUS_OK
+    assert STATUS_NAMES[batch.status[0]] == STATUS_SOLVED
     np.testing.assert_allclose(batch.best_q[0], res.best.q, atol=1e-12)
 
 
@@ -639,7 +679,7 @@ def test_continuous_joints():
         q = q + np.array([4 * np.pi, 0.0, 0.0, -2 * np.pi])  # far from the principal values
         pose = robot.fk(q)
         res = solver.solve(Target.from_pose(pose), q_current=q)
-        assert res.status == STATUS_OK
+        assert res.status == STATUS_SOLVED
         # Unbounded joints take the equivalent angle nearest q_current.
         np.testing.assert_allclose(res.solutions[0].q, q, atol=1e-9)
         for sol in res.solutions:
@@ -658,7 +698,7 @@ def test_pose_target_next_to_the_yaw_axis(robots, solvers):
         assert robot.within_limits(q)
         pose = robot.fk(q)
         res = solver.solve(Target.from_pose(pose))
-        assert res.status == STATUS_OK
+        assert res.status == STATUS_SOLVED
         assert any(np.allclose(s.q, q, atol=1e-9) for s in res.solutions)
         for sol in res.solutions:
             got = robot.fk(sol.q)

@@ -9,7 +9,7 @@ import pytest
 
 from planner import AnalyticIK, Robot, Target, load_robot
 from planner.export.calibration import angle_to_steps
-from planner.ik.analytic import STATUS_BEYOND_MAX_REACH, STATUS_INSIDE_MIN_REACH, STATUS_OK
+from planner.ik.analytic import STATUS_BEYOND_MAX_REACH, STATUS_INSIDE_MIN_REACH, STATUS_SOLVED
 from planner.model.catalog import bundled_urdf_path
 
 TOL_POS = 1e-9
@@ -67,7 +67,7 @@ def test_004_its_45_90_90_check(dh3):
     target = Target(fk_position(robot, q))
     np.testing.assert_allclose(target.position * 100, [11 / math.sqrt(2), 11 / math.sqrt(2), 9.0], atol=1e-12)
     res = solver.solve(target)
-    assert res.status == STATUS_OK and len(res.solutions) == 4
+    assert res.status == STATUS_SOLVED and len(res.solutions) == 4
     back = [s for s in res.solutions if np.allclose(s.q, q, atol=1e-12)]
     assert len(back) == 1 and back[0].within_limits and back[0].branch == "front/elbow-up"
     for sol in res.solutions:
@@ -82,7 +82,7 @@ def test_004_state_table_positions(dh3, position_cm):
     robot, solver = dh3
     p = np.array(position_cm, dtype=float) / 100
     res = solver.solve(Target(p))
-    assert res.status == STATUS_OK
+    assert res.status == STATUS_SOLVED
     stretched = math.hypot(math.hypot(p[0], p[1]), p[2] - 0.03) == pytest.approx(0.17, abs=1e-12)
     assert len(res.solutions) == (2 if stretched else 4)
     assert res.singular == stretched
@@ -192,7 +192,7 @@ def test_002_straight_up_degeneracy(three_joint, pitch):
     target = Target([0.0, 0.0, D2 + D3 + D4], pitch=pitch)
     for q_current, yaw in ((None, 0.0), ([0.7, 1.0, 0.2, -0.1], 0.7)):
         res = solver.solve(target, q_current=q_current)
-        assert res.status == STATUS_OK and res.singular
+        assert res.status == STATUS_SOLVED and res.singular
         assert len(res.solutions) == 1
         sol = res.solutions[0]
         # theta1 free (the current yaw is kept), theta2 = 90 deg, theta3 = theta4 = 0.
@@ -211,7 +211,7 @@ def test_002_workspace_boundary(three_joint):
         assert "beyond the 10 m" in res.reason
     # The seed checks each coordinate against 10; (8, 8, 0) passes that but lies 11.3 m out.
     assert solver.solve(Target([8.0, 8.0, 0.0])).status == STATUS_BEYOND_MAX_REACH
-    assert solver.solve(Target([9.999, 0.0, 0.0])).status == STATUS_OK
+    assert solver.solve(Target([9.999, 0.0, 0.0])).status == STATUS_SOLVED
 
 
 # ---------------------------------------------------------------------------- 000: Shelley
@@ -237,7 +237,7 @@ def test_000_min_reach_formula(shelley):
     assert solver.reach[0] == pytest.approx(expected, abs=1e-12)
     inside = solver.solve(Target([expected - 1e-4, 0.0, 0.0]))
     assert inside.status == STATUS_INSIDE_MIN_REACH and not any(s.within_limits for s in inside.solutions)
-    assert solver.solve(Target([expected + 1e-4, 0.0, 0.0])).status == STATUS_OK
+    assert solver.solve(Target([expected + 1e-4, 0.0, 0.0])).status == STATUS_SOLVED
 
 
 @pytest.mark.parametrize("target", [[0.15, 0.0, 0.0], [0.0, 0.15, 0.0], [-0.13, 0.0, 0.0], [0.12, -0.05, 0.0]])
@@ -285,7 +285,7 @@ def test_000_over_rotation_takes_the_other_intersection(shelley):
     # Servo 1 of the first intersection would turn past 92.5 deg; the other one is used.
     _, solver = shelley
     res = solver.solve(Target([0.0, 0.15, 0.0]))
-    assert res.status == STATUS_OK
+    assert res.status == STATUS_SOLVED
     assert [s.within_limits for s in res.solutions] == [False, True]
     assert res.best.branch == "elbow-right"
 
@@ -315,7 +315,7 @@ def test_000_sample_runs_of_the_seed_program():
     ]
     for target, elbow, angle, steps in runs:
         res = solver.solve(Target([*target, 0.0]))
-        assert res.status == STATUS_OK
+        assert res.status == STATUS_SOLVED
         elbows = [robot.fk(s.q, frame="servo2")[:2, 3] for s in res.solutions]
         k = int(np.argmin([np.linalg.norm(e - elbow) for e in elbows]))
         np.testing.assert_allclose(elbows[k], elbow, atol=5e-6)

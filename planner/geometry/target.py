@@ -42,6 +42,7 @@ __all__ = [
     "approach_direction",
     "approach_pitch",
     "pitch_error",
+    "pitch_error_scalar",
 ]
 
 #: Targets closer than this to the base z axis [m] have no radial direction: only the
@@ -97,13 +98,26 @@ def approach_pitch(robot, q: Sequence[float] | np.ndarray) -> float | np.ndarray
     return float(pitch) if np.ndim(pitch) == 0 else pitch
 
 
-def _pitch_error_one(
+def pitch_error_scalar(
     ax: float, ay: float, az: float, px: float, py: float, cos_p: float, sin_p: float, elevation: float
 ) -> float:
-    """:func:`pitch_error` of one axis (ax, ay, az) at (px, py).
+    """:func:`pitch_error` [rad] of one approach axis, in scalar arithmetic (no NumPy per call).
 
     The pitch is given by its cosine, sine and elevation ``atan2(sin, |cos|)`` (callers with many
     axes compute them once).
+
+    Args:
+        ax: Approach axis x component (unit axis in the base frame).
+        ay: Approach axis y component.
+        az: Approach axis z component.
+        px: Target position x [m].
+        py: Target position y [m].
+        cos_p: Cosine of the target's approach pitch.
+        sin_p: Sine of the target's approach pitch.
+        elevation: ``atan2(sin_p, |cos_p|)`` [rad].
+
+    Returns:
+        The error in [0, pi].
     """
     error = abs(math.atan2(az, math.hypot(ax, ay)) - elevation)
     if cos_p * (ax * px + ay * py) < 0.0 and (radial := math.hypot(px, py)) > RADIAL_EPS:
@@ -141,7 +155,7 @@ def pitch_error(
     p = np.asarray(position, dtype=float)
     if a.ndim == 1 and p.ndim == 1 and np.ndim(pitch) == 0:
         cos_p, sin_p = math.cos(pitch), math.sin(pitch)
-        return _pitch_error_one(
+        return pitch_error_scalar(
             float(a[0]), float(a[1]), float(a[2]), float(p[0]), float(p[1]), cos_p, sin_p, math.atan2(sin_p, abs(cos_p))
         )
     pitch = np.asarray(pitch, dtype=float)

@@ -6,7 +6,10 @@ One module per family, all built from the robot's Pinocchio model:
 - :mod:`~planner.ik.analytic.yaw_planar`: base yaw + 2 or 3 parallel pitch joints + optional
   wrist roll (001, 002, 004 seeds, SO-101).
 
-Use :meth:`AnalyticIK.from_robot` (detects the family) or :func:`solve_analytic`::
+The families are registered in :data:`~planner.ik.analytic.families.FAMILIES`; each says by
+``match(chain)`` whether a chain fits (None) or why not. Users call :func:`planner.solve_ik`;
+a family solver, from :meth:`AnalyticIK.from_robot` (detects the family), answers with every
+branch (:class:`AnalyticResult`) and solves batches of targets as arrays::
 
     solver = AnalyticIK.from_robot(load_robot("al5c"))
     result = solver.solve(Target([0.25, 0.05, 0.10], pitch=-math.pi / 2), q_current=q)
@@ -15,7 +18,8 @@ Use :meth:`AnalyticIK.from_robot` (detects the family) or :func:`solve_analytic`
 """
 
 from planner.geometry.chain import ChainAtZero, JointScrew, chain_at_zero, poe_fk
-from planner.ik.analytic.base import FAMILY_ANGLE_TOL, AnalyticIK
+from planner.ik.analytic.base import FAMILY_ANGLE_TOL, AnalyticIK, ChainMismatch
+from planner.ik.analytic.families import FAMILIES
 from planner.ik.analytic.planar2 import PLANAR_BRANCHES, Planar2IK
 from planner.ik.analytic.result import (
     STATUS_BEYOND_MAX_REACH,
@@ -26,6 +30,7 @@ from planner.ik.analytic.result import (
     STATUS_ORIENTATION_NOT_ACHIEVABLE,
     STATUS_OUT_OF_PLANE,
     STATUS_OUTSIDE_JOINT_LIMITS,
+    STATUS_SOLVED,
     AnalyticBatchResult,
     AnalyticResult,
     AnalyticSolution,
@@ -34,6 +39,8 @@ from planner.ik.analytic.yaw_planar import BRANCHES, YawPlanarIK
 
 __all__ = [
     "AnalyticIK",
+    "ChainMismatch",
+    "FAMILIES",
     "AnalyticResult",
     "AnalyticSolution",
     "AnalyticBatchResult",
@@ -41,6 +48,7 @@ __all__ = [
     "Planar2IK",
     "BRANCHES",
     "PLANAR_BRANCHES",
+    "STATUS_SOLVED",
     "STATUS_OK",
     "STATUS_OUTSIDE_JOINT_LIMITS",
     "STATUS_ORIENTATION_NOT_ACHIEVABLE",

@@ -1,15 +1,17 @@
 """The common interface of the closed-form solvers and the family detection.
 
 :meth:`AnalyticIK.from_robot` reads the robot's chain from its Pinocchio model and returns the
-solver of the family it belongs to:
+solver of the family it belongs to, trying each family of the registry
+(:data:`planner.ik.analytic.families.FAMILIES`):
 
 - :class:`~planner.ik.analytic.planar2.Planar2IK`: two joints about parallel vertical axes (the
   horizontal 2-link of the 000 seed).
 - :class:`~planner.ik.analytic.yaw_planar.YawPlanarIK`: a base yaw, then 2 or 3 parallel pitch
   joints, then optionally a wrist roll (the 001, 002 and 004 seeds, SO-101).
 
-A chain outside both raises :class:`~planner.exceptions.UnsupportedChainError` naming the
-first joint that breaks the family.
+A family says whether a chain fits by :meth:`AnalyticIK.match` (None, or why not). A chain
+outside every family raises :class:`~planner.exceptions.UnsupportedChainError` naming the
+first joint that breaks the family that fits most of it.
 """
 
 from __future__ import annotations
@@ -17,16 +19,18 @@ from __future__ import annotations
 import math
 from abc import ABC, abstractmethod
 from collections.abc import Sequence
+from dataclasses import dataclass
 
 import numpy as np
 
 from planner.exceptions import InvalidArgumentError, InvalidConfigurationError, UnsupportedChainError
 from planner.geometry.chain import ChainAtZero, chain_at_zero
 from planner.geometry.target import Target
+from planner.ik.analytic.geometry import angle_to_line
 from planner.ik.analytic.result import AnalyticBatchResult, AnalyticResult
 from planner.model.robot import Robot
 
-__all__ = ["AnalyticIK", "FAMILY_ANGLE_TOL"]
+__all__ = ["AnalyticIK", "ChainMismatch", "base_yaw_mismatch", "FAMILY_ANGLE_TOL"]
 
 #: Largest deviation [rad] of an axis from the family's ideal directions (vertical, parallel,
 #: perpendicular) that a solver accepts. Deviations above 1e-12 rad (CAD round-off, as in
@@ -34,14 +38,49 @@ __all__ = ["AnalyticIK", "FAMILY_ANGLE_TOL"]
 FAMILY_ANGLE_TOL = 1e-4
 
 
-def _angle_to_line(a: np.ndarray, b: np.ndarray) -> float:
-    """Angle [rad] between the lines along unit vectors a and b (0 when parallel or opposite)."""
-    return math.asin(min(1.0, float(np.linalg.norm(np.cross(a, b)))))
+@dataclass(frozen=True)
+class ChainMismatch:
+    """Why a chain is outside a closed-form family.
+
+    Attributes:
+        reason: The explanation, naming the joint (without the robot's name).
+        joint: Name of the first joint that breaks the family, or None (an empty chain).
+        depth: How many leading joints fit the family's pattern: of several families that do
+            not fit, the error reports the one that fits the most.
+    """
+
+    reason: str
+    joint: str | None
+    depth: int
 
 
-def _angle_to_plane(a: np.ndarray, normal: np.ndarray) -> float:
-    """Angle [rad] between unit vector a and the plane with unit normal `normal`."""
-    return math.asin(min(1.0, abs(float(a @ normal))))
+def base_yaw_mismatch(chain: ChainAtZero) -> ChainMismatch | None:
+    """The check every family starts with: a first joint about the vertical and a second one.
+
+    Args:
+        chain: The chain at q = 0.
+
+    Returns:
+        None when the chain starts with a base yaw followed by another joint, else why not.
+    """
+    joints = chain.joints
+    if not joints:
+        return ChainMismatch("the chain has no joints", None, 0)
+    first = joints[0]
+    tilt = angle_to_line(first.axis, np.array([0.0, 0.0, 1.0]))
+    if tilt > FAMILY_ANGLE_TOL:
+        return ChainMismatch(
+            f"the first joint {first.name!r} turns about {np.round(first.axis, 6).tolist()}, "
+            f"{math.degrees(tilt):.3g} deg from vertical; the closed-form families start with a base "
+            "yaw about the base z axis",
+            first.name,
+            0,
+        )
+    if len(joints) < 2:
+        return ChainMismatch(
+            f"the chain has only joint {first.name!r}; the closed-form families need 2 to 5 joints", first.name, 1
+        )
+    return None
 
 
 class AnalyticIK(ABC):
@@ -83,39 +122,52 @@ class AnalyticIK(ABC):
             robot: The robot; its chain is read from the Pinocchio model at q = 0.
 
         Returns:
-            A :class:`~planner.ik.analytic.planar2.Planar2IK` or
-            :class:`~planner.ik.analytic.yaw_planar.YawPlanarIK`.
+            The solver of the first family of :data:`~planner.ik.analytic.families.FAMILIES`
+            that fits the chain.
 
         Raises:
-            UnsupportedChainError: If the chain is outside both families; ``.joint`` names the
-                first joint that breaks them.
+            UnsupportedChainError: If the chain is outside every family; ``.joint`` names the
+                first joint that breaks the family that fits most of the chain.
         """
-        from planner.ik.analytic.planar2 import Planar2IK
-        from planner.ik.analytic.yaw_planar import YawPlanarIK
+        from planner.ik.analytic.families import FAMILIES  # the families subclass this one
 
         if not isinstance(robot, Robot):
             raise InvalidArgumentError(f"from_robot needs a planner.Robot, got {type(robot).__name__}")
         chain = chain_at_zero(robot)
-        joints = chain.joints
-        if not joints:
+        if not chain.joints:
             raise UnsupportedChainError(f"{robot.name} has no joints on its chain to {robot.tip!r}")
-        first = joints[0]
-        tilt = _angle_to_line(first.axis, np.array([0.0, 0.0, 1.0]))
-        if tilt > FAMILY_ANGLE_TOL:
-            raise UnsupportedChainError(
-                f"{robot.name}: the first joint {first.name!r} turns about {np.round(first.axis, 6).tolist()}, "
-                f"{math.degrees(tilt):.3g} deg from vertical; the closed-form families start with a base "
-                "yaw about the base z axis",
-                joint=first.name,
-            )
-        if len(joints) < 2:
-            raise UnsupportedChainError(
-                f"{robot.name}: the chain has only joint {first.name!r}; the closed-form families need 2 to 5 joints",
-                joint=first.name,
-            )
-        if _angle_to_line(joints[1].axis, first.axis) <= FAMILY_ANGLE_TOL:
-            return Planar2IK(robot, chain)
-        return YawPlanarIK(robot, chain)
+        nearest = None
+        for family in FAMILIES:
+            mismatch = family.mismatch(chain)
+            if mismatch is None:
+                return family(robot, chain)
+            if nearest is None or mismatch.depth >= nearest.depth:
+                nearest = mismatch
+        raise UnsupportedChainError(f"{robot.name}: {nearest.reason}", joint=nearest.joint)
+
+    @classmethod
+    def match(cls, chain: ChainAtZero) -> str | None:
+        """Whether a chain fits this family.
+
+        Args:
+            chain: The chain at q = 0 (:func:`planner.geometry.chain.chain_at_zero`).
+
+        Returns:
+            None when it fits, else the reason it does not, naming the joint.
+        """
+        mismatch = cls.mismatch(chain)
+        return None if mismatch is None else mismatch.reason
+
+    @classmethod
+    @abstractmethod
+    def mismatch(cls, chain: ChainAtZero) -> ChainMismatch | None:
+        """Why a chain is outside this family (None when it fits); see :meth:`match`."""
+
+    def _check_chain(self, chain: ChainAtZero) -> None:
+        """Raise UnsupportedChainError if `chain` does not fit this solver's family."""
+        mismatch = self.mismatch(chain)
+        if mismatch is not None:
+            raise UnsupportedChainError(f"{self.robot.name}: {mismatch.reason}", joint=mismatch.joint)
 
     # ------------------------------------------------------------------ interface
     @abstractmethod

@@ -26,24 +26,24 @@ from collections.abc import Sequence
 
 import numpy as np
 
+from planner.core.arrays import read_only
 from planner.core.rotations import rotation_error
-from planner.exceptions import UnsupportedChainError
 from planner.geometry.chain import ChainAtZero, describe_violation, poe_fk, wrap_array, wrap_scalar
 from planner.geometry.target import Target
-from planner.ik.analytic.base import AnalyticIK, _angle_to_line
+from planner.ik.analytic.base import FAMILY_ANGLE_TOL, AnalyticIK, ChainMismatch, base_yaw_mismatch
+from planner.ik.analytic.geometry import LENGTH_TOL, ORIENTATION_TOL, SINGULAR_TOL, angle_to_line, reach_interval
 from planner.ik.analytic.result import (
     STATUS_BEYOND_MAX_REACH,
     STATUS_CODES,
     STATUS_INSIDE_MIN_REACH,
-    STATUS_OK,
     STATUS_ORIENTATION_NOT_ACHIEVABLE,
     STATUS_OUT_OF_PLANE,
     STATUS_OUTSIDE_JOINT_LIMITS,
+    STATUS_SOLVED,
     AnalyticBatchResult,
     AnalyticResult,
     AnalyticSolution,
 )
-from planner.ik.analytic.yaw_planar import LENGTH_TOL, ORIENTATION_TOL, SINGULAR_TOL, _reach_interval
 from planner.model.robot import Robot
 
 __all__ = ["Planar2IK", "PLANAR_BRANCHES"]
@@ -68,24 +68,43 @@ class Planar2IK(AnalyticIK):
 
     family = "planar2"
 
+    @classmethod
+    def mismatch(cls, chain: ChainAtZero) -> ChainMismatch | None:
+        """Why a chain is not two joints about parallel vertical axes (None when it is)."""
+        common = base_yaw_mismatch(chain)
+        if common is not None:
+            return common
+        joints = chain.joints
+        if angle_to_line(joints[1].axis, joints[0].axis) > FAMILY_ANGLE_TOL:
+            return ChainMismatch(
+                f"joint {joints[1].name!r} is not parallel to the first joint {joints[0].name!r}; the planar "
+                "family has two vertical joints",
+                joints[1].name,
+                1,
+            )
+        if len(joints) > 2:
+            return ChainMismatch(
+                f"joint {joints[2].name!r} follows two vertical joints; the planar family has exactly two",
+                joints[2].name,
+                2,
+            )
+        dev = _deviation(chain)
+        if dev > PLANAR_ANGLE_TOL:
+            z = np.array([0.0, 0.0, 1.0])
+            bad = joints[0] if angle_to_line(joints[0].axis, z) > PLANAR_ANGLE_TOL else joints[1]
+            return ChainMismatch(
+                f"joint {bad.name!r} is {dev:.3g} rad off the vertical; the planar 2-link solver needs vertical "
+                f"axes within {PLANAR_ANGLE_TOL:g} rad",
+                bad.name,
+                2,
+            )
+        return None
+
     def __init__(self, robot: Robot, chain: ChainAtZero) -> None:
         super().__init__(robot, chain)
+        self._check_chain(chain)
         joints = chain.joints
-        if len(joints) > 2:
-            raise UnsupportedChainError(
-                f"{robot.name}: joint {joints[2].name!r} follows two vertical joints; the planar family has "
-                "exactly two",
-                joint=joints[2].name,
-            )
-        z = np.array([0.0, 0.0, 1.0])
-        dev = max(_angle_to_line(joints[0].axis, z), _angle_to_line(joints[1].axis, joints[0].axis))
-        if dev > PLANAR_ANGLE_TOL:
-            bad = joints[0] if _angle_to_line(joints[0].axis, z) > PLANAR_ANGLE_TOL else joints[1]
-            raise UnsupportedChainError(
-                f"{robot.name}: joint {bad.name!r} is {dev:.3g} rad off the vertical; the planar 2-link solver "
-                f"needs vertical axes within {PLANAR_ANGLE_TOL:g} rad",
-                joint=bad.name,
-            )
+        dev = _deviation(chain)
         self.deviation = dev
         self.branches = PLANAR_BRANCHES
         self._s1 = 1.0 if joints[0].axis[2] > 0 else -1.0
@@ -103,7 +122,7 @@ class Planar2IK(AnalyticIK):
         self._scale = max(1e-9, self._r1 + self._r2)
         self._len_tol = LENGTH_TOL * self._scale
         self._consistency_tol = 1e-9 * self._scale
-        rmin, rmax = _reach_interval(self._r1, self._r2, self._delta, self._lower[1], self._upper[1], self._s2)
+        rmin, rmax = reach_interval(self._r1, self._r2, self._delta, self._lower[1], self._upper[1], self._s2)
         self.reach = (float(rmin), float(rmax))
         self._rot0 = np.array(chain.tip_rotation)
         self._a0 = np.array(chain.approach)
@@ -205,13 +224,11 @@ class Planar2IK(AnalyticIK):
             for j in range(2):
                 q[j] = wrap_scalar(q[j], self._lower[j], self._upper[j], qc[j] if qc is not None else 0.0)
                 within &= self._lower[j] <= q[j] <= self._upper[j]
-            arr = np.array(q)
-            arr.setflags(write=False)
-            solutions.append(AnalyticSolution(arr, within, name, singular, perr, oerr))
+            solutions.append(AnalyticSolution(read_only(q), within, name, singular, perr, oerr))
         if qc is not None:
             solutions.sort(key=lambda sol: float(np.sum((sol.q - np.asarray(qc)) ** 2)))
         if any(sol.within_limits for sol in solutions):
-            return AnalyticResult(STATUS_OK, "", tuple(solutions), singular)
+            return AnalyticResult(STATUS_SOLVED, "", tuple(solutions), singular)
         rmin, rmax = self.reach
         if dd < rmin - self._len_tol:
             status = STATUS_INSIDE_MIN_REACH
@@ -357,7 +374,7 @@ class Planar2IK(AnalyticIK):
         status = np.where(beyond, STATUS_CODES[STATUS_BEYOND_MAX_REACH], status)
         status = np.where(orient_fail, STATUS_CODES[STATUS_ORIENTATION_NOT_ACHIEVABLE], status)
         status = np.where(off_plane, STATUS_CODES[STATUS_OUT_OF_PLANE], status)
-        status = np.where(within.any(axis=1), STATUS_CODES[STATUS_OK], status)
+        status = np.where(within.any(axis=1), STATUS_CODES[STATUS_SOLVED], status)
         if qc is not None:
             dist2 = np.sum((q - qc[:, None, :]) ** 2, axis=-1)
         else:
@@ -376,3 +393,10 @@ class Planar2IK(AnalyticIK):
             best=best,
             branches=PLANAR_BRANCHES,
         )
+
+
+def _deviation(chain: ChainAtZero) -> float:
+    """Largest angle [rad] of the first two joints' axes from the vertical and from each other."""
+    joints = chain.joints
+    z = np.array([0.0, 0.0, 1.0])
+    return max(angle_to_line(joints[0].axis, z), angle_to_line(joints[1].axis, joints[0].axis))

@@ -4,7 +4,7 @@ A solver never raises for a target it cannot reach: it returns a result whose ``
 why. The statuses, best outcome first:
 
 ========================== ====================================================================
-``"ok"``                    At least one solution lies within every joint's limits.
+``"solved"``                At least one solution lies within every joint's limits.
 ``"outside_joint_limits"``  Solutions exist, but every one has a joint outside its range
                             (``reason`` names the joint and by how much, per branch).
 ``"orientation_not_achievable"`` The position is reachable but not with the asked orientation
@@ -17,7 +17,9 @@ why. The statuses, best outcome first:
 ``"out_of_plane"``          A planar arm asked for a point off its plane.
 ========================== ====================================================================
 
-Batch results carry the same statuses as small integer codes (:data:`STATUS_CODES`).
+The statuses are members of :class:`planner.ik.status.IKStatus` (a ``str`` enum, so they compare
+equal to these strings), the one outcome vocabulary of every IK method. Batch results carry them
+as small integer codes (:data:`STATUS_CODES`).
 """
 
 from __future__ import annotations
@@ -26,7 +28,10 @@ from typing import NamedTuple
 
 import numpy as np
 
+from planner.ik.status import IKStatus
+
 __all__ = [
+    "STATUS_SOLVED",
     "STATUS_OK",
     "STATUS_OUTSIDE_JOINT_LIMITS",
     "STATUS_ORIENTATION_NOT_ACHIEVABLE",
@@ -40,16 +45,18 @@ __all__ = [
     "AnalyticBatchResult",
 ]
 
-STATUS_OK = "ok"
-STATUS_OUTSIDE_JOINT_LIMITS = "outside_joint_limits"
-STATUS_ORIENTATION_NOT_ACHIEVABLE = "orientation_not_achievable"
-STATUS_BEYOND_MAX_REACH = "beyond_max_reach"
-STATUS_INSIDE_MIN_REACH = "inside_min_reach"
-STATUS_OUT_OF_PLANE = "out_of_plane"
+STATUS_SOLVED = IKStatus.SOLVED
+STATUS_OUTSIDE_JOINT_LIMITS = IKStatus.OUTSIDE_JOINT_LIMITS
+STATUS_ORIENTATION_NOT_ACHIEVABLE = IKStatus.ORIENTATION_NOT_ACHIEVABLE
+STATUS_BEYOND_MAX_REACH = IKStatus.BEYOND_MAX_REACH
+STATUS_INSIDE_MIN_REACH = IKStatus.INSIDE_MIN_REACH
+STATUS_OUT_OF_PLANE = IKStatus.OUT_OF_PLANE
+#: Former name of :data:`STATUS_SOLVED` (whose value was ``"ok"`` before the one vocabulary).
+STATUS_OK = STATUS_SOLVED
 
-#: Status names in code order: ``STATUS_NAMES[code]``.
-STATUS_NAMES: tuple[str, ...] = (
-    STATUS_OK,
+#: Statuses in code order: ``STATUS_NAMES[code]`` (code 0 is solved).
+STATUS_NAMES: tuple[IKStatus, ...] = (
+    STATUS_SOLVED,
     STATUS_OUTSIDE_JOINT_LIMITS,
     STATUS_ORIENTATION_NOT_ACHIEVABLE,
     STATUS_BEYOND_MAX_REACH,
@@ -57,7 +64,7 @@ STATUS_NAMES: tuple[str, ...] = (
     STATUS_OUT_OF_PLANE,
 )
 #: Status name to batch code.
-STATUS_CODES: dict[str, int] = {name: code for code, name in enumerate(STATUS_NAMES)}
+STATUS_CODES: dict[IKStatus, int] = {name: code for code, name in enumerate(STATUS_NAMES)}
 
 
 class AnalyticSolution(NamedTuple):
@@ -93,7 +100,7 @@ class AnalyticSolution(NamedTuple):
             "singular": self.singular,
             "position_error": self.position_error,
             "orientation_error": self.orientation_error,
-            "status": STATUS_OK if self.within_limits else STATUS_OUTSIDE_JOINT_LIMITS,
+            "status": STATUS_SOLVED if self.within_limits else STATUS_OUTSIDE_JOINT_LIMITS,
         }
 
 
@@ -101,16 +108,16 @@ class AnalyticResult(NamedTuple):
     """All closed-form solutions for one target.
 
     Attributes:
-        status: One of the status names of this module (``"ok"`` when a solution lies within
-            the joint limits).
-        reason: Human-readable explanation ("" when ok), naming the joint and the excess when
+        status: One of the statuses of this module (:data:`STATUS_SOLVED` when a solution lies
+            within the joint limits).
+        reason: Human-readable explanation ("" when solved), naming the joint and the excess when
             limits are violated.
         solutions: Every exact solution, within limits or not, sorted by joint-space distance
             to ``q_current`` when one was given (else in branch order).
         singular: Whether any solution is singular.
     """
 
-    status: str
+    status: IKStatus
     reason: str
     solutions: tuple[AnalyticSolution, ...]
     singular: bool
@@ -118,7 +125,7 @@ class AnalyticResult(NamedTuple):
     @property
     def ok(self) -> bool:
         """Whether a solution lies within the joint limits."""
-        return self.status == STATUS_OK
+        return self.status == STATUS_SOLVED
 
     @property
     def best(self) -> AnalyticSolution | None:

@@ -1,0 +1,66 @@
+"""The batch driver: N targets in slices, each solved and searched within the limits."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from planner.ik.analytic.yaw_planar.arm import ArmGeometry
+from planner.ik.analytic.yaw_planar.arrays import BranchArrays, solve_arrays
+from planner.ik.analytic.yaw_planar.search import free_joints, solve_searched
+
+__all__ = ["solve_chunked", "solve_arrays_within"]
+
+#: Targets per slice: keeps the temporaries in cache.
+CHUNK = 16384
+
+
+def solve_chunked(arm: ArmGeometry, pos, pit, rot, qc, chunk: int = CHUNK) -> BranchArrays:
+    """:func:`solve_arrays_within` over slices of the targets.
+
+    Args:
+        arm: The geometry.
+        pos: Target positions, shape (N, 3) [m].
+        pit: Approach pitches, shape (N,) [rad], or None.
+        rot: Target rotations, shape (N, 3, 3), or None.
+        qc: Current configurations, shape (N, dof) [rad], or None.
+        chunk: Targets per slice.
+
+    Returns:
+        The branch arrays (``cat``, ``oerr`` and ``dist`` None when sliced).
+    """
+    n = pos.shape[0]
+    if n <= chunk:
+        return solve_arrays_within(arm, pos, pit, rot, qc)
+    out = BranchArrays(
+        q=np.empty((n, 4, arm.dof)),
+        cat=None,
+        valid=np.empty((n, 4), dtype=bool),
+        within=np.empty((n, 4), dtype=bool),
+        singular=np.empty((n, 4), dtype=bool),
+        perr=np.empty((n, 4)),
+        oerr=None,
+        status=np.empty(n, dtype=np.int8),
+        best=np.empty(n, dtype=np.intp),
+        dist=None,
+    )
+    names = ("q", "valid", "within", "singular", "perr", "status", "best")
+    for start in range(0, n, chunk):
+        sl = slice(start, start + chunk)
+        part = solve_arrays_within(
+            arm,
+            pos[sl],
+            None if pit is None else pit[sl],
+            None if rot is None else rot[sl],
+            None if qc is None else qc[sl],
+        )
+        for name in names:
+            getattr(out, name)[sl] = getattr(part, name)
+    return out
+
+
+def solve_arrays_within(arm: ArmGeometry, pos, pit, rot, qc) -> BranchArrays:
+    """`solve_arrays` for a batch, then the search within the limits where targets leave joints free."""
+    arrays = solve_arrays(arm, pos, pit, rot, qc, orientation_errors=False)
+    if any(free_joints(arm, pit, rot)):
+        arrays = solve_searched(arm, pos, pit, qc, arrays, orientation_errors=False)
+    return arrays
