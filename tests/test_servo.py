@@ -19,7 +19,8 @@ from planner.export.servo import (
     steps_table,
     steps_to_angle,
 )
-from planner.motion.trajectory import JointLimits, plan_trajectory
+from planner.motion.limits import JointLimits
+from planner.motion.plan import plan_trajectory
 
 from conftest import get_robot
 

@@ -6,8 +6,10 @@ import numpy as np
 import pytest
 
 from planner import InvalidArgumentError
+from planner.motion.limits import JointLimits
+from planner.motion.plan import plan_trajectory
 from planner.motion.singularity import check_singularities, conditioning, plan_clear_of_singularities
-from planner.motion.trajectory import LIMIT_TOLERANCE, JointLimits, plan_trajectory
+from planner.motion.trajectory import LIMIT_TOLERANCE
 
 from conftest import get_robot
 

@@ -13,7 +13,10 @@ from ruckig import InputParameter, Ruckig
 from ruckig import Trajectory as RuckigTrajectory
 
 from planner import InvalidArgumentError, InvalidConfigurationError, InvalidLimitsError, JointLimitError
-from planner.motion.trajectory import LIMIT_TOLERANCE, JointLimits, _spline_via_states, plan_trajectory
+from planner.motion.limits import JointLimits
+from planner.motion.plan import plan_trajectory
+from planner.motion.trajectory import LIMIT_TOLERANCE
+from planner.motion.vias.optimized import spline_via_states
 
 from conftest import get_robot
 
@@ -110,7 +113,7 @@ def test_spline_via_states_are_those_of_the_c2_cubic_spline(segments):
     q = rng.uniform(-1, 1, (segments + 1, 3))
     h = rng.uniform(0.2, 2.0, segments)
     v_start, v_end = rng.uniform(-1, 1, 3), rng.uniform(-1, 1, 3)
-    v, acc = _spline_via_states(q, h, v_start, v_end)
+    v, acc = spline_via_states(q, h, v_start, v_end)
     vel = np.vstack([v_start, v, v_end])
     dq, hh = np.diff(q, axis=0), h[:, None]
     acc_start = 6 * dq / hh**2 - (4 * vel[:-1] + 2 * vel[1:]) / hh

@@ -43,8 +43,9 @@ from planner.exceptions import InvalidArgumentError
 from planner.export.servo import ServoCalibration, default_calibrations
 from planner.geometry.target import Target
 from planner.model.robot import Robot
+from planner.motion.limits import JointLimits
 from planner.motion.singularity import DEFAULT_CONDITION_NUMBER, Detour, SingularityReport, plan_clear_of_singularities
-from planner.motion.trajectory import JointLimits, JointTrajectory
+from planner.motion.trajectory import JointTrajectory
 
 __all__ = [
     "MotionPlan",
@@ -137,7 +138,7 @@ class MotionRequest:
         condition_number: Singularity threshold as a Jacobian condition number.
         detours: Whether to insert detours around singularities.
         max_detours: Most detours to insert.
-        strategy: Via strategy (see :func:`planner.motion.trajectory.plan_trajectory`).
+        strategy: Via strategy (see :func:`planner.motion.plan.plan_trajectory`).
         servos: Servo calibration mappings as written, or None for defaults.
         servo_period_ms: Period of the SSC-32 commands [ms].
         angle_scale: Radians per file angle unit.

@@ -29,8 +29,10 @@ import numpy as np
 from planner.exceptions import InvalidArgumentError
 from planner.geometry.target import Target
 from planner.model.robot import Robot, Task
+from planner.motion.limits import JointLimits
+from planner.motion.plan import plan_trajectory
 from planner.motion.singularity import conditioning
-from planner.motion.trajectory import JointLimits, JointTrajectory, plan_trajectory
+from planner.motion.trajectory import JointTrajectory
 
 __all__ = [
     "IKChoice",

@@ -26,16 +26,11 @@ import numpy as np
 
 from planner.exceptions import InvalidArgumentError
 from planner.model.robot import Robot, Task
-from planner.motion.trajectory import (
-    JointLimits,
-    JointTrajectory,
-    ViaStrategy,
-    _check_dwell,
-    _check_given,
-    _check_stops,
-    check_waypoints,
-    plan_trajectory,
-)
+from planner.motion.checks import check_dwell, check_given, check_stops, check_waypoints
+from planner.motion.limits import JointLimits
+from planner.motion.plan import plan_trajectory
+from planner.motion.trajectory import JointTrajectory
+from planner.motion.vias import ViaStrategy
 
 __all__ = [
     "DEFAULT_CONDITION_NUMBER",
@@ -296,7 +291,7 @@ def plan_clear_of_singularities(
     start_acceleration: Sequence[float] | np.ndarray | None = None,
     stops: Sequence[int] | None = None,
     dwell: float | Sequence[float] | None = None,
-    strategy: ViaStrategy = "optimized",
+    strategy: str | ViaStrategy = "optimized",
     keep_segments: Sequence[int] = (),
     via_velocities: np.ndarray | None = None,
     via_accelerations: np.ndarray | None = None,
@@ -342,11 +337,9 @@ def plan_clear_of_singularities(
         raise InvalidArgumentError(f"the limits are for {limits.dof} joints; {robot.name} has {robot.dof}")
     user = check_waypoints(waypoints, limits)
     n = len(user)
-    dw = _check_dwell(dwell, n)
-    stop_mask = _check_stops(stops, n)
-    given = _check_given(via_velocities, via_accelerations, min_durations, n, limits)
-    if given is None:
-        given = (np.full(user.shape, np.nan), np.zeros(user.shape), np.zeros(n - 1))
+    dw = check_dwell(dwell, n)
+    stop_mask = check_stops(stops, n)
+    given = check_given(via_velocities, via_accelerations, min_durations, n, limits)
     # Per augmented waypoint: prescribed (velocity, acceleration), and the minimum duration of
     # the segment that starts there (detours split a segment and drop its minimum).
     states: list[tuple[np.ndarray, np.ndarray, float]] = [
