@@ -44,7 +44,14 @@ from planner.export.servo import ServoCalibration, default_calibrations
 from planner.geometry.target import Target
 from planner.model.robot import Robot
 from planner.motion.limits import JointLimits
-from planner.motion.singularity import DEFAULT_CONDITION_NUMBER, Detour, SingularityReport, plan_clear_of_singularities
+from planner.motion.request import TrajectoryRequest
+from planner.motion.singularity import (
+    DEFAULT_CONDITION_NUMBER,
+    Detour,
+    SingularityOptions,
+    SingularityReport,
+    plan_clear_of_singularities,
+)
 from planner.motion.trajectory import JointTrajectory
 
 __all__ = [
@@ -604,23 +611,22 @@ def plan_motion(robot: Robot, request: MotionRequest, *, rate: float = 1000.0) -
         via_a[a : b + 1] = timing.acceleration
         min_dur[a:b] = np.diff(timing.t)
         stops += [a, b]
-    plan = plan_clear_of_singularities(
-        robot,
+    trajectory_request = TrajectoryRequest(
         q_nodes,
         limits,
-        threshold=threshold,
-        rate=rate,
-        max_detours=request.max_detours if request.detours else 0,
         start_velocity=start_v,
         start_acceleration=start_a,
         stops=stops,
         dwell=dwell,
         strategy=request.strategy,
-        keep_segments=keep,
         via_velocities=via_v,
         via_accelerations=via_a,
         min_durations=min_dur,
     )
+    options = SingularityOptions(
+        threshold=threshold, rate=rate, max_detours=request.max_detours if request.detours else 0
+    )
+    plan = plan_clear_of_singularities(robot, trajectory_request, options, keep_segments=keep)
     traj = plan.trajectory
     node_idx = plan.waypoint_indices
     user_idx = node_idx[user_pos]

@@ -31,7 +31,6 @@ from planner.geometry.target import Target
 from planner.model.robot import Robot, Task
 from planner.motion.limits import JointLimits
 from planner.motion.plan import plan_trajectory
-from planner.motion.singularity import conditioning
 from planner.motion.trajectory import JointTrajectory
 
 __all__ = [
@@ -113,7 +112,7 @@ class TargetSolver:
         self._home = (lo + hi) / 2.0
 
     def _inverse_condition(self, q: np.ndarray) -> float:
-        return float(conditioning(self.robot, q, self.task)[0])
+        return float(self.robot.conditioning(q, self.task)[0])
 
     def _error(self, target: Target, q: np.ndarray) -> float:
         return float(np.linalg.norm(self.robot.position(q) - target.position))
@@ -313,7 +312,7 @@ def line_waypoints(
             f"the straight line to {np.round(end.position, 6).tolist()} m needs a jump of {jumps[k]:.3g} rad in the "
             f"joints near {np.round(points[k], 6).tolist()} m (a branch change at a singularity); split the line there"
         )
-    inv = conditioning(solver.robot, q, solver.task)[0]
+    inv = solver.robot.conditioning(q, solver.task)[0]
     return LinePath(_ro(s), _ro(q), _ro(points), err, float(np.min(inv)))
 
 

@@ -51,13 +51,13 @@ import numpy as np
 
 from planner.core.arrays import read_only
 from planner.exceptions import InvalidArgumentError
-from planner.motion.checks import check_dwell, check_given, check_state, check_stops, check_waypoints
 from planner.motion.limits import JointLimits
+from planner.motion.request import TrajectoryRequest
 from planner.motion.segments import brake_segment, merge_segment, piece_position_range
 from planner.motion.trajectory import JointTrajectory
 from planner.motion.vias import ViaChain, ViaStrategy, via_strategy
 
-__all__ = ["StartOvershoot", "plan_trajectory", "repair_range"]
+__all__ = ["StartOvershoot", "plan_trajectory", "plan_trajectory_request", "repair_range"]
 
 _REPAIR_HALVINGS = 24
 _REPAIR_HALVINGS_BEFORE_REST = 6
@@ -174,21 +174,46 @@ def plan_trajectory(
         InvalidConfigurationError: A waypoint with the wrong length or a NaN.
         JointLimitError: A waypoint outside its joint range (joint and value named).
     """
-    chooser = via_strategy(strategy)
-    if not isinstance(limits, JointLimits):
-        raise InvalidArgumentError(f"limits must be a JointLimits, got {type(limits).__name__}")
-    q = check_waypoints(waypoints, limits)
+    return plan_trajectory_request(
+        TrajectoryRequest(
+            waypoints,
+            limits,
+            start_velocity=start_velocity,
+            start_acceleration=start_acceleration,
+            stops=stops,
+            dwell=dwell,
+            strategy=strategy,
+            via_velocities=via_velocities,
+            via_accelerations=via_accelerations,
+            min_durations=min_durations,
+        )
+    )
+
+
+def plan_trajectory_request(request: TrajectoryRequest) -> JointTrajectory:
+    """Plan the trajectory a request asks for (see :func:`plan_trajectory` for the fields).
+
+    Args:
+        request: The validated request.
+
+    Returns:
+        The trajectory; it passes through every waypoint exactly and honours every limit.
+
+    Raises:
+        InvalidArgumentError: If a given start state runs a joint out of its range even when
+            braking at once.
+    """
+    if not isinstance(request, TrajectoryRequest):
+        raise InvalidArgumentError(f"request must be a TrajectoryRequest, got {type(request).__name__}")
+    chooser = via_strategy(request.strategy)
+    limits = request.limits
+    q, v0, a0, dw = request.waypoints, request.start_velocity, request.start_acceleration, request.dwell
     n = len(q)
-    names = limits.joint_names
-    v0 = check_state(start_velocity, limits.velocity, names, "start velocity")
-    a0 = check_state(start_acceleration, limits.acceleration, names, "start acceleration")
-    dw = check_dwell(dwell, n)
-    stop = check_stops(stops, n)
+    stop = np.zeros(n, dtype=bool)
+    stop[list(request.stops)] = True
     stop |= dw > 0
-    if stop[0] and (np.any(v0) or np.any(a0)):
-        raise InvalidArgumentError("waypoint 0 is a stop, but a non-zero start state was given")
-    stop = chooser.stop_mask(stop, bool(np.any(v0) or np.any(a0)))
-    given = check_given(via_velocities, via_accelerations, min_durations, n, limits)
+    stop = chooser.stop_mask(stop, request.moving_start)
+    given = (request.via_velocities, request.via_accelerations, request.min_durations)
 
     try:
         chain = ViaChain(q, limits, v0, a0, stop, given)
