@@ -7,8 +7,10 @@ import pytest
 
 from planner import InvalidArgumentError, Target, rotation_error
 from planner.app.motion_plan import parse_motion_request, plan_motion
-from planner.motion.cartesian import TargetSolver, line_deviation, line_trajectory, line_waypoints, time_line
+from planner.motion.branch_choice import TargetSolver
 from planner.motion.limits import JointLimits
+from planner.motion.line import line_deviation, line_waypoints
+from planner.motion.line_timing import line_trajectory, time_line
 from planner.motion.trajectory import LIMIT_TOLERANCE
 
 from conftest import get_robot, needs_example_robot_data

@@ -572,7 +572,9 @@ def plan_motion(robot: Robot, request: MotionRequest, *, rate: float = 1000.0) -
         if start_q is not None and not np.allclose(start_q, q_user[0], atol=1e-9):
             raise _fail(src, "start.q differs from the first waypoint; with joint waypoints the first one is the start")
     else:
-        from planner.motion.cartesian import TargetSolver, line_waypoints, time_line
+        from planner.motion.branch_choice import TargetSolver
+        from planner.motion.line import line_waypoints
+        from planner.motion.line_timing import time_line
 
         solver = TargetSolver(robot, threshold=threshold)
         q_prev = start_q
@@ -639,7 +641,7 @@ def plan_motion(robot: Robot, request: MotionRequest, *, rate: float = 1000.0) -
     unresolved = tuple(sorted({int(node_to_user[s]) for s in plan.unresolved}))
     deviation: list[float | None] = [None] * (n - 1)
     if line_ranges:
-        from planner.motion.cartesian import line_deviation
+        from planner.motion.line import line_deviation
 
         for seg, a, b in line_ranges:
             t0, t1 = traj.waypoint_times[node_idx[a]], traj.waypoint_times[node_idx[b]]
