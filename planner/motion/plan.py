@@ -57,17 +57,17 @@ from planner.motion.segments import brake_segment, merge_segment, piece_position
 from planner.motion.trajectory import JointTrajectory
 from planner.motion.vias import ViaChain, ViaStrategy, via_strategy
 
-__all__ = ["StartOvershoot", "plan_trajectory", "plan_trajectory_request", "repair_range"]
+__all__ = ["plan_trajectory", "plan_trajectory_request"]
 
 _REPAIR_HALVINGS = 24
 _REPAIR_HALVINGS_BEFORE_REST = 6
 
 
-class StartOvershoot(Exception):
+class _StartOvershoot(Exception):
     """The given start state runs a joint out of its range in the first segment (caught by the planner)."""
 
 
-def repair_range(chain: ViaChain) -> list[tuple[float, np.ndarray, np.ndarray]]:
+def _repair_range(chain: ViaChain) -> list[tuple[float, np.ndarray, np.ndarray]]:
     """Lower via velocities until no segment carries a joint outside its range.
 
     Every segment is checked exactly (:func:`planner.motion.segments.piece_position_range`);
@@ -81,7 +81,7 @@ def repair_range(chain: ViaChain) -> list[tuple[float, np.ndarray, np.ndarray]]:
         Per segment: its duration, local knot times and stacked (p, v, a, j) pieces.
 
     Raises:
-        StartOvershoot: If the given start state itself carries a joint out of its range.
+        _StartOvershoot: If the given start state itself carries a joint out of its range.
     """
     before = np.hstack([chain.v, chain.acc])
     halved = np.zeros(chain.v.shape, dtype=int)
@@ -113,7 +113,7 @@ def repair_range(chain: ViaChain) -> list[tuple[float, np.ndarray, np.ndarray]]:
                 if idx > 0 and (np.any(chain.v[idx][bad] != 0) or np.any(chain.acc[idx][bad] != 0))
             ]
             if not movable:
-                raise StartOvershoot
+                raise _StartOvershoot
             for idx in movable:
                 # Halve a few times, then rest: a joint running along its range end over
                 # many samples would otherwise pass the overshoot on from via to via.
@@ -219,10 +219,10 @@ def plan_trajectory_request(request: TrajectoryRequest) -> JointTrajectory:
         chain = ViaChain(q, limits, v0, a0, stop, given)
         if chain.n >= 3:
             chooser.choose(chain)
-        segments = repair_range(chain)
+        segments = _repair_range(chain)
         v, acc, repaired = chain.v, chain.acc, chain.repaired
         head = None
-    except StartOvershoot:
+    except _StartOvershoot:
         # A joint that is not the slowest of the first segment gets a stretched profile that
         # can run past its range; brake every joint as hard as it can first, then go on.
         *head, q_rest = brake_segment(q[0], v0, a0, limits)
@@ -230,7 +230,7 @@ def plan_trajectory_request(request: TrajectoryRequest) -> JointTrajectory:
         chain = ViaChain(inner, limits, np.zeros_like(v0), np.zeros_like(a0), stop, given)
         if chain.n >= 3:
             chooser.choose(chain)
-        segments = repair_range(chain)
+        segments = _repair_range(chain)
         v, acc, repaired = chain.v.copy(), chain.acc.copy(), chain.repaired.copy()
         v[0], acc[0] = v0, a0
 
