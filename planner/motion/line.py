@@ -13,6 +13,7 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
+import pinocchio as pin
 
 from planner.core.arrays import read_only
 from planner.exceptions import InvalidArgumentError
@@ -26,6 +27,10 @@ __all__ = ["LinePath", "interpolate_target", "line_deviation", "line_waypoints",
 def slerp(rotation_a: np.ndarray, rotation_b: np.ndarray, s: float) -> np.ndarray:
     """Rotation a fraction s of the way from `rotation_a` to `rotation_b` (about their relative axis).
 
+    ``R_a exp(s log(R_a^T R_b))`` with Pinocchio's ``log3``/``exp3``: exact at s = 1 and
+    accurate for relative angles near 0 and near half a turn (where an ``acos`` of the trace
+    loses digits).
+
     Args:
         rotation_a: Shape (3, 3).
         rotation_b: Shape (3, 3).
@@ -34,19 +39,7 @@ def slerp(rotation_a: np.ndarray, rotation_b: np.ndarray, s: float) -> np.ndarra
     Returns:
         Shape (3, 3).
     """
-    rel = rotation_a.T @ rotation_b
-    angle = math.acos(max(-1.0, min(1.0, (np.trace(rel) - 1.0) / 2.0)))
-    if angle < 1e-12:
-        return rotation_a.copy()
-    if math.pi - angle < 1e-6:
-        # Axis from the symmetric part when the rotation is (close to) half a turn.
-        w, v = np.linalg.eigh((rel + rel.T) / 2.0)
-        axis = v[:, int(np.argmax(w))]
-    else:
-        axis = np.array([rel[2, 1] - rel[1, 2], rel[0, 2] - rel[2, 0], rel[1, 0] - rel[0, 1]]) / (2.0 * math.sin(angle))
-    k = np.array([[0, -axis[2], axis[1]], [axis[2], 0, -axis[0]], [-axis[1], axis[0], 0]])
-    th = s * angle
-    return rotation_a @ (np.eye(3) + math.sin(th) * k + (1 - math.cos(th)) * (k @ k))
+    return rotation_a @ pin.exp3(s * pin.log3(rotation_a.T @ rotation_b))
 
 
 def interpolate_target(a: Target, b: Target, s: float) -> Target:
