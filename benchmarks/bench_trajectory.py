@@ -43,7 +43,9 @@ import numpy as np
 from planner import available_robots, load_robot
 from planner.app.benchmark import run_record
 from planner.model.catalog import BUNDLED_ROBOTS
-from planner.motion.trajectory import LIMIT_TOLERANCE, JointLimits, plan_trajectory
+from planner.motion.limits import JointLimits
+from planner.motion.plan import plan_trajectory
+from planner.motion.trajectory import LIMIT_TOLERANCE
 
 RESULTS = Path(__file__).resolve().parent / "results"
 

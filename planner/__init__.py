@@ -36,8 +36,10 @@ from planner.ik.status import IKStatus
 from planner.model.catalog import available_robots, load_robot
 from planner.model.description import dh_transform, load_arm_description, urdf_from_dh
 from planner.model.robot import Robot
+from planner.motion.limits import JointLimits
+from planner.motion.plan import plan_trajectory
 from planner.motion.singularity import check_singularities, plan_clear_of_singularities
-from planner.motion.trajectory import JointLimits, JointTrajectory, plan_trajectory
+from planner.motion.trajectory import JointTrajectory
 
 __all__ = [
     "__version__",

@@ -19,7 +19,8 @@ from planner.export.calibration import (
 from planner.export.formats import SERVO_FORMATS, ServoFormat, servo_format
 from planner.export.formats.ssc32 import ssc32_group_moves
 from planner.export.tables import pulse_table, steps_table
-from planner.motion.trajectory import JointLimits, plan_trajectory
+from planner.motion.limits import JointLimits
+from planner.motion.plan import plan_trajectory
 
 from conftest import get_robot
 

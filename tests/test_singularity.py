@@ -6,8 +6,11 @@ import numpy as np
 import pytest
 
 from planner import InvalidArgumentError
-from planner.motion.singularity import check_singularities, conditioning, plan_clear_of_singularities
-from planner.motion.trajectory import LIMIT_TOLERANCE, JointLimits, plan_trajectory
+from planner.motion.limits import JointLimits
+from planner.motion.plan import plan_trajectory
+from planner.motion.request import TrajectoryRequest
+from planner.motion.singularity import SingularityOptions, check_singularities, plan_clear_of_singularities
+from planner.motion.trajectory import LIMIT_TOLERANCE
 
 from conftest import get_robot
 
@@ -19,7 +22,7 @@ def test_conditioning_matches_the_robot():
     for name in ("dh3", "al5c", "three_joint", "shelley"):
         robot = get_robot(name)
         q = robot.random_configurations(rng, 20)
-        inv, man = conditioning(robot, q)
+        inv, man = robot.conditioning(q)
         np.testing.assert_allclose(inv, robot.inverse_condition_number(q), rtol=1e-12, atol=1e-15)
         np.testing.assert_allclose(man, robot.manipulability(q), rtol=1e-12, atol=1e-15)
 
@@ -36,7 +39,7 @@ def test_segment_through_a_singularity_gets_a_detour():
     assert direct.min_inverse_condition < 1e-3
     assert direct.below_threshold
 
-    plan = plan_clear_of_singularities(robot, q, limits)
+    plan = plan_clear_of_singularities(robot, TrajectoryRequest(q, limits))
     assert len(plan.detours) >= 1
     assert all(d.segment == 0 and d.inverse_condition >= THRESHOLD for d in plan.detours)
     assert plan.report.clear and plan.report.min_inverse_condition >= THRESHOLD
@@ -53,7 +56,7 @@ def test_singular_waypoint_is_kept_and_flagged():
     robot = get_robot("dh3")
     limits = JointLimits.from_robot(robot)
     q = np.array([[0.0, 0.0, 0.0], [0.5, 0.6, 1.2], [1.0, 0.5, 1.0]])  # the first is fully stretched
-    plan = plan_clear_of_singularities(robot, q, limits)
+    plan = plan_clear_of_singularities(robot, TrajectoryRequest(q, limits))
     assert plan.singular_waypoints == (0,)
     assert plan.report.singular_waypoints == (0,)
     assert plan.report.waypoint_inverse_condition[0] == pytest.approx(0.0, abs=1e-12)
@@ -69,9 +72,9 @@ def test_crossing_between_sign_changed_ends_is_reported_not_detoured():
     robot = get_robot("dh3")
     limits = JointLimits.from_robot(robot)
     q = np.array([[0.0, 0.3, 0.6], [0.0, 0.6, -0.6]])
-    inv_ends = conditioning(robot, q)[0]
+    inv_ends = robot.conditioning(q)[0]
     assert np.all(inv_ends > THRESHOLD)
-    plan = plan_clear_of_singularities(robot, q, limits)
+    plan = plan_clear_of_singularities(robot, TrajectoryRequest(q, limits))
     assert plan.detours == ()
     assert plan.unresolved == (0,)
     assert plan.report.min_inverse_condition < THRESHOLD
@@ -103,4 +106,21 @@ def test_mismatched_robot():
     with pytest.raises(InvalidArgumentError, match="the trajectory has 3 joints; three_joint has 4"):
         check_singularities(get_robot("three_joint"), traj)
     with pytest.raises(InvalidArgumentError, match="the limits are for 3 joints; three_joint has 4"):
-        plan_clear_of_singularities(get_robot("three_joint"), [[0, 1, 0, 0], [0, 1, 0, 1]], limits)
+        plan_clear_of_singularities(get_robot("three_joint"), TrajectoryRequest([[0, 0.5, 1], [0.5, 0.5, 1]], limits))
+
+
+def test_options_and_kept_segments():
+    with pytest.raises(InvalidArgumentError, match="max_detours must be a non-negative integer, got -1"):
+        SingularityOptions(max_detours=-1)
+    with pytest.raises(InvalidArgumentError, match="margin must be >= 1, got 0.5"):
+        SingularityOptions(margin=0.5)
+    with pytest.raises(InvalidArgumentError, match=r"threshold is an inverse condition number in \[0, 1\)"):
+        SingularityOptions(threshold=1.5)
+    assert SingularityOptions().threshold == pytest.approx(THRESHOLD)
+    robot = get_robot("three_joint")
+    request = TrajectoryRequest([[0.0, 1.0, 0.5, 0.5], [0.0, 1.0, -0.5, -0.5]], JointLimits.from_robot(robot))
+    # A kept segment (say, samples of a Cartesian line) gets no detour and is reported.
+    kept = plan_clear_of_singularities(robot, request, keep_segments=[0])
+    assert kept.detours == () and kept.unresolved == (0,)
+    none = plan_clear_of_singularities(robot, request, SingularityOptions(max_detours=0))
+    assert none.detours == () and none.trajectory.duration == kept.trajectory.duration

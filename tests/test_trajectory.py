@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import csv
 import math
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -13,7 +14,12 @@ from ruckig import InputParameter, Ruckig
 from ruckig import Trajectory as RuckigTrajectory
 
 from planner import InvalidArgumentError, InvalidConfigurationError, InvalidLimitsError, JointLimitError
-from planner.motion.trajectory import LIMIT_TOLERANCE, JointLimits, _spline_via_states, plan_trajectory
+from planner.motion.limits import JointLimits
+from planner.motion.plan import plan_trajectory, plan_trajectory_request
+from planner.motion.request import TrajectoryRequest
+from planner.motion.trajectory import LIMIT_TOLERANCE
+from planner.motion.vias import VIA_STRATEGIES, HeuristicStrategy, ViaStrategy
+from planner.motion.vias.optimized import spline_via_states
 
 from conftest import get_robot
 
@@ -110,7 +116,7 @@ def test_spline_via_states_are_those_of_the_c2_cubic_spline(segments):
     q = rng.uniform(-1, 1, (segments + 1, 3))
     h = rng.uniform(0.2, 2.0, segments)
     v_start, v_end = rng.uniform(-1, 1, 3), rng.uniform(-1, 1, 3)
-    v, acc = _spline_via_states(q, h, v_start, v_end)
+    v, acc = spline_via_states(q, h, v_start, v_end)
     vel = np.vstack([v_start, v, v_end])
     dq, hh = np.diff(q, axis=0), h[:, None]
     acc_start = 6 * dq / hh**2 - (4 * vel[:-1] + 2 * vel[1:]) / hh
@@ -326,3 +332,46 @@ def test_many_problems_with_start_states_and_dwell(problem, seed, strategy):
         return
     assert_within_limits(traj)
     assert_passes_waypoints(traj, q)
+
+
+def test_request_plans_as_the_keywords_do():
+    robot = get_robot("al5c")
+    limits = JointLimits.from_robot(robot)
+    q = robot.random_configurations(np.random.default_rng(11), 5)
+    kwargs = {"stops": [2], "dwell": [0, 0.1, 0, 0, 0], "strategy": "heuristic"}
+    request = TrajectoryRequest(q, limits, **kwargs)
+    a, b = plan_trajectory(q, limits, **kwargs), plan_trajectory_request(request)
+    assert a.duration == b.duration and b.strategy == "heuristic"
+    np.testing.assert_array_equal(a.sampled(200.0).q, b.sampled(200.0).q)
+    # Normalised and read-only: derived requests are validated again.
+    assert request.stops == (2,) and request.dwell.shape == (5,) and not request.waypoints.flags.writeable
+    assert np.all(np.isnan(request.via_velocities)) and request.min_durations.shape == (4,)
+    with pytest.raises(InvalidArgumentError, match="unknown strategy 'fast'; valid: optimized, heuristic, stop"):
+        replace(request, strategy="fast")
+    with pytest.raises(InvalidArgumentError, match="waypoint 0 is a stop, but a non-zero start state was given"):
+        TrajectoryRequest(q, limits, stops=[0], start_velocity=0.1 * limits.velocity)
+    with pytest.raises(InvalidArgumentError, match="request must be a TrajectoryRequest, got list"):
+        plan_trajectory_request([q, limits])
+
+
+def test_via_strategies_are_registered_objects():
+    assert list(VIA_STRATEGIES) == ["optimized", "heuristic", "stop"]
+    for name, cls in VIA_STRATEGIES.items():
+        assert issubclass(cls, ViaStrategy) and cls.name == name
+
+    class Halfway(HeuristicStrategy):
+        """The slope blend at half speed: a plug-in needs no registry entry to be passed."""
+
+        name = "halfway"
+
+        def choose(self, chain):
+            super().choose(chain)
+            free = ~chain.fixed
+            chain.v[free] *= 0.5
+            chain.acc[free] *= 0.25
+
+    q = [[0.0, 0.0], [0.5, 0.4], [1.0, 0.1], [0.2, 0.3]]
+    traj = plan_trajectory(q, LIM, strategy=Halfway())
+    assert traj.strategy == "halfway"
+    assert_within_limits(traj)
+    assert_passes_waypoints(traj, np.array(q))

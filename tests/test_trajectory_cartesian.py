@@ -3,13 +3,17 @@
 from __future__ import annotations
 
 import numpy as np
+import pinocchio as pin
 import pytest
 
-from planner import InvalidArgumentError, Target, rotation_error
+from planner import InvalidArgumentError, Target, rotation_error, rpy_to_matrix
 from planner.app.motion_plan import plan_motion
 from planner.app.plan_file import parse_motion_request
-from planner.motion.cartesian import TargetSolver, line_deviation, line_trajectory, line_waypoints, time_line
-from planner.motion.trajectory import LIMIT_TOLERANCE, JointLimits
+from planner.motion.branch_choice import TargetSolver
+from planner.motion.limits import JointLimits
+from planner.motion.line import line_deviation, line_waypoints, slerp
+from planner.motion.line_timing import line_trajectory, time_line
+from planner.motion.trajectory import LIMIT_TOLERANCE
 
 from conftest import get_robot, needs_example_robot_data
 
@@ -212,3 +216,20 @@ def _quaternion(rot: np.ndarray) -> list[float]:
     """(x, y, z, w) of a rotation matrix (w > 0 branch is enough for these poses)."""
     w = np.sqrt(max(1.0 + np.trace(rot), 1e-12)) / 2.0
     return [(rot[2, 1] - rot[1, 2]) / (4 * w), (rot[0, 2] - rot[2, 0]) / (4 * w), (rot[1, 0] - rot[0, 1]) / (4 * w), w]
+
+
+def test_slerp_interpolates_about_the_relative_axis():
+    rng = np.random.default_rng(5)
+    for _ in range(50):
+        ra = rpy_to_matrix(rng.uniform(-3, 3, 3))
+        axis = rng.normal(size=3)
+        axis /= np.linalg.norm(axis)
+        angle = rng.uniform(1e-6, np.pi - 1e-3)
+        rb = ra @ pin.exp3(axis * angle)
+        np.testing.assert_allclose(slerp(ra, rb, 0.0), ra, atol=1e-15)
+        np.testing.assert_allclose(slerp(ra, rb, 1.0), rb, atol=1e-12)
+        for s in (0.25, 0.5, 0.8):
+            # The rotation s of the way lies at angle s * angle from ra and the rest from rb.
+            mid = slerp(ra, rb, s)
+            assert rotation_error(ra, mid) == pytest.approx(s * angle, abs=1e-9)
+            assert rotation_error(mid, rb) == pytest.approx((1 - s) * angle, abs=1e-9)

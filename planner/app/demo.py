@@ -102,8 +102,6 @@ class DemoReport:
 
 def _moves(scenario: str, robot: Robot, plan: MotionPlan, request: MotionRequest) -> list[DemoMove]:
     """One row per move: the end target's IK (checked by the NLP), timing, peaks, singularity margin."""
-    from planner.motion.singularity import conditioning
-
     traj = plan.trajectory
     targets = request.targets or ()
     # A move runs from leaving one waypoint to leaving the next, so a dwell counts in its move.
@@ -112,7 +110,7 @@ def _moves(scenario: str, robot: Robot, plan: MotionPlan, request: MotionRequest
     for k in range(1, len(plan.waypoints)):
         t0, t1 = leave[k - 1], leave[k]
         s = traj.sample(np.linspace(t0, t1, max(2, int(math.ceil((t1 - t0) * 1000.0)) + 1)))
-        _, manipulability = conditioning(robot, s.q, plan.singularity.task)
+        _, manipulability = robot.conditioning(s.q, plan.singularity.task)
         check = cross_check(robot, targets[k], q_seed=plan.waypoints[k - 1])
         method = "line" if plan.branches[k] == "line" else "closed form"
         moves.append(

@@ -21,8 +21,10 @@ from planner.core.arrays import read_only
 from planner.core.files import input_error, parse_number
 from planner.export.calibration import ServoCalibration, default_calibrations
 from planner.model.robot import Robot
-from planner.motion.singularity import Detour, SingularityReport, plan_clear_of_singularities
-from planner.motion.trajectory import JointLimits, JointTrajectory
+from planner.motion.limits import JointLimits
+from planner.motion.request import TrajectoryRequest
+from planner.motion.singularity import Detour, SingularityOptions, SingularityReport, plan_clear_of_singularities
+from planner.motion.trajectory import JointTrajectory
 
 __all__ = ["MotionPlan", "plan_motion"]
 
@@ -204,7 +206,9 @@ def plan_motion(robot: Robot, request: MotionRequest, *, rate: float = 1000.0) -
                 src, "start.q differs from the first waypoint; with joint waypoints the first one is the start"
             )
     else:
-        from planner.motion.cartesian import TargetSolver, line_waypoints, time_line
+        from planner.motion.branch_choice import TargetSolver
+        from planner.motion.line import line_waypoints
+        from planner.motion.line_timing import time_line
 
         solver = TargetSolver(robot, threshold=threshold)
         q_prev = start_q
@@ -243,23 +247,22 @@ def plan_motion(robot: Robot, request: MotionRequest, *, rate: float = 1000.0) -
         via_a[a : b + 1] = timing.acceleration
         min_dur[a:b] = np.diff(timing.t)
         stops += [a, b]
-    plan = plan_clear_of_singularities(
-        robot,
+    trajectory_request = TrajectoryRequest(
         q_nodes,
         limits,
-        threshold=threshold,
-        rate=rate,
-        max_detours=request.max_detours if request.detours else 0,
         start_velocity=start_v,
         start_acceleration=start_a,
         stops=stops,
         dwell=dwell,
         strategy=request.strategy,
-        keep_segments=keep,
         via_velocities=via_v,
         via_accelerations=via_a,
         min_durations=min_dur,
     )
+    options = SingularityOptions(
+        threshold=threshold, rate=rate, max_detours=request.max_detours if request.detours else 0
+    )
+    plan = plan_clear_of_singularities(robot, trajectory_request, options, keep_segments=keep)
     traj = plan.trajectory
     node_idx = plan.waypoint_indices
     user_idx = node_idx[user_pos]
@@ -272,7 +275,7 @@ def plan_motion(robot: Robot, request: MotionRequest, *, rate: float = 1000.0) -
     unresolved = tuple(sorted({int(node_to_user[s]) for s in plan.unresolved}))
     deviation: list[float | None] = [None] * (n - 1)
     if line_ranges:
-        from planner.motion.cartesian import line_deviation
+        from planner.motion.line import line_deviation
 
         for seg, a, b in line_ranges:
             t0, t1 = traj.waypoint_times[node_idx[a]], traj.waypoint_times[node_idx[b]]

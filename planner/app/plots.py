@@ -257,8 +257,6 @@ def plot_plan(
     Returns:
         The three PNG paths.
     """
-    from planner.motion.singularity import conditioning
-
     folder = Path(out)
     traj = plan.trajectory
     t = np.unique(np.concatenate([traj.times(rate), traj.waypoint_times]))
@@ -284,7 +282,7 @@ def plot_plan(
         waypoint_times=plan.waypoint_times,
         title=f"{name}: joint trajectories, {traj.duration:.2f} s (dashed: limits, dotted: waypoints)",
     )
-    inverse, _ = conditioning(robot, s.q, plan.singularity.task)
+    inverse, _ = robot.conditioning(s.q, plan.singularity.task)
     singular = plot_manipulability(
         folder / f"{prefix}singularity.png",
         t,

@@ -20,30 +20,25 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
+from planner.core.arrays import read_only
 from planner.exceptions import InvalidArgumentError
 from planner.model.robot import Robot, Task
-from planner.motion.trajectory import (
-    JointLimits,
-    JointTrajectory,
-    ViaStrategy,
-    _check_dwell,
-    _check_given,
-    _check_stops,
-    check_waypoints,
-    plan_trajectory,
-)
+from planner.motion.limits import JointLimits
+from planner.motion.plan import plan_trajectory_request
+from planner.motion.request import TrajectoryRequest
+from planner.motion.trajectory import JointTrajectory
 
 __all__ = [
     "DEFAULT_CONDITION_NUMBER",
     "Detour",
     "SingularityAwarePlan",
+    "SingularityOptions",
     "SingularityReport",
     "check_singularities",
-    "conditioning",
     "plan_clear_of_singularities",
 ]
 
@@ -60,22 +55,6 @@ def _threshold(threshold: float | None) -> float:
             f"(a condition number of {DEFAULT_CONDITION_NUMBER:g} is {1 / DEFAULT_CONDITION_NUMBER:.6g})"
         )
     return float(threshold)
-
-
-def conditioning(
-    robot: Robot, q: Sequence[float] | np.ndarray, task: Task | None = None
-) -> tuple[np.ndarray, np.ndarray]:
-    """Inverse condition number and manipulability of configurations, from one SVD each.
-
-    Args:
-        robot: The robot.
-        q: Shape (dof,) or (N, dof) [rad or m].
-        task: ``"position"`` or ``"pose"``; None as :meth:`Robot.manipulability` chooses.
-
-    Returns:
-        ``(inverse_condition, manipulability)``, each a float array of shape () or (N,).
-    """
-    return robot.conditioning(q, task)
 
 
 @dataclass(frozen=True)
@@ -138,7 +117,7 @@ def _report(
 ) -> tuple[SingularityReport, np.ndarray, np.ndarray, np.ndarray]:
     t = _sample_times(trajectory, rate)
     q = trajectory.sample(t).q
-    inv, man = conditioning(robot, q, task)
+    inv, man = robot.conditioning(q, task)
     w_idx = np.searchsorted(t, trajectory.waypoint_times)
     w_inv, w_man = inv[w_idx], man[w_idx]
     k = int(np.argmin(inv))
@@ -146,22 +125,16 @@ def _report(
         threshold=threshold,
         task=task,
         rate=float(rate),
-        waypoint_inverse_condition=_ro(w_inv),
-        waypoint_manipulability=_ro(w_man),
+        waypoint_inverse_condition=read_only(w_inv),
+        waypoint_manipulability=read_only(w_man),
         singular_waypoints=tuple(int(i) for i in np.nonzero(w_inv < threshold)[0]),
         min_inverse_condition=float(inv[k]),
         min_manipulability=float(np.min(man)),
         time_of_minimum=float(t[k]),
-        q_at_minimum=_ro(q[k]),
+        q_at_minimum=read_only(q[k]),
         below_threshold=_intervals(t, inv < threshold),
     )
     return report, t, q, inv
-
-
-def _ro(a: np.ndarray) -> np.ndarray:
-    out = np.array(a, dtype=float, copy=True)
-    out.setflags(write=False)
-    return out
 
 
 def check_singularities(
@@ -192,6 +165,38 @@ def check_singularities(
     if trajectory.dof != robot.dof:
         raise InvalidArgumentError(f"the trajectory has {trajectory.dof} joints; {robot.name} has {robot.dof}")
     return _report(robot, trajectory, _threshold(threshold), robot.resolve_task(task), rate)[0]
+
+
+@dataclass(frozen=True)
+class SingularityOptions:
+    """How :func:`plan_clear_of_singularities` checks and detours.
+
+    Attributes:
+        threshold: Inverse condition number below which a configuration is too close; None
+            (normalised to 1/30) is ``1 / DEFAULT_CONDITION_NUMBER``.
+        task: Task Jacobian (``"position"`` or ``"pose"``); None as the robot chooses.
+        rate: Sampling rate of the checks [Hz].
+        max_detours: Most waypoints to insert.
+        margin: A detour waypoint is pushed to ``margin * threshold``.
+
+    Raises:
+        InvalidArgumentError: On a threshold outside [0, 1), a negative or non-integer
+            ``max_detours`` or a margin below 1.
+    """
+
+    threshold: float | None = None
+    task: Task | None = None
+    rate: float = 1000.0
+    max_detours: int = 8
+    margin: float = 3.0
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "threshold", _threshold(self.threshold))
+        max_detours = self.max_detours
+        if isinstance(max_detours, bool) or not isinstance(max_detours, int) or max_detours < 0:
+            raise InvalidArgumentError(f"max_detours must be a non-negative integer, got {max_detours!r}")
+        if not (isinstance(self.margin, (int, float)) and math.isfinite(self.margin) and self.margin >= 1.0):
+            raise InvalidArgumentError(f"margin must be >= 1, got {self.margin!r}")
 
 
 @dataclass(frozen=True)
@@ -250,7 +255,7 @@ def _ascend(robot: Robot, q: np.ndarray, limits: JointLimits, target: float, tas
     inset = 1e-3 * np.where(np.isfinite(hi - lo), hi - lo, 1.0)
     lo, hi = lo + inset, hi - inset
     x = np.clip(q, lo, hi)
-    f = float(conditioning(robot, x, task)[0])
+    f = float(robot.conditioning(x, task)[0])
     step = 0.05
     h = 1e-5
     for _ in range(200):
@@ -260,12 +265,12 @@ def _ascend(robot: Robot, q: np.ndarray, limits: JointLimits, target: float, tas
         for i in range(len(x)):
             e = x.copy()
             e[i] += h if e[i] + h <= hi[i] else -h
-            grad[i] = (float(conditioning(robot, e, task)[0]) - f) / (e[i] - x[i])
+            grad[i] = (float(robot.conditioning(e, task)[0]) - f) / (e[i] - x[i])
         norm = float(np.linalg.norm(grad))
         if norm == 0.0 or not math.isfinite(norm):
             break
         cand = np.clip(x + step * grad / norm, lo, hi)
-        fc = float(conditioning(robot, cand, task)[0])
+        fc = float(robot.conditioning(cand, task)[0])
         if fc > f:
             x, f = cand, fc
             step = min(step * 1.5, 0.5)
@@ -284,73 +289,47 @@ def _det_sign(robot: Robot, q: np.ndarray, task: Task) -> float:
 
 def plan_clear_of_singularities(
     robot: Robot,
-    waypoints: Sequence[Sequence[float]] | np.ndarray,
-    limits: JointLimits,
+    request: TrajectoryRequest,
+    options: SingularityOptions | None = None,
     *,
-    threshold: float | None = None,
-    task: Task | None = None,
-    rate: float = 1000.0,
-    max_detours: int = 8,
-    margin: float = 3.0,
-    start_velocity: Sequence[float] | np.ndarray | None = None,
-    start_acceleration: Sequence[float] | np.ndarray | None = None,
-    stops: Sequence[int] | None = None,
-    dwell: float | Sequence[float] | None = None,
-    strategy: ViaStrategy = "optimized",
     keep_segments: Sequence[int] = (),
-    via_velocities: np.ndarray | None = None,
-    via_accelerations: np.ndarray | None = None,
-    min_durations: Sequence[float] | np.ndarray | None = None,
 ) -> SingularityAwarePlan:
-    """Plan through joint waypoints, detouring around singularities a segment would pass.
+    """Plan a trajectory request, detouring around singularities a segment would pass.
 
     Args:
         robot: The robot.
-        waypoints: Joint waypoints, shape (N, dof) [rad or m].
-        limits: Motion limits (see :class:`JointLimits`).
-        threshold: Inverse condition number below which a configuration is too close; None
-            is 1/30.
-        task: Task Jacobian; None as the robot chooses.
-        rate: Sampling rate of the checks [Hz].
-        max_detours: Most waypoints to insert.
-        margin: A detour waypoint is pushed to ``margin * threshold``.
-        start_velocity: As for :func:`plan_trajectory`.
-        start_acceleration: As for :func:`plan_trajectory`.
-        stops: User waypoint indices to stop at, as for :func:`plan_trajectory`.
-        dwell: Dwell per user waypoint [s], as for :func:`plan_trajectory`.
-        strategy: Via strategy, as for :func:`plan_trajectory`.
-        keep_segments: User segments (k: from waypoint k to k+1) that must not get detours,
-            e.g. samples of a straight Cartesian line.
-        via_velocities: Prescribed via velocities per user waypoint (NaN rows free), as for
-            :func:`plan_trajectory`.
-        via_accelerations: Prescribed via accelerations, likewise.
-        min_durations: Shortest duration per user segment [s], as for :func:`plan_trajectory`.
+        request: The trajectory to plan (waypoints, limits, start state, stops, dwell, strategy,
+            prescribed via states); its stops, dwell and prescribed states refer to its own
+            waypoints, and stay with them when detours are inserted.
+        options: Threshold, task, sampling rate, detour count and margin; None is the defaults.
+        keep_segments: Segments of the request (k: from waypoint k to k+1) that must not get
+            detours, e.g. samples of a straight Cartesian line.
 
     Returns:
         The plan with its report, detours and unresolved segments.
 
     Raises:
-        InvalidArgumentError: On bad thresholds or any input :func:`plan_trajectory` rejects.
+        InvalidArgumentError: If the request is for another number of joints, or on a start
+            state the planner cannot brake from.
     """
-    thr = _threshold(threshold)
-    t_task = robot.resolve_task(task)
-    if isinstance(max_detours, bool) or not isinstance(max_detours, int) or max_detours < 0:
-        raise InvalidArgumentError(f"max_detours must be a non-negative integer, got {max_detours!r}")
-    if not (isinstance(margin, (int, float)) and math.isfinite(margin) and margin >= 1.0):
-        raise InvalidArgumentError(f"margin must be >= 1, got {margin!r}")
+    opts = SingularityOptions() if options is None else options
+    thr = opts.threshold
+    t_task = robot.resolve_task(opts.task)
+    rate, max_detours, margin = opts.rate, opts.max_detours, opts.margin
+    limits = request.limits
     if limits.dof != robot.dof:
         raise InvalidArgumentError(f"the limits are for {limits.dof} joints; {robot.name} has {robot.dof}")
-    user = check_waypoints(waypoints, limits)
+    user = request.waypoints
     n = len(user)
-    dw = _check_dwell(dwell, n)
-    stop_mask = _check_stops(stops, n)
-    given = _check_given(via_velocities, via_accelerations, min_durations, n, limits)
-    if given is None:
-        given = (np.full(user.shape, np.nan), np.zeros(user.shape), np.zeros(n - 1))
     # Per augmented waypoint: prescribed (velocity, acceleration), and the minimum duration of
     # the segment that starts there (detours split a segment and drop its minimum).
     states: list[tuple[np.ndarray, np.ndarray, float]] = [
-        (given[0][k], given[1][k], float(given[2][k]) if k < n - 1 else 0.0) for k in range(n)
+        (
+            request.via_velocities[k],
+            request.via_accelerations[k],
+            float(request.min_durations[k]) if k < n - 1 else 0.0,
+        )
+        for k in range(n)
     ]
     # Each augmented waypoint: (q, user index or None, user segment it lies in).
     nodes: list[tuple[np.ndarray, int | None, int]] = [(user[k], k, min(k, n - 2)) for k in range(n)]
@@ -361,19 +340,17 @@ def plan_clear_of_singularities(
         q = np.array([nd[0] for nd in nodes])
         user_pos = [i for i, nd in enumerate(nodes) if nd[1] is not None]
         d = np.zeros(len(nodes))
-        d[user_pos] = dw
-        st = [user_pos[s] for s in np.nonzero(stop_mask)[0]]
-        return plan_trajectory(
-            q,
-            limits,
-            start_velocity=start_velocity,
-            start_acceleration=start_acceleration,
-            stops=st,
-            dwell=d,
-            strategy=strategy,
-            via_velocities=np.array([st_[0] for st_ in states]),
-            via_accelerations=np.array([st_[1] for st_ in states]),
-            min_durations=np.array([st_[2] for st_ in states[:-1]]),
+        d[user_pos] = request.dwell
+        return plan_trajectory_request(
+            replace(
+                request,
+                waypoints=q,
+                stops=[user_pos[s] for s in request.stops],
+                dwell=d,
+                via_velocities=np.array([st_[0] for st_ in states]),
+                via_accelerations=np.array([st_[1] for st_ in states]),
+                min_durations=np.array([st_[2] for st_ in states[:-1]]),
+            )
         )
 
     while True:
@@ -404,7 +381,7 @@ def plan_clear_of_singularities(
             nodes.insert(s + 1, (q_new, None, seg))
             states[s] = (states[s][0], states[s][1], 0.0)
             states.insert(s + 1, (np.full(robot.dof, np.nan), np.zeros(robot.dof), 0.0))
-            detours.append(Detour(segment=seg, q=_ro(q_new), inverse_condition=f_new, dip=dip))
+            detours.append(Detour(segment=seg, q=read_only(q_new), inverse_condition=f_new, dip=dip))
             inserted = True
             break
         if not inserted:

@@ -1,22 +1,12 @@
-"""Cartesian targets to joint configurations: IK branch choice and straight-line segments.
+"""Timing of a straight Cartesian line's joint samples within the joint limits.
 
-:class:`TargetSolver` wraps the project's two IK solvers (built once per robot by
-:mod:`planner.ik.solve`): the closed form (:class:`planner.ik.analytic.AnalyticIK`) where the arm
-belongs to one of its families, else the CasADi NLP (:class:`planner.ik.numeric.solver.NlpIK`). For a
-waypoint it picks, among the solutions within the joint limits, one clear of singularities
-and nearest the previous configuration, and says which branch it took.
-
-:func:`line_waypoints` follows a straight line between two targets: it samples the line
-(position linearly; approach pitch linearly; orientation by spherical interpolation), solves
-IK at every sample seeded by (closed form: nearest to) the previous one, and bisects wherever a
-joint would jump more than a step bound, so the joint path is continuous. :func:`time_line`
-times the samples: a path parameter follows a jerk-limited profile whose speed limit varies
-along the line, so that no joint exceeds its speed, acceleration or jerk limit; near a
-singularity the joints must move far for a short stretch of line, so the tip slows down there
-(and only there) instead of asking for unbounded joint speed (the 002 seed's concern). The
-samples then become via waypoints of the Ruckig chain (:func:`planner.motion.trajectory.plan_trajectory`,
-:func:`line_trajectory`) with the timing's states. :func:`line_deviation` measures how far the
-sampled tip strays from the line between the samples.
+:func:`time_line` times the samples of a :class:`planner.motion.line.LinePath`: a path
+parameter follows a jerk-limited profile whose speed limit varies along the line, so that no
+joint exceeds its speed, acceleration or jerk limit; near a singularity the joints must move
+far for a short stretch of line, so the tip slows down there (and only there) instead of asking
+for unbounded joint speed. Every interval is checked with the joint-space Ruckig segment the
+planner will chain there (:class:`planner.motion.segments.SegmentSolver`). The samples then
+become via waypoints of the Ruckig chain (:func:`line_trajectory`) with the timing's states.
 """
 
 from __future__ import annotations
@@ -25,304 +15,18 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
+from ruckig import InputParameter, Result, Ruckig
+from ruckig import Trajectory as RuckigTrajectory
 
+from planner.core.arrays import read_only
 from planner.exceptions import InvalidArgumentError
-from planner.geometry.target import Target
-from planner.model.robot import Robot, Task
-from planner.motion.singularity import conditioning
-from planner.motion.trajectory import JointLimits, JointTrajectory, plan_trajectory
+from planner.motion.limits import JointLimits, admissible_acceleration
+from planner.motion.line import LinePath
+from planner.motion.plan import plan_trajectory
+from planner.motion.segments import SegmentSolver
+from planner.motion.trajectory import JointTrajectory
 
-__all__ = [
-    "IKChoice",
-    "LinePath",
-    "LineTiming",
-    "TargetSolver",
-    "interpolate_target",
-    "line_deviation",
-    "line_trajectory",
-    "line_waypoints",
-    "time_line",
-]
-
-
-@dataclass(frozen=True)
-class IKChoice:
-    """The configuration chosen for one Cartesian target.
-
-    Attributes:
-        q: Joint values, shape (dof,) [rad or m].
-        branch: Closed-form branch name (e.g. ``"front/elbow-up"``), or ``"nlp"``.
-        singular: Whether it is below the singularity threshold (kept and flagged: no clear
-            solution within the limits exists).
-        inverse_condition: Its inverse condition number.
-        alternatives: How many other solutions within the limits there were.
-        position_error: Tip distance to the target by Pinocchio's FK [m].
-    """
-
-    q: np.ndarray
-    branch: str
-    singular: bool
-    inverse_condition: float
-    alternatives: int
-    position_error: float
-
-
-class TargetSolver:
-    """IK for waypoints and line samples: closed form where possible, else NLP.
-
-    Attributes:
-        robot: The robot.
-        method: ``"analytic"`` or ``"nlp"``.
-        threshold: Inverse condition number below which a solution counts as singular.
-        task: Task Jacobian for that measure.
-    """
-
-    def __init__(
-        self, robot: Robot, *, threshold: float = 1.0 / 30.0, task: Task | None = None, method: str | None = None
-    ):
-        """Build the solver.
-
-        Args:
-            robot: The robot.
-            threshold: Inverse condition number below which a solution is avoided if possible.
-            task: ``"position"`` or ``"pose"``; None as the robot chooses.
-            method: ``"analytic"``, ``"nlp"`` or None (closed form when the chain allows).
-
-        Raises:
-            InvalidArgumentError: On an unknown method.
-            UnsupportedChainError: If ``method="analytic"`` and the chain has no closed form.
-        """
-        if method not in (None, "analytic", "nlp"):
-            raise InvalidArgumentError(f"unknown IK method {method!r}; valid: analytic, nlp")
-        self.robot = robot
-        self.threshold = float(threshold)
-        self.task = task
-        from planner.ik.solvers import IKSolvers
-
-        solvers = IKSolvers.of(robot)
-        if method == "analytic":
-            solvers.require_analytic()  # raises UnsupportedChainError naming the joint
-        self._analytic = solvers.analytic if method in (None, "analytic") else None
-        self.method = "analytic" if self._analytic is not None else "nlp"
-        self._nlp = solvers.nlp if self._analytic is None else None
-        lo = np.where(np.isfinite(robot.lower), robot.lower, 0.0)
-        hi = np.where(np.isfinite(robot.upper), robot.upper, 0.0)
-        self._home = (lo + hi) / 2.0
-
-    def _inverse_condition(self, q: np.ndarray) -> float:
-        return float(conditioning(self.robot, q, self.task)[0])
-
-    def _error(self, target: Target, q: np.ndarray) -> float:
-        return float(np.linalg.norm(self.robot.position(q) - target.position))
-
-    def candidates(
-        self, target: Target, q_near: np.ndarray | None, *, nearest: bool = False
-    ) -> tuple[list[tuple[np.ndarray, str]], str]:
-        """Solutions within the limits, ``(q, branch)``, and a reason when there are none.
-
-        The closed form gives every branch; the NLP one solution, started from `q_near` (with
-        `nearest`, the solution nearest `q_near` among those it finds).
-        """
-        if self._analytic is not None:
-            res = self._analytic.solve(target, q_current=q_near)
-            sols = [(np.array(s.q, dtype=float), s.branch) for s in res.solutions if s.within_limits]
-            return sols, res.reason or res.status
-        if q_near is None:
-            res = self._nlp.solve(target)
-        else:
-            res = self._nlp.solve(target, q_seed=q_near, near_seed=nearest)
-        if res.success:
-            return [(np.array(res.q, dtype=float), "nlp")], ""
-        return [], f"{res.status}: {res.reason}"
-
-    def choose(self, target: Target, q_previous: np.ndarray | None, *, label: str = "target") -> IKChoice:
-        """The solution for a waypoint: clear of singularities first, then nearest `q_previous`.
-
-        Args:
-            target: The Cartesian target.
-            q_previous: The configuration before it; None uses the middle of the joint ranges.
-            label: How to name the target in an error message.
-
-        Returns:
-            The choice.
-
-        Raises:
-            InvalidArgumentError: If no solution within the joint limits exists (the message
-                carries the solver's reason).
-        """
-        ref = self._home if q_previous is None else np.asarray(q_previous, dtype=float)
-        sols, reason = self.candidates(target, ref, nearest=True)
-        if not sols:
-            raise InvalidArgumentError(
-                f"{label} at position {np.round(target.position, 6).tolist()} m has no IK solution within the joint "
-                f"limits of {self.robot.name} ({reason})"
-            )
-        scored = []
-        for q, branch in sols:
-            ic = self._inverse_condition(q)
-            scored.append((ic < self.threshold, float(np.linalg.norm(q - ref)), q, branch, ic))
-        scored.sort(key=lambda s: (s[0], s[1]))
-        singular, _, q, branch, ic = scored[0]
-        return IKChoice(
-            q=_ro(q),
-            branch=branch,
-            singular=bool(singular),
-            inverse_condition=ic,
-            alternatives=len(sols) - 1,
-            position_error=self._error(target, q),
-        )
-
-    def track(self, target: Target, q_previous: np.ndarray) -> np.ndarray | None:
-        """The solution nearest `q_previous` (continuation along a path), or None."""
-        sols, _ = self.candidates(target, q_previous)
-        if not sols:
-            return None
-        return min((q for q, _ in sols), key=lambda q: float(np.linalg.norm(q - q_previous)))
-
-
-def _ro(a: np.ndarray) -> np.ndarray:
-    out = np.array(a, dtype=float, copy=True)
-    out.setflags(write=False)
-    return out
-
-
-def _slerp(ra: np.ndarray, rb: np.ndarray, s: float) -> np.ndarray:
-    """Rotation a fraction s of the way from ra to rb (about their relative axis)."""
-    rel = ra.T @ rb
-    angle = math.acos(max(-1.0, min(1.0, (np.trace(rel) - 1.0) / 2.0)))
-    if angle < 1e-12:
-        return ra.copy()
-    if math.pi - angle < 1e-6:
-        # Axis from the symmetric part when the rotation is (close to) half a turn.
-        w, v = np.linalg.eigh((rel + rel.T) / 2.0)
-        axis = v[:, int(np.argmax(w))]
-    else:
-        axis = np.array([rel[2, 1] - rel[1, 2], rel[0, 2] - rel[2, 0], rel[1, 0] - rel[0, 1]]) / (2.0 * math.sin(angle))
-    k = np.array([[0, -axis[2], axis[1]], [axis[2], 0, -axis[0]], [-axis[1], axis[0], 0]])
-    th = s * angle
-    return ra @ (np.eye(3) + math.sin(th) * k + (1 - math.cos(th)) * (k @ k))
-
-
-def interpolate_target(a: Target, b: Target, s: float) -> Target:
-    """The target a fraction s in [0, 1] of the way along the straight line from a to b."""
-    pos = (1.0 - s) * a.position + s * b.position
-    if b.rotation is not None:
-        if a.rotation is None:
-            raise InvalidArgumentError("a line to a target with an orientation must start at one with an orientation")
-        return Target(pos, rotation=_slerp(a.rotation, b.rotation, s))
-    if b.pitch is not None:
-        if a.pitch is None:
-            raise InvalidArgumentError("a line to a target with an approach pitch must start at one with a pitch")
-        return Target(pos, pitch=(1.0 - s) * a.pitch + s * b.pitch)
-    return Target(pos)
-
-
-@dataclass(frozen=True)
-class LinePath:
-    """Joint configurations along a straight Cartesian line.
-
-    Attributes:
-        s: Fractions of the way along the line, shape (M,), 0 first and 1 last.
-        q: Joint values at each, shape (M, dof) [rad or m].
-        points: Tip positions asked for, shape (M, 3) [m].
-        max_position_error: Largest FK distance of the samples to their points [m].
-        min_inverse_condition: Smallest inverse condition number among the samples.
-    """
-
-    s: np.ndarray
-    q: np.ndarray
-    points: np.ndarray
-    max_position_error: float
-    min_inverse_condition: float
-
-
-def line_waypoints(
-    solver: TargetSolver,
-    start: Target,
-    end: Target,
-    q_start: np.ndarray,
-    *,
-    max_step: float = 0.005,
-    max_joint_step: float = 0.02,
-    min_step: float = 1e-5,
-) -> LinePath:
-    """Sample a straight line from `start` to `end` into a continuous joint path.
-
-    Args:
-        solver: IK for the robot.
-        start: Target at the start of the line (its configuration is `q_start`).
-        end: Target at its end.
-        q_start: Joint values at the start, shape (dof,).
-        max_step: Longest line step between samples [m].
-        max_joint_step: Largest joint change between neighbouring samples [rad or m]; longer
-            steps are bisected.
-        min_step: Shortest line step bisection goes down to [m].
-
-    Returns:
-        The joint path (the last configuration solves `end`).
-
-    Raises:
-        InvalidArgumentError: If IK fails somewhere on the line or the joint path cannot be made
-            continuous (the line leaves the workspace or crosses a branch boundary).
-    """
-    for name, val in (("max_step", max_step), ("max_joint_step", max_joint_step), ("min_step", min_step)):
-        if not (isinstance(val, (int, float)) and math.isfinite(val) and val > 0):
-            raise InvalidArgumentError(f"{name} must be positive, got {val!r}")
-    length = float(np.linalg.norm(end.position - start.position))
-    n0 = max(1, int(math.ceil(length / max_step)))
-    q0 = np.asarray(q_start, dtype=float)
-    s_list, q_list = [0.0], [q0]
-
-    def solve_at(s: float, q_prev: np.ndarray) -> np.ndarray:
-        q = solver.track(interpolate_target(start, end, s), q_prev)
-        if q is None:
-            p = (1.0 - s) * start.position + s * end.position
-            a, b, near = (np.round(x, 6).tolist() for x in (start.position, end.position, p))
-            raise InvalidArgumentError(
-                f"the straight line from {a} to {b} m leaves what {solver.robot.name} can reach "
-                f"within its joint limits near {near} m"
-            )
-        return q
-
-    for k in range(1, n0 + 1):
-        s_target = k / n0
-        stack = [s_target]
-        while stack:
-            s_next = stack[-1]
-            q_next = solve_at(s_next, q_list[-1])
-            if (
-                float(np.max(np.abs(q_next - q_list[-1]))) > max_joint_step
-                and (s_next - s_list[-1]) * length > min_step
-            ):
-                stack.append((s_list[-1] + s_next) / 2.0)
-                continue
-            s_list.append(s_next)
-            q_list.append(q_next)
-            stack.pop()
-    q = np.array(q_list)
-    s = np.array(s_list)
-    points = (1.0 - s)[:, None] * start.position + s[:, None] * end.position
-    err = float(np.max(np.linalg.norm(solver.robot.position(q) - points, axis=1)))
-    jumps = np.max(np.abs(np.diff(q, axis=0)), axis=1)
-    if np.any(jumps > 10 * max_joint_step):
-        k = int(np.argmax(jumps))
-        raise InvalidArgumentError(
-            f"the straight line to {np.round(end.position, 6).tolist()} m needs a jump of {jumps[k]:.3g} rad in the "
-            f"joints near {np.round(points[k], 6).tolist()} m (a branch change at a singularity); split the line there"
-        )
-    inv = conditioning(solver.robot, q, solver.task)[0]
-    return LinePath(_ro(s), _ro(q), _ro(points), err, float(np.min(inv)))
-
-
-def line_deviation(robot: Robot, q: np.ndarray, start: np.ndarray, end: np.ndarray) -> float:
-    """Largest distance of the tip positions of configurations q (M, dof) from the segment start-end [m]."""
-    p = robot.position(q)
-    d = np.asarray(end, dtype=float) - np.asarray(start, dtype=float)
-    length2 = float(d @ d)
-    if length2 == 0.0:
-        return float(np.max(np.linalg.norm(p - start, axis=1)))
-    s = np.clip((p - start) @ d / length2, 0.0, 1.0)
-    return float(np.max(np.linalg.norm(p - (start + s[:, None] * d), axis=1)))
+__all__ = ["LineTiming", "line_trajectory", "time_line"]
 
 
 @dataclass(frozen=True)
@@ -466,9 +170,6 @@ def _zone_profiles(
     allow that can still be reached from the previous boundary and braked to the next one
     (forward and backward passes). Returns the duration and the Ruckig trajectories.
     """
-    from ruckig import InputParameter, Result, Ruckig
-    from ruckig import Trajectory as RuckigTrajectory
-
     n = len(zones)
     w = np.zeros(n + 1)
     for b in range(1, n):
@@ -518,15 +219,12 @@ def _joint_states(
 ) -> tuple[np.ndarray, np.ndarray]:
     """Joint velocities and accelerations from the path states, within what a via may hold.
 
-    The acceleration is limited as :func:`planner.motion.trajectory.plan_trajectory` limits a given
-    via acceleration (``|qd| + qdd^2 / (2 j) <= v``), so that the states checked here are the
-    ones it will chain.
+    The acceleration is limited as :func:`planner.motion.plan.plan_trajectory` limits a given
+    via acceleration (:func:`planner.motion.limits.admissible_acceleration`), so that the
+    states checked here are the ones it will chain.
     """
     vel = np.clip(d1 * sd[:, None], -limits.velocity, limits.velocity)
-    acc = d2 * (sd * sd)[:, None] + d1 * sdd[:, None]
-    room = np.maximum(limits.velocity - np.abs(vel), 0.0)
-    amax = np.minimum(limits.acceleration, np.sqrt(2.0 * limits.jerk * room) * (1.0 - 1e-9))
-    acc = np.clip(acc, -amax, amax)
+    acc = admissible_acceleration(vel, d2 * (sd * sd)[:, None] + d1 * sdd[:, None], limits)
     vel[0] = vel[-1] = acc[0] = acc[-1] = 0.0
     return vel, acc
 
@@ -536,7 +234,7 @@ def _check_intervals(
 ) -> tuple[list[int], np.ndarray]:
     """Check every sample interval with the joint-space Ruckig segment chained through it.
 
-    These are the segments :func:`planner.motion.trajectory.plan_trajectory` chains through the
+    These are the segments :func:`planner.motion.plan.plan_trajectory` chains through the
     samples. Where one cannot keep the planned duration, the joints would fall behind the
     line's timing (and stray from the line between the samples): the path limits there were
     too optimistic. Where one leaves a joint's range (by Ruckig's extrema), the chain would
@@ -545,30 +243,16 @@ def _check_intervals(
     Returns:
         The lagging intervals, and per interval the joints that leave their range, (M-1, dof) bool.
     """
-    from ruckig import InputParameter, Result, Ruckig
-    from ruckig import Trajectory as RuckigTrajectory
-
     m, dof = q.shape
-    otg, inp, traj = Ruckig(dof), InputParameter(dof), RuckigTrajectory(dof)
-    inp.max_velocity = limits.velocity.tolist()
-    inp.max_acceleration = limits.acceleration.tolist()
-    inp.max_jerk = limits.jerk.tolist()
-    tol = 1e-10 * np.maximum(1.0, np.abs(np.nan_to_num(limits.upper)))
-    lower, upper = (limits.lower - tol).tolist(), (limits.upper + tol).tolist()
+    planned = np.diff(t)
+    segments = SegmentSolver(q, limits, planned)
     lagging, outside = [], np.zeros((m - 1, dof), dtype=bool)
     for k in range(m - 1):
-        inp.current_position, inp.target_position = q[k].tolist(), q[k + 1].tolist()
-        inp.current_velocity, inp.target_velocity = vel[k].tolist(), vel[k + 1].tolist()
-        inp.current_acceleration, inp.target_acceleration = acc[k].tolist(), acc[k + 1].tolist()
-        planned = float(t[k + 1] - t[k])
-        inp.minimum_duration = planned
-        if otg.calculate(inp, traj) not in (Result.Working, Result.Finished):
+        duration, bad, _ = segments.solve(k, vel[k], acc[k], vel[k + 1], acc[k + 1])
+        if duration > planned[k] * (1.0 + 1e-6) + 1e-9:  # inf when Ruckig finds no profile
             lagging.append(k)
-            continue
-        if traj.duration > planned * (1.0 + 1e-6) + 1e-9:
-            lagging.append(k)
-        for jj, ext in enumerate(traj.position_extrema):
-            outside[k, jj] = ext.min < lower[jj] or ext.max > upper[jj]
+        if bad is not None:
+            outside[k] = bad
     return lagging, outside
 
 
@@ -651,7 +335,7 @@ def time_line(path: LinePath, limits: JointLimits, *, local: bool = True) -> Lin
     stretch, covers the whole line (a uniform profile).
 
     Every interval between samples is then checked with the joint-space Ruckig segment that
-    :func:`planner.motion.trajectory.plan_trajectory` will chain there (the samples become via
+    :func:`planner.motion.plan.plan_trajectory` will chain there (the samples become via
     waypoints with these states): where one cannot keep its planned time, the derivative
     estimates were too optimistic, so that zone's path limits are lowered and the line is
     re-timed. The local timing is compared with the uniform one and the faster of those that
@@ -670,9 +354,18 @@ def time_line(path: LinePath, limits: JointLimits, *, local: bool = True) -> Lin
     steps = np.linalg.norm(np.diff(q, axis=0) / limits.velocity, axis=1)
     total = float(steps.sum())
     if total <= 0.0:
-        z, zero = _ro(np.zeros_like(q)), _ro(np.zeros(m))
+        z, zero = read_only(np.zeros_like(q)), read_only(np.zeros(m))
         return LineTiming(
-            zero, z, z, (0.0, 0.0, 0.0), zero, zero, zero, zero, _ro(np.array([[0, m - 1]])), _ro(np.zeros((1, 3)))
+            zero,
+            z,
+            z,
+            (0.0, 0.0, 0.0),
+            zero,
+            zero,
+            zero,
+            zero,
+            read_only(np.array([[0, m - 1]])),
+            read_only(np.zeros((1, 3))),
         )
     sigma = np.concatenate([[0.0], np.cumsum(steps)]) / total
     sigma[-1] = 1.0
@@ -701,16 +394,16 @@ def time_line(path: LinePath, limits: JointLimits, *, local: bool = True) -> Lin
     tip = np.linalg.norm(_local_cubic_derivatives(sigma, np.asarray(path.points))[0], axis=1) * sd
     zone_limits = np.array(lims)
     return LineTiming(
-        _ro(t),
-        _ro(vel),
-        _ro(acc),
+        read_only(t),
+        read_only(vel),
+        read_only(acc),
         tuple(float(x) for x in zone_limits.max(axis=0)),
-        _ro(sigma),
-        _ro(sd),
-        _ro(_speed_caps(*(np.abs(d) for d in derivs), limits)),
-        _ro(tip),
-        _ro(np.array(zones)),
-        _ro(zone_limits),
+        read_only(sigma),
+        read_only(sd),
+        read_only(_speed_caps(*(np.abs(d) for d in derivs), limits)),
+        read_only(tip),
+        read_only(np.array(zones)),
+        read_only(zone_limits),
     )
 
 

@@ -1,0 +1,155 @@
+"""IK branch choice for Cartesian waypoints and line samples.
+
+:class:`TargetSolver` asks :func:`planner.solve_ik`, the one IK entry point: the closed form
+where the arm belongs to one of its families, else the CasADi NLP.
+For a waypoint it picks, among the solutions within the joint limits, one clear of
+singularities and nearest the previous configuration, and says which branch it took
+(:class:`IKChoice`); along a path it tracks the solution nearest the previous sample.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from planner.core.arrays import read_only
+from planner.exceptions import InvalidArgumentError
+from planner.geometry.target import Target
+from planner.ik.options import IKOptions
+from planner.ik.solve import solve_ik
+from planner.ik.solvers import IKSolvers
+from planner.model.robot import Robot, Task
+
+__all__ = ["IKChoice", "TargetSolver"]
+
+_DEFAULT = IKOptions()
+_NEAR_SEED = IKOptions(near_seed=True)
+
+
+@dataclass(frozen=True)
+class IKChoice:
+    """The configuration chosen for one Cartesian target.
+
+    Attributes:
+        q: Joint values, shape (dof,) [rad or m].
+        branch: Closed-form branch name (e.g. ``"front/elbow-up"``), or ``"nlp"``.
+        singular: Whether it is below the singularity threshold (kept and flagged: no clear
+            solution within the limits exists).
+        inverse_condition: Its inverse condition number.
+        alternatives: How many other solutions within the limits there were.
+        position_error: Tip distance to the target by Pinocchio's FK [m].
+    """
+
+    q: np.ndarray
+    branch: str
+    singular: bool
+    inverse_condition: float
+    alternatives: int
+    position_error: float
+
+
+class TargetSolver:
+    """IK for waypoints and line samples: closed form where possible, else NLP.
+
+    Attributes:
+        robot: The robot.
+        method: ``"analytic"`` or ``"nlp"``.
+        threshold: Inverse condition number below which a solution counts as singular.
+        task: Task Jacobian for that measure.
+    """
+
+    def __init__(
+        self, robot: Robot, *, threshold: float = 1.0 / 30.0, task: Task | None = None, method: str | None = None
+    ):
+        """Build the solver.
+
+        Args:
+            robot: The robot.
+            threshold: Inverse condition number below which a solution is avoided if possible.
+            task: ``"position"`` or ``"pose"``; None as the robot chooses.
+            method: ``"analytic"``, ``"nlp"`` or None (closed form when the chain allows).
+
+        Raises:
+            InvalidArgumentError: On an unknown method.
+            UnsupportedChainError: If ``method="analytic"`` and the chain has no closed form.
+        """
+        if method not in (None, "analytic", "nlp"):
+            raise InvalidArgumentError(f"unknown IK method {method!r}; valid: analytic, nlp")
+        self.robot = robot
+        self.threshold = float(threshold)
+        self.task = task
+        solvers = IKSolvers.of(robot)
+        if method == "analytic":
+            solvers.require_analytic()  # raises UnsupportedChainError naming the joint
+        self.method = "analytic" if method != "nlp" and solvers.analytic is not None else "nlp"
+        lo = np.where(np.isfinite(robot.lower), robot.lower, 0.0)
+        hi = np.where(np.isfinite(robot.upper), robot.upper, 0.0)
+        self._home = (lo + hi) / 2.0
+
+    def _inverse_condition(self, q: np.ndarray) -> float:
+        return float(self.robot.conditioning(q, self.task)[0])
+
+    def _error(self, target: Target, q: np.ndarray) -> float:
+        return float(np.linalg.norm(self.robot.position(q) - target.position))
+
+    def candidates(
+        self, target: Target, q_near: np.ndarray | None, *, nearest: bool = False
+    ) -> tuple[list[tuple[np.ndarray, str]], str]:
+        """Solutions within the limits, ``(q, branch)``, and a reason when there are none.
+
+        Both come from :func:`planner.solve_ik`: the closed form gives every branch; the NLP
+        its answer, started from `q_near` (with `nearest`, the solution nearest `q_near`).
+        """
+        options = _NEAR_SEED if nearest and q_near is not None else _DEFAULT
+        result = solve_ik(self.robot, target, q_near, method=self.method, options=options)
+        if result.method == "analytic":
+            sols = [(np.array(s.q, dtype=float), s.label) for s in result.solutions if s.within_limits]
+            return sols, "" if sols else result.reason or result.status.value
+        if result.success:
+            return [(np.array(result.q, dtype=float), "nlp")], ""
+        return [], f"{result.status}: {result.reason}"
+
+    def choose(self, target: Target, q_previous: np.ndarray | None, *, label: str = "target") -> IKChoice:
+        """The solution for a waypoint: clear of singularities first, then nearest `q_previous`.
+
+        Args:
+            target: The Cartesian target.
+            q_previous: The configuration before it; None uses the middle of the joint ranges.
+            label: How to name the target in an error message.
+
+        Returns:
+            The choice.
+
+        Raises:
+            InvalidArgumentError: If no solution within the joint limits exists (the message
+                carries the solver's reason).
+        """
+        ref = self._home if q_previous is None else np.asarray(q_previous, dtype=float)
+        sols, reason = self.candidates(target, ref, nearest=True)
+        if not sols:
+            raise InvalidArgumentError(
+                f"{label} at position {np.round(target.position, 6).tolist()} m has no IK solution within the joint "
+                f"limits of {self.robot.name} ({reason})"
+            )
+        scored = []
+        for q, branch in sols:
+            ic = self._inverse_condition(q)
+            scored.append((ic < self.threshold, float(np.linalg.norm(q - ref)), q, branch, ic))
+        scored.sort(key=lambda s: (s[0], s[1]))
+        singular, _, q, branch, ic = scored[0]
+        return IKChoice(
+            q=read_only(q),
+            branch=branch,
+            singular=bool(singular),
+            inverse_condition=ic,
+            alternatives=len(sols) - 1,
+            position_error=self._error(target, q),
+        )
+
+    def track(self, target: Target, q_previous: np.ndarray) -> np.ndarray | None:
+        """The solution nearest `q_previous` (continuation along a path), or None."""
+        sols, _ = self.candidates(target, q_previous)
+        if not sols:
+            return None
+        return min((q for q, _ in sols), key=lambda q: float(np.linalg.norm(q - q_previous)))

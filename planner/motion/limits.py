@@ -1,0 +1,208 @@
+"""Per-joint motion limits: speed, acceleration, jerk and position range.
+
+:class:`JointLimits` holds one value per joint, validated and read-only; its
+:meth:`JointLimits.from_robot` derives defaults from a robot's URDF speeds (or a hobby-servo speed
+rating). :func:`admissible_acceleration` is the per-joint rule every via state obeys.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from planner.core.arrays import read_only
+from planner.core.units import servo_speed_to_velocity
+from planner.exceptions import InvalidLimitsError
+
+if TYPE_CHECKING:
+    from planner.model.robot import Robot
+
+__all__ = ["JointLimits", "admissible_acceleration", "per_joint_limit"]
+
+
+def per_joint_limit(
+    value: float | Sequence[float] | np.ndarray, names: Sequence[str], what: str, unit: str
+) -> np.ndarray:
+    """A positive, finite limit per joint from a scalar or a sequence.
+
+    Args:
+        value: One number for every joint, or one per joint.
+        names: Joint names, shape (dof,); they name the joint in a message.
+        what: What the limit is (``"velocity"``), for messages.
+        unit: Its unit, for messages.
+
+    Returns:
+        A read-only array of shape (dof,).
+
+    Raises:
+        InvalidLimitsError: If a value is not a positive finite number or the count is wrong.
+    """
+    try:
+        arr = np.array(value, dtype=float, copy=True)
+    except (TypeError, ValueError) as exc:
+        raise InvalidLimitsError(f"{what} limit must be a number or one number per joint, got {value!r}") from exc
+    if arr.ndim == 0:
+        arr = np.full(len(names), float(arr))
+    if arr.shape != (len(names),):
+        raise InvalidLimitsError(
+            f"{what} limit has {arr.size} values; give one number or {len(names)} (joints {', '.join(names)})",
+            value=value,
+        )
+    for name, x in zip(names, arr):
+        if not (math.isfinite(x) and x > 0.0):
+            raise InvalidLimitsError(
+                f"{what} limit of joint {name!r} must be positive and finite [{unit}], got {x:.6g}", joint=name, value=x
+            )
+    return read_only(arr)
+
+
+@dataclass(frozen=True)
+class JointLimits:
+    """Per-joint motion limits.
+
+    Attributes:
+        velocity: Speed limits, shape (dof,) [rad/s or m/s], read-only.
+        acceleration: Acceleration limits, shape (dof,) [rad/s^2 or m/s^2], read-only.
+        jerk: Jerk limits, shape (dof,) [rad/s^3 or m/s^3], read-only.
+        lower: Lower position limits, shape (dof,) [rad or m]; -inf for unbounded joints.
+        upper: Upper position limits, shape (dof,) [rad or m]; +inf for unbounded joints.
+        joint_names: Joint names, for messages.
+    """
+
+    velocity: np.ndarray
+    acceleration: np.ndarray
+    jerk: np.ndarray
+    lower: np.ndarray
+    upper: np.ndarray
+    joint_names: tuple[str, ...] = field(default=())
+
+    def __post_init__(self) -> None:
+        # The joints are those of the position range (or of the names, when given).
+        dof = np.size(self.lower) if np.ndim(self.lower) else np.size(self.velocity)
+        names = tuple(self.joint_names) or tuple(f"joint{k}" for k in range(dof))
+        object.__setattr__(self, "joint_names", names)
+        for attr, what, unit in (
+            ("velocity", "velocity", "rad/s or m/s"),
+            ("acceleration", "acceleration", "rad/s^2 or m/s^2"),
+            ("jerk", "jerk", "rad/s^3 or m/s^3"),
+        ):
+            object.__setattr__(self, attr, per_joint_limit(getattr(self, attr), names, what, unit))
+        bounds = []
+        for attr in ("lower", "upper"):
+            try:
+                arr = np.array(getattr(self, attr), dtype=float, copy=True)
+            except (TypeError, ValueError) as exc:
+                raise InvalidLimitsError(
+                    f"{attr} position limits must be numbers, got {getattr(self, attr)!r}"
+                ) from exc
+            if arr.ndim == 0:
+                arr = np.full(len(names), float(arr))
+            if arr.shape != (len(names),):
+                raise InvalidLimitsError(f"{attr} position limits need {len(names)} values, got shape {arr.shape}")
+            bounds.append(arr)
+        lower, upper = bounds
+        for name, lo, hi in zip(names, lower, upper):
+            if math.isnan(lo) or math.isnan(hi):
+                raise InvalidLimitsError(f"position range of joint {name!r} holds NaN: [{lo}, {hi}]", joint=name)
+            if lo > hi:
+                raise InvalidLimitsError(
+                    f"joint {name!r} has lower limit {lo:.6g} > upper limit {hi:.6g}", joint=name, value=(lo, hi)
+                )
+        object.__setattr__(self, "lower", read_only(lower))
+        object.__setattr__(self, "upper", read_only(upper))
+
+    @property
+    def dof(self) -> int:
+        """Number of joints."""
+        return len(self.joint_names)
+
+    @classmethod
+    def from_robot(
+        cls,
+        robot: Robot,
+        velocity: float | Sequence[float] | None = None,
+        acceleration: float | Sequence[float] | None = None,
+        jerk: float | Sequence[float] | None = None,
+        *,
+        servo_seconds_per_60deg: float | Sequence[float] | None = None,
+        acceleration_per_velocity: float = 2.0,
+        jerk_per_acceleration: float = 10.0,
+    ) -> JointLimits:
+        """Limits for a robot's chain joints, with defaults derived from its speed limits.
+
+        Args:
+            robot: The robot (position ranges and URDF speed limits come from it).
+            velocity: Speed limit(s) [rad/s or m/s], one for all joints or one per joint;
+                None uses the URDF's ``<limit velocity>``.
+            acceleration: Acceleration limit(s) [rad/s^2]; None is
+                ``acceleration_per_velocity * velocity``.
+            jerk: Jerk limit(s) [rad/s^3]; None is ``jerk_per_acceleration * acceleration``.
+            servo_seconds_per_60deg: A hobby-servo speed rating (time for 60 deg [s]), one or
+                per joint, used instead of `velocity` (give only one of the two).
+            acceleration_per_velocity: Default acceleration over velocity [1/s].
+            jerk_per_acceleration: Default jerk over acceleration [1/s].
+
+        Returns:
+            The limits.
+
+        Raises:
+            InvalidLimitsError: If a limit is zero, negative, NaN or has the wrong length, or
+                the URDF has no speed for a joint and none is given.
+        """
+        names = robot.joint_names
+        if velocity is not None and servo_seconds_per_60deg is not None:
+            raise InvalidLimitsError("give either velocity or servo_seconds_per_60deg, not both")
+        if servo_seconds_per_60deg is not None:
+            secs = per_joint_limit(servo_seconds_per_60deg, names, "servo_seconds_per_60deg", "s")
+            vel = np.array([servo_speed_to_velocity(float(s)) for s in secs])
+        elif velocity is not None:
+            vel = per_joint_limit(velocity, names, "velocity", "rad/s or m/s")
+        else:
+            vel = np.array(robot.velocity_limit, dtype=float)
+            missing = [n for n, v in zip(names, vel) if not (math.isfinite(v) and v > 0)]
+            if missing:
+                raise InvalidLimitsError(
+                    f"the URDF gives no positive speed for joint {missing[0]!r} "
+                    f"(velocity {vel[names.index(missing[0])]:.6g}); pass velocity= or servo_seconds_per_60deg=",
+                    joint=missing[0],
+                )
+        for what, factor in (
+            ("acceleration_per_velocity", acceleration_per_velocity),
+            ("jerk_per_acceleration", jerk_per_acceleration),
+        ):
+            if not (isinstance(factor, (int, float)) and math.isfinite(factor) and factor > 0):
+                raise InvalidLimitsError(f"{what} must be positive and finite [1/s], got {factor!r}", value=factor)
+        acc = (
+            per_joint_limit(acceleration, names, "acceleration", "rad/s^2 or m/s^2")
+            if acceleration is not None
+            else vel * acceleration_per_velocity
+        )
+        jrk = (
+            per_joint_limit(jerk, names, "jerk", "rad/s^3 or m/s^3")
+            if jerk is not None
+            else acc * jerk_per_acceleration
+        )
+        return cls(vel, acc, jrk, robot.lower, robot.upper, names)
+
+
+def admissible_acceleration(v: np.ndarray, a: np.ndarray, limits: JointLimits) -> np.ndarray:
+    """Limit a via acceleration so the state can be reached and left within the limits.
+
+    A state with ``|v| + a^2 / (2 j_max) > v_max`` would have needed (or would need) a speed
+    beyond v_max on one side of the waypoint.
+
+    Args:
+        v: Velocities, shape (..., dof) [rad/s or m/s], within the speed limits.
+        a: Accelerations, same shape [rad/s^2 or m/s^2].
+        limits: The limits.
+
+    Returns:
+        The accelerations, each clipped to what its velocity allows (a new array).
+    """
+    room = np.maximum(limits.velocity - np.abs(v), 0.0)
+    amax = np.minimum(limits.acceleration, np.sqrt(2.0 * limits.jerk * room) * (1.0 - 1e-9))
+    return np.maximum(np.minimum(a, amax), -amax)

@@ -1,0 +1,164 @@
+"""Straight Cartesian lines sampled into continuous joint paths.
+
+:func:`line_waypoints` follows a straight line between two targets: it samples the line
+(position linearly; approach pitch linearly; orientation by spherical interpolation,
+:func:`interpolate_target`), solves IK at every sample seeded by (closed form: nearest to) the
+previous one, and bisects wherever a joint would jump more than a step bound, so the joint
+path is continuous. :func:`line_deviation` measures how far a sampled tip strays from the line.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+import pinocchio as pin
+
+from planner.core.arrays import read_only
+from planner.exceptions import InvalidArgumentError
+from planner.geometry.target import Target
+from planner.model.robot import Robot
+from planner.motion.branch_choice import TargetSolver
+
+__all__ = ["LinePath", "interpolate_target", "line_deviation", "line_waypoints", "slerp"]
+
+
+def slerp(rotation_a: np.ndarray, rotation_b: np.ndarray, s: float) -> np.ndarray:
+    """Rotation a fraction s of the way from `rotation_a` to `rotation_b` (about their relative axis).
+
+    ``R_a exp(s log(R_a^T R_b))`` with Pinocchio's ``log3``/``exp3``: exact at s = 1 and
+    accurate for relative angles near 0 and near half a turn (where an ``acos`` of the trace
+    loses digits).
+
+    Args:
+        rotation_a: Shape (3, 3).
+        rotation_b: Shape (3, 3).
+        s: Fraction in [0, 1].
+
+    Returns:
+        Shape (3, 3).
+    """
+    return rotation_a @ pin.exp3(s * pin.log3(rotation_a.T @ rotation_b))
+
+
+def interpolate_target(a: Target, b: Target, s: float) -> Target:
+    """The target a fraction s in [0, 1] of the way along the straight line from a to b."""
+    pos = (1.0 - s) * a.position + s * b.position
+    if b.rotation is not None:
+        if a.rotation is None:
+            raise InvalidArgumentError("a line to a target with an orientation must start at one with an orientation")
+        return Target(pos, rotation=slerp(a.rotation, b.rotation, s))
+    if b.pitch is not None:
+        if a.pitch is None:
+            raise InvalidArgumentError("a line to a target with an approach pitch must start at one with a pitch")
+        return Target(pos, pitch=(1.0 - s) * a.pitch + s * b.pitch)
+    return Target(pos)
+
+
+@dataclass(frozen=True)
+class LinePath:
+    """Joint configurations along a straight Cartesian line.
+
+    Attributes:
+        s: Fractions of the way along the line, shape (M,), 0 first and 1 last.
+        q: Joint values at each, shape (M, dof) [rad or m].
+        points: Tip positions asked for, shape (M, 3) [m].
+        max_position_error: Largest FK distance of the samples to their points [m].
+        min_inverse_condition: Smallest inverse condition number among the samples.
+    """
+
+    s: np.ndarray
+    q: np.ndarray
+    points: np.ndarray
+    max_position_error: float
+    min_inverse_condition: float
+
+
+def line_waypoints(
+    solver: TargetSolver,
+    start: Target,
+    end: Target,
+    q_start: np.ndarray,
+    *,
+    max_step: float = 0.005,
+    max_joint_step: float = 0.02,
+    min_step: float = 1e-5,
+) -> LinePath:
+    """Sample a straight line from `start` to `end` into a continuous joint path.
+
+    Args:
+        solver: IK for the robot.
+        start: Target at the start of the line (its configuration is `q_start`).
+        end: Target at its end.
+        q_start: Joint values at the start, shape (dof,).
+        max_step: Longest line step between samples [m].
+        max_joint_step: Largest joint change between neighbouring samples [rad or m]; longer
+            steps are bisected.
+        min_step: Shortest line step bisection goes down to [m].
+
+    Returns:
+        The joint path (the last configuration solves `end`).
+
+    Raises:
+        InvalidArgumentError: If IK fails somewhere on the line or the joint path cannot be made
+            continuous (the line leaves the workspace or crosses a branch boundary).
+    """
+    for name, val in (("max_step", max_step), ("max_joint_step", max_joint_step), ("min_step", min_step)):
+        if not (isinstance(val, (int, float)) and math.isfinite(val) and val > 0):
+            raise InvalidArgumentError(f"{name} must be positive, got {val!r}")
+    length = float(np.linalg.norm(end.position - start.position))
+    n0 = max(1, int(math.ceil(length / max_step)))
+    q0 = np.asarray(q_start, dtype=float)
+    s_list, q_list = [0.0], [q0]
+
+    def solve_at(s: float, q_prev: np.ndarray) -> np.ndarray:
+        q = solver.track(interpolate_target(start, end, s), q_prev)
+        if q is None:
+            p = (1.0 - s) * start.position + s * end.position
+            a, b, near = (np.round(x, 6).tolist() for x in (start.position, end.position, p))
+            raise InvalidArgumentError(
+                f"the straight line from {a} to {b} m leaves what {solver.robot.name} can reach "
+                f"within its joint limits near {near} m"
+            )
+        return q
+
+    for k in range(1, n0 + 1):
+        s_target = k / n0
+        stack = [s_target]
+        while stack:
+            s_next = stack[-1]
+            q_next = solve_at(s_next, q_list[-1])
+            if (
+                float(np.max(np.abs(q_next - q_list[-1]))) > max_joint_step
+                and (s_next - s_list[-1]) * length > min_step
+            ):
+                stack.append((s_list[-1] + s_next) / 2.0)
+                continue
+            s_list.append(s_next)
+            q_list.append(q_next)
+            stack.pop()
+    q = np.array(q_list)
+    s = np.array(s_list)
+    points = (1.0 - s)[:, None] * start.position + s[:, None] * end.position
+    err = float(np.max(np.linalg.norm(solver.robot.position(q) - points, axis=1)))
+    jumps = np.max(np.abs(np.diff(q, axis=0)), axis=1)
+    if np.any(jumps > 10 * max_joint_step):
+        k = int(np.argmax(jumps))
+        raise InvalidArgumentError(
+            f"the straight line to {np.round(end.position, 6).tolist()} m needs a jump of {jumps[k]:.3g} rad in the "
+            f"joints near {np.round(points[k], 6).tolist()} m (a branch change at a singularity); split the line there"
+        )
+    inv = solver.robot.conditioning(q, solver.task)[0]
+    return LinePath(read_only(s), read_only(q), read_only(points), err, float(np.min(inv)))
+
+
+def line_deviation(robot: Robot, q: np.ndarray, start: np.ndarray, end: np.ndarray) -> float:
+    """Largest distance of the tip positions of configurations q (M, dof) from the segment start-end [m]."""
+    p = robot.position(q)
+    d = np.asarray(end, dtype=float) - np.asarray(start, dtype=float)
+    length2 = float(d @ d)
+    if length2 == 0.0:
+        return float(np.max(np.linalg.norm(p - start, axis=1)))
+    s = np.clip((p - start) @ d / length2, 0.0, 1.0)
+    return float(np.max(np.linalg.norm(p - (start + s[:, None] * d), axis=1)))

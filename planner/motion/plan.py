@@ -1,0 +1,279 @@
+"""Smooth, jerk-limited joint trajectories through waypoints, chained from Ruckig segments.
+
+The community edition of Ruckig computes time-optimal state-to-state motions (position,
+velocity and acceleration at both ends) under velocity, acceleration and jerk limits, but it
+has no intermediate waypoints (``intermediate_positions`` calls a cloud service) and no
+position limits. This module (:func:`plan_trajectory`) chains one Ruckig segment per pair of consecutive waypoints,
+time-synchronised so that every joint reaches the next waypoint at the same instant, and
+chooses the state (velocity and acceleration) at every via waypoint itself:
+
+1. **Spline-like via states.** From the current segment durations T1, T2 and the slopes
+   s1 = dq1 / T1, s2 = dq2 / T2 of the two neighbouring segments, each joint gets the slope
+   blend ``(s1 T2 + s2 T1) / (T1 + T2)`` (what a cubic spline through the waypoint times has
+   there) as its via velocity and the acceleration ``2 (s2 - s1) / (T1 + T2)``, both within
+   the joint's limits (the ``"heuristic"`` strategy stops here).
+2. **A joint choice, then a search per via waypoint.** All via states between two fixed
+   waypoints are then chosen together: the C2 cubic spline through the waypoints at the
+   segment durations gives every via a velocity and an acceleration consistent with all
+   the others (a joint with time to spare may pass its waypoint still moving and turn just
+   beyond it, as a spline does); the durations are scaled by a common factor, found by
+   golden-section search, to minimise the chained Ruckig durations. Then each via is refined
+   on its own: scaling time by 1/x multiplies velocities by x and accelerations by x^2, so
+   candidates ``(x v, x^2 a)`` of the slope blend (each joint saturating at its limits) are
+   tried on a grid and refined by golden-section search, minimising the duration of the two
+   segments next to the waypoint. A second search moves joints that turn round at the
+   waypoint towards a time-optimal turn: at rest, still braking at full deceleration. Each
+   search keeps the current state unless a candidate is faster, and stopping at the via
+   is one of the candidates.
+3. **Range repair.** A non-zero via state can carry a joint past its range inside a segment.
+   The search discards such candidates (halving the offending joints' via state), and every
+   final segment is checked exactly: the per-joint extrema of its constant-jerk pieces
+   (:func:`planner.motion.segments.piece_position_range`; Ruckig's own ``position_extrema`` misses turning points
+   inside constant-acceleration phases). Where one lies outside the range, that joint's via
+   state at the segment's ends is halved until it fits (after six halvings it is set to
+   rest). Samples are never clipped: a joint at rest at both ends of a segment moves
+   monotonically, so the repair ends inside the range.
+   A given start state that would run a joint out of range first brakes every joint as hard
+   as it can (each on its own), or is rejected if even that leaves the range.
+
+The result, :class:`JointTrajectory`, is piecewise cubic (constant jerk per piece). It passes
+exactly through every waypoint at :attr:`JointTrajectory.waypoint_times` (the sampled state
+there is the waypoint, bit for bit) and stays within every limit at every instant, up to the
+floating-point rounding bounded by :data:`LIMIT_TOLERANCE`. The ``"stop"`` strategy (rest at
+every waypoint) is the baseline it is compared with.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import numpy as np
+
+from planner.core.arrays import read_only
+from planner.exceptions import InvalidArgumentError
+from planner.motion.limits import JointLimits
+from planner.motion.request import TrajectoryRequest
+from planner.motion.segments import brake_segment, merge_segment, piece_position_range
+from planner.motion.trajectory import JointTrajectory
+from planner.motion.vias import ViaChain, ViaStrategy, via_strategy
+
+__all__ = ["plan_trajectory", "plan_trajectory_request"]
+
+_REPAIR_HALVINGS = 24
+_REPAIR_HALVINGS_BEFORE_REST = 6
+
+
+class _StartOvershoot(Exception):
+    """The given start state runs a joint out of its range in the first segment (caught by the planner)."""
+
+
+def _repair_range(chain: ViaChain) -> list[tuple[float, np.ndarray, np.ndarray]]:
+    """Lower via velocities until no segment carries a joint outside its range.
+
+    Every segment is checked exactly (:func:`planner.motion.segments.piece_position_range`);
+    where a joint leaves its range, its via state at the segment's free ends is halved (after
+    a few halvings set to rest) and the chain is solved again. Sets ``chain.repaired``.
+
+    Args:
+        chain: The chain with its chosen via states (changed in place).
+
+    Returns:
+        Per segment: its duration, local knot times and stacked (p, v, a, j) pieces.
+
+    Raises:
+        _StartOvershoot: If the given start state itself carries a joint out of its range.
+    """
+    before = np.hstack([chain.v, chain.acc])
+    halved = np.zeros(chain.v.shape, dtype=int)
+    for _ in range(4 * _REPAIR_HALVINGS + chain.n):
+        segments, any_bad = [], False
+        for k in range(chain.n - 1):
+            start = (chain.q[k], chain.v[k], chain.acc[k])
+            d, _, traj = chain.seg.solve(k, chain.v[k], chain.acc[k], chain.v[k + 1], chain.acc[k + 1], keep=True)
+            if traj is None:
+                # Ruckig found no profile: rest at the free ends of this segment.
+                for idx in (k, k + 1):
+                    if idx > 0:
+                        chain.v[idx] = 0.0
+                        chain.acc[idx] = 0.0
+                any_bad = True
+                continue
+            local, pieces = merge_segment(traj, d, start)
+            segments.append((d, local, pieces))
+            if not chain.seg.bounded or not len(local):
+                continue
+            lo, hi = piece_position_range(local, pieces, d)
+            bad = (lo < chain.seg.lower) | (hi > chain.seg.upper)
+            if not bad.any():
+                continue
+            any_bad = True
+            movable = [
+                idx
+                for idx in (k, k + 1)
+                if idx > 0 and (np.any(chain.v[idx][bad] != 0) or np.any(chain.acc[idx][bad] != 0))
+            ]
+            if not movable:
+                raise _StartOvershoot
+            for idx in movable:
+                # Halve a few times, then rest: a joint running along its range end over
+                # many samples would otherwise pass the overshoot on from via to via.
+                small = (np.abs(chain.v[idx]) < 1e-6 * chain.limits.velocity) & (
+                    np.abs(chain.acc[idx]) < 1e-6 * chain.limits.acceleration
+                ) | (halved[idx] >= _REPAIR_HALVINGS_BEFORE_REST)
+                halved[idx] += bad
+                factor = np.where(bad, np.where(small, 0.0, 0.5), 1.0)
+                chain.v[idx] *= factor
+                chain.acc[idx] *= factor
+        if not any_bad:
+            after = np.hstack([chain.v, chain.acc])
+            dof = chain.v.shape[1]
+            chain.repaired |= (after[:, :dof] != before[:, :dof]) | (after[:, dof:] != before[:, dof:])
+            return segments
+    raise RuntimeError("via-velocity repair did not converge")  # pragma: no cover - zero via speeds always fit
+
+
+def plan_trajectory(
+    waypoints: Sequence[Sequence[float]] | np.ndarray,
+    limits: JointLimits,
+    *,
+    start_velocity: Sequence[float] | np.ndarray | None = None,
+    start_acceleration: Sequence[float] | np.ndarray | None = None,
+    stops: Sequence[int] | None = None,
+    dwell: float | Sequence[float] | None = None,
+    strategy: str | ViaStrategy = "optimized",
+    via_velocities: np.ndarray | None = None,
+    via_accelerations: np.ndarray | None = None,
+    min_durations: Sequence[float] | np.ndarray | None = None,
+) -> JointTrajectory:
+    """Plan a jerk-limited trajectory through joint waypoints without stopping at each one.
+
+    Args:
+        waypoints: Joint configurations to pass through, shape (N, dof) with N >= 2 [rad or m].
+        limits: Velocity, acceleration, jerk and position limits (see :class:`JointLimits`).
+        start_velocity: Velocity at the first waypoint, shape (dof,); None is at rest.
+        start_acceleration: Acceleration at the first waypoint, shape (dof,); None is zero.
+        stops: Indices of waypoints where the arm must come to rest (the first and last
+            always are, unless a start state is given).
+        dwell: Time at rest at each waypoint [s]: one number for all, or one per waypoint;
+            a positive dwell implies a stop.
+        strategy: A name in :data:`planner.motion.vias.VIA_STRATEGIES`: ``"optimized"``
+            (default: heuristic via velocities, then a duration search per via waypoint),
+            ``"heuristic"`` (the slope blend only) or ``"stop"`` (rest at every waypoint, the
+            baseline); or a :class:`planner.motion.vias.ViaStrategy` instance.
+        via_velocities: Prescribed velocities at via waypoints, shape (N, dof); rows of NaN
+            are chosen by the planner. Used for sampled paths (straight Cartesian lines)
+            whose timing is already known; lowered only if a joint would leave its range.
+        via_accelerations: Prescribed accelerations for the same rows, shape (N, dof).
+        min_durations: Shortest duration of each segment [s], shape (N-1,); 0 for none.
+
+    Returns:
+        The trajectory; it passes through every waypoint exactly and honours every limit.
+
+    Raises:
+        InvalidArgumentError: Fewer than two waypoints, a bad start state, dwell or strategy.
+        InvalidConfigurationError: A waypoint with the wrong length or a NaN.
+        JointLimitError: A waypoint outside its joint range (joint and value named).
+    """
+    return plan_trajectory_request(
+        TrajectoryRequest(
+            waypoints,
+            limits,
+            start_velocity=start_velocity,
+            start_acceleration=start_acceleration,
+            stops=stops,
+            dwell=dwell,
+            strategy=strategy,
+            via_velocities=via_velocities,
+            via_accelerations=via_accelerations,
+            min_durations=min_durations,
+        )
+    )
+
+
+def plan_trajectory_request(request: TrajectoryRequest) -> JointTrajectory:
+    """Plan the trajectory a request asks for (see :func:`plan_trajectory` for the fields).
+
+    Args:
+        request: The validated request.
+
+    Returns:
+        The trajectory; it passes through every waypoint exactly and honours every limit.
+
+    Raises:
+        InvalidArgumentError: If a given start state runs a joint out of its range even when
+            braking at once.
+    """
+    if not isinstance(request, TrajectoryRequest):
+        raise InvalidArgumentError(f"request must be a TrajectoryRequest, got {type(request).__name__}")
+    chooser = via_strategy(request.strategy)
+    limits = request.limits
+    q, v0, a0, dw = request.waypoints, request.start_velocity, request.start_acceleration, request.dwell
+    n = len(q)
+    stop = np.zeros(n, dtype=bool)
+    stop[list(request.stops)] = True
+    stop |= dw > 0
+    stop = chooser.stop_mask(stop, request.moving_start)
+    given = (request.via_velocities, request.via_accelerations, request.min_durations)
+
+    try:
+        chain = ViaChain(q, limits, v0, a0, stop, given)
+        if chain.n >= 3:
+            chooser.choose(chain)
+        segments = _repair_range(chain)
+        v, acc, repaired = chain.v, chain.acc, chain.repaired
+        head = None
+    except _StartOvershoot:
+        # A joint that is not the slowest of the first segment gets a stretched profile that
+        # can run past its range; brake every joint as hard as it can first, then go on.
+        *head, q_rest = brake_segment(q[0], v0, a0, limits)
+        inner = np.vstack([q_rest, q[1:]])
+        chain = ViaChain(inner, limits, np.zeros_like(v0), np.zeros_like(a0), stop, given)
+        if chain.n >= 3:
+            chooser.choose(chain)
+        segments = _repair_range(chain)
+        v, acc, repaired = chain.v.copy(), chain.acc.copy(), chain.repaired.copy()
+        v[0], acc[0] = v0, a0
+
+    knots, blocks, times = [], [], np.empty(n)
+    t = 0.0
+    if head is not None:
+        knots.append(head[1])
+        blocks.append(head[2])
+        t = head[0]
+    for k in range(n):
+        times[k] = 0.0 if k == 0 else t
+        if dw[k] > 0:
+            knots.append(np.array([t]))
+            blocks.append(
+                np.stack([q[k][None], np.zeros((1, q.shape[1])), np.zeros((1, q.shape[1])), np.zeros((1, q.shape[1]))])
+            )
+            t += dw[k]
+        if k == n - 1:
+            break
+        dur, local, states = segments[k]
+        if len(local):
+            knots.append(t + local)
+            blocks.append(states)
+        t += dur
+    if knots:
+        all_knots = np.concatenate(knots)
+        pvaj = np.concatenate(blocks, axis=1)
+    else:  # every waypoint identical, no dwell: a motionless trajectory
+        all_knots = np.array([0.0])
+        pvaj = np.stack([q[:1], np.zeros((1, q.shape[1])), np.zeros((1, q.shape[1])), np.zeros((1, q.shape[1]))])
+    return JointTrajectory(
+        knots=read_only(all_knots),
+        p=read_only(pvaj[0]),
+        v=read_only(pvaj[1]),
+        a=read_only(pvaj[2]),
+        j=read_only(pvaj[3]),
+        duration=float(t),
+        waypoints=read_only(q),
+        waypoint_times=read_only(times),
+        via_velocities=read_only(v),
+        via_accelerations=read_only(acc),
+        dwell=read_only(dw),
+        limits=limits,
+        strategy=chooser.name,
+        repaired=read_only(repaired, dtype=bool),
+    )

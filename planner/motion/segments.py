@@ -1,0 +1,239 @@
+"""Ruckig state-to-state segments: solving, merging into common pieces, range checks, braking.
+
+The community edition of Ruckig computes time-optimal state-to-state motions (position,
+velocity and acceleration at both ends) under velocity, acceleration and jerk limits, but has
+no intermediate waypoints and no position limits. :class:`SegmentSolver` solves the segments
+between fixed positions (reusing one Ruckig instance) and flags joints that Ruckig's extrema put
+outside their range; :func:`merge_segment` turns a segment into constant-jerk pieces common to
+all joints; :func:`piece_position_range` gives their exact position extrema; and
+:func:`brake_segment` brings a moving start state to rest.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from ruckig import ControlInterface, InputParameter, Result, Ruckig, Synchronization
+from ruckig import Trajectory as RuckigTrajectory
+
+from planner.exceptions import InvalidArgumentError
+from planner.motion.limits import JointLimits
+
+__all__ = [
+    "RANGE_TOLERANCE",
+    "SegmentSolver",
+    "brake_segment",
+    "merge_segment",
+    "piece_position_range",
+    "range_with_tolerance",
+]
+
+#: Relative slack of the position-range checks [rad or m per unit of max(1, |bound|)]: a joint
+#: counts as leaving its range only beyond it, so that rounding at a range end is no overshoot.
+RANGE_TOLERANCE = 1e-10
+
+
+def range_with_tolerance(limits: JointLimits) -> tuple[np.ndarray, np.ndarray]:
+    """Lower and upper position bounds widened by :data:`RANGE_TOLERANCE`, shapes (dof,) [rad or m]."""
+    lower = limits.lower - RANGE_TOLERANCE * np.maximum(1.0, np.abs(np.nan_to_num(limits.lower)))
+    upper = limits.upper + RANGE_TOLERANCE * np.maximum(1.0, np.abs(np.nan_to_num(limits.upper)))
+    return lower, upper
+
+
+def piece_position_range(knots: np.ndarray, pvaj: np.ndarray, end: float) -> tuple[np.ndarray, np.ndarray]:
+    """Exact per-joint min and max position of constant-jerk pieces, shapes (dof,).
+
+    Ruckig's own ``position_extrema`` misses an extremum inside a constant-acceleration phase
+    (zero jerk) where the velocity changes sign, so the extrema are recomputed here from the
+    polynomial pieces: their ends and every interior root of the velocity.
+    """
+    p, v, a, j = pvaj
+    h = (np.append(knots[1:], end) - knots)[:, None]
+    cands = [p, p + h * (v + h * (a / 2.0 + h * j / 6.0))]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        disc = a * a - 2.0 * j * v
+        sq = np.sqrt(np.where(disc >= 0.0, disc, np.nan))
+        roots = [(-a + sq) / j, (-a - sq) / j, np.where(j == 0.0, -v / a, np.nan)]
+    for r in roots:
+        r = np.where((j != 0.0) | (a != 0.0), r, np.nan)
+        inside = np.isfinite(r) & (r > 0.0) & (r < h)
+        tr = np.where(inside, r, 0.0)
+        cands.append(np.where(inside, p + tr * (v + tr * (a / 2.0 + tr * j / 6.0)), p))
+    stacked = np.concatenate(cands, axis=0)
+    return stacked.min(axis=0), stacked.max(axis=0)
+
+
+class SegmentSolver:
+    """Ruckig state-to-state segments between fixed positions, with position-range checks.
+
+    Attributes:
+        q: The fixed positions, shape (N, dof) [rad or m]; segment k runs from q[k] to q[k+1].
+        min_durations: Shortest duration per segment, shape (N-1,) [s], or None for none.
+        lower: Lower bounds of the range checks (with :data:`RANGE_TOLERANCE`), shape (dof,).
+        upper: Upper bounds, likewise.
+        bounded: Whether any joint has a finite range end.
+    """
+
+    def __init__(self, q: np.ndarray, limits: JointLimits, min_durations: np.ndarray | None = None):
+        """Prepare one Ruckig instance for the segments between the rows of `q`.
+
+        Args:
+            q: Positions, shape (N, dof) [rad or m].
+            limits: Velocity, acceleration, jerk and position limits.
+            min_durations: Shortest duration per segment, shape (N-1,) [s]; None or all zero is none.
+        """
+        self.q = q
+        self.rows = [row.tolist() for row in q]
+        self.min_durations = min_durations if min_durations is not None and np.any(min_durations > 0) else None
+        self._min_set = False
+        self.dof = q.shape[1]
+        self.lower, self.upper = range_with_tolerance(limits)
+        self._bounds = list(zip(self.lower.tolist(), self.upper.tolist()))
+        self.bounded = bool(np.any(np.isfinite(limits.lower)) or np.any(np.isfinite(limits.upper)))
+        self.otg = Ruckig(self.dof)
+        self.inp = InputParameter(self.dof)
+        self.inp.max_velocity = limits.velocity.tolist()
+        self.inp.max_acceleration = limits.acceleration.tolist()
+        self.inp.max_jerk = limits.jerk.tolist()
+        self.scratch = RuckigTrajectory(self.dof)
+
+    def solve(
+        self, k: int, va: np.ndarray, aa: np.ndarray, vb: np.ndarray, ab: np.ndarray, keep: bool = False
+    ) -> tuple[float, np.ndarray | None, RuckigTrajectory | None]:
+        """Segment k from state (va, aa) to (vb, ab).
+
+        Returns:
+            The duration [s] (inf when Ruckig finds no profile), a bool mask of the joints that
+            Ruckig's extrema put outside their range (None when none does), and the Ruckig
+            trajectory when `keep`.
+        """
+        inp = self.inp
+        inp.current_position = self.rows[k]
+        inp.current_velocity = va.tolist()
+        inp.current_acceleration = aa.tolist()
+        inp.target_position = self.rows[k + 1]
+        inp.target_velocity = vb.tolist()
+        inp.target_acceleration = ab.tolist()
+        if self.min_durations is not None and self.min_durations[k] > 0:
+            inp.minimum_duration = float(self.min_durations[k])
+            self._min_set = True
+        elif self._min_set:
+            inp.minimum_duration = None
+            self._min_set = False
+        traj = RuckigTrajectory(self.dof) if keep else self.scratch
+        result = self.otg.calculate(inp, traj)
+        if result not in (Result.Working, Result.Finished):
+            return math.inf, None, None
+        bad = None
+        if self.bounded:
+            flags = [e.min < lo or e.max > hi for e, (lo, hi) in zip(traj.position_extrema, self._bounds)]
+            if any(flags):
+                bad = np.array(flags)
+        return traj.duration, bad, traj if keep else None
+
+
+def merge_segment(
+    traj: RuckigTrajectory, duration: float, start: tuple[np.ndarray, np.ndarray, np.ndarray]
+) -> tuple[np.ndarray, np.ndarray]:
+    """One Ruckig segment as constant-jerk pieces common to all joints.
+
+    Every joint has its own seven phases (plus, for a start state beyond the limits, two brake
+    phases); the pieces start at the union of their switching times.
+
+    Returns:
+        Local knot times, shape (K,) [s], and the stacked (p, v, a, j) at each knot, shape
+        (4, K, dof).
+    """
+    profiles = traj.profiles[0]
+    dof = len(profiles)
+    if duration <= 0.0:
+        return np.empty(0), np.empty((4, 0, dof))
+    t = np.array([prof.t for prof in profiles])  # (dof, 7)
+    jerk = np.array([prof.j for prof in profiles])
+    acc = np.array([prof.a for prof in profiles])  # (dof, 8): phase starts and the end state
+    vel = np.array([prof.v for prof in profiles])
+    pos = np.array([prof.p for prof in profiles])
+    # An 8th phase holds the end state (zero jerk) in case a joint's profile ends early.
+    jerk = np.hstack([jerk, np.zeros((dof, 1))])
+    starts = np.hstack([np.zeros((dof, 1)), np.cumsum(t, axis=1)])  # (dof, 8)
+    brakes = [prof.brake for prof in profiles]
+    if any(b.duration > 0 for b in brakes):
+        offset = np.array([b.duration for b in brakes])[:, None]
+        bt = np.array([b.t for b in brakes])
+        starts = np.hstack([np.zeros((dof, 1)), bt[:, :1], starts + offset])
+        jerk = np.hstack([np.array([b.j for b in brakes]), jerk])
+        acc = np.hstack([np.array([b.a for b in brakes]), acc])
+        vel = np.hstack([np.array([b.v for b in brakes]), vel])
+        pos = np.hstack([np.array([b.p for b in brakes]), pos])
+        # A joint without a brake phase has zero-length ones: skip them.
+        none = offset[:, 0] <= 0
+        starts[none, :2] = 0.0
+    if any(prof.accel.duration > 0 for prof in profiles):  # pragma: no cover - via states are admissible
+        raise RuntimeError("Ruckig needed a post-profile: a via state exceeds the limits")
+    knots = np.unique(starts[starts < duration])
+    if knots[0] != 0.0:  # pragma: no cover - every profile starts at 0
+        knots = np.insert(knots, 0, 0.0)
+    # The phase of each joint in force at each knot (the last one starting at or before it).
+    idx = np.sum(starts[:, None, :] <= knots[None, :, None], axis=2).T - 1  # (K, dof)
+    cols = np.arange(dof)
+    dt = knots[:, None] - starts.T[idx, cols]
+    p0, v0, a0, j0 = pos.T[idx, cols], vel.T[idx, cols], acc.T[idx, cols], jerk.T[idx, cols]
+    out = np.stack(
+        [
+            p0 + dt * (v0 + dt * (a0 / 2.0 + dt * j0 / 6.0)),
+            v0 + dt * (a0 + dt * j0 / 2.0),
+            a0 + dt * j0,
+            j0,
+        ]
+    )
+    # The segment starts exactly at its waypoint state.
+    out[0, 0], out[1, 0], out[2, 0] = start
+    return knots, out
+
+
+def brake_segment(
+    q0: np.ndarray, v0: np.ndarray, a0: np.ndarray, limits: JointLimits
+) -> tuple[float, np.ndarray, np.ndarray, np.ndarray]:
+    """Bring every joint to rest as fast as it can, each on its own (unsynchronised).
+
+    Args:
+        q0: Start positions, shape (dof,) [rad or m].
+        v0: Start velocities, shape (dof,).
+        a0: Start accelerations, shape (dof,).
+        limits: The limits.
+
+    Returns:
+        Duration [s], local knots, stacked (p, v, a, j) pieces and the rest positions.
+
+    Raises:
+        InvalidArgumentError: If even that carries a joint outside its range.
+    """
+    dof = len(q0)
+    inp = InputParameter(dof)
+    inp.control_interface = ControlInterface.Velocity
+    inp.synchronization = Synchronization.No
+    inp.current_position, inp.current_velocity, inp.current_acceleration = q0.tolist(), v0.tolist(), a0.tolist()
+    inp.target_velocity, inp.target_acceleration = [0.0] * dof, [0.0] * dof
+    inp.max_velocity = limits.velocity.tolist()
+    inp.max_acceleration = limits.acceleration.tolist()
+    inp.max_jerk = limits.jerk.tolist()
+    traj = RuckigTrajectory(dof)
+    result = Ruckig(dof).calculate(inp, traj)
+    if result not in (Result.Working, Result.Finished):  # pragma: no cover - braking always has a profile
+        raise InvalidArgumentError(f"cannot brake from the start state (Ruckig: {result})")
+    duration = float(traj.duration)
+    rest = np.array([prof.p[-1] for prof in traj.profiles[0]])
+    local, pieces = merge_segment(traj, duration, (q0, v0, a0))
+    lo, hi = piece_position_range(local, pieces, duration) if len(local) else (q0, q0)
+    lower, upper = range_with_tolerance(limits)
+    bad = np.nonzero((lo < lower) | (hi > upper))[0]
+    if bad.size:
+        jj = int(bad[0])
+        reach = lo[jj] if lo[jj] < lower[jj] else hi[jj]
+        raise InvalidArgumentError(
+            f"the start state carries joint {limits.joint_names[jj]!r} to {reach:.6g}, outside its range "
+            f"[{limits.lower[jj]:.6g}, {limits.upper[jj]:.6g}], even braking at once; "
+            "lower the start velocity or acceleration"
+        )
+    return duration, local, pieces, np.clip(rest, limits.lower, limits.upper)

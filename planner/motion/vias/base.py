@@ -1,0 +1,146 @@
+"""The via-state chain every strategy works on, and the interface of a via strategy.
+
+A :class:`ViaChain` holds the waypoints, the via state (velocity and acceleration) at each of
+them, which ones are fixed (the ends, stops, prescribed states), and the Ruckig segments
+between them. A :class:`ViaStrategy` chooses the free via states; the planner then repairs
+any range overshoot and assembles the trajectory.
+"""
+
+from __future__ import annotations
+
+import math
+from abc import ABC, abstractmethod
+from typing import ClassVar
+
+import numpy as np
+
+from planner.motion.limits import JointLimits, admissible_acceleration
+from planner.motion.segments import SegmentSolver
+
+__all__ = ["SEARCH_HALVINGS", "ViaChain", "ViaStrategy"]
+
+#: How often a candidate via state that carries a joint out of its range is halved (the last
+#: two times to rest) before it counts as infeasible.
+SEARCH_HALVINGS = 6
+
+
+class ViaChain:
+    """Waypoints with their via states and the Ruckig segments between them.
+
+    Attributes:
+        q: Waypoints, shape (N, dof) [rad or m].
+        n: Number of waypoints N.
+        limits: The limits.
+        v: Via velocities, shape (N, dof), changed in place by the strategies.
+        acc: Via accelerations, shape (N, dof), likewise.
+        stop: Waypoints where the arm rests, bool shape (N,).
+        fixed: Waypoints whose state no strategy may change, bool shape (N,) (the ends, stops
+            and prescribed states).
+        seg: The segment solver.
+        repaired: Per waypoint and joint, whether the range repair lowered the via state.
+    """
+
+    def __init__(
+        self,
+        q: np.ndarray,
+        limits: JointLimits,
+        v0: np.ndarray,
+        a0: np.ndarray,
+        stop: np.ndarray,
+        given: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None,
+    ):
+        """Set up the chain: start state, rest at stops and at the end, prescribed states fixed.
+
+        Args:
+            q: Waypoints, shape (N, dof) [rad or m].
+            limits: The limits.
+            v0: Start velocity, shape (dof,).
+            a0: Start acceleration, shape (dof,).
+            stop: Waypoints to rest at, bool shape (N,).
+            given: Prescribed via velocities (N, dof; NaN rows free), accelerations (N, dof)
+                and minimum segment durations (N-1,) [s], as :func:`planner.motion.checks.check_given`
+                returns them; None for none.
+        """
+        self.q = q
+        self.n = len(q)
+        self.limits = limits
+        self.v = np.zeros_like(q)
+        self.acc = np.zeros_like(q)
+        self.stop = stop
+        self.fixed = np.zeros(self.n, dtype=bool)
+        min_durations = None
+        if given is not None:
+            gv, ga, min_durations = given
+            rows = np.all(np.isfinite(gv), axis=1) & ~stop
+            self.v[rows], self.acc[rows] = gv[rows], admissible_acceleration(gv[rows], ga[rows], limits)
+            self.fixed |= rows
+        self.v[0], self.acc[0] = v0, a0
+        self.fixed[0] = self.fixed[-1] = True
+        self.fixed |= stop
+        self.v[-1] = self.acc[-1] = 0.0
+        self.v[stop & (np.arange(self.n) > 0)] = 0.0
+        self.acc[stop & (np.arange(self.n) > 0)] = 0.0
+        self.seg = SegmentSolver(q, limits, min_durations)
+        self.repaired = np.zeros(q.shape, dtype=bool)
+
+    def durations(self) -> np.ndarray:
+        """Duration of every segment with the current via states, shape (N-1,) [s] (inf: no profile)."""
+        out = np.empty(self.n - 1)
+        for k in range(self.n - 1):
+            out[k] = self.seg.solve(k, self.v[k], self.acc[k], self.v[k + 1], self.acc[k + 1])[0]
+        return out
+
+    def pair_cost(self, i: int, cv: np.ndarray, ca: np.ndarray) -> tuple[float, np.ndarray, np.ndarray]:
+        """Duration of the two segments around via i with state (cv, ca) there.
+
+        A joint that would leave its range gets its via speed and acceleration halved until
+        it does not (Ruckig's extrema are used here for speed; the final plan rechecks exactly).
+        """
+        cv = np.array(cv, dtype=float)
+        ca = admissible_acceleration(cv, np.asarray(ca, dtype=float), self.limits)
+        for attempt in range(SEARCH_HALVINGS + 1):
+            d1, bad1, _ = self.seg.solve(i - 1, self.v[i - 1], self.acc[i - 1], cv, ca)
+            d2, bad2, _ = self.seg.solve(i, cv, ca, self.v[i + 1], self.acc[i + 1])
+            if bad1 is None and bad2 is None:
+                return d1 + d2, cv, ca
+            bad_any = (bad1 if bad1 is not None else False) | (bad2 if bad2 is not None else False)
+            bad = bad_any & ((cv != 0) | (ca != 0))
+            if not bad.any():
+                return math.inf, cv, ca
+            scale = 0.0 if attempt >= SEARCH_HALVINGS - 1 else 0.5
+            cv[bad] *= scale
+            ca[bad] *= scale
+        return math.inf, cv, ca
+
+
+class ViaStrategy(ABC):
+    """How the free via states of a chain are chosen.
+
+    A strategy is one module in :mod:`planner.motion.vias` plus one line in
+    :data:`planner.motion.vias.VIA_STRATEGIES`; :func:`planner.motion.plan.plan_trajectory`
+    takes its name.
+
+    Attributes:
+        name: The name the registry and :attr:`JointTrajectory.strategy` use.
+    """
+
+    name: ClassVar[str]
+
+    def stop_mask(self, stop: np.ndarray, moving_start: bool) -> np.ndarray:
+        """The waypoints to rest at, from those the request asks for (shape (N,) bool).
+
+        Args:
+            stop: The requested stops (dwell included), bool shape (N,).
+            moving_start: Whether the request gives a non-zero start state.
+
+        Returns:
+            The stop mask to plan with (by default the requested one).
+        """
+        return stop
+
+    @abstractmethod
+    def choose(self, chain: ViaChain) -> None:
+        """Set the free via states of `chain` (``chain.v``, ``chain.acc``) in place.
+
+        Called only for chains of three or more waypoints; fixed waypoints keep their states.
+        """

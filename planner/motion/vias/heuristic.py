@@ -1,0 +1,68 @@
+"""The ``"heuristic"`` via strategy: the slope blend of the neighbouring segments.
+
+From the current segment durations T1, T2 and the slopes s1 = dq1 / T1, s2 = dq2 / T2 of the
+two segments next to a via, each joint gets the slope blend ``(s1 T2 + s2 T1) / (T1 + T2)``
+(what a cubic spline through the waypoint times has there) as its via velocity and the
+acceleration ``2 (s2 - s1) / (T1 + T2)``, both within the joint's limits.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from planner.motion.limits import JointLimits, admissible_acceleration
+from planner.motion.vias.base import ViaChain, ViaStrategy
+
+__all__ = ["HeuristicStrategy", "via_directions"]
+
+
+def via_directions(
+    q: np.ndarray, i: int, durations: np.ndarray, limits: JointLimits, stop: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """Heuristic via velocity and acceleration at waypoint i, shapes (dof,).
+
+    The velocity is the time-weighted blend of the average slopes of the two neighbouring
+    segments (what a cubic spline through the waypoint times would have) for a joint that
+    keeps its direction, zero for one that reverses or rests on a side. The acceleration is
+    the spline's (the slope change over the mean segment time) for a joint that keeps its
+    direction and full deceleration for one that turns round at the waypoint: there it is
+    at rest but still braking, as in a time-optimal turn.
+
+    Args:
+        q: Waypoints, shape (N, dof) [rad or m].
+        i: Index of the via waypoint, 0 < i < N-1.
+        durations: Current segment durations, shape (N-1,) [s].
+        limits: The limits (both results are clipped to them).
+        stop: Waypoints to rest at, bool shape (N,); a stop gets zeros.
+    """
+    dof = q.shape[1]
+    zero = np.zeros(dof)
+    if stop[i]:
+        return zero, zero
+    dp, dn = q[i] - q[i - 1], q[i + 1] - q[i]
+    tp, tn = durations[i - 1], durations[i]
+    if not (math.isfinite(tp) and math.isfinite(tn)) or tp <= 0 or tn <= 0:
+        return zero, zero
+    sp, sn = dp / tp, dn / tn
+    u = (sp * tn + sn * tp) / (tp + tn)
+    u = np.clip(u, -limits.velocity, limits.velocity)
+    w = 2.0 * (sn - sp) / (tp + tn)
+    return u, np.clip(w, -limits.acceleration, limits.acceleration)
+
+
+class HeuristicStrategy(ViaStrategy):
+    """Via states from the slope blend at the rest-to-rest segment durations (no search)."""
+
+    name = "heuristic"
+
+    def choose(self, chain: ViaChain) -> None:
+        """Set every free via to the slope blend, its acceleration made admissible."""
+        durations = chain.durations()
+        for i in range(1, chain.n - 1):
+            if chain.fixed[i]:
+                continue
+            u, w = via_directions(chain.q, i, durations, chain.limits, chain.stop)
+            chain.v[i] = u
+            chain.acc[i] = admissible_acceleration(u, w, chain.limits)

@@ -1,0 +1,273 @@
+"""The ``"optimized"`` via strategy (the default): a spline run search, then a search per via.
+
+All via states between two fixed waypoints are first chosen together: the C2 cubic spline
+through the waypoints at the segment durations gives every via a velocity and an acceleration
+consistent with all the others (a joint with time to spare may pass its waypoint still moving
+and turn just beyond it, as a spline does); the durations are scaled by a common factor, found
+by golden-section search, to minimise the chained Ruckig durations. Then each via is refined on
+its own: scaling time by 1/x multiplies velocities by x and accelerations by x^2, so candidates
+``(x v, x^2 a)`` of the slope blend (each joint saturating at its limits) are tried on a grid
+and refined by golden-section search, minimising the duration of the two segments next to the
+waypoint. A second search moves joints that turn round at the waypoint towards a time-optimal
+turn: at rest, still braking at full deceleration. Each search keeps the current state unless
+a candidate is faster, and stopping at the via is one of the candidates. Candidates that carry
+a joint out of its range (by Ruckig's extrema) have that joint's state halved.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable, Sequence
+
+import numpy as np
+
+from planner.motion.limits import admissible_acceleration
+from planner.motion.vias.base import ViaChain, ViaStrategy
+from planner.motion.vias.heuristic import via_directions
+
+__all__ = ["OptimizedStrategy", "golden_minimum", "spline_via_states"]
+
+# Scale factors tried first for each via state (1 = the slope blend itself).
+_GRID = (0.0, 0.5, 1.0, 1.4, 2.0, 3.0)
+_GOLDEN_STEPS = 5
+# Spline stage: range of the common log time-scale of the segment durations searched, and
+# golden-section evaluations (a simplex over every duration gained nothing on top).
+_SPLINE_SCALE = (-0.5, 0.1)
+_SPLINE_SCALE_EVALS = 8
+# A segment whose Ruckig extrema leave the range counts this much longer in the search.
+_SPLINE_PENALTY = 1.5
+_TURN_GRID = (0.0, 0.5, 1.0)
+_TURN_STEPS = 3
+# Rounds of halving the via states that leave the range before the search.
+_SETTLE_HALVINGS = 24
+
+
+def golden_minimum(f: Callable[[float], float], lo: float, hi: float, evals: int) -> float:
+    """Golden-section search for a minimum of f on [lo, hi] with `evals` evaluations.
+
+    Returns:
+        The best argument found (every evaluation goes through `f`, so a caching `f` keeps them all).
+    """
+    g = (math.sqrt(5.0) - 1.0) / 2.0
+    x1, x2 = hi - g * (hi - lo), lo + g * (hi - lo)
+    f1, f2 = f(x1), f(x2)
+    for _ in range(max(evals - 2, 0)):
+        if f1 <= f2:
+            hi, x2, f2 = x2, x1, f1
+            x1 = hi - g * (hi - lo)
+            f1 = f(x1)
+        else:
+            lo, x1, f1 = x1, x2, f2
+            x2 = lo + g * (hi - lo)
+            f2 = f(x2)
+    return x1 if f1 <= f2 else x2
+
+
+def spline_via_states(
+    q: np.ndarray, h: np.ndarray, v_start: np.ndarray, v_end: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """Velocities and accelerations at the inner knots of a cubic spline through waypoints.
+
+    The C2 cubic spline through ``q[k]`` at the times ``cumsum(h)``, with the given end
+    velocities (a clamped spline), couples every via to all others through the knot times.
+
+    Args:
+        q: Waypoints of the run, shape (m+1, dof), m >= 2.
+        h: Segment durations, shape (m,) [s], positive.
+        v_start: Velocity at ``q[0]``, shape (dof,).
+        v_end: Velocity at ``q[m]``, shape (dof,).
+
+    Returns:
+        Velocities and accelerations at ``q[1:m]``, shapes (m-1, dof).
+    """
+    m = len(h)
+    slope = np.diff(q, axis=0) / h[:, None]  # (m, dof)
+    inv = 1.0 / h
+    # Tridiagonal system for v_1 .. v_{m-1} (Thomas algorithm, one right-hand side per joint).
+    diag = 2.0 * (inv[:-1] + inv[1:])
+    rhs = 3.0 * (slope[:-1] * inv[:-1, None] + slope[1:] * inv[1:, None])
+    rhs[0] -= inv[0] * v_start
+    rhs[-1] -= inv[-1] * v_end
+    c = np.empty(m - 1)
+    d = np.empty_like(rhs)
+    c[0], d[0] = inv[1] / diag[0], rhs[0] / diag[0]
+    for r in range(1, m - 1):
+        den = diag[r] - inv[r] * c[r - 1]
+        c[r] = inv[r + 1] / den
+        d[r] = (rhs[r] - inv[r] * d[r - 1]) / den
+    v = np.empty_like(rhs)
+    v[-1] = d[-1]
+    for r in range(m - 3, -1, -1):
+        v[r] = d[r] - c[r] * v[r + 1]
+    v_next = np.vstack([v[1:], v_end[None]])
+    acc = (6.0 * slope[1:] - 4.0 * v - 2.0 * v_next) * inv[1:, None]
+    return v, acc
+
+
+class OptimizedStrategy(ViaStrategy):
+    """Via states chosen by a spline search per run, then a duration search per via waypoint."""
+
+    name = "optimized"
+
+    def choose(self, chain: ViaChain) -> None:
+        """Spline-like via states, a joint spline search per run between fixed waypoints, then one sweep."""
+        free = [i for i in range(1, chain.n - 1) if not chain.fixed[i]]
+        durations = chain.durations()
+        for i in free:
+            chain.v[i] = via_directions(chain.q, i, durations, chain.limits, chain.stop)[0]
+        self._settle(chain, free)
+        # All via states of a run between fixed waypoints at once, from a timed spline.
+        durations = chain.durations()
+        fixed = [i for i in range(chain.n) if chain.fixed[i]]
+        for a, b in zip(fixed[:-1], fixed[1:]):
+            if b - a >= 2:
+                self.search_spline(chain, a, b, durations)
+        # Then one sweep: the slope blend from the durations, time-scaled per via, and the
+        # turn search (more sweeps or per-joint refinement gained about 1 % in tests).
+        durations = chain.durations()
+        for i in free:
+            u, w = via_directions(chain.q, i, durations, chain.limits, chain.stop)
+            if np.any(u) or np.any(w):
+                self.search_via(chain, i, u, w)
+            self.search_turn(chain, i)
+            durations[i - 1] = chain.seg.solve(i - 1, chain.v[i - 1], chain.acc[i - 1], chain.v[i], chain.acc[i])[0]
+            durations[i] = chain.seg.solve(i, chain.v[i], chain.acc[i], chain.v[i + 1], chain.acc[i + 1])[0]
+
+    def _line_search(
+        self,
+        chain: ViaChain,
+        i: int,
+        make: Callable[[float], tuple[np.ndarray, np.ndarray]],
+        top: float,
+        grid: Sequence[float] = _GRID,
+        steps: int = _GOLDEN_STEPS,
+    ) -> None:
+        """Minimise the pair cost over a scalar parameter in [0, top] (grid, then golden section)."""
+        cache: dict[float, tuple[float, np.ndarray, np.ndarray]] = {}
+
+        def cost(x: float) -> float:
+            if x not in cache:
+                cache[x] = chain.pair_cost(i, *make(x))
+            return cache[x][0]
+
+        current = chain.pair_cost(i, chain.v[i], chain.acc[i])
+        grid = sorted({min(g, top) for g in grid} | {top})
+        values = [cost(g) for g in grid]
+        b = int(np.argmin(values))
+        lo, hi = grid[max(b - 1, 0)], grid[min(b + 1, len(grid) - 1)]
+        golden_minimum(cost, lo, hi, steps + 2)  # its evaluations fill the cache
+        best = min(cache.values(), key=lambda c: c[0])
+        if best[0] < current[0]:
+            _, chain.v[i], chain.acc[i] = best
+        else:
+            _, chain.v[i], chain.acc[i] = current
+
+    def search_via(self, chain: ViaChain, i: int, u: np.ndarray, w: np.ndarray) -> None:
+        """Time-scale the spline-like via state (u, w) at via i to minimise its segments' time.
+
+        Scaling a trajectory's time by 1/x multiplies velocities by x and accelerations by
+        x^2, so the candidates are ``(x u, x^2 w)``, each joint saturating at its limits.
+        """
+        lim = chain.limits
+        mag, wmag = np.abs(u), np.abs(w)
+        tops = [1.0]
+        if np.any(mag > 0):
+            tops.append(float(np.max(lim.velocity[mag > 0] / mag[mag > 0])))
+        if np.any(wmag > 0):
+            tops.append(math.sqrt(float(np.max(lim.acceleration[wmag > 0] / wmag[wmag > 0]))))
+        self._line_search(
+            chain,
+            i,
+            lambda x: (
+                np.sign(u) * np.minimum(lim.velocity, x * mag),
+                np.sign(w) * np.minimum(lim.acceleration, x * x * wmag),
+            ),
+            max(tops),
+        )
+
+    def _settle(self, chain: ViaChain, free: list[int]) -> None:
+        """Halve the via states of joints that (by Ruckig's extrema) leave their range.
+
+        Done before the search, so that each via is searched next to neighbours that fit.
+        """
+        for _ in range(_SETTLE_HALVINGS):
+            changed = False
+            for k in range(chain.n - 1):
+                bad = chain.seg.solve(k, chain.v[k], chain.acc[k], chain.v[k + 1], chain.acc[k + 1])[1]
+                if bad is None:
+                    continue
+                for idx in (k, k + 1):
+                    if idx in free and np.any((chain.v[idx] != 0) & bad):
+                        chain.v[idx] = np.where(bad, 0.5 * chain.v[idx], chain.v[idx])
+                        chain.acc[idx] = np.where(bad, 0.5 * chain.acc[idx], chain.acc[idx])
+                        changed = True
+            if not changed:
+                return
+
+    def search_spline(self, chain: ViaChain, a: int, b: int, durations: np.ndarray) -> None:
+        """Choose the via states between fixed waypoints a and b jointly, from a timed spline.
+
+        Given segment durations, the C2 cubic spline through the waypoints at those times
+        gives every via a velocity and an acceleration that fit all the others (a joint that
+        turns round at a waypoint may pass it still moving, turning just beyond, as on the
+        spline). A common time scale of the durations is searched (golden section, in log
+        scale) to minimise the Ruckig durations of segments a..b-1 with those via states;
+        the best states whose segments stay within the range (by Ruckig's extrema) replace
+        the current ones if they are faster.
+        """
+        lim = chain.limits
+        h0 = durations[a:b]
+        if not np.all(np.isfinite(h0)) or np.any(h0 <= 0):
+            return
+        q_run = chain.q[a : b + 1]
+        v_a, v_b = chain.v[a], chain.v[b]
+        best: list = [math.inf, None, None]
+
+        def cost(log_h: np.ndarray) -> float:
+            v, acc = spline_via_states(q_run, np.exp(log_h), v_a, v_b)
+            v = np.clip(v, -lim.velocity, lim.velocity)
+            acc = admissible_acceleration(v, acc, lim)
+            total, inside = 0.0, True
+            for k in range(a, b):
+                va, aa = (chain.v[a], chain.acc[a]) if k == a else (v[k - a - 1], acc[k - a - 1])
+                vb, ab = (chain.v[b], chain.acc[b]) if k == b - 1 else (v[k - a], acc[k - a])
+                d, bad, _ = chain.seg.solve(k, va, aa, vb, ab)
+                if bad is not None:
+                    inside = False
+                    d *= _SPLINE_PENALTY
+                total += d
+            if inside and total < best[0]:
+                best[:] = [total, v, acc]
+            return total
+
+        current = 0.0
+        for k in range(a, b):
+            d, bad, _ = chain.seg.solve(k, chain.v[k], chain.acc[k], chain.v[k + 1], chain.acc[k + 1])
+            current += math.inf if bad is not None else d
+        log_h = np.log(h0)
+        golden_minimum(lambda x: cost(log_h + x), *_SPLINE_SCALE, _SPLINE_SCALE_EVALS)
+        if best[0] < current:
+            chain.v[a + 1 : b], chain.acc[a + 1 : b] = best[1], best[2]
+
+    def search_turn(self, chain: ViaChain, i: int) -> None:
+        """Let joints that turn round at via i pass it at rest but still braking.
+
+        A joint at its time limit turns fastest at rest with full deceleration (a bang-bang
+        turn); the slope blend gives it a small speed and acceleration instead. Candidates
+        move the turning joints from their current state towards that one.
+        """
+        dp, dn = chain.q[i] - chain.q[i - 1], chain.q[i + 1] - chain.q[i]
+        turning = dp * dn < 0
+        if not turning.any():
+            return
+        lim = chain.limits
+        v_now, a_now = chain.v[i].copy(), chain.acc[i].copy()
+        a_turn = -np.sign(dp) * lim.acceleration
+
+        def make(y: float) -> tuple[np.ndarray, np.ndarray]:
+            return (
+                np.where(turning, (1.0 - y) * v_now, v_now),
+                np.where(turning, (1.0 - y) * a_now + y * a_turn, a_now),
+            )
+
+        self._line_search(chain, i, make, 1.0, grid=_TURN_GRID, steps=_TURN_STEPS)
