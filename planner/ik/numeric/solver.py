@@ -319,9 +319,7 @@ class NlpIK:
         return self._kernel(kind).compiled
 
     def _chain_length(self) -> float:
-        model = self.robot.model
-        total = sum(float(np.linalg.norm(model.jointPlacements[j].translation)) for j in range(1, model.njoints))
-        total += float(np.linalg.norm(model.frames[self.robot.tip_frame_id].placement.translation))
+        total = self.kinematics.chain.offsets_length()
         for k, kind in enumerate(self.robot.joint_kinds):
             if kind == "prismatic":
                 total += float(max(abs(self._lower[k]), abs(self._upper[k])))
