@@ -16,7 +16,8 @@ from planner import InvalidArgumentError, InvalidConfigurationError, JointLimitE
 from planner.app.benchmark import make_target
 from planner.core.rotations import rotation_error
 from planner.geometry.target import approach_direction, as_target, pitch_error, target_errors
-from planner.ik.numeric.solver import NlpIK, compile_function
+from planner.ik.numeric.codegen import compile_function
+from planner.ik.numeric.solver import NlpIK
 from planner.ik.result import IKResult
 
 from conftest import get_robot, needs_example_robot_data
