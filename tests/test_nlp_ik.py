@@ -18,6 +18,7 @@ from planner.core.rotations import rotation_error
 from planner.geometry.target import approach_direction, as_target, pitch_error, target_errors
 from planner.ik.numeric.codegen import compile_function
 from planner.ik.numeric.solver import NlpIK
+from planner.ik.options import IKOptions
 from planner.ik.result import IKResult
 
 from conftest import get_robot, needs_example_robot_data
@@ -91,7 +92,7 @@ def test_pose_round_trip_on_example_arms(name):
     rng = np.random.default_rng(11)
     for q, seed in zip(robot.random_configurations(rng, 40), robot.random_configurations(rng, 40)):
         target = make_target(robot, "pose", q)
-        result = solver(name).solve(target, seed, time_budget=1.0)
+        result = solver(name).solve(target, seed, IKOptions(time_budget=1.0))
         assert_reached(robot, target, result)
         assert result.attempt_kind in ("seed", "random")
         assert 0 <= result.attempt < result.attempts
@@ -104,7 +105,7 @@ def test_pitch_round_trip_on_so101():
     rng = np.random.default_rng(13)
     for q, seed in zip(robot.random_configurations(rng, 40), robot.random_configurations(rng, 40)):
         target = make_target(robot, "pitch", q)
-        assert_reached(robot, target, solver("so101").solve(target, seed, time_budget=1.0))
+        assert_reached(robot, target, solver("so101").solve(target, seed, IKOptions(time_budget=1.0)))
 
 
 @needs_example_robot_data
@@ -169,7 +170,7 @@ def test_extra_seeds_are_closed_form_attempts():
 def test_unreachable_target_is_a_result_within_limits():
     robot = get_robot("shelley")
     target = Target([1.0, 0.0, 0.0])  # reach is 0.18 m
-    result = solver("shelley").solve(target, max_attempts=16)
+    result = solver("shelley").solve(target, options=IKOptions(max_attempts=16))
     assert not result.success
     assert result.status == "not_converged"
     assert "none of 16 attempts reached the target before the attempt cap" in result.reason
@@ -182,7 +183,7 @@ def test_unreachable_target_is_a_result_within_limits():
 def test_time_budget_stops_the_restarts():
     target = Target([1.0, 0.0, 0.0])
     start = time.perf_counter()
-    result = solver("shelley").solve(target, time_budget=0.02)
+    result = solver("shelley").solve(target, options=IKOptions(time_budget=0.02))
     assert not result.success and "time budget" in result.reason
     assert time.perf_counter() - start < 1.0  # finishes the batch under way, starts no other
 
@@ -205,10 +206,13 @@ def test_results_are_frozen_and_reproducible():
 def test_explicit_rng_draws_other_restarts():
     robot = get_robot("dh3")
     target = make_target(robot, "position", np.array([0.4, 0.6, 0.9]))
-    a = solver("dh3").solve(target, rng=np.random.default_rng(1))
-    b = solver("dh3").solve(target, rng=np.random.default_rng(1))
+    a = solver("dh3").solve(target, options=IKOptions(rng=np.random.default_rng(1)))
+    b = solver("dh3").solve(target, options=IKOptions(rng=np.random.default_rng(1)))
     np.testing.assert_array_equal(a.q, b.q)
     assert a.success
+    # An int seed is a new generator from that seed on every call.
+    c = solver("dh3").solve(target, options=IKOptions(rng=1))
+    np.testing.assert_array_equal(c.q, a.q)
 
 
 def test_continuous_and_prismatic_joints():
@@ -217,7 +221,7 @@ def test_continuous_and_prismatic_joints():
     rng = np.random.default_rng(13)
     for q in robot.random_configurations(rng, 10):
         target = make_target(robot, "position", q)
-        result = ik.solve(target, time_budget=0.5)
+        result = ik.solve(target, options=IKOptions(time_budget=0.5))
         assert_reached(robot, target, result)
         assert -math.pi <= result.q[1] < math.pi  # the continuous joint is wrapped
 
@@ -230,8 +234,8 @@ def test_near_seed_on_a_redundant_arm_is_nearer_than_the_plain_answer():
     q_target = middle + rng.uniform(-0.4, 0.4, robot.dof)
     seed = q_target + rng.uniform(-0.6, 0.6, robot.dof)
     target = make_target(robot, "pose", q_target)
-    plain = solver("panda").solve(target, seed, time_budget=1.0)
-    near = solver("panda").solve(target, seed, near_seed=True, time_budget=1.0)
+    plain = solver("panda").solve(target, seed, IKOptions(time_budget=1.0))
+    near = solver("panda").solve(target, seed, IKOptions(near_seed=True, time_budget=1.0))
     assert_reached(robot, target, near)
     assert np.linalg.norm(near.q - seed) <= np.linalg.norm(plain.q - seed) + 1e-7
     # Stationary on the solution set: moving along the redundancy gets no nearer the seed.
@@ -244,7 +248,7 @@ def test_near_seed_on_a_non_redundant_target_picks_the_nearest_branch():
     robot = get_robot("dh3")
     seed = np.array([0.3, 0.2, 0.5])
     target = make_target(robot, "position", np.array([0.35, 0.3, 0.4]))
-    near = solver("dh3").solve(target, seed, near_seed=True)
+    near = solver("dh3").solve(target, seed, IKOptions(near_seed=True))
     assert_reached(robot, target, near)
     np.testing.assert_allclose(near.q, [0.35, 0.3, 0.4], atol=1e-6)
 
@@ -255,7 +259,7 @@ def test_near_seed_takes_angles_a_whole_turn_nearer_the_seed():
     rng = np.random.default_rng(15)
     for q, seed in zip(robot.random_configurations(rng, 10), robot.random_configurations(rng, 10)):
         target = make_target(robot, "pose", q)
-        result = solver("ur5").solve(target, seed, near_seed=True)
+        result = solver("ur5").solve(target, seed, IKOptions(near_seed=True))
         assert_reached(robot, target, result)
         for j in range(robot.dof):  # no whole turn within the limits brings a joint nearer
             for shifted in (result.q[j] - 2 * math.pi, result.q[j] + 2 * math.pi):
@@ -266,9 +270,9 @@ def test_near_seed_takes_angles_a_whole_turn_nearer_the_seed():
 def test_near_seed_keeps_continuous_joints_near_the_seed():
     robot = Robot(MIXED_URDF, tip="tool")
     q = np.array([0.3, 7.5, 0.1, -0.1, 1.0])
-    result = NlpIK(robot).solve(make_target(robot, "pose", q), q + 0.05, near_seed=True, time_budget=0.5)
+    result = NlpIK(robot).solve(make_target(robot, "pose", q), q + 0.05, IKOptions(near_seed=True, time_budget=0.5))
     assert result.success and abs(result.q[1] - 7.5) <= math.pi
-    plain = NlpIK(robot).solve(make_target(robot, "pose", q), q + 0.05, time_budget=0.5)
+    plain = NlpIK(robot).solve(make_target(robot, "pose", q), q + 0.05, IKOptions(time_budget=0.5))
     assert plain.success and -math.pi <= plain.q[1] < math.pi
 
 
@@ -277,10 +281,10 @@ def test_manipulability_floor():
     q = np.array([0.2, 0.8, -1.0, 0.5])
     target = make_target(robot, "position", q)  # 4 joints for 3 coordinates: redundant
     floor = 1.1 * float(robot.manipulability(q))  # the best on this target is about 1.18 times
-    result = solver("three_joint").solve(target, q, manipulability_floor=floor)
+    result = solver("three_joint").solve(target, q, IKOptions(manipulability_floor=floor))
     assert_reached(robot, target, result)
     assert robot.manipulability(result.q) >= floor
-    impossible = solver("three_joint").solve(target, q, manipulability_floor=1e6, max_attempts=8)
+    impossible = solver("three_joint").solve(target, q, IKOptions(manipulability_floor=1e6, max_attempts=8))
     assert not impossible.success and impossible.status == "below_manipulability_floor"
     assert "none with manipulability >= 1e+06 (position task)" in impossible.reason
     assert impossible.position_error <= 1e-6 and robot.within_limits(impossible.q)
@@ -358,22 +362,26 @@ def test_bad_seeds_raise_with_clear_messages():
 @pytest.mark.parametrize("budget", [0.0, -1.0, math.nan, math.inf])
 def test_time_budget_must_be_positive(budget):
     with pytest.raises(InvalidArgumentError, match=r"time_budget must be a positive finite number \[s\], got"):
-        solver("dh3").solve(Target([0.1, 0.0, 0.1]), time_budget=budget)
+        IKOptions(time_budget=budget)
 
 
 def test_other_bad_options():
     ik = solver("dh3")
     target = Target([0.1, 0.0, 0.1])
     with pytest.raises(InvalidArgumentError, match="position_tolerance must be a positive finite number"):
-        ik.solve(target, position_tolerance=0.0)
+        IKOptions(position_tolerance=0.0)
     with pytest.raises(InvalidArgumentError, match="max_attempts must be a positive integer or None, got 0"):
-        ik.solve(target, max_attempts=0)
+        IKOptions(max_attempts=0)
     with pytest.raises(InvalidArgumentError, match="near_seed=True needs a q_seed"):
-        ik.solve(target, near_seed=True)
+        ik.solve(target, options=IKOptions(near_seed=True))
     with pytest.raises(InvalidArgumentError, match="unknown manipulability_task 'twist'; valid: position, pose"):
-        ik.solve(target, manipulability_floor=0.1, manipulability_task="twist")
-    with pytest.raises(InvalidArgumentError, match="rng must be a numpy.random.Generator or None, got int"):
-        ik.solve(target, rng=3)
+        IKOptions(manipulability_floor=0.1, manipulability_task="twist")  # type: ignore[arg-type]
+    with pytest.raises(
+        InvalidArgumentError, match="rng must be an int seed, a numpy.random.Generator or None, got str"
+    ):
+        IKOptions(rng="3")  # type: ignore[arg-type]
+    with pytest.raises(InvalidArgumentError, match="options must be a planner.IKOptions or None, got dict"):
+        ik.solve(target, options={"time_budget": 1.0})  # type: ignore[arg-type]
     with pytest.raises(InvalidArgumentError, match="batch_size must be a positive integer, got 0"):
         NlpIK(get_robot("dh3"), batch_size=0)
     with pytest.raises(InvalidArgumentError, match="NlpIK needs a planner.Robot, got str"):

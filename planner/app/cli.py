@@ -318,9 +318,10 @@ def _nlp_solution(robot: Robot, target: Target, result, branch: str) -> dict:
 
 def _ik_nlp(robot: Robot, target: Target, args: argparse.Namespace) -> dict:
     """CasADi IK as a JSON-ready dict shaped like the closed form's, plus attempts and time."""
+    from planner.ik.options import IKOptions
     from planner.ik.solve import nlp_solver
 
-    result = nlp_solver(robot).solve(target, _ik_current(args, robot), time_budget=args.time_budget)
+    result = nlp_solver(robot).solve(target, _ik_current(args, robot), IKOptions(time_budget=args.time_budget))
     solution = _nlp_solution(robot, target, result, "nlp")
     return {
         "status": "ok" if result.success else result.status,

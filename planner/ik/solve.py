@@ -26,6 +26,7 @@ import numpy as np
 from planner.exceptions import InvalidArgumentError, UnsupportedChainError
 from planner.geometry.target import Target, as_target, target_errors
 from planner.ik.numeric.solver import NlpIK
+from planner.ik.options import IKOptions
 from planner.ik.result import IKResult
 from planner.model.robot import Robot
 
@@ -238,24 +239,16 @@ def solve_ik(
             ):
                 return answer
             extra = np.array([sol.q for sol in result.solutions], dtype=float)
-            fallback = nlp.solve(
-                target,
-                seed,
-                extra_seeds=extra,
-                position_tolerance=position_tolerance,
-                orientation_tolerance=orientation_tolerance,
-                **nlp_options,
+            options = IKOptions(
+                **nlp_options, position_tolerance=position_tolerance, orientation_tolerance=orientation_tolerance
             )
+            fallback = nlp.solve(target, seed, options, extra_seeds=extra)
             return fallback if fallback.success else answer
     extra = _branch_seeds(robot, target, seed) if closed_form_seeds else None
-    return nlp.solve(
-        target,
-        seed,
-        extra_seeds=extra,
-        position_tolerance=position_tolerance,
-        orientation_tolerance=orientation_tolerance,
-        **nlp_options,
+    options = IKOptions(
+        **nlp_options, position_tolerance=position_tolerance, orientation_tolerance=orientation_tolerance
     )
+    return nlp.solve(target, seed, options, extra_seeds=extra)
 
 
 # ------------------------------------------------------------------------------------ cross-check
@@ -384,9 +377,10 @@ def cross_check(
     if analytic_solver(robot) is None:
         raise UnsupportedChainError(f"{robot.name} has no closed-form IK to cross-check: {_analytic_reason(robot)}")
     analytic = analytic_solver(robot).solve(target, seed)
-    result = nlp.solve(
-        target, seed, position_tolerance=position_tolerance, orientation_tolerance=orientation_tolerance, **nlp_options
+    options = IKOptions(
+        **nlp_options, position_tolerance=position_tolerance, orientation_tolerance=orientation_tolerance
     )
+    result = nlp.solve(target, seed, options)
     return compare(
         robot,
         target,

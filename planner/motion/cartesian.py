@@ -28,6 +28,7 @@ import numpy as np
 
 from planner.exceptions import InvalidArgumentError
 from planner.geometry.target import Target
+from planner.ik.options import IKOptions
 from planner.model.robot import Robot, Task
 from planner.motion.singularity import conditioning
 from planner.motion.trajectory import JointLimits, JointTrajectory, plan_trajectory
@@ -131,7 +132,7 @@ class TargetSolver:
         if q_near is None:
             res = self._nlp.solve(target)
         else:
-            res = self._nlp.solve(target, q_seed=q_near, near_seed=nearest)
+            res = self._nlp.solve(target, q_near, IKOptions(near_seed=nearest))
         if res.success:
             return [(np.array(res.q, dtype=float), "nlp")], ""
         return [], f"{res.status}: {res.reason}"

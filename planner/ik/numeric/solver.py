@@ -38,8 +38,9 @@ from planner.geometry.target import Target, as_target, tip_errors
 from planner.ik.numeric.kernel import KERNEL_KINDS, Kernel
 from planner.ik.numeric.kinematics import CasadiKinematics
 from planner.ik.numeric.polish import Polisher
+from planner.ik.options import IKOptions
 from planner.ik.result import IKResult
-from planner.model.robot import Robot, Task
+from planner.model.robot import Robot
 
 __all__ = ["ATTEMPT_KINDS", "NlpIK"]
 
@@ -50,6 +51,7 @@ ATTEMPT_KINDS = ("seed", "closed_form", "random")
 #: varies the basins of attraction, which helps arms with fewer joints than the task.
 _SCALES = (0.25, 0.5, 0.12)
 _RANDOM_POOL = 64  # random seeds drawn once per solver for calls without an rng
+_DEFAULT_OPTIONS = IKOptions()
 
 
 def _finite_bounds(values: np.ndarray) -> np.ndarray:
@@ -249,16 +251,9 @@ class NlpIK:
         self,
         target: Target | Sequence[float] | np.ndarray,
         q_seed: Sequence[float] | np.ndarray | None = None,
+        options: IKOptions | None = None,
         *,
-        time_budget: float = 0.05,
-        max_attempts: int | None = None,
-        position_tolerance: float = 1e-6,
-        orientation_tolerance: float = 1e-6,
-        near_seed: bool = False,
-        manipulability_floor: float | None = None,
-        manipulability_task: Task | None = None,
         extra_seeds: Sequence[Sequence[float]] | np.ndarray | None = None,
-        rng: np.random.Generator | None = None,
     ) -> IKResult:
         """Joint values that put the tip on a target.
 
@@ -267,58 +262,40 @@ class NlpIK:
                 position (3,) [m] or a pose (4, 4) [m].
             q_seed: Starting configuration (dof,) [rad or m], tried first; it must lie within
                 the joint limits. None: random starts only.
-            time_budget: Wall time [s] after which no further batch starts (the batch under way
-                finishes, and at least one batch always runs).
-            max_attempts: Cap on the seeds tried (whole batches); None: only the time budget.
-            position_tolerance: Success threshold on the position error [m].
-            orientation_tolerance: Success threshold on the orientation error [rad].
-            near_seed: Secondary objective: of the solutions found, return the nearest to
-                `q_seed`, angles shifted by whole turns towards it where the limits allow;
-                where the arm is redundant for the target, the nearest point of the solution
-                set (IPOPT). Needs `q_seed`.
-            manipulability_floor: Secondary objective: the answer's manipulability
-                (:meth:`Robot.manipulability`) must be at least this; where the arm is
-                redundant, IPOPT moves along the solution set to meet it.
-            manipulability_task: ``"position"`` or ``"pose"`` for that manipulability; None as
-                :meth:`Robot.manipulability`.
+            options: Tolerances, time budget, attempt cap, secondary objectives (``near_seed``
+                needs `q_seed`) and the random starts' generator; None: the defaults of
+                :class:`~planner.ik.options.IKOptions`. ``closed_form_seeds`` is not read here
+                (pass the branches as `extra_seeds`).
             extra_seeds: Further starting configurations (M, dof), tried right after `q_seed`
                 and reported as ``"closed_form"`` attempts (meant for the closed-form
                 branches); clipped into the limits.
-            rng: Generator of the random starts; None uses a fixed set drawn once per solver
-                (from ``numpy.random.default_rng(0)``), so every call is reproducible.
 
         Returns:
             The result; a target not reached is a result with ``success=False``.
 
         Raises:
             InvalidArgumentError: On a NaN/infinite target, a rotation that is not orthonormal,
-                a time budget, tolerance or floor that is not a positive number, an unknown
-                task, or `near_seed` without a seed.
+                options that are not an :class:`IKOptions`, or `near_seed` without a seed.
             InvalidConfigurationError: If a seed has the wrong length or NaN values.
             JointLimitError: If `q_seed` is outside the joint limits.
         """
         start = time.perf_counter()
         target = as_target(target)
         seed = self.check_seed(q_seed)
-        _check_positive("time_budget", time_budget, "s")
-        _check_positive("position_tolerance", position_tolerance, "m")
-        _check_positive("orientation_tolerance", orientation_tolerance, "rad")
-        if max_attempts is not None and (
-            isinstance(max_attempts, bool) or not isinstance(max_attempts, (int, np.integer)) or max_attempts < 1
-        ):
-            raise InvalidArgumentError(f"max_attempts must be a positive integer or None, got {max_attempts!r}")
-        if manipulability_task is None:
-            task = "pose" if self.robot.dof >= 6 else "position"
-        elif manipulability_task in ("position", "pose"):
-            task = manipulability_task
-        else:
-            raise InvalidArgumentError(f"unknown manipulability_task {manipulability_task!r}; valid: position, pose")
-        if manipulability_floor is not None:
-            _check_positive("manipulability_floor", manipulability_floor, "")
+        if options is None:
+            options = _DEFAULT_OPTIONS
+        elif not isinstance(options, IKOptions):
+            raise InvalidArgumentError(f"options must be a planner.IKOptions or None, got {type(options).__name__}")
+        position_tolerance = options.position_tolerance
+        orientation_tolerance = options.orientation_tolerance
+        time_budget = options.time_budget
+        max_attempts = options.max_attempts
+        near_seed = options.near_seed
+        manipulability_floor = options.manipulability_floor
+        task = options.manipulability_task or ("pose" if self.robot.dof >= 6 else "position")
         if near_seed and seed is None:
             raise InvalidArgumentError("near_seed=True needs a q_seed to stay near")
-        if rng is not None and not isinstance(rng, np.random.Generator):
-            raise InvalidArgumentError(f"rng must be a numpy.random.Generator or None, got {type(rng).__name__}")
+        rng = options.generator()
         extra = self._check_extra_seeds(extra_seeds)
         secondary = near_seed or manipulability_floor is not None
 
@@ -461,26 +438,18 @@ class NlpIK:
         self,
         targets: Sequence[Target | Sequence[float] | np.ndarray],
         q_seeds: Sequence[Sequence[float]] | np.ndarray | None = None,
-        **options,
+        options: IKOptions | None = None,
     ) -> list[IKResult]:
-        """Solve several targets in turn (options as for :meth:`solve`).
+        """Solve several targets in turn.
 
         Args:
             targets: N targets.
             q_seeds: Seeds, shape (N, dof), or None.
-            **options: Keyword options of :meth:`solve`.
+            options: Options of every call, as for :meth:`solve`.
 
         Returns:
             N results.
         """
         if q_seeds is not None and len(q_seeds) != len(targets):
             raise InvalidArgumentError(f"got {len(targets)} targets but {len(q_seeds)} seeds")
-        return [self.solve(t, None if q_seeds is None else q_seeds[i], **options) for i, t in enumerate(targets)]
-
-
-def _check_positive(label: str, value: float, unit: str) -> None:
-    unit = f" [{unit}]" if unit else ""
-    if isinstance(value, bool) or not isinstance(value, (int, float, np.floating, np.integer)):
-        raise InvalidArgumentError(f"{label} must be a positive number{unit}, got {value!r}")
-    if not math.isfinite(value) or value <= 0:
-        raise InvalidArgumentError(f"{label} must be a positive finite number{unit}, got {value!r}")
+        return [self.solve(t, None if q_seeds is None else q_seeds[i], options) for i, t in enumerate(targets)]
