@@ -15,11 +15,13 @@ from test_casadi_kinematics import MIXED_URDF
 from planner import InvalidArgumentError, InvalidConfigurationError, JointLimitError, PlannerError, Robot, Target
 from planner.app.benchmark import make_target
 from planner.core.rotations import rotation_error
+from planner.geometry.chain import configurations_close, joint_distance
 from planner.geometry.target import approach_direction, as_target, pitch_error, target_errors
 from planner.ik.numeric.codegen import compile_function
-from planner.ik.numeric.solver import NlpIK
+from planner.ik.numeric.solver import ATTEMPT_KINDS, DISTINCT, NlpIK
 from planner.ik.options import IKOptions
 from planner.ik.result import IKResult
+from planner.ik.status import IKStatus
 
 from conftest import get_robot, needs_example_robot_data
 
@@ -396,3 +398,85 @@ def test_environment_is_untouched():
     solver("dh3").solve(Target([0.1, 0.0, 0.1]), seed)
     np.testing.assert_array_equal(seed, before)
     assert os.environ.get("PLANNER_JIT") in (None, "1", "0")
+
+
+# ------------------------------------------------------------------------------ all solutions
+def check_solutions(robot: Robot, target: Target, result: IKResult, seed: np.ndarray | None) -> None:
+    """Every listed solution reaches the target by Pinocchio FK, lies within the limits, is distinct."""
+    assert result.solutions, "a solved call lists at least its answer"
+    angular = [k != "prismatic" for k in robot.joint_kinds]
+    for sol in result.solutions:
+        assert sol.within_limits and robot.within_limits(sol.q)
+        assert sol.label in ATTEMPT_KINDS and sol.singular is None
+        assert (sol.position_error, sol.orientation_error) == pytest.approx(
+            target_errors(robot, target, sol.q), abs=1e-15
+        )
+        assert sol.position_error <= 1e-6 and sol.orientation_error <= 1e-6
+        assert not sol.q.flags.writeable
+        if seed is None:
+            assert sol.distance is None
+        else:
+            assert sol.distance == pytest.approx(joint_distance(sol.q, seed, angular), abs=1e-12)
+    for i, a in enumerate(result.solutions):
+        for b in result.solutions[i + 1 :]:
+            assert joint_distance(a.q, b.q, angular) > DISTINCT
+    # The answer is one of them (or a near-duplicate of one).
+    assert min(joint_distance(result.q, s.q, angular) for s in result.solutions) <= DISTINCT
+    if seed is not None:
+        distances = [s.distance for s in result.solutions]
+        assert distances == sorted(distances)
+
+
+@pytest.mark.parametrize(("name", "kind"), [("dh3", "position"), ("al5c", "pitch"), ("shelley", "position")])
+def test_solutions_list_the_distinct_answers_nearest_the_seed_first(name, kind):
+    robot = get_robot(name)
+    rng = np.random.default_rng(21)
+    several = 0
+    for q, seed in zip(robot.random_configurations(rng, 15), robot.random_configurations(rng, 15)):
+        target = make_target(robot, kind, q)
+        result = solver(name).solve(target, seed)
+        assert result.status is IKStatus.SOLVED
+        check_solutions(robot, target, result, seed)
+        several += len(result.solutions) > 1
+    assert several > 0  # the random rows of a batch find other branches
+
+
+def test_solutions_without_a_seed_are_sorted_by_error():
+    robot = get_robot("dh3")
+    target = make_target(robot, "position", np.array([0.4, 0.6, 0.9]))
+    result = solver("dh3").solve(target)
+    check_solutions(robot, target, result, None)
+    merits = [s.position_error + 0.25 * solver("dh3").length * s.orientation_error for s in result.solutions]
+    assert merits == sorted(merits)
+
+
+def test_solutions_with_secondary_objectives_and_below_the_floor():
+    robot = get_robot("three_joint")
+    q = np.array([0.2, 0.8, -1.0, 0.5])
+    target = make_target(robot, "position", q)
+    near = solver("three_joint").solve(target, q + 0.1, IKOptions(near_seed=True))
+    assert near.status is IKStatus.SOLVED
+    check_solutions(robot, target, near, q + 0.1)
+    impossible = solver("three_joint").solve(target, q, IKOptions(manipulability_floor=1e6, max_attempts=8))
+    assert impossible.status is IKStatus.BELOW_MANIPULABILITY_FLOOR and not impossible.success
+    check_solutions(robot, target, impossible, q)
+
+
+def test_not_converged_lists_no_solution_and_reports_its_own_errors():
+    robot = get_robot("shelley")
+    target = Target([1.0, 0.3, 0.2])  # out of reach
+    result = solver("shelley").solve(target, options=IKOptions(max_attempts=64))
+    assert result.status is IKStatus.NOT_CONVERGED and result.solutions == ()
+    # The best attempt is kept as it was, not overwritten by later batches.
+    assert (result.position_error, result.orientation_error) == pytest.approx(
+        target_errors(robot, target, result.q), abs=1e-15
+    )
+
+
+def test_joint_distance_takes_angles_modulo_two_pi():
+    angular = [True, False]
+    assert joint_distance([0.1, 0.2], [0.1 + 2 * math.pi, 0.2], angular) == pytest.approx(0.0, abs=1e-12)
+    assert joint_distance([0.0, 0.2], [0.0, 0.2 + 2 * math.pi], angular) == pytest.approx(2 * math.pi)
+    assert joint_distance(np.array([3.1, 0.0]), np.array([-3.1, 0.0]), angular) == pytest.approx(2 * math.pi - 6.2)
+    assert configurations_close([math.pi - 1e-6, 0.0], [-math.pi + 1e-6, 0.0], angular, 1e-4)
+    assert not configurations_close([0.0, 0.0], [0.0, 2e-4], angular, 1e-4)

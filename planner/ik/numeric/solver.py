@@ -22,6 +22,13 @@ How :meth:`NlpIK.solve` works:
 
 Every answer is verified with Pinocchio: the errors in an :class:`IKResult` are Pinocchio's
 forward kinematics against the target, not the solver's own residual.
+
+``IKResult.solutions`` lists the distinct answers the batches found within the tolerances
+(distinct: joint distance above :data:`DISTINCT`, angles modulo 2 pi; of near-duplicates the
+chosen answer, else the most converged one, is kept), labelled with their attempt's kind,
+nearest to the seed first (without a seed, smallest error first). They come from the batch
+that reached the target (and, with secondary objectives, from every batch run): each further
+distinct answer costs one Pinocchio FK, nothing else is recomputed. All lie within the limits.
 """
 
 from __future__ import annotations
@@ -33,16 +40,19 @@ from collections.abc import Sequence
 import numpy as np
 import pinocchio as pin
 
+from planner.core.arrays import read_only
 from planner.exceptions import InvalidArgumentError, InvalidConfigurationError
+from planner.geometry.chain import configurations_close, joint_distance
 from planner.geometry.target import Target, as_target, tip_errors
 from planner.ik.numeric.kernel import KERNEL_KINDS, Kernel
 from planner.ik.numeric.kinematics import CasadiKinematics
 from planner.ik.numeric.polish import Polisher
 from planner.ik.options import IKOptions
-from planner.ik.result import IKResult
+from planner.ik.result import IKResult, IKSolution
+from planner.ik.status import IKStatus
 from planner.model.robot import Robot
 
-__all__ = ["ATTEMPT_KINDS", "NlpIK"]
+__all__ = ["ATTEMPT_KINDS", "DISTINCT", "NlpIK"]
 
 #: Where an attempt's starting configuration came from, in the order they are tried.
 ATTEMPT_KINDS = ("seed", "closed_form", "random")
@@ -52,6 +62,8 @@ ATTEMPT_KINDS = ("seed", "closed_form", "random")
 _SCALES = (0.25, 0.5, 0.12)
 _RANDOM_POOL = 64  # random seeds drawn once per solver for calls without an rng
 _DEFAULT_OPTIONS = IKOptions()
+#: Joint distance [rad, m mixed; angles modulo 2 pi] at or below which two answers are one solution.
+DISTINCT = 1e-4
 
 
 def _finite_bounds(values: np.ndarray) -> np.ndarray:
@@ -114,7 +126,12 @@ class NlpIK:
         self._lower = _finite_bounds(robot.lower)
         self._upper = _finite_bounds(robot.upper)
         self._continuous = np.array([k == "continuous" for k in robot.joint_kinds], dtype=bool)
+        self._has_continuous = bool(self._continuous.any())
+        self._q_shape = (robot.dof,)
+        self._no_seeds = read_only(np.empty((0, robot.dof)))
+        self._angular_list = [k != "prismatic" for k in robot.joint_kinds]
         self.length = self._chain_length()
+        self._orientation_weight = 0.25 * self.length  # [m]: ranks attempts by position + weighted orientation error
         self._model = robot.model
         self._data = robot.model.createData()
         self._tip = robot.tip_frame_id
@@ -202,26 +219,22 @@ class NlpIK:
             q = np.array(q_seed, dtype=float)
         except (TypeError, ValueError):
             q = None
-        if (
-            q is None
-            or q.shape != (self.robot.dof,)
-            or not np.all(np.isfinite(q))
-            or np.any(q < self.robot.lower)
-            or np.any(q > self.robot.upper)
-        ):
+        # One comparison with the finite bounds also rejects NaN and infinite values; the
+        # full checks then say what is wrong.
+        if q is None or q.shape != self._q_shape or not ((q >= self._lower) & (q <= self._upper)).all():
             q = self.robot.check_configuration(q_seed, batch=False)
             self.robot.check_limits(q, context="seed")
         return q
 
     def _check_extra_seeds(self, extra: Sequence[Sequence[float]] | np.ndarray | None) -> np.ndarray:
         if extra is None:
-            return np.empty((0, self.robot.dof))
+            return self._no_seeds
         try:
             arr = np.array(extra, dtype=float)
         except (TypeError, ValueError) as exc:
             raise InvalidConfigurationError(f"extra_seeds must be numbers, got {extra!r}") from exc
         if arr.size == 0:
-            return np.empty((0, self.robot.dof))
+            return self._no_seeds
         if arr.ndim != 2:
             raise InvalidConfigurationError(f"extra_seeds must have shape (M, {self.robot.dof}), got {arr.shape}")
         arr = self.robot.check_configuration(arr)
@@ -241,8 +254,8 @@ class NlpIK:
         return out
 
     def _wrap(self, q: np.ndarray) -> np.ndarray:
-        if self._continuous.any():
-            q = q.copy()
+        """`q` with its continuous joints wrapped into [-pi, pi), in place; returns `q`."""
+        if self._has_continuous:
             q[self._continuous] = (q[self._continuous] + math.pi) % (2 * math.pi) - math.pi
         return q
 
@@ -271,7 +284,9 @@ class NlpIK:
                 branches); clipped into the limits.
 
         Returns:
-            The result; a target not reached is a result with ``success=False``.
+            The result (status ``SOLVED``, ``NOT_CONVERGED`` or ``BELOW_MANIPULABILITY_FLOOR``,
+            with the distinct answers found in ``solutions``); a target not reached is a result
+            with ``success=False``.
 
         Raises:
             InvalidArgumentError: On a NaN/infinite target, a rotation that is not orthonormal,
@@ -341,15 +356,22 @@ class NlpIK:
             kernel()
             iterations += int(kernel.iterations[0])
             new = []
-            for j in sorted(np.flatnonzero(kernel.cost <= accept), key=lambda j: slots[j]):
-                q = self._wrap(kernel.q[j])
+            candidates = sorted(np.flatnonzero(kernel.cost <= accept), key=lambda j: slots[j])
+            for position, j in enumerate(candidates):
+                # A copy: the kernel's buffers are overwritten by the next batch.
+                q = self._wrap(kernel.q[j].copy())
                 position_error, orientation_error = self._errors(target, q)
                 if position_error <= position_tolerance and orientation_error <= orientation_tolerance:
                     new.append((slots[j], q, position_error, orientation_error))
                     if not secondary:
+                        new += self._further_solutions(
+                            target, q, kernel, candidates[position + 1 :], slots, position_tolerance,
+                            orientation_tolerance,
+                        )  # fmt: skip
                         break
             if new and not secondary:
                 found = new[0]
+                reached = new
                 break
             reached += new
             if new:
@@ -360,9 +382,9 @@ class NlpIK:
                 if found is not None:
                     break
             order = np.argsort(kernel.cost, kind="stable")
-            q = self._wrap(kernel.q[order[0]])
+            q = self._wrap(kernel.q[order[0]].copy())
             position_error, orientation_error = self._errors(target, q)
-            merit = position_error + 0.25 * self.length * orientation_error
+            merit = position_error + self._orientation_weight * orientation_error
             if best is None or merit < best[0]:
                 best = (merit, q, position_error, orientation_error)
             if time.perf_counter() - start >= time_budget or (max_attempts is not None and len(kinds) >= max_attempts):
@@ -374,28 +396,116 @@ class NlpIK:
         attempts = len(kinds)
         if found is not None:
             index, q, position_error, orientation_error = found
+            if secondary:
+                reached = self._distinct(found, reached, seed if near_seed else None)
+            solutions = self._solutions(reached, kinds, seed)
             return IKResult(
-                q, True, "solved", f"reached by attempt {index} ({kinds[index]})", position_error, orientation_error,
-                iterations, attempts, index, kinds[index], time.perf_counter() - start,
+                q, True, IKStatus.SOLVED, f"reached by attempt {index} ({kinds[index]})", position_error,
+                orientation_error, iterations, attempts, index, kinds[index], time.perf_counter() - start,
+                solutions=solutions,
             )  # fmt: skip
         if reached:
             _, q, position_error, orientation_error = reached[0]
+            solutions = self._solutions(self._distinct(reached[0], reached, seed if near_seed else None), kinds, seed)
             return IKResult(
-                q, False, "below_manipulability_floor",
+                q, False, IKStatus.BELOW_MANIPULABILITY_FLOOR,
                 f"{len(reached)} of {attempts} attempts reached the target, none with manipulability "
                 f">= {manipulability_floor:g} ({task} task)",
                 position_error, orientation_error, iterations, attempts, None, None, time.perf_counter() - start,
+                solutions=solutions,
             )  # fmt: skip
         assert best is not None
         _, q, position_error, orientation_error = best
         limit = "attempt cap" if max_attempts is not None and attempts >= max_attempts else "time budget"
         return IKResult(
-            q, False, "not_converged",
+            q, False, IKStatus.NOT_CONVERGED,
             f"none of {attempts} attempts reached the target before the {limit} ran out (best: position error "
             f"{position_error:.3g} m, orientation error {orientation_error:.3g} rad); it may be out of reach",
             position_error, orientation_error, iterations, attempts, None, None, time.perf_counter() - start,
         )  # fmt: skip
 
+    # -------------------------------------------------------------------- the solutions found
+    def _further_solutions(
+        self,
+        target: Target,
+        q_found: np.ndarray,
+        kernel: Kernel,
+        rows: Sequence[int],
+        slots: Sequence[int],
+        position_tolerance: float,
+        orientation_tolerance: float,
+    ) -> list[tuple[int, np.ndarray, float, float]]:
+        """The other rows of the batch that reached the target, distinct from `q_found` and each other.
+
+        Rows are taken lowest residual first, so of near-duplicates the most converged one is
+        kept; each distinct one is verified by Pinocchio FK (the only extra cost).
+        """
+        out: list[tuple[int, np.ndarray, float, float]] = []
+        if not rows:
+            return out
+        if len(rows) > 1:
+            rows = sorted(rows, key=kernel.cost.__getitem__)
+        block = kernel.q[rows]  # a copy: the kernel's buffers are overwritten by the next batch
+        angular = self._angular_list
+        kept = [q_found.tolist()]
+        for i, values in enumerate(block.tolist()):
+            for other in kept:
+                if configurations_close(values, other, angular, DISTINCT):
+                    break
+            else:
+                kept.append(values)
+                q = self._wrap(block[i])
+                position_error, orientation_error = self._errors(target, q)
+                if position_error <= position_tolerance and orientation_error <= orientation_tolerance:
+                    out.append((slots[rows[i]], q, position_error, orientation_error))
+        return out
+
+    def _distinct(
+        self,
+        chosen: tuple[int, np.ndarray, float, float],
+        reached: list[tuple[int, np.ndarray, float, float]],
+        seed: np.ndarray | None,
+    ) -> list[tuple[int, np.ndarray, float, float]]:
+        """`chosen`, then the answers of `reached` distinct from it and each other (best first).
+
+        With a `seed`, the answers' angles are shifted by whole turns towards it, as the
+        chosen one's are.
+        """
+        angular = self._angular_list
+        kept = [chosen]
+        for item in sorted(reached, key=lambda item: item[2] + self._orientation_weight * item[3]):
+            if item is chosen:
+                continue
+            values = item[1].tolist()
+            if any(configurations_close(values, q.tolist(), angular, DISTINCT) for _, q, _, _ in kept):
+                continue
+            if seed is not None:
+                item = (item[0], self._nearest_turn(item[1], seed), item[2], item[3])
+            kept.append(item)
+        return kept
+
+    def _solutions(
+        self, items: list[tuple[int, np.ndarray, float, float]], kinds: Sequence[str], seed: np.ndarray | None
+    ) -> tuple[IKSolution, ...]:
+        """Distinct verified answers as solutions, nearest the seed first (else smallest error first)."""
+        if seed is None:
+            solutions = [
+                IKSolution(q, True, kinds[index], position_error, orientation_error)
+                for index, q, position_error, orientation_error in items
+            ]
+            if len(solutions) > 1:
+                solutions.sort(key=lambda s: s.position_error + self._orientation_weight * s.orientation_error)
+            return tuple(solutions)
+        angular, reference = self._angular_list, seed.tolist()
+        solutions = [
+            IKSolution(q, True, kinds[index], position_error, orientation_error, joint_distance(q, reference, angular))
+            for index, q, position_error, orientation_error in items
+        ]
+        if len(solutions) > 1:
+            solutions.sort(key=lambda s: s.distance)
+        return tuple(solutions)
+
+    # -------------------------------------------------------------------- secondary objectives
     def _choose(
         self,
         target: Target,
