@@ -244,8 +244,8 @@ def chain_at_zero(robot: Robot) -> ChainAtZero:
             JointScrew(
                 name=name,
                 index=k,
-                axis=_frozen(axis),
-                point=_frozen(placement.translation),
+                axis=read_only(axis),
+                point=read_only(placement.translation),
                 lower=float(robot.lower[k]),
                 upper=float(robot.upper[k]),
             )
@@ -253,16 +253,10 @@ def chain_at_zero(robot: Robot) -> ChainAtZero:
     tip = data.oMf[robot.tip_frame_id]
     return ChainAtZero(
         joints=tuple(joints),
-        tip_position=_frozen(tip.translation),
-        tip_rotation=_frozen(tip.rotation),
-        approach=_frozen(tip.rotation @ robot.approach_axis),
+        tip_position=read_only(tip.translation),
+        tip_rotation=read_only(tip.rotation),
+        approach=read_only(tip.rotation @ robot.approach_axis),
     )
-
-
-def _frozen(a: np.ndarray) -> np.ndarray:
-    out = np.array(a, dtype=float, copy=True)
-    out.setflags(write=False)
-    return out
 
 
 def rotation_about(axis: np.ndarray, angle: np.ndarray | float) -> np.ndarray:
