@@ -7,7 +7,8 @@ import numpy as np
 import pytest
 
 from planner import InvalidConfigurationError, Robot
-from planner.ik.numeric.kinematics import CasadiKinematics, chain_joints
+from planner.geometry.chain import kinematic_chain
+from planner.ik.numeric.kinematics import CasadiKinematics
 
 from conftest import BUNDLED, EXAMPLES, get_robot, needs_example_robot_data
 
@@ -72,8 +73,12 @@ def test_every_joint_type_matches_pinocchio():
     np.testing.assert_allclose(kin.fk(q), robot.fk(q), rtol=0, atol=1e-12)
 
 
-def test_chain_joints_read_kinds_and_axes():
-    joints = chain_joints(mixed_robot())
+def test_kinematic_chain_reads_kinds_and_axes():
+    chain = kinematic_chain(mixed_robot())
+    joints = chain.joints
+    assert [j.index for j in joints] == [0, 1, 2, 3, 4]
+    assert chain.tip_parent == 4 and chain.tip_path() == frozenset(range(5))
+    assert not joints[0].axis.flags.writeable and not chain.tip_translation.flags.writeable
     assert [j.name for j in joints] == ["yaw", "spin", "slide", "slant_slide", "tilt"]
     assert [j.kind for j in joints] == ["revolute", "continuous", "prismatic", "prismatic", "revolute"]
     np.testing.assert_allclose(joints[0].axis, [0, 0, -1], atol=1e-15)

@@ -338,6 +338,9 @@ def test_cli_methods_answer_in_one_shape(capsys):
     nlp = outputs["nlp"]
     assert nlp["status"] == "solved" and nlp["method"] == "nlp" and nlp["attempts"] >= 1 and nlp["time_ms"] > 0
     np.testing.assert_allclose(robot.position(nlp["q"]), [x, y, z], atol=1e-6)
+    (solution,) = nlp["solutions"]  # without --all: the chosen one
+    assert set(solution) == set(outputs["analytic"]["solutions"][0])
+    assert solution["within_limits"] and solution["q"] == nlp["q"]
 
 
 def test_cli_both_reports_the_cross_check(capsys):

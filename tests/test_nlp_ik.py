@@ -15,9 +15,13 @@ from test_casadi_kinematics import MIXED_URDF
 from planner import InvalidArgumentError, InvalidConfigurationError, JointLimitError, PlannerError, Robot, Target
 from planner.app.benchmark import make_target
 from planner.core.rotations import rotation_error
+from planner.geometry.joint_space import configurations_close, wrapped_distance
 from planner.geometry.target import approach_direction, as_target, pitch_error, target_errors
-from planner.ik.numeric.solver import NlpIK, compile_function
+from planner.ik.numeric.codegen import compile_function
+from planner.ik.numeric.solver import ATTEMPT_KINDS, DISTINCT, NlpIK
+from planner.ik.options import IKOptions
 from planner.ik.result import IKResult
+from planner.ik.status import IKStatus
 
 from conftest import get_robot, needs_example_robot_data
 
@@ -90,7 +94,7 @@ def test_pose_round_trip_on_example_arms(name):
     rng = np.random.default_rng(11)
     for q, seed in zip(robot.random_configurations(rng, 40), robot.random_configurations(rng, 40)):
         target = make_target(robot, "pose", q)
-        result = solver(name).solve(target, seed, time_budget=1.0)
+        result = solver(name).solve(target, seed, IKOptions(time_budget=1.0))
         assert_reached(robot, target, result)
         assert result.attempt_kind in ("seed", "random")
         assert 0 <= result.attempt < result.attempts
@@ -103,7 +107,7 @@ def test_pitch_round_trip_on_so101():
     rng = np.random.default_rng(13)
     for q, seed in zip(robot.random_configurations(rng, 40), robot.random_configurations(rng, 40)):
         target = make_target(robot, "pitch", q)
-        assert_reached(robot, target, solver("so101").solve(target, seed, time_budget=1.0))
+        assert_reached(robot, target, solver("so101").solve(target, seed, IKOptions(time_budget=1.0)))
 
 
 @needs_example_robot_data
@@ -168,7 +172,7 @@ def test_extra_seeds_are_closed_form_attempts():
 def test_unreachable_target_is_a_result_within_limits():
     robot = get_robot("shelley")
     target = Target([1.0, 0.0, 0.0])  # reach is 0.18 m
-    result = solver("shelley").solve(target, max_attempts=16)
+    result = solver("shelley").solve(target, options=IKOptions(max_attempts=16))
     assert not result.success
     assert result.status == "not_converged"
     assert "none of 16 attempts reached the target before the attempt cap" in result.reason
@@ -181,7 +185,7 @@ def test_unreachable_target_is_a_result_within_limits():
 def test_time_budget_stops_the_restarts():
     target = Target([1.0, 0.0, 0.0])
     start = time.perf_counter()
-    result = solver("shelley").solve(target, time_budget=0.02)
+    result = solver("shelley").solve(target, options=IKOptions(time_budget=0.02))
     assert not result.success and "time budget" in result.reason
     assert time.perf_counter() - start < 1.0  # finishes the batch under way, starts no other
 
@@ -204,10 +208,13 @@ def test_results_are_frozen_and_reproducible():
 def test_explicit_rng_draws_other_restarts():
     robot = get_robot("dh3")
     target = make_target(robot, "position", np.array([0.4, 0.6, 0.9]))
-    a = solver("dh3").solve(target, rng=np.random.default_rng(1))
-    b = solver("dh3").solve(target, rng=np.random.default_rng(1))
+    a = solver("dh3").solve(target, options=IKOptions(rng=np.random.default_rng(1)))
+    b = solver("dh3").solve(target, options=IKOptions(rng=np.random.default_rng(1)))
     np.testing.assert_array_equal(a.q, b.q)
     assert a.success
+    # An int seed is a new generator from that seed on every call.
+    c = solver("dh3").solve(target, options=IKOptions(rng=1))
+    np.testing.assert_array_equal(c.q, a.q)
 
 
 def test_continuous_and_prismatic_joints():
@@ -216,7 +223,7 @@ def test_continuous_and_prismatic_joints():
     rng = np.random.default_rng(13)
     for q in robot.random_configurations(rng, 10):
         target = make_target(robot, "position", q)
-        result = ik.solve(target, time_budget=0.5)
+        result = ik.solve(target, options=IKOptions(time_budget=0.5))
         assert_reached(robot, target, result)
         assert -math.pi <= result.q[1] < math.pi  # the continuous joint is wrapped
 
@@ -229,8 +236,8 @@ def test_near_seed_on_a_redundant_arm_is_nearer_than_the_plain_answer():
     q_target = middle + rng.uniform(-0.4, 0.4, robot.dof)
     seed = q_target + rng.uniform(-0.6, 0.6, robot.dof)
     target = make_target(robot, "pose", q_target)
-    plain = solver("panda").solve(target, seed, time_budget=1.0)
-    near = solver("panda").solve(target, seed, near_seed=True, time_budget=1.0)
+    plain = solver("panda").solve(target, seed, IKOptions(time_budget=1.0))
+    near = solver("panda").solve(target, seed, IKOptions(near_seed=True, time_budget=1.0))
     assert_reached(robot, target, near)
     assert np.linalg.norm(near.q - seed) <= np.linalg.norm(plain.q - seed) + 1e-7
     # Stationary on the solution set: moving along the redundancy gets no nearer the seed.
@@ -243,7 +250,7 @@ def test_near_seed_on_a_non_redundant_target_picks_the_nearest_branch():
     robot = get_robot("dh3")
     seed = np.array([0.3, 0.2, 0.5])
     target = make_target(robot, "position", np.array([0.35, 0.3, 0.4]))
-    near = solver("dh3").solve(target, seed, near_seed=True)
+    near = solver("dh3").solve(target, seed, IKOptions(near_seed=True))
     assert_reached(robot, target, near)
     np.testing.assert_allclose(near.q, [0.35, 0.3, 0.4], atol=1e-6)
 
@@ -254,7 +261,7 @@ def test_near_seed_takes_angles_a_whole_turn_nearer_the_seed():
     rng = np.random.default_rng(15)
     for q, seed in zip(robot.random_configurations(rng, 10), robot.random_configurations(rng, 10)):
         target = make_target(robot, "pose", q)
-        result = solver("ur5").solve(target, seed, near_seed=True)
+        result = solver("ur5").solve(target, seed, IKOptions(near_seed=True))
         assert_reached(robot, target, result)
         for j in range(robot.dof):  # no whole turn within the limits brings a joint nearer
             for shifted in (result.q[j] - 2 * math.pi, result.q[j] + 2 * math.pi):
@@ -265,9 +272,9 @@ def test_near_seed_takes_angles_a_whole_turn_nearer_the_seed():
 def test_near_seed_keeps_continuous_joints_near_the_seed():
     robot = Robot(MIXED_URDF, tip="tool")
     q = np.array([0.3, 7.5, 0.1, -0.1, 1.0])
-    result = NlpIK(robot).solve(make_target(robot, "pose", q), q + 0.05, near_seed=True, time_budget=0.5)
+    result = NlpIK(robot).solve(make_target(robot, "pose", q), q + 0.05, IKOptions(near_seed=True, time_budget=0.5))
     assert result.success and abs(result.q[1] - 7.5) <= math.pi
-    plain = NlpIK(robot).solve(make_target(robot, "pose", q), q + 0.05, time_budget=0.5)
+    plain = NlpIK(robot).solve(make_target(robot, "pose", q), q + 0.05, IKOptions(time_budget=0.5))
     assert plain.success and -math.pi <= plain.q[1] < math.pi
 
 
@@ -276,10 +283,10 @@ def test_manipulability_floor():
     q = np.array([0.2, 0.8, -1.0, 0.5])
     target = make_target(robot, "position", q)  # 4 joints for 3 coordinates: redundant
     floor = 1.1 * float(robot.manipulability(q))  # the best on this target is about 1.18 times
-    result = solver("three_joint").solve(target, q, manipulability_floor=floor)
+    result = solver("three_joint").solve(target, q, IKOptions(manipulability_floor=floor))
     assert_reached(robot, target, result)
     assert robot.manipulability(result.q) >= floor
-    impossible = solver("three_joint").solve(target, q, manipulability_floor=1e6, max_attempts=8)
+    impossible = solver("three_joint").solve(target, q, IKOptions(manipulability_floor=1e6, max_attempts=8))
     assert not impossible.success and impossible.status == "below_manipulability_floor"
     assert "none with manipulability >= 1e+06 (position task)" in impossible.reason
     assert impossible.position_error <= 1e-6 and robot.within_limits(impossible.q)
@@ -357,22 +364,26 @@ def test_bad_seeds_raise_with_clear_messages():
 @pytest.mark.parametrize("budget", [0.0, -1.0, math.nan, math.inf])
 def test_time_budget_must_be_positive(budget):
     with pytest.raises(InvalidArgumentError, match=r"time_budget must be a positive finite number \[s\], got"):
-        solver("dh3").solve(Target([0.1, 0.0, 0.1]), time_budget=budget)
+        IKOptions(time_budget=budget)
 
 
 def test_other_bad_options():
     ik = solver("dh3")
     target = Target([0.1, 0.0, 0.1])
     with pytest.raises(InvalidArgumentError, match="position_tolerance must be a positive finite number"):
-        ik.solve(target, position_tolerance=0.0)
+        IKOptions(position_tolerance=0.0)
     with pytest.raises(InvalidArgumentError, match="max_attempts must be a positive integer or None, got 0"):
-        ik.solve(target, max_attempts=0)
+        IKOptions(max_attempts=0)
     with pytest.raises(InvalidArgumentError, match="near_seed=True needs a q_seed"):
-        ik.solve(target, near_seed=True)
+        ik.solve(target, options=IKOptions(near_seed=True))
     with pytest.raises(InvalidArgumentError, match="unknown manipulability_task 'twist'; valid: position, pose"):
-        ik.solve(target, manipulability_floor=0.1, manipulability_task="twist")
-    with pytest.raises(InvalidArgumentError, match="rng must be a numpy.random.Generator or None, got int"):
-        ik.solve(target, rng=3)
+        IKOptions(manipulability_floor=0.1, manipulability_task="twist")  # type: ignore[arg-type]
+    with pytest.raises(
+        InvalidArgumentError, match="rng must be an int seed, a numpy.random.Generator or None, got str"
+    ):
+        IKOptions(rng="3")  # type: ignore[arg-type]
+    with pytest.raises(InvalidArgumentError, match="options must be a planner.IKOptions or None, got dict"):
+        ik.solve(target, options={"time_budget": 1.0})  # type: ignore[arg-type]
     with pytest.raises(InvalidArgumentError, match="batch_size must be a positive integer, got 0"):
         NlpIK(get_robot("dh3"), batch_size=0)
     with pytest.raises(InvalidArgumentError, match="NlpIK needs a planner.Robot, got str"):
@@ -387,3 +398,85 @@ def test_environment_is_untouched():
     solver("dh3").solve(Target([0.1, 0.0, 0.1]), seed)
     np.testing.assert_array_equal(seed, before)
     assert os.environ.get("PLANNER_JIT") in (None, "1", "0")
+
+
+# ------------------------------------------------------------------------------ all solutions
+def check_solutions(robot: Robot, target: Target, result: IKResult, seed: np.ndarray | None) -> None:
+    """Every listed solution reaches the target by Pinocchio FK, lies within the limits, is distinct."""
+    assert result.solutions, "a solved call lists at least its answer"
+    angular = [k != "prismatic" for k in robot.joint_kinds]
+    for sol in result.solutions:
+        assert sol.within_limits and robot.within_limits(sol.q)
+        assert sol.label in ATTEMPT_KINDS and sol.singular is None
+        assert (sol.position_error, sol.orientation_error) == pytest.approx(
+            target_errors(robot, target, sol.q), abs=1e-15
+        )
+        assert sol.position_error <= 1e-6 and sol.orientation_error <= 1e-6
+        assert not sol.q.flags.writeable
+        if seed is None:
+            assert sol.distance is None
+        else:
+            assert sol.distance == pytest.approx(wrapped_distance(sol.q, seed, angular), abs=1e-12)
+    for i, a in enumerate(result.solutions):
+        for b in result.solutions[i + 1 :]:
+            assert wrapped_distance(a.q, b.q, angular) > DISTINCT
+    # The answer is one of them (or a near-duplicate of one).
+    assert min(wrapped_distance(result.q, s.q, angular) for s in result.solutions) <= DISTINCT
+    if seed is not None:
+        distances = [s.distance for s in result.solutions]
+        assert distances == sorted(distances)
+
+
+@pytest.mark.parametrize(("name", "kind"), [("dh3", "position"), ("al5c", "pitch"), ("shelley", "position")])
+def test_solutions_list_the_distinct_answers_nearest_the_seed_first(name, kind):
+    robot = get_robot(name)
+    rng = np.random.default_rng(21)
+    several = 0
+    for q, seed in zip(robot.random_configurations(rng, 15), robot.random_configurations(rng, 15)):
+        target = make_target(robot, kind, q)
+        result = solver(name).solve(target, seed)
+        assert result.status is IKStatus.SOLVED
+        check_solutions(robot, target, result, seed)
+        several += len(result.solutions) > 1
+    assert several > 0  # the random rows of a batch find other branches
+
+
+def test_solutions_without_a_seed_are_sorted_by_error():
+    robot = get_robot("dh3")
+    target = make_target(robot, "position", np.array([0.4, 0.6, 0.9]))
+    result = solver("dh3").solve(target)
+    check_solutions(robot, target, result, None)
+    merits = [s.position_error + 0.25 * solver("dh3").length * s.orientation_error for s in result.solutions]
+    assert merits == sorted(merits)
+
+
+def test_solutions_with_secondary_objectives_and_below_the_floor():
+    robot = get_robot("three_joint")
+    q = np.array([0.2, 0.8, -1.0, 0.5])
+    target = make_target(robot, "position", q)
+    near = solver("three_joint").solve(target, q + 0.1, IKOptions(near_seed=True))
+    assert near.status is IKStatus.SOLVED
+    check_solutions(robot, target, near, q + 0.1)
+    impossible = solver("three_joint").solve(target, q, IKOptions(manipulability_floor=1e6, max_attempts=8))
+    assert impossible.status is IKStatus.BELOW_MANIPULABILITY_FLOOR and not impossible.success
+    check_solutions(robot, target, impossible, q)
+
+
+def test_not_converged_lists_no_solution_and_reports_its_own_errors():
+    robot = get_robot("shelley")
+    target = Target([1.0, 0.3, 0.2])  # out of reach
+    result = solver("shelley").solve(target, options=IKOptions(max_attempts=64))
+    assert result.status is IKStatus.NOT_CONVERGED and result.solutions == ()
+    # The best attempt is kept as it was, not overwritten by later batches.
+    assert (result.position_error, result.orientation_error) == pytest.approx(
+        target_errors(robot, target, result.q), abs=1e-15
+    )
+
+
+def test_joint_distance_takes_angles_modulo_two_pi():
+    angular = [True, False]
+    assert wrapped_distance([0.1, 0.2], [0.1 + 2 * math.pi, 0.2], angular) == pytest.approx(0.0, abs=1e-12)
+    assert wrapped_distance([0.0, 0.2], [0.0, 0.2 + 2 * math.pi], angular) == pytest.approx(2 * math.pi)
+    assert wrapped_distance(np.array([3.1, 0.0]), np.array([-3.1, 0.0]), angular) == pytest.approx(2 * math.pi - 6.2)
+    assert configurations_close([math.pi - 1e-6, 0.0], [-math.pi + 1e-6, 0.0], angular, 1e-4)
+    assert not configurations_close([0.0, 0.0], [0.0, 2e-4], angular, 1e-4)

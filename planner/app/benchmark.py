@@ -160,7 +160,8 @@ def bench_robot(
     t0 = time.perf_counter()
     nlp = NlpIK(robot).prepare([kind])
     nlp_setup = time.perf_counter() - t0
-    nlp.solve(targets[0], q_seeds[0], time_budget=time_budget)  # warm-up
+    options = IKOptions(time_budget=time_budget)
+    nlp.solve(targets[0], q_seeds[0], options)  # warm-up
 
     analytic_results = []
     if analytic is not None:
@@ -179,7 +180,7 @@ def bench_robot(
     rows = []
     for i, (target, q_seed) in enumerate(zip(progress(targets, label=f"{name} nlp"), q_seeds)):
         t = time.perf_counter()
-        result = nlp.solve(target, q_seed, time_budget=time_budget)
+        result = nlp.solve(target, q_seed, options)
         elapsed = time.perf_counter() - t
         ok, pe, oe = verify(robot, target, result.q)
         row = {

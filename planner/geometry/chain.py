@@ -1,4 +1,15 @@
-"""The chain as the closed-form solvers see it: joint axes and points at q = 0, read from Pinocchio.
+"""The robot's chain read out of Pinocchio: the one place the IK layers get it from.
+
+Two views of the same chain:
+
+- :func:`kinematic_chain` (:class:`KinematicChain` of :class:`ChainJoint`): every chain joint's
+  constant placement in its parent joint's frame (``model.jointPlacements``, which already
+  holds every fixed and locked joint Pinocchio merged into it), its kind and its axis in its
+  own frame, and the tip frame's placement in its joint's frame; the CasADi kinematics
+  (:mod:`planner.ik.numeric.kinematics`) compose these recursively, for revolute, continuous
+  and prismatic joints about any axis.
+- :func:`chain_at_zero` (:class:`ChainAtZero` of :class:`JointScrew`): the screws the closed
+  form works with.
 
 Every revolute joint of the chain is a screw: a unit axis through a point, both in the base
 frame with all joints at zero. Forward kinematics is then the product of exponentials
@@ -6,7 +17,8 @@ frame with all joints at zero. Forward kinematics is then the product of exponen
 configurations (tests check it against Pinocchio). The family detectors of the solvers read
 lengths, offsets and axis directions from these screws, never from hand-typed constants.
 
-The module also wraps angles into joint ranges and words limit violations.
+The module also wraps angles into joint ranges, measures joint distances (angles modulo
+2 pi) and words limit violations.
 """
 
 from __future__ import annotations
@@ -23,6 +35,9 @@ from planner.exceptions import UnsupportedChainError
 from planner.model.robot import Robot
 
 __all__ = [
+    "ChainJoint",
+    "KinematicChain",
+    "kinematic_chain",
     "JointScrew",
     "ChainAtZero",
     "chain_at_zero",
@@ -39,6 +54,128 @@ TWO_PI = 2.0 * math.pi
 
 #: Values at most this far outside a joint range [rad] are round-off and set onto the limit.
 LIMIT_SNAP = 1e-10
+_AXIS_TOL = 1e-12
+
+
+@dataclass(frozen=True)
+class ChainJoint:
+    """One chain joint, placed in its parent joint's frame.
+
+    Attributes:
+        name: Joint name.
+        index: Position in ``q``.
+        kind: ``"revolute"``, ``"continuous"`` or ``"prismatic"``.
+        parent_rotation: Rotation of the joint frame in its parent joint's frame at q = 0,
+            shape (3, 3), read-only.
+        parent_translation: Origin of the joint frame in its parent joint's frame at q = 0,
+            shape (3,) [m], read-only.
+        axis: Unit joint axis in the joint's own frame, shape (3,), read-only: a rotation by
+            ``q`` about it, or a translation by ``q`` along it.
+        parent: Index (into the chain, 0-based) of the parent joint, or -1 for the base.
+    """
+
+    name: str
+    index: int
+    kind: str
+    parent_rotation: np.ndarray
+    parent_translation: np.ndarray
+    axis: np.ndarray
+    parent: int
+
+
+@dataclass(frozen=True)
+class KinematicChain:
+    """The chain joints, base to tip, and where the tip frame sits.
+
+    Forward kinematics composes, joint by joint, the parent's pose, the joint's placement
+    and its motion; then the tip's placement in its joint's frame.
+
+    Attributes:
+        joints: The chain joints, base to tip (``joints[k].index == k``).
+        tip_parent: Index of the joint carrying the tip frame, or -1 for the base.
+        tip_rotation: Rotation of the tip frame in that joint's frame, shape (3, 3), read-only.
+        tip_translation: Origin of the tip frame in that joint's frame, shape (3,) [m], read-only.
+    """
+
+    joints: tuple[ChainJoint, ...]
+    tip_parent: int
+    tip_rotation: np.ndarray
+    tip_translation: np.ndarray
+
+    def offsets_length(self) -> float:
+        """Summed lengths of the joint and tip placement offsets [m] (a scale of the arm)."""
+        total = sum(float(np.linalg.norm(joint.parent_translation)) for joint in self.joints)
+        return total + float(np.linalg.norm(self.tip_translation))
+
+    def tip_path(self) -> frozenset[int]:
+        """Indices of the joints that move the tip (from the tip's joint down to the base)."""
+        path = set()
+        k = self.tip_parent
+        while k >= 0:
+            path.add(k)
+            k = self.joints[k].parent
+        return frozenset(path)
+
+
+def kinematic_chain(robot: Robot) -> KinematicChain:
+    """Read the chain joints' placements, kinds and axes and the tip placement from Pinocchio.
+
+    A joint's motion is read from its motion subspace at the neutral configuration, so every
+    one-degree-of-freedom joint Pinocchio builds from a URDF is covered: revolute and
+    continuous joints about any axis and prismatic joints along any axis.
+
+    Raises:
+        UnsupportedChainError: If a joint is neither a one-axis rotation nor a one-axis
+            translation, or its motion at q = 0 is not the identity.
+    """
+    model = robot.model
+    q0 = pin.neutral(model)
+    joints = []
+    for jid in range(1, model.njoints):
+        jm = model.joints[jid]
+        name = model.names[jid]
+        if jm.nv != 1:
+            raise UnsupportedChainError(
+                f"joint {name!r} ({jm.shortname()}) has {jm.nv} degrees of freedom; only one-axis joints are supported",
+                joint=name,
+            )
+        jd = jm.createData()
+        jm.calc(jd, q0)
+        subspace = np.array(jd.S).reshape(6)
+        linear, angular = subspace[:3], subspace[3:]
+        if not np.allclose(jd.M.homogeneous, np.eye(4), atol=1e-12):
+            raise UnsupportedChainError(
+                f"joint {name!r} ({jm.shortname()}) does not rest at the identity at its neutral configuration",
+                joint=name,
+            )
+        kind = robot.joint_kinds[jid - 1]
+        if kind in ("revolute", "continuous"):
+            if np.linalg.norm(linear) > _AXIS_TOL or np.linalg.norm(angular) < _AXIS_TOL:
+                raise UnsupportedChainError(f"joint {name!r} ({jm.shortname()}) is not a pure rotation", joint=name)
+            axis = angular
+        else:
+            if np.linalg.norm(angular) > _AXIS_TOL or np.linalg.norm(linear) < _AXIS_TOL:
+                raise UnsupportedChainError(f"joint {name!r} ({jm.shortname()}) is not a pure translation", joint=name)
+            axis = linear
+        placement = model.jointPlacements[jid]
+        joints.append(
+            ChainJoint(
+                name=name,
+                index=jid - 1,
+                kind=kind,
+                parent_rotation=read_only(placement.rotation),
+                parent_translation=read_only(placement.translation),
+                axis=read_only(axis / np.linalg.norm(axis)),
+                parent=model.parents[jid] - 1,
+            )
+        )
+    frame = model.frames[robot.tip_frame_id]
+    return KinematicChain(
+        joints=tuple(joints),
+        tip_parent=frame.parentJoint - 1,
+        tip_rotation=read_only(frame.placement.rotation),
+        tip_translation=read_only(frame.placement.translation),
+    )
 
 
 @dataclass(frozen=True)

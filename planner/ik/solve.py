@@ -123,19 +123,7 @@ def _numeric(
             branches = ()
         if branches:
             extra = np.array([s.q for s in branches], dtype=float)
-    return solvers.nlp.solve(
-        target,
-        seed,
-        extra_seeds=extra,
-        position_tolerance=options.position_tolerance,
-        orientation_tolerance=options.orientation_tolerance,
-        time_budget=options.time_budget,
-        max_attempts=options.max_attempts,
-        near_seed=options.near_seed,
-        manipulability_floor=options.manipulability_floor,
-        manipulability_task=options.manipulability_task,
-        rng=options.generator(),
-    )
+    return solvers.nlp.solve(target, seed, options, extra_seeds=extra)
 
 
 def closed_form_answer(

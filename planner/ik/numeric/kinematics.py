@@ -1,13 +1,11 @@
 """Symbolic forward kinematics of a :class:`~planner.model.robot.Robot`'s tip in CasADi.
 
 ``pinocchio.casadi`` is not part of the PyPI wheel, so the tip pose is rebuilt here as a
-CasADi ``SX`` expression from the Pinocchio model itself: for every chain joint, its constant
-placement in the parent joint frame (``model.jointPlacements``, which already holds every
-fixed joint and locked joint Pinocchio merged into it), then its motion, then finally the tip
-frame's constant placement. A joint's motion is read from its motion subspace at the neutral
-configuration, so every one-degree-of-freedom joint Pinocchio builds from a URDF is covered:
-revolute and continuous joints about any axis (a rotation by ``q`` about the unit axis) and
-prismatic joints along any axis (a translation by ``q``). ``q`` holds one value per chain
+CasADi ``SX`` expression from the chain read out of the Pinocchio model
+(:func:`planner.geometry.chain.kinematic_chain`): for every chain joint, its constant
+placement in the parent joint frame, then its motion (a rotation by ``q`` about its unit axis
+for revolute and continuous joints, a translation by ``q`` along it for prismatic ones), then
+finally the tip frame's constant placement. ``q`` holds one value per chain
 joint, as for :class:`~planner.model.robot.Robot` (an angle for continuous joints, not Pinocchio's
 ``(cos, sin)`` pair).
 
@@ -18,89 +16,14 @@ URDFs with unaligned, continuous, prismatic and fixed joints.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-
 import casadi as ca
 import numpy as np
-import pinocchio as pin
 
-from planner.exceptions import InvalidConfigurationError, UnsupportedChainError
+from planner.exceptions import InvalidConfigurationError
+from planner.geometry.chain import kinematic_chain
 from planner.model.robot import Robot
 
-__all__ = ["ChainJoint", "CasadiKinematics", "chain_joints"]
-
-_AXIS_TOL = 1e-12
-
-
-@dataclass(frozen=True)
-class ChainJoint:
-    """One chain joint as the symbolic FK sees it.
-
-    Attributes:
-        name: Joint name.
-        kind: ``"revolute"``, ``"continuous"`` or ``"prismatic"``.
-        parent_rotation: Rotation of the joint frame in its parent joint's frame at q = 0, (3, 3).
-        parent_translation: Origin of the joint frame in the parent joint's frame at q = 0, (3,) [m].
-        axis: Unit joint axis in the joint's own frame, (3,).
-        parent: Index (into the chain, 0-based) of the parent joint, or -1 for the base.
-    """
-
-    name: str
-    kind: str
-    parent_rotation: np.ndarray
-    parent_translation: np.ndarray
-    axis: np.ndarray
-    parent: int
-
-
-def chain_joints(robot: Robot) -> tuple[ChainJoint, ...]:
-    """The chain joints of a robot with their placements and axes, base to tip.
-
-    Raises:
-        UnsupportedChainError: If a joint is neither a one-axis rotation nor a one-axis
-            translation, or its motion at q = 0 is not the identity.
-    """
-    model = robot.model
-    q0 = pin.neutral(model)
-    joints = []
-    for jid in range(1, model.njoints):
-        jm = model.joints[jid]
-        name = model.names[jid]
-        if jm.nv != 1:
-            raise UnsupportedChainError(
-                f"joint {name!r} ({jm.shortname()}) has {jm.nv} degrees of freedom; only one-axis joints are supported",
-                joint=name,
-            )
-        jd = jm.createData()
-        jm.calc(jd, q0)
-        subspace = np.array(jd.S).reshape(6)
-        linear, angular = subspace[:3], subspace[3:]
-        if not np.allclose(jd.M.homogeneous, np.eye(4), atol=1e-12):
-            raise UnsupportedChainError(
-                f"joint {name!r} ({jm.shortname()}) does not rest at the identity at its neutral configuration",
-                joint=name,
-            )
-        kind = robot.joint_kinds[jid - 1]
-        if kind in ("revolute", "continuous"):
-            if np.linalg.norm(linear) > _AXIS_TOL or np.linalg.norm(angular) < _AXIS_TOL:
-                raise UnsupportedChainError(f"joint {name!r} ({jm.shortname()}) is not a pure rotation", joint=name)
-            axis = angular
-        else:
-            if np.linalg.norm(angular) > _AXIS_TOL or np.linalg.norm(linear) < _AXIS_TOL:
-                raise UnsupportedChainError(f"joint {name!r} ({jm.shortname()}) is not a pure translation", joint=name)
-            axis = linear
-        placement = model.jointPlacements[jid]
-        joints.append(
-            ChainJoint(
-                name=name,
-                kind=kind,
-                parent_rotation=np.array(placement.rotation),
-                parent_translation=np.array(placement.translation),
-                axis=axis / np.linalg.norm(axis),
-                parent=model.parents[jid] - 1,
-            )
-        )
-    return tuple(joints)
+__all__ = ["CasadiKinematics"]
 
 
 def _axis_rotation(axis: np.ndarray, angle: ca.SX) -> ca.SX:
@@ -129,6 +52,8 @@ class CasadiKinematics:
 
     Attributes:
         robot: The robot.
+        chain: Its chain (:class:`~planner.geometry.chain.KinematicChain`).
+        joints: The chain joints, base to tip (``chain.joints``).
         dof: Number of chain joints.
         q: The joint symbol, ``SX`` of shape (dof, 1) [rad or m].
         position: Tip position in the base frame, ``SX`` (3, 1) [m].
@@ -147,7 +72,8 @@ class CasadiKinematics:
             UnsupportedChainError: If a chain joint is not a one-axis rotation or translation.
         """
         self.robot = robot
-        self.joints = chain_joints(robot)
+        self.chain = kinematic_chain(robot)
+        self.joints = self.chain.joints
         self.dof = robot.dof
         self.q = ca.SX.sym("q", self.dof)
         self.position, self.rotation, self.jacobian = self.expressions(self.q)
@@ -164,7 +90,6 @@ class CasadiKinematics:
         Returns:
             ``(position (3, 1), rotation (3, 3), jacobian (6, dof))`` in the base frame.
         """
-        model = self.robot.model
         rotations: list[ca.SX] = []
         translations: list[ca.SX] = []
         axes_world: list[ca.SX] = []
@@ -182,18 +107,13 @@ class CasadiKinematics:
                 r_joint = ca.mtimes(r_joint, _axis_rotation(joint.axis, q[k]))
             rotations.append(r_joint)
             translations.append(t_joint)
-        frame = model.frames[self.robot.tip_frame_id]
-        parent = frame.parentJoint - 1
+        parent = self.chain.tip_parent
         r_last = rotations[parent] if parent >= 0 else ca.SX.eye(3)
         t_last = translations[parent] if parent >= 0 else ca.SX.zeros(3, 1)
-        position = t_last + ca.mtimes(r_last, ca.SX(np.array(frame.placement.translation)))
-        rotation = ca.mtimes(r_last, ca.SX(np.array(frame.placement.rotation)))
+        position = t_last + ca.mtimes(r_last, ca.SX(self.chain.tip_translation))
+        rotation = ca.mtimes(r_last, ca.SX(self.chain.tip_rotation))
 
-        on_path = set()
-        j = parent
-        while j >= 0:
-            on_path.add(j)
-            j = self.joints[j].parent
+        on_path = self.chain.tip_path()
         columns = []
         for k, joint in enumerate(self.joints):
             if k not in on_path:
