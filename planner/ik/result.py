@@ -8,14 +8,16 @@ answers), each marked within the joint limits or not, sorted by joint distance t
 
 from __future__ import annotations
 
+from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass, field
+from typing import overload
 
 import numpy as np
 
 from planner.core.arrays import read_only
 from planner.ik.status import IKStatus
 
-__all__ = ["IKResult", "IKSolution"]
+__all__ = ["IKResult", "IKSolution", "LazySolutions"]
 
 
 @dataclass(frozen=True)
@@ -59,6 +61,56 @@ class IKSolution:
         }
 
 
+class LazySolutions(Sequence[IKSolution]):
+    """The solutions of an IK call, verified by Pinocchio FK when first read.
+
+    Checking every further solution costs a forward kinematics call each, about as much as the
+    rest of a fast IK call; a caller who only wants the answer should not pay for it. The list
+    is built once, on first access, and then behaves as a tuple.
+    """
+
+    __slots__ = ("_build", "_items")
+
+    def __init__(self, build: Callable[[], Sequence[IKSolution]]) -> None:
+        self._build: Callable[[], Sequence[IKSolution]] | None = build
+        self._items: tuple[IKSolution, ...] | None = None
+
+    def _get(self) -> tuple[IKSolution, ...]:
+        if self._items is None:
+            assert self._build is not None
+            self._items = tuple(self._build())
+            self._build = None  # frees what the builder held
+        return self._items
+
+    @overload
+    def __getitem__(self, index: int) -> IKSolution: ...
+
+    @overload
+    def __getitem__(self, index: slice) -> tuple[IKSolution, ...]: ...
+
+    def __getitem__(self, index: int | slice) -> IKSolution | tuple[IKSolution, ...]:
+        return self._get()[index]
+
+    def __len__(self) -> int:
+        return len(self._get())
+
+    def __iter__(self) -> Iterator[IKSolution]:
+        return iter(self._get())
+
+    def __add__(self, other: Sequence[IKSolution]) -> tuple[IKSolution, ...]:
+        return self._get() + tuple(other)
+
+    def __eq__(self, other: object) -> bool:
+        if isinstance(other, (LazySolutions, tuple)):
+            return self._get() == tuple(other)
+        return NotImplemented
+
+    __hash__ = None  # type: ignore[assignment]
+
+    def __repr__(self) -> str:
+        return repr(self._get()) if self._items is not None else "LazySolutions(<not yet read>)"
+
+
 @dataclass(frozen=True)
 class IKResult:
     """Outcome of an IK call.
@@ -82,7 +134,8 @@ class IKResult:
         attempt_kind: ``"seed"``, ``"closed_form"`` or ``"random"`` for that attempt, else None.
         wall_time: Time spent in the call [s].
         method: ``"analytic"`` or ``"nlp"``: which solver answered.
-        solutions: Every solution found, within limits or not, nearest to the seed first.
+        solutions: Every solution found, within limits or not, nearest to the seed first (a
+            sequence of :class:`IKSolution`, verified by Pinocchio FK when first read).
     """
 
     q: np.ndarray
@@ -97,12 +150,13 @@ class IKResult:
     attempt_kind: str | None
     wall_time: float
     method: str = "nlp"
-    solutions: tuple[IKSolution, ...] = field(default=())
+    solutions: Sequence[IKSolution] = field(default=())
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "q", read_only(self.q))
         object.__setattr__(self, "status", IKStatus(self.status))
-        object.__setattr__(self, "solutions", tuple(self.solutions))
+        if not isinstance(self.solutions, LazySolutions):
+            object.__setattr__(self, "solutions", tuple(self.solutions))
 
     @property
     def within_limits(self) -> tuple[IKSolution, ...]:

@@ -18,11 +18,11 @@ from typing import Literal
 import numpy as np
 
 from planner.exceptions import InvalidArgumentError, UnsupportedChainError
-from planner.geometry.joint_space import joint_distance
+from planner.geometry.joint_space import angular_joints, wrapped_distance
 from planner.geometry.target import Target, as_target, target_errors, tip_errors
 from planner.ik.analytic import AnalyticResult
 from planner.ik.options import IKOptions
-from planner.ik.result import IKResult, IKSolution
+from planner.ik.result import IKResult, IKSolution, LazySolutions
 from planner.ik.solvers import IKSolvers
 from planner.ik.status import IKStatus
 from planner.ik.task import task_rank
@@ -154,40 +154,40 @@ def closed_form_answer(
         ``status`` is ``"inaccurate"``.
     """
     raw = family.solutions
-    distances = [None] * len(raw)
+    order = list(range(len(raw)))
+    distances: list[float | None] = [None] * len(raw)
     if seed is not None and raw:
-        distances = joint_distance(robot, np.array([sol.q for sol in raw]), seed).tolist()
-    solutions = []
-    for index, sol in enumerate(raw):
-        position, rotation = robot.tip_pose(sol.q)
-        position_error, orientation_error = tip_errors(target, position, rotation, robot.approach_axis)
-        solution = IKSolution(
-            sol.q, sol.within_limits, sol.branch, position_error, orientation_error, distances[index], sol.singular
-        )
-        solutions.append((index, solution))
-    if seed is not None:
-        solutions.sort(key=lambda item: item[1].distance)
-    within = [(i, s) for i, s in solutions if s.within_limits]
-    chosen = next(
-        (
-            (i, s)
-            for i, s in within
-            if s.position_error <= options.position_tolerance and s.orientation_error <= options.orientation_tolerance
-        ),
-        None,
-    )
-    if chosen is not None:
-        index, best = chosen
+        angular, reference = angular_joints(robot), seed.tolist()
+        distances = [wrapped_distance(sol.q, reference, angular) for sol in raw]
+        order.sort(key=distances.__getitem__)
+    errors: dict[int, tuple[float, float]] = {}
+
+    def error(i: int) -> tuple[float, float]:
+        """Pinocchio FK errors of solution i, computed once."""
+        if i not in errors:
+            position, rotation = robot.tip_pose(raw[i].q)
+            errors[i] = tip_errors(target, position, rotation, robot.approach_axis)
+        return errors[i]
+
+    def solution(i: int) -> IKSolution:
+        sol = raw[i]
+        return IKSolution(sol.q, sol.within_limits, sol.branch, *error(i), distances[i], sol.singular)
+
+    within = [i for i in order if raw[i].within_limits]
+    tolerances = (options.position_tolerance, options.orientation_tolerance)
+    index = next((i for i in within if error(i)[0] <= tolerances[0] and error(i)[1] <= tolerances[1]), None)
+    if index is not None:
+        best = solution(index)
         q, status, reason = best.q, IKStatus.SOLVED, f"closed-form branch {best.label}"
     elif within:
-        index, best = None, within[0][1]
+        best = solution(within[0])
         q, status = best.q, IKStatus.INACCURATE
         reason = (
             f"the closed-form solution ({best.label}) misses the target by {best.position_error:.3g} m and "
             f"{best.orientation_error:.3g} rad by Pinocchio FK"
         )
     else:
-        index, best = None, None
+        best = None
         q = seed if seed is not None else np.clip(np.zeros(robot.dof), robot.lower, robot.upper)
         status, reason = IKStatus(family.status), family.reason
     position_error, orientation_error = (
@@ -195,18 +195,18 @@ def closed_form_answer(
     )
     return IKResult(
         q=q,
-        success=chosen is not None,
+        success=index is not None,
         status=status,
         reason=reason,
         position_error=position_error,
         orientation_error=orientation_error,
         iterations=0,
-        attempts=len(solutions),
+        attempts=len(raw),
         attempt=index,
-        attempt_kind="closed_form" if chosen is not None else None,
+        attempt_kind="closed_form" if index is not None else None,
         wall_time=time.perf_counter() - start,
         method="analytic",
-        solutions=tuple(s for _, s in solutions),
+        solutions=LazySolutions(lambda: tuple(solution(i) for i in order)),
     )
 
 

@@ -48,7 +48,7 @@ from planner.ik.numeric.kernel import KERNEL_KINDS, Kernel
 from planner.ik.numeric.kinematics import CasadiKinematics
 from planner.ik.numeric.polish import Polisher
 from planner.ik.options import IKOptions
-from planner.ik.result import IKResult, IKSolution
+from planner.ik.result import IKResult, IKSolution, LazySolutions
 from planner.ik.status import IKStatus
 from planner.model.robot import Robot
 
@@ -327,6 +327,7 @@ class NlpIK:
         best: tuple[float, np.ndarray, float, float] | None = None
         reached: list[tuple[int, np.ndarray, float, float]] = []
         found: tuple[int, np.ndarray, float, float] | None = None
+        further: tuple[np.ndarray, list[int]] | None = None  # rows of the last batch to check lazily
         while found is None:
             scale = _SCALES[len(kinds) // k % len(_SCALES)] * self.length
             # Stop when converged well inside the tolerances (Gauss-Newton converges quadratically).
@@ -364,10 +365,7 @@ class NlpIK:
                 if position_error <= position_tolerance and orientation_error <= orientation_tolerance:
                     new.append((slots[j], q, position_error, orientation_error))
                     if not secondary:
-                        new += self._further_solutions(
-                            target, q, kernel, candidates[position + 1 :], slots, position_tolerance,
-                            orientation_tolerance,
-                        )  # fmt: skip
+                        further = self._other_rows(kernel, candidates[position + 1 :], slots)
                         break
             if new and not secondary:
                 found = new[0]
@@ -398,7 +396,12 @@ class NlpIK:
             index, q, position_error, orientation_error = found
             if secondary:
                 reached = self._distinct(found, reached, seed if near_seed else None)
-            solutions = self._solutions(reached, kinds, seed)
+                solutions = self._solutions(reached, kinds, seed)
+            else:
+                tolerances = (position_tolerance, orientation_tolerance)
+                solutions = LazySolutions(lambda: self._solutions(
+                    [found, *self._further_solutions(target, q, further, tolerances)], kinds, seed
+                ))  # fmt: skip
             return IKResult(
                 q, True, IKStatus.SOLVED, f"reached by attempt {index} ({kinds[index]})", position_error,
                 orientation_error, iterations, attempts, index, kinds[index], time.perf_counter() - start,
@@ -425,27 +428,38 @@ class NlpIK:
         )  # fmt: skip
 
     # -------------------------------------------------------------------- the solutions found
+    def _other_rows(
+        self, kernel: Kernel, rows: Sequence[int], slots: Sequence[int]
+    ) -> tuple[np.ndarray, list[int]] | None:
+        """The batch rows below the acceptance residual besides the answer, lowest residual first.
+
+        A copy (the kernel's buffers are overwritten by the next batch), with each row's attempt
+        index; :meth:`_further_solutions` checks them when the solutions are read.
+        """
+        if not rows:
+            return None
+        if len(rows) > 1:
+            rows = sorted(rows, key=kernel.cost.__getitem__)
+        return kernel.q[rows], [slots[r] for r in rows]
+
     def _further_solutions(
         self,
         target: Target,
         q_found: np.ndarray,
-        kernel: Kernel,
-        rows: Sequence[int],
-        slots: Sequence[int],
-        position_tolerance: float,
-        orientation_tolerance: float,
+        rows: tuple[np.ndarray, list[int]] | None,
+        tolerances: tuple[float, float],
     ) -> list[tuple[int, np.ndarray, float, float]]:
-        """The other rows of the batch that reached the target, distinct from `q_found` and each other.
+        """The other rows that reached the target, distinct from `q_found` and each other.
 
-        Rows are taken lowest residual first, so of near-duplicates the most converged one is
-        kept; each distinct one is verified by Pinocchio FK (the only extra cost).
+        Rows come lowest residual first, so of near-duplicates the most converged one is kept;
+        each distinct one is verified by Pinocchio FK (the only extra cost, paid when the
+        solutions are read).
         """
         out: list[tuple[int, np.ndarray, float, float]] = []
-        if not rows:
+        if rows is None:
             return out
-        if len(rows) > 1:
-            rows = sorted(rows, key=kernel.cost.__getitem__)
-        block = kernel.q[rows]  # a copy: the kernel's buffers are overwritten by the next batch
+        block, row_slots = rows
+        position_tolerance, orientation_tolerance = tolerances
         angular = self._angular_list
         kept = [q_found.tolist()]
         for i, values in enumerate(block.tolist()):
@@ -457,7 +471,7 @@ class NlpIK:
                 q = self._wrap(block[i])
                 position_error, orientation_error = self._errors(target, q)
                 if position_error <= position_tolerance and orientation_error <= orientation_tolerance:
-                    out.append((slots[rows[i]], q, position_error, orientation_error))
+                    out.append((row_slots[i], q, position_error, orientation_error))
         return out
 
     def _distinct(
