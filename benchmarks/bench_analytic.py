@@ -44,9 +44,9 @@ from pathlib import Path  # noqa: E402
 
 import numpy as np  # noqa: E402
 
-from planner import AnalyticIK, Target, load_robot  # noqa: E402
+from planner import Target, load_robot  # noqa: E402
 from planner.app.benchmark import run_record  # noqa: E402
-from planner.ik.analytic import chain_at_zero, poe_fk  # noqa: E402
+from planner.ik.analytic import chain_at_zero, closed_form_solver, poe_fk  # noqa: E402
 from planner.model.catalog import example_robot_data_dir  # noqa: E402
 
 RESULTS = Path(__file__).resolve().parent / "results"
@@ -87,7 +87,7 @@ def same(a, b, free=None):
 
 def bench_arm(name, n_single, n_batch, seed):
     robot = load_robot(name)
-    solver = AnalyticIK.from_robot(robot)
+    solver = closed_form_solver(robot)
     rng = np.random.default_rng(seed)
     use_pitch = name in PITCH_ARMS
     use_current = name == "so101"

@@ -25,7 +25,7 @@ from planner.export.formats.ssc32 import ssc32_group_moves
 from planner.export.tables import pulse_table
 from planner.geometry.sensing import range_bearing_to_base
 from planner.geometry.target import Target, approach_pitch, pitch_error
-from planner.ik.analytic import AnalyticBatchResult, AnalyticIK, AnalyticResult, AnalyticSolution
+from planner.ik.analytic import AnalyticBatchResult, AnalyticIK, AnalyticResult, AnalyticSolution, closed_form_solver
 from planner.ik.cross_check import CrossCheck, cross_check
 from planner.ik.numeric.kinematics import CasadiKinematics
 from planner.ik.numeric.solver import NlpIK
@@ -62,6 +62,7 @@ __all__ = [
     "range_bearing_to_base",
     # closed-form IK
     "AnalyticIK",
+    "closed_form_solver",
     "solve_analytic",
     "AnalyticResult",
     "AnalyticSolution",

@@ -11,7 +11,7 @@ import pytest
 
 import planner
 import planner.ik.analytic as analytic
-from planner import AnalyticIK, Robot, Target, load_robot, solve_analytic
+from planner import Robot, Target, load_robot, solve_analytic
 from planner.exceptions import InvalidArgumentError, InvalidConfigurationError, UnsupportedChainError
 from planner.export.calibration import angle_to_steps, steps_to_angle
 from planner.geometry.target import approach_pitch, pitch_error
@@ -27,6 +27,7 @@ from planner.ik.analytic import (
     Planar2IK,
     YawPlanarIK,
     chain_at_zero,
+    closed_form_solver,
     poe_fk,
 )
 from planner.ik.solvers import IKSolvers
@@ -73,7 +74,7 @@ def robots():
 
 @pytest.fixture(scope="module")
 def solvers(robots):
-    return {name: AnalyticIK.from_robot(robot) for name, robot in robots.items()}
+    return {name: closed_form_solver(robot) for name, robot in robots.items()}
 
 
 def fk_position(robot, q):
@@ -122,7 +123,7 @@ def test_product_of_exponentials_matches_pinocchio(name):
 def _chain_error(joints, tip_xyz=(0.1, 0, 0)):
     robot = Robot(serial_urdf(joints, tip_xyz))
     with pytest.raises(UnsupportedChainError) as info:
-        AnalyticIK.from_robot(robot)
+        closed_form_solver(robot)
     return info.value
 
 
@@ -235,14 +236,14 @@ def test_example_arms_outside_the_family(name, joint):
     if example_robot_data_dir() is None:
         pytest.skip("example-robot-data is not installed")
     with pytest.raises(UnsupportedChainError) as info:
-        AnalyticIK.from_robot(load_robot(name))
+        closed_form_solver(load_robot(name))
     assert info.value.joint == joint
 
 
 def test_so101_fits_the_family_within_round_off():
     if example_robot_data_dir() is None:
         pytest.skip("example-robot-data is not installed")
-    solver = AnalyticIK.from_robot(load_robot("so101"))
+    solver = closed_form_solver(load_robot("so101"))
     info = solver.describe()
     assert (info["n_pitch"], info["has_roll"]) == (3, True)
     # Its URDF's axes are off the ideal directions by micro-radians: corrected, not exact.
@@ -304,7 +305,7 @@ def test_bad_inputs_raise(solvers):
     with pytest.raises(InvalidConfigurationError, match="finite"):
         s.solve(Target([0.2, 0.0, 0.1]), q_current=[0.0, 0.0, math.nan, 0.0, 0.0])
     with pytest.raises(InvalidArgumentError):
-        AnalyticIK.from_robot("al5c")
+        closed_form_solver("al5c")
 
 
 # ---------------------------------------------------------------------------- branches
@@ -446,7 +447,7 @@ def offset_arm() -> Robot:
 
 
 def test_offset_arm_is_exact_and_reads_its_offsets():
-    solver = AnalyticIK.from_robot(offset_arm())
+    solver = closed_form_solver(offset_arm())
     info = solver.describe()
     assert info["exact"] and info["n_pitch"] == 3 and info["has_roll"]
     signs = info["pitch_signs"]
@@ -457,7 +458,7 @@ def test_offset_arm_is_exact_and_reads_its_offsets():
 
 
 def test_offset_arm_inside_its_sideways_offset():
-    solver = AnalyticIK.from_robot(offset_arm())
+    solver = closed_form_solver(offset_arm())
     res = solver.solve(Target([0.01, -0.02, 0.25], pitch=0.0))
     assert res.status == STATUS_INSIDE_MIN_REACH
     assert "sideways offset" in res.reason
@@ -469,7 +470,7 @@ def test_pitch_outward_from_the_base_axis_not_the_yaw_axis():
     # planner.geometry.target convention) is the other side: the approach axis's in-plane angle is
     # pi - pitch there. Every solution follows the convention, in single and batch calls.
     robot = offset_arm()
-    solver = AnalyticIK.from_robot(robot)
+    solver = closed_form_solver(robot)
     q_all = robot.random_configurations(np.random.default_rng(12), 4000)
     poses = robot.fk(q_all)
     yaw_point = np.array(solver.describe()["yaw_axis_point"])
@@ -536,7 +537,7 @@ def test_batch_searches_free_joints_like_single_solves(name):
     if name == "so101" and example_robot_data_dir() is None:
         pytest.skip("example-robot-data is not installed")
     robot = offset_arm() if name == "offset_arm" else load_robot(name)
-    solver = AnalyticIK.from_robot(robot)
+    solver = closed_form_solver(robot)
     rng = np.random.default_rng(3)
     q, q_current = robot.random_configurations(rng, 30), robot.random_configurations(rng, 30)
     pos = robot.position(q)
@@ -673,7 +674,7 @@ def test_continuous_joints():
     ]
     robot = Robot(serial_urdf(joints, tip_xyz=(0.05, 0.0, 0.0)), tip="tip", approach_axis=(1.0, 0.0, 0.0))
     assert robot.joint_kinds == ("continuous", "revolute", "revolute", "continuous")
-    solver = AnalyticIK.from_robot(robot)
+    solver = closed_form_solver(robot)
     assert solver.n_pitch == 2 and solver.has_roll
     for q in robot.random_configurations(np.random.default_rng(9), 20):
         q = q + np.array([4 * np.pi, 0.0, 0.0, -2 * np.pi])  # far from the principal values

@@ -12,6 +12,7 @@ from hypothesis import strategies as st
 
 from planner import AnalyticIK, Robot, Target, load_robot, rotation_error
 from planner.geometry.target import approach_direction, approach_pitch, pitch_error
+from planner.ik.analytic import closed_form_solver
 from planner.model.catalog import BUNDLED_ROBOTS, example_robot_data_dir
 
 TOL_POS = 1e-9
@@ -56,7 +57,7 @@ def arm(name: str) -> tuple[Robot, AnalyticIK]:
         pytest.skip("example-robot-data is not installed")
     if name not in _CACHE:
         robot = offset_arm() if name == "offset_arm" else load_robot(name)
-        _CACHE[name] = (robot, AnalyticIK.from_robot(robot))
+        _CACHE[name] = (robot, closed_form_solver(robot))
     return _CACHE[name]
 
 

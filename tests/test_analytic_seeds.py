@@ -7,9 +7,9 @@ import math
 import numpy as np
 import pytest
 
-from planner import AnalyticIK, Robot, Target, load_robot
+from planner import Robot, Target, load_robot
 from planner.export.calibration import angle_to_steps
-from planner.ik.analytic import STATUS_BEYOND_MAX_REACH, STATUS_INSIDE_MIN_REACH, STATUS_SOLVED
+from planner.ik.analytic import STATUS_BEYOND_MAX_REACH, STATUS_INSIDE_MIN_REACH, STATUS_SOLVED, closed_form_solver
 from planner.model.catalog import bundled_urdf_path
 
 TOL_POS = 1e-9
@@ -26,25 +26,25 @@ def fk_position(robot, q):
 @pytest.fixture(scope="module")
 def dh3():
     robot = load_robot("dh3")
-    return robot, AnalyticIK.from_robot(robot)
+    return robot, closed_form_solver(robot)
 
 
 @pytest.fixture(scope="module")
 def al5c():
     robot = load_robot("al5c")
-    return robot, AnalyticIK.from_robot(robot)
+    return robot, closed_form_solver(robot)
 
 
 @pytest.fixture(scope="module")
 def three_joint():
     robot = load_robot("three_joint")
-    return robot, AnalyticIK.from_robot(robot)
+    return robot, closed_form_solver(robot)
 
 
 @pytest.fixture(scope="module")
 def shelley():
     robot = load_robot("shelley")
-    return robot, AnalyticIK.from_robot(robot)
+    return robot, closed_form_solver(robot)
 
 
 # ---------------------------------------------------------------------------- 004: Sumadsad's DH arm
@@ -227,7 +227,7 @@ def seed000_minreach(r1, r2, servo2_max):
 
 
 def test_000_min_reach_formula(shelley):
-    free = AnalyticIK.from_robot(shelley_variant(0.0))
+    free = closed_form_solver(shelley_variant(0.0))
     assert free.reach[0] == pytest.approx(seed000_minreach(0.10, 0.08, math.radians(92.5)), abs=1e-12)
     assert free.reach[1] == pytest.approx(0.18, abs=1e-12)
     # With the claw offset the effective second link is longer and already turned by the offset.
@@ -248,7 +248,7 @@ def test_000_targets_on_an_axis(shelley, target):
     assert len(res.solutions) == 2
     for sol in res.solutions:
         assert np.linalg.norm(fk_position(robot, sol.q) - target) < TOL_POS
-    free = AnalyticIK.from_robot(shelley_variant(0.0))
+    free = closed_form_solver(shelley_variant(0.0))
     if target[1] == 0.0 and target[0] > 0:  # claw-free: the two intersections mirror in x
         a, b = free.solve(Target(target)).solutions
         assert a.q[0] == pytest.approx(-b.q[0], abs=1e-12) and a.q[1] == pytest.approx(-b.q[1], abs=1e-12)
@@ -264,7 +264,7 @@ def test_000_target_at_the_base(shelley):
 def test_000_claw_offset_compensated(shelley):
     robot, solver = shelley
     r2 = math.hypot(0.08, 0.01)
-    straight = AnalyticIK.from_robot(shelley_variant(0.0))
+    straight = closed_form_solver(shelley_variant(0.0))
     correct = math.asin(0.01 / r2)  # the seed's CORRECT, measured on the hypotenuse
     for target in ([0.15, 0.03, 0.0], [0.05, 0.14, 0.0]):
         # An arm whose r2 is the claw's hypotenuse reaches the same point; shelley's servo 2 differs
@@ -272,7 +272,7 @@ def test_000_claw_offset_compensated(shelley):
         longer = Robot(
             bundled_urdf_path("shelley").read_text().replace('xyz="0.08 0.01 0"', f'xyz="{r2!r} 0 0"'), tip="claw"
         )
-        ref = AnalyticIK.from_robot(longer).solve(Target(target))
+        ref = closed_form_solver(longer).solve(Target(target))
         res = solver.solve(Target(target))
         for a, b in zip(res.solutions, ref.solutions):
             assert a.q[0] == pytest.approx(b.q[0], abs=1e-12)
@@ -306,7 +306,7 @@ def seed_program_arm() -> Robot:
 
 def test_000_sample_runs_of_the_seed_program():
     robot = seed_program_arm()
-    solver = AnalyticIK.from_robot(robot)
+    solver = closed_form_solver(robot)
     assert solver.reach[0] == pytest.approx(seed000_minreach(10, 13, math.pi / 2), abs=1e-12)
     runs = [  # (target, seed's intersection (elbow), seed's |servo 1| angle, |steps|)
         ((0.0, 23.0), (0.0, 10.0), 0.0, 0),

@@ -105,7 +105,9 @@ class MotionPlan:
         Raises:
             InvalidArgumentError: If the directory cannot be created.
         """
-        return write_plan_files(self, out, rate=rate)
+        return write_plan_files(
+            out, self.trajectory, self.calibrations, self.servo_period_ms, self.summary(rate), rate=rate
+        )
 
 
 def _joint_scale(robot: Robot, request: MotionRequest) -> np.ndarray:

@@ -18,7 +18,6 @@ from planner.exceptions import InvalidArgumentError
 from planner.export.formats import SERVO_FORMATS
 
 if TYPE_CHECKING:
-    from planner.app.motion_plan import MotionPlan
     from planner.export.calibration import ServoCalibration
     from planner.motion.trajectory import JointTrajectory
 
@@ -50,13 +49,23 @@ def write_servo_files(
     return paths
 
 
-def write_plan_files(plan: MotionPlan, out: str | Path, rate: float = 1000.0) -> tuple[Path, ...]:
+def write_plan_files(
+    out: str | Path,
+    trajectory: JointTrajectory,
+    calibrations: Sequence[ServoCalibration],
+    servo_period_ms: int,
+    summary: dict,
+    rate: float = 1000.0,
+) -> tuple[Path, ...]:
     """Write a plan's files into a directory (created if missing); see the module docstring.
 
     Args:
-        plan: The plan.
         out: Output directory.
-        rate: Sample rate of the CSV and of the summary's limit checks [Hz].
+        trajectory: The plan's trajectory.
+        calibrations: One servo calibration per joint.
+        servo_period_ms: Time between two servo updates [ms].
+        summary: The plan's summary (:meth:`MotionPlan.summary`); the file list is added to it.
+        rate: Sample rate of the CSV [Hz].
 
     Returns:
         The paths written: the trajectory CSV, the servo files, the summary.
@@ -69,10 +78,10 @@ def write_plan_files(plan: MotionPlan, out: str | Path, rate: float = 1000.0) ->
         folder.mkdir(parents=True, exist_ok=True)
     except OSError as exc:
         raise InvalidArgumentError(f"cannot create output directory {str(folder)!r}: {exc.strerror}") from exc
-    paths = [plan.trajectory.to_csv(folder / "trajectory.csv", rate=rate)]
-    paths += write_servo_files(folder, plan.trajectory, plan.calibrations, plan.servo_period_ms)
+    paths = [trajectory.to_csv(folder / "trajectory.csv", rate=rate)]
+    paths += write_servo_files(folder, trajectory, calibrations, servo_period_ms)
     summary_path = folder / "summary.json"
-    summary = plan.summary(rate)
+    summary = {**summary}
     summary["files"] = sorted(str(p) for p in [*paths, summary_path])
     summary_path.write_text(json.dumps(summary, indent=2, allow_nan=False) + "\n")
     paths.append(summary_path)

@@ -9,7 +9,7 @@ no module-level cache keeps robots alive.
 from __future__ import annotations
 
 from planner.exceptions import UnsupportedChainError
-from planner.ik.analytic import AnalyticIK
+from planner.ik.analytic import AnalyticIK, closed_form_solver
 from planner.ik.numeric.solver import NlpIK
 from planner.model.robot import Robot
 
@@ -44,7 +44,7 @@ class IKSolvers:
     def _detect(self) -> None:
         if self._analytic is None and self._analytic_reason is None:
             try:
-                self._analytic = AnalyticIK.from_robot(self.robot)
+                self._analytic = closed_form_solver(self.robot)
                 self._analytic_reason = ""
             except UnsupportedChainError as exc:
                 self._analytic_reason = str(exc)

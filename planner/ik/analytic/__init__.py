@@ -8,10 +8,10 @@ One module per family, all built from the robot's Pinocchio model:
 
 The families are registered in :data:`~planner.ik.analytic.families.FAMILIES`; each says by
 ``match(chain)`` whether a chain fits (None) or why not. Users call :func:`planner.solve_ik`;
-a family solver, from :meth:`AnalyticIK.from_robot` (detects the family), answers with every
+a family solver, from :func:`closed_form_solver` (detects the family), answers with every
 branch (:class:`AnalyticResult`) and solves batches of targets as arrays::
 
-    solver = AnalyticIK.from_robot(load_robot("al5c"))
+    solver = closed_form_solver(load_robot("al5c"))
     result = solver.solve(Target([0.25, 0.05, 0.10], pitch=-math.pi / 2), q_current=q)
     if result.ok:
         q_next = result.best.q
@@ -19,7 +19,7 @@ branch (:class:`AnalyticResult`) and solves batches of targets as arrays::
 
 from planner.geometry.chain import ChainAtZero, JointScrew, chain_at_zero, poe_fk
 from planner.ik.analytic.base import FAMILY_ANGLE_TOL, AnalyticIK, ChainMismatch
-from planner.ik.analytic.families import FAMILIES
+from planner.ik.analytic.families import FAMILIES, closed_form_solver
 from planner.ik.analytic.planar2 import PLANAR_BRANCHES, Planar2IK
 from planner.ik.analytic.result import (
     STATUS_BEYOND_MAX_REACH,
@@ -41,6 +41,7 @@ __all__ = [
     "AnalyticIK",
     "ChainMismatch",
     "FAMILIES",
+    "closed_form_solver",
     "AnalyticResult",
     "AnalyticSolution",
     "AnalyticBatchResult",

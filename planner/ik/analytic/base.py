@@ -1,8 +1,8 @@
 """The common interface of the closed-form solvers and the family detection.
 
-:meth:`AnalyticIK.from_robot` reads the robot's chain from its Pinocchio model and returns the
-solver of the family it belongs to, trying each family of the registry
-(:data:`planner.ik.analytic.families.FAMILIES`):
+:func:`planner.ik.analytic.families.closed_form_solver` reads the robot's chain from its
+Pinocchio model and returns the solver of the family it belongs to, trying each family of the
+registry (:data:`planner.ik.analytic.families.FAMILIES`):
 
 - :class:`~planner.ik.analytic.planar2.Planar2IK`: two joints about parallel vertical axes (the
   horizontal 2-link of the 000 seed).
@@ -24,7 +24,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from planner.exceptions import InvalidArgumentError, InvalidConfigurationError, UnsupportedChainError
-from planner.geometry.chain import ChainAtZero, chain_at_zero
+from planner.geometry.chain import ChainAtZero
 from planner.geometry.target import Target
 from planner.ik.analytic.geometry import angle_to_line
 from planner.ik.analytic.result import AnalyticBatchResult, AnalyticResult
@@ -84,7 +84,9 @@ def base_yaw_mismatch(chain: ChainAtZero) -> ChainMismatch | None:
 
 
 class AnalyticIK(ABC):
-    """Closed-form inverse kinematics of one robot; build it with :meth:`from_robot`.
+    """Closed-form inverse kinematics of one robot (one subclass per family).
+
+    Build one with :func:`~planner.ik.analytic.families.closed_form_solver`.
 
     Attributes:
         robot: The robot the solver was built from.
@@ -113,37 +115,6 @@ class AnalyticIK(ABC):
 
     def __repr__(self) -> str:
         return f"{type(self).__name__}(robot={self.robot.name!r}, branches={len(self.branches)})"
-
-    @classmethod
-    def from_robot(cls, robot: Robot) -> AnalyticIK:
-        """Detect the robot's closed-form family and build its solver.
-
-        Args:
-            robot: The robot; its chain is read from the Pinocchio model at q = 0.
-
-        Returns:
-            The solver of the first family of :data:`~planner.ik.analytic.families.FAMILIES`
-            that fits the chain.
-
-        Raises:
-            UnsupportedChainError: If the chain is outside every family; ``.joint`` names the
-                first joint that breaks the family that fits most of the chain.
-        """
-        from planner.ik.analytic.families import FAMILIES  # the families subclass this one
-
-        if not isinstance(robot, Robot):
-            raise InvalidArgumentError(f"from_robot needs a planner.Robot, got {type(robot).__name__}")
-        chain = chain_at_zero(robot)
-        if not chain.joints:
-            raise UnsupportedChainError(f"{robot.name} has no joints on its chain to {robot.tip!r}")
-        nearest = None
-        for family in FAMILIES:
-            mismatch = family.mismatch(chain)
-            if mismatch is None:
-                return family(robot, chain)
-            if nearest is None or mismatch.depth >= nearest.depth:
-                nearest = mismatch
-        raise UnsupportedChainError(f"{robot.name}: {nearest.reason}", joint=nearest.joint)
 
     @classmethod
     def match(cls, chain: ChainAtZero) -> str | None:

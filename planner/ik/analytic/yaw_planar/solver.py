@@ -36,7 +36,7 @@ __all__ = ["YawPlanarIK"]
 class YawPlanarIK(AnalyticIK):
     """Closed-form IK of a base yaw + 2 or 3 parallel pitch joints + optional wrist roll.
 
-    Build it with :meth:`AnalyticIK.from_robot`. See :mod:`planner.ik.analytic.yaw_planar` for
+    Build it with :func:`~planner.ik.analytic.closed_form_solver`. See :mod:`planner.ik.analytic.yaw_planar` for
     the geometry, the branches and how each kind of target is solved.
 
     Attributes:
