@@ -37,8 +37,9 @@ from planner.model.catalog import available_robots, load_robot
 from planner.model.description import dh_transform, load_arm_description, urdf_from_dh
 from planner.model.robot import Robot
 from planner.motion.limits import JointLimits
-from planner.motion.plan import plan_trajectory
-from planner.motion.singularity import check_singularities, plan_clear_of_singularities
+from planner.motion.plan import plan_trajectory, plan_trajectory_request
+from planner.motion.request import TrajectoryRequest
+from planner.motion.singularity import SingularityOptions, check_singularities, plan_clear_of_singularities
 from planner.motion.trajectory import JointTrajectory
 
 __all__ = [
@@ -81,6 +82,9 @@ __all__ = [
     "JointLimits",
     "JointTrajectory",
     "plan_trajectory",
+    "TrajectoryRequest",
+    "plan_trajectory_request",
+    "SingularityOptions",
     "check_singularities",
     "plan_clear_of_singularities",
     "ServoCalibration",

@@ -39,6 +39,7 @@ import numpy as np
 from planner.core.files import input_error, parse_number, parse_numbers, parse_units, read_data_file
 from planner.geometry.target import Target
 from planner.motion.singularity import DEFAULT_CONDITION_NUMBER
+from planner.motion.vias import VIA_STRATEGIES
 
 __all__ = ["MotionRequest", "load_motion_request", "parse_motion_request"]
 
@@ -278,8 +279,8 @@ def parse_motion_request(data: Mapping[str, Any], source: str = "<request>") -> 
         raise input_error(source, f"singularity.max_detours must be a non-negative integer, got {max_detours!r}")
 
     strategy = data.get("strategy", "optimized")
-    if strategy not in ("optimized", "heuristic", "stop"):
-        raise input_error(source, f"unknown strategy {strategy!r}; valid: optimized, heuristic, stop")
+    if strategy not in VIA_STRATEGIES:
+        raise input_error(source, f"unknown strategy {strategy!r}; valid: {', '.join(VIA_STRATEGIES)}")
     servos = data.get("servos")
     if servos is not None:
         if not isinstance(servos, Sequence) or isinstance(servos, (str, bytes)):
