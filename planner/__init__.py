@@ -15,6 +15,7 @@ from planner.exceptions import (
     InvalidLimitsError,
     JointLimitError,
     PlannerError,
+    PlanningError,
     UnknownFrameError,
     UnknownRobotError,
     UnsupportedChainError,
@@ -99,6 +100,7 @@ __all__ = [
     "parse_motion_request",
     # errors
     "PlannerError",
+    "PlanningError",
     "URDFError",
     "InvalidLimitsError",
     "UnknownFrameError",

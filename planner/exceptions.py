@@ -122,3 +122,7 @@ class UnsupportedChainError(PlannerError):
     def __init__(self, message: str, *, joint: str | None = None):
         super().__init__(message)
         self.joint = joint
+
+
+class PlanningError(PlannerError):
+    """A valid request that the planner cannot turn into a motion; the message says what to change."""

@@ -50,7 +50,7 @@ from collections.abc import Sequence
 import numpy as np
 
 from planner.core.arrays import read_only
-from planner.exceptions import InvalidArgumentError
+from planner.exceptions import InvalidArgumentError, PlanningError
 from planner.motion.limits import JointLimits
 from planner.motion.request import TrajectoryRequest
 from planner.motion.segments import brake_segment, merge_segment, piece_position_range
@@ -98,7 +98,7 @@ def _repair_range(chain: ViaChain) -> list[tuple[float, np.ndarray, np.ndarray]]
                         chain.acc[idx] = 0.0
                 any_bad = True
                 continue
-            local, pieces = merge_segment(traj, d, start)
+            local, pieces = merge_segment(traj, d, start, chain.q[k + 1], chain.limits)
             segments.append((d, local, pieces))
             if not chain.seg.bounded or not len(local):
                 continue
@@ -230,7 +230,13 @@ def plan_trajectory_request(request: TrajectoryRequest) -> JointTrajectory:
         chain = ViaChain(inner, limits, np.zeros_like(v0), np.zeros_like(a0), stop, given)
         if chain.n >= 3:
             chooser.choose(chain)
-        segments = _repair_range(chain)
+        try:
+            segments = _repair_range(chain)
+        except _StartOvershoot:
+            raise PlanningError(
+                "the first segment leaves a joint's position range even from rest after braking; move the "
+                "first waypoints further inside the range"
+            ) from None
         v, acc, repaired = chain.v.copy(), chain.acc.copy(), chain.repaired.copy()
         v[0], acc[0] = v0, a0
 

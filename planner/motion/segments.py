@@ -14,14 +14,16 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from ruckig import ControlInterface, InputParameter, Result, Ruckig, Synchronization
+from ruckig import ControlInterface, InputParameter, Result, Ruckig, RuckigError, Synchronization
 from ruckig import Trajectory as RuckigTrajectory
 
 from planner.exceptions import InvalidArgumentError
 from planner.motion.limits import JointLimits
+from planner.motion.trajectory import LIMIT_TOLERANCE
 
 __all__ = [
     "RANGE_TOLERANCE",
+    "RUCKIG_PRECISION",
     "SegmentSolver",
     "brake_segment",
     "merge_segment",
@@ -32,6 +34,12 @@ __all__ = [
 #: Relative slack of the position-range checks [rad or m per unit of max(1, |bound|)]: a joint
 #: counts as leaving its range only beyond it, so that rounding at a range end is no overshoot.
 RANGE_TOLERANCE = 1e-10
+#: End-position error [rad or m per unit of max(1, |target|)] beyond which a segment is corrected.
+END_TOLERANCE = 1e-13
+#: How far Ruckig may end a profile from its target state: position [rad or m], velocity
+#: [rad/s or m/s], acceleration [rad/s^2 or m/s^2] (Ruckig's own acceptance thresholds). Where
+#: a segment cannot be corrected within the limits, consecutive segments meet within these.
+RUCKIG_PRECISION = (1e-8, 1e-8, 1e-10)
 
 
 def range_with_tolerance(limits: JointLimits) -> tuple[np.ndarray, np.ndarray]:
@@ -109,12 +117,15 @@ class SegmentSolver:
             trajectory when `keep`.
         """
         inp = self.inp
+        a_start, a_end = aa.tolist(), ab.tolist()
+        if any(x == y and x != 0.0 for x, y in zip(a_start, a_end)) and self._on_one_parabola(k, va, aa, vb, ab):
+            return math.inf, None, None
         inp.current_position = self.rows[k]
         inp.current_velocity = va.tolist()
-        inp.current_acceleration = aa.tolist()
+        inp.current_acceleration = a_start
         inp.target_position = self.rows[k + 1]
         inp.target_velocity = vb.tolist()
-        inp.target_acceleration = ab.tolist()
+        inp.target_acceleration = a_end
         if self.min_durations is not None and self.min_durations[k] > 0:
             inp.minimum_duration = float(self.min_durations[k])
             self._min_set = True
@@ -122,9 +133,14 @@ class SegmentSolver:
             inp.minimum_duration = None
             self._min_set = False
         traj = RuckigTrajectory(self.dof) if keep else self.scratch
-        result = self.otg.calculate(inp, traj)
+        try:
+            result = self.otg.calculate(inp, traj)
+        except RuckigError:  # Ruckig's own failure on an input it accepts: no profile from it
+            return math.inf, None, None
         if result not in (Result.Working, Result.Finished):
             return math.inf, None, None
+        if keep:
+            self._unsynchronise_missed(k, traj, vb, ab)
         bad = None
         if self.bounded:
             flags = [e.min < lo or e.max > hi for e, (lo, hi) in zip(traj.position_extrema, self._bounds)]
@@ -132,18 +148,80 @@ class SegmentSolver:
                 bad = np.array(flags)
         return traj.duration, bad, traj if keep else None
 
+    def _on_one_parabola(self, k: int, va: np.ndarray, aa: np.ndarray, vb: np.ndarray, ab: np.ndarray) -> bool:
+        """Whether a joint goes out and back on one constant-acceleration parabola.
+
+        A joint that starts and ends at the same position with opposite velocities and the same
+        acceleration is exactly a parabola; Ruckig 0.19 fails on it (an error, or a crash of
+        the process) instead of returning that jerk-free profile. The segment is treated as
+        having no profile, which the via strategies and the range repair avoid like any other
+        infeasible via state.
+        """
+        for j in np.flatnonzero((aa == ab) & (aa != 0.0) & (va * vb < 0.0)):
+            t = (vb[j] - va[j]) / aa[j]
+            scale = max(1.0, abs(self.q[k + 1, j]))
+            if t > 0.0 and abs(self.q[k + 1, j] - self.q[k, j]) <= 1e-9 * scale:
+                if abs(t * (va[j] + t * aa[j] / 2.0)) <= 1e-9 * scale:
+                    return True
+        return False
+
+    def _unsynchronise_missed(self, k: int, traj: RuckigTrajectory, vb: np.ndarray, ab: np.ndarray) -> None:
+        """Re-solve a kept segment whose synchronised profile misses a target that is at rest.
+
+        Ruckig's time synchronisation loses precision on very small moves (a joint moving
+        1e-7 rad beside one that sets the duration ends 20 % off). Such a joint, when it is to
+        arrive at rest, is solved unsynchronised: it reaches its target on its own time-optimal
+        profile and rests there until the segment ends (same duration). Misses at other end
+        states are corrected by :func:`merge_segment`.
+        """
+        target = self.rows[k + 1]
+        missed = [
+            abs(prof.p[-1] - goal) > END_TOLERANCE * max(1.0, abs(goal)) and vb[j] == 0.0 and ab[j] == 0.0
+            for j, (prof, goal) in enumerate(zip(traj.profiles[0], target))
+        ]
+        if not any(missed):
+            return
+        duration = traj.duration
+        self.inp.per_dof_synchronization = [Synchronization.No if m else Synchronization.Time for m in missed]
+        try:
+            result = self.otg.calculate(self.inp, traj)
+        finally:
+            self.inp.per_dof_synchronization = None
+        if result not in (Result.Working, Result.Finished) or traj.duration != duration:  # pragma: no cover
+            self.otg.calculate(self.inp, traj)  # keep the synchronised profile; merge_segment corrects it
+
 
 def merge_segment(
-    traj: RuckigTrajectory, duration: float, start: tuple[np.ndarray, np.ndarray, np.ndarray]
+    traj: RuckigTrajectory,
+    duration: float,
+    start: tuple[np.ndarray, np.ndarray, np.ndarray],
+    end: np.ndarray | None = None,
+    limits: JointLimits | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
     """One Ruckig segment as constant-jerk pieces common to all joints.
 
     Every joint has its own seven phases (plus, for a start state beyond the limits, two brake
     phases); the pieces start at the union of their switching times.
 
+    Ruckig's time synchronisation can lose precision on a joint whose move is small next to
+    what its limits allow (1e-7 rad beside a joint that sets the duration: 20 % off; 3 mm at
+    via speeds of mm/s: 4e-10 rad off). With `end`, such a joint's end error is removed by
+    adding the jerk-limited S-curve of that distance over the segment (four equal phases of
+    jerk +J, -J, -J, +J, J = 32 e / T^3), which leaves its start and end velocity and
+    acceleration as they are; with `limits`, the corrected joint is checked against them.
+
+    Args:
+        traj: The Ruckig trajectory of the segment.
+        duration: Its duration [s].
+        start: The start state (q, qd, qdd), each shape (dof,): the segment starts exactly there.
+        end: Target positions, shape (dof,) [rad or m]; None: no end correction.
+        limits: Limits to check a corrected joint against.
+
     Returns:
         Local knot times, shape (K,) [s], and the stacked (p, v, a, j) at each knot, shape
-        (4, K, dof).
+        (4, K, dof). Where the correction would take a joint beyond its limits (a joint at its
+        jerk limit all along), the joint keeps Ruckig's profile and meets the next segment
+        within :data:`RUCKIG_PRECISION`.
     """
     profiles = traj.profiles[0]
     dof = len(profiles)
@@ -174,22 +252,93 @@ def merge_segment(
     knots = np.unique(starts[starts < duration])
     if knots[0] != 0.0:  # pragma: no cover - every profile starts at 0
         knots = np.insert(knots, 0, 0.0)
-    # The phase of each joint in force at each knot (the last one starting at or before it).
-    idx = np.sum(starts[:, None, :] <= knots[None, :, None], axis=2).T - 1  # (K, dof)
-    cols = np.arange(dof)
-    dt = knots[:, None] - starts.T[idx, cols]
-    p0, v0, a0, j0 = pos.T[idx, cols], vel.T[idx, cols], acc.T[idx, cols], jerk.T[idx, cols]
-    out = np.stack(
-        [
-            p0 + dt * (v0 + dt * (a0 / 2.0 + dt * j0 / 6.0)),
-            v0 + dt * (a0 + dt * j0 / 2.0),
-            a0 + dt * j0,
-            j0,
-        ]
-    )
+    error = None
+    if end is not None:
+        p_end = _phase_states(np.array([duration]), starts, (pos, vel, acc, jerk))[0][0]
+        error = np.asarray(end, dtype=float) - p_end
+        off = np.abs(error) > END_TOLERANCE * np.maximum(1.0, np.abs(end))
+        if off.any():
+            knots = np.union1d(knots, duration * np.array([0.25, 0.5, 0.75]))
+        else:
+            error = None
+    out = np.stack(_phase_states(knots, starts, (pos, vel, acc, jerk)))
+    if error is not None:
+        corrected = out.copy()
+        if _add_s_curve(corrected, knots, duration, np.where(off, error, 0.0), limits):
+            out = corrected
     # The segment starts exactly at its waypoint state.
     out[0, 0], out[1, 0], out[2, 0] = start
     return knots, out
+
+
+def _phase_states(
+    times: np.ndarray, starts: np.ndarray, phases: tuple[np.ndarray, ...]
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """(p, v, a, j), each shape (len(times), dof), of per-joint phases at the given times."""
+    pos, vel, acc, jerk = phases
+    # The phase of each joint in force at each time (the last one starting at or before it).
+    idx = np.sum(starts[:, None, :] <= times[None, :, None], axis=2).T - 1  # (K, dof)
+    cols = np.arange(starts.shape[0])
+    dt = times[:, None] - starts.T[idx, cols]
+    p0, v0, a0, j0 = pos.T[idx, cols], vel.T[idx, cols], acc.T[idx, cols], jerk.T[idx, cols]
+    return (
+        p0 + dt * (v0 + dt * (a0 / 2.0 + dt * j0 / 6.0)),
+        v0 + dt * (a0 + dt * j0 / 2.0),
+        a0 + dt * j0,
+        j0,
+    )
+
+
+def _add_s_curve(
+    out: np.ndarray, knots: np.ndarray, duration: float, error: np.ndarray, limits: JointLimits | None
+) -> bool:
+    """Add to the pieces the rest-to-rest S-curve over `error` [rad or m] per joint (see merge_segment).
+
+    Returns:
+        Whether the corrected joints stay within `limits` (True without limits).
+    """
+    quarter = duration / 4.0
+    big_j = 32.0 * error / duration**3
+    # Phase starts (p, v, a) of the S-curve and its jerk per phase.
+    signs = (1.0, -1.0, -1.0, 1.0)
+    state = [np.zeros_like(error), np.zeros_like(error), np.zeros_like(error)]
+    table = []
+    for sign in signs:
+        table.append((state[0].copy(), state[1].copy(), state[2].copy(), sign * big_j))
+        j = sign * big_j
+        p, v, a = state
+        state = [
+            p + quarter * (v + quarter * (a / 2.0 + quarter * j / 6.0)),
+            v + quarter * (a + quarter * j / 2.0),
+            a + quarter * j,
+        ]
+    for k, t in enumerate(knots):
+        phase = min(int(t / quarter + 1e-9), 3)
+        p, v, a, j = table[phase]
+        dt = t - phase * quarter
+        out[0, k] += p + dt * (v + dt * (a / 2.0 + dt * j / 6.0))
+        out[1, k] += v + dt * (a + dt * j / 2.0)
+        out[2, k] += a + dt * j
+        out[3, k] += j
+    if limits is None:
+        return True
+    h = np.append(np.diff(knots), duration - knots[-1])[:, None]
+    v0, a0, j0 = out[1], out[2], out[3]
+    # Velocity extremes inside a piece lie where the acceleration crosses zero.
+    with np.errstate(divide="ignore", invalid="ignore"):
+        tz = np.where(j0 != 0.0, -a0 / j0, -1.0)
+    inside = (tz > 0.0) & (tz < h)
+    v_ext = np.where(inside, v0 + tz * (a0 + tz * j0 / 2.0), 0.0)
+    a_end = a0 + h * j0
+    v_end = v0 + h * (a0 + h * j0 / 2.0)
+    tol = 1.0 + LIMIT_TOLERANCE
+    corrected = error != 0.0
+    speed = np.maximum.reduce([np.abs(v0), np.abs(v_end), np.abs(v_ext)])
+    return not (
+        np.any((np.abs(j0) > limits.jerk * tol) & corrected)
+        or np.any((np.maximum(np.abs(a0), np.abs(a_end)) > limits.acceleration * tol) & corrected)
+        or np.any((speed > limits.velocity * tol) & corrected)
+    )
 
 
 def brake_segment(

@@ -98,6 +98,16 @@ class Planar2IK(AnalyticIK):
                 bad.name,
                 2,
             )
+        p1, p2, tip = joints[0].point, joints[1].point, chain.tip_position
+        r1, r2 = float(np.hypot(*(p2[:2] - p1[:2]))), float(np.hypot(*(tip[:2] - p2[:2])))
+        if min(r1, r2) <= 1e-9 * max(r1 + r2, 1e-3):
+            bad = joints[1] if r1 <= r2 else joints[0]
+            return ChainMismatch(
+                f"joint {bad.name!r} ends a planar link of zero length (links {r1:.3g} m and {r2:.3g} m); the "
+                "planar 2-link solver needs two links of non-zero length",
+                bad.name,
+                2,
+            )
         return None
 
     def __init__(self, robot: Robot, chain: ChainAtZero) -> None:

@@ -76,8 +76,9 @@ def free_pitch_array(arm: ArmGeometry, psi, ue, ze, tu, tz, qc):
     hi = np.minimum(de + lt, rmax)
     fail = np.where((lo > hi + arm.core_len_tol) | (de == 0.0), np.where(de - lt > rmax, BEYOND, INSIDE), VALID)
     safe = np.where(de == 0.0, 1.0, de)
-    a = (lo * lo - lt * lt + safe * safe) / (2.0 * safe)
-    h = np.sqrt(np.maximum(lo * lo - a * a, 0.0))
+    with np.errstate(over="ignore"):  # a wrist centre almost on the shoulder: those rows fail above
+        a = (lo * lo - lt * lt + safe * safe) / (2.0 * safe)
+        h = np.sqrt(np.maximum(lo * lo - a * a, 0.0))
     ux, uz = ex / safe, ez / safe
     best_phi = None
     best_lift = None
