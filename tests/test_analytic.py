@@ -421,7 +421,7 @@ def test_free_roll_takes_q_current(robots, solvers):
 def test_inside_min_reach_near_the_shoulder(robots, solvers):
     solver = solvers["three_joint"]
     # The wrist centre (-1.5, 0.2) is 1.51 m from the shoulder: the links fold that far only with
-    # the elbow beyond its 150 deg (the 000 seed's minimum reach from the elbow's range: 2.07 m).
+    # the elbow beyond its 150 deg (Materick and Shapiro's (1997) minimum reach from the elbow's range: 2.07 m).
     res = solver.solve(Target([0.5, 0.0, 0.2], pitch=0.0))
     assert res.status == STATUS_INSIDE_MIN_REACH
     assert "closer than joint 'elbow''s range" in res.reason
@@ -607,7 +607,7 @@ def test_batch_input_errors(solvers):
     assert empty.q.shape == (0, 4, 5) and empty.status.shape == (0,)
 
 
-# ---------------------------------------------------------------------------- servo units (000 seed)
+# ---------------------------------------------------------------------------- servo units (Materick and Shapiro 1997)
 def test_shelley_solutions_in_servo_steps(robots, solvers):
     robot, solver = robots["shelley"], solvers["shelley"]
     travel = math.radians(92.5)

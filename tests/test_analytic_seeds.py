@@ -49,7 +49,7 @@ def shelley():
 
 # ---------------------------------------------------------------------------- 004: Sumadsad's DH arm
 def seed004_fk_cm(q):
-    """The 004 seed's closed-form FK [cm]: x = C1 (6 C2 + 11 C23), ..., S23 = sin(theta2 - theta3)."""
+    """Sumadsad's (2020) closed-form FK [cm]: x = C1 (6 C2 + 11 C23), ..., S23 = sin(theta2 - theta3)."""
     t1, t2, t3 = q
     reach = 6 * math.cos(t2) + 11 * math.cos(t2 - t3)
     return np.array([math.cos(t1) * reach, math.sin(t1) * reach, 6 * math.sin(t2) + 11 * math.sin(t2 - t3) + 3])
@@ -103,7 +103,7 @@ L1, L2, L3, H0 = 0.14605, 0.187325, 0.100, 0.06731
 
 
 def corrected_seed001(d_a, h_a):
-    """The 001 seed's shoulder/elbow by correct geometry: L = sqrt(DA^2 + HA^2), phi1 = atan2(HA, DA)."""
+    """Clothier and Shang's (2010) shoulder/elbow by correct geometry: L = sqrt(DA^2 + HA^2), phi1 = atan2(HA, DA)."""
     length = math.hypot(d_a, h_a)
     phi1 = math.atan2(h_a, d_a)
     shoulder = phi1 + math.acos((L1**2 + length**2 - L2**2) / (2 * L1 * length))  # elbow up
@@ -112,7 +112,7 @@ def corrected_seed001(d_a, h_a):
 
 
 def garbled_seed001(d_a, h_a):
-    """Equations (2)-(3) as printed in the 001 seed (the typos kept), for contrast only."""
+    """Equations (2)-(3) as printed in Clothier and Shang (2010) (the typos kept), for contrast only."""
     length = d_a / h_a
     phi1 = math.atan(h_a / d_a)
     with np.errstate(invalid="ignore"):
@@ -154,7 +154,7 @@ D2, D3, D4 = 4.0, 4.0, 2.0
 
 
 def seed002(px, py, pz, alpha, sign):
-    """The 002 seed's closed form (section 4), elbow sign `sign` = +1 or -1."""
+    """Vaishnav's closed form (section 4), elbow sign `sign` = +1 or -1."""
     t1 = math.atan2(py, px)
     p1 = px * math.cos(t1) + py * math.sin(t1) - D4 * math.cos(alpha)
     p2 = pz - D4 * math.sin(alpha)
@@ -221,7 +221,7 @@ def shelley_variant(claw_offset: float) -> Robot:
 
 
 def seed000_minreach(r1, r2, servo2_max):
-    """The 000 seed's MINREACH (EQ 3-8)."""
+    """Materick and Shapiro's (1997) MINREACH (EQ 3-8)."""
     theta = math.pi - servo2_max
     return math.sqrt((r2 * math.sin(theta)) ** 2 + (r1 - r2 * math.cos(theta)) ** 2)
 
@@ -291,7 +291,7 @@ def test_000_over_rotation_takes_the_other_intersection(shelley):
 
 
 def seed_program_arm() -> Robot:
-    """The arm of the 000 seed's program: r1 = 10, r2 = 13, servos +-90 deg, zero along +y."""
+    """The arm of Materick and Shapiro's (1997) program: r1 = 10, r2 = 13, servos +-90 deg, zero along +y."""
     return Robot(
         '<robot name="tttarms"><link name="base"/><link name="l1"/><link name="l2"/><link name="ee"/>'
         '<joint name="servo1" type="revolute"><parent link="base"/><child link="l1"/><origin xyz="0 0 0"/>'

@@ -1,4 +1,4 @@
-"""Plan files, `plan_motion` and the `planner plan` command, with the 004 seed's pick and place."""
+"""Plan files, `plan_motion` and the `planner plan` command, with Sumadsad's (2020) pick and place."""
 
 from __future__ import annotations
 

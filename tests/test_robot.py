@@ -17,7 +17,7 @@ RNG_SEED = 20261122
 
 # --------------------------------------------------------------------------- FK vs the seeds
 def dh3_seed_fk(q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """The 004 seed's closed-form forward model (its 'Full Model'), in cm."""
+    """Sumadsad's (2020) closed-form forward model (its 'Full Model'), in cm."""
     t1, t2, t3 = q
     c1, s1 = math.cos(t1), math.sin(t1)
     c23, s23 = math.cos(t2 - t3), math.sin(t2 - t3)

@@ -1,4 +1,4 @@
-"""The 001 seed's object finding: a range-bearing reading becomes a base-frame target."""
+"""Clothier and Shang's (2010) object finding: a range-bearing reading becomes a base-frame target."""
 
 from __future__ import annotations
 

@@ -1,4 +1,4 @@
-"""Servo export: step units (000 seed), pulse-width calibration, SSC-32 group moves (001 seed)."""
+"""Servo export: step units (Materick and Shapiro 1997), pulse widths, SSC-32 moves (Clothier and Shang 2010)."""
 
 from __future__ import annotations
 

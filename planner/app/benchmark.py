@@ -43,7 +43,7 @@ ORIENTATION_TOL = 1e-3
 #: Target kind of each bundled arm (what its joints can reach); example-robot-data arms: pose.
 BUNDLED_KINDS = {"shelley": "position", "dh3": "position", "three_joint": "pitch", "al5c": "pitch"}
 #: Target kinds benchmarked per robot: its own kind, and for the 5-dof so101 (a servo arm of
-#: the seeds' family) the position + approach pitch targets a user of such an arm would give.
+#: the source papers' family) the position + approach pitch targets a user of such an arm would give.
 KINDS = {**{name: (kind,) for name, kind in BUNDLED_KINDS.items()}, "so101": ("pose", "pitch")}
 
 
@@ -171,7 +171,7 @@ def bench_robot(
             t = time.perf_counter()
             result = analytic.solve(target, q_seed)
             elapsed = time.perf_counter() - t
-            analytic_results.append(closed_form_answer(robot, target, result, q_seed, IKOptions(), t))
+            analytic_results.append((result, t))
             best = result.best
             ok, pe, oe = verify(robot, target, None if best is None else np.asarray(best.q))
             rows.append({"time": elapsed, "ok": ok, "pe": pe, "oe": oe})
@@ -192,7 +192,9 @@ def bench_robot(
             "attempt_kind": result.attempt_kind,
         }
         if analytic is not None:
-            check = compare(robot, target, analytic_results[i], result)
+            family, started = analytic_results[i]
+            closed = closed_form_answer(robot, target, family, q_seed, IKOptions(), started)
+            check = compare(robot, target, closed, result)
             row.update(
                 agree=check.agree,
                 verdict=check.verdict,

@@ -132,9 +132,9 @@ def _run_urdf_from_dh(args: argparse.Namespace) -> int:
 def _add_demo(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser(
         "demo",
-        help="the main job: the seeds' pick-and-place tasks planned on the bundled arms",
-        description="Plan the 004 seed's pick-and-place on dh3 (closed-form IK checked by the NLP, one smooth "
-        "servo-limited trajectory, stretched states flagged singular) and the 001 seed's range-bearing "
+        help="the main job: the source papers' pick-and-place tasks planned on the bundled arms",
+        description="Plan Sumadsad's (2020) pick-and-place on dh3 (closed-form IK checked by the NLP, one smooth "
+        "servo-limited trajectory, stretched states flagged singular) and Clothier and Shang's (2010) range-bearing "
         "pick-and-place on al5c (approach from above, straight-line lowering, SSC-32 commands); print a summary "
         "table and write CSV, servo commands and PNG plots.",
     )

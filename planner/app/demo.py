@@ -1,9 +1,9 @@
-"""The main job: the seeds' own tasks planned end to end on the bundled arms.
+"""The main job: the source papers' own tasks planned end to end on the bundled arms.
 
-1. The 004 seed's pick-and-place state table on ``dh3``: closed-form IK for every state,
+1. Sumadsad's (2020) pick-and-place state table on ``dh3``: closed-form IK for every state,
    checked against the CasADi NLP, one smooth servo-limited trajectory through all states,
    the fully stretched states flagged singular.
-2. The 001 seed's scenario on ``al5c``: a range-bearing sensor at a known mount pose sees an
+2. Clothier and Shang's (2010) scenario on ``al5c``: a range-bearing sensor at a known mount pose sees an
    object; the arm approaches it from above (approach pitch -90 deg), lowers onto it in a
    straight line, grasps, lifts, carries it to its left and puts it down; SSC-32 group-move
    commands are written out.
@@ -31,7 +31,7 @@ from planner.model.robot import Robot
 
 __all__ = ["DH3_STATES_CM", "DemoMove", "DemoReport", "al5c_request", "dh3_request", "run_demo"]
 
-#: The 004 seed's state table: tip positions [cm] and what the claw does there.
+#: Sumadsad's (2020) state table: tip positions [cm] and what the claw does there.
 DH3_STATES_CM: tuple[tuple[tuple[float, float, float], str], ...] = (
     ((17, 0, 3), "state 1: start, claw open"),
     ((14, 0, -4), "state 2: reach the object"),
@@ -45,7 +45,7 @@ DH3_STATES_CM: tuple[tuple[tuple[float, float, float], str], ...] = (
     ((17, 0, 3), "back to state 1"),
 )
 
-#: The 001 seed's set-up (ours; the paper gives no numbers): a range sensor 5 cm ahead of the
+#: Clothier and Shang's (2010) set-up (ours; the paper gives no numbers): a range sensor 5 cm ahead of the
 #: arm's base and 12 cm to its right, at table height, looking along the base's x axis.
 AL5C_SENSOR_POSE = (0.05, -0.12, 0.0, 0.0)
 #: What it reads: the object 0.17 m away at 35 deg to its left.
@@ -146,9 +146,9 @@ def _scenario(
 
 
 def dh3_request() -> dict[str, Any]:
-    """The 004 seed's state table as a plan request for ``dh3`` (cm; a dwell where the claw acts)."""
+    """Sumadsad's (2020) state table as a plan request for ``dh3`` (cm; a dwell where the claw acts)."""
     return {
-        "name": "dh3 pick and place (004 seed)",
+        "name": "dh3 pick and place (Sumadsad 2020)",
         "units": {"length": "cm", "angle": "deg"},
         "targets": [
             {"position": list(p), "label": label, **({"dwell": 0.5} if "the claw" in label else {})}
@@ -158,7 +158,7 @@ def dh3_request() -> dict[str, Any]:
 
 
 def al5c_request() -> tuple[dict[str, Any], np.ndarray]:
-    """The 001 seed's scenario as a plan request for ``al5c``, and where the sensor saw the object [m]."""
+    """Clothier and Shang's (2010) scenario as a plan request for ``al5c``, and where the sensor saw the object [m]."""
     seen = range_bearing_to_base(*AL5C_READING, AL5C_SENSOR_POSE)
     grasp = seen + (0.0, 0.0, GRASP_HEIGHT)
     place = np.asarray(AL5C_PLACE) + (0.0, 0.0, GRASP_HEIGHT)
@@ -172,7 +172,7 @@ def al5c_request() -> tuple[dict[str, Any], np.ndarray]:
         (place + up, True, 0.0, "retreat"),
     ]
     request = {
-        "name": "al5c pick and place (001 seed)",
+        "name": "al5c pick and place (Clothier and Shang 2010)",
         "targets": [
             {"position": p.tolist(), "pitch": -math.pi / 2, "line": line, "dwell": dwell, "label": label}
             for p, line, dwell, label in steps
@@ -226,13 +226,13 @@ def run_demo(
     dh3_plan, dh3_moves, dh3_files = _scenario("dh3 pick and place", "dh3", dh3_request(), folder, plots)
     labels = [label for _, label in DH3_STATES_CM]
     say(
-        f"dh3 (004 seed): {len(dh3_plan.waypoints)} states in {dh3_plan.trajectory.duration:.2f} s; "
+        f"dh3 (Sumadsad 2020): {len(dh3_plan.waypoints)} states in {dh3_plan.trajectory.duration:.2f} s; "
         f"fully stretched, flagged singular: {', '.join(labels[k] for k in dh3_plan.singular_waypoints)}"
     )
     request, seen = al5c_request()
     al5c_plan, al5c_moves, al5c_files = _scenario("al5c range-bearing pick and place", "al5c", request, folder, plots)
     say(
-        f"al5c (001 seed): sensor saw the object at ({seen[0]:.3f}, {seen[1]:.3f}, {seen[2]:.3f}) m; "
+        f"al5c (Clothier and Shang 2010): sensor saw the object at ({seen[0]:.3f}, {seen[1]:.3f}, {seen[2]:.3f}) m; "
         f"{len(al5c_plan.waypoints)} targets, approach from above, in {al5c_plan.trajectory.duration:.2f} s"
     )
     moves = tuple(dh3_moves + al5c_moves)

@@ -1,7 +1,7 @@
 """Servo calibration: joint angles [rad] to controller units and back, one joint at a time.
 
-Two kinds of controller: the 000 seed's step counts (:func:`angle_to_steps`), and hobby
-servos driven by pulse widths, each with a :class:`ServoCalibration` (the 001 seed's SSC-32
+Two kinds of controller: Materick and Shapiro's (1997) step counts (:func:`angle_to_steps`), and hobby
+servos driven by pulse widths, each with a :class:`ServoCalibration` (Clothier and Shang's (2010) SSC-32
 convention of 1000 us per 90 deg by default). Files for a controller are written by the
 formats in :mod:`planner.export.formats`.
 """
@@ -30,7 +30,7 @@ __all__ = [
     "steps_to_angle",
 ]
 
-#: The SSC-32 convention of the 001 seed: about 1000 us of pulse per 90 deg of travel.
+#: The SSC-32 convention of Clothier and Shang (2010): about 1000 us of pulse per 90 deg of travel.
 SSC32_US_PER_RAD = 1000.0 / (math.pi / 2.0)
 
 
@@ -42,7 +42,7 @@ def _check_span(max_rotation: float, max_steps: int) -> None:
 
 
 def angle_to_steps(angle: float | np.ndarray, max_rotation: float, max_steps: int) -> np.ndarray | int:
-    """Joint angle to controller steps by the symmetric linear map of the 000 seed.
+    """Joint angle to controller steps by the symmetric linear map of Materick and Shapiro (1997).
 
     The servo turns +-`max_rotation` about a centred zero, and the controller counts
     +-`max_steps` over the same travel, so ``steps = round(angle / max_rotation * max_steps)``.

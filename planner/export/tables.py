@@ -1,4 +1,4 @@
-"""Controller units sampled along a trajectory: pulse widths per servo, or the 000 seed's steps."""
+"""Controller units sampled along a trajectory: pulse widths per servo, or Materick and Shapiro's (1997) steps."""
 
 from __future__ import annotations
 
@@ -40,7 +40,7 @@ def pulse_table(
 def steps_table(
     trajectory: JointTrajectory, max_rotation: float, max_steps: int, rate: float = 50.0
 ) -> tuple[np.ndarray, np.ndarray]:
-    """The 000 seed's controller steps (see :func:`angle_to_steps`) along a trajectory.
+    """Materick and Shapiro's (1997) controller steps (see :func:`angle_to_steps`) along a trajectory.
 
     Returns:
         ``(t, steps)``: times shape (n,) [s] and steps shape (n, dof) int.

@@ -44,7 +44,7 @@ def range_bearing_to_base(
 
     The sensor measures in its own horizontal plane: bearing 0 along its x axis, positive
     toward its y axis, so it sees the point ``(d cos(bearing), d sin(bearing), 0)`` in its frame
-    (the 001 seed's equation 5); the sensor's pose in the base frame then moves that point
+    (Clothier and Shang's (2010) equation 5); the sensor's pose in the base frame then moves that point
     into the base frame (the seed's equation 6, with the mount offsets as a pose).
 
     Args:

@@ -10,7 +10,7 @@ Orientation conventions used across `planner`:
   ``a_z = sin(pitch)``, with its horizontal part pointing away from the base z axis, i.e. a
   non-negative dot product with the radial direction from the base z axis to the target (for
   ``|pitch| > pi/2``: towards it; ``cos(pitch)`` gives the side). So 0 is horizontal and
-  outward, +pi/2 straight up, -pi/2 straight down (the 001 seed's parallel and straight-down
+  outward, +pi/2 straight up, -pi/2 straight down (Clothier and Shang's (2010) parallel and straight-down
   approaches are 0 and -pi/2). Which way the horizontal part points within that half plane is
   left to the arm: for an arm whose pitch plane contains the base z axis it is the radial
   direction itself (:func:`approach_direction`); an arm whose plane passes beside the axis

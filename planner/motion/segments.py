@@ -105,6 +105,10 @@ class SegmentSolver:
         self.inp.max_acceleration = limits.acceleration.tolist()
         self.inp.max_jerk = limits.jerk.tolist()
         self.scratch = RuckigTrajectory(self.dof)
+        # Per segment, the joints that do not move: only they can go out and back on one
+        # parabola, which Ruckig 0.19 cannot take (see _on_one_parabola).
+        still = np.abs(np.diff(q, axis=0)) <= 1e-9 * np.maximum(1.0, np.abs(q[1:]))
+        self._still = [np.flatnonzero(row) for row in still]
 
     def solve(
         self, k: int, va: np.ndarray, aa: np.ndarray, vb: np.ndarray, ab: np.ndarray, keep: bool = False
@@ -117,15 +121,14 @@ class SegmentSolver:
             trajectory when `keep`.
         """
         inp = self.inp
-        a_start, a_end = aa.tolist(), ab.tolist()
-        if any(x == y and x != 0.0 for x, y in zip(a_start, a_end)) and self._on_one_parabola(k, va, aa, vb, ab):
+        if len(self._still[k]) and self._on_one_parabola(self._still[k], va, aa, vb, ab):
             return math.inf, None, None
         inp.current_position = self.rows[k]
         inp.current_velocity = va.tolist()
-        inp.current_acceleration = a_start
+        inp.current_acceleration = aa.tolist()
         inp.target_position = self.rows[k + 1]
         inp.target_velocity = vb.tolist()
-        inp.target_acceleration = a_end
+        inp.target_acceleration = ab.tolist()
         if self.min_durations is not None and self.min_durations[k] > 0:
             inp.minimum_duration = float(self.min_durations[k])
             self._min_set = True
@@ -148,20 +151,28 @@ class SegmentSolver:
                 bad = np.array(flags)
         return traj.duration, bad, traj if keep else None
 
-    def _on_one_parabola(self, k: int, va: np.ndarray, aa: np.ndarray, vb: np.ndarray, ab: np.ndarray) -> bool:
-        """Whether a joint goes out and back on one constant-acceleration parabola.
+    @staticmethod
+    def _on_one_parabola(still: np.ndarray, va: np.ndarray, aa: np.ndarray, vb: np.ndarray, ab: np.ndarray) -> bool:
+        """Whether a joint that ends where it starts goes out and back on one parabola.
 
-        A joint that starts and ends at the same position with opposite velocities and the same
-        acceleration is exactly a parabola; Ruckig 0.19 fails on it (an error, or a crash of
-        the process) instead of returning that jerk-free profile. The segment is treated as
-        having no profile, which the via strategies and the range repair avoid like any other
-        infeasible via state.
+        Same acceleration at both ends, opposite velocities, and the constant-acceleration
+        motion between them returning to the start: Ruckig 0.19 fails on such a joint (an
+        error, or a crash of the process) instead of returning that jerk-free profile. The
+        segment is treated as having no profile, which the via strategies and the range repair
+        avoid like any other infeasible via state.
+
+        Args:
+            still: Indices of the joints whose start and end positions coincide.
+            va: Start velocities, shape (dof,).
+            aa: Start accelerations, shape (dof,).
+            vb: End velocities, shape (dof,).
+            ab: End accelerations, shape (dof,).
         """
-        for j in np.flatnonzero((aa == ab) & (aa != 0.0) & (va * vb < 0.0)):
-            t = (vb[j] - va[j]) / aa[j]
-            scale = max(1.0, abs(self.q[k + 1, j]))
-            if t > 0.0 and abs(self.q[k + 1, j] - self.q[k, j]) <= 1e-9 * scale:
-                if abs(t * (va[j] + t * aa[j] / 2.0)) <= 1e-9 * scale:
+        for j in still:
+            a = aa[j]
+            if a != 0.0 and a == ab[j] and va[j] * vb[j] < 0.0:
+                t = (vb[j] - va[j]) / a
+                if t > 0.0 and abs(t * (va[j] + t * a / 2.0)) <= 1e-9 * max(1.0, abs(va[j]) * t):
                     return True
         return False
 
@@ -254,8 +265,7 @@ def merge_segment(
         knots = np.insert(knots, 0, 0.0)
     error = None
     if end is not None:
-        p_end = _phase_states(np.array([duration]), starts, (pos, vel, acc, jerk))[0][0]
-        error = np.asarray(end, dtype=float) - p_end
+        error = np.asarray(end, dtype=float) - pos[:, -1]  # each profile's end position
         off = np.abs(error) > END_TOLERANCE * np.maximum(1.0, np.abs(end))
         if off.any():
             knots = np.union1d(knots, duration * np.array([0.25, 0.5, 0.75]))

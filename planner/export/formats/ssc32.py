@@ -1,4 +1,4 @@
-"""Lynxmotion SSC-32 group-move commands (the 001 seed's controller)."""
+"""Lynxmotion SSC-32 group-move commands (Clothier and Shang's (2010) controller)."""
 
 from __future__ import annotations
 

@@ -2,9 +2,9 @@
 
 One module per family, all built from the robot's Pinocchio model:
 
-- :mod:`~planner.ik.analytic.planar2`: two joints about parallel vertical axes (000 seed).
+- :mod:`~planner.ik.analytic.planar2`: two joints about parallel vertical axes (Materick and Shapiro 1997).
 - :mod:`~planner.ik.analytic.yaw_planar`: base yaw + 2 or 3 parallel pitch joints + optional
-  wrist roll (001, 002, 004 seeds, SO-101).
+  wrist roll (Clothier and Shang 2010, Vaishnav, Sumadsad 2020, SO-101).
 
 The families are registered in :data:`~planner.ik.analytic.families.FAMILIES`; each says by
 ``match(chain)`` whether a chain fits (None) or why not. Users call :func:`planner.solve_ik`;

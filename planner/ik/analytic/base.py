@@ -5,9 +5,9 @@ Pinocchio model and returns the solver of the family it belongs to, trying each 
 registry (:data:`planner.ik.analytic.families.FAMILIES`):
 
 - :class:`~planner.ik.analytic.planar2.Planar2IK`: two joints about parallel vertical axes (the
-  horizontal 2-link of the 000 seed).
+  horizontal 2-link of Materick and Shapiro (1997)).
 - :class:`~planner.ik.analytic.yaw_planar.YawPlanarIK`: a base yaw, then 2 or 3 parallel pitch
-  joints, then optionally a wrist roll (the 001, 002 and 004 seeds, SO-101).
+  joints, then optionally a wrist roll (Clothier and Shang (2010), Vaishnav, and Sumadsad (2020), SO-101).
 
 A family says whether a chain fits by :meth:`AnalyticIK.match` (None, or why not). A chain
 outside every family raises :class:`~planner.exceptions.UnsupportedChainError` naming the

@@ -1,6 +1,6 @@
-"""Two revolute joints about parallel vertical axes (the 000 seed's horizontal 2-link), in closed form.
+"""Two revolute joints about parallel vertical axes (Materick and Shapiro's (1997) horizontal 2-link), in closed form.
 
-The 000 seed finds the elbow on the intersection of two circles, one of radius r1 about the
+Materick and Shapiro (1997) finds the elbow on the intersection of two circles, one of radius r1 about the
 base and one of radius r2 about the target, and takes either intersection. Here the two
 intersections are the two branches, by the law of cosines (which needs no special case for a
 target on an axis, the seed's k = 0, nor divides by a coordinate):
@@ -8,7 +8,7 @@ target on an axis, the seed's k = 0, nor divides by a coordinate):
 - ``"elbow-left"``: the elbow left of the line from the base to the target (seen from above),
 - ``"elbow-right"``: right of it.
 
-The tip need not lie on the second link's line: the 000 seed's claw sits to one side of r2,
+The tip need not lie on the second link's line: Materick and Shapiro's (1997) claw sits to one side of r2,
 which it corrects by the constant angle asin(offset / r2). Here the tip's offset is read from
 the model, so the effective second link is the vector from the elbow axis to the tip (length
 ``hypot(r2, offset)``) and its angle is compensated exactly.

@@ -11,7 +11,7 @@ why. The statuses, best outcome first:
                             or approach pitch: the arm has too few joints for it.
 ``"beyond_max_reach"``      Too far: no branch reaches (or, with the elbow's range, the
                             wrist centre is farther than the elbow's range allows).
-``"inside_min_reach"``      Too close to the base or shoulder (the 000 seed's minimum reach,
+``"inside_min_reach"``      Too close to the base or shoulder (Materick and Shapiro's (1997) minimum reach,
                             from the elbow's range), or inside the cylinder that a sideways
                             offset of the arm's plane leaves around the base axis.
 ``"out_of_plane"``          A planar arm asked for a point off its plane.

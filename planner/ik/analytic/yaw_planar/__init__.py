@@ -1,9 +1,9 @@
 """Base yaw + 2 or 3 parallel pitch joints + optional wrist roll, in closed form.
 
-The family of the 001 (AL5C), 002 (three-joint coursework) and 004 (DH arm) seeds and of the
-SO-101: the first joint turns about the vertical, the next 2 or 3 about parallel horizontal
-axes (the arm's plane is perpendicular to them), and an optional last joint rolls about an
-axis in that plane.
+The family of the arms of Clothier and Shang (2010, AL5C), Vaishnav (three-joint coursework),
+Sumadsad (2020, DH arm) and of the SO-101: the first joint turns about the vertical, the next
+2 or 3 about parallel horizontal axes (the arm's plane is perpendicular to them), and an
+optional last joint rolls about an axis in that plane.
 
 Geometry: :mod:`~planner.ik.analytic.yaw_planar.arm` (read from the Pinocchio model at q = 0).
 

@@ -5,7 +5,7 @@ All read from the Pinocchio model (:mod:`planner.geometry.chain`):
 - the yaw axis: a vertical line through ``b`` (it need not pass through the base origin);
 - the arm plane: unit pitch axis ``n`` (horizontal), in-plane horizontal ``e_u = z x n``;
   a pitch joint turning by ``q_i`` turns the plane's (u, z) coordinates by ``s_i q_i``
-  (``s_i = +-1``: the 004 seed's alpha = 180 deg link flips the second pitch axis, s = -1);
+  (``s_i = +-1``: Sumadsad's (2020) alpha = 180 deg link flips the second pitch axis, s = -1);
 - in-plane link vectors between the pitch joints (any in-plane offsets), and the end
   vector from the last pitch joint to the end point, which is the tip, or the wrist roll
   centre when a full orientation fixes the roll;
@@ -233,7 +233,7 @@ def arm_geometry(robot: Robot, chain: ChainAtZero, layout: ChainLayout) -> ArmGe
     lateral_offset = float(tp[2]) if roll is None else float(tip0[2] + tipc[2])
     scale = max(1e-9, sum(link_lengths) + math.hypot(su, sz))
     len_tol = LENGTH_TOL * scale
-    # Reach of the shoulder-elbow pair within the elbow's range (the 000 seed's min reach).
+    # Reach of the shoulder-elbow pair within the elbow's range (Materick and Shapiro's (1997) min reach).
     elbow = pitch_idx[1]
     rmin_lim = rmax_lim = None
     if n_pitch == 3:
