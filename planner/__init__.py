@@ -37,10 +37,11 @@ from planner.ik.status import IKStatus
 from planner.model.catalog import available_robots, load_robot
 from planner.model.description import dh_transform, load_arm_description, urdf_from_dh
 from planner.model.robot import Robot
+from planner.motion.detours import SingularityOptions, plan_clear_of_singularities
 from planner.motion.limits import JointLimits
 from planner.motion.plan import plan_trajectory, plan_trajectory_request
 from planner.motion.request import TrajectoryRequest
-from planner.motion.singularity import SingularityOptions, check_singularities, plan_clear_of_singularities
+from planner.motion.singularity import check_singularities
 from planner.motion.trajectory import JointTrajectory
 
 __all__ = [

@@ -6,10 +6,11 @@ import numpy as np
 import pytest
 
 from planner import InvalidArgumentError
+from planner.motion.detours import SingularityOptions, plan_clear_of_singularities
 from planner.motion.limits import JointLimits
 from planner.motion.plan import plan_trajectory
 from planner.motion.request import TrajectoryRequest
-from planner.motion.singularity import SingularityOptions, check_singularities, plan_clear_of_singularities
+from planner.motion.singularity import check_singularities
 from planner.motion.trajectory import LIMIT_TOLERANCE
 
 from conftest import get_robot

@@ -21,9 +21,10 @@ from planner.core.arrays import read_only
 from planner.core.files import input_error, parse_number
 from planner.export.calibration import ServoCalibration, default_calibrations
 from planner.model.robot import Robot
+from planner.motion.detours import Detour, SingularityOptions, plan_clear_of_singularities
 from planner.motion.limits import JointLimits
 from planner.motion.request import TrajectoryRequest
-from planner.motion.singularity import Detour, SingularityOptions, SingularityReport, plan_clear_of_singularities
+from planner.motion.singularity import SingularityReport
 from planner.motion.trajectory import JointTrajectory
 
 __all__ = ["MotionPlan", "plan_motion"]

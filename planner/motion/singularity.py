@@ -1,4 +1,4 @@
-"""Singularity checks along a joint trajectory, and detours around avoidable ones.
+"""Singularity checks along a joint trajectory (detours around them: :mod:`planner.motion.detours`).
 
 Closeness to a singularity is measured by the inverse condition number of the task Jacobian
 (smallest over largest singular value, see :meth:`Robot.inverse_condition_number`): 1 is
@@ -7,46 +7,37 @@ default, 1/30, is a Jacobian condition number of 30. The Yoshikawa manipulabilit
 the singular values) is reported beside it.
 
 :func:`check_singularities` measures a trajectory at its waypoints and along samples.
-:func:`plan_clear_of_singularities` plans through joint waypoints and, where a segment dips
-below the threshold although both of its ends are clear, inserts a detour waypoint (the
-configuration of the dip pushed up the gradient of the inverse condition number until it is
-clear) and plans again. A waypoint that is itself singular is kept, as the user asked for it,
-and flagged. For a square task Jacobian a sign change of its determinant between the ends of
-a segment means every path between them crosses a singularity; such segments are reported as
-unresolved instead of detoured (another IK branch is the remedy there).
 """
 
 from __future__ import annotations
 
-import math
-from collections.abc import Sequence
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 
 import numpy as np
 
 from planner.core.arrays import read_only
 from planner.exceptions import InvalidArgumentError
 from planner.model.robot import Robot, Task
-from planner.motion.limits import JointLimits
-from planner.motion.plan import plan_trajectory_request
-from planner.motion.request import TrajectoryRequest
 from planner.motion.trajectory import JointTrajectory
 
 __all__ = [
     "DEFAULT_CONDITION_NUMBER",
-    "Detour",
-    "SingularityAwarePlan",
-    "SingularityOptions",
     "SingularityReport",
     "check_singularities",
-    "plan_clear_of_singularities",
+    "inverse_condition_threshold",
+    "measure_singularities",
 ]
 
 #: Default largest acceptable Jacobian condition number (inverse condition number 1/30).
 DEFAULT_CONDITION_NUMBER = 30.0
 
 
-def _threshold(threshold: float | None) -> float:
+def inverse_condition_threshold(threshold: float | None) -> float:
+    """A checked inverse-condition-number threshold in [0, 1) (None: 1 / DEFAULT_CONDITION_NUMBER).
+
+    Raises:
+        InvalidArgumentError: Outside [0, 1) (the message relates it to a condition number).
+    """
     if threshold is None:
         return 1.0 / DEFAULT_CONDITION_NUMBER
     if isinstance(threshold, bool) or not isinstance(threshold, (int, float)) or not 0.0 <= threshold < 1.0:
@@ -112,9 +103,22 @@ def _intervals(t: np.ndarray, low: np.ndarray) -> tuple[tuple[float, float], ...
     return tuple(out)
 
 
-def _report(
+def measure_singularities(
     robot: Robot, trajectory: JointTrajectory, threshold: float, task: Task, rate: float
 ) -> tuple[SingularityReport, np.ndarray, np.ndarray, np.ndarray]:
+    """The report of a trajectory and what it was computed from.
+
+    Args:
+        robot: The robot.
+        trajectory: The trajectory.
+        threshold: Checked inverse-condition-number threshold.
+        task: Resolved task (``"position"`` or ``"pose"``).
+        rate: Sample rate [Hz].
+
+    Returns:
+        The report, the sample times (n,) [s], the sampled configurations (n, dof) and their
+        inverse condition numbers (n,).
+    """
     t = _sample_times(trajectory, rate)
     q = trajectory.sample(t).q
     inv, man = robot.conditioning(q, task)
@@ -164,244 +168,6 @@ def check_singularities(
     """
     if trajectory.dof != robot.dof:
         raise InvalidArgumentError(f"the trajectory has {trajectory.dof} joints; {robot.name} has {robot.dof}")
-    return _report(robot, trajectory, _threshold(threshold), robot.resolve_task(task), rate)[0]
-
-
-@dataclass(frozen=True)
-class SingularityOptions:
-    """How :func:`plan_clear_of_singularities` checks and detours.
-
-    Attributes:
-        threshold: Inverse condition number below which a configuration is too close; None
-            (normalised to 1/30) is ``1 / DEFAULT_CONDITION_NUMBER``.
-        task: Task Jacobian (``"position"`` or ``"pose"``); None as the robot chooses.
-        rate: Sampling rate of the checks [Hz].
-        max_detours: Most waypoints to insert.
-        margin: A detour waypoint is pushed to ``margin * threshold``.
-
-    Raises:
-        InvalidArgumentError: On a threshold outside [0, 1), a negative or non-integer
-            ``max_detours`` or a margin below 1.
-    """
-
-    threshold: float | None = None
-    task: Task | None = None
-    rate: float = 1000.0
-    max_detours: int = 8
-    margin: float = 3.0
-
-    def __post_init__(self) -> None:
-        object.__setattr__(self, "threshold", _threshold(self.threshold))
-        max_detours = self.max_detours
-        if isinstance(max_detours, bool) or not isinstance(max_detours, int) or max_detours < 0:
-            raise InvalidArgumentError(f"max_detours must be a non-negative integer, got {max_detours!r}")
-        if not (isinstance(self.margin, (int, float)) and math.isfinite(self.margin) and self.margin >= 1.0):
-            raise InvalidArgumentError(f"margin must be >= 1, got {self.margin!r}")
-
-
-@dataclass(frozen=True)
-class Detour:
-    """A waypoint inserted to keep a segment clear of a singularity.
-
-    Attributes:
-        segment: Index k of the user segment (from waypoint k to k+1) it belongs to.
-        q: The inserted configuration, shape (dof,) [rad or m].
-        inverse_condition: Its inverse condition number.
-        dip: The minimum inverse condition number of the segment piece it replaced.
-    """
-
-    segment: int
-    q: np.ndarray
-    inverse_condition: float
-    dip: float
-
-
-@dataclass(frozen=True)
-class SingularityAwarePlan:
-    """A trajectory through the user's waypoints plus any detours, and its singularity report.
-
-    Attributes:
-        trajectory: The planned trajectory; its waypoints include the detours.
-        report: Singularity report of the trajectory (its ``singular_waypoints`` index the
-            trajectory's waypoints; see :attr:`singular_waypoints` for the user's).
-        waypoint_indices: Index in ``trajectory.waypoints`` of each user waypoint, shape (N,).
-        detours: The inserted waypoints.
-        unresolved: User segments that still dip below the threshold although both ends are
-            clear (for example because the determinant changes sign between them).
-    """
-
-    trajectory: JointTrajectory
-    report: SingularityReport
-    waypoint_indices: np.ndarray
-    detours: tuple[Detour, ...]
-    unresolved: tuple[int, ...]
-
-    @property
-    def waypoint_times(self) -> np.ndarray:
-        """When each user waypoint is reached, shape (N,) [s]."""
-        return self.trajectory.waypoint_times[self.waypoint_indices]
-
-    @property
-    def singular_waypoints(self) -> tuple[int, ...]:
-        """Indices of the user waypoints that are too close to a singularity."""
-        w = self.report.waypoint_inverse_condition[self.waypoint_indices]
-        return tuple(int(k) for k in np.nonzero(w < self.report.threshold)[0])
-
-
-def _ascend(robot: Robot, q: np.ndarray, limits: JointLimits, target: float, task: Task) -> tuple[np.ndarray, float]:
-    """Push q up the (finite-difference) gradient of the inverse condition number."""
-    lo = np.where(np.isfinite(limits.lower), limits.lower, -np.inf)
-    hi = np.where(np.isfinite(limits.upper), limits.upper, np.inf)
-    inset = 1e-3 * np.where(np.isfinite(hi - lo), hi - lo, 1.0)
-    lo, hi = lo + inset, hi - inset
-    x = np.clip(q, lo, hi)
-    f = float(robot.conditioning(x, task)[0])
-    step = 0.05
-    h = 1e-5
-    for _ in range(200):
-        if f >= target:
-            break
-        grad = np.empty(len(x))
-        for i in range(len(x)):
-            e = x.copy()
-            e[i] += h if e[i] + h <= hi[i] else -h
-            grad[i] = (float(robot.conditioning(e, task)[0]) - f) / (e[i] - x[i])
-        norm = float(np.linalg.norm(grad))
-        if norm == 0.0 or not math.isfinite(norm):
-            break
-        cand = np.clip(x + step * grad / norm, lo, hi)
-        fc = float(robot.conditioning(cand, task)[0])
-        if fc > f:
-            x, f = cand, fc
-            step = min(step * 1.5, 0.5)
-        else:
-            step *= 0.5
-            if step < 1e-6:
-                break
-    return x, f
-
-
-def _det_sign(robot: Robot, q: np.ndarray, task: Task) -> float:
-    jac = robot.jacobian(q)
-    jac = jac[:3] if task == "position" else jac
-    return float(np.sign(np.linalg.det(jac))) if jac.shape[0] == jac.shape[1] else 0.0
-
-
-def plan_clear_of_singularities(
-    robot: Robot,
-    request: TrajectoryRequest,
-    options: SingularityOptions | None = None,
-    *,
-    keep_segments: Sequence[int] = (),
-) -> SingularityAwarePlan:
-    """Plan a trajectory request, detouring around singularities a segment would pass.
-
-    Args:
-        robot: The robot.
-        request: The trajectory to plan (waypoints, limits, start state, stops, dwell, strategy,
-            prescribed via states); its stops, dwell and prescribed states refer to its own
-            waypoints, and stay with them when detours are inserted.
-        options: Threshold, task, sampling rate, detour count and margin; None is the defaults.
-        keep_segments: Segments of the request (k: from waypoint k to k+1) that must not get
-            detours, e.g. samples of a straight Cartesian line.
-
-    Returns:
-        The plan with its report, detours and unresolved segments.
-
-    Raises:
-        InvalidArgumentError: If the request is for another number of joints, or on a start
-            state the planner cannot brake from.
-    """
-    opts = SingularityOptions() if options is None else options
-    thr = opts.threshold
-    t_task = robot.resolve_task(opts.task)
-    rate, max_detours, margin = opts.rate, opts.max_detours, opts.margin
-    limits = request.limits
-    if limits.dof != robot.dof:
-        raise InvalidArgumentError(f"the limits are for {limits.dof} joints; {robot.name} has {robot.dof}")
-    user = request.waypoints
-    n = len(user)
-    # Per augmented waypoint: prescribed (velocity, acceleration), and the minimum duration of
-    # the segment that starts there (detours split a segment and drop its minimum).
-    states: list[tuple[np.ndarray, np.ndarray, float]] = [
-        (
-            request.via_velocities[k],
-            request.via_accelerations[k],
-            float(request.min_durations[k]) if k < n - 1 else 0.0,
-        )
-        for k in range(n)
-    ]
-    # Each augmented waypoint: (q, user index or None, user segment it lies in).
-    nodes: list[tuple[np.ndarray, int | None, int]] = [(user[k], k, min(k, n - 2)) for k in range(n)]
-    detours: list[Detour] = []
-    given_up: set[int] = {int(k) for k in keep_segments}
-
-    def plan_nodes() -> JointTrajectory:
-        q = np.array([nd[0] for nd in nodes])
-        user_pos = [i for i, nd in enumerate(nodes) if nd[1] is not None]
-        d = np.zeros(len(nodes))
-        d[user_pos] = request.dwell
-        return plan_trajectory_request(
-            replace(
-                request,
-                waypoints=q,
-                stops=[user_pos[s] for s in request.stops],
-                dwell=d,
-                via_velocities=np.array([st_[0] for st_ in states]),
-                via_accelerations=np.array([st_[1] for st_ in states]),
-                min_durations=np.array([st_[2] for st_ in states[:-1]]),
-            )
-        )
-
-    while True:
-        traj = plan_nodes()
-        report, t, _, inv = _report(robot, traj, thr, t_task, rate)
-        if len(detours) >= max_detours:
-            break
-        w_inv = report.waypoint_inverse_condition
-        wt = traj.waypoint_times
-        dips = []
-        for s in range(len(nodes) - 1):
-            if w_inv[s] < thr or w_inv[s + 1] < thr or nodes[s][2] in given_up:
-                continue
-            mask = (t >= wt[s]) & (t <= wt[s + 1])
-            k = int(np.argmin(np.where(mask, inv, np.inf)))
-            if mask.any() and inv[k] < thr:
-                dips.append((float(inv[k]), s, k))
-        inserted = False
-        for dip, s, k in sorted(dips):
-            seg = nodes[s][2]
-            if _det_sign(robot, nodes[s][0], t_task) * _det_sign(robot, nodes[s + 1][0], t_task) < 0:
-                given_up.add(seg)
-                continue
-            q_new, f_new = _ascend(robot, traj.sample(t[k]).q, limits, margin * thr, t_task)
-            if f_new < thr:
-                given_up.add(seg)
-                continue
-            nodes.insert(s + 1, (q_new, None, seg))
-            states[s] = (states[s][0], states[s][1], 0.0)
-            states.insert(s + 1, (np.full(robot.dof, np.nan), np.zeros(robot.dof), 0.0))
-            detours.append(Detour(segment=seg, q=read_only(q_new), inverse_condition=f_new, dip=dip))
-            inserted = True
-            break
-        if not inserted:
-            break
-
-    w_inv = report.waypoint_inverse_condition
-    wt = traj.waypoint_times
-    user_idx = np.array([i for i, nd in enumerate(nodes) if nd[1] is not None])
-    still = set()
-    for s in range(len(nodes) - 1):
-        if w_inv[s] < thr or w_inv[s + 1] < thr:
-            continue
-        mask = (t >= wt[s]) & (t <= wt[s + 1])
-        if mask.any() and float(np.min(inv[mask])) < thr:
-            still.add(nodes[s][2])
-    user_idx.setflags(write=False)
-    return SingularityAwarePlan(
-        trajectory=traj,
-        report=report,
-        waypoint_indices=user_idx,
-        detours=tuple(detours),
-        unresolved=tuple(sorted(still)),
-    )
+    return measure_singularities(
+        robot, trajectory, inverse_condition_threshold(threshold), robot.resolve_task(task), rate
+    )[0]
