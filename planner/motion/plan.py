@@ -61,6 +61,9 @@ __all__ = ["plan_trajectory", "plan_trajectory_request"]
 
 _REPAIR_HALVINGS = 24
 _REPAIR_HALVINGS_BEFORE_REST = 6
+#: An end error left by Ruckig above this fraction of a joint's move in the segment is a wrong
+#: profile (tiny moves beside large ones), not its precision: the segment's vias then rest.
+_WRONG_END = 1e-3
 
 
 class _StartOvershoot(Exception):
@@ -98,7 +101,21 @@ def _repair_range(chain: ViaChain) -> list[tuple[float, np.ndarray, np.ndarray]]
                         chain.acc[idx] = 0.0
                 any_bad = True
                 continue
-            local, pieces = merge_segment(traj, d, start, chain.q[k + 1], chain.limits)
+            local, pieces, residual = merge_segment(traj, d, start, chain.q[k + 1], chain.limits)
+            wrong = np.any(np.abs(residual) > _WRONG_END * np.abs(chain.q[k + 1] - chain.q[k]))
+            free = [
+                idx
+                for idx in (k, k + 1)
+                if idx > 0 and not chain.fixed[idx] and (np.any(chain.v[idx] != 0) or np.any(chain.acc[idx] != 0))
+            ]
+            if wrong and free:
+                # Ruckig's profile misses its end by a good part of a small move (a wrong
+                # profile, not its precision): rest at the free ends, where it is exact.
+                for idx in free:
+                    chain.v[idx] = 0.0
+                    chain.acc[idx] = 0.0
+                any_bad = True
+                continue
             segments.append((d, local, pieces))
             if not chain.seg.bounded or not len(local):
                 continue
@@ -129,7 +146,9 @@ def _repair_range(chain: ViaChain) -> list[tuple[float, np.ndarray, np.ndarray]]
             dof = chain.v.shape[1]
             chain.repaired |= (after[:, :dof] != before[:, :dof]) | (after[:, dof:] != before[:, dof:])
             return segments
-    raise RuntimeError("via-velocity repair did not converge")  # pragma: no cover - zero via speeds always fit
+    raise PlanningError(  # pragma: no cover - zero via speeds always fit
+        "the via states could not be brought within the joint ranges; add stops at the waypoints near the range ends"
+    )
 
 
 def plan_trajectory(

@@ -208,7 +208,7 @@ def merge_segment(
     start: tuple[np.ndarray, np.ndarray, np.ndarray],
     end: np.ndarray | None = None,
     limits: JointLimits | None = None,
-) -> tuple[np.ndarray, np.ndarray]:
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """One Ruckig segment as constant-jerk pieces common to all joints.
 
     Every joint has its own seven phases (plus, for a start state beyond the limits, two brake
@@ -229,15 +229,16 @@ def merge_segment(
         limits: Limits to check a corrected joint against.
 
     Returns:
-        Local knot times, shape (K,) [s], and the stacked (p, v, a, j) at each knot, shape
-        (4, K, dof). Where the correction would take a joint beyond its limits (a joint at its
-        jerk limit all along), the joint keeps Ruckig's profile and meets the next segment
-        within :data:`RUCKIG_PRECISION`.
+        Local knot times, shape (K,) [s]; the stacked (p, v, a, j) at each knot, shape
+        (4, K, dof); and the end error left per joint, shape (dof,) [rad or m]: where the
+        correction would take a joint beyond its limits (a joint at its jerk limit all along),
+        the joint keeps Ruckig's profile, and the caller decides (see
+        :func:`planner.motion.plan.plan_trajectory_request`).
     """
     profiles = traj.profiles[0]
     dof = len(profiles)
     if duration <= 0.0:
-        return np.empty(0), np.empty((4, 0, dof))
+        return np.empty(0), np.empty((4, 0, dof)), np.zeros(dof)
     t = np.array([prof.t for prof in profiles])  # (dof, 7)
     jerk = np.array([prof.j for prof in profiles])
     acc = np.array([prof.a for prof in profiles])  # (dof, 8): phase starts and the end state
@@ -272,13 +273,16 @@ def merge_segment(
         else:
             error = None
     out = np.stack(_phase_states(knots, starts, (pos, vel, acc, jerk)))
+    residual = np.zeros(dof)
     if error is not None:
         corrected = out.copy()
         if _add_s_curve(corrected, knots, duration, np.where(off, error, 0.0), limits):
             out = corrected
+        else:
+            residual = np.where(off, error, 0.0)
     # The segment starts exactly at its waypoint state.
     out[0, 0], out[1, 0], out[2, 0] = start
-    return knots, out
+    return knots, out, residual
 
 
 def _phase_states(
@@ -383,7 +387,7 @@ def brake_segment(
         raise InvalidArgumentError(f"cannot brake from the start state (Ruckig: {result})")
     duration = float(traj.duration)
     rest = np.array([prof.p[-1] for prof in traj.profiles[0]])
-    local, pieces = merge_segment(traj, duration, (q0, v0, a0))
+    local, pieces, _ = merge_segment(traj, duration, (q0, v0, a0))
     lo, hi = piece_position_range(local, pieces, duration) if len(local) else (q0, q0)
     lower, upper = range_with_tolerance(limits)
     bad = np.nonzero((lo < lower) | (hi > upper))[0]
