@@ -375,3 +375,51 @@ def test_via_strategies_are_registered_objects():
     assert traj.strategy == "halfway"
     assert_within_limits(traj)
     assert_passes_waypoints(traj, np.array(q))
+
+
+# ------------------------------------------------------------------ regressions found by fuzzing
+AL5C_RUCKIG_ERROR_CASE = np.array(
+    [
+        [-0.9130776931532878, 1.8381956651777496, -1.6030045689591623, 0.45822408396590575, -1.0018930426017902],
+        [0.7157392185800953, 1.0249813358251911, -0.8958922087909214, -0.6340588046435863, -1.2413118691828933],
+        [-0.45422529643051, 1.687326161978938, -1.2283348912702614, 0.8741352809277316, -0.7274680640109338],
+        [0.23599635464154312, 0.46023278213059526, -2.196517217836796, -1.1416993735510503, 0.3238352970164067],
+        [0.9937918214101229, 1.4559528771431016, -1.4572133632930824, 1.0146817540979418, -0.4280958394112663],
+    ]
+)
+
+
+def test_via_search_survives_ruckig_errors():
+    # Ruckig raised "error in step 1, dof: 4" from the via search on this path (1 in 2,000).
+    robot = get_robot("al5c")
+    limits = replace(
+        JointLimits.from_robot(robot), velocity=np.full(5, 2.0), acceleration=np.full(5, 4.0), jerk=np.full(5, 40.0)
+    )
+    traj = plan_trajectory(AL5C_RUCKIG_ERROR_CASE, limits)
+    np.testing.assert_allclose(traj.sample(traj.waypoint_times).q, AL5C_RUCKIG_ERROR_CASE, atol=1e-9)
+    assert max(traj.peak_ratios(None)[k] for k in ("velocity", "acceleration", "jerk")) <= 1 + LIMIT_TOLERANCE
+
+
+def test_out_and_back_on_one_parabola_is_no_profile_not_a_crash():
+    # Ruckig 0.19 crashes the process on a joint that returns to its start on one
+    # constant-acceleration parabola (same acceleration at both ends, opposite velocities).
+    from planner.motion.segments import SegmentSolver
+
+    limits = JointLimits(5.236, 10.47197551196598, 104.7197551196598, lower=[-3.0], upper=[3.0])
+    solver = SegmentSolver(np.array([[1.0], [1.0]]), limits)
+    a = np.array([-10.47197551196598 * 0.999])
+    duration, _, _ = solver.solve(0, np.array([0.3]), a, np.array([-0.3]), a)
+    assert duration == math.inf
+
+
+def test_tiny_moves_end_on_their_waypoints():
+    # Ruckig's time synchronisation ended the smaller of two 1e-7 rad moves 20 % off target.
+    limits = JointLimits(velocity=1.0, acceleration=2.0, jerk=20.0, lower=[-1, -1], upper=[1, 1])
+    for waypoints in ([[0, 0], [1e-7, 5e-8]], [[0, 0], [1e-7, 5e-8], [0, 0]]):
+        traj = plan_trajectory(waypoints, limits)
+        t = np.linspace(0.0, traj.duration, 2001)
+        q = traj.sample(t).q
+        np.testing.assert_allclose(traj.sample(traj.waypoint_times).q, waypoints, atol=1e-15)
+        # Continuous: no step between neighbouring samples beyond what the speed allows.
+        assert np.all(np.abs(np.diff(q, axis=0)) <= 1.0 * (t[1] - t[0]) * (1 + 1e-6))
+        assert np.all(np.abs(q[-1] - waypoints[-1]) <= 1e-15)

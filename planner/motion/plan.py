@@ -61,9 +61,6 @@ __all__ = ["plan_trajectory", "plan_trajectory_request"]
 
 _REPAIR_HALVINGS = 24
 _REPAIR_HALVINGS_BEFORE_REST = 6
-#: An end error left by Ruckig above this fraction of a joint's move in the segment is a wrong
-#: profile (tiny moves beside large ones), not its precision: the segment's vias then rest.
-_WRONG_END = 1e-3
 
 
 class _StartOvershoot(Exception):
@@ -102,15 +99,15 @@ def _repair_range(chain: ViaChain) -> list[tuple[float, np.ndarray, np.ndarray]]
                 any_bad = True
                 continue
             local, pieces, residual = merge_segment(traj, d, start, chain.q[k + 1], chain.limits)
-            wrong = np.any(np.abs(residual) > _WRONG_END * np.abs(chain.q[k + 1] - chain.q[k]))
             free = [
                 idx
                 for idx in (k, k + 1)
                 if idx > 0 and not chain.fixed[idx] and (np.any(chain.v[idx] != 0) or np.any(chain.acc[idx] != 0))
             ]
-            if wrong and free:
-                # Ruckig's profile misses its end by a good part of a small move (a wrong
-                # profile, not its precision): rest at the free ends, where it is exact.
+            if free and np.any(residual != 0.0):
+                # Ruckig's profile misses its end and no correction fits the limits: rest at the
+                # free ends, where it is exact. (Prescribed via states keep Ruckig's profile,
+                # which meets the next segment within its precision, RUCKIG_PRECISION.)
                 for idx in free:
                     chain.v[idx] = 0.0
                     chain.acc[idx] = 0.0
