@@ -175,15 +175,15 @@ class OptimizedStrategy(ViaStrategy):
             tops.append(float(np.max(lim.velocity[mag > 0] / mag[mag > 0])))
         if np.any(wmag > 0):
             tops.append(math.sqrt(float(np.max(lim.acceleration[wmag > 0] / wmag[wmag > 0]))))
-        self._line_search(
-            chain,
-            i,
-            lambda x: (
-                np.sign(u) * np.minimum(lim.velocity, x * mag),
-                np.sign(w) * np.minimum(lim.acceleration, x * x * wmag),
-            ),
-            max(tops),
-        )
+
+        def candidate(x: float) -> tuple[np.ndarray, np.ndarray]:
+            # Joints with a zero component stay at zero (x can be huge where a component is tiny).
+            with np.errstate(over="ignore", invalid="ignore"):
+                v = np.where(mag > 0.0, np.minimum(lim.velocity, x * mag), 0.0)
+                a = np.where(wmag > 0.0, np.minimum(lim.acceleration, x * x * wmag), 0.0)
+            return np.sign(u) * v, np.sign(w) * a
+
+        self._line_search(chain, i, candidate, max(tops))
 
     def _settle(self, chain: ViaChain, free: list[int]) -> None:
         """Halve the via states of joints that (by Ruckig's extrema) leave their range.
