@@ -114,6 +114,6 @@ def test_ik_outside_the_family_exits_1(capsys):
     if example_robot_data_dir() is None:
         pytest.skip("example-robot-data is not installed")
     code, _, err = run(capsys, "ik", "ur5", "0.3", "0.1", "0.2", "--method", "analytic")
-    assert code == 1 and "wrist_3_joint" in err
+    assert code == 1 and "wrist_3_joint" in err and "use the method 'nlp'" in err
     code, out, err = run(capsys, "ik", "ur5", "0.3", "0.1", "0.2", "--json")  # the default, auto: the NLP
     assert code == 0 and err == "" and json.loads(out)["method"] == "nlp"

@@ -89,3 +89,22 @@ def test_every_subcommand_has_help():
     for command in ("robots", "fk", "ik", "plan", "demo", "bench", "urdf-from-dh"):
         result = run_cli(command, "--help")
         assert result.returncode == 0 and "usage: planner " + command in result.stdout
+
+
+def test_runs_from_the_repository_root():
+    # From the root, the source tree's planner/ shadows an installed (non-editable) package,
+    # whose planner.urdf maps the top-level urdf/ folder: bundled arms must load either way.
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    root = Path(__file__).resolve().parents[1]
+    result = subprocess.run(
+        [sys.executable, "-m", "planner", "fk", "al5c", "0", "1", "-1", "0", "0", "--json"],
+        cwd=root,
+        capture_output=True,
+        text=True,
+        check=False,
+    )
+    assert result.returncode == 0, result.stderr
+    assert json.loads(result.stdout)["robot"] == "al5c"

@@ -69,7 +69,10 @@ class IKSolvers:
         """
         solver = self.analytic
         if solver is None:
-            raise UnsupportedChainError(f"{self.robot.name} has no closed-form IK: {self.analytic_reason}")
+            raise UnsupportedChainError(
+                f"{self.robot.name} has no closed-form IK: {self.analytic_reason}; use the method 'nlp' (or "
+                "'auto', which takes the closed form where an arm has one)"
+            )
         return solver
 
     def __repr__(self) -> str:

@@ -65,7 +65,21 @@ def bundled_urdf_path(name: str) -> Path:
     """
     if name not in BUNDLED_ROBOTS:
         raise UnknownRobotError(name, BUNDLED_ROBOTS)
-    return Path(str(resources.files("planner.urdf").joinpath(BUNDLED_ROBOTS[name].urdf)))
+    return bundled_urdf_dir() / BUNDLED_ROBOTS[name].urdf
+
+
+@functools.cache
+def bundled_urdf_dir() -> Path:
+    """The folder of the bundled arms' URDF and YAML files.
+
+    An installed package maps the repository's top-level ``urdf/`` folder to ``planner.urdf``;
+    imported from the source tree (the repository root on ``sys.path``, e.g. ``python -m
+    planner`` run there) that mapping does not exist, and the folder is read where it is.
+    """
+    try:
+        return Path(str(resources.files("planner.urdf")))
+    except ModuleNotFoundError:
+        return Path(__file__).resolve().parents[2] / "urdf"
 
 
 @functools.cache

@@ -108,7 +108,7 @@ class SegmentSolver:
         # Per segment, the joints that do not move: only they can go out and back on one
         # parabola, which Ruckig 0.19 cannot take (see _on_one_parabola).
         still = np.abs(np.diff(q, axis=0)) <= 1e-9 * np.maximum(1.0, np.abs(q[1:]))
-        self._still = [np.flatnonzero(row) for row in still]
+        self._still = [np.flatnonzero(row) if row.any() else None for row in still]
 
     def solve(
         self, k: int, va: np.ndarray, aa: np.ndarray, vb: np.ndarray, ab: np.ndarray, keep: bool = False
@@ -121,7 +121,8 @@ class SegmentSolver:
             trajectory when `keep`.
         """
         inp = self.inp
-        if len(self._still[k]) and self._on_one_parabola(self._still[k], va, aa, vb, ab):
+        still = self._still[k]
+        if still is not None and self._on_one_parabola(still, va, aa, vb, ab):
             return math.inf, None, None
         inp.current_position = self.rows[k]
         inp.current_velocity = va.tolist()

@@ -25,6 +25,10 @@ from planner.motion.limits import admissible_acceleration
 from planner.motion.vias.base import ViaChain, ViaStrategy
 from planner.motion.vias.heuristic import via_directions
 
+#: Largest time scale searched: keeps x * x finite where a via component is tiny (x * 0 is then
+#: 0, not NaN), far beyond any scale at which every joint already saturates.
+_MAX_SCALE = 1e100
+
 __all__ = ["OptimizedStrategy", "golden_minimum", "spline_via_states"]
 
 # Scale factors tried first for each via state (1 = the slope blend itself).
@@ -177,13 +181,11 @@ class OptimizedStrategy(ViaStrategy):
             tops.append(math.sqrt(float(np.max(lim.acceleration[wmag > 0] / wmag[wmag > 0]))))
 
         def candidate(x: float) -> tuple[np.ndarray, np.ndarray]:
-            # Joints with a zero component stay at zero (x can be huge where a component is tiny).
-            with np.errstate(over="ignore", invalid="ignore"):
-                v = np.where(mag > 0.0, np.minimum(lim.velocity, x * mag), 0.0)
-                a = np.where(wmag > 0.0, np.minimum(lim.acceleration, x * x * wmag), 0.0)
-            return np.sign(u) * v, np.sign(w) * a
+            return np.sign(u) * np.minimum(lim.velocity, x * mag), np.sign(w) * np.minimum(
+                lim.acceleration, x * x * wmag
+            )
 
-        self._line_search(chain, i, candidate, max(tops))
+        self._line_search(chain, i, candidate, min(max(tops), _MAX_SCALE))
 
     def _settle(self, chain: ViaChain, free: list[int]) -> None:
         """Halve the via states of joints that (by Ruckig's extrema) leave their range.
