@@ -77,3 +77,44 @@ def test_one_solver_cache_per_robot_freed_with_it():
     del robot
     gc.collect()
     assert ref() is None
+
+
+def _wide_arm():
+    """dh3's geometry with every joint free over +-350 deg: whole turns fit within the limits."""
+    description = {
+        "name": "wide",
+        "units": {"length": "cm", "angle": "deg"},
+        "servo_seconds_per_60deg": 0.2,
+        "dh": [
+            {"name": "yaw", "theta": 0, "d": 3, "a": 0, "alpha": 90, "lower": -350, "upper": 350},
+            {"name": "shoulder", "theta": 0, "d": 0, "a": 6, "alpha": 180, "lower": -350, "upper": 350},
+            {"name": "elbow", "theta": 0, "d": 0, "a": 11, "alpha": 0, "lower": -350, "upper": 350},
+        ],
+        "tool": {"name": "hand"},
+    }
+    return planner.Robot(planner.urdf_from_dh(description), tip="hand")
+
+
+@pytest.mark.parametrize(("name", "method"), [("wide", "auto"), ("wide", "nlp"), ("ur5", "nlp")])
+def test_answers_take_no_needless_whole_turn(name, method):
+    if name == "wide":
+        robot = _wide_arm()
+    else:
+        from planner.model.catalog import example_robot_data_dir
+
+        if example_robot_data_dir() is None:
+            pytest.skip("example-robot-data is not installed")
+        robot = load_robot(name)
+    rng = np.random.default_rng(7)
+    options = IKOptions(closed_form_seeds=False)  # the NLP on its own: random restarts too
+    for _ in range(60):
+        q, seed = robot.random_configurations(rng, 2)
+        target = robot.position(q) if robot.dof < 6 else robot.fk(q)
+        result = solve_ik(robot, target, seed, method=method, options=options)
+        assert result.success
+        for answer in (result.q, *(s.q for s in result.solutions)):
+            for j in range(robot.dof):
+                for turn in (-2 * np.pi, 2 * np.pi):
+                    shifted = answer[j] + turn
+                    nearer = abs(shifted - seed[j]) < abs(answer[j] - seed[j])
+                    assert not (nearer and robot.lower[j] <= shifted <= robot.upper[j]), (method, answer, seed)

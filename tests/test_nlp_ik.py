@@ -274,8 +274,12 @@ def test_near_seed_keeps_continuous_joints_near_the_seed():
     q = np.array([0.3, 7.5, 0.1, -0.1, 1.0])
     result = NlpIK(robot).solve(make_target(robot, "pose", q), q + 0.05, IKOptions(near_seed=True, time_budget=0.5))
     assert result.success and abs(result.q[1] - 7.5) <= math.pi
+    # Without near_seed too, every angle is the equivalent nearest the seed (no needless turn)...
     plain = NlpIK(robot).solve(make_target(robot, "pose", q), q + 0.05, IKOptions(time_budget=0.5))
-    assert plain.success and -math.pi <= plain.q[1] < math.pi
+    assert plain.success and abs(plain.q[1] - 7.55) <= math.pi
+    # ... and without a seed, continuous joints come back in [-pi, pi).
+    unseeded = NlpIK(robot).solve(make_target(robot, "pose", q), None, IKOptions(time_budget=0.5))
+    assert unseeded.success and -math.pi <= unseeded.q[1] < math.pi
 
 
 def test_manipulability_floor():

@@ -242,6 +242,8 @@ class NlpIK:
 
     def _nearest_turn(self, q: np.ndarray, seed: np.ndarray) -> np.ndarray:
         """``q`` with angles shifted by whole turns towards `seed` where the limits allow (same pose)."""
+        if np.all(np.abs(q - seed) <= math.pi):
+            return q  # already the nearest equivalent of every angle
         out = q.copy()
         for j, kind in enumerate(self.robot.joint_kinds):
             if kind == "prismatic":
@@ -393,6 +395,9 @@ class NlpIK:
 
         attempts = len(kinds)
         if found is not None:
+            if seed is not None and not near_seed:
+                # No needless whole turns: each angle the equivalent nearest the seed.
+                found = (found[0], self._nearest_turn(found[1], seed), found[2], found[3])
             index, q, position_error, orientation_error = found
             if secondary:
                 reached = self._distinct(found, reached, seed if near_seed else None)
@@ -511,12 +516,11 @@ class NlpIK:
                 solutions.sort(key=lambda s: s.position_error + self._orientation_weight * s.orientation_error)
             return tuple(solutions)
         angular, reference = self._angular_list, seed.tolist()
-        solutions = [
-            IKSolution(
-                q, True, kinds[index], position_error, orientation_error, wrapped_distance(q, reference, angular)
-            )
-            for index, q, position_error, orientation_error in items
-        ]
+        solutions = []
+        for index, q, position_error, orientation_error in items:
+            q = self._nearest_turn(q, seed)
+            distance = wrapped_distance(q, reference, angular)
+            solutions.append(IKSolution(q, True, kinds[index], position_error, orientation_error, distance))
         if len(solutions) > 1:
             solutions.sort(key=lambda s: s.distance)
         return tuple(solutions)
