@@ -22,7 +22,9 @@ def test_ik_json_best_solution(capsys):
     robot = load_robot("dh3")
     q = np.radians([45.0, 90.0, 90.0])
     x, y, z = robot.fk(q)[:3, 3].tolist()
-    code, out, err = run(capsys, "ik", "dh3", repr(x), repr(y), repr(z), "--json")
+    code, out, err = run(
+        capsys, "ik", "dh3", repr(x), repr(y), repr(z), "--json", "--current", "40", "80", "80", "--deg"
+    )
     assert code == 0 and err == ""
     data = json.loads(out)
     assert data["status"] == "solved" and data["method"] == "analytic" and data["success"]

@@ -108,3 +108,26 @@ def test_runs_from_the_repository_root():
     )
     assert result.returncode == 0, result.stderr
     assert json.loads(result.stdout)["robot"] == "al5c"
+
+
+def test_radians_that_look_like_degrees_are_warned_about():
+    result = run_cli("fk", "al5c", "0", "45", "-90", "-45", "0")
+    assert result.returncode == 0
+    assert "joint value 45 rad is more than a turn; did you mean degrees (--deg)?" in result.stderr
+    result = run_cli("ik", "al5c", "0.25", "0.05", "0.12", "--pitch", "-60")
+    assert "approach pitch -60 rad is more than half a turn" in result.stderr
+    result = run_cli("fk", "al5c", "0", "45", "-90", "-45", "0", "--deg")
+    assert result.returncode == 0 and result.stderr == ""
+
+
+def test_fk_orientation_feeds_ik():
+    q = ["0.3", "1.2", "-1.4", "-0.5", "0.2"]
+    fk = json.loads(run_cli("fk", "al5c", *q, "--json").stdout)
+    assert len(fk["rpy"]) == 3 and len(fk["quaternion"]) == 4
+    np.testing.assert_allclose(planner.rpy_to_matrix(fk["rpy"]), np.asarray(fk["matrix"])[:3, :3], atol=1e-12)
+    np.testing.assert_allclose(
+        planner.quaternion_to_matrix(fk["quaternion"]), np.asarray(fk["matrix"])[:3, :3], atol=1e-12
+    )
+    x, y, z = fk["position"]
+    ik = run_cli("ik", "al5c", repr(x), repr(y), repr(z), "--rpy", *map(repr, fk["rpy"]), "--json")
+    assert ik.returncode == 0 and json.loads(ik.stdout)["success"]

@@ -34,9 +34,37 @@ def _print_json(obj: object) -> None:
     print(json.dumps(obj, indent=2, allow_nan=False))
 
 
-def _angles(values: Sequence[float], deg: bool) -> np.ndarray:
+def _angles(values: Sequence[float], deg: bool, what: str = "angle", turn: float = 2 * np.pi) -> np.ndarray:
     arr = np.asarray(values, dtype=float)
-    return np.radians(arr) if deg else arr
+    if deg:
+        return np.radians(arr)
+    _warn_if_degrees(arr, what, turn)
+    return arr
+
+
+def _warn_if_degrees(values: np.ndarray, what: str, turn: float = 2 * np.pi) -> None:
+    """Warn on stderr when radians look like degrees (a magnitude beyond `turn`)."""
+    big = np.abs(values[np.isfinite(values)]) > turn
+    if np.any(big):
+        value = float(values[np.isfinite(values)][big][0])
+        print(
+            f"planner: warning: {what} {value:g} rad is more than {'half ' if turn < 4 else ''}a turn; "
+            "did you mean degrees (--deg)?",
+            file=sys.stderr,
+        )
+
+
+def _joint_values(values: Sequence[float], robot: Robot, deg: bool, what: str) -> np.ndarray:
+    """Joint values from the command line in SI units (degrees converted for angular joints)."""
+    q = np.asarray(values, dtype=float)
+    if q.shape != (robot.dof,):
+        return robot.check_configuration(q, batch=False)  # raises, naming the expected shape
+    angular = np.array(robot.joint_kinds) != "prismatic"
+    if deg:
+        q = np.where(angular, np.radians(q), q)
+    else:
+        _warn_if_degrees(q[angular], what)
+    return robot.check_configuration(q, batch=False)
 
 
 def _table(headers: Sequence[str], rows: Sequence[Sequence[object]]) -> str:
@@ -88,17 +116,22 @@ def _add_fk(sub: argparse._SubParsersAction) -> None:
 
 
 def _run_fk(args: argparse.Namespace) -> int:
+    import pinocchio as pin
+
+    from planner.core.rotations import matrix_to_rpy
+
     robot = load_robot(args.robot, tip=args.tip)
-    q = np.asarray(args.q, dtype=float)
-    if args.deg and q.shape == (robot.dof,):
-        q = np.where(np.array(robot.joint_kinds) == "prismatic", q, np.radians(q))
-    q = robot.check_configuration(q, batch=False)
+    q = _joint_values(args.q, robot, args.deg, "joint value")
     pose = robot.fk(q)
+    rpy = matrix_to_rpy(pose[:3, :3])
+    quaternion = pin.Quaternion(pose[:3, :3]).coeffs()  # (x, y, z, w)
     result = {
         "robot": robot.name,
         "tip": robot.tip,
         "q": q.tolist(),
         "position": pose[:3, 3].tolist(),
+        "rpy": rpy.tolist(),
+        "quaternion": quaternion.tolist(),
         "matrix": pose.tolist(),
         "manipulability": robot.manipulability(q),
         "within_limits": bool(robot.within_limits(q)),
@@ -108,6 +141,10 @@ def _run_fk(args: argparse.Namespace) -> int:
     else:
         x, y, z = result["position"]
         print(f"{robot.name} tip {robot.tip!r}: position [m] = ({x:.6f}, {y:.6f}, {z:.6f})")
+        unit, shown = ("deg", np.degrees(rpy)) if args.deg else ("rad", rpy)
+        print(f"rpy [{unit}] = ({shown[0]:.6f}, {shown[1]:.6f}, {shown[2]:.6f}) (feeds `planner ik ... --rpy`)")
+        qx, qy, qz, qw = quaternion
+        print(f"quaternion (x, y, z, w) = ({qx:.6f}, {qy:.6f}, {qz:.6f}, {qw:.6f})")
         print(np.array2string(pose, precision=6, suppress_small=True))
         print(f"manipulability {result['manipulability']:.6g}, within limits: {result['within_limits']}")
     return 0
@@ -266,7 +303,8 @@ def _add_ik(sub: argparse._SubParsersAction) -> None:
         nargs="+",
         default=None,
         metavar="Q",
-        help="current joint values: solutions are sorted by distance to them [rad; deg with --deg]",
+        help="current joint values: the IK seed, solutions sorted by distance to them and each angle taken "
+        "nearest them (default: zero, clipped into the limits) [rad; deg with --deg]",
     )
     p.add_argument("--tip", default=None, help="tip frame (default: the arm's tool frame)")
     p.add_argument("--all", action="store_true", help="every solution (default: the best one within limits)")
@@ -285,18 +323,16 @@ def _ik_target(args: argparse.Namespace) -> Target:
     if args.rpy is not None:
         if args.pitch is not None:
             raise InvalidArgumentError("give either --pitch or --rpy, not both")
-        return Target.from_rpy(position, _angles(args.rpy, args.deg))
-    pitch = None if args.pitch is None else float(_angles([args.pitch], args.deg)[0])
+        return Target.from_rpy(position, _angles(args.rpy, args.deg, "rpy angle"))
+    pitch = None if args.pitch is None else float(_angles([args.pitch], args.deg, "approach pitch", np.pi)[0])
     return Target(position, pitch=pitch)
 
 
-def _ik_current(args: argparse.Namespace, robot: Robot) -> np.ndarray | None:
+def _ik_current(args: argparse.Namespace, robot: Robot) -> np.ndarray:
+    """The seed: --current, else the arm's home (zero, clipped into the joint limits)."""
     if args.current is None:
-        return None
-    q = np.asarray(args.current, dtype=float)
-    if args.deg and q.shape == (robot.dof,):
-        q = np.where(np.array(robot.joint_kinds) == "prismatic", q, np.radians(q))
-    return robot.check_configuration(q, batch=False)
+        return np.clip(np.zeros(robot.dof), robot.lower, robot.upper)
+    return _joint_values(args.current, robot, args.deg, "--current value")
 
 
 def _ik_options(args: argparse.Namespace) -> IKOptions:
