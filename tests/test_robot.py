@@ -259,3 +259,11 @@ def test_continuous_joints_take_one_angle():
     assert jac.shape == (6, 2)
     q = robot.random_configurations(np.random.default_rng(1), 50)
     assert np.all(np.abs(q[:, 0]) <= math.pi)
+
+
+def test_bundled_urdfs_pass_the_full_validation():
+    # load_robot skips yourdfpy for the bundled arms (their files are generated): check them here.
+    from planner.model.catalog import BUNDLED_ROBOTS, bundled_urdf_path
+
+    for name in BUNDLED_ROBOTS:
+        planner.Robot(bundled_urdf_path(name).read_text(), tip=BUNDLED_ROBOTS[name].tip)

@@ -137,7 +137,9 @@ def load_robot(name: str | Path, tip: str | None = None, *, locked: Mapping[str,
             path = root / spec.urdf
         # The default approach axis belongs to the default tip; another tip keeps z.
         axis = spec.approach_axis if tip in (None, spec.tip) else _Z
-        return Robot.from_urdf(path, tip or spec.tip, name=key, locked=locked, approach_axis=axis)
+        return Robot.from_urdf(
+            path, tip or spec.tip, name=key, locked=locked, approach_axis=axis, validate=key not in BUNDLED_ROBOTS
+        )
     path = Path(key)
     if path.suffix.lower() == ".urdf" or path.is_file():
         return Robot.from_urdf(path, tip, locked=locked)
