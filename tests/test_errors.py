@@ -89,3 +89,23 @@ def test_unknown_robot_name_lists_the_names():
     ) as info:
         planner.load_robot("puma")
     assert info.value.choices[:4] == ("shelley", "al5c", "three_joint", "dh3")
+
+
+def test_messages_show_plain_numbers():
+    import numpy as np
+
+    import planner
+
+    robot = planner.load_robot("dh3")
+    cases = [
+        lambda: planner.IKOptions(time_budget=np.float64(-1)),
+        lambda: planner.ServoCalibration(channel=0, pulse_at_zero=1500.0, us_per_rad=np.float64(-5)),
+        lambda: planner.plan_trajectory([[0, 0, 0], [0, 0.1, 0]], planner.JointLimits.from_robot(robot)).sample(
+            np.float64(99.0)
+        ),
+        lambda: planner.servo_speed_to_velocity(np.float64(-0.2)),
+    ]
+    for case in cases:
+        with pytest.raises(planner.PlannerError) as info:
+            case()
+        assert "np." not in str(info.value) and "float64" not in str(info.value), str(info.value)

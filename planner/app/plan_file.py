@@ -37,6 +37,7 @@ from typing import Any
 import numpy as np
 
 from planner.core.files import input_error, parse_number, parse_numbers, parse_units, read_data_file
+from planner.core.text import plain
 from planner.geometry.target import Target
 from planner.motion.singularity import DEFAULT_CONDITION_NUMBER
 from planner.motion.vias import VIA_STRATEGIES
@@ -82,7 +83,7 @@ def _limit_value(value: Any, what: str, source: str) -> float | np.ndarray:
                 raise input_error(source, f"limits.{what}[{k}] must be a number, got {v!r}")
             out.append(float(v))
         return np.array(out)
-    raise input_error(source, f"limits.{what} must be a number or a list of numbers, got {value!r}")
+    raise input_error(source, f"limits.{what} must be a number or a list of numbers, got {plain(value)}")
 
 
 @dataclass(frozen=True)
@@ -276,7 +277,7 @@ def parse_motion_request(data: Mapping[str, Any], source: str = "<request>") -> 
         raise input_error(source, f"singularity.detours must be true or false, got {detours!r}")
     max_detours = sing.get("max_detours", 8)
     if isinstance(max_detours, bool) or not isinstance(max_detours, int) or max_detours < 0:
-        raise input_error(source, f"singularity.max_detours must be a non-negative integer, got {max_detours!r}")
+        raise input_error(source, f"singularity.max_detours must be a non-negative integer, got {plain(max_detours)}")
 
     strategy = data.get("strategy", "optimized")
     if strategy not in VIA_STRATEGIES:
@@ -292,7 +293,7 @@ def parse_motion_request(data: Mapping[str, Any], source: str = "<request>") -> 
         servos = tuple(dict(s) for s in servos)
     period = data.get("servo_period_ms", 20)
     if isinstance(period, bool) or not isinstance(period, int) or not 1 <= period <= 65535:
-        raise input_error(source, f"servo_period_ms must be an integer in [1, 65535], got {period!r}")
+        raise input_error(source, f"servo_period_ms must be an integer in [1, 65535], got {plain(period)}")
 
     return MotionRequest(
         joints=joints,

@@ -15,6 +15,7 @@ from typing import Any
 
 import numpy as np
 
+from planner.core.text import plain
 from planner.core.units import ANGLE_UNITS, LENGTH_UNITS
 from planner.exceptions import InvalidArgumentError
 
@@ -77,10 +78,10 @@ def parse_number(value: Any, what: str, source: str | None = None) -> float:
         InvalidArgumentError: If it is not an int or float, or not finite.
     """
     if isinstance(value, bool) or not isinstance(value, (int, float)):
-        raise input_error(source, f"{what} must be a number, got {value!r}")
+        raise input_error(source, f"{what} must be a number, got {plain(value)}")
     x = float(value)
     if not math.isfinite(x):
-        raise input_error(source, f"{what} must be finite, got {value!r}")
+        raise input_error(source, f"{what} must be finite, got {plain(value)}")
     return x
 
 
@@ -101,7 +102,7 @@ def parse_numbers(value: Any, what: str, source: str | None = None, length: int 
             length differs from `length`.
     """
     if isinstance(value, (str, bytes, Mapping)) or not isinstance(value, Sequence):
-        raise input_error(source, f"{what} must be a list of numbers, got {value!r}")
+        raise input_error(source, f"{what} must be a list of numbers, got {plain(value)}")
     arr = np.array([parse_number(v, f"{what}[{k}]", source) for k, v in enumerate(value)], dtype=float)
     if length is not None and arr.shape != (length,):
         raise input_error(source, f"{what} must have {length} numbers, got {len(arr)}")

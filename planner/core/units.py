@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import math
 
+from planner.core.text import plain
 from planner.exceptions import InvalidLimitsError
 
 __all__ = ["ANGLE_UNITS", "LENGTH_UNITS", "servo_speed_to_velocity"]
@@ -31,7 +32,9 @@ def servo_speed_to_velocity(seconds: float, degrees: float = 60.0) -> float:
         InvalidLimitsError: If either number is not finite and positive.
     """
     if not (math.isfinite(seconds) and seconds > 0.0):
-        raise InvalidLimitsError(f"servo speed time must be positive and finite, got {seconds!r} s", value=seconds)
+        raise InvalidLimitsError(f"servo speed time must be positive and finite, got {plain(seconds)} s", value=seconds)
     if not (math.isfinite(degrees) and degrees > 0.0):
-        raise InvalidLimitsError(f"servo speed travel must be positive and finite, got {degrees!r} deg", value=degrees)
+        raise InvalidLimitsError(
+            f"servo speed travel must be positive and finite, got {plain(degrees)} deg", value=degrees
+        )
     return math.radians(degrees) / seconds

@@ -15,6 +15,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from planner.core.text import plain
 from planner.exceptions import InvalidArgumentError
 
 if TYPE_CHECKING:
@@ -36,9 +37,9 @@ SSC32_US_PER_RAD = 1000.0 / (math.pi / 2.0)
 
 def _check_span(max_rotation: float, max_steps: int) -> None:
     if not (math.isfinite(max_rotation) and max_rotation > 0):
-        raise InvalidArgumentError(f"max_rotation must be positive and finite [rad], got {max_rotation!r}")
+        raise InvalidArgumentError(f"max_rotation must be positive and finite [rad], got {plain(max_rotation)}")
     if isinstance(max_steps, bool) or not isinstance(max_steps, (int, np.integer)) or max_steps <= 0:
-        raise InvalidArgumentError(f"max_steps must be a positive integer, got {max_steps!r}")
+        raise InvalidArgumentError(f"max_steps must be a positive integer, got {plain(max_steps)}")
 
 
 def angle_to_steps(angle: float | np.ndarray, max_rotation: float, max_steps: int) -> np.ndarray | int:
@@ -62,7 +63,7 @@ def angle_to_steps(angle: float | np.ndarray, max_rotation: float, max_steps: in
     _check_span(max_rotation, max_steps)
     a = np.asarray(angle, dtype=float)
     if not np.all(np.isfinite(a)):
-        raise InvalidArgumentError(f"angle must be finite, got {angle!r}")
+        raise InvalidArgumentError(f"angle must be finite, got {plain(angle)}")
     beyond = np.abs(a) > max_rotation * (1 + 1e-12)
     if np.any(beyond):
         bad = float(a[beyond].flat[0]) if a.ndim else float(a)
@@ -83,10 +84,10 @@ def steps_to_angle(steps: int | np.ndarray, max_rotation: float, max_steps: int)
 
 def _positive(value: float, what: str) -> float:
     if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)):
-        raise InvalidArgumentError(f"{what} must be a number, got {value!r}")
+        raise InvalidArgumentError(f"{what} must be a number, got {plain(value)}")
     x = float(value)
     if not (math.isfinite(x) and x > 0):
-        raise InvalidArgumentError(f"{what} must be positive and finite, got {value!r}")
+        raise InvalidArgumentError(f"{what} must be positive and finite, got {plain(value)}")
     return x
 
 
@@ -165,7 +166,7 @@ class ServoCalibration:
         """
         a = np.asarray(angle, dtype=float)
         if not np.all(np.isfinite(a)):
-            raise InvalidArgumentError(f"angle for joint {self.joint!r} must be finite, got {angle!r}")
+            raise InvalidArgumentError(f"angle for joint {self.joint!r} must be finite, got {plain(angle)}")
         p = self.pulse_at_zero + self.direction * self.us_per_rad * a
         out = (p < self.min_pulse - 1e-9) | (p > self.max_pulse + 1e-9)
         if np.any(out):

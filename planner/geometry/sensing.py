@@ -7,6 +7,7 @@ from collections.abc import Sequence
 import numpy as np
 
 from planner.core.rotations import check_rotation, homogeneous, rpy_to_matrix
+from planner.core.text import plain
 from planner.exceptions import InvalidArgumentError
 
 __all__ = ["range_bearing_to_base"]
@@ -62,9 +63,9 @@ def range_bearing_to_base(
     d = np.asarray(distance, dtype=float)
     b = np.asarray(bearing, dtype=float)
     if not (np.all(np.isfinite(d)) and np.all(np.isfinite(b))):
-        raise InvalidArgumentError(f"distance and bearing must be finite, got {distance!r}, {bearing!r}")
+        raise InvalidArgumentError(f"distance and bearing must be finite, got {plain(distance)}, {plain(bearing)}")
     if np.any(d < 0):
-        raise InvalidArgumentError(f"distance must be >= 0, got {distance!r}")
+        raise InvalidArgumentError(f"distance must be >= 0, got {plain(distance)}")
     pose = _pose_matrix(sensor_pose)
     d, b = np.broadcast_arrays(d, b)
     local = np.stack([d * np.cos(b), d * np.sin(b), np.zeros_like(d)], axis=-1)

@@ -31,6 +31,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from planner.core.rotations import check_rotation, finite_vector, quaternion_to_matrix, rotation_error, rpy_to_matrix
+from planner.core.text import plain
 from planner.exceptions import InvalidArgumentError
 from planner.model.robot import Robot
 
@@ -202,9 +203,9 @@ class Target:
             object.__setattr__(self, "rotation", rot)
         if self.pitch is not None:
             if isinstance(self.pitch, bool) or not isinstance(self.pitch, (int, float, np.floating, np.integer)):
-                raise InvalidArgumentError(f"pitch must be a number [rad], got {self.pitch!r}")
+                raise InvalidArgumentError(f"pitch must be a number [rad], got {plain(self.pitch)}")
             if not math.isfinite(self.pitch):
-                raise InvalidArgumentError(f"pitch must be finite, got {self.pitch!r}")
+                raise InvalidArgumentError(f"pitch must be finite, got {plain(self.pitch)}")
             object.__setattr__(self, "pitch", float(self.pitch))
 
     @classmethod

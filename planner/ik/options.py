@@ -12,6 +12,7 @@ from typing import Literal
 
 import numpy as np
 
+from planner.core.text import plain
 from planner.exceptions import InvalidArgumentError
 
 __all__ = ["IKOptions"]
@@ -20,9 +21,9 @@ __all__ = ["IKOptions"]
 def _positive(label: str, value: object, unit: str) -> None:
     unit = f" [{unit}]" if unit else ""
     if isinstance(value, bool) or not isinstance(value, (int, float, np.floating, np.integer)):
-        raise InvalidArgumentError(f"{label} must be a positive number{unit}, got {value!r}")
+        raise InvalidArgumentError(f"{label} must be a positive number{unit}, got {plain(value)}")
     if not math.isfinite(value) or value <= 0:
-        raise InvalidArgumentError(f"{label} must be a positive finite number{unit}, got {value!r}")
+        raise InvalidArgumentError(f"{label} must be a positive finite number{unit}, got {plain(value)}")
 
 
 @dataclass(frozen=True)
@@ -71,7 +72,9 @@ class IKOptions:
             or not isinstance(self.max_attempts, (int, np.integer))
             or self.max_attempts < 1
         ):
-            raise InvalidArgumentError(f"max_attempts must be a positive integer or None, got {self.max_attempts!r}")
+            raise InvalidArgumentError(
+                f"max_attempts must be a positive integer or None, got {plain(self.max_attempts)}"
+            )
         if self.manipulability_floor is not None:
             _positive("manipulability_floor", self.manipulability_floor, "")
         if self.manipulability_task not in (None, "position", "pose"):

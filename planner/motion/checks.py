@@ -11,6 +11,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
+from planner.core.text import plain
 from planner.exceptions import InvalidArgumentError, InvalidConfigurationError, JointLimitError
 from planner.motion.limits import JointLimits
 
@@ -131,7 +132,7 @@ def check_given(
     v = np.where(rows[:, None], v, np.nan)
     md = np.zeros(n - 1) if min_durations is None else np.array(min_durations, dtype=float)
     if md.shape != (n - 1,) or np.any(~np.isfinite(md)) or np.any(md < 0):
-        raise InvalidArgumentError(f"min_durations needs {n - 1} finite values >= 0 [s], got {min_durations!r}")
+        raise InvalidArgumentError(f"min_durations needs {n - 1} finite values >= 0 [s], got {plain(min_durations)}")
     return v, a, md
 
 
@@ -144,7 +145,7 @@ def check_stops(stops: Sequence[int] | None, n: int) -> np.ndarray:
     stop = np.zeros(n, dtype=bool)
     for s in stops or ():
         if isinstance(s, bool) or not isinstance(s, (int, np.integer)) or not -n <= s < n:
-            raise InvalidArgumentError(f"stop index {s!r} is not a waypoint index (0..{n - 1})")
+            raise InvalidArgumentError(f"stop index {plain(s)} is not a waypoint index (0..{n - 1})")
         stop[s] = True
     return stop
 

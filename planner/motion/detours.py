@@ -19,6 +19,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from planner.core.arrays import read_only
+from planner.core.text import plain
 from planner.exceptions import InvalidArgumentError
 from planner.model.robot import Robot, Task
 from planner.motion.limits import JointLimits
@@ -57,9 +58,9 @@ class SingularityOptions:
         object.__setattr__(self, "threshold", inverse_condition_threshold(self.threshold))
         max_detours = self.max_detours
         if isinstance(max_detours, bool) or not isinstance(max_detours, int) or max_detours < 0:
-            raise InvalidArgumentError(f"max_detours must be a non-negative integer, got {max_detours!r}")
+            raise InvalidArgumentError(f"max_detours must be a non-negative integer, got {plain(max_detours)}")
         if not (isinstance(self.margin, (int, float)) and math.isfinite(self.margin) and self.margin >= 1.0):
-            raise InvalidArgumentError(f"margin must be >= 1, got {self.margin!r}")
+            raise InvalidArgumentError(f"margin must be >= 1, got {plain(self.margin)}")
 
 
 @dataclass(frozen=True)

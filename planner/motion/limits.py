@@ -15,6 +15,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from planner.core.arrays import read_only
+from planner.core.text import plain
 from planner.core.units import servo_speed_to_velocity
 from planner.exceptions import InvalidLimitsError
 
@@ -175,7 +176,7 @@ class JointLimits:
             ("jerk_per_acceleration", jerk_per_acceleration),
         ):
             if not (isinstance(factor, (int, float)) and math.isfinite(factor) and factor > 0):
-                raise InvalidLimitsError(f"{what} must be positive and finite [1/s], got {factor!r}", value=factor)
+                raise InvalidLimitsError(f"{what} must be positive and finite [1/s], got {plain(factor)}", value=factor)
         acc = (
             per_joint_limit(acceleration, names, "acceleration", "rad/s^2 or m/s^2")
             if acceleration is not None

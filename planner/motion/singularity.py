@@ -16,6 +16,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from planner.core.arrays import read_only
+from planner.core.text import plain
 from planner.exceptions import InvalidArgumentError
 from planner.model.robot import Robot, Task
 from planner.motion.trajectory import JointTrajectory
@@ -42,7 +43,7 @@ def inverse_condition_threshold(threshold: float | None) -> float:
         return 1.0 / DEFAULT_CONDITION_NUMBER
     if isinstance(threshold, bool) or not isinstance(threshold, (int, float)) or not 0.0 <= threshold < 1.0:
         raise InvalidArgumentError(
-            f"threshold is an inverse condition number in [0, 1), got {threshold!r} "
+            f"threshold is an inverse condition number in [0, 1), got {plain(threshold)} "
             f"(a condition number of {DEFAULT_CONDITION_NUMBER:g} is {1 / DEFAULT_CONDITION_NUMBER:.6g})"
         )
     return float(threshold)

@@ -15,6 +15,7 @@ from pathlib import Path
 
 import numpy as np
 
+from planner.core.text import plain
 from planner.exceptions import InvalidArgumentError
 from planner.motion.limits import JointLimits
 
@@ -124,7 +125,7 @@ class JointTrajectory:
             not np.all(np.isfinite(flat)) or flat.min() < 0.0 or flat.max() > self.duration * (1 + 1e-12)
         ):
             bad = flat[~np.isfinite(flat) | (flat < 0) | (flat > self.duration * (1 + 1e-12))][0]
-            raise InvalidArgumentError(f"time {bad!r} s is outside the trajectory [0, {self.duration:.6g}] s")
+            raise InvalidArgumentError(f"time {plain(bad)} s is outside the trajectory [0, {self.duration:.6g}] s")
         idx = np.clip(np.searchsorted(self.knots, flat, side="right") - 1, 0, len(self.knots) - 1)
         dt = (flat - self.knots[idx])[:, None]
         p, v, a, j = self.p[idx], self.v[idx], self.a[idx], self.j[idx]
@@ -145,7 +146,7 @@ class JointTrajectory:
     def times(self, rate: float = 1000.0) -> np.ndarray:
         """Sample times at `rate` [Hz] from 0, with the final time appended, shape (n,) [s]."""
         if not (isinstance(rate, (int, float)) and math.isfinite(rate) and rate > 0):
-            raise InvalidArgumentError(f"rate must be positive and finite [Hz], got {rate!r}")
+            raise InvalidArgumentError(f"rate must be positive and finite [Hz], got {plain(rate)}")
         n = int(math.floor(self.duration * rate + 1e-9)) + 1
         t = np.arange(n) / rate
         if t[-1] < self.duration:

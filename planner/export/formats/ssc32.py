@@ -8,6 +8,7 @@ from typing import TYPE_CHECKING, ClassVar
 
 import numpy as np
 
+from planner.core.text import plain
 from planner.exceptions import InvalidArgumentError
 from planner.export.calibration import ServoCalibration, check_calibrations, pulse_widths
 from planner.export.formats.base import ServoFormat
@@ -43,7 +44,7 @@ def ssc32_group_moves(
         InvalidArgumentError: On a bad period, channel or calibration, or a pulse out of range.
     """
     if isinstance(period_ms, bool) or not isinstance(period_ms, (int, np.integer)) or not 1 <= period_ms <= 65535:
-        raise InvalidArgumentError(f"period_ms must be an integer in [1, 65535] ms, got {period_ms!r}")
+        raise InvalidArgumentError(f"period_ms must be an integer in [1, 65535] ms, got {plain(period_ms)}")
     check_calibrations(calibrations, trajectory.dof)
     for c in calibrations:
         if c.channel > SSC32_MAX_CHANNEL:

@@ -41,6 +41,7 @@ import numpy as np
 import pinocchio as pin
 
 from planner.core.arrays import read_only
+from planner.core.text import plain
 from planner.exceptions import InvalidArgumentError, InvalidConfigurationError
 from planner.geometry.joint_space import angular_joints, configurations_close, wrapped_distance
 from planner.geometry.target import Target, as_target, tip_errors
@@ -115,9 +116,9 @@ class NlpIK:
             raise InvalidArgumentError(f"NlpIK needs a planner.Robot, got {type(robot).__name__}")
         for label, value in (("batch_size", batch_size), ("chunk", chunk), ("max_chunks", max_chunks)):
             if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 1:
-                raise InvalidArgumentError(f"{label} must be a positive integer, got {value!r}")
+                raise InvalidArgumentError(f"{label} must be a positive integer, got {plain(value)}")
         if isinstance(max_step, bool) or not isinstance(max_step, (int, float)) or not 0 < max_step < math.inf:
-            raise InvalidArgumentError(f"max_step must be a positive number [rad or m], got {max_step!r}")
+            raise InvalidArgumentError(f"max_step must be a positive number [rad or m], got {plain(max_step)}")
         self.robot = robot
         self.kinematics = CasadiKinematics(robot)
         self.batch_size = int(batch_size)
