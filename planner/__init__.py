@@ -16,6 +16,7 @@ from planner.exceptions import (
     JointLimitError,
     PlannerError,
     PlanningError,
+    ServoExportError,
     UnknownFrameError,
     UnknownRobotError,
     UnsupportedChainError,
@@ -102,6 +103,7 @@ __all__ = [
     # errors
     "PlannerError",
     "PlanningError",
+    "ServoExportError",
     "URDFError",
     "InvalidLimitsError",
     "UnknownFrameError",

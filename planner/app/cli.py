@@ -17,7 +17,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from planner.exceptions import InvalidArgumentError, PlannerError
+from planner.exceptions import InvalidArgumentError, PlannerError, ServoExportError
 from planner.geometry.target import Target
 from planner.model.catalog import BUNDLED_ROBOTS, available_robots, load_robot
 from planner.model.description import urdf_from_dh
@@ -217,17 +217,24 @@ def _run_plan(args: argparse.Namespace) -> int:
     plan = plan_motion(robot, request, rate=args.rate)
     summary = plan.summary(args.rate)
     files: list[Path] = []
+    servo_error = None
     if args.out is not None:
-        files += plan.write_files(args.out, rate=args.rate)
+        try:
+            files += plan.write_files(args.out, rate=args.rate)
+        except ServoExportError as exc:
+            servo_error = exc
+            files += exc.written
     if args.plot:
         from planner.app.plots import plot_plan
 
         files += plot_plan(args.out or Path("."), robot, plan)
     if files:
         summary["files"] = sorted(str(f) for f in files)
+    if servo_error is not None:
+        summary["servo_file_errors"] = servo_error.failures
     if args.json:
         _print_json(summary)
-        return 0
+        return _report_servo_error(servo_error)
     print(
         f"{robot.name}: {len(plan.waypoints)} waypoints, duration {plan.trajectory.duration:.4f} s "
         f"({plan.trajectory.strategy} via states)"
@@ -259,7 +266,14 @@ def _run_plan(args: argparse.Namespace) -> int:
         print(f"segments still passing near a singularity: {list(plan.unresolved)}")
     if files:
         print(f"wrote {', '.join(summary['files'])}")
-    return 0
+    return _report_servo_error(servo_error)
+
+
+def _report_servo_error(error: ServoExportError | None) -> int:
+    if error is None:
+        return 0
+    print(f"planner plan: error: {error}", file=sys.stderr)
+    return 1
 
 
 # ---------------------------------------------------------------------------- ik

@@ -123,9 +123,12 @@ def _per_joint_si(value: float | np.ndarray, scale: np.ndarray) -> np.ndarray:
     return arr  # the wrong length: JointLimits names the joints in its error
 
 
-def _calibrations(robot: Robot, request: MotionRequest) -> tuple[ServoCalibration, ...]:
+def _calibrations(robot: Robot, request: MotionRequest, trajectory: JointTrajectory) -> tuple[ServoCalibration, ...]:
     if request.servos is None:
-        return default_calibrations(robot)
+        # Continuous joints have no range to fit: fit the plan's travel, sampled at 1 kHz,
+        # with a margin far above what the servo files' own sample times can add to it.
+        q = trajectory.sample(np.append(np.arange(0.0, trajectory.duration, 1e-3), trajectory.duration)).q
+        return default_calibrations(robot, travel=(q.min(axis=0) - 1e-3, q.max(axis=0) + 1e-3))
     if len(request.servos) != robot.dof:
         raise input_error(
             request.source, f"servos has {len(request.servos)} entries; {robot.name} has {robot.dof} joints"
@@ -298,6 +301,6 @@ def plan_motion(robot: Robot, request: MotionRequest, *, rate: float = 1000.0) -
         unresolved=unresolved,
         line_deviation=tuple(deviation),
         limits=limits,
-        calibrations=_calibrations(robot, request),
+        calibrations=_calibrations(robot, request, traj),
         servo_period_ms=request.servo_period_ms,
     )

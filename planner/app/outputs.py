@@ -14,8 +14,8 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from planner.exceptions import InvalidArgumentError
-from planner.export.formats import SERVO_FORMATS
+from planner.exceptions import InvalidArgumentError, ServoExportError
+from planner.export.formats import SERVO_FORMATS, ServoFormat
 
 if TYPE_CHECKING:
     from planner.export.calibration import ServoCalibration
@@ -25,7 +25,11 @@ __all__ = ["write_plan_files", "write_servo_files"]
 
 
 def write_servo_files(
-    folder: Path, trajectory: JointTrajectory, calibrations: Sequence[ServoCalibration], period_ms: int
+    folder: Path,
+    trajectory: JointTrajectory,
+    calibrations: Sequence[ServoCalibration],
+    period_ms: int,
+    formats: Sequence[ServoFormat] | None = None,
 ) -> list[Path]:
     """One file per registered servo format, named by the format, into an existing directory.
 
@@ -34,15 +38,16 @@ def write_servo_files(
         trajectory: The joint trajectory.
         calibrations: One per joint, in joint order.
         period_ms: Time between two servo updates [ms].
+        formats: The formats to write; None writes every registered one.
 
     Returns:
-        The paths written, in registry order.
+        The paths written, in the order of `formats`.
 
     Raises:
         InvalidArgumentError: If a calibration does not fit a format or a pulse is out of range.
     """
     paths = []
-    for fmt in SERVO_FORMATS.values():
+    for fmt in SERVO_FORMATS.values() if formats is None else formats:
         path = folder / fmt.file_name
         path.write_bytes(fmt.render(trajectory, calibrations, period_ms).encode(fmt.encoding))
         paths.append(path)
@@ -71,7 +76,9 @@ def write_plan_files(
         The paths written: the trajectory CSV, the servo files, the summary.
 
     Raises:
-        InvalidArgumentError: If the directory cannot be created, or a servo file cannot be made.
+        InvalidArgumentError: If the directory cannot be created.
+        ServoExportError: If a servo file cannot be made (a pulse out of its calibration's
+            range); the other files are written first and listed in the error.
     """
     folder = Path(out)
     try:
@@ -79,10 +86,20 @@ def write_plan_files(
     except OSError as exc:
         raise InvalidArgumentError(f"cannot create output directory {str(folder)!r}: {exc.strerror}") from exc
     paths = [trajectory.to_csv(folder / "trajectory.csv", rate=rate)]
-    paths += write_servo_files(folder, trajectory, calibrations, servo_period_ms)
+    # A servo file that cannot be made must not cost the user the trajectory and summary.
+    failures: dict[str, str] = {}
+    for fmt in SERVO_FORMATS.values():
+        try:
+            paths.append(write_servo_files(folder, trajectory, calibrations, servo_period_ms, formats=[fmt])[0])
+        except InvalidArgumentError as exc:
+            failures[fmt.file_name] = str(exc)
     summary_path = folder / "summary.json"
     summary = {**summary}
     summary["files"] = sorted(str(p) for p in [*paths, summary_path])
+    if failures:
+        summary["servo_file_errors"] = failures
     summary_path.write_text(json.dumps(summary, indent=2, allow_nan=False) + "\n")
     paths.append(summary_path)
+    if failures:
+        raise ServoExportError(failures, tuple(paths))
     return tuple(paths)
