@@ -105,6 +105,23 @@ def _run_robots(args: argparse.Namespace) -> int:
     return 0
 
 
+# ---------------------------------------------------------------------------- examples
+def _add_examples(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser("examples", help="list the example plan files, or copy them into a folder")
+    p.add_argument("--out", type=Path, default=None, help="copy the example plan files into this folder")
+
+
+def _run_examples(args: argparse.Namespace) -> int:
+    from planner.app.examples import example_files, examples_dir, write_examples
+
+    if args.out is not None:
+        print(f"wrote {', '.join(str(p) for p in write_examples(args.out))}")
+        return 0
+    print(_table(["file", "what it plans"], list(example_files().items())))
+    print(f"in {examples_dir()}; `planner examples --out DIR` copies them")
+    return 0
+
+
 # ---------------------------------------------------------------------------- fk
 def _add_fk(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser("fk", help="forward kinematics: the tip pose for joint values")
@@ -468,6 +485,7 @@ def _run_bench(args: argparse.Namespace) -> int:
 
 _COMMANDS: dict[str, tuple[Callable[[argparse._SubParsersAction], None], Callable[[argparse.Namespace], int]]] = {
     "robots": (_add_robots, _run_robots),
+    "examples": (_add_examples, _run_examples),
     "fk": (_add_fk, _run_fk),
     "ik": (_add_ik, _run_ik),
     "plan": (_add_plan, _run_plan),
