@@ -17,6 +17,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from planner.core.text import to_json
 from planner.exceptions import InvalidArgumentError, PlannerError, ServoExportError
 from planner.geometry.target import Target
 from planner.model.catalog import BUNDLED_ROBOTS, available_robots, load_robot
@@ -31,7 +32,7 @@ __all__ = ["main", "build_parser"]
 
 
 def _print_json(obj: object) -> None:
-    print(json.dumps(obj, indent=2, allow_nan=False))
+    print(to_json(obj))
 
 
 def _angles(values: Sequence[float], deg: bool, what: str = "angle", turn: float = 2 * np.pi) -> np.ndarray:
@@ -221,11 +222,19 @@ def _add_plan(sub: argparse._SubParsersAction) -> None:
     p.add_argument(
         "--plot", action="store_true", help="also draw joints.png, singularity.png and arm.png (into --out or .)"
     )
+    p.add_argument(
+        "--line-ending",
+        choices=("cr", "crlf"),
+        default="cr",
+        help="end of each ssc32.txt command: cr, the controller's terminator (default), or crlf to read as lines",
+    )
 
 
 def _run_plan(args: argparse.Namespace) -> int:
     from planner.app.motion_plan import plan_motion
     from planner.app.plan_file import load_motion_request
+    from planner.export.formats import SERVO_FORMATS
+    from planner.export.formats.ssc32 import Ssc32
 
     if not (np.isfinite(args.rate) and args.rate > 0):
         raise InvalidArgumentError(f"--rate must be a positive number [Hz], got {args.rate}")
@@ -235,16 +244,17 @@ def _run_plan(args: argparse.Namespace) -> int:
     summary = plan.summary(args.rate)
     files: list[Path] = []
     servo_error = None
-    if args.out is not None:
-        try:
-            files += plan.write_files(args.out, rate=args.rate)
-        except ServoExportError as exc:
-            servo_error = exc
-            files += exc.written
     if args.plot:
         from planner.app.plots import plot_plan
 
         files += plot_plan(args.out or Path("."), robot, plan)
+    if args.out is not None:
+        try:
+            formats = [Ssc32(args.line_ending) if fmt.name == Ssc32.name else fmt for fmt in SERVO_FORMATS.values()]
+            files += plan.write_files(args.out, rate=args.rate, extra_files=files, formats=formats)
+        except ServoExportError as exc:
+            servo_error = exc
+            files += exc.written
     if files:
         summary["files"] = sorted(str(f) for f in files)
     if servo_error is not None:

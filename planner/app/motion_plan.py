@@ -9,6 +9,7 @@ writes are in :mod:`planner.app.outputs`.
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -20,6 +21,7 @@ from planner.app.plan_file import MotionRequest
 from planner.core.arrays import read_only
 from planner.core.files import input_error, parse_number
 from planner.export.calibration import ServoCalibration, default_calibrations
+from planner.export.formats import ServoFormat
 from planner.model.robot import Robot
 from planner.motion.detours import Detour, SingularityOptions, plan_clear_of_singularities
 from planner.motion.limits import JointLimits
@@ -40,6 +42,7 @@ class MotionPlan:
         singularity: Singularity report of the trajectory.
         waypoints: The joint configuration of each requested waypoint, shape (N, dof).
         waypoint_times: When each is reached, shape (N,) [s].
+        departure_times: When the arm leaves each, after its dwell, shape (N,) [s].
         branches: Per waypoint, the IK branch taken (None for joint waypoints).
         singular_waypoints: Indices of requested waypoints below the singularity threshold.
         detours: Waypoints inserted around singularities.
@@ -56,6 +59,7 @@ class MotionPlan:
     singularity: SingularityReport
     waypoints: np.ndarray
     waypoint_times: np.ndarray
+    departure_times: np.ndarray
     branches: tuple[str | None, ...]
     singular_waypoints: tuple[int, ...]
     detours: tuple[Detour, ...]
@@ -73,6 +77,7 @@ class MotionPlan:
             "joints": list(self.limits.joint_names),
             "duration": self.trajectory.duration,
             "waypoint_times": self.waypoint_times.tolist(),
+            "departure_times": self.departure_times.tolist(),
             "max_velocity_ratio": peaks["velocity"],
             "max_acceleration_ratio": peaks["acceleration"],
             "max_jerk_ratio": peaks["jerk"],
@@ -93,21 +98,37 @@ class MotionPlan:
             "sample_rate": rate,
         }
 
-    def write_files(self, out: str | Path, rate: float = 1000.0) -> tuple[Path, ...]:
+    def write_files(
+        self,
+        out: str | Path,
+        rate: float = 1000.0,
+        extra_files: Sequence[Path] = (),
+        formats: Sequence[ServoFormat] | None = None,
+    ) -> tuple[Path, ...]:
         """Write the plan's files into a directory (see :func:`planner.app.outputs.write_plan_files`).
 
         Args:
             out: Output directory.
             rate: Sample rate of the CSV and of the summary's limit checks [Hz].
+            extra_files: Files already written for the plan (its plots), listed in the summary.
+            formats: The servo formats to write; None writes every registered one.
 
         Returns:
             The paths written.
 
         Raises:
             InvalidArgumentError: If the directory cannot be created.
+            ServoExportError: If a servo file cannot be made (the other files are written).
         """
         return write_plan_files(
-            out, self.trajectory, self.calibrations, self.servo_period_ms, self.summary(rate), rate=rate
+            out,
+            self.trajectory,
+            self.calibrations,
+            self.servo_period_ms,
+            self.summary(rate),
+            rate=rate,
+            extra_files=extra_files,
+            formats=formats,
         )
 
 
@@ -295,6 +316,7 @@ def plan_motion(robot: Robot, request: MotionRequest, *, rate: float = 1000.0) -
         singularity=plan.report,
         waypoints=read_only(q_user),
         waypoint_times=read_only(times),
+        departure_times=read_only(times + traj.dwell[user_idx]),
         branches=tuple(branches),
         singular_waypoints=singular,
         detours=detours,

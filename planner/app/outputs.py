@@ -9,11 +9,11 @@ every servo period) and ``summary.json`` (:meth:`MotionPlan.summary`). The PNG p
 
 from __future__ import annotations
 
-import json
 from collections.abc import Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING
 
+from planner.core.text import to_json
 from planner.exceptions import InvalidArgumentError, ServoExportError
 from planner.export.formats import SERVO_FORMATS, ServoFormat
 
@@ -61,6 +61,8 @@ def write_plan_files(
     servo_period_ms: int,
     summary: dict,
     rate: float = 1000.0,
+    extra_files: Sequence[Path] = (),
+    formats: Sequence[ServoFormat] | None = None,
 ) -> tuple[Path, ...]:
     """Write a plan's files into a directory (created if missing); see the module docstring.
 
@@ -71,6 +73,8 @@ def write_plan_files(
         servo_period_ms: Time between two servo updates [ms].
         summary: The plan's summary (:meth:`MotionPlan.summary`); the file list is added to it.
         rate: Sample rate of the CSV [Hz].
+        extra_files: Files already written for the plan (e.g. its plots), listed in the summary.
+        formats: The servo formats to write; None writes every registered one.
 
     Returns:
         The paths written: the trajectory CSV, the servo files, the summary.
@@ -88,17 +92,17 @@ def write_plan_files(
     paths = [trajectory.to_csv(folder / "trajectory.csv", rate=rate)]
     # A servo file that cannot be made must not cost the user the trajectory and summary.
     failures: dict[str, str] = {}
-    for fmt in SERVO_FORMATS.values():
+    for fmt in SERVO_FORMATS.values() if formats is None else formats:
         try:
             paths.append(write_servo_files(folder, trajectory, calibrations, servo_period_ms, formats=[fmt])[0])
         except InvalidArgumentError as exc:
             failures[fmt.file_name] = str(exc)
     summary_path = folder / "summary.json"
     summary = {**summary}
-    summary["files"] = sorted(str(p) for p in [*paths, summary_path])
+    summary["files"] = sorted(str(p) for p in [*paths, *extra_files, summary_path])
     if failures:
         summary["servo_file_errors"] = failures
-    summary_path.write_text(json.dumps(summary, indent=2, allow_nan=False) + "\n")
+    summary_path.write_text(to_json(summary) + "\n")
     paths.append(summary_path)
     if failures:
         raise ServoExportError(failures, tuple(paths))
