@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 import math
+import re
 
 import numpy as np
 
@@ -138,6 +139,8 @@ def test_radians_that_look_like_degrees_are_warned_about():
     assert "approach pitch -60 rad is more than half a turn" in result.stderr
     result = run_cli("fk", "al5c", "0", "45", "-90", "-45", "0", "--deg")
     assert result.returncode == 0 and result.stderr == ""
+    # Values that round to zero print as 0, never -0.
+    assert "(0.235732, 0.000000, -0.061876)" in result.stdout and not re.search(r"-0\.0+\b|-0\.(?!\d)", result.stdout)
 
 
 def test_fk_orientation_feeds_ik():

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 import planner
-from planner import IKOptions, IKResult, IKSolution, IKStatus, Target, load_robot, solve_ik
+from planner import IKOptions, IKResult, IKSolution, IKStatus, Target, approach_pitch, load_robot, solve_ik
 from planner.ik.result import LazySolutions
 from planner.ik.solvers import IKSolvers
 
@@ -118,3 +118,18 @@ def test_answers_take_no_needless_whole_turn(name, method):
                     shifted = answer[j] + turn
                     nearer = abs(shifted - seed[j]) < abs(answer[j] - seed[j])
                     assert not (nearer and robot.lower[j] <= shifted <= robot.upper[j]), (method, answer, seed)
+
+
+def test_a_joint_the_target_leaves_free_keeps_the_seed_value():
+    # al5c's wrist roll turns about the gripper's own axis: neither a position nor an approach
+    # pitch fixes it, so every method must leave it where the seed has it.
+    robot = load_robot("al5c")
+    rng = np.random.default_rng(17)
+    for _ in range(40):
+        q, seed = rng.uniform(robot.lower, robot.upper), rng.uniform(robot.lower, robot.upper)
+        position = robot.fk(q)[:3, 3]
+        for target in (Target(position=position), Target(position=position, pitch=approach_pitch(robot, q))):
+            for method in ("auto", "analytic", "nlp"):
+                result = solve_ik(robot, target, seed, method=method)
+                assert result.success, (method, target)
+                assert result.q[4] == pytest.approx(seed[4], abs=1e-9), (method, target)

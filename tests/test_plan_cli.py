@@ -263,3 +263,19 @@ def test_ssc32_line_endings(tmp_path, capsys):
     with pytest.raises(SystemExit):
         main(["plan", "dh3", str(EXAMPLE), "--line-ending", "lf"])
     assert "invalid choice: 'lf'" in capsys.readouterr().err
+
+
+def test_plan_table_speaks_the_plan_files_units_and_labels(tmp_path, capsys):
+    path = tmp_path / "deg.yaml"
+    path.write_text(
+        "units: {angle: deg}\nwaypoints:\n  - {q: [0, 30, 60], label: home}\n"
+        "  - {q: [45, 40, 70], dwell: 0.25}\n  - {q: [-30, 20, 50], label: drop}\n"
+    )
+    assert main(["plan", "dh3", str(path)]) == 0
+    lines = capsys.readouterr().out.splitlines()
+    assert re.match(r"#\s+label\s+t \[s\]\s+leaves \[s\]\s+q \[deg\]\s+branch", lines[1])
+    assert re.match(r"0\s+home\s+0\.0000\s+0\.0000\s+\+0\.0000 \+30\.0000 \+60\.0000\s+-", lines[3])
+    assert re.match(r"1\s+\d\.\d{4}\s+\d\.\d{4}\s+\+45\.0000 \+40\.0000 \+70\.0000", lines[4])
+    assert lines[5].split()[:2] == ["2", "drop"] and "-30.0000 +20.0000 +50.0000" in lines[5]
+    assert main(["plan", "dh3", str(path), "--json"]) == 0
+    assert json.loads(capsys.readouterr().out)["labels"] == ["home", None, "drop"]

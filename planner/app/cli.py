@@ -25,6 +25,8 @@ from planner.model.description import urdf_from_dh
 from planner.model.robot import Robot
 
 if TYPE_CHECKING:
+    from planner.app.motion_plan import MotionPlan
+    from planner.app.plan_file import MotionRequest
     from planner.ik.options import IKOptions
     from planner.ik.result import IKResult
 
@@ -157,15 +159,21 @@ def _run_fk(args: argparse.Namespace) -> int:
     if args.json:
         _print_json(result)
     else:
-        x, y, z = result["position"]
+        x, y, z = _no_negative_zero(pose[:3, 3])
         print(f"{robot.name} tip {robot.tip!r}: position [m] = ({x:.6f}, {y:.6f}, {z:.6f})")
         unit, shown = ("deg", np.degrees(rpy)) if args.deg else ("rad", rpy)
-        print(f"rpy [{unit}] = ({shown[0]:.6f}, {shown[1]:.6f}, {shown[2]:.6f}) (feeds `planner ik ... --rpy`)")
-        qx, qy, qz, qw = quaternion
+        r, p, w = _no_negative_zero(shown)
+        print(f"rpy [{unit}] = ({r:.6f}, {p:.6f}, {w:.6f}) (feeds `planner ik ... --rpy`)")
+        qx, qy, qz, qw = _no_negative_zero(quaternion)
         print(f"quaternion (x, y, z, w) = ({qx:.6f}, {qy:.6f}, {qz:.6f}, {qw:.6f})")
-        print(np.array2string(pose, precision=6, suppress_small=True))
+        print(np.array2string(_no_negative_zero(pose), precision=6, suppress_small=True))
         print(f"manipulability {result['manipulability']:.6g}, within limits: {result['within_limits']}")
     return 0
+
+
+def _no_negative_zero(values: np.ndarray, decimals: int = 6) -> np.ndarray:
+    """Values rounded as printed, with -0.0 (a tiny negative rounded away) shown as 0."""
+    return np.round(np.asarray(values, dtype=float), decimals) + 0.0
 
 
 # ---------------------------------------------------------------------------- urdf-from-dh
@@ -266,18 +274,7 @@ def _run_plan(args: argparse.Namespace) -> int:
         f"{robot.name}: {len(plan.waypoints)} waypoints, duration {plan.trajectory.duration:.4f} s "
         f"({plan.trajectory.strategy} via states)"
     )
-    rows = []
-    for k, (tk, q) in enumerate(zip(plan.waypoint_times, plan.waypoints)):
-        rows.append(
-            (
-                k,
-                f"{tk:.4f}",
-                " ".join(f"{x:+.4f}" for x in q),
-                plan.branches[k] or "-",
-                "SINGULAR" if k in plan.singular_waypoints else "",
-            )
-        )
-    print(_table(["#", "t [s]", "q [rad]", "branch", ""], rows))
+    print(_waypoint_table(robot, plan, request))
     print(
         f"peak / limit: velocity {summary['max_velocity_ratio']:.4f}, acceleration "
         f"{summary['max_acceleration_ratio']:.4f}, jerk {summary['max_jerk_ratio']:.4f} "
@@ -294,6 +291,34 @@ def _run_plan(args: argparse.Namespace) -> int:
     if files:
         print(f"wrote {', '.join(summary['files'])}")
     return _report_servo_error(servo_error)
+
+
+def _waypoint_table(robot: Robot, plan: MotionPlan, request: MotionRequest) -> str:
+    """The plan's waypoints in the plan file's own units, with their labels."""
+    from planner.core.units import ANGLE_UNITS, LENGTH_UNITS
+
+    angle = next(k for k, v in ANGLE_UNITS.items() if v == request.angle_scale)
+    length = next(k for k, v in LENGTH_UNITS.items() if v == request.length_scale)
+    kinds = set(robot.joint_kinds)
+    unit = "/".join(([angle] if kinds - {"prismatic"} else []) + ([length] if "prismatic" in kinds else []))
+    scale = np.array([request.length_scale if k == "prismatic" else request.angle_scale for k in robot.joint_kinds])
+    dwell = np.any(plan.departure_times > plan.waypoint_times)
+    rows = []
+    for k, q in enumerate(plan.waypoints):
+        leave = [f"{plan.departure_times[k]:.4f}"] if dwell else []
+        rows.append(
+            (
+                k,
+                plan.labels[k] or "",
+                f"{plan.waypoint_times[k]:.4f}",
+                *leave,
+                " ".join(f"{x + 0.0:+.4f}" for x in q / scale),
+                plan.branches[k] or "-",
+                "SINGULAR" if k in plan.singular_waypoints else "",
+            )
+        )
+    header = ["#", "label", "t [s]", *(["leaves [s]"] if dwell else []), f"q [{unit}]", "branch", ""]
+    return _table(header, rows)
 
 
 def _report_servo_error(error: ServoExportError | None) -> int:

@@ -44,6 +44,7 @@ class MotionPlan:
         waypoint_times: When each is reached, shape (N,) [s].
         departure_times: When the arm leaves each, after its dwell, shape (N,) [s].
         branches: Per waypoint, the IK branch taken (None for joint waypoints).
+        labels: Per waypoint, its label in the plan file, or None.
         singular_waypoints: Indices of requested waypoints below the singularity threshold.
         detours: Waypoints inserted around singularities.
         unresolved: Requested segments still dipping below the threshold with clear ends.
@@ -61,6 +62,7 @@ class MotionPlan:
     waypoint_times: np.ndarray
     departure_times: np.ndarray
     branches: tuple[str | None, ...]
+    labels: tuple[str | None, ...]
     singular_waypoints: tuple[int, ...]
     detours: tuple[Detour, ...]
     unresolved: tuple[int, ...]
@@ -88,6 +90,7 @@ class MotionPlan:
             "singular_waypoints": list(self.singular_waypoints),
             "waypoints": self.waypoints.tolist(),
             "branches": list(self.branches),
+            "labels": list(self.labels),
             "detours": [
                 {"segment": d.segment, "q": d.q.tolist(), "inverse_condition": d.inverse_condition}
                 for d in self.detours
@@ -318,6 +321,7 @@ def plan_motion(robot: Robot, request: MotionRequest, *, rate: float = 1000.0) -
         waypoint_times=read_only(times),
         departure_times=read_only(times + traj.dwell[user_idx]),
         branches=tuple(branches),
+        labels=tuple(request.labels),
         singular_waypoints=singular,
         detours=detours,
         unresolved=unresolved,
