@@ -95,8 +95,11 @@ def _wide_arm():
     return planner.Robot(planner.urdf_from_dh(description), tip="hand")
 
 
-@pytest.mark.parametrize(("name", "method"), [("wide", "auto"), ("wide", "nlp"), ("ur5", "nlp")])
-def test_answers_take_no_needless_whole_turn(name, method):
+@pytest.mark.parametrize(
+    ("name", "method", "count"),
+    [("wide", "auto", 60), ("wide", "nlp", 60), ("ur5", "nlp", 200), ("ur5", "auto", 200), ("panda", "auto", 200)],
+)
+def test_answers_take_no_needless_whole_turn(name, method, count):
     if name == "wide":
         robot = _wide_arm()
     else:
@@ -107,7 +110,7 @@ def test_answers_take_no_needless_whole_turn(name, method):
         robot = load_robot(name)
     rng = np.random.default_rng(7)
     options = IKOptions(closed_form_seeds=False)  # the NLP on its own: random restarts too
-    for _ in range(60):
+    for _ in range(count):
         q, seed = robot.random_configurations(rng, 2)
         target = robot.position(q) if robot.dof < 6 else robot.fk(q)
         result = solve_ik(robot, target, seed, method=method, options=options)
