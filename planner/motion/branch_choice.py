@@ -2,19 +2,21 @@
 
 :class:`TargetSolver` asks :func:`planner.solve_ik`, the one IK entry point: the closed form
 where the arm belongs to one of its families, else the CasADi NLP.
-For a waypoint it picks, among the solutions within the joint limits, one clear of
-singularities and nearest the previous configuration, and says which branch it took
+For a waypoint it picks, among the solutions within the joint limits, one free of collisions
+(with a checker), clear of singularities and nearest the previous configuration, and says which branch it took
 (:class:`IKChoice`); along a path it tracks the solution nearest the previous sample.
 """
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
 
+from planner.collision.checker import CollisionChecker
 from planner.core.arrays import read_only
-from planner.exceptions import InvalidArgumentError
+from planner.exceptions import InvalidArgumentError, PlanningError
 from planner.geometry.target import Target
 from planner.ik.options import IKOptions
 from planner.ik.solve import solve_ik
@@ -22,6 +24,9 @@ from planner.ik.solvers import IKSolvers
 from planner.model.robot import Robot, Task
 
 __all__ = ["IKChoice", "TargetSolver"]
+
+#: NLP restarts from other seeds when its answer collides.
+COLLISION_RESTARTS = 8
 
 _DEFAULT = IKOptions()
 _NEAR_SEED = IKOptions(near_seed=True)
@@ -110,13 +115,25 @@ class TargetSolver:
             return [(np.array(result.q, dtype=float), "nlp")], ""
         return [], f"{result.status}: {result.reason}"
 
-    def choose(self, target: Target, q_previous: np.ndarray | None, *, label: str = "target") -> IKChoice:
-        """The solution for a waypoint: clear of singularities first, then nearest `q_previous`.
+    def choose(
+        self,
+        target: Target,
+        q_previous: np.ndarray | None,
+        *,
+        label: str = "target",
+        checker: CollisionChecker | None = None,
+        allow: Sequence[str] = (),
+    ) -> IKChoice:
+        """The solution for a waypoint: collision-free, then clear of singularities, then nearest `q_previous`.
 
         Args:
             target: The Cartesian target.
             q_previous: The configuration before it; None uses the middle of the joint ranges.
             label: How to name the target in an error message.
+            checker: Checks each solution against the arm itself and a scene; solutions
+                closer than the scene's clearance are skipped (the NLP restarts from other
+                seeds to find one that is not). None checks nothing.
+            allow: Scene bodies the arm may touch at this target.
 
         Returns:
             The choice.
@@ -124,6 +141,7 @@ class TargetSolver:
         Raises:
             InvalidArgumentError: If no solution within the joint limits exists (the message
                 carries the solver's reason).
+            PlanningError: If every solution collides (the message names the closest pair).
         """
         ref = self._home if q_previous is None else np.asarray(q_previous, dtype=float)
         sols, reason = self.candidates(target, ref, nearest=True)
@@ -132,6 +150,8 @@ class TargetSolver:
                 f"{label} at position {np.round(target.position, 6).tolist()} m has no IK solution within the joint "
                 f"limits of {self.robot.name} ({reason})"
             )
+        if checker is not None:
+            sols = self._clear_of_collisions(target, sols, checker, allow, label)
         scored = []
         for q, branch in sols:
             ic = self._inverse_condition(q)
@@ -145,6 +165,37 @@ class TargetSolver:
             inverse_condition=ic,
             alternatives=len(sols) - 1,
             position_error=self._error(target, q),
+        )
+
+    def _clear_of_collisions(
+        self,
+        target: Target,
+        sols: list[tuple[np.ndarray, str]],
+        checker: CollisionChecker,
+        allow: Sequence[str],
+        label: str,
+    ) -> list[tuple[np.ndarray, str]]:
+        mask = checker.pair_mask(allow)
+        checked = [(q, branch, checker.distance_at(q, mask)) for q, branch in sols]
+        clear = [(q, branch) for q, branch, c in checked if c.clear]
+        if not clear and self.method == "nlp":
+            rng = np.random.default_rng(0)  # restarts from fixed seeds: the same plan every time
+            for seed in self.robot.random_configurations(rng, COLLISION_RESTARTS):
+                more, _ = self.candidates(target, seed)
+                for q, branch in more:
+                    c = checker.distance_at(q, mask)
+                    checked.append((q, branch, c))
+                    if c.clear:
+                        clear.append((q, branch))
+                if clear:
+                    break
+        if clear:
+            return clear
+        q, branch, worst = max(checked, key=lambda x: x[2].distance)
+        raise PlanningError(
+            f"{label} at position {np.round(target.position, 6).tolist()} m: every IK solution within the limits "
+            f"collides or comes closer than the clearance ({len(checked)} tried); the best ({branch}): {worst}. "
+            "Move the target or the obstacle, or allow contact (allow: [...])"
         )
 
     def track(self, target: Target, q_previous: np.ndarray) -> np.ndarray | None:
