@@ -293,3 +293,37 @@ def test_unreachable_without_collision_is_an_outcome_with_a_reason():
     assert result.status is PathStatus.GOAL_IN_COLLISION and not result.found
     assert "goal does not keep the clearance" in result.reason and "cage" in result.reason
     assert result.path.shape == (0, 5)
+
+
+# ---------------------------------------------------------------------------- IK answers
+
+
+def test_ik_answers_are_checked_and_colliding_branches_skipped():
+    from planner import IKStatus, Target, solve_ik
+
+    robot = get_robot("dh3")
+    target = Target(position=[0.12, 0.0, 0.06])
+    free = solve_ik(robot, target, method="analytic")
+    assert free.success and free.solutions[0].label == "front/elbow-up"
+    assert all(s.clearance is None for s in free.solutions)
+    # A ball at the elbow-up answer's elbow: that branch collides, elbow-down does not.
+    elbow = robot.joint_positions(free.q)[3]
+    checker = CollisionChecker(robot, Scene(obstacles=(Obstacle("ball", Sphere(0.01), elbow),)))
+    assert checker.clearance(free.q).in_collision
+    for method in ("analytic", "auto"):
+        checked = solve_ik(robot, target, method=method, checker=checker)
+        assert checked.success and checker.clearance(checked.q).clear
+        assert "elbow-down" in checked.reason
+        assert all(s.clearance is not None for s in checked.solutions)
+        assert np.linalg.norm(robot.position(checked.q) - target.position) < 1e-9
+    # Allowing the contact gives back the nearest answer.
+    allowed = solve_ik(robot, target, method="auto", checker=checker, allow=["ball"])
+    np.testing.assert_allclose(allowed.q, free.q)
+    # Nothing clear anywhere (al5c has one branch within its limits; the NLP restarts too):
+    # an outcome with the status and the bodies.
+    al5c = get_robot("al5c")
+    grasp = Target(position=[0.2, 0.0, 0.05], pitch=-math.pi / 2)
+    cage = CollisionChecker(al5c, Scene(obstacles=(Obstacle("cage", Sphere(0.08), grasp.position),)))
+    for method in ("auto", "nlp"):
+        caged = solve_ik(al5c, grasp, method=method, checker=cage)
+        assert not caged.success and caged.status is IKStatus.IN_COLLISION and "cage" in caged.reason

@@ -93,7 +93,7 @@ def test_a_target_inside_an_obstacle_is_refused_or_allowed():
         ],
         "scene": {"floor": 0, "obstacles": [{"name": "block", "box": [20, 20, 40], "position": [230, 0, 20]}]},
     }
-    with pytest.raises(PlanningError, match=r"target 1 \(grasp\).*every IK solution.*block"):
+    with pytest.raises(PlanningError, match=r"target 1 \(grasp\).*in_collision: every solution found collides.*block"):
         plan_with_scene(robot, data)
     data["targets"][1]["allow"] = ["block"]
     plan = plan_with_scene(robot, data)

@@ -21,12 +21,10 @@ from planner.geometry.target import Target
 from planner.ik.options import IKOptions
 from planner.ik.solve import solve_ik
 from planner.ik.solvers import IKSolvers
+from planner.ik.status import IKStatus
 from planner.model.robot import Robot, Task
 
 __all__ = ["IKChoice", "TargetSolver"]
-
-#: NLP restarts from other seeds when its answer collides.
-COLLISION_RESTARTS = 8
 
 _DEFAULT = IKOptions()
 _NEAR_SEED = IKOptions(near_seed=True)
@@ -99,20 +97,33 @@ class TargetSolver:
         return float(np.linalg.norm(self.robot.position(q) - target.position))
 
     def candidates(
-        self, target: Target, q_near: np.ndarray | None, *, nearest: bool = False
+        self,
+        target: Target,
+        q_near: np.ndarray | None,
+        *,
+        nearest: bool = False,
+        checker: CollisionChecker | None = None,
+        allow: Sequence[str] = (),
     ) -> tuple[list[tuple[np.ndarray, str]], str]:
         """Solutions within the limits, ``(q, branch)``, and a reason when there are none.
 
         Both come from :func:`planner.solve_ik`: the closed form gives every branch; the NLP
         its answer, started from `q_near` (with `nearest`, the solution nearest `q_near`).
+        With a `checker`, only solutions that keep the scene's clearance count.
         """
         options = _NEAR_SEED if nearest and q_near is not None else _DEFAULT
-        result = solve_ik(self.robot, target, q_near, method=self.method, options=options)
-        if result.method == "analytic":
-            sols = [(np.array(s.q, dtype=float), s.label) for s in result.solutions if s.within_limits]
-            return sols, "" if sols else result.reason or result.status.value
+        result = solve_ik(self.robot, target, q_near, method=self.method, options=options, checker=checker, allow=allow)
+        if result.method == "analytic" and result.success:
+            sols = [
+                (np.array(s.q, dtype=float), s.label)
+                for s in result.solutions
+                if s.within_limits and (checker is None or s.clearance >= checker.scene.clearance)
+            ]
+            return sols, ""
         if result.success:
-            return [(np.array(result.q, dtype=float), "nlp")], ""
+            return [
+                (np.array(result.q, dtype=float), result.solutions[0].label if result.method == "analytic" else "nlp")
+            ], ""
         return [], f"{result.status}: {result.reason}"
 
     def choose(
@@ -144,14 +155,17 @@ class TargetSolver:
             PlanningError: If every solution collides (the message names the closest pair).
         """
         ref = self._home if q_previous is None else np.asarray(q_previous, dtype=float)
-        sols, reason = self.candidates(target, ref, nearest=True)
+        sols, reason = self.candidates(target, ref, nearest=True, checker=checker, allow=allow)
+        if not sols and reason.startswith(IKStatus.IN_COLLISION.value):
+            raise PlanningError(
+                f"{label} at position {np.round(target.position, 6).tolist()} m: {reason}. "
+                "Move the target or the obstacle, or allow contact (allow: [...])"
+            )
         if not sols:
             raise InvalidArgumentError(
                 f"{label} at position {np.round(target.position, 6).tolist()} m has no IK solution within the joint "
                 f"limits of {self.robot.name} ({reason})"
             )
-        if checker is not None:
-            sols = self._clear_of_collisions(target, sols, checker, allow, label)
         scored = []
         for q, branch in sols:
             ic = self._inverse_condition(q)
@@ -165,37 +179,6 @@ class TargetSolver:
             inverse_condition=ic,
             alternatives=len(sols) - 1,
             position_error=self._error(target, q),
-        )
-
-    def _clear_of_collisions(
-        self,
-        target: Target,
-        sols: list[tuple[np.ndarray, str]],
-        checker: CollisionChecker,
-        allow: Sequence[str],
-        label: str,
-    ) -> list[tuple[np.ndarray, str]]:
-        mask = checker.pair_mask(allow)
-        checked = [(q, branch, checker.distance_at(q, mask)) for q, branch in sols]
-        clear = [(q, branch) for q, branch, c in checked if c.clear]
-        if not clear and self.method == "nlp":
-            rng = np.random.default_rng(0)  # restarts from fixed seeds: the same plan every time
-            for seed in self.robot.random_configurations(rng, COLLISION_RESTARTS):
-                more, _ = self.candidates(target, seed)
-                for q, branch in more:
-                    c = checker.distance_at(q, mask)
-                    checked.append((q, branch, c))
-                    if c.clear:
-                        clear.append((q, branch))
-                if clear:
-                    break
-        if clear:
-            return clear
-        q, branch, worst = max(checked, key=lambda x: x[2].distance)
-        raise PlanningError(
-            f"{label} at position {np.round(target.position, 6).tolist()} m: every IK solution within the limits "
-            f"collides or comes closer than the clearance ({len(checked)} tried); the best ({branch}): {worst}. "
-            "Move the target or the obstacle, or allow contact (allow: [...])"
         )
 
     def track(self, target: Target, q_previous: np.ndarray) -> np.ndarray | None:
