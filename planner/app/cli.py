@@ -204,6 +204,16 @@ def _add_plan(sub: argparse._SubParsersAction) -> None:
     p.add_argument(
         "--plot", action="store_true", help="also draw joints.png, singularity.png and arm.png (into --out or .)"
     )
+    _add_controller_arguments(p, "servo files for this controller (default: the plan file's; else pulses and ssc32)")
+
+
+def _add_controller_arguments(p: argparse.ArgumentParser, controller_help: str) -> None:
+    from planner.export.formats import SERVO_FORMATS
+
+    p.add_argument("--controller", choices=tuple(SERVO_FORMATS), default=None, help=controller_help)
+    p.add_argument(
+        "--calibration", type=Path, default=None, help="calibration file (YAML; see README: Driving a real arm)"
+    )
 
 
 def _run_plan(args: argparse.Namespace) -> int:
@@ -214,7 +224,7 @@ def _run_plan(args: argparse.Namespace) -> int:
         raise InvalidArgumentError(f"--rate must be a positive number [Hz], got {args.rate}")
     robot = load_robot(args.robot)
     request = load_motion_request(args.waypoints_file)
-    plan = plan_motion(robot, request, rate=args.rate)
+    plan = plan_motion(robot, request, rate=args.rate, controller=args.controller, calibration=args.calibration)
     summary = plan.summary(args.rate)
     files: list[Path] = []
     if args.out is not None:

@@ -19,7 +19,8 @@ from planner.app.outputs import write_plan_files
 from planner.app.plan_file import MotionRequest
 from planner.core.arrays import read_only
 from planner.core.files import input_error, parse_number
-from planner.export.calibration import ServoCalibration, default_calibrations
+from planner.export.calibration import ServoCalibration
+from planner.export.calibration_file import ControllerSetup, controller_setup
 from planner.model.robot import Robot
 from planner.motion.detours import Detour, SingularityOptions, plan_clear_of_singularities
 from planner.motion.limits import JointLimits
@@ -47,8 +48,11 @@ class MotionPlan:
         line_deviation: Per requested segment, the largest distance of the tip from the
             straight line [m] for line segments, else None.
         limits: The limits planned with.
-        calibrations: Servo calibration per joint.
+        calibrations: Servo calibration per joint (pulse widths, or position ticks for a
+            Feetech bus or a stepper controller).
         servo_period_ms: Time between two servo updates in the servo files [ms].
+        setup: The controller and calibrations the servo files are written for (None: the
+            default pulse-width files).
     """
 
     robot: str
@@ -62,8 +66,9 @@ class MotionPlan:
     unresolved: tuple[int, ...]
     line_deviation: tuple[float | None, ...]
     limits: JointLimits
-    calibrations: tuple[ServoCalibration, ...]
+    calibrations: tuple
     servo_period_ms: int
+    setup: ControllerSetup | None = None
 
     def summary(self, rate: float = 1000.0) -> dict[str, Any]:
         """A JSON-ready summary; the ratios are sampled peaks over the limits at `rate` [Hz]."""
@@ -90,6 +95,7 @@ class MotionPlan:
             "unresolved_segments": list(self.unresolved),
             "line_deviation": list(self.line_deviation),
             "strategy": self.trajectory.strategy,
+            "controller": None if self.setup is None else self.setup.controller,
             "sample_rate": rate,
         }
 
@@ -106,8 +112,10 @@ class MotionPlan:
         Raises:
             InvalidArgumentError: If the directory cannot be created.
         """
+        formats = None if self.setup is None else self.setup.formats()
+        summary = self.summary(rate)
         return write_plan_files(
-            out, self.trajectory, self.calibrations, self.servo_period_ms, self.summary(rate), rate=rate
+            out, self.trajectory, self.calibrations, self.servo_period_ms, summary, rate=rate, formats=formats
         )
 
 
@@ -123,9 +131,9 @@ def _per_joint_si(value: float | np.ndarray, scale: np.ndarray) -> np.ndarray:
     return arr  # the wrong length: JointLimits names the joints in its error
 
 
-def _calibrations(robot: Robot, request: MotionRequest) -> tuple[ServoCalibration, ...]:
+def _calibrations(robot: Robot, request: MotionRequest) -> tuple[ServoCalibration, ...] | None:
     if request.servos is None:
-        return default_calibrations(robot)
+        return None
     if len(request.servos) != robot.dof:
         raise input_error(
             request.source, f"servos has {len(request.servos)} entries; {robot.name} has {robot.dof} joints"
@@ -144,13 +152,24 @@ def _calibrations(robot: Robot, request: MotionRequest) -> tuple[ServoCalibratio
     return tuple(out)
 
 
-def plan_motion(robot: Robot, request: MotionRequest, *, rate: float = 1000.0) -> MotionPlan:
+def plan_motion(
+    robot: Robot,
+    request: MotionRequest,
+    *,
+    rate: float = 1000.0,
+    controller: str | None = None,
+    calibration: str | Path | None = None,
+) -> MotionPlan:
     """Plan a motion request for a robot: IK for targets, line sampling, trajectory, singularities.
 
     Args:
         robot: The robot.
         request: The parsed request.
         rate: Sampling rate of the singularity checks [Hz].
+        controller: Controller to write servo files for (a key of
+            :data:`planner.export.formats.SERVO_FORMATS`), instead of the request's.
+        calibration: Calibration file, instead of the request's (see
+            :func:`planner.export.calibration_file.controller_setup` for the order of choice).
 
     Returns:
         The plan.
@@ -161,6 +180,12 @@ def plan_motion(robot: Robot, request: MotionRequest, *, rate: float = 1000.0) -
     """
     scale = _joint_scale(robot, request)
     src = request.source
+    setup = controller_setup(
+        robot,
+        controller or request.controller,
+        calibration if calibration is not None else request.calibration,
+        None if calibration is not None else _calibrations(robot, request),
+    )
     lim_kw = {}
     for key in ("velocity", "acceleration", "jerk"):
         if key in request.limits:
@@ -298,6 +323,7 @@ def plan_motion(robot: Robot, request: MotionRequest, *, rate: float = 1000.0) -
         unresolved=unresolved,
         line_deviation=tuple(deviation),
         limits=limits,
-        calibrations=_calibrations(robot, request),
+        calibrations=setup.calibrations,
         servo_period_ms=request.servo_period_ms,
+        setup=setup,
     )

@@ -20,6 +20,8 @@ A plan file is YAML or JSON (``.json`` is read as JSON, anything else as YAML)::
     servos:                           # optional pulse-width calibration per joint
       - {channel: 0, pulse_at_zero: 1500, us_per_rad: 636.6, direction: 1, min_pulse: 500, max_pulse: 2500}
     servo_period_ms: 20
+    controller: ssc32                 # optional: ssc32, pca9685, feetech, steps, pulses (the files written)
+    calibration: my-arm.yaml          # optional calibration file (planner.export.calibration_file), instead of servos
 
 ``line: true`` on a target makes the motion from the previous target to it a straight line.
 Angles (joint values, pitch, rpy, angular limits) use the ``angle`` unit, lengths (positions,
@@ -38,6 +40,7 @@ import numpy as np
 
 from planner.core.files import input_error, parse_number, parse_numbers, parse_units, read_data_file
 from planner.core.text import plain
+from planner.export.formats import SERVO_FORMATS
 from planner.geometry.target import Target
 from planner.motion.singularity import DEFAULT_CONDITION_NUMBER
 from planner.motion.vias import VIA_STRATEGIES
@@ -54,6 +57,8 @@ _TOP_KEYS = (
     "strategy",
     "servos",
     "servo_period_ms",
+    "controller",
+    "calibration",
     "name",
     "comment",
 )
@@ -108,6 +113,8 @@ class MotionRequest:
         strategy: Via strategy (see :func:`planner.motion.trajectory.plan_trajectory`).
         servos: Servo calibration mappings as written, or None for defaults.
         servo_period_ms: Time between two servo updates in the servo files [ms].
+        controller: The controller named (a key of ``SERVO_FORMATS``), or None.
+        calibration: Calibration file path, or None.
         angle_scale: Radians per file angle unit.
         length_scale: Metres per file length unit.
         source: Where the request came from, for messages.
@@ -129,6 +136,8 @@ class MotionRequest:
     strategy: str = "optimized"
     servos: tuple[Mapping[str, Any], ...] | None = None
     servo_period_ms: int = 20
+    controller: str | None = None
+    calibration: Path | None = None
     angle_scale: float = 1.0
     length_scale: float = 1.0
     source: str = "<request>"
@@ -294,6 +303,18 @@ def parse_motion_request(data: Mapping[str, Any], source: str = "<request>") -> 
     period = data.get("servo_period_ms", 20)
     if isinstance(period, bool) or not isinstance(period, int) or not 1 <= period <= 65535:
         raise input_error(source, f"servo_period_ms must be an integer in [1, 65535], got {plain(period)}")
+    controller = data.get("controller")
+    if controller is not None and controller not in SERVO_FORMATS:
+        raise input_error(source, f"unknown controller {controller!r}; valid controllers: {', '.join(SERVO_FORMATS)}")
+    calibration = data.get("calibration")
+    if calibration is not None:
+        if not isinstance(calibration, str) or not calibration:
+            raise input_error(source, f"calibration must be a file path, got {plain(calibration)}")
+        if servos is not None:
+            raise input_error(source, "give servos or a calibration file, not both")
+        calibration = Path(calibration)
+        if not calibration.is_absolute() and source != "<request>":
+            calibration = Path(source).parent / calibration
 
     return MotionRequest(
         joints=joints,
@@ -312,6 +333,8 @@ def parse_motion_request(data: Mapping[str, Any], source: str = "<request>") -> 
         strategy=strategy,
         servos=servos,
         servo_period_ms=period,
+        controller=controller,
+        calibration=calibration,
         angle_scale=angle,
         length_scale=length,
         source=source,
