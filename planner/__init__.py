@@ -10,12 +10,14 @@ from planner.core.rotations import quaternion_to_matrix, rotation_error, rpy_to_
 from planner.core.units import servo_speed_to_velocity
 from planner.core.version import __version__
 from planner.exceptions import (
+    ControllerError,
     InvalidArgumentError,
     InvalidConfigurationError,
     InvalidLimitsError,
     JointLimitError,
     PlannerError,
     PlanningError,
+    StartPositionError,
     UnknownFrameError,
     UnknownRobotError,
     UnsupportedChainError,
@@ -102,6 +104,8 @@ __all__ = [
     # errors
     "PlannerError",
     "PlanningError",
+    "ControllerError",
+    "StartPositionError",
     "URDFError",
     "InvalidLimitsError",
     "UnknownFrameError",

@@ -19,6 +19,8 @@ __all__ = [
     "JointLimitError",
     "InvalidArgumentError",
     "UnsupportedChainError",
+    "ControllerError",
+    "StartPositionError",
 ]
 
 
@@ -126,3 +128,23 @@ class UnsupportedChainError(PlannerError):
 
 class PlanningError(PlannerError):
     """A valid request that the planner cannot turn into a motion; the message says what to change."""
+
+
+class ControllerError(PlannerError):
+    """A servo controller or its serial port failed, answered wrongly, or cannot carry a stream."""
+
+
+class StartPositionError(ControllerError):
+    """The arm is not at the plan's first waypoint (or cannot say where it is): nothing was sent.
+
+    Attributes:
+        joint: The joint furthest from its first-waypoint value, or None when the position is unknown.
+        value: Its read angle [rad] (NaN when unknown).
+        expected: Its first-waypoint angle [rad].
+    """
+
+    def __init__(self, message: str, *, joint: str | None = None, value: float = float("nan"), expected: float = 0.0):
+        super().__init__(message)
+        self.joint = joint
+        self.value = value
+        self.expected = expected

@@ -272,6 +272,57 @@ def _run_plan(args: argparse.Namespace) -> int:
     return 0
 
 
+# ---------------------------------------------------------------------------- send
+def _add_send(sub: argparse._SubParsersAction) -> None:
+    from planner.hardware import DRIVERS
+
+    p = sub.add_parser(
+        "send",
+        help="plan, then stream the servo commands to a controller over a serial port",
+        description="Plan a plan file, read where the arm is, then send one command per servo period, paced by a "
+        "monotonic clock; Ctrl-C or a port error stops every servo in use. Needs pyserial (the hardware extra).",
+    )
+    p.add_argument("robot", help="robot name (see `planner robots`) or URDF path")
+    p.add_argument("plan_file", type=Path, help="plan file (.yaml or .json)")
+    p.add_argument("--port", default=None, help="serial device, e.g. /dev/ttyUSB0 or COM3")
+    p.add_argument("--baud", type=int, default=None, help="baud rate (default: the controller's, 115200 / 1000000)")
+    p.add_argument("--controller", choices=tuple(DRIVERS), default=None, help="default: the plan file's, else ssc32")
+    p.add_argument("--calibration", type=Path, default=None, help="calibration file (default: shipped, else defaults)")
+    p.add_argument("--dry-run", action="store_true", help="print the byte stream with timestamps; open no port")
+    p.add_argument("--from-current", action="store_true", help="far from the first waypoint: plan a move from there")
+    p.add_argument(
+        "--approach-time",
+        type=float,
+        default=None,
+        metavar="S",
+        help="position unknown (SSC-32): one timed move to the first waypoint taking S seconds first; the arm JUMPS "
+        "there if a servo was elsewhere",
+    )
+    p.add_argument(
+        "--start-tolerance", type=float, default=0.05, metavar="RAD", help="counts as at the first waypoint [rad]"
+    )
+
+
+def _run_send(args: argparse.Namespace) -> int:
+    from planner.app.send import send_plan
+    from planner.hardware.session import SendOptions, SendStatus
+
+    options = SendOptions(args.baud, args.from_current, args.approach_time, args.start_tolerance)
+    if args.port is None and not args.dry_run:
+        raise InvalidArgumentError("give --port DEVICE (or --dry-run to print the stream)")
+    result = send_plan(
+        load_robot(args.robot),
+        args.plan_file,
+        port=args.port,
+        controller=args.controller,
+        calibration=args.calibration,
+        options=options,
+        dry_run=sys.stdout if args.dry_run else None,
+    )
+    print(f"{'# ' if args.dry_run else ''}{result.message}")
+    return {SendStatus.COMPLETED: 0, SendStatus.INTERRUPTED: 130}.get(result.status, 1)
+
+
 # ---------------------------------------------------------------------------- ik
 def _add_ik(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser(
@@ -467,6 +518,7 @@ _COMMANDS: dict[str, tuple[Callable[[argparse._SubParsersAction], None], Callabl
     "fk": (_add_fk, _run_fk),
     "ik": (_add_ik, _run_ik),
     "plan": (_add_plan, _run_plan),
+    "send": (_add_send, _run_send),
     "demo": (_add_demo, _run_demo),
     "bench": (_add_bench, _run_bench),
     "urdf-from-dh": (_add_urdf_from_dh, _run_urdf_from_dh),
