@@ -288,7 +288,7 @@ def main(argv: list[str] | None = None) -> int:
         have_toppra = True
     except ImportError:
         have_toppra = False
-        print("toppra is not installed (pip install 'planner[bench]'): TOPPRA columns are skipped")
+        print("toppra is not installed (pip install 'servo-arm-planner[bench]'): TOPPRA columns are skipped")
     names = args.robots or list(available_robots())
     skipped = [n for n in ("ur5", "panda", "so101", "z1") if n not in available_robots()]
     if skipped:

@@ -19,6 +19,8 @@ __all__ = [
     "JointLimitError",
     "InvalidArgumentError",
     "UnsupportedChainError",
+    "PlanningError",
+    "ServoExportError",
     "ControllerError",
     "StartPositionError",
 ]
@@ -128,6 +130,25 @@ class UnsupportedChainError(PlannerError):
 
 class PlanningError(PlannerError):
     """A valid request that the planner cannot turn into a motion; the message says what to change."""
+
+
+class ServoExportError(PlannerError):
+    """Servo files could not be made for a plan; the plan's other files were written.
+
+    Attributes:
+        failures: Per servo format name, the reason (naming the joint and the fix).
+        written: The files that were written.
+    """
+
+    def __init__(self, failures: dict[str, str], written: tuple = ()):
+        self.failures = dict(failures)
+        self.written = tuple(written)
+        lines = [f"{name}: {reason}" for name, reason in self.failures.items()]
+        done = ", ".join(str(p) for p in self.written) or "nothing"
+        super().__init__(
+            "servo files not written (" + "; ".join(lines) + f"); written: {done}. Give the joint a calibration "
+            "that covers its travel (a plan file's `servos:` entry: pulse_at_zero, us_per_deg, min_pulse, max_pulse)"
+        )
 
 
 class ControllerError(PlannerError):

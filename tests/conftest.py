@@ -17,7 +17,7 @@ BUNDLED = tuple(BUNDLED_ROBOTS)
 EXAMPLES = tuple(EXAMPLE_ROBOTS)
 HAVE_EXAMPLE_ROBOT_DATA = example_robot_data_dir() is not None
 needs_example_robot_data = pytest.mark.skipif(
-    not HAVE_EXAMPLE_ROBOT_DATA, reason="example-robot-data is not installed (pip install 'planner[bench]')"
+    not HAVE_EXAMPLE_ROBOT_DATA, reason="example-robot-data is not installed (pip install 'servo-arm-planner[bench]')"
 )
 
 _cache: dict[str, planner.Robot] = {}

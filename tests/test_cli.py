@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 import math
+import re
 
 import numpy as np
 
@@ -86,7 +87,7 @@ def test_bench_bad_input():
 
 
 def test_every_subcommand_has_help():
-    for command in ("robots", "fk", "ik", "plan", "demo", "bench", "urdf-from-dh"):
+    for command in ("robots", "examples", "fk", "ik", "plan", "demo", "bench", "urdf-from-dh"):
         result = run_cli(command, "--help")
         assert result.returncode == 0 and "usage: planner " + command in result.stdout
 
@@ -110,6 +111,26 @@ def test_runs_from_the_repository_root():
     assert json.loads(result.stdout)["robot"] == "al5c"
 
 
+def test_example_plan_files_ship_with_the_package(tmp_path):
+    # Run away from the repository (the installed package) and from its root (the source tree).
+    from pathlib import Path
+
+    root = Path(__file__).resolve().parents[1]
+    shipped = sorted(p.name for p in (root / "examples").iterdir())
+    for cwd in (tmp_path, root):
+        listing = run_cli("examples", cwd=cwd)
+        assert listing.returncode == 0, listing.stderr
+        assert all(name in listing.stdout for name in shipped)
+    out = tmp_path / "copies"
+    copied = run_cli("examples", "--out", str(out), cwd=tmp_path)
+    assert copied.returncode == 0, copied.stderr
+    assert sorted(p.name for p in out.iterdir()) == shipped
+    for name in shipped:
+        assert (out / name).read_bytes() == (root / "examples" / name).read_bytes()
+    planned = run_cli("plan", "dh3", str(out / "dh3_pick_and_place.yaml"), "--json", cwd=tmp_path)
+    assert planned.returncode == 0 and json.loads(planned.stdout)["singular_waypoints"] == [0, 6, 9]
+
+
 def test_radians_that_look_like_degrees_are_warned_about():
     result = run_cli("fk", "al5c", "0", "45", "-90", "-45", "0")
     assert result.returncode == 0
@@ -118,6 +139,8 @@ def test_radians_that_look_like_degrees_are_warned_about():
     assert "approach pitch -60 rad is more than half a turn" in result.stderr
     result = run_cli("fk", "al5c", "0", "45", "-90", "-45", "0", "--deg")
     assert result.returncode == 0 and result.stderr == ""
+    # Values that round to zero print as 0, never -0.
+    assert "(0.235732, 0.000000, -0.061876)" in result.stdout and not re.search(r"-0\.0+\b|-0\.(?!\d)", result.stdout)
 
 
 def test_fk_orientation_feeds_ik():

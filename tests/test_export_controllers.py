@@ -234,6 +234,6 @@ def test_a_format_problem_keeps_the_trajectory_and_summary(tmp_path, capsys):
     out = tmp_path / "run"
     assert main(["plan", "dh3", str(plan), "--out", str(out)]) == 1
     err = capsys.readouterr().err
-    assert "pca9685.csv (pca9685): joint 'base_yaw' uses channel 20; a PCA9685 has channels 0-15" in err
+    assert "pca9685.csv: joint 'base_yaw' uses channel 20; a PCA9685 has channels 0-15" in err
     assert (out / "trajectory.csv").is_file()
-    assert "servo_errors" in json.loads((out / "summary.json").read_text())
+    assert "pca9685.csv" in json.loads((out / "summary.json").read_text())["servo_file_errors"]

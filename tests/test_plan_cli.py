@@ -221,3 +221,61 @@ def test_bad_plan_files(data, error, message):
     robot = get_robot("dh3")
     with pytest.raises(error, match=message):
         plan_motion(robot, parse_motion_request(data))
+
+
+def test_summary_lists_plots_and_departures_without_negative_zero(tmp_path, capsys):
+    out = tmp_path / "run"
+    assert main(["plan", "dh3", str(EXAMPLE), "--out", str(out), "--plot"]) == 0
+    capsys.readouterr()
+    text = (out / "summary.json").read_text()
+    summary = json.loads(text)
+    names = sorted(Path(f).name for f in summary["files"])
+    assert names == sorted(p.name for p in out.iterdir())
+    assert {"joints.png", "singularity.png", "arm.png"} <= set(names)
+    # The example dwells 0.5 s where the claw acts (waypoints 2 and 8): the arm leaves later.
+    arrive, leave = np.array(summary["waypoint_times"]), np.array(summary["departure_times"])
+    np.testing.assert_allclose(leave - arrive, [0, 0, 0.5, 0, 0, 0, 0, 0, 0.5, 0], atol=1e-12)
+    assert not re.search(r"-0\.0\b|-0\b", text)
+
+
+def test_to_json_writes_plain_numbers():
+    from planner.core.text import to_json
+
+    assert to_json({"a": np.float64(-0.0), "b": [np.int64(3), -0.0, (1.5,)], "c": np.array([-0.0, 2.0])}) == (
+        '{\n  "a": 0.0,\n  "b": [\n    3,\n    0.0,\n    [\n      1.5\n    ]\n  ],\n  "c": [\n    0.0,\n    2.0\n  ]\n}'
+    )
+    with pytest.raises(ValueError):
+        to_json({"x": float("nan")})
+
+
+def test_ssc32_line_endings(tmp_path, capsys):
+    from planner.export.formats.ssc32 import Ssc32
+
+    cr, crlf = tmp_path / "cr", tmp_path / "crlf"
+    assert main(["plan", "dh3", str(EXAMPLE), "--out", str(cr)]) == 0
+    assert main(["plan", "dh3", str(EXAMPLE), "--out", str(crlf), "--line-ending", "crlf"]) == 0
+    capsys.readouterr()
+    a, b = (cr / "ssc32.txt").read_bytes(), (crlf / "ssc32.txt").read_bytes()
+    assert b"\n" not in a and a.endswith(b"T20\r")
+    assert b == a.replace(b"\r", b"\r\n")
+    with pytest.raises(InvalidArgumentError, match="unknown line ending 'lf'; valid line endings: cr, crlf"):
+        Ssc32("lf")
+    with pytest.raises(SystemExit):
+        main(["plan", "dh3", str(EXAMPLE), "--line-ending", "lf"])
+    assert "invalid choice: 'lf'" in capsys.readouterr().err
+
+
+def test_plan_table_speaks_the_plan_files_units_and_labels(tmp_path, capsys):
+    path = tmp_path / "deg.yaml"
+    path.write_text(
+        "units: {angle: deg}\nwaypoints:\n  - {q: [0, 30, 60], label: home}\n"
+        "  - {q: [45, 40, 70], dwell: 0.25}\n  - {q: [-30, 20, 50], label: drop}\n"
+    )
+    assert main(["plan", "dh3", str(path)]) == 0
+    lines = capsys.readouterr().out.splitlines()
+    assert re.match(r"#\s+label\s+t \[s\]\s+leaves \[s\]\s+q \[deg\]\s+branch", lines[1])
+    assert re.match(r"0\s+home\s+0\.0000\s+0\.0000\s+\+0\.0000 \+30\.0000 \+60\.0000\s+-", lines[3])
+    assert re.match(r"1\s+\d\.\d{4}\s+\d\.\d{4}\s+\+45\.0000 \+40\.0000 \+70\.0000", lines[4])
+    assert lines[5].split()[:2] == ["2", "drop"] and "-30.0000 +20.0000 +50.0000" in lines[5]
+    assert main(["plan", "dh3", str(path), "--json"]) == 0
+    assert json.loads(capsys.readouterr().out)["labels"] == ["home", None, "drop"]

@@ -240,8 +240,18 @@ def test_sample_shapes_and_csv(tmp_path):
     row = np.array(rows[5], dtype=float)
     s = traj.sample(row[0])
     np.testing.assert_allclose(row[1:3], s.q)
-    with pytest.raises(InvalidArgumentError, match="outside the trajectory"):
+    with pytest.raises(InvalidArgumentError, match=r"outside the trajectory .* \(clamp=True holds the end states\)"):
         traj.sample(traj.duration + 1.0)
+    # clamp=True holds the end states and keeps the times asked for.
+    held = traj.sample([-1.0, 0.0, traj.duration, traj.duration + 1.0], clamp=True)
+    np.testing.assert_array_equal(held.t, [-1.0, 0.0, traj.duration, traj.duration + 1.0])
+    np.testing.assert_array_equal(held.q[0], held.q[1])
+    np.testing.assert_array_equal(held.qd[0], held.qd[1])
+    np.testing.assert_array_equal(held.q[3], traj.waypoints[-1])
+    assert not np.any(held.qd[2:]) and not np.any(held.qdd[2:]) and not np.any(held.qddd[2:])
+    assert traj.sample(5.0 + traj.duration, clamp=True).q.shape == (2,)
+    with pytest.raises(InvalidArgumentError, match="time nan s is not a finite number"):
+        traj.sample([0.0, float("nan")], clamp=True)
     with pytest.raises(InvalidArgumentError, match="rate must be positive"):
         traj.times(0.0)
 

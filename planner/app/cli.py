@@ -17,13 +17,16 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from planner.exceptions import InvalidArgumentError, PlannerError
+from planner.core.text import to_json
+from planner.exceptions import InvalidArgumentError, PlannerError, ServoExportError
 from planner.geometry.target import Target
 from planner.model.catalog import BUNDLED_ROBOTS, available_robots, load_robot
 from planner.model.description import urdf_from_dh
 from planner.model.robot import Robot
 
 if TYPE_CHECKING:
+    from planner.app.motion_plan import MotionPlan
+    from planner.app.plan_file import MotionRequest
     from planner.ik.options import IKOptions
     from planner.ik.result import IKResult
 
@@ -31,7 +34,7 @@ __all__ = ["main", "build_parser"]
 
 
 def _print_json(obj: object) -> None:
-    print(json.dumps(obj, indent=2, allow_nan=False))
+    print(to_json(obj))
 
 
 def _angles(values: Sequence[float], deg: bool, what: str = "angle", turn: float = 2 * np.pi) -> np.ndarray:
@@ -105,6 +108,23 @@ def _run_robots(args: argparse.Namespace) -> int:
     return 0
 
 
+# ---------------------------------------------------------------------------- examples
+def _add_examples(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser("examples", help="list the example plan files, or copy them into a folder")
+    p.add_argument("--out", type=Path, default=None, help="copy the example plan files into this folder")
+
+
+def _run_examples(args: argparse.Namespace) -> int:
+    from planner.app.examples import example_files, examples_dir, write_examples
+
+    if args.out is not None:
+        print(f"wrote {', '.join(str(p) for p in write_examples(args.out))}")
+        return 0
+    print(_table(["file", "what it plans"], list(example_files().items())))
+    print(f"in {examples_dir()}; `planner examples --out DIR` copies them")
+    return 0
+
+
 # ---------------------------------------------------------------------------- fk
 def _add_fk(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser("fk", help="forward kinematics: the tip pose for joint values")
@@ -139,15 +159,21 @@ def _run_fk(args: argparse.Namespace) -> int:
     if args.json:
         _print_json(result)
     else:
-        x, y, z = result["position"]
+        x, y, z = _no_negative_zero(pose[:3, 3])
         print(f"{robot.name} tip {robot.tip!r}: position [m] = ({x:.6f}, {y:.6f}, {z:.6f})")
         unit, shown = ("deg", np.degrees(rpy)) if args.deg else ("rad", rpy)
-        print(f"rpy [{unit}] = ({shown[0]:.6f}, {shown[1]:.6f}, {shown[2]:.6f}) (feeds `planner ik ... --rpy`)")
-        qx, qy, qz, qw = quaternion
+        r, p, w = _no_negative_zero(shown)
+        print(f"rpy [{unit}] = ({r:.6f}, {p:.6f}, {w:.6f}) (feeds `planner ik ... --rpy`)")
+        qx, qy, qz, qw = _no_negative_zero(quaternion)
         print(f"quaternion (x, y, z, w) = ({qx:.6f}, {qy:.6f}, {qz:.6f}, {qw:.6f})")
-        print(np.array2string(pose, precision=6, suppress_small=True))
+        print(np.array2string(_no_negative_zero(pose), precision=6, suppress_small=True))
         print(f"manipulability {result['manipulability']:.6g}, within limits: {result['within_limits']}")
     return 0
+
+
+def _no_negative_zero(values: np.ndarray, decimals: int = 6) -> np.ndarray:
+    """Values rounded as printed, with -0.0 (a tiny negative rounded away) shown as 0."""
+    return np.round(np.asarray(values, dtype=float), decimals) + 0.0
 
 
 # ---------------------------------------------------------------------------- urdf-from-dh
@@ -204,21 +230,25 @@ def _add_plan(sub: argparse._SubParsersAction) -> None:
     p.add_argument(
         "--plot", action="store_true", help="also draw joints.png, singularity.png and arm.png (into --out or .)"
     )
-    _add_controller_arguments(p, "servo files for this controller (default: the plan file's; else pulses and ssc32)")
-
-
-def _add_controller_arguments(p: argparse.ArgumentParser, controller_help: str) -> None:
-    from planner.export.formats import SERVO_FORMATS
-
-    p.add_argument("--controller", choices=tuple(SERVO_FORMATS), default=None, help=controller_help)
     p.add_argument(
-        "--calibration", type=Path, default=None, help="calibration file (YAML; see README: Driving a real arm)"
+        "--line-ending",
+        choices=("cr", "crlf"),
+        default="cr",
+        help="end of each ssc32.txt command: cr, the controller's terminator (default), or crlf to read as lines",
     )
+    p.add_argument(
+        "--controller",
+        choices=("pulses", "ssc32", "pca9685", "feetech", "steps"),
+        default=None,
+        help="write this controller's servo file (default: the plan file's controller; else pulses and ssc32)",
+    )
+    p.add_argument("--calibration", type=Path, default=None, help="calibration file (README: Driving a real arm)")
 
 
 def _run_plan(args: argparse.Namespace) -> int:
     from planner.app.motion_plan import plan_motion
     from planner.app.plan_file import load_motion_request
+    from planner.export.formats.ssc32 import Ssc32
 
     if not (np.isfinite(args.rate) and args.rate > 0):
         raise InvalidArgumentError(f"--rate must be a positive number [Hz], got {args.rate}")
@@ -227,33 +257,30 @@ def _run_plan(args: argparse.Namespace) -> int:
     plan = plan_motion(robot, request, rate=args.rate, controller=args.controller, calibration=args.calibration)
     summary = plan.summary(args.rate)
     files: list[Path] = []
-    if args.out is not None:
-        files += plan.write_files(args.out, rate=args.rate)
+    servo_error = None
     if args.plot:
         from planner.app.plots import plot_plan
 
         files += plot_plan(args.out or Path("."), robot, plan)
+    if args.out is not None:
+        try:
+            formats = [Ssc32(args.line_ending) if fmt.name == Ssc32.name else fmt for fmt in plan.setup.formats()]
+            files += plan.write_files(args.out, rate=args.rate, extra_files=files, formats=formats)
+        except ServoExportError as exc:
+            servo_error = exc
+            files += exc.written
     if files:
         summary["files"] = sorted(str(f) for f in files)
+    if servo_error is not None:
+        summary["servo_file_errors"] = servo_error.failures
     if args.json:
         _print_json(summary)
-        return 0
+        return _report_servo_error(servo_error)
     print(
         f"{robot.name}: {len(plan.waypoints)} waypoints, duration {plan.trajectory.duration:.4f} s "
         f"({plan.trajectory.strategy} via states)"
     )
-    rows = []
-    for k, (tk, q) in enumerate(zip(plan.waypoint_times, plan.waypoints)):
-        rows.append(
-            (
-                k,
-                f"{tk:.4f}",
-                " ".join(f"{x:+.4f}" for x in q),
-                plan.branches[k] or "-",
-                "SINGULAR" if k in plan.singular_waypoints else "",
-            )
-        )
-    print(_table(["#", "t [s]", "q [rad]", "branch", ""], rows))
+    print(_waypoint_table(robot, plan, request))
     print(
         f"peak / limit: velocity {summary['max_velocity_ratio']:.4f}, acceleration "
         f"{summary['max_acceleration_ratio']:.4f}, jerk {summary['max_jerk_ratio']:.4f} "
@@ -269,13 +296,46 @@ def _run_plan(args: argparse.Namespace) -> int:
         print(f"segments still passing near a singularity: {list(plan.unresolved)}")
     if files:
         print(f"wrote {', '.join(summary['files'])}")
-    return 0
+    return _report_servo_error(servo_error)
+
+
+def _waypoint_table(robot: Robot, plan: MotionPlan, request: MotionRequest) -> str:
+    """The plan's waypoints in the plan file's own units, with their labels."""
+    from planner.core.units import ANGLE_UNITS, LENGTH_UNITS
+
+    angle = next(k for k, v in ANGLE_UNITS.items() if v == request.angle_scale)
+    length = next(k for k, v in LENGTH_UNITS.items() if v == request.length_scale)
+    kinds = set(robot.joint_kinds)
+    unit = "/".join(([angle] if kinds - {"prismatic"} else []) + ([length] if "prismatic" in kinds else []))
+    scale = np.array([request.length_scale if k == "prismatic" else request.angle_scale for k in robot.joint_kinds])
+    dwell = np.any(plan.departure_times > plan.waypoint_times)
+    rows = []
+    for k, q in enumerate(plan.waypoints):
+        leave = [f"{plan.departure_times[k]:.4f}"] if dwell else []
+        rows.append(
+            (
+                k,
+                plan.labels[k] or "",
+                f"{plan.waypoint_times[k]:.4f}",
+                *leave,
+                " ".join(f"{x + 0.0:+.4f}" for x in q / scale),
+                plan.branches[k] or "-",
+                "SINGULAR" if k in plan.singular_waypoints else "",
+            )
+        )
+    header = ["#", "label", "t [s]", *(["leaves [s]"] if dwell else []), f"q [{unit}]", "branch", ""]
+    return _table(header, rows)
+
+
+def _report_servo_error(error: ServoExportError | None) -> int:
+    if error is None:
+        return 0
+    print(f"planner plan: error: {error}", file=sys.stderr)
+    return 1
 
 
 # ---------------------------------------------------------------------------- send
 def _add_send(sub: argparse._SubParsersAction) -> None:
-    from planner.hardware import DRIVERS
-
     p = sub.add_parser(
         "send",
         help="plan, then stream the servo commands to a controller over a serial port",
@@ -286,7 +346,9 @@ def _add_send(sub: argparse._SubParsersAction) -> None:
     p.add_argument("plan_file", type=Path, help="plan file (.yaml or .json)")
     p.add_argument("--port", default=None, help="serial device, e.g. /dev/ttyUSB0 or COM3")
     p.add_argument("--baud", type=int, default=None, help="baud rate (default: the controller's, 115200 / 1000000)")
-    p.add_argument("--controller", choices=tuple(DRIVERS), default=None, help="default: the plan file's, else ssc32")
+    p.add_argument(
+        "--controller", choices=("ssc32", "feetech"), default=None, help="default: the plan file's, else ssc32"
+    )
     p.add_argument("--calibration", type=Path, default=None, help="calibration file (default: shipped, else defaults)")
     p.add_argument("--dry-run", action="store_true", help="print the byte stream with timestamps; open no port")
     p.add_argument("--from-current", action="store_true", help="far from the first waypoint: plan a move from there")
@@ -515,6 +577,7 @@ def _run_bench(args: argparse.Namespace) -> int:
 
 _COMMANDS: dict[str, tuple[Callable[[argparse._SubParsersAction], None], Callable[[argparse.Namespace], int]]] = {
     "robots": (_add_robots, _run_robots),
+    "examples": (_add_examples, _run_examples),
     "fk": (_add_fk, _run_fk),
     "ik": (_add_ik, _run_ik),
     "plan": (_add_plan, _run_plan),

@@ -105,7 +105,7 @@ def _moves(scenario: str, robot: Robot, plan: MotionPlan, request: MotionRequest
     traj = plan.trajectory
     targets = request.targets or ()
     # A move runs from leaving one waypoint to leaving the next, so a dwell counts in its move.
-    leave = plan.waypoint_times + request.dwell
+    leave = plan.departure_times
     moves = []
     for k in range(1, len(plan.waypoints)):
         t0, t1 = leave[k - 1], leave[k]
@@ -137,11 +137,11 @@ def _scenario(
     moves = _moves(name, robot, plan, parsed)
     files: list[Path] = []
     if out is not None:
-        files += plan.write_files(out / robot_name)
         if plots:
             from planner.app.plots import plot_plan
 
             files += plot_plan(out / robot_name, robot, plan)
+        files += plan.write_files(out / robot_name, extra_files=files)
     return plan, moves, files
 
 

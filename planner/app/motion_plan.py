@@ -9,6 +9,7 @@ writes are in :mod:`planner.app.outputs`.
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -21,6 +22,7 @@ from planner.core.arrays import read_only
 from planner.core.files import input_error, parse_number
 from planner.export.calibration import ServoCalibration
 from planner.export.calibration_file import ControllerSetup, controller_setup
+from planner.export.formats import ServoFormat
 from planner.model.robot import Robot
 from planner.motion.detours import Detour, SingularityOptions, plan_clear_of_singularities
 from planner.motion.limits import JointLimits
@@ -41,7 +43,9 @@ class MotionPlan:
         singularity: Singularity report of the trajectory.
         waypoints: The joint configuration of each requested waypoint, shape (N, dof).
         waypoint_times: When each is reached, shape (N,) [s].
+        departure_times: When the arm leaves each, after its dwell, shape (N,) [s].
         branches: Per waypoint, the IK branch taken (None for joint waypoints).
+        labels: Per waypoint, its label in the plan file, or None.
         singular_waypoints: Indices of requested waypoints below the singularity threshold.
         detours: Waypoints inserted around singularities.
         unresolved: Requested segments still dipping below the threshold with clear ends.
@@ -60,7 +64,9 @@ class MotionPlan:
     singularity: SingularityReport
     waypoints: np.ndarray
     waypoint_times: np.ndarray
+    departure_times: np.ndarray
     branches: tuple[str | None, ...]
+    labels: tuple[str | None, ...]
     singular_waypoints: tuple[int, ...]
     detours: tuple[Detour, ...]
     unresolved: tuple[int, ...]
@@ -78,6 +84,7 @@ class MotionPlan:
             "joints": list(self.limits.joint_names),
             "duration": self.trajectory.duration,
             "waypoint_times": self.waypoint_times.tolist(),
+            "departure_times": self.departure_times.tolist(),
             "max_velocity_ratio": peaks["velocity"],
             "max_acceleration_ratio": peaks["acceleration"],
             "max_jerk_ratio": peaks["jerk"],
@@ -88,6 +95,7 @@ class MotionPlan:
             "singular_waypoints": list(self.singular_waypoints),
             "waypoints": self.waypoints.tolist(),
             "branches": list(self.branches),
+            "labels": list(self.labels),
             "detours": [
                 {"segment": d.segment, "q": d.q.tolist(), "inverse_condition": d.inverse_condition}
                 for d in self.detours
@@ -99,23 +107,40 @@ class MotionPlan:
             "sample_rate": rate,
         }
 
-    def write_files(self, out: str | Path, rate: float = 1000.0) -> tuple[Path, ...]:
+    def write_files(
+        self,
+        out: str | Path,
+        rate: float = 1000.0,
+        extra_files: Sequence[Path] = (),
+        formats: Sequence[ServoFormat] | None = None,
+    ) -> tuple[Path, ...]:
         """Write the plan's files into a directory (see :func:`planner.app.outputs.write_plan_files`).
 
         Args:
             out: Output directory.
             rate: Sample rate of the CSV and of the summary's limit checks [Hz].
+            extra_files: Files already written for the plan (its plots), listed in the summary.
+            formats: The servo formats to write; None writes the plan's controller's (see `setup`).
 
         Returns:
             The paths written.
 
         Raises:
             InvalidArgumentError: If the directory cannot be created.
+            ServoExportError: If a servo file cannot be made (the other files are written).
         """
-        formats = None if self.setup is None else self.setup.formats()
+        if formats is None and self.setup is not None:
+            formats = self.setup.formats()
         summary = self.summary(rate)
         return write_plan_files(
-            out, self.trajectory, self.calibrations, self.servo_period_ms, summary, rate=rate, formats=formats
+            out,
+            self.trajectory,
+            self.calibrations,
+            self.servo_period_ms,
+            summary,
+            rate=rate,
+            extra_files=extra_files,
+            formats=formats,
         )
 
 
@@ -180,12 +205,6 @@ def plan_motion(
     """
     scale = _joint_scale(robot, request)
     src = request.source
-    setup = controller_setup(
-        robot,
-        controller or request.controller,
-        calibration if calibration is not None else request.calibration,
-        None if calibration is not None else _calibrations(robot, request),
-    )
     lim_kw = {}
     for key in ("velocity", "acceleration", "jerk"):
         if key in request.limits:
@@ -311,13 +330,25 @@ def plan_motion(
             deviation[seg] = line_deviation(
                 robot, traj.sample(t).q, request.targets[seg].position, request.targets[seg + 1].position
             )
+    # Continuous joints have no range to fit: default calibrations fit the plan's travel, sampled
+    # at 1 kHz, with a margin far above what the servo files' own sample times can add to it.
+    q_travel = traj.sample(np.append(np.arange(0.0, traj.duration, 1e-3), traj.duration)).q
+    setup = controller_setup(
+        robot,
+        controller or request.controller,
+        calibration if calibration is not None else request.calibration,
+        None if calibration is not None else _calibrations(robot, request),
+        travel=(q_travel.min(axis=0) - 1e-3, q_travel.max(axis=0) + 1e-3),
+    )
     return MotionPlan(
         robot=robot.name,
         trajectory=traj,
         singularity=plan.report,
         waypoints=read_only(q_user),
         waypoint_times=read_only(times),
+        departure_times=read_only(times + traj.dwell[user_idx]),
         branches=tuple(branches),
+        labels=tuple(request.labels),
         singular_waypoints=singular,
         detours=detours,
         unresolved=unresolved,

@@ -1,7 +1,7 @@
 """PNG plots of plans, singularity margins, arm poses and IK benchmarks (needs matplotlib).
 
 Every function takes plain arrays (so it can draw any planner's output), writes one PNG and
-returns its path. matplotlib is an optional dependency (``pip install 'planner[demo]'``); it
+returns its path. matplotlib is an optional dependency (``pip install 'servo-arm-planner[demo]'``); it
 is imported only when a plot is drawn, with the non-interactive Agg backend.
 """
 
@@ -13,6 +13,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from planner.core.version import install_hint
 from planner.exceptions import PlannerError
 
 if TYPE_CHECKING:
@@ -26,7 +27,7 @@ def _pyplot() -> Any:
     try:
         import matplotlib
     except ImportError as exc:
-        raise PlannerError("plots need matplotlib: pip install 'planner[demo]'") from exc
+        raise PlannerError(f"plots need matplotlib: {install_hint('demo')}") from exc
     matplotlib.use("Agg", force=True)
     import matplotlib.pyplot as plt
 

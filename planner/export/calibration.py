@@ -188,11 +188,33 @@ class ServoCalibration:
         return self.pulse(angle)
 
 
-def default_calibrations(robot: Robot, first_channel: int = 0) -> tuple[ServoCalibration, ...]:
-    """One centred calibration per chain joint on consecutive channels (see :meth:`ServoCalibration.fit_range`)."""
+def default_calibrations(
+    robot: Robot, first_channel: int = 0, *, travel: tuple[np.ndarray, np.ndarray] | None = None
+) -> tuple[ServoCalibration, ...]:
+    """One centred calibration per chain joint on consecutive channels (see :meth:`ServoCalibration.fit_range`).
+
+    Each covers its joint's range; a joint without a finite range (a continuous joint) covers
+    its `travel` instead, or +-90 deg at the SSC-32's scale when no travel is given.
+
+    Args:
+        robot: The robot.
+        first_channel: Channel of the first joint.
+        travel: The smallest and largest angle [rad] each joint takes in a plan, two arrays of
+            shape (dof,); joints whose range is finite keep fitting their range.
+
+    Returns:
+        One calibration per joint.
+    """
+    lower, upper = np.array(robot.lower, dtype=float), np.array(robot.upper, dtype=float)
+    if travel is not None:
+        lo, hi = (np.asarray(x, dtype=float).reshape(-1) for x in travel)
+        if lo.shape != (robot.dof,) or hi.shape != (robot.dof,):
+            raise InvalidArgumentError(f"travel needs two arrays of {robot.dof} angles, got {lo.size} and {hi.size}")
+        free = ~(np.isfinite(lower) & np.isfinite(upper))
+        lower[free], upper[free] = np.minimum(lo[free], 0.0), np.maximum(hi[free], 0.0)
     return tuple(
         ServoCalibration.fit_range(first_channel + k, lo, hi, joint=name)
-        for k, (name, lo, hi) in enumerate(zip(robot.joint_names, robot.lower, robot.upper))
+        for k, (name, lo, hi) in enumerate(zip(robot.joint_names, lower, upper))
     )
 
 

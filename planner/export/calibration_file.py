@@ -25,6 +25,8 @@ from importlib import resources
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
+import numpy as np
+
 from planner.core.files import input_error, parse_number, parse_numbers, read_data_file
 from planner.exceptions import PlannerError
 from planner.export.calibration import ServoCalibration, check_calibrations
@@ -176,12 +178,15 @@ def controller_setup(
     controller: str | None = None,
     calibration: str | Path | None = None,
     servos: tuple[ServoCalibration, ...] | None = None,
+    *,
+    travel: tuple[np.ndarray, np.ndarray] | None = None,
 ) -> ControllerSetup:
     """The controller and calibrations to use, from what was asked for.
 
     In order: a calibration file (its controller must agree with `controller` when both are
     given); pulse calibrations given elsewhere (`servos`, e.g. a plan file's ``servos:``); the
-    file shipped for this arm on `controller`; the controller's defaults.
+    file shipped for this arm on `controller`; the controller's defaults (fitted to `travel`,
+    the smallest and largest angle of each joint in the plan [rad], where a joint has no range).
 
     Raises:
         InvalidArgumentError: On an unknown controller, a disagreement between the controller
@@ -207,5 +212,6 @@ def controller_setup(
         shipped = shipped_calibration(robot.name, controller)
         if shipped is not None:
             return load_calibration(shipped, robot)
-        return ControllerSetup(controller, SERVO_FORMATS[controller].default_calibrations(robot), {}, "defaults")
-    return ControllerSetup(None, SERVO_FORMATS["ssc32"].default_calibrations(robot), {}, "defaults")
+        defaults = SERVO_FORMATS[controller].default_calibrations(robot, travel=travel)
+        return ControllerSetup(controller, defaults, {}, "defaults")
+    return ControllerSetup(None, SERVO_FORMATS["ssc32"].default_calibrations(robot, travel=travel), {}, "defaults")

@@ -9,6 +9,7 @@ from dataclasses import dataclass
 from importlib import resources
 from pathlib import Path
 
+from planner.core.version import install_hint
 from planner.exceptions import UnknownRobotError
 from planner.model.robot import Robot
 
@@ -131,7 +132,7 @@ def load_robot(name: str | Path, tip: str | None = None, *, locked: Mapping[str,
             root = example_robot_data_dir()
             if root is None:
                 raise UnknownRobotError(
-                    key, available_robots(), hint="install example-robot-data, e.g. pip install 'planner[bench]'"
+                    key, available_robots(), hint=f"install example-robot-data, e.g. {install_hint('bench')}"
                 )
             spec = EXAMPLE_ROBOTS[key]
             path = root / spec.urdf

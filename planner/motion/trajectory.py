@@ -106,26 +106,33 @@ class JointTrajectory:
             f"dof={self.dof}, strategy={self.strategy!r})"
         )
 
-    def sample(self, t: float | Sequence[float] | np.ndarray) -> TrajectorySample:
+    def sample(self, t: float | Sequence[float] | np.ndarray, *, clamp: bool = False) -> TrajectorySample:
         """State at time(s) `t`.
 
         Args:
             t: A time or an array of times in [0, duration] [s].
+            clamp: Accept times outside [0, duration]: before the start they give the state at
+                0, after the end the final state (at rest); ``sample.t`` keeps the times asked for.
 
         Returns:
             The sample; arrays have shape (dof,) for a scalar `t`, (n, dof) for n times.
 
         Raises:
-            InvalidArgumentError: If a time is NaN or outside [0, duration].
+            InvalidArgumentError: If a time is NaN, or outside [0, duration] without `clamp`.
         """
         tt = np.asarray(t, dtype=float)
         scalar = tt.ndim == 0
-        flat = tt.reshape(-1)
-        if flat.size and (
-            not np.all(np.isfinite(flat)) or flat.min() < 0.0 or flat.max() > self.duration * (1 + 1e-12)
-        ):
-            bad = flat[~np.isfinite(flat) | (flat < 0) | (flat > self.duration * (1 + 1e-12))][0]
-            raise InvalidArgumentError(f"time {plain(bad)} s is outside the trajectory [0, {self.duration:.6g}] s")
+        asked = tt.reshape(-1)
+        if asked.size and not np.all(np.isfinite(asked)):
+            bad = asked[~np.isfinite(asked)][0]
+            raise InvalidArgumentError(f"time {plain(bad)} s is not a finite number")
+        flat = np.clip(asked, 0.0, self.duration) if clamp else asked
+        if flat.size and (flat.min() < 0.0 or flat.max() > self.duration * (1 + 1e-12)):
+            bad = flat[(flat < 0) | (flat > self.duration * (1 + 1e-12))][0]
+            raise InvalidArgumentError(
+                f"time {plain(bad)} s is outside the trajectory [0, {self.duration:.6g}] s "
+                "(clamp=True holds the end states)"
+            )
         idx = np.clip(np.searchsorted(self.knots, flat, side="right") - 1, 0, len(self.knots) - 1)
         dt = (flat - self.knots[idx])[:, None]
         p, v, a, j = self.p[idx], self.v[idx], self.a[idx], self.j[idx]
@@ -140,7 +147,7 @@ class JointTrajectory:
             return TrajectorySample(tt.copy(), q[0], qd[0], qdd[0], qddd[0])
         shape = tt.shape + (self.dof,)
         return TrajectorySample(
-            flat.reshape(tt.shape), q.reshape(shape), qd.reshape(shape), qdd.reshape(shape), qddd.reshape(shape)
+            asked.reshape(tt.shape).copy(), q.reshape(shape), qd.reshape(shape), qdd.reshape(shape), qddd.reshape(shape)
         )
 
     def times(self, rate: float = 1000.0) -> np.ndarray:

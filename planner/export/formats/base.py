@@ -60,17 +60,19 @@ class ServoFormat(ABC):
             )
         return type(self)(**options)
 
-    def default_calibrations(self, robot: Robot) -> tuple[Any, ...]:
+    def default_calibrations(
+        self, robot: Robot, *, travel: tuple[np.ndarray, np.ndarray] | None = None
+    ) -> tuple[Any, ...]:
         """Calibrations used when neither a plan file nor a calibration file gives any.
 
-        Pulse formats centre each joint's range on consecutive channels
-        (:func:`planner.export.calibration.default_calibrations`).
+        Pulse formats centre each joint's range (or its `travel` in the plan, for a joint with
+        no range) on consecutive channels (:func:`planner.export.calibration.default_calibrations`).
 
         Raises:
             InvalidArgumentError: If the controller has no sensible default (the message says
                 what to give).
         """
-        return default_calibrations(robot)
+        return default_calibrations(robot, travel=travel)
 
     @abstractmethod
     def render(self, trajectory: JointTrajectory, calibrations: Sequence[Any], period_ms: int) -> str:

@@ -15,6 +15,8 @@ from collections.abc import Mapping, Sequence
 from enum import IntEnum
 from typing import TYPE_CHECKING, Any, ClassVar
 
+import numpy as np
+
 from planner.core.text import plain
 from planner.exceptions import InvalidArgumentError
 from planner.export.calibration import check_calibrations
@@ -211,7 +213,9 @@ class Feetech(ServoFormat):
     def __init__(self, series: str = "sts"):
         self.series = _series(series)
 
-    def default_calibrations(self, robot: Robot) -> tuple[TickCalibration, ...]:
+    def default_calibrations(
+        self, robot: Robot, *, travel: tuple[np.ndarray, np.ndarray] | None = None
+    ) -> tuple[TickCalibration, ...]:
         """Ids 1, 2, ... in joint order; joint zero at tick 2048, 4096 ticks per turn, ticks 0-4095."""
         return tuple(TickCalibration(k + 1, joint=name) for k, name in enumerate(robot.joint_names))
 

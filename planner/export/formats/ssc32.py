@@ -12,7 +12,7 @@ from planner.export.formats.base import ServoFormat, check_period_ms, command_ti
 if TYPE_CHECKING:
     from planner.motion.trajectory import JointTrajectory
 
-__all__ = ["SSC32_MAX_CHANNEL", "Ssc32", "ssc32_group_moves"]
+__all__ = ["LINE_ENDINGS", "SSC32_MAX_CHANNEL", "Ssc32", "ssc32_group_moves"]
 
 #: Largest channel number of an SSC-32.
 SSC32_MAX_CHANNEL = 31
@@ -50,14 +50,35 @@ def ssc32_group_moves(
     return ["".join(f"#{c.channel}P{p}" for c, p in zip(calibrations, row)) + f"T{period_ms}" for row in pulses]
 
 
+#: Line endings an SSC-32 file can use: the controller's carriage return, or CR LF.
+LINE_ENDINGS = {"cr": "\r", "crlf": "\r\n"}
+
+
 class Ssc32(ServoFormat):
-    """:func:`ssc32_group_moves`, each command ended by a carriage return, in ASCII."""
+    """:func:`ssc32_group_moves`, each command ended by a carriage return (or CR LF), in ASCII.
+
+    Args:
+        line_ending: ``"cr"`` (ASCII 13, the SSC-32's terminator) or ``"crlf"`` (CR then LF:
+            the controller still sees CR, and the file reads as lines in a text editor).
+
+    Raises:
+        InvalidArgumentError: On another line ending.
+    """
 
     name: ClassVar[str] = "ssc32"
     file_name: ClassVar[str] = "ssc32.txt"
     encoding: ClassVar[str] = "ascii"
     written_by_default: ClassVar[bool] = True
+    option_names: ClassVar[tuple[str, ...]] = ("line_ending",)
+
+    def __init__(self, line_ending: str = "cr"):
+        if line_ending not in LINE_ENDINGS:
+            raise InvalidArgumentError(
+                f"unknown line ending {line_ending!r}; valid line endings: {', '.join(LINE_ENDINGS)}"
+            )
+        self.line_ending = line_ending
 
     def render(self, trajectory: JointTrajectory, calibrations: Sequence[ServoCalibration], period_ms: int) -> str:
-        """The commands, one period apart, each followed by a carriage return (ASCII 13)."""
-        return "".join(c + "\r" for c in ssc32_group_moves(trajectory, calibrations, period_ms=period_ms))
+        """The commands, one period apart, each followed by the line ending."""
+        end = LINE_ENDINGS[self.line_ending]
+        return "".join(c + end for c in ssc32_group_moves(trajectory, calibrations, period_ms=period_ms))

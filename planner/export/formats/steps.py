@@ -5,6 +5,8 @@ from __future__ import annotations
 from collections.abc import Sequence
 from typing import TYPE_CHECKING, Any, ClassVar
 
+import numpy as np
+
 from planner.exceptions import InvalidArgumentError
 from planner.export.calibration import check_calibrations
 from planner.export.formats.base import ServoFormat, command_times
@@ -31,7 +33,9 @@ class Steps(ServoFormat):
     file_name: ClassVar[str] = "steps.csv"
     calibration_type: ClassVar[type] = TickCalibration
 
-    def default_calibrations(self, robot: Robot) -> tuple[TickCalibration, ...]:
+    def default_calibrations(
+        self, robot: Robot, *, travel: tuple[np.ndarray, np.ndarray] | None = None
+    ) -> tuple[TickCalibration, ...]:
         """None: a stepper's steps per radian are the user's to give.
 
         Raises:
