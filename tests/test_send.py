@@ -11,7 +11,7 @@ import sys
 import numpy as np
 import pytest
 
-pytest.importorskip("serial", reason="planner send needs pyserial (pip install 'planner[hardware]')")
+pytest.importorskip("serial", reason="planner send needs pyserial (pip install 'servo-arm-planner[hardware]')")
 
 from planner import ControllerError, StartPositionError  # noqa: E402
 from planner.app.cli import main  # noqa: E402
@@ -160,7 +160,7 @@ def test_missing_port_and_missing_pyserial(al5c_plan, capsys, monkeypatch):
     with pytest.raises(ControllerError, match="cannot open serial port '/dev/does-not-exist'"):
         open_serial("/dev/does-not-exist", 115200)
     monkeypatch.setitem(sys.modules, "serial", None)
-    with pytest.raises(ControllerError, match=r'pip install "planner\[hardware\]"'):
+    with pytest.raises(ControllerError, match=r"needs pyserial: pip install 'servo-arm-planner\[hardware\]'"):
         open_serial("/dev/ttyUSB0", 115200)
 
 

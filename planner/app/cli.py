@@ -614,3 +614,6 @@ def main(argv: Sequence[str] | None = None) -> int:
         return 1
     except BrokenPipeError:
         return 0
+    except KeyboardInterrupt:  # e.g. Ctrl-C while planning; a stream handles its own and stops the servos
+        print(f"planner {args.command}: interrupted", file=sys.stderr)
+        return 130

@@ -12,6 +12,7 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from typing import TextIO
 
+from planner.core.version import install_hint
 from planner.exceptions import ControllerError
 
 __all__ = ["Clock", "DryRunLink", "Link", "SerialLink", "open_serial", "show_bytes", "virtual_clock"]
@@ -150,9 +151,7 @@ def open_serial(port: str, baud: int) -> SerialLink:
     try:
         import serial
     except ImportError as exc:
-        raise ControllerError(
-            'planner send needs pyserial: pip install "planner[hardware]" (or pip install pyserial)'
-        ) from exc
+        raise ControllerError(f"planner send needs pyserial: {install_hint('hardware')}") from exc
     try:
         handle = serial.Serial(port, baudrate=baud, timeout=0.1, write_timeout=2.0)
     except (serial.SerialException, OSError, ValueError) as exc:
