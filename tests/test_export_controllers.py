@@ -237,3 +237,14 @@ def test_a_format_problem_keeps_the_trajectory_and_summary(tmp_path, capsys):
     assert "pca9685.csv: joint 'base_yaw' uses channel 20; a PCA9685 has channels 0-15" in err
     assert (out / "trajectory.csv").is_file()
     assert "pca9685.csv" in json.loads((out / "summary.json").read_text())["servo_file_errors"]
+
+
+def test_cli_controller_choices_are_the_registries():
+    from planner.app.cli import build_parser
+    from planner.export.formats import SERVO_FORMATS
+    from planner.hardware import DRIVERS
+
+    sub = next(a for a in build_parser()._actions if a.dest == "command")
+    for command, registry in (("plan", SERVO_FORMATS), ("send", DRIVERS)):
+        action = next(a for a in sub.choices[command]._actions if a.dest == "controller")
+        assert tuple(action.choices) == tuple(registry)

@@ -13,7 +13,7 @@ import pytest
 
 pytest.importorskip("serial", reason="planner send needs pyserial (pip install 'servo-arm-planner[hardware]')")
 
-from planner import ControllerError, StartPositionError  # noqa: E402
+from planner import ControllerError, InvalidArgumentError, StartPositionError  # noqa: E402
 from planner.app.cli import main  # noqa: E402
 from planner.app.motion_plan import plan_motion  # noqa: E402
 from planner.app.plan_file import load_motion_request  # noqa: E402
@@ -261,3 +261,30 @@ def test_dry_run_feetech_is_hex(tmp_path):
     assert result.status is SendStatus.COMPLETED and result.start_q is None
     line = out.getvalue().splitlines()[2]
     assert line.split(None, 1)[1] == packets[0][1].hex(" ")
+
+
+def test_send_options_and_controllers_are_checked(al5c_plan):
+    path, _ = al5c_plan
+    with pytest.raises(InvalidArgumentError, match="approach_time must be positive"):
+        SendOptions(approach_time=0.0)
+    with pytest.raises(InvalidArgumentError, match=r"baud must be a positive integer \[bit/s\], got -5"):
+        SendOptions(baud=-5)
+    with pytest.raises(InvalidArgumentError, match="planner send cannot drive controller 'pca9685'; valid controllers"):
+        send_plan(get_robot("al5c"), path, controller="pca9685", dry_run=io.StringIO())
+    with pytest.raises(InvalidArgumentError, match="give the serial port"):
+        send_plan(get_robot("al5c"), path)
+
+
+def test_scs_series_streams_high_byte_first(tmp_path):
+    path = tmp_path / "dh3.yaml"
+    path.write_text(DH3_PLAN)
+    cal = tmp_path / "scs.yaml"
+    cal.write_text(
+        "controller: feetech\nsettings: {series: scs}\nservos:\n"
+        + "".join(f"  - {{id: {k + 1}, zero: 512, scale: 195.6, limits: [0, 1023]}}\n" for k in range(3))
+    )
+    out = io.StringIO()
+    send_plan(get_robot("dh3"), path, controller="feetech", calibration=cal, dry_run=out)
+    first = bytes.fromhex(out.getvalue().splitlines()[2].split(None, 1)[1])
+    ticks = round(512 + 195.6 * np.radians(0))
+    assert first[7:10] == bytes([1]) + ticks.to_bytes(2, "big")
