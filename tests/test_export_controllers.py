@@ -248,3 +248,18 @@ def test_cli_controller_choices_are_the_registries():
     for command, registry in (("plan", SERVO_FORMATS), ("send", DRIVERS)):
         action = next(a for a in sub.choices[command]._actions if a.dest == "controller")
         assert tuple(action.choices) == tuple(registry)
+
+
+def test_readme_dry_run_output_is_real(tmp_path, capsys, monkeypatch):
+    from pathlib import Path
+
+    readme = Path(__file__).resolve().parent.parent / "README.md"
+    if not readme.is_file():
+        pytest.skip("README.md is not next to the tests")
+    text = readme.read_text()
+    start = text.index("$ planner send al5c wave.yaml --dry-run\n")
+    shown = text[start:].split("\n", 1)[1].split("```", 1)[0]
+    monkeypatch.chdir(tmp_path)
+    Path("wave.yaml").write_text("{units: {angle: deg}, waypoints: [[0, 90, -90, 0, 0], [10, 85, -95, 5, 0]]}\n")
+    assert main(["send", "al5c", "wave.yaml", "--dry-run"]) == 0
+    assert capsys.readouterr().out == shown

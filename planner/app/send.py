@@ -60,7 +60,8 @@ def send_plan(
     elif controller is not None or calibration is not None:
         raise InvalidArgumentError("a MotionPlan carries its controller and calibration: give neither")
     setup = plan.setup
-    driver = controller_driver(setup.controller if setup else None, plan.calibrations, setup.settings if setup else {})
+    name = setup.controller if setup and setup.controller else "ssc32"  # no controller named: SSC-32 pulses
+    driver = controller_driver(name, plan.calibrations, setup.settings if setup else {})
     baud = options.baud or driver.default_baud
     stream = prepare_stream(driver, plan.trajectory, plan.servo_period_ms, baud)
     if dry_run is not None:

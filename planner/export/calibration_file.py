@@ -40,6 +40,11 @@ __all__ = ["ControllerSetup", "controller_setup", "load_calibration", "parse_cal
 
 _TOP_KEYS = ("robot", "controller", "settings", "servos", "comment")
 _SERVO_KEYS = ("joint", "channel", "id", "zero", "direction", "scale", "scale_per_deg", "limits")
+#: Each calibration kind's fields for a file's zero, scale and limits.
+_FIELDS = {
+    ServoCalibration: ("pulse_at_zero", "us_per_rad", ("min_pulse", "max_pulse")),
+    TickCalibration: ("ticks_at_zero", "ticks_per_rad", ("min_ticks", "max_ticks")),
+}
 
 
 @dataclass(frozen=True)
@@ -78,28 +83,18 @@ def _servo(item: Any, k: int, kind: type, joint: str, source: str) -> Any:
     if "scale" in item and "scale_per_deg" in item:
         raise input_error(source, f"{where}: give scale [per rad] or scale_per_deg, not both")
     address = item.get("channel", item.get("id"))
-    kw: dict[str, Any] = {"joint": joint}
-    if "direction" in item:
-        kw["direction"] = item["direction"]
-    if "zero" in item:
-        kw["zero"] = parse_number(item["zero"], f"{where}.zero", source)
-    if "scale" in item:
-        kw["scale"] = parse_number(item["scale"], f"{where}.scale", source)
-    if "scale_per_deg" in item:
-        kw["scale"] = parse_number(item["scale_per_deg"], f"{where}.scale_per_deg", source) * 180.0 / math.pi
-    if "limits" in item:
-        kw["limits"] = parse_numbers(item["limits"], f"{where}.limits", source, 2)
-    names = {"zero": "pulse_at_zero", "scale": "us_per_rad", "limits": ("min_pulse", "max_pulse")}
-    if kind is TickCalibration:
-        names = {"zero": "ticks_at_zero", "scale": "ticks_per_rad", "limits": ("min_ticks", "max_ticks")}
+    zero, scale, (low, high) = _FIELDS[kind]
     args: dict[str, Any] = {"joint": joint}
-    for key, value in kw.items():
-        if key == "limits":
-            args[names["limits"][0]], args[names["limits"][1]] = float(value[0]), float(value[1])
-        elif key in names:
-            args[names[key]] = value
-        else:
-            args[key] = value
+    if "direction" in item:
+        args["direction"] = item["direction"]
+    if "zero" in item:
+        args[zero] = parse_number(item["zero"], f"{where}.zero", source)
+    if "scale" in item:
+        args[scale] = parse_number(item["scale"], f"{where}.scale", source)
+    if "scale_per_deg" in item:
+        args[scale] = parse_number(item["scale_per_deg"], f"{where}.scale_per_deg", source) * 180.0 / math.pi
+    if "limits" in item:
+        args[low], args[high] = parse_numbers(item["limits"], f"{where}.limits", source, 2).tolist()
     try:
         return kind(address, **args)
     except PlannerError as exc:  # the calibration's own message, located in the file

@@ -247,7 +247,10 @@ def run_stream(
     plan_time = min((sent - 1) * stream.period, duration) if sent else -1.0
     total = len(stream.commands)
     if status is SendStatus.COMPLETED:
-        message = f"sent {sent} of {total} commands: the whole plan ({duration:.3f} s)"
+        message = (
+            f"sent {sent} of {total} commands: the whole plan ({duration:.3f} s); the latest left "
+            f"{lateness * 1000:.1f} ms after its deadline"
+        )
     else:
         reached = f"t = {plan_time:.3f} s" if sent else "before the plan's first command"
         message = f"stopped at {reached} of {duration:.3f} s (command {sent} of {total}): {why}; {stop}"

@@ -219,7 +219,9 @@ class Feetech(ServoFormat):
         """Ids 1, 2, ... in joint order; joint zero at tick 2048, 4096 ticks per turn, ticks 0-4095."""
         return tuple(TickCalibration(k + 1, joint=name) for k, name in enumerate(robot.joint_names))
 
-    def packets(self, trajectory: JointTrajectory, calibrations: Sequence[TickCalibration], period_ms: int) -> list:
+    def packets(
+        self, trajectory: JointTrajectory, calibrations: Sequence[TickCalibration], period_ms: int
+    ) -> list[tuple[float, bytes]]:
         """``(t [s], packet)`` for every servo period (see :func:`planner.export.formats.base.command_times`).
 
         Raises:
