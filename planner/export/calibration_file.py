@@ -164,7 +164,7 @@ def load_calibration(path: str | Path, robot: Robot) -> ControllerSetup:
 
 def shipped_calibration(robot_name: str, controller: str) -> Path | None:
     """The calibration file shipped for an arm on a controller (``<robot>-<controller>.yaml``), or None."""
-    path = Path(str(resources.files("planner.export").joinpath("calibrations", f"{robot_name}-{controller}.yaml")))
+    path = Path(str(resources.files("planner.export.calibrations").joinpath(f"{robot_name}-{controller}.yaml")))
     return path if path.is_file() else None
 
 
