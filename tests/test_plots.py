@@ -35,3 +35,22 @@ def test_arm_poses_and_benchmark_chart(tmp_path):
         {"robot": "dh3", "method": "nlp", "solve_rate": 0.98, "median_ms": 0.3},
     ]
     assert png_size(plots.plot_ik_benchmark(tmp_path / "deep" / "b.png", rows))[0] >= 600
+
+
+def test_arm_poses_show_the_scene(tmp_path):
+    from planner.collision import Box, Cylinder, Obstacle, Scene, Sphere
+
+    robot = get_robot("al5c")
+    scene = Scene(
+        floor=0.0,
+        obstacles=(
+            Obstacle("block", Box((0.04, 0.04, 0.1)), np.array([0.2, 0.1, 0.05])),
+            Obstacle("post", Cylinder(0.02, 0.2), np.array([0.1, -0.15, 0.1])),
+            Obstacle("ball", Sphere(0.03), np.array([0.15, 0.0, 0.2])),
+        ),
+    )
+    q = np.array([[0, 1.2, -1.4, -0.8, 0], [0.5, 1.0, -1.2, -0.6, 0]])
+    plain = plots.plot_arm_poses(tmp_path / "plain.png", robot, q)
+    shown = plots.plot_arm_poses(tmp_path / "scene.png", robot, q, scene=scene)
+    assert png_size(shown) == png_size(plain)
+    assert shown.read_bytes() != plain.read_bytes()

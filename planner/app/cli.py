@@ -327,6 +327,46 @@ def _waypoint_table(robot: Robot, plan: MotionPlan, request: MotionRequest) -> s
     return _table(header, rows)
 
 
+# ---------------------------------------------------------------------------- check
+def _add_check(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser(
+        "check",
+        help="plan a plan file and report its clearance: the closest approach, when, between what",
+        description="Plan the plan file as `planner plan` does and check the trajectory continuously against the "
+        "plan file's scene (floor, obstacles) and the arm itself; without a scene, against the arm itself.",
+    )
+    p.add_argument("robot", help="robot name (see `planner robots`) or URDF path")
+    p.add_argument("plan_file", type=Path, help="plan file (YAML or JSON)")
+    p.add_argument("--json", action="store_true", help="print the collision report as JSON")
+
+
+def _run_check(args: argparse.Namespace) -> int:
+    import dataclasses
+
+    from planner.app.motion_plan import plan_motion
+    from planner.app.plan_file import load_motion_request
+    from planner.collision.scene import Scene
+
+    robot = load_robot(args.robot)
+    request = load_motion_request(args.plan_file)
+    no_scene = request.scene is None
+    if no_scene:
+        request = dataclasses.replace(request, scene=Scene())
+    plan = plan_motion(robot, request)
+    collision = plan.collision
+    assert collision is not None
+    summary = plan.summary()
+    if args.json:
+        _print_json({"robot": robot.name, "scene": not no_scene, **{k: summary[k] for k in ("collision", "routes")}})
+        return 0 if collision.clear else 1
+    if no_scene:
+        print("no scene in the plan file: the arm checked against itself only")
+    print(f"{robot.name}: duration {plan.trajectory.duration:.4f} s, {collision.describe()}")
+    if plan.routes:
+        print(f"routed around obstacles: segment {', '.join(str(k) for k in plan.routes)}")
+    return 0 if collision.clear else 1
+
+
 def _report_servo_error(error: ServoExportError | None) -> int:
     if error is None:
         return 0
@@ -578,6 +618,7 @@ def _run_bench(args: argparse.Namespace) -> int:
 _COMMANDS: dict[str, tuple[Callable[[argparse._SubParsersAction], None], Callable[[argparse.Namespace], int]]] = {
     "robots": (_add_robots, _run_robots),
     "examples": (_add_examples, _run_examples),
+    "check": (_add_check, _run_check),
     "fk": (_add_fk, _run_fk),
     "ik": (_add_ik, _run_ik),
     "plan": (_add_plan, _run_plan),

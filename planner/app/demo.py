@@ -54,6 +54,9 @@ AL5C_READING = (0.17, math.radians(35.0))
 AL5C_PLACE = (0.02, 0.20, 0.0)
 GRASP_HEIGHT = 0.015  # gripper point above the table at the grasp [m]
 CLEARANCE = 0.08  # approach and lift height above the grasp [m]
+AL5C_BLOCK_SIZE = (0.04, 0.04, 0.14)  # a block on the table between the pick and the place [m]
+AL5C_BLOCK_CENTRE = (0.12, 0.10, 0.07)
+AL5C_SCENE_CLEARANCE = 0.002  # distance kept to the table, the block and between links [m]
 
 
 @dataclass(frozen=True)
@@ -179,6 +182,13 @@ def al5c_request() -> tuple[dict[str, Any], np.ndarray]:
         ],
         # The first target's IK branch is the one nearest a folded, upright home pose.
         "start": {"q": [0.0, math.radians(90), math.radians(-90), math.radians(-90), 0.0]},
+        # The table the arm stands on, and a block standing between the pick and the place:
+        # the carry is planned around it.
+        "scene": {
+            "floor": 0.0,
+            "clearance": AL5C_SCENE_CLEARANCE,
+            "obstacles": [{"name": "block", "box": list(AL5C_BLOCK_SIZE), "position": list(AL5C_BLOCK_CENTRE)}],
+        },
     }
     return request, seen
 
@@ -235,6 +245,9 @@ def run_demo(
         f"al5c (Clothier and Shang 2010): sensor saw the object at ({seen[0]:.3f}, {seen[1]:.3f}, {seen[2]:.3f}) m; "
         f"{len(al5c_plan.waypoints)} targets, approach from above, in {al5c_plan.trajectory.duration:.2f} s"
     )
+    if al5c_plan.collision is not None:
+        around = ", ".join(al5c_moves[k].label for k in al5c_plan.routes) or "none"
+        say(f"  table and block: planned around the block: {around}; {al5c_plan.collision.describe()}")
     moves = tuple(dh3_moves + al5c_moves)
     say("")
     say(_table(moves))

@@ -18,14 +18,20 @@ import numpy as np
 
 from planner.app.outputs import write_plan_files
 from planner.app.plan_file import MotionRequest
+from planner.collision.checker import CollisionChecker
+from planner.collision.continuous import MotionClearance, check_segment, check_trajectory
+from planner.collision.scene import Scene
 from planner.core.arrays import read_only
 from planner.core.files import input_error, parse_number
+from planner.exceptions import PlanningError
 from planner.export.calibration import ServoCalibration
 from planner.export.calibration_file import ControllerSetup, controller_setup
 from planner.export.formats import ServoFormat
 from planner.model.robot import Robot
+from planner.motion.avoid import clear_route, joint_line, segment_is_clear
 from planner.motion.detours import Detour, SingularityOptions, plan_clear_of_singularities
 from planner.motion.limits import JointLimits
+from planner.motion.line import LinePath
 from planner.motion.request import TrajectoryRequest
 from planner.motion.singularity import SingularityReport
 from planner.motion.trajectory import JointTrajectory
@@ -52,6 +58,10 @@ class MotionPlan:
         line_deviation: Per requested segment, the largest distance of the tip from the
             straight line [m] for line segments, else None.
         limits: The limits planned with.
+        collision: With a scene, the continuous check of the trajectory (clear, or where it
+            first comes too close, between which bodies and how deep); None without a scene.
+        routes: Requested segments planned around obstacles (along a clear joint route).
+        scene: The scene planned in (SI), or None.
         calibrations: Servo calibration per joint (pulse widths, or position ticks for a
             Feetech bus or a stepper controller).
         servo_period_ms: Time between two servo updates in the servo files [ms].
@@ -72,6 +82,9 @@ class MotionPlan:
     unresolved: tuple[int, ...]
     line_deviation: tuple[float | None, ...]
     limits: JointLimits
+    collision: MotionClearance | None
+    routes: tuple[int, ...]
+    scene: Scene | None
     calibrations: tuple
     servo_period_ms: int
     setup: ControllerSetup | None = None
@@ -105,7 +118,17 @@ class MotionPlan:
             "strategy": self.trajectory.strategy,
             "controller": None if self.setup is None else self.setup.controller,
             "sample_rate": rate,
+            **(
+                {}
+                if self.collision is None
+                else {"collision": _collision_summary(self.collision), "routes": list(self.routes)}
+            ),
         }
+
+    @property
+    def collision_free(self) -> bool | None:
+        """Whether the trajectory keeps the scene's clearance throughout (None without a scene)."""
+        return None if self.collision is None else self.collision.clear
 
     def write_files(
         self,
@@ -144,6 +167,20 @@ class MotionPlan:
         )
 
 
+def _collision_summary(c: MotionClearance) -> dict[str, Any]:
+    out: dict[str, Any] = {
+        "clear": c.clear,
+        "min_distance": c.closest.distance,
+        "closest_bodies": list(c.closest.bodies),
+        "closest_time": c.where,
+        "clearance": c.closest.clearance,
+        "checks": c.checks,
+    }
+    if c.hit is not None:
+        out.update(first_hit_time=c.first_hit, hit_bodies=list(c.hit.bodies), hit_distance=c.hit.distance)
+    return out
+
+
 def _joint_scale(robot: Robot, request: MotionRequest) -> np.ndarray:
     return np.array([request.length_scale if k == "prismatic" else request.angle_scale for k in robot.joint_kinds])
 
@@ -154,6 +191,59 @@ def _per_joint_si(value: float | np.ndarray, scale: np.ndarray) -> np.ndarray:
     if arr.ndim == 0 or arr.shape == scale.shape:
         return arr * scale
     return arr  # the wrong length: JointLimits names the joints in its error
+
+
+def _route_around_obstacles(
+    checker: CollisionChecker,
+    request: MotionRequest,
+    q_user: np.ndarray,
+    paths: list[list[LinePath] | None],
+    cartesian: list[bool],
+    labels: list[str],
+    allow: Sequence[tuple[str, ...]],
+) -> None:
+    """Check the waypoints and lines against the scene, and route free moves around obstacles.
+
+    Fills ``paths[k]`` with joint lines along a clear route for each free move into waypoint k
+    whose straight joint segment does not keep the clearance (plus the search's margin).
+
+    Raises:
+        PlanningError: If a waypoint or a Cartesian line collides (naming the bodies), or no
+            clear route exists between two waypoints (with the search's reason).
+    """
+    n = len(q_user)
+    for k in range(n):
+        c = checker.distance_at(q_user[k], checker.pair_mask(allow[k]))
+        if not c.clear:
+            raise PlanningError(
+                f"{request.source}: {labels[k]} does not keep the clearance "
+                f"({checker.scene.clearance * 1000:g} mm): {c}"
+            )
+    margin = request.path_options.margin
+    for k in range(1, n):
+        names = tuple(set(allow[k - 1]) | set(allow[k]))
+        if cartesian[k]:
+            samples = paths[k][0].q
+            for i, (a, b) in enumerate(zip(samples, samples[1:])):
+                result = check_segment(checker, a, b, allow=names)
+                if not result.clear:
+                    assert result.first_hit is not None and result.hit is not None
+                    where = 100.0 * (i + result.first_hit) / (len(samples) - 1)
+                    what = "collides" if result.hit.in_collision else "comes closer than the clearance"
+                    raise PlanningError(
+                        f"{request.source}: the straight line into {labels[k]} {what} {where:.0f} % of the way: "
+                        f"{result.hit}; move the line or the obstacle, or drop `line: true` so the arm may go around"
+                    )
+            continue
+        if segment_is_clear(checker, q_user[k - 1], q_user[k], allow=names, margin=margin):
+            continue
+        lines, result = clear_route(checker, q_user[k - 1], q_user[k], allow=names, options=request.path_options)
+        if not lines:
+            raise PlanningError(
+                f"{request.source}: no collision-free way from {labels[k - 1]} to {labels[k]}: {result.reason} "
+                f"({result.status.value}); try another avoidance seed or time_budget, or move the obstacle"
+            )
+        paths[k] = lines
 
 
 def _calibrations(robot: Robot, request: MotionRequest) -> tuple[ServoCalibration, ...] | None:
@@ -231,12 +321,16 @@ def plan_motion(
         robot.check_limits(start_q, context="start.q")
 
     n = request.count
+    labels = [f"waypoint {k}" + (f" ({request.labels[k]})" if request.labels[k] else "") for k in range(n)]
+    checker = CollisionChecker(robot, request.scene) if request.scene is not None else None
+    allow = request.allow or ((),) * n
     branches: list[str | None] = [None] * n
-    # Each requested waypoint, then dense samples of line segments between them.
-    nodes: list[np.ndarray] = []
-    user_pos: list[int] = []
-    line_ranges: list[tuple[int, int, int]] = []  # (user segment, first node, last node)
-    line_timing = []
+    # The joint configuration of each requested waypoint, and how each requested segment moves:
+    # None for a free joint-space move, else joint samples along lines (a Cartesian line, or the
+    # edges of a route around obstacles) with a flag for Cartesian lines.
+    q_list: list[np.ndarray] = []
+    paths: list[list[LinePath] | None] = [None] * n  # paths[k]: the move into waypoint k
+    cartesian = [False] * n
     if request.joints is not None:
         if request.joints.shape[1] != robot.dof:
             raise input_error(
@@ -244,72 +338,105 @@ def plan_motion(
                 f"waypoints have {request.joints.shape[1]} values; {robot.name} has {robot.dof} joints "
                 f"({', '.join(robot.joint_names)})",
             )
-        q_user = request.joints * scale
-        for k in range(n):
-            user_pos.append(len(nodes))
-            nodes.append(q_user[k])
-        if start_q is not None and not np.allclose(start_q, q_user[0], atol=1e-9):
+        q_list = list(request.joints * scale)
+        if start_q is not None and not np.allclose(start_q, q_list[0], atol=1e-9):
             raise input_error(
                 src, "start.q differs from the first waypoint; with joint waypoints the first one is the start"
             )
     else:
         from planner.motion.branch_choice import TargetSolver
         from planner.motion.line import line_waypoints
-        from planner.motion.line_timing import time_line
 
         solver = TargetSolver(robot, threshold=threshold)
         q_prev = start_q
         for k, target in enumerate(request.targets):
             label = f"target {k}" + (f" ({request.labels[k]})" if request.labels[k] else "")
             if request.lines[k]:
-                path = line_waypoints(solver, request.targets[k - 1], target, nodes[-1])
-                timing = time_line(path, limits)
-                first = len(nodes) - 1
-                nodes.extend(path.q[1:])
-                line_ranges.append((k - 1, first, len(nodes) - 1))
-                line_timing.append(timing)
-                branches[k] = "line"
-                user_pos.append(len(nodes) - 1)
-                q_prev = nodes[-1]
+                path = line_waypoints(solver, request.targets[k - 1], target, q_list[-1])
+                paths[k], cartesian[k], branches[k] = [path], True, "line"
+                q_list.append(np.array(path.q[-1]))
+                q_prev = q_list[-1]
                 continue
-            choice = solver.choose(target, q_prev, label=label)
+            choice = solver.choose(target, q_prev, label=label, checker=checker, allow=allow[k])
             branches[k] = choice.branch
-            user_pos.append(len(nodes))
-            nodes.append(np.array(choice.q))
-            q_prev = nodes[-1]
-        q_user = np.array([nodes[i] for i in user_pos])
+            q_list.append(np.array(choice.q))
+            q_prev = q_list[-1]
+    q_user = np.array(q_list)
+    if checker is not None:
+        _route_around_obstacles(checker, request, q_user, paths, cartesian, labels, allow)
 
-    q_nodes = np.array(nodes)
-    m = len(q_nodes)
-    dwell = np.zeros(m)
-    dwell[user_pos] = request.dwell
-    stops = [user_pos[k] for k in request.stops]
-    keep = sorted({s for _, a, b in line_ranges for s in range(a, b)})
-    via_v = np.full(q_nodes.shape, np.nan)
-    via_a = np.zeros(q_nodes.shape)
-    min_dur = np.zeros(m - 1)
-    for (_, a, b), timing in zip(line_ranges, line_timing):
-        # A line is timed from rest to rest: its samples get the timing's states.
-        via_v[a : b + 1] = timing.velocity
-        via_a[a : b + 1] = timing.acceleration
-        min_dur[a:b] = np.diff(timing.t)
-        stops += [a, b]
-    trajectory_request = TrajectoryRequest(
-        q_nodes,
-        limits,
-        start_velocity=start_v,
-        start_acceleration=start_a,
-        stops=stops,
-        dwell=dwell,
-        strategy=request.strategy,
-        via_velocities=via_v,
-        via_accelerations=via_a,
-        min_durations=min_dur,
-    )
-    options = SingularityOptions(
-        threshold=threshold, rate=rate, max_detours=request.max_detours if request.detours else 0
-    )
-    plan = plan_clear_of_singularities(robot, trajectory_request, options, keep_segments=keep)
+    def build(paths: list[list[LinePath] | None]) -> tuple:
+        """Nodes through every waypoint and line sample, and the line bookkeeping."""
+        from planner.motion.line_timing import time_line
+
+        nodes = [q_user[0]]
+        user_pos = [0]
+        line_ranges: list[tuple[int, int, int]] = []  # (user segment, first node, last node)
+        timings = []
+        for k in range(1, n):
+            if paths[k] is None:
+                nodes.append(q_user[k])
+            else:
+                for path in paths[k]:
+                    first = len(nodes) - 1
+                    nodes.extend(path.q[1:])
+                    line_ranges.append((k - 1, first, len(nodes) - 1))
+                    timings.append(time_line(path, limits))
+            user_pos.append(len(nodes) - 1)
+        return np.array(nodes), user_pos, line_ranges, timings
+
+    def plan_once(paths: list[list[LinePath] | None]) -> tuple:
+        q_nodes, user_pos, line_ranges, line_timing = build(paths)
+        m = len(q_nodes)
+        dwell = np.zeros(m)
+        dwell[user_pos] = request.dwell
+        stops = [user_pos[k] for k in request.stops]
+        keep = sorted({s for _, a, b in line_ranges for s in range(a, b)})
+        via_v = np.full(q_nodes.shape, np.nan)
+        via_a = np.zeros(q_nodes.shape)
+        min_dur = np.zeros(m - 1)
+        for (_, a, b), timing in zip(line_ranges, line_timing):
+            # A line is timed from rest to rest: its samples get the timing's states.
+            via_v[a : b + 1] = timing.velocity
+            via_a[a : b + 1] = timing.acceleration
+            min_dur[a:b] = np.diff(timing.t)
+            stops += [a, b]
+        trajectory_request = TrajectoryRequest(
+            q_nodes,
+            limits,
+            start_velocity=start_v,
+            start_acceleration=start_a,
+            stops=stops,
+            dwell=dwell,
+            strategy=request.strategy,
+            via_velocities=via_v,
+            via_accelerations=via_a,
+            min_durations=min_dur,
+        )
+        options = SingularityOptions(
+            threshold=threshold, rate=rate, max_detours=request.max_detours if request.detours else 0
+        )
+        plan = plan_clear_of_singularities(robot, trajectory_request, options, keep_segments=keep)
+        return plan, user_pos, line_ranges, m
+
+    plan, user_pos, line_ranges, m = plan_once(paths)
+    collision = None
+    if checker is not None:
+        # The timed motion leaves the straight segments checked above: check it continuously;
+        # a free move that strays is made to follow its straight (clear) segment, and re-planned.
+        for _ in range(n):
+            times = plan.trajectory.waypoint_times[plan.waypoint_indices[user_pos]]
+            windows = [(float(times[k - 1]), tuple(set(allow[k - 1]) | set(allow[k]))) for k in range(1, n)]
+            collision = check_trajectory(checker, plan.trajectory, allow=windows)
+            if collision.clear:
+                break
+            k = int(np.searchsorted(times, collision.first_hit, side="left"))
+            k = min(max(k, 1), n - 1)
+            if paths[k] is not None:
+                break  # already along clear lines: reported as it is
+            paths[k] = [joint_line(robot, q_user[k - 1], q_user[k])]
+            plan, user_pos, line_ranges, m = plan_once(paths)
+
     traj = plan.trajectory
     node_idx = plan.waypoint_indices
     user_idx = node_idx[user_pos]
@@ -321,10 +448,12 @@ def plan_motion(
     detours = tuple(Detour(int(node_to_user[d.segment]), d.q, d.inverse_condition, d.dip) for d in plan.detours)
     unresolved = tuple(sorted({int(node_to_user[s]) for s in plan.unresolved}))
     deviation: list[float | None] = [None] * (n - 1)
-    if line_ranges:
+    if any(cartesian):
         from planner.motion.line import line_deviation
 
         for seg, a, b in line_ranges:
+            if not cartesian[seg + 1]:
+                continue
             t0, t1 = traj.waypoint_times[node_idx[a]], traj.waypoint_times[node_idx[b]]
             t = np.linspace(t0, t1, max(2, int(math.ceil((t1 - t0) * rate)) + 1))
             deviation[seg] = line_deviation(
@@ -354,6 +483,9 @@ def plan_motion(
         unresolved=unresolved,
         line_deviation=tuple(deviation),
         limits=limits,
+        collision=collision,
+        routes=tuple(k - 1 for k in range(1, n) if paths[k] is not None and not cartesian[k]),
+        scene=request.scene,
         calibrations=setup.calibrations,
         servo_period_ms=request.servo_period_ms,
         setup=setup,

@@ -22,8 +22,17 @@ A plan file is YAML or JSON (``.json`` is read as JSON, anything else as YAML)::
     servo_period_ms: 20
     controller: ssc32                 # optional: ssc32, pca9685, feetech, steps, pulses (the files written)
     calibration: my-arm.yaml          # optional calibration file (planner.export.calibration_file), instead of servos
+    scene:                            # optional: what the arm must not touch (planner.collision.scene)
+      floor: 0                        # floor height in the base frame [length]
+      clearance: 0.5                  # distance kept to everything, links included [length]
+      obstacles:
+        - {name: block, box: [4, 4, 10], position: [20, 10, 5]}
+    avoidance: {seed: 0, time_budget: 5}   # the path search around obstacles (seeded)
 
 ``line: true`` on a target makes the motion from the previous target to it a straight line.
+``allow: [block]`` on a waypoint or target lets the arm touch those scene bodies there (and on
+the moves into and out of it), e.g. the block the gripper grasps. With a ``scene`` the plan
+also keeps the arm's links apart from each other.
 Angles (joint values, pitch, rpy, angular limits) use the ``angle`` unit, lengths (positions,
 prismatic joints) the ``length`` unit; time is always seconds. Everything inside is SI.
 """
@@ -38,8 +47,11 @@ from typing import Any
 
 import numpy as np
 
+from planner.collision.rrt import PathOptions
+from planner.collision.scene import Scene, parse_scene
 from planner.core.files import input_error, parse_number, parse_numbers, parse_units, read_data_file
 from planner.core.text import plain
+from planner.exceptions import InvalidArgumentError
 from planner.export.formats import SERVO_FORMATS
 from planner.geometry.target import Target
 from planner.motion.singularity import DEFAULT_CONDITION_NUMBER
@@ -61,10 +73,12 @@ _TOP_KEYS = (
     "calibration",
     "name",
     "comment",
+    "scene",
+    "avoidance",
 )
 _LIMIT_KEYS = ("velocity", "acceleration", "jerk", "servo_seconds_per_60deg")
-_WAYPOINT_KEYS = ("q", "dwell", "stop", "label")
-_TARGET_KEYS = ("position", "pitch", "rpy", "quaternion", "dwell", "stop", "line", "label")
+_WAYPOINT_KEYS = ("q", "dwell", "stop", "label", "allow")
+_TARGET_KEYS = ("position", "pitch", "rpy", "quaternion", "dwell", "stop", "line", "label", "allow")
 _SERVO_KEYS = ("channel", "pulse_at_zero", "us_per_rad", "us_per_deg", "direction", "min_pulse", "max_pulse")
 
 
@@ -117,6 +131,9 @@ class MotionRequest:
         calibration: Calibration file path, or None.
         angle_scale: Radians per file angle unit.
         length_scale: Metres per file length unit.
+        scene: What the arm must not touch (SI), or None for no collision checks.
+        allow: Per waypoint, the scene bodies it may touch.
+        path_options: Settings of the path search around obstacles.
         source: Where the request came from, for messages.
     """
 
@@ -140,6 +157,9 @@ class MotionRequest:
     calibration: Path | None = None
     angle_scale: float = 1.0
     length_scale: float = 1.0
+    scene: Scene | None = None
+    allow: tuple[tuple[str, ...], ...] = ()
+    path_options: PathOptions = field(default_factory=PathOptions)
     source: str = "<request>"
 
     @property
@@ -167,6 +187,17 @@ def _extras(item: Mapping[str, Any], where: str, source: str) -> tuple[float, bo
         raise input_error(source, f"{where}.stop must be true or false, got {stop!r}")
     label = item.get("label")
     return dwell, stop, None if label is None else str(label)
+
+
+def _allow(item: Any, where: str, source: str) -> tuple[str, ...]:
+    if not isinstance(item, Mapping) or "allow" not in item:
+        return ()
+    names = item["allow"]
+    if isinstance(names, str):
+        names = [names]
+    if not isinstance(names, Sequence) or not all(isinstance(n, str) for n in names):
+        raise input_error(source, f"{where}.allow must be a list of scene names, got {plain(names)}")
+    return tuple(names)
 
 
 def _parse_target(
@@ -223,6 +254,7 @@ def parse_motion_request(data: Mapping[str, Any], source: str = "<request>") -> 
     if len(items) < 2:
         raise input_error(source, f"a plan needs at least two {'waypoints' if has_w else 'targets'}, got {len(items)}")
     dwell, stops, lines, labels = [], [], [], []
+    allow = [_allow(item, f"{'waypoints' if has_w else 'targets'}[{k}]", source) for k, item in enumerate(items)]
     joints = targets = None
     if has_w:
         rows = []
@@ -316,6 +348,28 @@ def parse_motion_request(data: Mapping[str, Any], source: str = "<request>") -> 
         if not calibration.is_absolute() and source != "<request>":
             calibration = Path(source).parent / calibration
 
+    scene = None
+    if "scene" in data:
+        scene = parse_scene(data["scene"], length_scale=length, angle_scale=angle, source=source)
+    for k, names in enumerate(allow):
+        if names:
+            if scene is None:
+                raise input_error(source, f"{'waypoints' if has_w else 'targets'}[{k}].allow needs a scene")
+            try:
+                scene.check_names(names, f"{'waypoints' if has_w else 'targets'}[{k}].allow")
+            except InvalidArgumentError as exc:
+                raise input_error(source, str(exc)) from exc
+    avoidance = data.get("avoidance", {}) or {}
+    if not isinstance(avoidance, Mapping):
+        raise input_error(
+            source, f"avoidance must be a mapping like {{seed: 0, time_budget: 5}}, got {plain(avoidance)}"
+        )
+    _unknown_keys(avoidance, ("seed", "time_budget"), "avoidance", source)
+    try:
+        path_options = PathOptions(**dict(avoidance))
+    except (InvalidArgumentError, TypeError) as exc:
+        raise input_error(source, f"avoidance: {exc}") from exc
+
     return MotionRequest(
         joints=joints,
         targets=targets,
@@ -337,6 +391,9 @@ def parse_motion_request(data: Mapping[str, Any], source: str = "<request>") -> 
         calibration=calibration,
         angle_scale=angle,
         length_scale=length,
+        scene=scene,
+        allow=tuple(allow),
+        path_options=path_options,
         source=source,
     )
 

@@ -13,6 +13,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from planner.collision.scene import Box, Cylinder, Obstacle, Scene
 from planner.core.version import install_hint
 from planner.exceptions import PlannerError
 
@@ -155,6 +156,7 @@ def plot_arm_poses(
     *,
     labels: Sequence[str] | None = None,
     title: str = "",
+    scene: Scene | None = None,
 ) -> Path:
     """Stick figures of the arm at each configuration: a side view and a top view.
 
@@ -167,6 +169,8 @@ def plot_arm_poses(
         configurations: Shape (K, dof) [rad or m].
         labels: One label per configuration (default: "1", "2", ...).
         title: Figure title.
+        scene: Obstacles (grey: their outline from above, their height span against their
+            distance from the base axis at the side) and the floor, or None.
 
     Returns:
         The PNG path.
@@ -183,6 +187,8 @@ def plot_arm_poses(
         top.plot(pts[:, 0], pts[:, 1], "-o", color=color, markersize=3, linewidth=2, label=label)
         side.plot(radial[-1], pts[-1, 2], "*", color=color, markersize=10)
         top.plot(pts[-1, 0], pts[-1, 1], "*", color=color, markersize=10)
+    if scene is not None:
+        _draw_scene(side, top, scene)
     side.set_xlabel("horizontal reach [m]")
     side.set_ylabel("z [m]")
     side.set_title("side view")
@@ -196,6 +202,43 @@ def plot_arm_poses(
     fig.suptitle(title or f"{robot.name} at each waypoint (star: tip)")
     fig.tight_layout()
     return _save(fig, path)
+
+
+def _obstacle_points(obstacle: Obstacle) -> np.ndarray:
+    """Points on the obstacle's outline (box corners, circles of a cylinder or sphere), shape (n, 3)."""
+    shape = obstacle.shape
+    a = np.linspace(0, 2 * np.pi, 24, endpoint=False)
+    c, s = np.cos(a), np.sin(a)
+    z0 = np.zeros_like(a)
+    if isinstance(shape, Box):
+        local = np.array([[x, y, z] for x in (-1, 1) for y in (-1, 1) for z in (-1, 1)]) * (np.array(shape.size) / 2)
+    elif isinstance(shape, Cylinder):
+        r, h = shape.radius, shape.length / 2
+        local = np.vstack([np.column_stack([r * c, r * s, z0 + z]) for z in (-h, h)])
+    else:
+        r = shape.radius
+        local = np.vstack([np.column_stack([r * c, r * s, z0]), np.column_stack([r * c, z0, r * s])])
+    return local @ np.asarray(obstacle.rotation).T + np.asarray(obstacle.position)
+
+
+def _draw_scene(side: Any, top: Any, scene: Scene) -> None:
+    from matplotlib.patches import Polygon, Rectangle
+
+    for obstacle in scene.obstacles:
+        pts = _obstacle_points(obstacle)
+        xy = pts[:, :2]
+        centre = xy.mean(axis=0)
+        order = np.argsort(np.arctan2(xy[:, 1] - centre[1], xy[:, 0] - centre[0]))
+        top.add_patch(Polygon(xy[order], closed=True, color="0.6", alpha=0.5))
+        top.annotate(obstacle.name, centre, fontsize=7, ha="center", va="center")
+        radial = np.hypot(xy[:, 0], xy[:, 1])
+        lo, hi = radial.min(), radial.max()
+        side.add_patch(
+            Rectangle((lo, pts[:, 2].min()), hi - lo, np.ptp(pts[:, 2]), color="0.6", alpha=0.35, linewidth=0)
+        )
+        side.annotate(obstacle.name, ((lo + hi) / 2, pts[:, 2].max()), fontsize=7, ha="center", va="bottom")
+    if scene.floor is not None:
+        side.axhline(scene.floor, color="0.4", linewidth=2, label="floor")
 
 
 def plot_ik_benchmark(path: str | Path, rows: Sequence[Mapping[str, Any]], *, title: str = "") -> Path:
@@ -295,6 +338,12 @@ def plot_plan(
     )
     labels = [f"{k}" + (" (singular)" if k in plan.singular_waypoints else "") for k in range(len(plan.waypoints))]
     arm = plot_arm_poses(
-        folder / f"{prefix}arm.png", robot, plan.waypoints, labels=labels, title=f"{name} at each waypoint (star: tip)"
+        folder / f"{prefix}arm.png",
+        robot,
+        plan.waypoints,
+        labels=labels,
+        title=f"{name} at each waypoint (star: tip)"
+        + (", grey: obstacles" if plan.scene and plan.scene.obstacles else ""),
+        scene=plan.scene,
     )
     return joints, singular, arm

@@ -35,6 +35,8 @@ class IKSolution:
             without a seed.
         singular: Whether the configuration is at a singularity, where the method tells
             (closed form), else None.
+        clearance: With a collision checker, the distance to the closest body [m] (negative:
+            overlapping); else None.
     """
 
     q: np.ndarray
@@ -44,6 +46,7 @@ class IKSolution:
     orientation_error: float
     distance: float | None = None
     singular: bool | None = None
+    clearance: float | None = None
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "q", read_only(self.q))
@@ -58,6 +61,7 @@ class IKSolution:
             "orientation_error": self.orientation_error,
             "distance": self.distance,
             "singular": self.singular,
+            "clearance": self.clearance,
         }
 
 

@@ -17,6 +17,7 @@ from typing import Literal
 
 import numpy as np
 
+from planner.collision.checker import CollisionChecker
 from planner.exceptions import InvalidArgumentError, UnsupportedChainError
 from planner.geometry.joint_space import angular_joints, wrapped_distance
 from planner.geometry.target import Target, as_target, target_errors, tip_errors
@@ -44,6 +45,8 @@ def solve_ik(
     *,
     method: IKMethod = "auto",
     options: IKOptions | None = None,
+    checker: CollisionChecker | None = None,
+    allow: Sequence[str] = (),
 ) -> IKResult:
     """Joint values that put the tip on a target, by closed form or numerically.
 
@@ -60,6 +63,11 @@ def solve_ik(
             ideal geometry, so a solution at the very edge of the limits can escape it).
         options: Tolerances and NLP settings (:class:`~planner.ik.options.IKOptions`); None for
             the defaults.
+        checker: A :class:`~planner.collision.checker.CollisionChecker` (the robot's scene):
+            every solution gets its ``clearance``; the answer is the nearest solution that keeps
+            the scene's clearance; when none does, the NLP restarts from other seeds, and the
+            result is ``"in_collision"`` if it finds none either. None checks nothing.
+        allow: Scene bodies the arm may touch (with `checker`).
 
     Returns:
         The result; an unreachable target is a result with ``success=False``, a ``status`` and
@@ -72,6 +80,90 @@ def solve_ik(
         JointLimitError: If `q_seed` is outside the joint limits.
     """
     start = time.perf_counter()
+    result = _solve(robot, target, q_seed, method, options, start)
+    if checker is None:
+        return result
+    if checker.robot is not robot:
+        raise InvalidArgumentError("the collision checker is for another robot")
+    return _collision_free(robot, as_target(target), result, checker, allow, options or _DEFAULT_OPTIONS, start)
+
+
+#: NLP restarts from other seeds when every solution found collides.
+COLLISION_RESTARTS = 8
+
+
+def _collision_free(
+    robot: Robot,
+    target: Target,
+    result: IKResult,
+    checker: CollisionChecker,
+    allow: Sequence[str],
+    options: IKOptions,
+    start: float,
+) -> IKResult:
+    """The result with each solution's clearance, its answer the nearest one that keeps it."""
+    mask = checker.pair_mask(allow)
+    tolerances = (options.position_tolerance, options.orientation_tolerance)
+
+    def usable(s: IKSolution) -> bool:
+        return (
+            s.within_limits
+            and s.position_error <= tolerances[0]
+            and s.orientation_error <= tolerances[1]
+            and s.clearance is not None
+            and s.clearance >= checker.scene.clearance
+        )
+
+    sols = [dataclasses.replace(s, clearance=checker.distance_at(s.q, mask).distance) for s in result.solutions]
+    found = next((s for s in sols if usable(s)), None) if result.success else None
+    if found is None and result.success:
+        # Restart the NLP from seeds drawn with a fixed generator (the same answer every call).
+        solvers = IKSolvers.of(robot)
+        rng = np.random.default_rng(0)
+        for seed in robot.random_configurations(rng, COLLISION_RESTARTS):
+            more = solvers.nlp.solve(target, seed, dataclasses.replace(options, closed_form_seeds=False))
+            extra = [dataclasses.replace(s, clearance=checker.distance_at(s.q, mask).distance) for s in more.solutions]
+            sols += extra
+            found = next((s for s in extra if usable(s)), None)
+            if found is not None:
+                break
+    wall = time.perf_counter() - start
+    if found is not None:
+        reason = (
+            result.reason
+            if np.array_equal(found.q, result.q)
+            else f"the nearest collision-free solution ({found.label})"
+        )
+        return dataclasses.replace(
+            result,
+            q=found.q,
+            position_error=found.position_error,
+            orientation_error=found.orientation_error,
+            reason=reason,
+            solutions=tuple(sols),
+            wall_time=wall,
+        )
+    if not result.success:
+        return dataclasses.replace(result, solutions=tuple(sols), wall_time=wall)
+    closest = checker.distance_at(result.q, mask)
+    return dataclasses.replace(
+        result,
+        success=False,
+        status=IKStatus.IN_COLLISION,
+        reason=f"every solution found collides or comes closer than the clearance; the answer's: {closest}",
+        solutions=tuple(sols),
+        wall_time=wall,
+    )
+
+
+def _solve(
+    robot: Robot,
+    target: Target | Sequence[float] | np.ndarray,
+    q_seed: Sequence[float] | np.ndarray | None,
+    method: str,
+    options: IKOptions | None,
+    start: float,
+) -> IKResult:
     if method not in IK_METHODS:
         raise InvalidArgumentError(f"unknown IK method {method!r}; valid: {', '.join(IK_METHODS)}")
     if options is None:

@@ -22,6 +22,8 @@ class IKStatus(str, Enum):
             outside its range (closed form; the reason names the joint and the excess).
         BELOW_MANIPULABILITY_FLOOR: Reached, but by no configuration above the asked
             manipulability floor (NLP).
+        IN_COLLISION: Reached, but every configuration found collides with the scene or the
+            arm itself, or comes closer than the clearance (with a collision checker).
         INACCURATE: A closed-form configuration misses the target by Pinocchio FK (a model the
             closed form does not fit exactly).
         ORIENTATION_NOT_ACHIEVABLE: The position is reachable, not with the asked orientation or
@@ -35,6 +37,7 @@ class IKStatus(str, Enum):
     SOLVED = "solved"
     OUTSIDE_JOINT_LIMITS = "outside_joint_limits"
     BELOW_MANIPULABILITY_FLOOR = "below_manipulability_floor"
+    IN_COLLISION = "in_collision"
     INACCURATE = "inaccurate"
     ORIENTATION_NOT_ACHIEVABLE = "orientation_not_achievable"
     BEYOND_MAX_REACH = "beyond_max_reach"

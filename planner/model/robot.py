@@ -12,6 +12,7 @@ import io
 import math
 from collections.abc import Mapping, Sequence
 from pathlib import Path
+from types import MappingProxyType
 from typing import Literal
 
 import numpy as np
@@ -143,6 +144,9 @@ class Robot:
         approach_axis: Unit approach axis of the tip, in tip-frame coordinates, read-only.
         tip_frame_id: Pinocchio frame index of the tip.
         urdf: The URDF text the robot was built from.
+        source: Where the URDF came from (its file path, or ``"<urdf>"``), for messages and
+            for resolving the meshes it names.
+        locked_joints: The joints off the chain and the values [rad or m] they are locked at.
         derived: Objects built from this robot by higher layers (its IK solvers), kept for
             reuse and freed with the robot (:class:`~planner.model.derived.DerivedCache`).
     """
@@ -216,6 +220,9 @@ class Robot:
                     raise JointLimitError(jname, value, lo, hi, context="locked joint")
                 q_ref[jm.idx_q] = value
         model = pin.buildReducedModel(full, lock_ids, q_ref) if lock_ids else full
+        self.locked_joints: Mapping[str, float] = MappingProxyType(
+            {full.names[j]: float(q_ref[full.joints[j].idx_q]) for j in lock_ids if full.joints[j].nq == 1}
+        )
         self.model = model
         self.data = model.createData()
         self.tip = tip
@@ -414,6 +421,13 @@ class Robot:
                 raise JointLimitError(self.joint_names[j], row[j], self._lower[j], self._upper[j], context=where)
 
     # ------------------------------------------------------------------ kinematics
+    def pinocchio_configuration(self, q: np.ndarray) -> np.ndarray:
+        """Joint values as Pinocchio's configuration vector of :attr:`model`, unchecked.
+
+        A continuous joint takes two entries, its cosine and sine.
+        """
+        return self._pin_q(np.asarray(q, dtype=float))
+
     def _pin_q(self, q: np.ndarray) -> np.ndarray:
         if not self._has_continuous:
             return q

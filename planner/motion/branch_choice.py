@@ -2,23 +2,26 @@
 
 :class:`TargetSolver` asks :func:`planner.solve_ik`, the one IK entry point: the closed form
 where the arm belongs to one of its families, else the CasADi NLP.
-For a waypoint it picks, among the solutions within the joint limits, one clear of
-singularities and nearest the previous configuration, and says which branch it took
+For a waypoint it picks, among the solutions within the joint limits, one free of collisions
+(with a checker), clear of singularities and nearest the previous configuration, and says which branch it took
 (:class:`IKChoice`); along a path it tracks the solution nearest the previous sample.
 """
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
 
+from planner.collision.checker import CollisionChecker
 from planner.core.arrays import read_only
-from planner.exceptions import InvalidArgumentError
+from planner.exceptions import InvalidArgumentError, PlanningError
 from planner.geometry.target import Target
 from planner.ik.options import IKOptions
 from planner.ik.solve import solve_ik
 from planner.ik.solvers import IKSolvers
+from planner.ik.status import IKStatus
 from planner.model.robot import Robot, Task
 
 __all__ = ["IKChoice", "TargetSolver"]
@@ -94,29 +97,54 @@ class TargetSolver:
         return float(np.linalg.norm(self.robot.position(q) - target.position))
 
     def candidates(
-        self, target: Target, q_near: np.ndarray | None, *, nearest: bool = False
+        self,
+        target: Target,
+        q_near: np.ndarray | None,
+        *,
+        nearest: bool = False,
+        checker: CollisionChecker | None = None,
+        allow: Sequence[str] = (),
     ) -> tuple[list[tuple[np.ndarray, str]], str]:
         """Solutions within the limits, ``(q, branch)``, and a reason when there are none.
 
         Both come from :func:`planner.solve_ik`: the closed form gives every branch; the NLP
         its answer, started from `q_near` (with `nearest`, the solution nearest `q_near`).
+        With a `checker`, only solutions that keep the scene's clearance count.
         """
         options = _NEAR_SEED if nearest and q_near is not None else _DEFAULT
-        result = solve_ik(self.robot, target, q_near, method=self.method, options=options)
-        if result.method == "analytic":
-            sols = [(np.array(s.q, dtype=float), s.label) for s in result.solutions if s.within_limits]
-            return sols, "" if sols else result.reason or result.status.value
+        result = solve_ik(self.robot, target, q_near, method=self.method, options=options, checker=checker, allow=allow)
+        if result.method == "analytic" and result.success:
+            sols = [
+                (np.array(s.q, dtype=float), s.label)
+                for s in result.solutions
+                if s.within_limits and (checker is None or s.clearance >= checker.scene.clearance)
+            ]
+            return sols, ""
         if result.success:
-            return [(np.array(result.q, dtype=float), "nlp")], ""
+            return [
+                (np.array(result.q, dtype=float), result.solutions[0].label if result.method == "analytic" else "nlp")
+            ], ""
         return [], f"{result.status}: {result.reason}"
 
-    def choose(self, target: Target, q_previous: np.ndarray | None, *, label: str = "target") -> IKChoice:
-        """The solution for a waypoint: clear of singularities first, then nearest `q_previous`.
+    def choose(
+        self,
+        target: Target,
+        q_previous: np.ndarray | None,
+        *,
+        label: str = "target",
+        checker: CollisionChecker | None = None,
+        allow: Sequence[str] = (),
+    ) -> IKChoice:
+        """The solution for a waypoint: collision-free, then clear of singularities, then nearest `q_previous`.
 
         Args:
             target: The Cartesian target.
             q_previous: The configuration before it; None uses the middle of the joint ranges.
             label: How to name the target in an error message.
+            checker: Checks each solution against the arm itself and a scene; solutions
+                closer than the scene's clearance are skipped (the NLP restarts from other
+                seeds to find one that is not). None checks nothing.
+            allow: Scene bodies the arm may touch at this target.
 
         Returns:
             The choice.
@@ -124,9 +152,15 @@ class TargetSolver:
         Raises:
             InvalidArgumentError: If no solution within the joint limits exists (the message
                 carries the solver's reason).
+            PlanningError: If every solution collides (the message names the closest pair).
         """
         ref = self._home if q_previous is None else np.asarray(q_previous, dtype=float)
-        sols, reason = self.candidates(target, ref, nearest=True)
+        sols, reason = self.candidates(target, ref, nearest=True, checker=checker, allow=allow)
+        if not sols and reason.startswith(IKStatus.IN_COLLISION.value):
+            raise PlanningError(
+                f"{label} at position {np.round(target.position, 6).tolist()} m: {reason}. "
+                "Move the target or the obstacle, or allow contact (allow: [...])"
+            )
         if not sols:
             raise InvalidArgumentError(
                 f"{label} at position {np.round(target.position, 6).tolist()} m has no IK solution within the joint "

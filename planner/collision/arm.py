@@ -1,0 +1,230 @@
+"""The arm's own collision geometry and the link pairs that can collide.
+
+:func:`arm_collision_model` reads the URDF's ``<collision>`` elements through Pinocchio and
+coal (meshes resolved next to the URDF and in example-robot-data's share folder); an arm whose
+URDF has none gets a capsule along each link, from its joint to the next. Meshes are checked as their
+convex hulls (which contain them). The pairs of links
+checked against each other are every pair except adjacent links and links found in contact in
+every one of a set of sampled configurations (what MoveIt's setup assistant does), computed
+once per robot and kept in its ``derived`` cache.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+import coal
+import numpy as np
+import pinocchio as pin
+
+from planner.core.rotations import homogeneous
+from planner.model.catalog import example_robot_data_dir
+from planner.model.robot import Robot
+
+__all__ = ["ArmCollisionModel", "arm_collision_model"]
+
+#: Configurations sampled to find link pairs that are always in contact.
+PAIR_SAMPLES = 300
+
+
+@dataclass(frozen=True, eq=False)
+class ArmCollisionModel:
+    """The arm's collision geometry on the robot's (reduced) Pinocchio model.
+
+    Attributes:
+        geometry: The geometry model: one object per collision element, attached to the
+            robot's joints (do not modify; checkers copy it).
+        link_of: Per geometry object, the name of the link it belongs to.
+        self_pairs: Index pairs of objects checked against each other.
+        excluded: Link pairs never checked, with the reason (``"adjacent"`` or ``"always in contact"``).
+        source: ``"urdf"`` or ``"capsules"`` (generated because the URDF has no collision geometry,
+            or its meshes could not be found).
+        reach: Per joint, an upper bound [m] on the distance from the joint's axis (or origin)
+            to any point of the geometry it moves; bounds how fast the arm's surface can move.
+    """
+
+    geometry: pin.GeometryModel
+    link_of: tuple[str, ...]
+    self_pairs: tuple[tuple[int, int], ...]
+    excluded: tuple[tuple[str, str, str], ...]
+    source: str
+    reach: np.ndarray
+
+
+def _package_dirs(robot: Robot) -> list[str]:
+    dirs = []
+    path = Path(robot.source)
+    if path.is_file():
+        dirs += [str(p) for p in list(path.resolve().parents)[:5]]
+    root = example_robot_data_dir()
+    if root is not None:
+        dirs += [str(root.parent), str(root.parent.parent)]
+    return dirs
+
+
+def _from_urdf(robot: Robot) -> pin.GeometryModel | None:
+    try:
+        full = pin.buildModelFromXML(robot.urdf)
+        geom = pin.buildGeomFromUrdfString(full, robot.urdf, pin.GeometryType.COLLISION, None, _package_dirs(robot))
+    except Exception:  # Pinocchio raises plain errors for missing meshes and unknown shapes
+        return None
+    if geom.ngeoms == 0:
+        return None
+    if robot.locked_joints:
+        q_ref = pin.neutral(full)
+        for name, value in robot.locked_joints.items():
+            q_ref[full.joints[full.getJointId(name)].idx_q] = value
+        lock = [full.getJointId(n) for n in robot.locked_joints]
+        _, geom = pin.buildReducedModel(full, geom, lock, q_ref)
+    for obj in geom.geometryObjects:
+        # A mesh is checked as its convex hull: it contains the mesh (so a distance is never
+        # overestimated) and GJK on it is far faster than a mesh-to-mesh distance.
+        if isinstance(obj.geometry, coal.BVHModelBase):
+            obj.geometry.buildConvexRepresentation(False)
+            obj.geometry = obj.geometry.convex
+    return geom
+
+
+def _capsules(robot: Robot) -> pin.GeometryModel:
+    """One capsule per joint, from its origin to the next joint (or the tip)."""
+    model = robot.model
+    geom = pin.GeometryModel()
+    ends = {}
+    for jid in range(1, model.njoints):
+        children = [c for c in range(jid + 1, model.njoints) if model.parents[c] == jid]
+        ends[jid] = [model.jointPlacements[c].translation for c in children]
+    tip = model.frames[robot.tip_frame_id]
+    tip_offset = tip.placement.translation
+    if tip.parentJoint in ends and np.linalg.norm(tip_offset) > 0:
+        ends[tip.parentJoint].append(tip_offset)
+    lengths = [float(np.linalg.norm(p)) for v in ends.values() for p in v]
+    radius = max(0.05 * sum(lengths), 1e-3)
+    for jid, points in ends.items():
+        frame = next(
+            (i for i, f in enumerate(model.frames) if f.parentJoint == jid and f.type == pin.FrameType.BODY), 0
+        )
+        for k, p in enumerate(points):
+            length = float(np.linalg.norm(p))
+            if length <= 1e-9:
+                continue
+            axis = p / length
+            helper = np.array([1.0, 0.0, 0.0]) if abs(axis[0]) < 0.9 else np.array([0.0, 1.0, 0.0])
+            x = np.cross(helper, axis)
+            x /= np.linalg.norm(x)
+            pose = homogeneous(np.column_stack([x, np.cross(axis, x), axis]), p / 2)
+            obj = pin.GeometryObject(
+                f"{model.names[jid]}_capsule_{k}", jid, frame, pin.SE3(pose), coal.Capsule(radius, length)
+            )
+            geom.addGeometryObject(obj)
+    return geom
+
+
+def _link_names(robot: Robot, geom: pin.GeometryModel) -> tuple[str, ...]:
+    out = []
+    for obj in geom.geometryObjects:
+        frame = robot.model.frames[obj.parentFrame] if obj.parentFrame < len(robot.model.frames) else None
+        if frame is not None and frame.parentJoint == obj.parentJoint:
+            out.append(frame.name)
+        else:
+            out.append(robot.model.names[obj.parentJoint] + "_link" if obj.parentJoint else "base")
+    return tuple(out)
+
+
+def _bounding_radius(obj: pin.GeometryObject) -> float:
+    """Largest distance from an object's placement origin to a point of it [m] (upper bound)."""
+    g = obj.geometry
+    g.computeLocalAABB()
+    box = g.aabb_local
+    corners = np.array(
+        [
+            [x, y, z]
+            for x in (box.min_[0], box.max_[0])
+            for y in (box.min_[1], box.max_[1])
+            for z in (box.min_[2], box.max_[2])
+        ]
+    )
+    return float(np.max(np.linalg.norm(corners, axis=1)))
+
+
+def _reach(robot: Robot, geom: pin.GeometryModel) -> np.ndarray:
+    """Per joint, the largest distance from its origin to any point of the geometry it moves.
+
+    Measured over the joint placements of the chain (a bound that holds in every configuration:
+    distances within the chain below a joint add up at most to the sum of the offsets).
+    """
+    model = robot.model
+    reach = np.zeros(model.njoints - 1)
+    for jid in range(1, model.njoints):
+        best = 0.0
+        for obj in geom.geometryObjects:
+            chain = model.supports[obj.parentJoint]
+            if jid not in chain:
+                continue
+            # Offsets from joint jid down to the object's joint, then the object itself.
+            path = [j for j in chain if j > jid or j == jid]
+            dist = sum(float(np.linalg.norm(model.jointPlacements[j].translation)) for j in path if j != jid)
+            for j in path:  # a slide adds its travel
+                if robot.joint_kinds[j - 1] == "prismatic":
+                    dist += max(abs(robot.lower[j - 1]), abs(robot.upper[j - 1]))
+            dist += float(np.linalg.norm(obj.placement.translation)) + _bounding_radius(obj)
+            best = max(best, dist)
+        reach[jid - 1] = best
+    return reach
+
+
+def _self_pairs(
+    robot: Robot, geom: pin.GeometryModel, link_of: tuple[str, ...]
+) -> tuple[tuple[tuple[int, int], ...], tuple[tuple[str, str, str], ...]]:
+    model = robot.model
+    candidates, excluded = [], {}
+    for a in range(geom.ngeoms):
+        for b in range(a + 1, geom.ngeoms):
+            ja, jb = geom.geometryObjects[a].parentJoint, geom.geometryObjects[b].parentJoint
+            if ja == jb:
+                continue
+            if model.parents[ja] == jb or model.parents[jb] == ja:
+                excluded[tuple(sorted((link_of[a], link_of[b])))] = "adjacent"
+                continue
+            candidates.append((a, b))
+    if not candidates:
+        return (), tuple((a, b, why) for (a, b), why in sorted(excluded.items()))
+    work = pin.GeometryModel()
+    for obj in geom.geometryObjects:
+        work.addGeometryObject(obj)
+    for a, b in candidates:
+        work.addCollisionPair(pin.CollisionPair(a, b))
+    data, gdata = model.createData(), pin.GeometryData(work)
+    rng = np.random.default_rng(0)
+    always = np.ones(len(candidates), dtype=bool)
+    for q in robot.random_configurations(rng, PAIR_SAMPLES):
+        pin.computeCollisions(model, data, work, gdata, robot.pinocchio_configuration(q), False)
+        hit = np.array([r.isCollision() for r in gdata.collisionResults])
+        always &= hit
+        if not always.any():
+            break
+    pairs = []
+    for (a, b), stuck in zip(candidates, always):
+        if stuck:
+            excluded.setdefault(tuple(sorted((link_of[a], link_of[b]))), "always in contact")
+        else:
+            pairs.append((a, b))
+    # Links found always in contact through one pair of elements are excluded as a whole.
+    dropped = {k for k, why in excluded.items() if why == "always in contact"}
+    pairs = [(a, b) for a, b in pairs if tuple(sorted((link_of[a], link_of[b]))) not in dropped]
+    return tuple(pairs), tuple((a, b, why) for (a, b), why in sorted(excluded.items()))
+
+
+def arm_collision_model(robot: Robot) -> ArmCollisionModel:
+    """The arm's collision model, built once per robot (kept in ``robot.derived``)."""
+    return robot.derived.get(ArmCollisionModel, lambda: _build(robot))
+
+
+def _build(robot: Robot) -> ArmCollisionModel:
+    geom = _from_urdf(robot)
+    source = "urdf"
+    if geom is None:
+        geom, source = _capsules(robot), "capsules"
+    link_of = _link_names(robot, geom)
+    pairs, excluded = _self_pairs(robot, geom, link_of)
+    return ArmCollisionModel(geom, link_of, pairs, excluded, source, _reach(robot, geom))

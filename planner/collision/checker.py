@@ -1,0 +1,271 @@
+"""Distances between the arm, itself and a scene, for one configuration or many.
+
+:class:`CollisionChecker` joins the arm's collision model (:mod:`planner.collision.arm`) with a
+:class:`~planner.collision.scene.Scene` in one Pinocchio ``GeometryModel`` and answers, per
+configuration, the smallest distance between any checked pair and which two bodies it is
+between (negative: penetration depth). The floor is a coal half-space; geometry that stands
+on it whatever the joints do (a base column turning about a vertical axis) is not checked
+against it.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterable, Sequence
+from dataclasses import dataclass
+
+import coal
+import numpy as np
+import pinocchio as pin
+
+from planner.collision.arm import arm_collision_model
+from planner.collision.scene import FLOOR, Box, Cylinder, Obstacle, Scene, Sphere
+from planner.exceptions import InvalidArgumentError
+from planner.model.robot import Robot
+
+__all__ = ["Clearance", "CollisionChecker"]
+
+
+@dataclass(frozen=True)
+class Clearance:
+    """The closest pair of bodies in one configuration.
+
+    Attributes:
+        distance: Their distance [m]; negative when they overlap (minus the penetration
+            depth); ``inf`` when nothing is checked.
+        bodies: The two bodies' names (links, obstacles or ``"floor"``), or ``("", "")``.
+        clearance: The clearance the scene asks for [m].
+    """
+
+    distance: float
+    bodies: tuple[str, str]
+    clearance: float = 0.0
+
+    @property
+    def in_collision(self) -> bool:
+        """Whether the two bodies touch or overlap."""
+        return self.distance <= 0.0
+
+    @property
+    def clear(self) -> bool:
+        """Whether the distance keeps the scene's clearance."""
+        return self.distance >= self.clearance
+
+    def __str__(self) -> str:
+        if not np.isfinite(self.distance):
+            return "nothing to hit"
+        a, b = self.bodies
+        if self.distance <= 0:
+            return f"{a} and {b} overlap by {-self.distance * 1000:.1f} mm"
+        return f"{a} and {b} are {self.distance * 1000:.1f} mm apart"
+
+
+def _coal_shape(obstacle: Obstacle) -> coal.CollisionGeometry:
+    shape = obstacle.shape
+    if isinstance(shape, Box):
+        return coal.Box(*shape.size)
+    if isinstance(shape, Sphere):
+        return coal.Sphere(shape.radius)
+    if isinstance(shape, Cylinder):
+        return coal.Cylinder(shape.radius, shape.length)
+    raise InvalidArgumentError(f"obstacle {obstacle.name!r}: unknown shape {type(shape).__name__}")
+
+
+def _fixed_height(robot: Robot, arm, floor: float, clearance: float) -> set[int]:
+    """Arm geometry that stands on the floor: its height never changes and it is within the clearance.
+
+    A base column turning about a vertical axis keeps its distance to the floor in every
+    configuration; when that distance is below the clearance the arm simply stands there, so
+    the floor is not checked against it (found by sampling configurations).
+    """
+    probe = pin.GeometryModel()
+    for obj in arm.geometry.geometryObjects:
+        probe.addGeometryObject(obj)
+    n = probe.ngeoms
+    probe.addGeometryObject(
+        pin.GeometryObject("probe_floor", 0, 0, pin.SE3.Identity(), coal.Halfspace(np.array([0.0, 0.0, 1.0]), -10.0))
+    )
+    for a in range(n):
+        probe.addCollisionPair(pin.CollisionPair(a, n))
+    data, gdata = robot.model.createData(), pin.GeometryData(probe)
+    rows = []
+    for q in robot.random_configurations(np.random.default_rng(0), 24):
+        pin.computeDistances(robot.model, data, probe, gdata, robot.pinocchio_configuration(q))
+        rows.append([r.min_distance for r in gdata.distanceResults])
+    d = np.array(rows)
+    # Distances to the probe floor at z = -10 m, less the way up to the real floor.
+    return {a for a in range(n) if np.ptp(d[:, a]) <= 1e-9 and d[0, a] - (floor + 10.0) < clearance}
+
+
+class CollisionChecker:
+    """The arm against itself and a scene.
+
+    Args:
+        robot: The robot.
+        scene: What to avoid; None (or an empty scene) checks only the arm against itself.
+        self_collision: Check the arm's links against each other.
+
+    Attributes:
+        robot: The robot.
+        scene: The scene.
+        names: Per geometry object, the body it belongs to (a link, an obstacle, ``"floor"``).
+    """
+
+    def __init__(self, robot: Robot, scene: Scene | None = None, *, self_collision: bool = True) -> None:
+        if scene is not None and not isinstance(scene, Scene):
+            raise InvalidArgumentError(f"scene must be a planner Scene or None, got {type(scene).__name__}")
+        self.robot = robot
+        self.scene = scene or Scene()
+        arm = arm_collision_model(robot)
+        self.arm = arm
+        geom = pin.GeometryModel()
+        for obj in arm.geometry.geometryObjects:
+            geom.addGeometryObject(obj)
+        names = list(arm.link_of)
+        n_arm = len(names)
+        scene_ids: dict[str, int] = {}
+        if self.scene.floor is not None:
+            floor = coal.Halfspace(np.array([0.0, 0.0, 1.0]), self.scene.floor)
+            scene_ids[FLOOR] = geom.addGeometryObject(pin.GeometryObject(FLOOR, 0, 0, pin.SE3.Identity(), floor))
+            names.append(FLOOR)
+        for obstacle in self.scene.obstacles:
+            placement = pin.SE3(np.asarray(obstacle.rotation), np.asarray(obstacle.position))
+            obj = pin.GeometryObject(obstacle.name, 0, 0, placement, _coal_shape(obstacle))
+            scene_ids[obstacle.name] = geom.addGeometryObject(obj)
+            names.append(obstacle.name)
+        pairs: list[tuple[int, int]] = list(arm.self_pairs) if self_collision else []
+        self._pair_scene: list[str | None] = [None] * len(pairs)
+        fixed = _fixed_height(robot, arm, self.scene.floor, self.scene.clearance) if FLOOR in scene_ids else set()
+        for name, sid in scene_ids.items():
+            for a in range(n_arm):
+                if arm.geometry.geometryObjects[a].parentJoint == 0:
+                    continue  # fixed to the base: it cannot move into anything
+                if name == FLOOR and a in fixed:
+                    continue  # stands on the floor: turns about a vertical axis only
+                pairs.append((a, sid))
+                self._pair_scene.append(name)
+        for a, b in pairs:
+            geom.addCollisionPair(pin.CollisionPair(a, b))
+        self.geometry = geom
+        self.names = tuple(names)
+        self._pairs = np.array(pairs, dtype=int).reshape(-1, 2)
+        self._self = np.array([s is None for s in self._pair_scene], dtype=bool)
+        self._data = robot.model.createData()
+        self._gdata = pin.GeometryData(geom)
+        self._active: dict[tuple[str, ...], np.ndarray] = {}
+
+    def __repr__(self) -> str:
+        return (
+            f"CollisionChecker({self.robot.name!r}, {len(self.arm.self_pairs)} self pairs, "
+            f"scene {', '.join(self.scene.names) or 'empty'})"
+        )
+
+    @property
+    def pair_count(self) -> int:
+        """Number of pairs checked."""
+        return len(self._pairs)
+
+    def _mask(self, allow: Sequence[str]) -> np.ndarray:
+        key = tuple(sorted(set(allow)))
+        mask = self._active.get(key)
+        if mask is None:
+            self.scene.check_names(key)
+            mask = np.array([s is None or s not in key for s in self._pair_scene], dtype=bool)
+            self._active[key] = mask
+        return mask
+
+    def _set_active(self, mask: np.ndarray) -> None:
+        for k, on in enumerate(mask):
+            self._gdata.activeCollisionPairs[k] = bool(on)
+
+    def clearance(self, q: Sequence[float] | np.ndarray, *, allow: Iterable[str] = ()) -> Clearance:
+        """The closest pair of bodies at configuration `q`.
+
+        Args:
+            q: Joint values, shape (dof,) [rad or m].
+            allow: Scene names whose contact is allowed (e.g. the object the gripper grasps).
+
+        Returns:
+            The :class:`Clearance`.
+        """
+        q = self.robot.check_configuration(q, batch=False)
+        return self._clearance(q, self._mask(tuple(allow)))
+
+    def pair_distances(self, q: np.ndarray, mask: np.ndarray) -> np.ndarray:
+        """Distance [m] of every pair at `q` (unchecked), ``inf`` for pairs off `mask`."""
+        if not mask.any():
+            return np.full(len(self._pairs), np.inf)
+        self._set_active(mask)
+        pin.computeDistances(
+            self.robot.model, self._data, self.geometry, self._gdata, self.robot.pinocchio_configuration(q)
+        )
+        d = np.fromiter((r.min_distance for r in self._gdata.distanceResults), float, len(self._pairs))
+        return np.where(mask, d, np.inf)
+
+    @property
+    def self_pairs(self) -> np.ndarray:
+        """Per pair, whether it is between two of the arm's links (else arm and scene)."""
+        return self._self
+
+    def clearance_of(self, d: np.ndarray) -> Clearance:
+        """The closest pair of a :meth:`pair_distances` vector, with the depth of an overlap."""
+        k = int(np.argmin(d))
+        dist = float(d[k])
+        if not np.isfinite(dist):
+            return Clearance(float("inf"), ("", ""), self.scene.clearance)
+        if dist <= 0.0:
+            dist = self._depth(k, dist)
+        a, b = (int(i) for i in self._pairs[k])
+        return Clearance(dist, (self.names[a], self.names[b]), self.scene.clearance)
+
+    def _clearance(self, q: np.ndarray, mask: np.ndarray) -> Clearance:
+        if not mask.any():
+            return Clearance(float("inf"), ("", ""), self.scene.clearance)
+        d = self.pair_distances(q, mask)
+        k = int(np.argmin(d))
+        dist = float(d[k])
+        if dist <= 0.0:
+            dist = self._depth(k, dist)
+        a, b = (int(i) for i in self._pairs[k])
+        return Clearance(dist, (self.names[a], self.names[b]), self.scene.clearance)
+
+    def _depth(self, k: int, dist: float) -> float:
+        """The penetration depth of pair `k` (coal's distance is 0 or a signed estimate when overlapping)."""
+        request = coal.CollisionRequest()
+        request.enable_contact = True
+        request.num_max_contacts = 1
+        result = coal.CollisionResult()
+        a, b = (int(i) for i in self._pairs[k])
+        oa, ob = self.geometry.geometryObjects[a], self.geometry.geometryObjects[b]
+        pa = coal.Transform3s(self._gdata.oMg[a].rotation, self._gdata.oMg[a].translation)
+        pb = coal.Transform3s(self._gdata.oMg[b].rotation, self._gdata.oMg[b].translation)
+        coal.collide(oa.geometry, pa, ob.geometry, pb, request, result)
+        if result.isCollision() and result.numContacts():
+            return -abs(float(result.getContact(0).penetration_depth))
+        return min(dist, 0.0)
+
+    def clearances(self, qs: np.ndarray, *, allow: Iterable[str] = ()) -> list[Clearance]:
+        """:meth:`clearance` for each row of `qs`, shape (n, dof)."""
+        qs = self.robot.check_configuration(qs)
+        mask = self._mask(tuple(allow))
+        return [self._clearance(q, mask) for q in np.atleast_2d(qs)]
+
+    def in_collision(self, q: Sequence[float] | np.ndarray, *, allow: Iterable[str] = ()) -> bool:
+        """Whether any checked pair touches or overlaps at `q` (faster than a distance)."""
+        q = self.robot.check_configuration(q, batch=False)
+        mask = self._mask(tuple(allow))
+        if not mask.any():
+            return False
+        self._set_active(mask)
+        return bool(
+            pin.computeCollisions(
+                self.robot.model, self._data, self.geometry, self._gdata, self.robot.pinocchio_configuration(q), True
+            )
+        )
+
+    def distance_at(self, q: np.ndarray, mask: np.ndarray | None = None) -> Clearance:
+        """:meth:`clearance` without checking `q` (for inner loops); `mask` from :meth:`pair_mask`."""
+        return self._clearance(q, self._mask(()) if mask is None else mask)
+
+    def pair_mask(self, allow: Iterable[str] = ()) -> np.ndarray:
+        """The pairs checked when `allow` is allowed, for :meth:`distance_at`."""
+        return self._mask(tuple(allow))

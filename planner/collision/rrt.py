@@ -1,0 +1,220 @@
+"""A collision-free joint path between two configurations: RRT-Connect, then shortcuts.
+
+:func:`find_clear_path` grows two trees (Kuffner and LaValle's RRT-Connect) from the start and
+the goal, each edge a straight joint-space segment certified by
+:func:`~planner.collision.continuous.check_segment`, then shortens the path by replacing
+stretches with straight segments that are also clear. It draws from its own generator seeded
+by :attr:`PathOptions.seed`: the same seed gives the same path; no global state is touched.
+"""
+
+from __future__ import annotations
+
+import enum
+import time
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from planner.collision.checker import CollisionChecker
+from planner.collision.continuous import check_segment
+from planner.core.arrays import read_only
+from planner.exceptions import InvalidArgumentError
+
+__all__ = ["PathOptions", "PathResult", "PathStatus", "find_clear_path"]
+
+
+class PathStatus(str, enum.Enum):
+    """How a path search ended."""
+
+    FOUND = "found"
+    START_IN_COLLISION = "start_in_collision"
+    GOAL_IN_COLLISION = "goal_in_collision"
+    NOT_FOUND = "not_found"
+
+
+@dataclass(frozen=True)
+class PathOptions:
+    """Settings of :func:`find_clear_path`.
+
+    Attributes:
+        seed: Seed of the search's own random generator.
+        step: Longest edge the trees grow by [rad or m, largest joint change].
+        max_iterations: Extensions per tree before giving up.
+        time_budget: Wall-clock limit of the search [s].
+        shortcuts: Shortcut attempts on the path found.
+        margin: Extra distance [m] kept beyond the scene's clearance, so that the timed
+            trajectory, which follows the path closely but not exactly, still keeps it.
+    """
+
+    seed: int = 0
+    step: float = 0.3
+    max_iterations: int = 4000
+    time_budget: float = 5.0
+    shortcuts: int = 60
+    margin: float = 0.002
+
+    def __post_init__(self) -> None:
+        for name in ("step", "time_budget"):
+            v = getattr(self, name)
+            if not (isinstance(v, (int, float)) and np.isfinite(v) and v > 0):
+                raise InvalidArgumentError(f"PathOptions.{name} must be positive, got {v!r}")
+        for name in ("max_iterations", "shortcuts", "seed"):
+            v = getattr(self, name)
+            if isinstance(v, bool) or not isinstance(v, (int, np.integer)) or v < 0:
+                raise InvalidArgumentError(f"PathOptions.{name} must be a non-negative integer, got {v!r}")
+        if not (isinstance(self.margin, (int, float)) and 0 <= self.margin < np.inf):
+            raise InvalidArgumentError(f"PathOptions.margin must be >= 0 [m], got {self.margin!r}")
+
+
+@dataclass(frozen=True)
+class PathResult:
+    """A path search's outcome.
+
+    Attributes:
+        status: The :class:`PathStatus`.
+        path: The configurations, start and goal included, shape (n, dof); empty unless found.
+        reason: Why no path was found (empty when found).
+        iterations: Tree extensions made.
+    """
+
+    status: PathStatus
+    path: np.ndarray
+    reason: str
+    iterations: int
+
+    @property
+    def found(self) -> bool:
+        """Whether a path was found."""
+        return self.status is PathStatus.FOUND
+
+
+class _Tree:
+    def __init__(self, root: np.ndarray) -> None:
+        self.nodes = [root]
+        self.parent = [-1]
+
+    def nearest(self, q: np.ndarray) -> int:
+        d = np.linalg.norm(np.asarray(self.nodes) - q, axis=1)
+        return int(np.argmin(d))
+
+    def add(self, q: np.ndarray, parent: int) -> int:
+        self.nodes.append(q)
+        self.parent.append(parent)
+        return len(self.nodes) - 1
+
+    def branch(self, k: int) -> list[np.ndarray]:
+        out = []
+        while k >= 0:
+            out.append(self.nodes[k])
+            k = self.parent[k]
+        return out
+
+
+def find_clear_path(
+    checker: CollisionChecker,
+    q_start: Sequence[float] | np.ndarray,
+    q_goal: Sequence[float] | np.ndarray,
+    *,
+    options: PathOptions | None = None,
+    allow: Sequence[str] = (),
+) -> PathResult:
+    """A joint path from `q_start` to `q_goal` that keeps the scene's clearance (plus a margin).
+
+    Args:
+        checker: The collision checker (robot and scene).
+        q_start: Start configuration, shape (dof,).
+        q_goal: Goal configuration, shape (dof,).
+        options: :class:`PathOptions`; None uses the defaults.
+        allow: Scene names whose contact is allowed along the path.
+
+    Returns:
+        The :class:`PathResult`; when the ends themselves collide or the search runs out of
+        iterations or time, a status and a reason instead of a path.
+    """
+    options = options or PathOptions()
+    robot = checker.robot
+    q0 = robot.check_configuration(q_start, batch=False)
+    q1 = robot.check_configuration(q_goal, batch=False)
+    mask = checker.pair_mask(allow)
+    need = checker.scene.clearance + options.margin
+    empty = read_only(np.zeros((0, robot.dof)))
+    for q, status, what in ((q0, PathStatus.START_IN_COLLISION, "start"), (q1, PathStatus.GOAL_IN_COLLISION, "goal")):
+        c = checker.distance_at(q, mask)
+        if c.distance < checker.scene.clearance:
+            return PathResult(status, empty, f"the {what} does not keep the clearance: {c}", 0)
+
+    def clear(a: np.ndarray, b: np.ndarray) -> bool:
+        return _segment_clear(checker, a, b, allow, options.margin)
+
+    if clear(q0, q1):
+        return PathResult(PathStatus.FOUND, read_only(np.array([q0, q1])), "", 0)
+    rng = np.random.default_rng(options.seed)
+    lo = np.where(np.isfinite(robot.lower), robot.lower, q0 - np.pi)
+    hi = np.where(np.isfinite(robot.upper), robot.upper, q0 + np.pi)
+    trees = (_Tree(q0), _Tree(q1))
+    deadline = time.perf_counter() + options.time_budget
+    for it in range(1, options.max_iterations + 1):
+        if time.perf_counter() > deadline:
+            return PathResult(PathStatus.NOT_FOUND, empty, f"no clear path within {options.time_budget:g} s", it)
+        a, b = trees if it % 2 else trees[::-1]
+        target = rng.uniform(lo, hi)
+        new = _extend(a, target, options.step, clear, checker, mask, need)
+        if new is None:
+            continue
+        # Connect: grow the other tree toward the new node until it arrives or is blocked.
+        q_new = a.nodes[new]
+        k = b.nearest(q_new)
+        while True:
+            q_near = b.nodes[k]
+            delta = q_new - q_near
+            far = float(np.max(np.abs(delta)))
+            if far <= options.step:
+                if clear(q_near, q_new):
+                    path = _join(a, new, b, k, trees[0] is a)
+                    path = _shortcut(path, clear, rng, options.shortcuts)
+                    return PathResult(PathStatus.FOUND, read_only(np.array(path)), "", it)
+                break
+            q_next = q_near + delta * (options.step / far)
+            if checker.distance_at(q_next, mask).distance < need or not clear(q_near, q_next):
+                break
+            k = b.add(q_next, k)
+    return PathResult(PathStatus.NOT_FOUND, empty, f"no clear path in {options.max_iterations} extensions", it)
+
+
+def _segment_clear(
+    checker: CollisionChecker, a: np.ndarray, b: np.ndarray, allow: Sequence[str], margin: float
+) -> bool:
+    return check_segment(checker, a, b, allow=allow, clearance=checker.scene.clearance + margin).clear
+
+
+def _extend(tree: _Tree, target: np.ndarray, step: float, clear, checker, mask, need) -> int | None:
+    k = tree.nearest(target)
+    q_near = tree.nodes[k]
+    delta = target - q_near
+    far = float(np.max(np.abs(delta)))
+    if far == 0.0:
+        return None
+    q_new = q_near + delta * min(1.0, step / far)
+    if checker.distance_at(q_new, mask).distance < need or not clear(q_near, q_new):
+        return None
+    return tree.add(q_new, k)
+
+
+def _join(a: _Tree, ka: int, b: _Tree, kb: int, a_is_start: bool) -> list[np.ndarray]:
+    """The path through tree `a` to node `ka`, then `b`'s node `kb` back to its root, start first."""
+    path = a.branch(ka)[::-1] + b.branch(kb)
+    return path if a_is_start else path[::-1]
+
+
+def _shortcut(path: list[np.ndarray], clear, rng: np.random.Generator, attempts: int) -> list[np.ndarray]:
+    path = list(path)
+    for _ in range(attempts):
+        if len(path) <= 2:
+            break
+        i, j = sorted(rng.choice(len(path), size=2, replace=False))
+        if j - i < 2:
+            continue
+        if clear(path[i], path[j]):
+            path = path[: i + 1] + path[j:]
+    return path

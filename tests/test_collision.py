@@ -1,0 +1,329 @@
+"""Collision geometry, scenes, distance checks, continuous checks and paths around obstacles."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from planner import InvalidArgumentError, Robot, urdf_from_dh
+from planner.collision import FLOOR, Box, CollisionChecker, Cylinder, Obstacle, Scene, Sphere, parse_scene
+from planner.collision.arm import arm_collision_model
+from planner.collision.continuous import check_segment, check_trajectory
+from planner.collision.rrt import PathOptions, PathStatus, find_clear_path
+from planner.motion.limits import JointLimits
+from planner.motion.plan import plan_trajectory
+
+from conftest import get_robot, needs_example_robot_data
+
+deg = np.radians
+
+
+def _one_link(radius: float = 0.01, length: float = 0.3, speed: float = 60.0) -> Robot:
+    """A single link turning about the vertical axis at height 0.1 m: a capsule from the axis out."""
+    description = {
+        "name": "stick",
+        "units": {"length": "m", "angle": "deg"},
+        "velocity": speed,
+        "base": {"xyz": [0, 0, 0.1]},
+        "joints": [{"name": "yaw", "axis": [0, 0, 1], "lower": -170, "upper": 170}],
+        "tool": {"name": "tip", "xyz": [length, 0, 0], "radius": radius},
+        "collision": {"radius": radius},
+    }
+    return Robot(urdf_from_dh(description), tip="tip")
+
+
+# ---------------------------------------------------------------------------- scenes
+
+
+def test_scene_from_the_plan_file_form_in_its_units():
+    scene = parse_scene(
+        {
+            "floor": 0.0,
+            "clearance": 5,
+            "obstacles": [
+                {"name": "block", "box": [40, 40, 100], "position": [200, 100, 50]},
+                {"name": "post", "cylinder": {"radius": 20, "length": 200}, "position": [100, -150, 100]},
+                {"name": "ball", "sphere": 30, "position": [150, 0, 200], "rpy": [0, 0, 90]},
+            ],
+        },
+        length_scale=0.001,
+        angle_scale=math.pi / 180,
+    )
+    assert scene.floor == 0.0 and scene.clearance == pytest.approx(0.005)
+    block, post, ball = scene.obstacles
+    assert block.shape == Box((0.04, 0.04, 0.1)) and np.allclose(block.position, [0.2, 0.1, 0.05])
+    assert post.shape == Cylinder(0.02, 0.2) and ball.shape == Sphere(0.03)
+    np.testing.assert_allclose(ball.rotation, [[0, -1, 0], [1, 0, 0], [0, 0, 1]], atol=1e-12)
+    assert scene.names == (FLOOR, "block", "post", "ball")
+
+
+@pytest.mark.parametrize(
+    ("data", "message"),
+    [
+        ({"floor": 0, "walls": []}, "unknown scene key(s) walls; valid keys: floor, clearance, obstacles"),
+        ({"obstacles": [{"name": "a", "position": [0, 0, 0]}]}, "give exactly one shape (box, sphere, cylinder)"),
+        ({"obstacles": [{"name": "a", "box": [1, 1], "position": [0, 0, 0]}]}, "box must be a list of 3 numbers"),
+        ({"obstacles": [{"name": "a", "sphere": -1, "position": [0, 0, 0]}]}, "sphere radius must be positive"),
+        ({"obstacles": [{"name": "a", "sphere": 1}]}, "needs a position"),
+        (
+            {"obstacles": [{"name": "a", "sphere": 1, "position": [0, 0, 0]}] * 2},
+            "obstacle names must differ; repeated: a",
+        ),
+        ({"clearance": -1}, "scene.clearance must be a distance >= 0"),
+        (
+            {"obstacles": [{"name": "a", "cylinder": 2, "position": [0, 0, 0]}]},
+            "cylinder must be {radius: R, length: L}",
+        ),
+    ],
+)
+def test_bad_scenes_are_named(data, message):
+    with pytest.raises(InvalidArgumentError, match="^plan.yaml: .*" + _escape(message)):
+        parse_scene(data, source="plan.yaml")
+
+
+def _escape(text: str) -> str:
+    import re
+
+    return re.escape(text)
+
+
+def test_allow_names_must_be_in_the_scene():
+    scene = Scene(floor=0.0, obstacles=(Obstacle("block", Sphere(0.1), np.zeros(3)),))
+    with pytest.raises(InvalidArgumentError, match=r"allow: 'brick' is not in the scene; valid names: floor, block"):
+        CollisionChecker(get_robot("dh3"), scene).clearance([0, 0.5, 0.5], allow=["brick"])
+
+
+# ---------------------------------------------------------------------------- geometry and checks
+
+
+def test_generated_capsules_against_hand_computed_distances():
+    robot = _one_link(radius=0.01, length=0.3)
+    arm = arm_collision_model(robot)
+    assert arm.source == "urdf" and arm.geometry.ngeoms == 3  # cylinder and two end spheres
+    rng = np.random.default_rng(3)
+    for _ in range(20):
+        yaw = rng.uniform(-2.5, 2.5)
+        a, b = np.array([0, 0, 0.1]), np.array([0.3 * math.cos(yaw), 0.3 * math.sin(yaw), 0.1])
+        # Capsule to plane: the lowest point of the segment, less the radius.
+        floor = rng.uniform(-0.2, 0.05)
+        plane = CollisionChecker(robot, Scene(floor=floor), self_collision=False)
+        # The capsule turns about a vertical axis: its height never changes; standing on the
+        # floor (within the clearance) it is not checked against it, else its distance is fixed.
+        if 0.1 - 0.01 - floor > 0:
+            assert plane.clearance([yaw]).distance == pytest.approx(0.1 - 0.01 - floor, abs=1e-9)
+        else:
+            assert plane.pair_count == 0
+        # Capsule to box, by the distance of densely sampled segment points to the box.
+        centre = rng.uniform([-0.3, -0.3, 0.0], [0.3, 0.3, 0.2])
+        size = rng.uniform(0.02, 0.1, 3)
+        box = CollisionChecker(robot, Scene(obstacles=(Obstacle("box", Box(tuple(size)), centre),)))
+        pts = a + np.linspace(0, 1, 20001)[:, None] * (b - a)
+        outside = np.maximum(np.abs(pts - centre) - size / 2, 0.0)
+        expected = float(np.min(np.linalg.norm(outside, axis=1))) - 0.01
+        got = box.clearance([yaw])
+        if expected > 1e-4:
+            assert got.distance == pytest.approx(expected, abs=2e-5)
+            assert set(got.bodies) == {"yaw_link", "box"}
+        else:
+            assert got.in_collision
+
+
+def test_capsule_to_floor_by_hand():
+    # A link pitching about a horizontal axis: its lowest point changes with the angle.
+    description = {
+        "name": "pitcher",
+        "units": {"length": "m", "angle": "deg"},
+        "velocity": 60,
+        "base": {"xyz": [0, 0, 0.2]},
+        "joints": [{"name": "pitch", "axis": [0, 1, 0], "lower": -170, "upper": 170}],
+        "tool": {"name": "tip", "xyz": [0.3, 0, 0]},
+        "collision": {"radius": 0.02},
+    }
+    robot = Robot(urdf_from_dh(description), tip="tip")
+    checker = CollisionChecker(robot, Scene(floor=0.05))
+    for angle in np.linspace(-1.5, 1.5, 13):
+        tip_z = 0.2 - 0.3 * math.sin(angle)  # +pitch about y turns +x down
+        expected = min(0.2, tip_z) - 0.02 - 0.05
+        got = checker.clearance([angle])
+        assert got.distance == pytest.approx(expected, abs=1e-6) or (expected <= 0 and got.in_collision)
+        assert got.bodies == ("pitch_link", FLOOR)
+
+
+KNOWN = {
+    # name: (free configuration, self-colliding configuration, configuration through the floor at 0)
+    "al5c": ([0, deg(90), deg(-90), 0, 0], [0, deg(20), deg(-160), deg(-60), 0], None),
+    "dh3": ([0, deg(45), deg(-45)], None, [0, deg(-60), 0]),
+    "three_joint": ([0, deg(90), deg(-45), 0], [0, deg(90), deg(150), deg(150)], [0, deg(-10), deg(-90), 0]),
+}
+
+
+@pytest.mark.parametrize("name", sorted(KNOWN))
+def test_known_configurations_of_the_bundled_arms(name):
+    robot = get_robot(name)
+    free, self_hit, floor_hit = KNOWN[name]
+    floor = -1.0 if name == "three_joint" else 0.0  # three_joint's shoulder axis is at its base
+    checker = CollisionChecker(robot, Scene(floor=floor))
+    assert checker.clearance(free).distance > 0.005
+    assert not checker.in_collision(free)
+    if self_hit is not None:
+        c = checker.clearance(self_hit)
+        assert c.in_collision and FLOOR not in c.bodies and checker.in_collision(self_hit)
+    if floor_hit is not None:
+        c = checker.clearance(floor_hit)
+        assert c.in_collision and FLOOR in c.bodies
+    # al5c: a block where the gripper reaches forward.
+    if name == "al5c":
+        q = np.array([0, deg(60), deg(-60), deg(-60), 0])
+        tip = robot.position(q)
+        box = Scene(obstacles=(Obstacle("block", Box((0.03, 0.03, 0.03)), tip),))
+        c = CollisionChecker(robot, box).clearance(q)
+        assert c.in_collision and c.bodies == ("wrist_rotate_link", "block")
+        assert CollisionChecker(robot, box).clearance(q, allow=["block"]).distance > 0
+
+
+def test_self_collision_pairs_exclude_adjacent_and_always_touching_links():
+    arm = arm_collision_model(get_robot("al5c"))
+    reasons = {(a, b): why for a, b, why in arm.excluded}
+    assert reasons[("base_yaw_link", "shoulder_link")] == "adjacent"
+    # The ulna and the gripper meet at the wrist (the wrist pitch link has no length).
+    assert reasons[("elbow_link", "wrist_rotate_link")] == "always in contact"
+    links = {(arm.link_of[a], arm.link_of[b]) for a, b in arm.self_pairs}
+    assert ("base_yaw_link", "wrist_rotate_link") in links
+
+
+@needs_example_robot_data
+@pytest.mark.parametrize(
+    ("name", "free", "self_hit", "floor_hit"),
+    [
+        ("ur5", [0, -deg(90), 0, -deg(90), 0, 0], [0, -deg(90), deg(160), 0, 0, 0], [0, deg(30), 0, 0, 0, 0]),
+        (
+            "panda",
+            [0, 0, 0, -deg(90), 0, deg(90), deg(45)],
+            [0, 0, 0, -deg(170), 0, 0, 0],
+            [0, deg(100), 0, -deg(10), 0, deg(90), 0],
+        ),
+    ],
+)
+def test_known_configurations_of_mesh_arms(name, free, self_hit, floor_hit):
+    robot = get_robot(name)
+    checker = CollisionChecker(robot, Scene(floor=0.0))
+    assert arm_collision_model(robot).source == "urdf"
+    assert checker.clearance(free).distance > 0.01 and not checker.in_collision(free)
+    c = checker.clearance(self_hit)
+    assert c.in_collision and FLOOR not in c.bodies
+    c = checker.clearance(floor_hit)
+    assert c.in_collision and FLOOR in c.bodies
+
+
+# ---------------------------------------------------------------------------- continuous checks
+
+
+def test_the_continuous_check_catches_a_thin_plate_that_sampling_misses():
+    robot = _one_link(radius=0.0005, length=0.3, speed=600.0)  # 10 rad/s: the tip moves 3 m/s
+    limits = JointLimits.from_robot(robot)
+    traj = plan_trajectory([[-1.5], [1.5]], limits)
+    t = np.arange(0.0, traj.duration, 0.01)
+    angles = traj.sample(t).q[:, 0]
+    # A 5 mm plate across the tip's circle, midway between the two 10 ms samples that are farthest apart.
+    k = int(np.argmax(np.diff(angles)))
+    mid = (angles[k] + angles[k + 1]) / 2
+    plate = Obstacle(
+        "plate",
+        Box((0.1, 0.005, 0.05)),
+        np.array([0.25 * math.cos(mid), 0.25 * math.sin(mid), 0.1]),
+        np.array([[math.cos(mid), -math.sin(mid), 0], [math.sin(mid), math.cos(mid), 0], [0, 0, 1]]),
+    )
+    checker = CollisionChecker(robot, Scene(obstacles=(plate,)))
+    assert not any(checker.in_collision([a]) for a in angles)  # every 10 ms sample is clear
+    result = check_trajectory(checker, traj)
+    assert not result.clear and result.hit.bodies == ("yaw_link", "plate") and result.hit.in_collision
+    assert t[k] <= result.first_hit <= t[k + 1]
+    assert "collides at" in result.describe()
+
+
+def test_a_clear_certificate_holds_between_checks():
+    robot = get_robot("dh3")
+    scene = Scene(floor=-0.01, clearance=0.004, obstacles=(Obstacle("ball", Sphere(0.02), np.array([0.1, 0.1, 0.12])),))
+    checker = CollisionChecker(robot, scene)
+    limits = JointLimits.from_robot(robot)
+    rng = np.random.default_rng(5)
+    for _ in range(10):
+        qa, qb = robot.random_configurations(rng, 2)
+        if not (checker.clearance(qa).clear and checker.clearance(qb).clear):
+            continue
+        traj = plan_trajectory([qa, qb], limits)
+        result = check_trajectory(checker, traj)
+        dense = [checker.clearance(q).distance for q in traj.sample(traj.times(2000.0)).q]
+        if result.clear:
+            assert min(dense) >= scene.clearance - 1e-4
+        else:
+            assert result.first_hit is not None
+
+
+# ---------------------------------------------------------------------------- paths around obstacles
+
+
+def _al5c_block_scene():
+    block = Obstacle("block", Box((0.06, 0.06, 0.25)), np.array([0.23, 0.0, 0.125]))
+    return Scene(floor=0.0, clearance=0.005, obstacles=(block,))
+
+
+def test_path_around_a_block_is_clear_and_repeatable():
+    robot = get_robot("al5c")
+    checker = CollisionChecker(robot, _al5c_block_scene())
+    qa, qb = np.array([-0.6, 1.2, -1.4, -0.8, 0.0]), np.array([0.6, 1.2, -1.4, -0.8, 0.0])
+    assert not check_segment(checker, qa, qb).clear
+    first = find_clear_path(checker, qa, qb, options=PathOptions(seed=4))
+    again = find_clear_path(checker, qa, qb, options=PathOptions(seed=4))
+    assert first.found and np.array_equal(first.path, again.path)
+    np.testing.assert_array_equal(first.path[0], qa)
+    np.testing.assert_array_equal(first.path[-1], qb)
+    for a, b in zip(first.path, first.path[1:]):
+        assert check_segment(checker, a, b).clear
+
+
+def test_unreachable_without_collision_is_an_outcome_with_a_reason():
+    robot = get_robot("al5c")
+    qa, qb = np.array([-0.6, 1.2, -1.4, -0.8, 0.0]), np.array([0.6, 1.2, -1.4, -0.8, 0.0])
+    cage = Obstacle("cage", Box((0.4, 0.1, 0.4)), robot.position(qb) + [0, 0.0, 0.0])
+    checker = CollisionChecker(robot, Scene(obstacles=(cage,)))
+    result = find_clear_path(checker, qa, qb, options=PathOptions(seed=0, time_budget=0.5))
+    assert result.status is PathStatus.GOAL_IN_COLLISION and not result.found
+    assert "goal does not keep the clearance" in result.reason and "cage" in result.reason
+    assert result.path.shape == (0, 5)
+
+
+# ---------------------------------------------------------------------------- IK answers
+
+
+def test_ik_answers_are_checked_and_colliding_branches_skipped():
+    from planner import IKStatus, Target, solve_ik
+
+    robot = get_robot("dh3")
+    target = Target(position=[0.12, 0.0, 0.06])
+    free = solve_ik(robot, target, method="analytic")
+    assert free.success and free.solutions[0].label == "front/elbow-up"
+    assert all(s.clearance is None for s in free.solutions)
+    # A ball at the elbow-up answer's elbow: that branch collides, elbow-down does not.
+    elbow = robot.joint_positions(free.q)[3]
+    checker = CollisionChecker(robot, Scene(obstacles=(Obstacle("ball", Sphere(0.01), elbow),)))
+    assert checker.clearance(free.q).in_collision
+    for method in ("analytic", "auto"):
+        checked = solve_ik(robot, target, method=method, checker=checker)
+        assert checked.success and checker.clearance(checked.q).clear
+        assert "elbow-down" in checked.reason
+        assert all(s.clearance is not None for s in checked.solutions)
+        assert np.linalg.norm(robot.position(checked.q) - target.position) < 1e-9
+    # Allowing the contact gives back the nearest answer.
+    allowed = solve_ik(robot, target, method="auto", checker=checker, allow=["ball"])
+    np.testing.assert_allclose(allowed.q, free.q)
+    # Nothing clear anywhere (al5c has one branch within its limits; the NLP restarts too):
+    # an outcome with the status and the bodies.
+    al5c = get_robot("al5c")
+    grasp = Target(position=[0.2, 0.0, 0.05], pitch=-math.pi / 2)
+    cage = CollisionChecker(al5c, Scene(obstacles=(Obstacle("cage", Sphere(0.08), grasp.position),)))
+    for method in ("auto", "nlp"):
+        caged = solve_ik(al5c, grasp, method=method, checker=cage)
+        assert not caged.success and caged.status is IKStatus.IN_COLLISION and "cage" in caged.reason
