@@ -123,6 +123,7 @@ class FakeFeetechBus(FakePort):
         self.packets: list[tuple[float, bytes]] = []  # every instruction packet, in order
         self.writes: list[tuple[float, dict[int, int]]] = []  # goal-position sync writes
         self.bad: list[bytes] = []  # packets with a wrong checksum or an unknown shape
+        self.torque: dict[int, int] = {}  # id -> torque switch
         self._buffer = b""
 
     def command_count(self) -> int:
@@ -153,5 +154,7 @@ class FakeFeetechBus(FakePort):
             goals = {params[i]: decode_position(params[i + 1 : i + 3]) for i in range(2, len(params), 3)}
             self.positions.update(goals)  # these servos arrive at once
             self.writes.append((now, goals))
+        elif instr == 0x83 and servo == 0xFE and params[0] == 0x28 and params[1] == 1:
+            self.torque.update({params[i]: params[i + 1] for i in range(2, len(params), 2)})
         else:
             self.bad.append(pkt)

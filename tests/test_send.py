@@ -18,7 +18,7 @@ from planner.app.cli import main  # noqa: E402
 from planner.app.motion_plan import plan_motion  # noqa: E402
 from planner.app.plan_file import load_motion_request  # noqa: E402
 from planner.app.send import send_plan  # noqa: E402
-from planner.export.formats.feetech import Feetech  # noqa: E402
+from planner.export.formats.feetech import Feetech, goal_position_packet  # noqa: E402
 from planner.export.formats.ssc32 import ssc32_group_moves  # noqa: E402
 from planner.hardware.link import Clock, open_serial  # noqa: E402
 from planner.hardware.session import SendOptions, SendStatus  # noqa: E402
@@ -189,10 +189,15 @@ def _feetech_send(robot_name, plan_text, tmp_path, extra=()):
 def _check_feetech_stream(fake, plan, packets):
     ids = [c.id for c in plan.calibrations]
     assert fake.bad == []
-    reads = [p for _, p in fake.packets[: len(ids)]]
-    assert [(p[2], p[4], p[5], p[6]) for p in reads] == [(i, 0x02, 0x38, 2) for i in ids]
-    assert [p for _, p in fake.packets[len(ids) :]] == [p for _, p in packets]
-    times = np.array([t for t, _ in fake.writes])
+    n = len(ids)
+    # read-back, then (begin) the present positions again, goal = present, torque on; then the stream
+    reads = [p for _, p in fake.packets[:n] + fake.packets[n : 2 * n]]
+    assert [(p[2], p[4], p[5], p[6]) for p in reads] == [(i, 0x02, 0x38, 2) for i in ids] * 2
+    hold, torque = fake.packets[2 * n][1], fake.packets[2 * n + 1][1]
+    assert hold == goal_position_packet(ids, [fake.writes[0][1][i] for i in ids])
+    assert torque[4:7] == bytes([0x83, 0x28, 1]) and fake.torque == dict.fromkeys(ids, 1)
+    assert [p for _, p in fake.packets[2 * n + 2 :]] == [p for _, p in packets]
+    times = np.array([t for t, _ in fake.writes[1:]])
     return _report_pace("feetech over a pty", times, len(times))
 
 
@@ -222,7 +227,7 @@ def test_feetech_interrupt_holds_each_servo_where_it_is(tmp_path):
         Clock().sleep(0.2)
     assert result.status is SendStatus.INTERRUPTED and result.stop == "goal = present position for ids 1, 2, 3"
     assert fake.bad == []
-    stream_writes = fake.writes[:-1]
+    stream_writes = fake.writes[1:-1]  # after the goal = present write of the start
     assert len(stream_writes) == result.commands_sent
     # after the last streamed goal: three position reads, then one sync write of those positions
     last_reads = [p for _, p in fake.packets[-4:-1]]

@@ -57,6 +57,13 @@ class ControllerDriver(ABC):
             ControllerError: If the controller does not answer, or answers garbage.
         """
 
+    def begin(self, link: Link) -> None:  # noqa: B027 - most controllers need nothing
+        """Make the servos ready to follow the stream, after the start check and before the first command.
+
+        Raises:
+            ControllerError: If the link fails.
+        """
+
     def approach(self, q: np.ndarray, seconds: float) -> bytes:
         """One timed move to `q` [rad] taking `seconds`, for when the position is unknown.
 

@@ -9,11 +9,13 @@ import numpy as np
 from planner.exceptions import ControllerError, PlannerError
 from planner.export.formats.feetech import (
     PRESENT_POSITION,
+    TORQUE_ENABLE,
     Feetech,
     decode_position,
     goal_position_packet,
     parse_status,
     read_packet,
+    sync_write_packet,
 )
 from planner.hardware.driver import ControllerDriver
 
@@ -31,8 +33,10 @@ class FeetechDriver(ControllerDriver):
     """Feetech STS (default) or SCS servos on one half-duplex bus (setting ``series``).
 
     The stream is one goal-position sync write per period (no servo answers it); the present
-    position (address 0x38) is read from each servo before moving, and a stop writes each
-    servo's present position as its goal.
+    position (address 0x38) is read from each servo before moving. Before the first command
+    each servo's goal is set to its present position and its torque switched on (address
+    0x28), so a servo left limp (e.g. after calibrating by hand) follows the stream without
+    first jumping to an old goal; a stop writes each servo's present position as its goal.
     """
 
     name: ClassVar[str] = "feetech"
@@ -66,6 +70,13 @@ class FeetechDriver(ControllerDriver):
         """Each servo's present position [rad] (a bus servo always knows it)."""
         link.discard_input()
         return np.array([c.angle(self._read_ticks(link, c.id)) for c in self.calibrations])
+
+    def begin(self, link: Link) -> None:
+        """Goal = present position for every servo, then torque on (two sync writes)."""
+        ids = [c.id for c in self.calibrations]
+        present = [self._read_ticks(link, i) for i in ids]
+        link.write(goal_position_packet(ids, present, self._format.series))
+        link.write(sync_write_packet(TORQUE_ENABLE, {i: b"\x01" for i in ids}))
 
     def stop(self, link: Link) -> str:
         """Read each servo's present position and write it back as its goal (one sync write)."""

@@ -226,8 +226,10 @@ def run_stream(
     schedule = [(t, c, None) for t, c in schedule]
     schedule += [(offset + k * stream.period, c, k) for k, c in enumerate(stream.commands)]
     sent, lateness, status, why = 0, 0.0, SendStatus.COMPLETED, ""
-    t0 = clock.now()
     try:
+        if link.can_read:
+            driver.begin(link)
+        t0 = clock.now()
         for at, command, k in schedule:
             lateness = max(lateness, clock.wait_until(t0 + at))
             link.write(command)

@@ -35,6 +35,7 @@ __all__ = [
     "Feetech",
     "Instruction",
     "StatusPacket",
+    "TORQUE_ENABLE",
     "checksum",
     "decode_position",
     "encode_position",
@@ -53,6 +54,8 @@ BROADCAST_ID = 0xFE
 MAX_SERVO_ID = 253
 #: The protocol's series: byte order of 16-bit values.
 FEETECH_SERIES = ("sts", "scs")
+#: STS3215 control table: torque switch, 1 byte (0 off, 1 on).
+TORQUE_ENABLE = 0x28
 #: STS3215 control table: goal position, 2 bytes (goal time at 0x2C and goal speed at 0x2E follow).
 GOAL_POSITION = 0x2A
 #: STS3215 control table: present position, 2 bytes, read only.
