@@ -7,9 +7,13 @@ v = the URDF's speed, a = 2 v, j = 10 a:
 - ``planner``: :func:`planner.plan_trajectory` (Ruckig segments, chosen via states), which
   honours v, a, j and the position range at every instant;
 - ``stop``: the same Ruckig segments resting at every waypoint;
-- ``toppra``: TOPPRA's time-optimal parametrisation of a cubic spline through the same
-  waypoints (uniform path parameter, TOPPRA's default ``not-a-knot`` spline) with the same v
-  and a limits. It ignores jerk, and the spline can leave the joint range: both are counted.
+- ``toppra chord``: TOPPRA's time-optimal parametrisation of a clamped cubic spline through
+  the same waypoints with chord-length knots (cumulative joint-space distance), what a careful
+  user configures: the reference. ``toppra``: the same through TOPPRA's defaults (uniform
+  path parameter, ``not-a-knot`` spline), kept as a column. Both take the same v and a limits;
+  they ignore jerk, and the spline can leave the joint range: both are counted.
+- ``raw ruckig``: the stop-and-go segments computed by Ruckig directly (one
+  ``Ruckig.calculate`` per segment, rest to rest), the floor for ``stop``'s planning time.
 
 With ``--optimum-every K``, every K-th path is also solved as one nonlinear program
 (CasADi/IPOPT, direct transcription: per segment a free duration and ``--nodes`` intervals of
@@ -50,19 +54,48 @@ from planner.motion.trajectory import LIMIT_TOLERANCE
 RESULTS = Path(__file__).resolve().parent / "results"
 
 
-def toppra_plan(q: np.ndarray, limits: JointLimits):
-    """TOPPRA through a cubic spline of the waypoints; returns (trajectory or None, wall time)."""
+def toppra_plan(q: np.ndarray, limits: JointLimits, *, chord: bool = False):
+    """TOPPRA through a cubic spline of the waypoints; returns (trajectory or None, wall time).
+
+    With `chord`, the spline is clamped (zero end slopes) with knots at the cumulative joint-space
+    distance; else TOPPRA's defaults (uniform knots, not-a-knot).
+    """
     import toppra
     import toppra.algorithm
     import toppra.constraint
 
     t0 = time.perf_counter()
-    path = toppra.SplineInterpolator(np.linspace(0.0, 1.0, len(q)), q)
+    if chord:
+        knots = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(q, axis=0), axis=1))])
+        path = toppra.SplineInterpolator(knots / knots[-1], q, bc_type="clamped")
+    else:
+        path = toppra.SplineInterpolator(np.linspace(0.0, 1.0, len(q)), q)
     vel = toppra.constraint.JointVelocityConstraint(np.column_stack([-limits.velocity, limits.velocity]))
     acc = toppra.constraint.JointAccelerationConstraint(np.column_stack([-limits.acceleration, limits.acceleration]))
     instance = toppra.algorithm.TOPPRA([vel, acc], path, parametrizer="ParametrizeConstAccel")
     traj = instance.compute_trajectory()
     return traj, time.perf_counter() - t0
+
+
+def raw_ruckig_stop(q: np.ndarray, limits: JointLimits) -> tuple[float, float]:
+    """Rest-to-rest Ruckig segments through the waypoints: (total duration, wall time)."""
+    from ruckig import InputParameter, Result, Ruckig, Trajectory
+
+    t0 = time.perf_counter()
+    dof = q.shape[1]
+    otg, inp, traj = Ruckig(dof), InputParameter(dof), Trajectory(dof)
+    inp.max_velocity, inp.max_acceleration, inp.max_jerk = (
+        limits.velocity.tolist(),
+        limits.acceleration.tolist(),
+        limits.jerk.tolist(),
+    )
+    total = 0.0
+    for a, b in zip(q, q[1:]):
+        inp.current_position, inp.target_position = a.tolist(), b.tolist()
+        if otg.calculate(inp, traj) not in (Result.Working, Result.Finished):  # pragma: no cover
+            return float("nan"), time.perf_counter() - t0
+        total += traj.duration
+    return total, time.perf_counter() - t0
 
 
 def toppra_checks(traj, limits: JointLimits, rate: float = 1000.0) -> dict:
@@ -150,13 +183,19 @@ def bench_robot(
         t0 = time.perf_counter()
         ours = plan_trajectory(q, limits)
         plan_time = time.perf_counter() - t0
+        t0 = time.perf_counter()
         stop = plan_trajectory(q, limits, strategy="stop")
+        stop_time = time.perf_counter() - t0
+        raw_duration, raw_time = raw_ruckig_stop(q, limits)
         peaks = ours.peak_ratios(1000.0)
         exact = ours.peak_ratios(None)
         row = {
             "duration": ours.duration,
             "stop_duration": stop.duration,
             "plan_time": plan_time,
+            "stop_time": stop_time,
+            "raw_ruckig_time": raw_time,
+            "raw_ruckig_duration": raw_duration,
             "velocity": max(peaks["velocity"], exact["velocity"]),
             "acceleration": max(peaks["acceleration"], exact["acceleration"]),
             "jerk": max(peaks["jerk"], exact["jerk"]),
@@ -171,6 +210,13 @@ def bench_robot(
             else:
                 row["toppra_duration"] = float(traj.duration)
                 row.update({f"toppra_{k}": v for k, v in toppra_checks(traj, limits).items()})
+            traj, chord_time = toppra_plan(q, limits, chord=True)
+            row["chord_time"] = chord_time
+            if traj is None:
+                row["chord_duration"] = None
+            else:
+                row["chord_duration"] = float(traj.duration)
+                row.update({f"chord_{k}": v for k, v in toppra_checks(traj, limits).items()})
         if optimum_every and index % optimum_every == 0:
             row["optimum_duration"] = optimum_reference(q, limits, ours, nodes=nodes)
             row["relaxed_optimum_duration"] = optimum_reference(
@@ -205,7 +251,28 @@ def summarise(result: dict) -> dict:
         "max_jerk_ratio": max(r["jerk"] for r in rows),
         "max_position_excess": max(r["position_excess"] for r in rows),
         "all_pass_waypoints": all(r["passes_waypoints"] for r in rows),
+        "stop_ms_median": float(np.median([r["stop_time"] for r in rows]) * 1e3),
+        "raw_ruckig_ms_median": float(np.median([r["raw_ruckig_time"] for r in rows]) * 1e3),
+        "median_stop_time_ratio_to_raw_ruckig": float(np.median([r["stop_time"] / r["raw_ruckig_time"] for r in rows])),
+        "stop_matches_raw_ruckig": bool(
+            all(abs(r["stop_duration"] - r["raw_ruckig_duration"]) <= 1e-9 * r["stop_duration"] for r in rows)
+        ),
     }
+    chord = [r for r in rows if r.get("chord_duration")]
+    if chord:
+        out.update(
+            {
+                "chord_solved": len(chord),
+                "median_ratio_to_toppra_chord": float(np.median([r["duration"] / r["chord_duration"] for r in chord])),
+                "chord_leaves_range": int(sum(r["chord_leaves_range"] for r in chord)),
+                "chord_median_jerk_ratio": float(np.median([r["chord_jerk"] for r in chord])),
+                "chord_max_velocity_ratio": float(max(r["chord_velocity"] for r in chord)),
+                "chord_max_acceleration_ratio": float(max(r["chord_acceleration"] for r in chord)),
+                "toppra_default_over_chord": float(
+                    np.median([r["toppra_duration"] / r["chord_duration"] for r in chord if r.get("toppra_duration")])
+                ),
+            }
+        )
     ok = [r for r in rows if r.get("toppra_duration")]
     if ok:
         ratio = np.array([r["duration"] / r["toppra_duration"] for r in ok])
@@ -245,12 +312,25 @@ def summarise(result: dict) -> dict:
 
 def markdown(summaries: list[dict]) -> str:
     head = (
-        "| robot | dof | paths | median T / TOPPRA (ratio of medians) | optimum / TOPPRA (jerk-free) "
-        "| median T / stop | plan ms median (worst) "
-        "| peak v, a, j / limit | TOPPRA out of range | TOPPRA median peak jerk / limit |"
+        "| robot | dof | paths | median T / TOPPRA chord (/ TOPPRA default) | TOPPRA chord out of range, "
+        "median peak jerk / limit, worst v, a / limit | median T / TOPPRA default (ratio of medians) "
+        "| optimum / TOPPRA default (jerk-free) "
+        "| median T / stop | plan ms median (worst) | stop ms / raw Ruckig ms "
+        "| peak v, a, j / limit | TOPPRA default out of range | TOPPRA default median peak jerk / limit |"
     )
-    lines = [head, "|" + "---|" * 10]
+    lines = [head, "|" + "---|" * 13]
     for s in summaries:
+        chord = (
+            f"{s['median_ratio_to_toppra_chord']:.3f} (/ {s['toppra_default_over_chord']:.3f})"
+            if "median_ratio_to_toppra_chord" in s
+            else "n/a"
+        )
+        chord_checks = (
+            f"{s['chord_leaves_range']}/{s['chord_solved']}, {s['chord_median_jerk_ratio']:.1f}, "
+            f"{s['chord_max_velocity_ratio']:.3f}, {s['chord_max_acceleration_ratio']:.3f}"
+            if "chord_solved" in s
+            else "n/a"
+        )
         toppra = s.get("median_ratio_to_toppra")
         optimum = (
             f"{s['optimum_median_ratio_to_toppra']:.3f} ({s['relaxed_optimum_median_ratio_to_toppra']:.3f})"
@@ -258,10 +338,12 @@ def markdown(summaries: list[dict]) -> str:
             else "n/a"
         )
         lines.append(
-            f"| {s['robot']} | {s['dof']} | {s['paths']} | "
+            f"| {s['robot']} | {s['dof']} | {s['paths']} | {chord} | {chord_checks} | "
             + (f"{toppra:.3f} ({s['ratio_of_medians_to_toppra']:.3f})" if toppra is not None else "n/a")
             + f" | {optimum} | {s['median_ratio_to_stop']:.3f} | "
             f"{s['plan_ms_median']:.2f} ({s['plan_ms_worst']:.1f}) | "
+            f"{s['stop_ms_median']:.3f} / {s['raw_ruckig_ms_median']:.3f} "
+            f"({s['median_stop_time_ratio_to_raw_ruckig']:.1f}x) | "
             f"{s['max_velocity_ratio']:.4f}, {s['max_acceleration_ratio']:.4f}, {s['max_jerk_ratio']:.4f} | "
             + (f"{s['toppra_leaves_range']}/{s['toppra_solved']}" if toppra is not None else "n/a")
             + " | "
@@ -309,7 +391,14 @@ def main(argv: list[str] | None = None) -> int:
         for r in res["rows"]
         if r.get("toppra_duration") and r.get("optimum_duration") and r.get("relaxed_optimum_duration")
     ]
+    chord_ratios = [
+        r["duration"] / r["chord_duration"] for res in results for r in res["rows"] if r.get("chord_duration")
+    ]
     overall = {
+        "median_ratio_to_toppra_chord_all": float(np.median(chord_ratios)) if chord_ratios else None,
+        "median_stop_time_ratio_to_raw_ruckig_all": float(
+            np.median([r["stop_time"] / r["raw_ruckig_time"] for res in results for r in res["rows"]])
+        ),
         "median_ratio_to_toppra_all": float(np.median(all_ratios)) if all_ratios else None,
         "ratio_of_medians_to_toppra_all": float(np.median([p[0] for p in pairs]) / np.median([p[1] for p in pairs]))
         if pairs
@@ -344,6 +433,15 @@ def main(argv: list[str] | None = None) -> int:
         "limit_tolerance": LIMIT_TOLERANCE,
     }
     print()
+    if overall["median_ratio_to_toppra_chord_all"] is not None:
+        print(
+            "median duration / TOPPRA (chord-length knots, clamped spline) over all paths: "
+            f"{overall['median_ratio_to_toppra_chord_all']:.3f}"
+        )
+    print(
+        "median plan time of strategy='stop' / raw Ruckig on the same segments: "
+        f"{overall['median_stop_time_ratio_to_raw_ruckig_all']:.1f}x (goal <= 2x)"
+    )
     if overall["median_ratio_to_toppra_all"] is not None:
         print(f"median duration / TOPPRA over all paths: {overall['median_ratio_to_toppra_all']:.3f} (goal <= 0.9)")
     if overall["ratio_of_medians_to_toppra_all"] is not None:
