@@ -233,3 +233,36 @@ def test_slerp_interpolates_about_the_relative_axis():
             mid = slerp(ra, rb, s)
             assert rotation_error(ra, mid) == pytest.approx(s * angle, abs=1e-9)
             assert rotation_error(mid, rb) == pytest.approx((1 - s) * angle, abs=1e-9)
+
+
+def _jerk_sign_changes(traj, t0: float, t1: float, limits) -> list[int]:
+    """Per joint, how often the sampled jerk changes sign (|jerk| above 1 % of its limit)."""
+    s = traj.sample(np.arange(t0, t1, 1e-3))
+    out = []
+    for d in range(s.qddd.shape[1]):
+        x = s.qddd[:, d]
+        x = x[np.abs(x) > 0.01 * limits.jerk[d]]
+        out.append(int(np.sum(np.sign(x[1:]) != np.sign(x[:-1]))))
+    return out
+
+
+def test_the_demo_lines_are_smooth_splines_within_every_limit():
+    from planner.app.demo import al5c_request
+    from planner.app.motion_plan import plan_motion
+    from planner.app.plan_file import parse_motion_request
+    from planner.motion.trajectory import LIMIT_TOLERANCE
+
+    request, _ = al5c_request()
+    robot = get_robot("al5c")
+    plan = plan_motion(robot, parse_motion_request(request))
+    traj = plan.trajectory
+    peaks = traj.peak_ratios(None)
+    assert max(peaks["velocity"], peaks["acceleration"], peaks["jerk"]) <= 1 + LIMIT_TOLERANCE
+    assert peaks["position"] <= LIMIT_TOLERANCE
+    np.testing.assert_allclose(traj.sample(traj.waypoint_times).q, traj.waypoints, atol=1e-12)
+    for k in range(1, len(plan.waypoints)):
+        counts = _jerk_sign_changes(traj, plan.departure_times[k - 1], plan.waypoint_times[k], plan.limits)
+        if plan.branches[k] == "line":
+            # A chain of time-optimal segments between the samples switched 100-120 times here.
+            assert max(counts) <= 12, (k, counts)
+            assert plan.line_deviation[k - 1] <= 1e-5

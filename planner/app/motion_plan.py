@@ -8,6 +8,7 @@ writes are in :mod:`planner.app.outputs`.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass
@@ -32,8 +33,9 @@ from planner.motion.avoid import clear_route, joint_line, segment_is_clear
 from planner.motion.detours import Detour, SingularityOptions, plan_clear_of_singularities
 from planner.motion.limits import JointLimits
 from planner.motion.line import LinePath
+from planner.motion.line_smoothing import smooth_lines
 from planner.motion.request import TrajectoryRequest
-from planner.motion.singularity import SingularityReport
+from planner.motion.singularity import SingularityReport, measure_singularities
 from planner.motion.trajectory import JointTrajectory
 
 __all__ = ["MotionPlan", "plan_motion"]
@@ -417,6 +419,13 @@ def plan_motion(
             threshold=threshold, rate=rate, max_detours=request.max_detours if request.detours else 0
         )
         plan = plan_clear_of_singularities(robot, trajectory_request, options, keep_segments=keep)
+        if line_ranges:
+            # Each line as one smooth spline through its samples, not a chain of bang-bang segments.
+            stretches = [(int(plan.waypoint_indices[a]), int(plan.waypoint_indices[b])) for _, a, b in line_ranges]
+            smooth, count = smooth_lines(plan.trajectory, stretches)
+            if count:
+                report = measure_singularities(robot, smooth, threshold, robot.resolve_task(None), rate)[0]
+                plan = dataclasses.replace(plan, trajectory=smooth, report=report)
         return plan, user_pos, line_ranges, m
 
     plan, user_pos, line_ranges, m = plan_once(paths)
