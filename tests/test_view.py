@@ -1,0 +1,246 @@
+"""The 3-D view: the Scene API, the server it starts, and the scene as a person sees it in Chromium."""
+
+from __future__ import annotations
+
+import os
+import shutil
+import signal
+import socket
+import subprocess
+import sys
+import tempfile
+import time
+import urllib.request
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import planner
+
+from conftest import get_robot, run_cli
+
+viser = pytest.importorskip("viser", reason="viser is not installed (pip install 'planner[view]')")
+
+from planner.view import Scene  # noqa: E402
+from planner.view.arm import ARM_COLOR  # noqa: E402
+
+EXAMPLE = Path(__file__).resolve().parent.parent / "examples" / "dh3_pick_and_place.yaml"
+CHROMIUM = next((p for p in map(shutil.which, ("chromium", "chromium-browser", "google-chrome")) if p), None)
+needs_chromium = pytest.mark.skipif(
+    CHROMIUM is None, reason="Chromium is not installed (Debian: apt-get install chromium); .ci/run installs it"
+)
+
+
+@pytest.fixture(scope="module")
+def dh3_plan():
+    request = planner.load_motion_request(EXAMPLE)
+    return planner.plan_motion(get_robot("dh3"), request), request.labels
+
+
+@pytest.fixture
+def scene(dh3_plan):
+    plan, labels = dh3_plan
+    with Scene(get_robot("dh3"), plan, labels=labels, port=0) as s:
+        yield s
+
+
+def free_port() -> int:
+    with socket.socket() as sock:
+        sock.bind(("127.0.0.1", 0))
+        return sock.getsockname()[1]
+
+
+def wait_for_http(url: str, timeout: float = 30.0) -> str:
+    deadline = time.monotonic() + timeout
+    while True:
+        try:
+            with urllib.request.urlopen(url, timeout=2) as response:
+                return response.read().decode("utf-8", "replace")
+        except OSError:
+            if time.monotonic() > deadline:
+                raise
+            time.sleep(0.2)
+
+
+# ---------------------------------------------------------------------------- the API, without a browser
+def test_scene_serves_the_web_client_on_localhost(scene):
+    assert scene.url == f"http://127.0.0.1:{scene.port}" and scene.port > 0
+    page = wait_for_http(scene.url)
+    assert "<html" in page.lower() and "<script" in page.lower()
+
+
+def test_set_q_moves_the_arm_and_the_measures_follow(scene):
+    robot = get_robot("dh3")
+    q = np.array([0.3, 0.4, -0.9])
+    scene.set_q(q)
+    np.testing.assert_array_equal(scene.q, q)
+    assert [s.value for s in scene._sliders] == pytest.approx(q.tolist())
+    inverse, manipulability = scene.measures()
+    assert inverse == pytest.approx(robot.inverse_condition_number(q, "position"))
+    assert manipulability == pytest.approx(robot.manipulability(q, "position"))
+    # The fully stretched arm is below the threshold: the panel says so in red.
+    scene.set_q([0.0, 0.0, 0.0])
+    assert scene.measures()[0] < scene.threshold
+    assert "near a singularity" in scene._measure_html.content and "#d01010" in scene._measure_html.content
+
+
+def test_sliders_span_the_joint_limits(scene):
+    robot = get_robot("dh3")
+    for slider, lo, hi in zip(scene._sliders, robot.lower, robot.upper):
+        assert (slider.min, slider.max) == pytest.approx((lo, hi))
+
+
+def test_bad_configurations_are_refused(scene):
+    with pytest.raises(planner.JointLimitError):
+        scene.set_q([0.0, 3.0, 0.0])
+    with pytest.raises(planner.InvalidConfigurationError):
+        scene.set_q([0.0, 0.1])
+
+
+def test_target_shows_the_closed_form_branches_and_the_nlp_answer(scene):
+    robot = get_robot("dh3")
+    target = [0.10, 0.05, 0.05]
+    result = scene.solve_target(target)
+    assert result.success and result.method == "analytic" and len(result.solutions) >= 2
+    np.testing.assert_allclose(robot.position(scene.q), target, atol=1e-9)
+    assert len(scene._branch.options) == len(result.solutions)
+    # Picking another branch shows it.
+    other = next(k for k, s in enumerate(result.solutions) if s.within_limits and not np.array_equal(s.q, result.q))
+    scene._branch.value = scene._branch.options[other]
+    np.testing.assert_allclose(scene.q, result.solutions[other].q)
+    nlp = scene.solve_target(target, method="nlp")
+    assert nlp.success and nlp.method == "nlp"
+
+
+def test_unreachable_target_shows_status_and_reason(scene):
+    before = scene.q
+    result = scene.solve_target([1.0, 0.0, 0.0])
+    assert not result.success
+    np.testing.assert_array_equal(scene.q, before)
+    assert str(result.status) in scene._ik_html.content and "#d01010" in scene._ik_html.content
+
+
+def test_plan_playback_and_scrubbing(scene, dh3_plan):
+    plan, labels = dh3_plan
+    scene.set_time(plan.waypoint_times[4])
+    np.testing.assert_allclose(scene.q, plan.waypoints[4], atol=1e-9)
+    assert scene.current_waypoint() == 4 and labels[4] in scene._plan_html.content
+    scene.set_time(1e9)
+    assert scene.time == pytest.approx(plan.trajectory.duration)
+    scene.set_time(0.0)
+    scene.play()
+    assert scene.playing
+    deadline = time.monotonic() + 10.0
+    while scene.time == 0.0 and time.monotonic() < deadline:
+        time.sleep(0.05)
+    scene.pause()
+    assert scene.time > 0.0 and not scene.playing
+
+
+def test_bad_scene_input_is_refused(dh3_plan):
+    plan, labels = dh3_plan
+    with pytest.raises(planner.InvalidArgumentError, match="the plan has 3 joints; al5c has 5"):
+        Scene(get_robot("al5c"), plan, port=0)
+    with pytest.raises(planner.InvalidArgumentError, match="11 labels for 10 plan waypoints"):
+        Scene(get_robot("dh3"), plan, labels=[*labels, "extra"], port=0)
+    with pytest.raises(planner.InvalidArgumentError, match="port must be an integer in 0..65535"):
+        Scene(get_robot("dh3"), port=70000)
+    with pytest.raises(planner.InvalidArgumentError, match="unknown IK method 'best'"):
+        Scene(get_robot("dh3"), ik_method="best")
+
+
+def test_scene_without_plan_refuses_playback():
+    with Scene(get_robot("al5c"), port=0) as scene:
+        with pytest.raises(planner.InvalidArgumentError, match="no plan"):
+            scene.play()
+        with pytest.raises(planner.InvalidArgumentError, match="no plan"):
+            scene.set_time(1.0)
+
+
+def test_view_of_an_unknown_robot_is_a_one_line_error():
+    result = run_cli("view", "nosuch", "--port", "0", timeout=60)
+    assert result.returncode == 1
+    assert result.stderr.startswith("planner view: error: unknown robot 'nosuch'")
+
+
+# ---------------------------------------------------------------------------- as a person sees it
+def screenshot(url: str, path: Path) -> np.ndarray:
+    """Load `url` in headless Chromium (software WebGL) and return the screenshot's RGB pixels."""
+    from PIL import Image
+
+    with tempfile.TemporaryDirectory() as profile:
+        command = [
+            CHROMIUM,
+            "--headless=new",
+            "--no-sandbox",
+            "--disable-gpu-sandbox",
+            "--use-gl=angle",
+            "--use-angle=swiftshader",
+            "--enable-unsafe-swiftshader",
+            "--hide-scrollbars",
+            "--no-first-run",
+            f"--user-data-dir={profile}",
+            "--window-size=1000,700",
+            "--virtual-time-budget=8000",
+            f"--screenshot={path}",
+            url,
+        ]
+        subprocess.run(command, capture_output=True, timeout=60, check=False)
+    assert path.is_file(), f"Chromium wrote no screenshot of {url}"
+    with Image.open(path) as image:
+        return np.asarray(image.convert("RGB"), dtype=np.int16)
+
+
+def arm_pixels(pixels: np.ndarray) -> int:
+    """Pixels of the arm's colour (orange, shaded) in the centre of the 3-D scene."""
+    h, w, _ = pixels.shape
+    centre = pixels[h // 4 : 3 * h // 4, w // 4 : 3 * w // 5]
+    r, g, b = (centre[..., k] for k in range(3))
+    target = np.array(ARM_COLOR)
+    hue_like = (r > 120) & (r > g + 50) & (g > b + 20) & (b < 110)
+    assert target[0] > target[1] > target[2]  # the test's colour rule assumes an orange arm
+    return int(np.count_nonzero(hue_like))
+
+
+@needs_chromium
+def test_planner_view_shows_the_arm_in_chromium(tmp_path):
+    port = free_port()
+    env = dict(os.environ)
+    process = subprocess.Popen(
+        [sys.executable, "-m", "planner", "view", "dh3", str(EXAMPLE), "--port", str(port)],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        env=env,
+        start_new_session=True,
+    )
+    try:
+        url = f"http://127.0.0.1:{port}"
+        wait_for_http(url)
+        pixels = screenshot(url, tmp_path / "view.png")
+    finally:
+        process.send_signal(signal.SIGINT)
+        try:
+            out, err = process.communicate(timeout=15)
+        except subprocess.TimeoutExpired:
+            process.kill()
+            out, err = process.communicate()
+    assert f"at {url}" in out, err
+    assert pixels.std() > 10, "the screenshot is blank"
+    assert len(np.unique(pixels.reshape(-1, 3), axis=0)) > 200, "the screenshot is nearly blank"
+    assert arm_pixels(pixels) > 300, "no arm-coloured pixels in the centre of the scene"
+
+
+@needs_chromium
+def test_setting_a_joint_through_the_api_changes_the_screenshot(tmp_path):
+    robot = get_robot("dh3")
+    with Scene(robot, port=0) as scene:
+        scene.set_q([0.0, 0.9, -1.6])
+        wait_for_http(scene.url)
+        before = screenshot(scene.url, tmp_path / "before.png")
+        scene.set_q([1.2, -0.3, 0.5])
+        after = screenshot(scene.url, tmp_path / "after.png")
+    assert arm_pixels(before) > 300 and arm_pixels(after) > 300
+    changed = np.any(np.abs(before - after) > 30, axis=-1)
+    assert np.count_nonzero(changed) > 1000, "the view did not change when a joint was set"
