@@ -18,7 +18,7 @@ import pytest
 
 import planner
 
-from conftest import get_robot, run_cli
+from conftest import get_robot, needs_example_robot_data, run_cli
 
 viser = pytest.importorskip("viser", reason="viser is not installed (pip install 'planner[view]')")
 
@@ -156,6 +156,43 @@ def test_scene_without_plan_refuses_playback():
             scene.play()
         with pytest.raises(planner.InvalidArgumentError, match="no plan"):
             scene.set_time(1.0)
+
+
+def test_bundled_arms_are_drawn_with_link_geometry():
+    with Scene(get_robot("dh3"), port=0) as scene:
+        assert not scene.arm.uses_meshes
+        # One cylinder per link between distinct joint origins, each as long as its link.
+        points = get_robot("dh3").joint_positions(scene.q)
+        lengths = sorted(h.scale[2] for _, h in scene.arm._links)
+        distances = np.linalg.norm(np.diff(points, axis=0), axis=1)
+        expected = sorted(distances[distances > 1e-6])
+        assert lengths == pytest.approx(expected)
+
+
+def test_unresolved_meshes_fall_back_to_link_geometry(tmp_path):
+    urdf = tmp_path / "arm.urdf"
+    urdf.write_text(
+        """<robot name="meshy">
+  <link name="base"><visual><geometry><mesh filename="package://nowhere/base.stl"/></geometry></visual></link>
+  <link name="upper"/>
+  <link name="tip"/>
+  <joint name="j1" type="revolute"><parent link="base"/><child link="upper"/><origin xyz="0 0 0.1"/>
+    <axis xyz="0 0 1"/><limit lower="-1" upper="1" effort="1" velocity="1"/></joint>
+  <joint name="j2" type="revolute"><parent link="upper"/><child link="tip"/><origin xyz="0.1 0 0"/>
+    <axis xyz="0 1 0"/><limit lower="-1" upper="1" effort="1" velocity="1"/></joint>
+</robot>"""
+    )
+    with Scene(planner.load_robot(urdf), port=0) as scene:
+        assert not scene.arm.uses_meshes
+
+
+@needs_example_robot_data
+def test_example_robot_data_arms_are_drawn_with_their_meshes():
+    robot = planner.load_robot("ur5")
+    with Scene(robot, port=0) as scene:
+        assert scene.arm.uses_meshes
+        scene.set_q([0.3, -1.0, 1.2, -0.5, 1.0, 0.0])
+        np.testing.assert_allclose(scene.q, [0.3, -1.0, 1.2, -0.5, 1.0, 0.0])
 
 
 def test_view_of_an_unknown_robot_is_a_one_line_error():

@@ -387,14 +387,23 @@ class Scene:
         path = robot.position(traj.sample(t).q)
         scene.add_line_segments("/plan/path", np.stack([path[:-1], path[1:]], axis=1), PATH_COLOR, thickness=0.15 * r)
         tips = robot.position(plan.waypoints)
-        for k, (tip, label) in enumerate(zip(tips, self._labels)):
-            singular = k in plan.singular_waypoints
+        # Waypoints at one place (a dwell, a return to the start) share one marker and one label.
+        groups: dict[int, list[int]] = {}
+        for k, tip in enumerate(tips):
+            first = next((g for g in groups if np.linalg.norm(tips[g] - tip) < 1e-6), k)
+            groups.setdefault(first, []).append(k)
+        for first, members in groups.items():
+            singular = any(k in plan.singular_waypoints for k in members)
+            text = " / ".join(self._labels[k] for k in members)
             scene.add_icosphere(
-                f"/plan/waypoint{k}", radius=r, color=SINGULAR_COLOR if singular else WAYPOINT_COLOR, position=tip
+                f"/plan/waypoint{first}",
+                radius=r,
+                color=SINGULAR_COLOR if singular else WAYPOINT_COLOR,
+                position=tips[first],
             )
             scene.add_label(
-                f"/plan/waypoint{k}/label",
-                label + (" (singular)" if singular else ""),
+                f"/plan/waypoint{first}/label",
+                text + (" (singular)" if singular else ""),
                 position=(0.0, 0.0, 1.5 * r),
                 font_screen_scale=0.6,
             )
