@@ -147,7 +147,8 @@ def _scenario(
             from planner.app.plots import plot_plan
 
             files += plot_plan(out / robot_name, robot, plan)
-            files.append(animate_plan(out / robot_name / "animation.gif", robot, plan, **DEMO_ANIMATION))
+            title = f"{request['name']}: {plan.trajectory.duration:.2f} s"
+            files.append(animate_plan(out / robot_name / "animation.gif", robot, plan, title=title, **DEMO_ANIMATION))
         files += plan.write_files(out / robot_name, extra_files=files)
     return plan, moves, files
 

@@ -35,7 +35,7 @@ if TYPE_CHECKING:
 __all__ = ["Scene", "require_viser"]
 
 WAYPOINT_COLOR = (20, 150, 60)
-SINGULAR_COLOR = (220, 30, 30)
+SINGULAR_COLOR = (210, 20, 90)
 DETOUR_COLOR = (150, 60, 200)
 PATH_COLOR = (40, 110, 220)
 GHOST_COLOR = (150, 150, 150)
@@ -112,6 +112,7 @@ class Scene:
         if len(given) > n_way:
             raise InvalidArgumentError(f"{len(given)} labels for {n_way} plan waypoints")
         given += [None] * (n_way - len(given))
+        self._given = given
         self._labels = [f"waypoint {k}" + (f": {lb}" if lb else "") for k, lb in enumerate(given)]
         self._lock = threading.RLock()
         self._syncing = False
@@ -250,8 +251,9 @@ class Scene:
         if self.plan is not None:
             points = np.vstack([points, self.robot.position(self.plan.waypoints)])
         centre = 0.5 * (points.min(axis=0) + points.max(axis=0))
+        distance = max(reach, 1.3 * float(np.max(np.ptp(points, axis=0))))
         self.server.initial_camera.look_at = tuple(centre)
-        self.server.initial_camera.position = tuple(centre + reach * np.array([0.9, -1.25, 0.75]))
+        self.server.initial_camera.position = tuple(centre + distance * np.array([0.9, -1.25, 0.75]))
         self.server.initial_camera.up = (0.0, 0.0, 1.0)
 
     # ------------------------------------------------------------------ draggable target
@@ -394,7 +396,8 @@ class Scene:
             groups.setdefault(first, []).append(k)
         for first, members in groups.items():
             singular = any(k in plan.singular_waypoints for k in members)
-            text = " / ".join(self._labels[k] for k in members)
+            names = " / ".join(dict.fromkeys(self._given[k] for k in members if self._given[k]))
+            text = ", ".join(str(k) for k in members) + (f": {names}" if names else "")
             scene.add_icosphere(
                 f"/plan/waypoint{first}",
                 radius=r,
