@@ -91,6 +91,12 @@ def test_bad_animation_settings_are_refused(dh3_plan, tmp_path, kwargs, message)
     assert not path.exists()
 
 
+def test_animation_of_a_plan_for_another_arm_is_refused(dh3_plan, tmp_path):
+    plan, _ = dh3_plan
+    with pytest.raises(planner.InvalidArgumentError, match="the plan has 3 joints; al5c has 5"):
+        animate_plan(tmp_path / "a.gif", get_robot("al5c"), plan)
+
+
 def test_plan_animate_bad_flag_is_one_line_error(tmp_path):
     result = run_cli("plan", "dh3", str(EXAMPLE), "--animate", str(tmp_path / "a.gif"), "--fps", "-3")
     assert result.returncode == 1

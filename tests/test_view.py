@@ -150,6 +150,14 @@ def test_bad_scene_input_is_refused(dh3_plan):
         Scene(get_robot("dh3"), ik_method="best")
 
 
+def test_scene_refuses_what_is_not_a_plan_and_bad_times(scene):
+    with pytest.raises(planner.InvalidArgumentError, match="plan must be a planner.MotionPlan, got dict"):
+        Scene(get_robot("dh3"), {"waypoints": []}, port=0)
+    for bad in (float("nan"), "1.0", None):
+        with pytest.raises(planner.InvalidArgumentError, match="time must be a finite number"):
+            scene.set_time(bad)
+
+
 def test_scene_without_plan_refuses_playback():
     with Scene(get_robot("al5c"), port=0) as scene:
         with pytest.raises(planner.InvalidArgumentError, match="no plan"):
@@ -199,6 +207,49 @@ def test_view_of_an_unknown_robot_is_a_one_line_error():
     result = run_cli("view", "nosuch", "--port", "0", timeout=60)
     assert result.returncode == 1
     assert result.stderr.startswith("planner view: error: unknown robot 'nosuch'")
+
+
+def test_without_viser_the_command_names_the_extra():
+    code = "import sys; sys.modules['viser'] = None; from planner.app.cli import main; sys.exit(main(sys.argv[1:]))"
+    result = subprocess.run(
+        [sys.executable, "-c", code, "view", "dh3", str(EXAMPLE)], capture_output=True, text=True, timeout=60
+    )
+    assert result.returncode == 1
+    assert result.stderr.strip() == "planner view: error: the 3-D view needs viser: pip install 'planner[view]'"
+
+
+def serve_and_stop(*args: str) -> tuple[int, str, str]:
+    """Run a serving ``planner`` command until it answers HTTP, then Ctrl-C it: exit code, stdout, stderr."""
+    port = free_port()
+    process = subprocess.Popen(
+        [sys.executable, "-m", "planner", *args, "--port", str(port)],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        start_new_session=True,
+    )
+    try:
+        wait_for_http(f"http://127.0.0.1:{port}", timeout=60)
+    finally:
+        process.send_signal(signal.SIGINT)
+        try:
+            out, err = process.communicate(timeout=15)
+        except subprocess.TimeoutExpired:
+            process.kill()
+            out, err = process.communicate()
+    assert f"at http://127.0.0.1:{port}" in out, err
+    return process.returncode, out, err
+
+
+def test_plan_view_serves_the_plan_just_made():
+    code, out, err = serve_and_stop("plan", "dh3", str(EXAMPLE), "--view")
+    assert code == 0, err
+    assert "SINGULAR" in out and "planner view: dh3 at" in out
+
+
+def test_view_of_an_arm_alone():
+    code, out, err = serve_and_stop("view", "al5c")
+    assert code == 0, err
 
 
 # ---------------------------------------------------------------------------- as a person sees it

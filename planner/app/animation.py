@@ -136,13 +136,15 @@ def animate_plan(
 
     Raises:
         InvalidArgumentError: On a name not ending in ``.gif``, a bad fps, speed, size or view,
-            or more than 3000 frames.
+            more than 3000 frames, or a plan for another number of joints.
         PlannerError: If matplotlib is missing or the file cannot be written.
     """
     out = Path(path)
     traj = plan.trajectory
     duration = float(traj.duration)
     width, height = _check(fps, speed, size, view, duration, out)
+    if plan.waypoints.shape[1] != robot.dof:
+        raise InvalidArgumentError(f"the plan has {plan.waypoints.shape[1]} joints; {robot.name} has {robot.dof}")
     plt = _pyplot()
     times = frame_times(duration, fps, speed)
     q = np.clip(traj.sample(times).q, robot.lower, robot.upper)

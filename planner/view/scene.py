@@ -40,6 +40,8 @@ DETOUR_COLOR = (150, 60, 200)
 PATH_COLOR = (40, 110, 220)
 GHOST_COLOR = (150, 150, 150)
 FRAME_RATE = 30.0  # playback updates per second [Hz]
+#: What the scene reads from a plan (a planner.MotionPlan has them all).
+_PLAN_ATTRIBUTES = ("trajectory", "waypoints", "waypoint_times", "singular_waypoints", "detours", "singularity")
 
 
 def require_viser() -> Any:
@@ -100,8 +102,16 @@ class Scene:
             raise InvalidArgumentError(f"port must be an integer in 0..65535, got {port!r}")
         if ik_method not in IK_METHODS:
             raise InvalidArgumentError(f"unknown IK method {ik_method!r}; valid: {', '.join(IK_METHODS)}")
-        if plan is not None and plan.waypoints.shape[1] != robot.dof:
-            raise InvalidArgumentError(f"the plan has {plan.waypoints.shape[1]} joints; {robot.name} has {robot.dof}")
+        if plan is not None:
+            missing = [a for a in _PLAN_ATTRIBUTES if not hasattr(plan, a)]
+            if missing:
+                raise InvalidArgumentError(
+                    f"plan must be a planner.MotionPlan, got {type(plan).__name__} (no {', '.join(missing)})"
+                )
+            if plan.waypoints.shape[1] != robot.dof:
+                raise InvalidArgumentError(
+                    f"the plan has {plan.waypoints.shape[1]} joints; {robot.name} has {robot.dof}"
+                )
         self.robot = robot
         self.plan = plan
         if threshold is None and plan is not None:
@@ -127,16 +137,20 @@ class Scene:
         self._ik_pending: np.ndarray | None = None
 
         self.server = viser.ViserServer(host=host, port=port, verbose=False)
-        self.server.scene.set_up_direction("+z")
-        self.arm = ArmDrawing(self.server, robot, meshes=meshes)
-        self._ghosts: Any = None
-        self._add_floor_and_camera()
-        self._add_joint_panel()
-        self._add_target_panel()
-        if plan is not None:
-            self._add_plan_markers()
-            self._add_plan_panel()
-        self._show(self._q)
+        try:
+            self.server.scene.set_up_direction("+z")
+            self.arm = ArmDrawing(self.server, robot, meshes=meshes)
+            self._ghosts: Any = None
+            self._add_floor_and_camera()
+            self._add_joint_panel()
+            self._add_target_panel()
+            if plan is not None:
+                self._add_plan_markers()
+                self._add_plan_panel()
+            self._show(self._q)
+        except BaseException:
+            self.server.stop()  # a scene that failed to build leaves no server behind
+            raise
         self._stop = threading.Event()
         self._player = threading.Thread(target=self._play_loop, name="planner-view-player", daemon=True)
         self._player.start()
@@ -465,8 +479,8 @@ class Scene:
         """
         if self.plan is None:
             raise InvalidArgumentError("the scene has no plan to show a time of")
-        if not np.isfinite(t):
-            raise InvalidArgumentError(f"time must be finite, got {t}")
+        if isinstance(t, bool) or not isinstance(t, (int, float, np.number)) or not np.isfinite(t):
+            raise InvalidArgumentError(f"time must be a finite number [s], got {t!r}")
         traj = self.plan.trajectory
         t = float(np.clip(t, 0.0, traj.duration))
         with self._lock:
