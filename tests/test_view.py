@@ -2,13 +2,14 @@
 
 from __future__ import annotations
 
-import os
+import contextlib
 import shutil
 import signal
 import socket
 import subprocess
 import sys
 import tempfile
+import threading
 import time
 import urllib.request
 from pathlib import Path
@@ -218,8 +219,12 @@ def test_without_viser_the_command_names_the_extra():
     assert result.stderr.strip() == "planner view: error: the 3-D view needs viser: pip install 'planner[view]'"
 
 
-def serve_and_stop(*args: str) -> tuple[int, str, str]:
-    """Run a serving ``planner`` command until it answers HTTP, then Ctrl-C it: exit code, stdout, stderr."""
+@contextlib.contextmanager
+def serving(*args: str, timeout: float = 60.0):
+    """Run a serving ``planner`` command until it says where it serves; Ctrl-C it on leaving.
+
+    Yields the URL and a dict that gets ``code``, ``out`` and ``err`` once the command has stopped.
+    """
     port = free_port()
     process = subprocess.Popen(
         [sys.executable, "-m", "planner", *args, "--port", str(port)],
@@ -228,17 +233,36 @@ def serve_and_stop(*args: str) -> tuple[int, str, str]:
         text=True,
         start_new_session=True,
     )
+    url = f"http://127.0.0.1:{port}"
+    lines: list[str] = []
+    reader = threading.Thread(target=lambda: lines.extend(process.stdout), daemon=True)
+    reader.start()
+    result: dict = {}
     try:
-        wait_for_http(f"http://127.0.0.1:{port}", timeout=60)
+        deadline = time.monotonic() + timeout
+        while not any(f"at {url}" in line for line in lines):
+            assert process.poll() is None, process.stderr.read()
+            assert time.monotonic() < deadline, f"no 'at {url}' within {timeout} s: {lines}"
+            time.sleep(0.1)
+        wait_for_http(url)
+        yield url, result
     finally:
         process.send_signal(signal.SIGINT)
         try:
-            out, err = process.communicate(timeout=15)
+            process.wait(timeout=15)
         except subprocess.TimeoutExpired:
             process.kill()
-            out, err = process.communicate()
-    assert f"at http://127.0.0.1:{port}" in out, err
-    return process.returncode, out, err
+            process.wait()
+        reader.join(timeout=5)
+        result.update(code=process.returncode, out="".join(lines), err=process.stderr.read())
+        process.stderr.close()
+
+
+def serve_and_stop(*args: str) -> tuple[int, str, str]:
+    """Run a serving ``planner`` command until it serves, then Ctrl-C it: exit code, stdout, stderr."""
+    with serving(*args) as (_, result):
+        pass
+    return result["code"], result["out"], result["err"]
 
 
 def test_plan_view_serves_the_plan_just_made():
@@ -293,28 +317,9 @@ def arm_pixels(pixels: np.ndarray) -> int:
 
 @needs_chromium
 def test_planner_view_shows_the_arm_in_chromium(tmp_path):
-    port = free_port()
-    env = dict(os.environ)
-    process = subprocess.Popen(
-        [sys.executable, "-m", "planner", "view", "dh3", str(EXAMPLE), "--port", str(port)],
-        stdout=subprocess.PIPE,
-        stderr=subprocess.PIPE,
-        text=True,
-        env=env,
-        start_new_session=True,
-    )
-    try:
-        url = f"http://127.0.0.1:{port}"
-        wait_for_http(url)
+    with serving("view", "dh3", str(EXAMPLE)) as (url, result):
         pixels = screenshot(url, tmp_path / "view.png")
-    finally:
-        process.send_signal(signal.SIGINT)
-        try:
-            out, err = process.communicate(timeout=15)
-        except subprocess.TimeoutExpired:
-            process.kill()
-            out, err = process.communicate()
-    assert f"at {url}" in out, err
+    assert result["code"] == 0, result["err"]
     assert pixels.std() > 10, "the screenshot is blank"
     assert len(np.unique(pixels.reshape(-1, 3), axis=0)) > 200, "the screenshot is nearly blank"
     assert arm_pixels(pixels) > 300, "no arm-coloured pixels in the centre of the scene"

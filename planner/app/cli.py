@@ -385,9 +385,9 @@ def _report_servo_error(error: ServoExportError | None) -> int:
 def _view_plan(args: argparse.Namespace, robot: Robot, plan: MotionPlan) -> None:
     """With --view, serve the plan in the browser until Ctrl-C."""
     if args.view:
-        from planner.app.viewing import open_scene, serve_scene
+        from planner.app.viewing import run_view
 
-        serve_scene(open_scene(robot, plan=plan, port=args.port))
+        run_view(robot, plan=plan, port=args.port)
 
 
 # ---------------------------------------------------------------------------- view
@@ -404,10 +404,9 @@ def _add_view(sub: argparse._SubParsersAction) -> None:
 
 
 def _run_view(args: argparse.Namespace) -> int:
-    from planner.app.viewing import open_scene, serve_scene
+    from planner.app.viewing import run_view
 
-    serve_scene(open_scene(args.robot, args.plan_file, port=args.port))
-    return 0
+    return run_view(args.robot, args.plan_file, port=args.port)
 
 
 # ---------------------------------------------------------------------------- ik

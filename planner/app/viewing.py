@@ -18,7 +18,7 @@ from planner.model.robot import Robot
 if TYPE_CHECKING:
     from planner.view.scene import Scene
 
-__all__ = ["open_scene", "serve_scene"]
+__all__ = ["open_scene", "run_view", "serve_scene"]
 
 
 def open_scene(
@@ -67,3 +67,26 @@ def serve_scene(scene: Scene, log: Callable[[str], None] = _say) -> None:
     """Say where the scene is and serve it until Ctrl-C."""
     log(f"planner view: {scene.robot.name} at {scene.url} (Ctrl-C stops)")
     scene.serve_forever()
+
+
+def run_view(
+    robot: str | Path | Robot,
+    plan_file: str | Path | None = None,
+    *,
+    plan: MotionPlan | None = None,
+    port: int = 8080,
+    log: Callable[[str], None] = _say,
+) -> int:
+    """:func:`open_scene` then :func:`serve_scene`, until Ctrl-C; the exit code of ``planner view``.
+
+    Ctrl-C while the scene is still being built stops it as quietly as Ctrl-C later.
+
+    Returns:
+        0 when stopped after serving, 130 (interrupted) when stopped while starting.
+    """
+    try:
+        scene = open_scene(robot, plan_file, plan=plan, port=port)
+    except KeyboardInterrupt:
+        return 130
+    serve_scene(scene, log)
+    return 0
