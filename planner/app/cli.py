@@ -199,10 +199,10 @@ def _add_demo(sub: argparse._SubParsersAction) -> None:
         description="Plan Sumadsad's (2020) pick-and-place on dh3 (closed-form IK checked by the NLP, one smooth "
         "servo-limited trajectory, stretched states flagged singular) and Clothier and Shang's (2010) range-bearing "
         "pick-and-place on al5c (approach from above, straight-line lowering, SSC-32 commands); print a summary "
-        "table and write CSV, servo commands and PNG plots.",
+        "table and write CSV, servo commands, PNG plots and an animated GIF per arm.",
     )
     p.add_argument("--out", type=Path, default=Path("planner-demo"), help="output directory (default: planner-demo)")
-    p.add_argument("--no-plots", action="store_true", help="skip the PNG plots (no matplotlib needed)")
+    p.add_argument("--no-plots", action="store_true", help="skip the PNG plots and animations (no matplotlib needed)")
 
 
 def _run_demo(args: argparse.Namespace) -> int:
