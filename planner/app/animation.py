@@ -33,7 +33,7 @@ MAX_FRAMES = 3000
 ARM = "#ff6e00"
 PATH = "#2870dc"
 WAYPOINT = "#149632"
-SINGULAR = "#dc1e1e"
+SINGULAR = "#d2145a"
 DETOUR = "#963cc8"
 
 
@@ -45,13 +45,21 @@ def _canvas_pillow_writer() -> type:
         """matplotlib's PillowWriter taking each frame from the drawn canvas, without a redraw.
 
         The stock writer saves the whole figure once per frame (every axis and tick label
-        again); here only the moving artists are drawn onto a cached background.
+        again) and leaves Pillow to find a palette per frame; here only the moving artists are
+        drawn onto a cached background, and every frame takes the first frame's palette (the
+        colours do not change from frame to frame: the GIF is about half the size, and
+        written several times faster).
         """
+
+        _palette: Any = None
 
         def grab_frame(self, **savefig_kwargs: Any) -> None:
             canvas = self.fig.canvas
             width, height = canvas.get_width_height(physical=True)
-            self._frames.append(Image.frombuffer("RGBA", (width, height), bytes(canvas.buffer_rgba())).convert("RGB"))
+            frame = Image.frombuffer("RGBA", (width, height), bytes(canvas.buffer_rgba())).convert("RGB")
+            if self._palette is None:
+                self._palette = frame.quantize(colors=256, method=Image.Quantize.FASTOCTREE)
+            self._frames.append(frame.quantize(palette=self._palette, dither=Image.Dither.NONE))
 
     return CanvasPillowWriter
 
