@@ -3,12 +3,10 @@
 from __future__ import annotations
 
 import contextlib
-import shutil
 import signal
 import socket
 import subprocess
 import sys
-import tempfile
 import threading
 import time
 import urllib.request
@@ -16,6 +14,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from browser import CHROMIUM, HeadlessChromium
 
 import planner
 
@@ -27,7 +26,6 @@ from planner.view import Scene  # noqa: E402
 from planner.view.arm import ARM_COLOR  # noqa: E402
 
 EXAMPLE = Path(__file__).resolve().parent.parent / "examples" / "dh3_pick_and_place.yaml"
-CHROMIUM = next((p for p in map(shutil.which, ("chromium", "chromium-browser", "google-chrome")) if p), None)
 needs_chromium = pytest.mark.skipif(
     CHROMIUM is None, reason="Chromium is not installed (Debian: apt-get install chromium); .ci/run installs it"
 )
@@ -277,33 +275,6 @@ def test_view_of_an_arm_alone():
 
 
 # ---------------------------------------------------------------------------- as a person sees it
-def screenshot(url: str, path: Path) -> np.ndarray:
-    """Load `url` in headless Chromium (software WebGL) and return the screenshot's RGB pixels."""
-    from PIL import Image
-
-    with tempfile.TemporaryDirectory() as profile:
-        command = [
-            CHROMIUM,
-            "--headless=new",
-            "--no-sandbox",
-            "--disable-gpu-sandbox",
-            "--use-gl=angle",
-            "--use-angle=swiftshader",
-            "--enable-unsafe-swiftshader",
-            "--hide-scrollbars",
-            "--no-first-run",
-            f"--user-data-dir={profile}",
-            "--window-size=1000,700",
-            "--virtual-time-budget=8000",
-            f"--screenshot={path}",
-            url,
-        ]
-        subprocess.run(command, capture_output=True, timeout=60, check=False)
-    assert path.is_file(), f"Chromium wrote no screenshot of {url}"
-    with Image.open(path) as image:
-        return np.asarray(image.convert("RGB"), dtype=np.int16)
-
-
 def arm_pixels(pixels: np.ndarray) -> int:
     """Pixels of the arm's colour (orange, shaded) in the centre of the 3-D scene."""
     h, w, _ = pixels.shape
@@ -317,23 +288,29 @@ def arm_pixels(pixels: np.ndarray) -> int:
 
 @needs_chromium
 def test_planner_view_shows_the_arm_in_chromium(tmp_path):
-    with serving("view", "dh3", str(EXAMPLE)) as (url, result):
-        pixels = screenshot(url, tmp_path / "view.png")
+    with serving("view", "dh3", str(EXAMPLE)) as (url, result), HeadlessChromium() as browser:
+        browser.open(url)
+        pixels = browser.wait_for(lambda p: arm_pixels(p) > 300)
+        browser.screenshot(tmp_path / "view.png")
     assert result["code"] == 0, result["err"]
     assert pixels.std() > 10, "the screenshot is blank"
     assert len(np.unique(pixels.reshape(-1, 3), axis=0)) > 200, "the screenshot is nearly blank"
     assert arm_pixels(pixels) > 300, "no arm-coloured pixels in the centre of the scene"
 
 
+def changed_pixels(a: np.ndarray, b: np.ndarray) -> int:
+    return int(np.count_nonzero(np.any(np.abs(a - b) > 30, axis=-1)))
+
+
 @needs_chromium
 def test_setting_a_joint_through_the_api_changes_the_screenshot(tmp_path):
     robot = get_robot("dh3")
-    with Scene(robot, port=0) as scene:
+    with Scene(robot, port=0) as scene, HeadlessChromium() as browser:
         scene.set_q([0.0, 0.9, -1.6])
-        wait_for_http(scene.url)
-        before = screenshot(scene.url, tmp_path / "before.png")
+        browser.open(scene.url)
+        before = browser.wait_for(lambda p: arm_pixels(p) > 300)
         scene.set_q([1.2, -0.3, 0.5])
-        after = screenshot(scene.url, tmp_path / "after.png")
+        after = browser.wait_for(lambda p: changed_pixels(before, p) > 1000)
+        browser.screenshot(tmp_path / "after.png")
     assert arm_pixels(before) > 300 and arm_pixels(after) > 300
-    changed = np.any(np.abs(before - after) > 30, axis=-1)
-    assert np.count_nonzero(changed) > 1000, "the view did not change when a joint was set"
+    assert changed_pixels(before, after) > 1000, "the view did not change when a joint was set"
