@@ -165,6 +165,17 @@ def test_scene_without_plan_refuses_playback():
             scene.set_time(1.0)
 
 
+def test_a_plan_with_obstacles_shows_them():
+    from planner.app.demo import al5c_request
+
+    request, _ = al5c_request()
+    plan = planner.plan_motion(get_robot("al5c"), planner.parse_motion_request(request))
+    assert plan.scene is not None and plan.scene.obstacles
+    with Scene(get_robot("al5c"), plan, port=0) as scene:
+        scene.set_time(plan.trajectory.duration / 2)
+        assert "waypoint" in scene._plan_html.content
+
+
 def test_bundled_arms_are_drawn_with_link_geometry():
     with Scene(get_robot("dh3"), port=0) as scene:
         assert not scene.arm.uses_meshes

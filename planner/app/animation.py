@@ -16,7 +16,7 @@ from typing import TYPE_CHECKING, Any, Literal
 
 import numpy as np
 
-from planner.app.plots import _pyplot
+from planner.app.plots import draw_scene, obstacle_points, pyplot
 from planner.exceptions import InvalidArgumentError
 
 if TYPE_CHECKING:
@@ -125,8 +125,9 @@ def animate_plan(
 ) -> Path:
     """Write a GIF of the arm moving through a plan.
 
-    Each frame shows the arm, the tip's whole path, the waypoints (singular ones red, detours
-    purple), the time and the label of the last waypoint reached.
+    Each frame shows the arm, the tip's whole path, the waypoints (singular ones crimson,
+    detours purple), the plan's obstacles (grey), the time and the label of the last waypoint
+    reached.
 
     Args:
         path: GIF file to write (its folder is created).
@@ -153,7 +154,7 @@ def animate_plan(
     width, height = _check(fps, speed, size, view, duration, out)
     if plan.waypoints.shape[1] != robot.dof:
         raise InvalidArgumentError(f"the plan has {plan.waypoints.shape[1]} joints; {robot.name} has {robot.dof}")
-    plt = _pyplot()
+    plt = pyplot()
     times = frame_times(duration, fps, speed)
     q = np.clip(traj.sample(times).q, robot.lower, robot.upper)
     chains = np.array([robot.joint_positions(row) for row in q])  # (K, dof + 2, 3)
@@ -165,7 +166,9 @@ def animate_plan(
     captions = [f"waypoint {k}" + (f": {names[k]}" if names[k] else "") for k in range(len(plan.waypoints))]
     reached = np.clip(np.searchsorted(plan.waypoint_times, times + 1e-9, side="right") - 1, 0, None)
     singular = np.isin(np.arange(len(tips)), plan.singular_waypoints)
-    everything = np.vstack([chains.reshape(-1, 3), tip_path])
+    scene = getattr(plan, "scene", None)
+    obstacles = [obstacle_points(o) for o in scene.obstacles] if scene is not None else []
+    everything = np.vstack([chains.reshape(-1, 3), tip_path, *obstacles])
     lo, hi = everything.min(axis=0), everything.max(axis=0)
     pad = 0.08 * float(np.max(hi - lo)) + 1e-3
 
@@ -178,6 +181,9 @@ def animate_plan(
         ax.scatter(*tips[singular].T, color=SINGULAR, s=24)
         if len(detours):
             ax.scatter(*detours.T, color=DETOUR, s=18)
+        for obstacle, pts in zip(scene.obstacles if scene is not None else (), obstacles):
+            ax.plot(*pts.T, ".", color="0.55", markersize=3)
+            ax.text(*pts.mean(axis=0), obstacle.name, fontsize=7, color="0.35")
         span = float(np.max(hi - lo)) / 2 + pad
         mid = (lo + hi) / 2
         ax.set(
@@ -195,7 +201,8 @@ def animate_plan(
         heading = tip_path[:, :2].mean(axis=0)
         heading = heading / np.linalg.norm(heading) if np.linalg.norm(heading) > 1e-9 else np.array([1.0, 0.0])
         s_path, s_tips = _side(tip_path, heading), _side(tips, heading)
-        s_all = np.vstack([_side(chains.reshape(-1, 3), heading), s_path])
+        spans = [np.column_stack([np.hypot(p[:, 0], p[:, 1]), p[:, 2]]) for p in obstacles]
+        s_all = np.vstack([_side(chains.reshape(-1, 3), heading), s_path, *spans])
         side.plot(*s_path.T, color=PATH, linewidth=1.0)
         top.plot(*tip_path[:, :2].T, color=PATH, linewidth=1.0)
         for ax, pts in ((side, s_tips), (top, tips[:, :2])):
@@ -204,6 +211,8 @@ def animate_plan(
         if len(detours):
             side.scatter(*_side(detours, heading).T, color=DETOUR, s=18, zorder=3)
             top.scatter(*detours[:, :2].T, color=DETOUR, s=18, zorder=3)
+        if scene is not None:
+            draw_scene(side, top, scene)
         side.set(xlim=(s_all[:, 0].min() - pad, s_all[:, 0].max() + pad), ylim=(lo[2] - pad, hi[2] + pad))
         top.set(xlim=(lo[0] - pad, hi[0] + pad), ylim=(lo[1] - pad, hi[1] + pad))
         side.set_xlabel("horizontal reach [m]")

@@ -17,7 +17,7 @@ import numpy as np
 
 from planner.model.robot import Robot
 
-__all__ = ["ARM_COLOR", "ArmDrawing", "link_segments"]
+__all__ = ["ARM_COLOR", "ArmDrawing", "link_segments", "quaternion_wxyz"]
 
 #: The colour of the drawn links (RGB, 0..255): an orange that stands out from the grey grid.
 ARM_COLOR = (255, 110, 0)
@@ -39,7 +39,7 @@ def _z_to(direction: np.ndarray) -> np.ndarray:
     return np.column_stack([x, np.cross(z, x), z])
 
 
-def _wxyz(rotation: np.ndarray) -> np.ndarray:
+def quaternion_wxyz(rotation: np.ndarray) -> np.ndarray:
     """The unit quaternion (w, x, y, z) of a rotation matrix."""
     import viser.transforms as vtf
 
@@ -191,13 +191,13 @@ class ArmDrawing:
                 handle.visible = length > 1e-6
                 if length > 1e-6:
                     handle.position = 0.5 * (points[a] + points[b])
-                    handle.wxyz = _wxyz(_z_to(d))
+                    handle.wxyz = quaternion_wxyz(_z_to(d))
                     handle.scale = (1.0, 1.0, length)
             for k, handle in enumerate(self._joints):
                 handle.position = points[k]
             tip = robot.fk(q)
             self._gripper.position = tip[:3, 3]
-            self._gripper.wxyz = _wxyz(tip[:3, :3] @ _z_to(robot.approach_axis))
+            self._gripper.wxyz = quaternion_wxyz(tip[:3, :3] @ _z_to(robot.approach_axis))
         if any(f.visible for f in self._frames):
             self._place_frames(q)
 
@@ -205,7 +205,7 @@ class ArmDrawing:
         for name, frame in zip(self._robot.joint_names, self._frames):
             pose = self._robot.fk(q, name)
             frame.position = pose[:3, 3]
-            frame.wxyz = _wxyz(pose[:3, :3])
+            frame.wxyz = quaternion_wxyz(pose[:3, :3])
 
     def show_frames(self, visible: bool, q: np.ndarray) -> None:
         """Show or hide a coordinate frame at each joint, placed for configuration `q`."""

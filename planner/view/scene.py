@@ -8,7 +8,7 @@
 - a draggable target: the closed form's branches (selectable) or the NLP's answer follow it,
   with the status and the reason when it is unreachable;
 - with a plan: play, pause and scrub it in real time; the waypoints with their labels, the
-  tip's path, singular waypoints (red) and detours (purple).
+  tip's path, singular waypoints (crimson), detours (purple) and the plan's obstacles (grey).
 """
 
 from __future__ import annotations
@@ -27,7 +27,7 @@ from planner.ik.result import IKResult
 from planner.ik.solve import IK_METHODS, solve_ik
 from planner.model.robot import Robot
 from planner.motion.singularity import inverse_condition_threshold
-from planner.view.arm import ArmDrawing
+from planner.view.arm import ArmDrawing, quaternion_wxyz
 
 if TYPE_CHECKING:
     from planner.app.motion_plan import MotionPlan
@@ -39,6 +39,7 @@ SINGULAR_COLOR = (210, 20, 90)
 DETOUR_COLOR = (150, 60, 200)
 PATH_COLOR = (40, 110, 220)
 GHOST_COLOR = (150, 150, 150)
+OBSTACLE_COLOR = (140, 145, 155)
 FRAME_RATE = 30.0  # playback updates per second [Hz]
 #: What the scene reads from a plan (a planner.MotionPlan has them all).
 _PLAN_ATTRIBUTES = ("trajectory", "waypoints", "waypoint_times", "singular_waypoints", "detours", "singularity")
@@ -258,8 +259,16 @@ class Scene:
     def _add_floor_and_camera(self) -> None:
         reach = self.arm.reach
         cell = float(10.0 ** np.floor(np.log10(reach / 2.0)))
+        obstacles = getattr(self.plan, "scene", None)
+        floor = obstacles.floor if obstacles is not None and obstacles.floor is not None else 0.0
         self.server.scene.add_grid(
-            "/floor", width=3 * reach, height=3 * reach, cell_size=cell, section_size=5 * cell, shadow_opacity=0.0
+            "/floor",
+            width=3 * reach,
+            height=3 * reach,
+            cell_size=cell,
+            section_size=5 * cell,
+            shadow_opacity=0.0,
+            position=(0.0, 0.0, floor),
         )
         points = self.robot.joint_positions(self._q)
         if self.plan is not None:
@@ -395,7 +404,29 @@ class Scene:
             )
 
     # ------------------------------------------------------------------ plan playback
+    def _add_obstacles(self) -> None:
+        """The plan's obstacles, grey and half transparent, each with its name."""
+        from planner.collision.scene import Box, Cylinder
+
+        obstacles = getattr(self.plan, "scene", None)
+        for k, obstacle in enumerate(obstacles.obstacles if obstacles is not None else ()):
+            name, shape = f"/obstacles/{k}", obstacle.shape
+            pose = {"position": tuple(obstacle.position), "wxyz": quaternion_wxyz(obstacle.rotation)}
+            if isinstance(shape, Box):
+                self.server.scene.add_box(name, color=OBSTACLE_COLOR, dimensions=shape.size, opacity=0.6, **pose)
+                top = shape.size[2] / 2
+            elif isinstance(shape, Cylinder):
+                self.server.scene.add_cylinder(
+                    name, radius=shape.radius, height=shape.length, color=OBSTACLE_COLOR, opacity=0.6, **pose
+                )
+                top = shape.length / 2
+            else:
+                self.server.scene.add_icosphere(name, radius=shape.radius, color=OBSTACLE_COLOR, opacity=0.6, **pose)
+                top = shape.radius
+            self.server.scene.add_label(f"{name}/label", obstacle.name, position=(0.0, 0.0, top), font_screen_scale=0.6)
+
     def _add_plan_markers(self) -> None:
+        self._add_obstacles()
         plan, robot, scene = self.plan, self.robot, self.server.scene
         r = 0.03 * self.arm.reach
         traj = plan.trajectory
