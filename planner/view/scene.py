@@ -191,7 +191,7 @@ class Scene:
 
     # ------------------------------------------------------------------ arm and sliders
     def set_q(self, q: Sequence[float] | np.ndarray) -> None:
-        """Show the arm at configuration `q`, shape (dof,) [rad or m]; the sliders follow.
+        """Show the arm at configuration `q`, shape (dof,) [rad or m]; the sliders follow, a playing plan pauses.
 
         Raises:
             InvalidConfigurationError: On the wrong length or non-finite values.
@@ -199,6 +199,7 @@ class Scene:
         """
         arr = self.robot.check_configuration(q, batch=False)
         self.robot.check_limits(arr, context="Scene.set_q")
+        self.pause()
         self._show(arr)
 
     def measures(self, q: Sequence[float] | np.ndarray | None = None) -> tuple[float, float]:
