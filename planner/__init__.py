@@ -13,6 +13,7 @@ import importlib
 from typing import TYPE_CHECKING, Any
 
 from planner.exceptions import (
+    ControllerError,
     InvalidArgumentError,
     InvalidConfigurationError,
     InvalidLimitsError,
@@ -20,6 +21,7 @@ from planner.exceptions import (
     PlannerError,
     PlanningError,
     ServoExportError,
+    StartPositionError,
     UnknownFrameError,
     UnknownRobotError,
     UnsupportedChainError,
@@ -29,6 +31,7 @@ from planner.exceptions import (
 if TYPE_CHECKING:
     from planner.app.motion_plan import MotionPlan, plan_motion
     from planner.app.plan_file import load_motion_request, parse_motion_request
+    from planner.app.send import send_plan
     from planner.core.rotations import quaternion_to_matrix, rotation_error, rpy_to_matrix
     from planner.core.units import servo_speed_to_velocity
     from planner.core.version import __version__
@@ -37,6 +40,7 @@ if TYPE_CHECKING:
     from planner.export.tables import pulse_table
     from planner.geometry.sensing import range_bearing_to_base
     from planner.geometry.target import Target, approach_pitch, pitch_error
+    from planner.hardware.session import SendOptions, SendResult, SendStatus
     from planner.ik.analytic import (
         AnalyticBatchResult,
         AnalyticIK,
@@ -115,10 +119,17 @@ __all__ = [
     "MotionPlan",
     "load_motion_request",
     "plan_motion",
+    # driving a real arm
+    "send_plan",
+    "SendOptions",
+    "SendResult",
+    "SendStatus",
     "parse_motion_request",
     # errors
     "PlannerError",
     "PlanningError",
+    "ControllerError",
+    "StartPositionError",
     "ServoExportError",
     "URDFError",
     "InvalidLimitsError",
@@ -134,6 +145,8 @@ __all__ = [
 _LAZY: dict[str, tuple[str, ...]] = {
     "planner.app.motion_plan": ("MotionPlan", "plan_motion"),
     "planner.app.plan_file": ("load_motion_request", "parse_motion_request"),
+    "planner.app.send": ("send_plan",),
+    "planner.hardware.session": ("SendOptions", "SendResult", "SendStatus"),
     "planner.core.rotations": ("quaternion_to_matrix", "rotation_error", "rpy_to_matrix"),
     "planner.core.units": ("servo_speed_to_velocity",),
     "planner.core.version": ("__version__",),
@@ -167,7 +180,7 @@ _LAZY: dict[str, tuple[str, ...]] = {
     "planner.motion.trajectory": ("JointTrajectory",),
 }
 _MODULE_OF = {name: module for module, names in _LAZY.items() for name in names}
-_SUBPACKAGES = ("core", "model", "geometry", "ik", "motion", "export", "app")
+_SUBPACKAGES = ("core", "model", "geometry", "ik", "motion", "export", "hardware", "app")
 
 
 def __getattr__(name: str) -> Any:

@@ -21,6 +21,8 @@ __all__ = [
     "UnsupportedChainError",
     "PlanningError",
     "ServoExportError",
+    "ControllerError",
+    "StartPositionError",
 ]
 
 
@@ -147,3 +149,23 @@ class ServoExportError(PlannerError):
             "servo files not written (" + "; ".join(lines) + f"); written: {done}. Give the joint a calibration "
             "that covers its travel (a plan file's `servos:` entry: pulse_at_zero, us_per_deg, min_pulse, max_pulse)"
         )
+
+
+class ControllerError(PlannerError):
+    """A servo controller or its serial port failed, answered wrongly, or cannot carry a stream."""
+
+
+class StartPositionError(ControllerError):
+    """The arm is not at the plan's first waypoint (or cannot say where it is): nothing was sent.
+
+    Attributes:
+        joint: The joint furthest from its first-waypoint value, or None when the position is unknown.
+        value: Its read angle [rad] (NaN when unknown).
+        expected: Its first-waypoint angle [rad].
+    """
+
+    def __init__(self, message: str, *, joint: str | None = None, value: float = float("nan"), expected: float = 0.0):
+        super().__init__(message)
+        self.joint = joint
+        self.value = value
+        self.expected = expected

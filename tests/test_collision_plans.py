@@ -180,3 +180,12 @@ def test_planner_check_reports_the_clearance(tmp_path, capsys):
     plain.write_text(json.dumps({"waypoints": [[0, 1, -1, 0, 0], [0.5, 1, -1, 0, 0]]}))
     assert main(["check", "al5c", str(plain)]) == 0
     assert "no scene" in capsys.readouterr().out
+
+
+def test_the_example_plan_file_goes_around_its_block(capsys):
+    from pathlib import Path
+
+    example = Path(__file__).resolve().parents[1] / "examples" / "al5c_around_a_block.yaml"
+    assert main(["check", "al5c", str(example), "--json"]) == 0
+    report = json.loads(capsys.readouterr().out)
+    assert report["collision"]["clear"] and report["routes"] == [0]

@@ -138,7 +138,7 @@ def test_steps_table(dh3_trajectory):
 def test_servo_format_registry(dh3_trajectory):
     robot, traj = dh3_trajectory
     cals = default_calibrations(robot)
-    assert list(SERVO_FORMATS) == ["pulses", "ssc32"]
+    assert list(SERVO_FORMATS) == ["pulses", "ssc32", "pca9685", "feetech", "steps"]
     for name, fmt in SERVO_FORMATS.items():
         assert isinstance(fmt, ServoFormat) and fmt.name == name and servo_format(name) is fmt
     text = servo_format("ssc32").render(traj, cals, 20)
@@ -147,5 +147,6 @@ def test_servo_format_registry(dh3_trajectory):
     t, pulses = pulse_table(traj, cals, rate=25.0)
     assert rows[0] == "t,ch0_base_yaw,ch1_shoulder,ch2_elbow"
     assert rows[1:] == [f"{ti:.6f}," + ",".join(str(x) for x in row) for ti, row in zip(t, pulses)]
-    with pytest.raises(InvalidArgumentError, match=r"unknown servo format 'dmx'; valid formats: pulses, ssc32"):
+    valid = "pulses, ssc32, pca9685, feetech, steps"
+    with pytest.raises(InvalidArgumentError, match=rf"unknown servo format 'dmx'; valid formats: {valid}"):
         servo_format("dmx")

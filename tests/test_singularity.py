@@ -125,3 +125,23 @@ def test_options_and_kept_segments():
     assert kept.detours == () and kept.unresolved == (0,)
     none = plan_clear_of_singularities(robot, request, SingularityOptions(max_detours=0))
     assert none.detours == () and none.trajectory.duration == kept.trajectory.duration
+
+
+@pytest.mark.parametrize("count", [8, pytest.param(100, marks=pytest.mark.slow)])
+def test_no_plan_is_slower_than_resting_at_every_waypoint_for_detours_that_clear_nothing(count):
+    from planner.motion.detours import SingularityOptions, plan_clear_of_singularities
+    from planner.motion.limits import JointLimits
+    from planner.motion.plan import plan_trajectory
+    from planner.motion.request import TrajectoryRequest
+
+    robot = get_robot("dh3")
+    limits = JointLimits.from_robot(robot)
+    rng = np.random.default_rng(11)
+    for _ in range(count):
+        q = robot.random_configurations(rng, 5)
+        q[:, 2] = np.abs(q[:, 2]) * np.array([1, -1, 1, -1, 1])  # every segment crosses the stretched elbow
+        plan = plan_clear_of_singularities(robot, TrajectoryRequest(q, limits), SingularityOptions())
+        rest = plan_trajectory(q, limits, strategy="stop")
+        assert not {d.segment for d in plan.detours} & set(plan.unresolved)
+        if plan.trajectory.duration > rest.duration * (1 + 1e-9):
+            assert plan.detours and not plan.unresolved

@@ -1,1 +1,1 @@
-"""Layer 6: applications: plan files and motion plans, the command line, the demo, plots, benchmarks."""
+"""Layer 7: applications: plan files, motion plans, sending to an arm, the command line, demo, plots, benchmarks."""

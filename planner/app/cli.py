@@ -236,6 +236,13 @@ def _add_plan(sub: argparse._SubParsersAction) -> None:
         default="cr",
         help="end of each ssc32.txt command: cr, the controller's terminator (default), or crlf to read as lines",
     )
+    p.add_argument(
+        "--controller",
+        choices=("pulses", "ssc32", "pca9685", "feetech", "steps"),
+        default=None,
+        help="write this controller's servo file (default: the plan file's controller; else pulses and ssc32)",
+    )
+    p.add_argument("--calibration", type=Path, default=None, help="calibration file (README: Driving a real arm)")
     p.add_argument("--view", action="store_true", help="then show the plan in the browser (planner view; Ctrl-C stops)")
     p.add_argument("--port", type=int, default=8080, help="port of --view (default 8080; 0: a free one)")
     p.add_argument("--animate", type=Path, default=None, metavar="FILE.gif", help="write a GIF of the arm moving")
@@ -248,14 +255,13 @@ def _add_plan(sub: argparse._SubParsersAction) -> None:
 def _run_plan(args: argparse.Namespace) -> int:
     from planner.app.motion_plan import plan_motion
     from planner.app.plan_file import load_motion_request
-    from planner.export.formats import SERVO_FORMATS
     from planner.export.formats.ssc32 import Ssc32
 
     if not (np.isfinite(args.rate) and args.rate > 0):
         raise InvalidArgumentError(f"--rate must be a positive number [Hz], got {args.rate}")
     robot = load_robot(args.robot)
     request = load_motion_request(args.waypoints_file)
-    plan = plan_motion(robot, request, rate=args.rate)
+    plan = plan_motion(robot, request, rate=args.rate, controller=args.controller, calibration=args.calibration)
     summary = plan.summary(args.rate)
     files: list[Path] = []
     servo_error = None
@@ -270,7 +276,7 @@ def _run_plan(args: argparse.Namespace) -> int:
         files.append(animate_plan(args.animate, robot, plan, **kw))
     if args.out is not None:
         try:
-            formats = [Ssc32(args.line_ending) if fmt.name == Ssc32.name else fmt for fmt in SERVO_FORMATS.values()]
+            formats = [Ssc32(args.line_ending) if fmt.name == Ssc32.name else fmt for fmt in plan.setup.formats()]
             files += plan.write_files(args.out, rate=args.rate, extra_files=files, formats=formats)
         except ServoExportError as exc:
             servo_error = exc
@@ -380,6 +386,57 @@ def _report_servo_error(error: ServoExportError | None) -> int:
         return 0
     print(f"planner plan: error: {error}", file=sys.stderr)
     return 1
+
+
+# ---------------------------------------------------------------------------- send
+def _add_send(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser(
+        "send",
+        help="plan, then stream the servo commands to a controller over a serial port",
+        description="Plan a plan file, read where the arm is, then send one command per servo period, paced by a "
+        "monotonic clock; Ctrl-C or a port error stops every servo in use. Needs pyserial (the hardware extra).",
+    )
+    p.add_argument("robot", help="robot name (see `planner robots`) or URDF path")
+    p.add_argument("plan_file", type=Path, help="plan file (.yaml or .json)")
+    p.add_argument("--port", default=None, help="serial device, e.g. /dev/ttyUSB0 or COM3")
+    p.add_argument("--baud", type=int, default=None, help="baud rate (default: the controller's, 115200 / 1000000)")
+    p.add_argument(
+        "--controller", choices=("ssc32", "feetech"), default=None, help="default: the plan file's, else ssc32"
+    )
+    p.add_argument("--calibration", type=Path, default=None, help="calibration file (default: shipped, else defaults)")
+    p.add_argument("--dry-run", action="store_true", help="print the byte stream with timestamps; open no port")
+    p.add_argument("--from-current", action="store_true", help="far from the first waypoint: plan a move from there")
+    p.add_argument(
+        "--approach-time",
+        type=float,
+        default=None,
+        metavar="S",
+        help="position unknown (SSC-32): one timed move to the first waypoint taking S seconds first; the arm JUMPS "
+        "there if a servo was elsewhere",
+    )
+    p.add_argument(
+        "--start-tolerance", type=float, default=0.05, metavar="RAD", help="counts as at the first waypoint [rad]"
+    )
+
+
+def _run_send(args: argparse.Namespace) -> int:
+    from planner.app.send import send_plan
+    from planner.hardware.session import SendOptions, SendStatus
+
+    options = SendOptions(args.baud, args.from_current, args.approach_time, args.start_tolerance)
+    if args.port is None and not args.dry_run:
+        raise InvalidArgumentError("give --port DEVICE (or --dry-run to print the stream)")
+    result = send_plan(
+        load_robot(args.robot),
+        args.plan_file,
+        port=args.port,
+        controller=args.controller,
+        calibration=args.calibration,
+        options=options,
+        dry_run=sys.stdout if args.dry_run else None,
+    )
+    print(f"{'# ' if args.dry_run else ''}{result.message}")
+    return {SendStatus.COMPLETED: 0, SendStatus.INTERRUPTED: 130}.get(result.status, 1)
 
 
 def _view_plan(args: argparse.Namespace, robot: Robot, plan: MotionPlan) -> None:
@@ -606,6 +663,7 @@ _COMMANDS: dict[str, tuple[Callable[[argparse._SubParsersAction], None], Callabl
     "fk": (_add_fk, _run_fk),
     "ik": (_add_ik, _run_ik),
     "plan": (_add_plan, _run_plan),
+    "send": (_add_send, _run_send),
     "demo": (_add_demo, _run_demo),
     "view": (_add_view, _run_view),
     "bench": (_add_bench, _run_bench),
@@ -639,3 +697,6 @@ def main(argv: Sequence[str] | None = None) -> int:
         return 1
     except BrokenPipeError:
         return 0
+    except KeyboardInterrupt:  # e.g. Ctrl-C while planning; a stream handles its own and stops the servos
+        print(f"planner {args.command}: interrupted", file=sys.stderr)
+        return 130

@@ -24,7 +24,8 @@ from planner.collision.scene import Scene
 from planner.core.arrays import read_only
 from planner.core.files import input_error, parse_number
 from planner.exceptions import PlanningError
-from planner.export.calibration import ServoCalibration, default_calibrations
+from planner.export.calibration import ServoCalibration
+from planner.export.calibration_file import ControllerSetup, controller_setup
 from planner.export.formats import ServoFormat
 from planner.model.robot import Robot
 from planner.motion.avoid import clear_route, joint_line, segment_is_clear
@@ -61,8 +62,11 @@ class MotionPlan:
             first comes too close, between which bodies and how deep); None without a scene.
         routes: Requested segments planned around obstacles (along a clear joint route).
         scene: The scene planned in (SI), or None.
-        calibrations: Servo calibration per joint.
+        calibrations: Servo calibration per joint (pulse widths, or position ticks for a
+            Feetech bus or a stepper controller).
         servo_period_ms: Time between two servo updates in the servo files [ms].
+        setup: The controller and calibrations the servo files are written for (None: the
+            default pulse-width files).
     """
 
     robot: str
@@ -81,8 +85,9 @@ class MotionPlan:
     collision: MotionClearance | None
     routes: tuple[int, ...]
     scene: Scene | None
-    calibrations: tuple[ServoCalibration, ...]
+    calibrations: tuple
     servo_period_ms: int
+    setup: ControllerSetup | None = None
 
     def summary(self, rate: float = 1000.0) -> dict[str, Any]:
         """A JSON-ready summary; the ratios are sampled peaks over the limits at `rate` [Hz]."""
@@ -111,6 +116,7 @@ class MotionPlan:
             "unresolved_segments": list(self.unresolved),
             "line_deviation": list(self.line_deviation),
             "strategy": self.trajectory.strategy,
+            "controller": None if self.setup is None else self.setup.controller,
             "sample_rate": rate,
             **(
                 {}
@@ -137,7 +143,7 @@ class MotionPlan:
             out: Output directory.
             rate: Sample rate of the CSV and of the summary's limit checks [Hz].
             extra_files: Files already written for the plan (its plots), listed in the summary.
-            formats: The servo formats to write; None writes every registered one.
+            formats: The servo formats to write; None writes the plan's controller's (see `setup`).
 
         Returns:
             The paths written.
@@ -146,12 +152,15 @@ class MotionPlan:
             InvalidArgumentError: If the directory cannot be created.
             ServoExportError: If a servo file cannot be made (the other files are written).
         """
+        if formats is None and self.setup is not None:
+            formats = self.setup.formats()
+        summary = self.summary(rate)
         return write_plan_files(
             out,
             self.trajectory,
             self.calibrations,
             self.servo_period_ms,
-            self.summary(rate),
+            summary,
             rate=rate,
             extra_files=extra_files,
             formats=formats,
@@ -237,12 +246,9 @@ def _route_around_obstacles(
         paths[k] = lines
 
 
-def _calibrations(robot: Robot, request: MotionRequest, trajectory: JointTrajectory) -> tuple[ServoCalibration, ...]:
+def _calibrations(robot: Robot, request: MotionRequest) -> tuple[ServoCalibration, ...] | None:
     if request.servos is None:
-        # Continuous joints have no range to fit: fit the plan's travel, sampled at 1 kHz,
-        # with a margin far above what the servo files' own sample times can add to it.
-        q = trajectory.sample(np.append(np.arange(0.0, trajectory.duration, 1e-3), trajectory.duration)).q
-        return default_calibrations(robot, travel=(q.min(axis=0) - 1e-3, q.max(axis=0) + 1e-3))
+        return None
     if len(request.servos) != robot.dof:
         raise input_error(
             request.source, f"servos has {len(request.servos)} entries; {robot.name} has {robot.dof} joints"
@@ -261,13 +267,24 @@ def _calibrations(robot: Robot, request: MotionRequest, trajectory: JointTraject
     return tuple(out)
 
 
-def plan_motion(robot: Robot, request: MotionRequest, *, rate: float = 1000.0) -> MotionPlan:
+def plan_motion(
+    robot: Robot,
+    request: MotionRequest,
+    *,
+    rate: float = 1000.0,
+    controller: str | None = None,
+    calibration: str | Path | None = None,
+) -> MotionPlan:
     """Plan a motion request for a robot: IK for targets, line sampling, trajectory, singularities.
 
     Args:
         robot: The robot.
         request: The parsed request.
         rate: Sampling rate of the singularity checks [Hz].
+        controller: Controller to write servo files for (a key of
+            :data:`planner.export.formats.SERVO_FORMATS`), instead of the request's.
+        calibration: Calibration file, instead of the request's (see
+            :func:`planner.export.calibration_file.controller_setup` for the order of choice).
 
     Returns:
         The plan.
@@ -442,6 +459,16 @@ def plan_motion(robot: Robot, request: MotionRequest, *, rate: float = 1000.0) -
             deviation[seg] = line_deviation(
                 robot, traj.sample(t).q, request.targets[seg].position, request.targets[seg + 1].position
             )
+    # Continuous joints have no range to fit: default calibrations fit the plan's travel, sampled
+    # at 1 kHz, with a margin far above what the servo files' own sample times can add to it.
+    q_travel = traj.sample(np.append(np.arange(0.0, traj.duration, 1e-3), traj.duration)).q
+    setup = controller_setup(
+        robot,
+        controller or request.controller,
+        calibration if calibration is not None else request.calibration,
+        None if calibration is not None else _calibrations(robot, request),
+        travel=(q_travel.min(axis=0) - 1e-3, q_travel.max(axis=0) + 1e-3),
+    )
     return MotionPlan(
         robot=robot.name,
         trajectory=traj,
@@ -459,6 +486,7 @@ def plan_motion(robot: Robot, request: MotionRequest, *, rate: float = 1000.0) -
         collision=collision,
         routes=tuple(k - 1 for k in range(1, n) if paths[k] is not None and not cartesian[k]),
         scene=request.scene,
-        calibrations=_calibrations(robot, request, traj),
+        calibrations=setup.calibrations,
         servo_period_ms=request.servo_period_ms,
+        setup=setup,
     )

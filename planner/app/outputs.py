@@ -1,10 +1,10 @@
 """The files a :class:`~planner.app.motion_plan.MotionPlan` is written to.
 
-``trajectory.csv`` (t, then q, qd, qdd, qddd per joint, SI units), one file per registered
-servo format (:data:`planner.export.formats.SERVO_FORMATS`: ``servo_pulses.csv`` with the
-pulse width per servo channel [us] and ``ssc32.txt`` with Lynxmotion SSC-32 group moves, each
-every servo period) and ``summary.json`` (:meth:`MotionPlan.summary`). The PNG plots are in
-:func:`planner.app.plots.plot_plan`.
+``trajectory.csv`` (t, then q, qd, qdd, qddd per joint, SI units), the servo files of the
+plan's controller (:data:`planner.export.formats.SERVO_FORMATS`; with no controller named,
+``servo_pulses.csv`` with the pulse width per servo channel [us] and ``ssc32.txt`` with
+Lynxmotion SSC-32 group moves, each every servo period) and ``summary.json``
+(:meth:`MotionPlan.summary`). The PNG plots are in :func:`planner.app.plots.plot_plan`.
 """
 
 from __future__ import annotations
@@ -21,7 +21,12 @@ if TYPE_CHECKING:
     from planner.export.calibration import ServoCalibration
     from planner.motion.trajectory import JointTrajectory
 
-__all__ = ["write_plan_files", "write_servo_files"]
+__all__ = ["default_formats", "write_plan_files", "write_servo_files"]
+
+
+def default_formats() -> list[ServoFormat]:
+    """The servo formats a plan with no controller named writes (``written_by_default``: pulses, ssc32)."""
+    return [f for f in SERVO_FORMATS.values() if f.written_by_default]
 
 
 def write_servo_files(
@@ -38,7 +43,7 @@ def write_servo_files(
         trajectory: The joint trajectory.
         calibrations: One per joint, in joint order.
         period_ms: Time between two servo updates [ms].
-        formats: The formats to write; None writes every registered one.
+        formats: The formats to write; None writes every format that is ``written_by_default``.
 
     Returns:
         The paths written, in the order of `formats`.
@@ -47,7 +52,7 @@ def write_servo_files(
         InvalidArgumentError: If a calibration does not fit a format or a pulse is out of range.
     """
     paths = []
-    for fmt in SERVO_FORMATS.values() if formats is None else formats:
+    for fmt in default_formats() if formats is None else formats:
         path = folder / fmt.file_name
         path.write_bytes(fmt.render(trajectory, calibrations, period_ms).encode(fmt.encoding))
         paths.append(path)
@@ -74,7 +79,7 @@ def write_plan_files(
         summary: The plan's summary (:meth:`MotionPlan.summary`); the file list is added to it.
         rate: Sample rate of the CSV [Hz].
         extra_files: Files already written for the plan (e.g. its plots), listed in the summary.
-        formats: The servo formats to write; None writes every registered one.
+        formats: The servo formats to write; None writes the default ones (see :func:`default_formats`).
 
     Returns:
         The paths written: the trajectory CSV, the servo files, the summary.
@@ -92,7 +97,7 @@ def write_plan_files(
     paths = [trajectory.to_csv(folder / "trajectory.csv", rate=rate)]
     # A servo file that cannot be made must not cost the user the trajectory and summary.
     failures: dict[str, str] = {}
-    for fmt in SERVO_FORMATS.values() if formats is None else formats:
+    for fmt in default_formats() if formats is None else formats:
         try:
             paths.append(write_servo_files(folder, trajectory, calibrations, servo_period_ms, formats=[fmt])[0])
         except InvalidArgumentError as exc:

@@ -20,6 +20,8 @@ A plan file is YAML or JSON (``.json`` is read as JSON, anything else as YAML)::
     servos:                           # optional pulse-width calibration per joint
       - {channel: 0, pulse_at_zero: 1500, us_per_rad: 636.6, direction: 1, min_pulse: 500, max_pulse: 2500}
     servo_period_ms: 20
+    controller: ssc32                 # optional: ssc32, pca9685, feetech, steps, pulses (the files written)
+    calibration: my-arm.yaml          # optional calibration file (planner.export.calibration_file), instead of servos
     scene:                            # optional: what the arm must not touch (planner.collision.scene)
       floor: 0                        # floor height in the base frame [length]
       clearance: 0.5                  # distance kept to everything, links included [length]
@@ -50,6 +52,7 @@ from planner.collision.scene import Scene, parse_scene
 from planner.core.files import input_error, parse_number, parse_numbers, parse_units, read_data_file
 from planner.core.text import plain
 from planner.exceptions import InvalidArgumentError
+from planner.export.formats import SERVO_FORMATS
 from planner.geometry.target import Target
 from planner.motion.singularity import DEFAULT_CONDITION_NUMBER
 from planner.motion.vias import VIA_STRATEGIES
@@ -66,6 +69,8 @@ _TOP_KEYS = (
     "strategy",
     "servos",
     "servo_period_ms",
+    "controller",
+    "calibration",
     "name",
     "comment",
     "scene",
@@ -122,6 +127,8 @@ class MotionRequest:
         strategy: Via strategy (see :func:`planner.motion.trajectory.plan_trajectory`).
         servos: Servo calibration mappings as written, or None for defaults.
         servo_period_ms: Time between two servo updates in the servo files [ms].
+        controller: The controller named (a key of ``SERVO_FORMATS``), or None.
+        calibration: Calibration file path, or None.
         angle_scale: Radians per file angle unit.
         length_scale: Metres per file length unit.
         scene: What the arm must not touch (SI), or None for no collision checks.
@@ -146,6 +153,8 @@ class MotionRequest:
     strategy: str = "optimized"
     servos: tuple[Mapping[str, Any], ...] | None = None
     servo_period_ms: int = 20
+    controller: str | None = None
+    calibration: Path | None = None
     angle_scale: float = 1.0
     length_scale: float = 1.0
     scene: Scene | None = None
@@ -326,6 +335,18 @@ def parse_motion_request(data: Mapping[str, Any], source: str = "<request>") -> 
     period = data.get("servo_period_ms", 20)
     if isinstance(period, bool) or not isinstance(period, int) or not 1 <= period <= 65535:
         raise input_error(source, f"servo_period_ms must be an integer in [1, 65535], got {plain(period)}")
+    controller = data.get("controller")
+    if controller is not None and controller not in SERVO_FORMATS:
+        raise input_error(source, f"unknown controller {controller!r}; valid controllers: {', '.join(SERVO_FORMATS)}")
+    calibration = data.get("calibration")
+    if calibration is not None:
+        if not isinstance(calibration, str) or not calibration:
+            raise input_error(source, f"calibration must be a file path, got {plain(calibration)}")
+        if servos is not None:
+            raise input_error(source, "give servos or a calibration file, not both")
+        calibration = Path(calibration)
+        if not calibration.is_absolute() and source != "<request>":
+            calibration = Path(source).parent / calibration
 
     scene = None
     if "scene" in data:
@@ -366,6 +387,8 @@ def parse_motion_request(data: Mapping[str, Any], source: str = "<request>") -> 
         strategy=strategy,
         servos=servos,
         servo_period_ms=period,
+        controller=controller,
+        calibration=calibration,
         angle_scale=angle,
         length_scale=length,
         scene=scene,

@@ -208,6 +208,8 @@ class CollisionChecker:
 
     def clearance_of(self, d: np.ndarray) -> Clearance:
         """The closest pair of a :meth:`pair_distances` vector, with the depth of an overlap."""
+        if d.size == 0:
+            return Clearance(float("inf"), ("", ""), self.scene.clearance)
         k = int(np.argmin(d))
         dist = float(d[k])
         if not np.isfinite(dist):
@@ -218,15 +220,7 @@ class CollisionChecker:
         return Clearance(dist, (self.names[a], self.names[b]), self.scene.clearance)
 
     def _clearance(self, q: np.ndarray, mask: np.ndarray) -> Clearance:
-        if not mask.any():
-            return Clearance(float("inf"), ("", ""), self.scene.clearance)
-        d = self.pair_distances(q, mask)
-        k = int(np.argmin(d))
-        dist = float(d[k])
-        if dist <= 0.0:
-            dist = self._depth(k, dist)
-        a, b = (int(i) for i in self._pairs[k])
-        return Clearance(dist, (self.names[a], self.names[b]), self.scene.clearance)
+        return self.clearance_of(self.pair_distances(q, mask))
 
     def _depth(self, k: int, dist: float) -> float:
         """The penetration depth of pair `k` (coal's distance is 0 or a signed estimate when overlapping)."""

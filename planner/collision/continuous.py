@@ -128,7 +128,12 @@ def check_motion(
         room = min(d_scene - c + tolerance, (d_self - c + tolerance) / 2.0)
         room = max(room, tolerance / 2.0)
         # The time h at which V h + A h^2 / 2 reaches the room left.
-        step = room / speed if acc == 0.0 else 2.0 * room / (speed + np.sqrt(speed * speed + 2.0 * acc * room))
+        if not np.isfinite(room):
+            step = end - x  # nothing checked here: nothing to step around
+        elif acc == 0.0:
+            step = room / speed
+        else:
+            step = 2.0 * room / (speed + np.sqrt(speed * speed + 2.0 * acc * room))
         if first_hit is not None:
             step = max(step, end / 2000.0)  # past a hit: coarse steps, only to find the worst
         # Change of mask: check at the boundary too.

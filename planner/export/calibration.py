@@ -183,6 +183,10 @@ class ServoCalibration:
         a = (np.asarray(pulse, dtype=float) - self.pulse_at_zero) / (self.direction * self.us_per_rad)
         return float(a) if a.ndim == 0 else a
 
+    def value(self, angle: float | np.ndarray) -> float | np.ndarray:
+        """Same as :meth:`pulse` (the controller value every calibration kind answers)."""
+        return self.pulse(angle)
+
 
 def default_calibrations(
     robot: Robot, first_channel: int = 0, *, travel: tuple[np.ndarray, np.ndarray] | None = None
@@ -214,18 +218,26 @@ def default_calibrations(
     )
 
 
-def check_calibrations(calibrations: Sequence[ServoCalibration], dof: int) -> None:
-    """Check that there is one :class:`ServoCalibration` per joint, on distinct channels.
+def check_calibrations(calibrations: Sequence[ServoCalibration], dof: int, kind: type = ServoCalibration) -> None:
+    """Check that there is one calibration of the right kind per joint, on distinct channels.
 
     Args:
         calibrations: The calibrations, in joint order.
         dof: Number of joints.
+        kind: The calibration class the controller needs (:class:`ServoCalibration` for pulse
+            widths, :class:`planner.export.ticks.TickCalibration` for position ticks).
 
     Raises:
-        InvalidArgumentError: If one is missing or not a calibration, or two share a channel.
+        InvalidArgumentError: If one is missing or of another kind, or two share a channel.
     """
-    if len(calibrations) != dof or not all(isinstance(c, ServoCalibration) for c in calibrations):
-        raise InvalidArgumentError(f"need one ServoCalibration per joint ({dof}), got {len(calibrations)}")
+    if len(calibrations) != dof:
+        raise InvalidArgumentError(f"need one {kind.__name__} per joint ({dof}), got {len(calibrations)}")
+    wrong = [c for c in calibrations if not isinstance(c, kind)]
+    if wrong:
+        raise InvalidArgumentError(
+            f"this controller needs one {kind.__name__} per joint, got a {type(wrong[0]).__name__}"
+            f"{f' for joint {wrong[0].joint!r}' if getattr(wrong[0], 'joint', '') else ''}"
+        )
     channels = [c.channel for c in calibrations]
     if len(set(channels)) != len(channels):
         raise InvalidArgumentError(f"servo channels must differ, got {channels}")

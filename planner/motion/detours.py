@@ -6,8 +6,9 @@ configuration of the dip pushed up the gradient of the inverse condition number 
 clear) and plans again. A waypoint that is itself singular is kept, as the user asked for it,
 and flagged. For a square task Jacobian a sign change of its determinant between the ends of
 a segment means every path between them crosses a singularity; such segments are reported as
-unresolved instead of detoured (another IK branch is the remedy there). The measure and its
-threshold are those of :mod:`planner.motion.singularity`.
+unresolved instead of detoured (another IK branch is the remedy there); detours that did not
+clear their segment are taken out again, so they never cost time for nothing. The measure and
+its threshold are those of :mod:`planner.motion.singularity`.
 """
 
 from __future__ import annotations
@@ -251,16 +252,30 @@ def plan_clear_of_singularities(
         if not inserted:
             break
 
-    w_inv = report.waypoint_inverse_condition
-    wt = traj.waypoint_times
+    def unresolved_segments() -> set[int]:
+        w_inv = report.waypoint_inverse_condition
+        wt = traj.waypoint_times
+        still = set()
+        for s in range(len(nodes) - 1):
+            if w_inv[s] < thr or w_inv[s + 1] < thr:
+                continue
+            mask = (t >= wt[s]) & (t <= wt[s + 1])
+            if mask.any() and float(np.min(inv[mask])) < thr:
+                still.add(nodes[s][2])
+        return still
+
+    still = unresolved_segments()
+    # Detours that did not clear their segment only cost time: take them out again.
+    useless = [i for i, nd in enumerate(nodes) if nd[1] is None and nd[2] in still]
+    if useless:
+        for i in reversed(useless):
+            del nodes[i]
+            del states[i]
+        detours = [d for d in detours if d.segment not in still]
+        traj = plan_nodes()
+        report, t, _, inv = measure_singularities(robot, traj, thr, t_task, rate)
+        still = unresolved_segments()
     user_idx = np.array([i for i, nd in enumerate(nodes) if nd[1] is not None])
-    still = set()
-    for s in range(len(nodes) - 1):
-        if w_inv[s] < thr or w_inv[s + 1] < thr:
-            continue
-        mask = (t >= wt[s]) & (t <= wt[s + 1])
-        if mask.any() and float(np.min(inv[mask])) < thr:
-            still.add(nodes[s][2])
     user_idx.setflags(write=False)
     return SingularityAwarePlan(
         trajectory=traj,

@@ -17,7 +17,7 @@ import html
 import threading
 import time
 from collections.abc import Sequence
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, Protocol
 
 import numpy as np
 
@@ -30,9 +30,27 @@ from planner.motion.singularity import inverse_condition_threshold
 from planner.view.arm import ArmDrawing, quaternion_wxyz
 
 if TYPE_CHECKING:
-    from planner.app.motion_plan import MotionPlan
+    from planner.motion.detours import Detour
+    from planner.motion.singularity import SingularityReport
+    from planner.motion.trajectory import JointTrajectory
 
-__all__ = ["Scene", "require_viser"]
+
+class PlanLike(Protocol):
+    """What the scene reads from a plan; a :class:`planner.MotionPlan` has it all.
+
+    A plan's ``scene`` of obstacles, when it has one, is drawn too.
+    """
+
+    trajectory: JointTrajectory
+    waypoints: np.ndarray
+    waypoint_times: np.ndarray
+    singular_waypoints: tuple[int, ...]
+    detours: tuple[Detour, ...]
+    singularity: SingularityReport
+    labels: tuple[str | None, ...]
+
+
+__all__ = ["PlanLike", "Scene", "require_viser"]
 
 WAYPOINT_COLOR = (20, 150, 60)
 SINGULAR_COLOR = (210, 20, 90)
@@ -42,7 +60,15 @@ GHOST_COLOR = (150, 150, 150)
 OBSTACLE_COLOR = (140, 145, 155)
 FRAME_RATE = 30.0  # playback updates per second [Hz]
 #: What the scene reads from a plan (a planner.MotionPlan has them all).
-_PLAN_ATTRIBUTES = ("trajectory", "waypoints", "waypoint_times", "singular_waypoints", "detours", "singularity")
+_PLAN_ATTRIBUTES = (
+    "trajectory",
+    "waypoints",
+    "waypoint_times",
+    "singular_waypoints",
+    "detours",
+    "singularity",
+    "labels",
+)
 
 
 def require_viser() -> Any:
@@ -87,7 +113,7 @@ class Scene:
     def __init__(
         self,
         robot: Robot,
-        plan: MotionPlan | None = None,
+        plan: PlanLike | None = None,
         *,
         labels: Sequence[str | None] | None = None,
         host: str = "127.0.0.1",

@@ -24,6 +24,7 @@ class PulseCsv(ServoFormat):
 
     name: ClassVar[str] = "pulses"
     file_name: ClassVar[str] = "servo_pulses.csv"
+    written_by_default: ClassVar[bool] = True
 
     def render(self, trajectory: JointTrajectory, calibrations: Sequence[ServoCalibration], period_ms: int) -> str:
         """The CSV text (see the class docstring)."""

@@ -2,16 +2,12 @@
 
 from __future__ import annotations
 
-import math
 from collections.abc import Sequence
 from typing import TYPE_CHECKING, ClassVar
 
-import numpy as np
-
-from planner.core.text import plain
 from planner.exceptions import InvalidArgumentError
 from planner.export.calibration import ServoCalibration, check_calibrations, pulse_widths
-from planner.export.formats.base import ServoFormat
+from planner.export.formats.base import ServoFormat, check_period_ms, command_times
 
 if TYPE_CHECKING:
     from planner.motion.trajectory import JointTrajectory
@@ -43,17 +39,14 @@ def ssc32_group_moves(
     Raises:
         InvalidArgumentError: On a bad period, channel or calibration, or a pulse out of range.
     """
-    if isinstance(period_ms, bool) or not isinstance(period_ms, (int, np.integer)) or not 1 <= period_ms <= 65535:
-        raise InvalidArgumentError(f"period_ms must be an integer in [1, 65535] ms, got {plain(period_ms)}")
+    check_period_ms(period_ms)
     check_calibrations(calibrations, trajectory.dof)
     for c in calibrations:
         if c.channel > SSC32_MAX_CHANNEL:
             raise InvalidArgumentError(
                 f"joint {c.joint!r} uses channel {c.channel}; an SSC-32 has channels 0-{SSC32_MAX_CHANNEL}"
             )
-    n = int(math.ceil(trajectory.duration * 1000.0 / period_ms - 1e-9)) + 1
-    t = np.minimum(np.arange(n) * period_ms / 1000.0, trajectory.duration)
-    pulses = pulse_widths(calibrations, trajectory.sample(t).q)
+    pulses = pulse_widths(calibrations, trajectory.sample(command_times(trajectory, period_ms)).q)
     return ["".join(f"#{c.channel}P{p}" for c, p in zip(calibrations, row)) + f"T{period_ms}" for row in pulses]
 
 
@@ -75,6 +68,8 @@ class Ssc32(ServoFormat):
     name: ClassVar[str] = "ssc32"
     file_name: ClassVar[str] = "ssc32.txt"
     encoding: ClassVar[str] = "ascii"
+    written_by_default: ClassVar[bool] = True
+    option_names: ClassVar[tuple[str, ...]] = ("line_ending",)
 
     def __init__(self, line_ending: str = "cr"):
         if line_ending not in LINE_ENDINGS:
