@@ -50,6 +50,15 @@ def test_animation_is_a_gif_of_the_arm_moving(dh3_plan, tmp_path, view):
     assert_animation(path, plan.trajectory.duration, 10, 1.5, (320, 200))
 
 
+@pytest.mark.parametrize("view", ["side-top", "3d"])
+def test_animation_of_a_plan_around_an_obstacle(tmp_path, view):
+    example = EXAMPLE.parent / "al5c_around_a_block.yaml"
+    plan = planner.plan_motion(get_robot("al5c"), planner.load_motion_request(example))
+    assert plan.scene is not None and plan.scene.obstacles
+    path = animate_plan(tmp_path / "block.gif", get_robot("al5c"), plan, fps=8, size=(320, 240), view=view)
+    assert_animation(path, plan.trajectory.duration, 8, 1.0, (320, 240))
+
+
 def test_plan_animate_writes_the_gif_at_real_speed(tmp_path):
     out = tmp_path / "plan.gif"
     result = run_cli("plan", "dh3", str(EXAMPLE), "--animate", str(out), "--json")

@@ -104,6 +104,16 @@ def _check(fps: float, speed: float, size: Sequence[int], view: str, duration: f
     return width, height
 
 
+def _outline(obstacle: Any, points: np.ndarray) -> list[np.ndarray]:
+    """Polylines of an obstacle's wireframe from its outline points (:func:`obstacle_points`)."""
+    from planner.collision.scene import Box
+
+    if isinstance(obstacle.shape, Box):  # 8 corners, index 4x + 2y + z: edges join corners one bit apart
+        return [points[[a, b]] for a in range(8) for b in range(a + 1, 8) if bin(a ^ b).count("1") == 1]
+    circles = [np.vstack([c, c[:1]]) for c in np.split(points, 2)]  # two closed circles of 24 points
+    return circles + [points[[k, k + 24]] for k in (0, 6, 12, 18)]
+
+
 def _side(points: np.ndarray, heading: np.ndarray) -> np.ndarray:
     """Signed horizontal distance along `heading` (unit, horizontal) and height: the side view."""
     radial = np.hypot(points[..., 0], points[..., 1])
@@ -182,7 +192,8 @@ def animate_plan(
         if len(detours):
             ax.scatter(*detours.T, color=DETOUR, s=18)
         for obstacle, pts in zip(scene.obstacles if scene is not None else (), obstacles):
-            ax.plot(*pts.T, ".", color="0.55", markersize=3)
+            for edge in _outline(obstacle, pts):
+                ax.plot(*edge.T, color="0.55", linewidth=1.0)
             ax.text(*pts.mean(axis=0), obstacle.name, fontsize=7, color="0.35")
         span = float(np.max(hi - lo)) / 2 + pad
         mid = (lo + hi) / 2
