@@ -8,6 +8,7 @@ import subprocess
 import sys
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 import planner
@@ -59,3 +60,29 @@ def png_size(path: Path) -> tuple[int, int]:
     width, height = struct.unpack(">II", data[16:24])
     assert data[-8:-4] == b"IEND"
     return width, height
+
+
+def gif_frames(path: Path) -> tuple[tuple[int, int], list[np.ndarray]]:
+    """The size and every frame (RGB) of a GIF, after checking its signature."""
+    assert Path(path).read_bytes()[:6] in (b"GIF89a", b"GIF87a"), f"{path} is not a GIF"
+    from PIL import Image
+
+    with Image.open(path) as image:
+        frames = []
+        for k in range(image.n_frames):
+            image.seek(k)
+            frames.append(np.asarray(image.convert("RGB"), dtype=np.int16))
+        return image.size, frames
+
+
+def assert_animation(path: Path, duration: float, fps: float, speed: float, size: tuple[int, int]) -> None:
+    """A GIF of the given size with one frame per frame time, and frames that differ."""
+    from planner.app.animation import frame_times
+
+    got_size, frames = gif_frames(path)
+    assert got_size == size
+    assert len(frames) == len(frame_times(duration, fps, speed))
+    # The arm moves: the first, middle and last frames all differ from each other.
+    first, middle, last = frames[0], frames[len(frames) // 2], frames[-1]
+    for a, b in ((first, middle), (middle, last), (first, last)):
+        assert np.count_nonzero(np.any(a != b, axis=-1)) > 50

@@ -9,13 +9,22 @@ import numpy as np
 import pytest
 
 import planner
-from planner.app.demo import AL5C_READING, AL5C_SENSOR_POSE, DH3_STATES_CM, run_demo
+from planner.app.demo import AL5C_READING, AL5C_SENSOR_POSE, DEMO_ANIMATION, DH3_STATES_CM, run_demo
 
-from conftest import png_size, run_cli
+from conftest import assert_animation, png_size, run_cli
 
 pytest.importorskip("matplotlib")
 
-FILES = ("trajectory.csv", "servo_pulses.csv", "ssc32.txt", "summary.json", "joints.png", "singularity.png", "arm.png")
+FILES = (
+    "trajectory.csv",
+    "servo_pulses.csv",
+    "ssc32.txt",
+    "summary.json",
+    "joints.png",
+    "singularity.png",
+    "arm.png",
+    "animation.gif",
+)
 
 
 @pytest.fixture(scope="module")
@@ -35,6 +44,10 @@ def test_cli_demo_writes_every_file(tmp_path):
             if name.endswith(".png"):
                 width, height = png_size(path)
                 assert width >= 600 and height >= 300
+    for arm in ("dh3", "al5c"):
+        duration = json.loads((out / arm / "summary.json").read_text())["duration"]
+        fps, speed, size = DEMO_ANIMATION["fps"], 1.0, DEMO_ANIMATION["size"]
+        assert_animation(out / arm / "animation.gif", duration, fps, speed, tuple(size))
     commands = (out / "al5c" / "ssc32.txt").read_bytes().decode("ascii").split("\r")
     assert commands[0].startswith("#0P") and commands[0].endswith("T20")
     summary = json.loads((out / "dh3" / "summary.json").read_text())

@@ -1,4 +1,4 @@
-"""The layers import only downwards: core, model, geometry, collision, ik, motion, export, hardware, app."""
+"""The layers import only downwards: core, model, geometry, collision, ik, motion, export, hardware, view, app."""
 
 from __future__ import annotations
 
@@ -8,7 +8,7 @@ from pathlib import Path
 import pytest
 
 PACKAGE = Path(__file__).resolve().parent.parent / "planner"
-LAYERS = ("core", "model", "geometry", "collision", "ik", "motion", "export", "hardware", "app")
+LAYERS = ("core", "model", "geometry", "collision", "ik", "motion", "export", "hardware", "view", "app")
 
 pytestmark = pytest.mark.skipif(not (PACKAGE / "app").is_dir(), reason="the source tree is not next to the tests")
 

@@ -199,10 +199,10 @@ def _add_demo(sub: argparse._SubParsersAction) -> None:
         description="Plan Sumadsad's (2020) pick-and-place on dh3 (closed-form IK checked by the NLP, one smooth "
         "servo-limited trajectory, stretched states flagged singular) and Clothier and Shang's (2010) range-bearing "
         "pick-and-place on al5c (approach from above, straight-line lowering, SSC-32 commands); print a summary "
-        "table and write CSV, servo commands and PNG plots.",
+        "table and write CSV, servo commands, PNG plots and an animated GIF per arm.",
     )
     p.add_argument("--out", type=Path, default=Path("planner-demo"), help="output directory (default: planner-demo)")
-    p.add_argument("--no-plots", action="store_true", help="skip the PNG plots (no matplotlib needed)")
+    p.add_argument("--no-plots", action="store_true", help="skip the PNG plots and animations (no matplotlib needed)")
 
 
 def _run_demo(args: argparse.Namespace) -> int:
@@ -243,6 +243,13 @@ def _add_plan(sub: argparse._SubParsersAction) -> None:
         help="write this controller's servo file (default: the plan file's controller; else pulses and ssc32)",
     )
     p.add_argument("--calibration", type=Path, default=None, help="calibration file (README: Driving a real arm)")
+    p.add_argument("--view", action="store_true", help="then show the plan in the browser (planner view; Ctrl-C stops)")
+    p.add_argument("--port", type=int, default=8080, help="port of --view (default 8080; 0: a free one)")
+    p.add_argument("--animate", type=Path, default=None, metavar="FILE.gif", help="write a GIF of the arm moving")
+    p.add_argument("--speed", type=float, default=1.0, help="--animate: plan seconds per GIF second (default 1)")
+    p.add_argument("--fps", type=float, default=15.0, help="--animate: frames per second (default 15)")
+    p.add_argument("--size", type=int, nargs=2, default=(640, 400), metavar=("W", "H"), help="--animate: pixels")
+    p.add_argument("--animate-view", choices=("side-top", "3d"), default="side-top", help="--animate: the view")
 
 
 def _run_plan(args: argparse.Namespace) -> int:
@@ -262,6 +269,11 @@ def _run_plan(args: argparse.Namespace) -> int:
         from planner.app.plots import plot_plan
 
         files += plot_plan(args.out or Path("."), robot, plan)
+    if args.animate is not None:
+        from planner.app.animation import animate_plan
+
+        kw = {"fps": args.fps, "speed": args.speed, "size": args.size, "view": args.animate_view}
+        files.append(animate_plan(args.animate, robot, plan, **kw))
     if args.out is not None:
         try:
             formats = [Ssc32(args.line_ending) if fmt.name == Ssc32.name else fmt for fmt in plan.setup.formats()]
@@ -275,6 +287,7 @@ def _run_plan(args: argparse.Namespace) -> int:
         summary["servo_file_errors"] = servo_error.failures
     if args.json:
         _print_json(summary)
+        _view_plan(args, robot, plan)
         return _report_servo_error(servo_error)
     print(
         f"{robot.name}: {len(plan.waypoints)} waypoints, duration {plan.trajectory.duration:.4f} s "
@@ -296,6 +309,7 @@ def _run_plan(args: argparse.Namespace) -> int:
         print(f"segments still passing near a singularity: {list(plan.unresolved)}")
     if files:
         print(f"wrote {', '.join(summary['files'])}")
+    _view_plan(args, robot, plan)
     return _report_servo_error(servo_error)
 
 
@@ -423,6 +437,33 @@ def _run_send(args: argparse.Namespace) -> int:
     )
     print(f"{'# ' if args.dry_run else ''}{result.message}")
     return {SendStatus.COMPLETED: 0, SendStatus.INTERRUPTED: 130}.get(result.status, 1)
+
+
+def _view_plan(args: argparse.Namespace, robot: Robot, plan: MotionPlan) -> None:
+    """With --view, serve the plan in the browser until Ctrl-C."""
+    if args.view:
+        from planner.app.viewing import run_view
+
+        run_view(robot, plan=plan, port=args.port)
+
+
+# ---------------------------------------------------------------------------- view
+def _add_view(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser(
+        "view",
+        help="an interactive 3-D view of an arm (and a plan) in the browser (needs planner[view])",
+        description="Serve the arm on localhost with viser: joint sliders with live FK and singularity measures, a "
+        "draggable IK target, and with a plan file playback of the plan. Ctrl-C stops.",
+    )
+    p.add_argument("robot", help="robot name (see `planner robots`) or URDF path")
+    p.add_argument("plan_file", type=Path, nargs="?", default=None, help="plan file to plan and play (optional)")
+    p.add_argument("--port", type=int, default=8080, help="port on localhost (default 8080; 0: a free one)")
+
+
+def _run_view(args: argparse.Namespace) -> int:
+    from planner.app.viewing import run_view
+
+    return run_view(args.robot, args.plan_file, port=args.port)
 
 
 # ---------------------------------------------------------------------------- ik
@@ -624,6 +665,7 @@ _COMMANDS: dict[str, tuple[Callable[[argparse._SubParsersAction], None], Callabl
     "plan": (_add_plan, _run_plan),
     "send": (_add_send, _run_send),
     "demo": (_add_demo, _run_demo),
+    "view": (_add_view, _run_view),
     "bench": (_add_bench, _run_bench),
     "urdf-from-dh": (_add_urdf_from_dh, _run_urdf_from_dh),
 }

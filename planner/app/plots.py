@@ -21,10 +21,20 @@ if TYPE_CHECKING:
     from planner.app.motion_plan import MotionPlan
     from planner.model.robot import Robot
 
-__all__ = ["plot_arm_poses", "plot_ik_benchmark", "plot_joint_profiles", "plot_manipulability", "plot_plan"]
+__all__ = [
+    "draw_scene",
+    "obstacle_points",
+    "plot_arm_poses",
+    "plot_ik_benchmark",
+    "plot_joint_profiles",
+    "plot_manipulability",
+    "plot_plan",
+    "pyplot",
+]
 
 
-def _pyplot() -> Any:
+def pyplot() -> Any:
+    """matplotlib.pyplot with the non-interactive Agg backend, or a PlannerError naming the extra."""
     try:
         import matplotlib
     except ImportError as exc:
@@ -40,7 +50,7 @@ def _save(fig: Any, path: str | Path) -> Path:
     out.parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(out, dpi=110)
     fig.clf()
-    _pyplot().close(fig)
+    pyplot().close(fig)
     return out
 
 
@@ -75,7 +85,7 @@ def plot_joint_profiles(
     Returns:
         The PNG path.
     """
-    plt = _pyplot()
+    plt = pyplot()
     limits = limits or {}
     fig, axes = plt.subplots(4, 1, figsize=(10, 10), sharex=True)
     rows = [
@@ -132,7 +142,7 @@ def plot_manipulability(
     Returns:
         The PNG path.
     """
-    plt = _pyplot()
+    plt = pyplot()
     fig, ax = plt.subplots(figsize=(10, 3.5))
     ax.plot(times, values, linewidth=1.4, label=ylabel)
     if threshold is not None:
@@ -175,7 +185,7 @@ def plot_arm_poses(
     Returns:
         The PNG path.
     """
-    plt = _pyplot()
+    plt = pyplot()
     qs = np.atleast_2d(np.asarray(configurations, dtype=float))
     labels = list(labels) if labels is not None else [str(k + 1) for k in range(len(qs))]
     chains = [robot.joint_positions(q) for q in qs]
@@ -188,7 +198,7 @@ def plot_arm_poses(
         side.plot(radial[-1], pts[-1, 2], "*", color=color, markersize=10)
         top.plot(pts[-1, 0], pts[-1, 1], "*", color=color, markersize=10)
     if scene is not None:
-        _draw_scene(side, top, scene)
+        draw_scene(side, top, scene)
     side.set_xlabel("horizontal reach [m]")
     side.set_ylabel("z [m]")
     side.set_title("side view")
@@ -204,7 +214,7 @@ def plot_arm_poses(
     return _save(fig, path)
 
 
-def _obstacle_points(obstacle: Obstacle) -> np.ndarray:
+def obstacle_points(obstacle: Obstacle) -> np.ndarray:
     """Points on the obstacle's outline (box corners, circles of a cylinder or sphere), shape (n, 3)."""
     shape = obstacle.shape
     a = np.linspace(0, 2 * np.pi, 24, endpoint=False)
@@ -221,11 +231,12 @@ def _obstacle_points(obstacle: Obstacle) -> np.ndarray:
     return local @ np.asarray(obstacle.rotation).T + np.asarray(obstacle.position)
 
 
-def _draw_scene(side: Any, top: Any, scene: Scene) -> None:
+def draw_scene(side: Any, top: Any, scene: Scene) -> None:
+    """Obstacles in grey on a side view (height span against reach) and a top view (outline), the floor as a line."""
     from matplotlib.patches import Polygon, Rectangle
 
     for obstacle in scene.obstacles:
-        pts = _obstacle_points(obstacle)
+        pts = obstacle_points(obstacle)
         xy = pts[:, :2]
         centre = xy.mean(axis=0)
         order = np.argsort(np.arctan2(xy[:, 1] - centre[1], xy[:, 0] - centre[0]))
@@ -253,7 +264,7 @@ def plot_ik_benchmark(path: str | Path, rows: Sequence[Mapping[str, Any]], *, ti
     Returns:
         The PNG path.
     """
-    plt = _pyplot()
+    plt = pyplot()
     robots = list(dict.fromkeys(str(r["robot"]) for r in rows))
     methods = list(dict.fromkeys(str(r["method"]) for r in rows))
     width = 0.8 / max(len(methods), 1)
