@@ -267,3 +267,20 @@ def test_bundled_urdfs_pass_the_full_validation():
 
     for name in BUNDLED_ROBOTS:
         planner.Robot(bundled_urdf_path(name).read_text(), tip=BUNDLED_ROBOTS[name].tip)
+
+
+def test_a_one_joint_arm_has_a_jacobian_and_conditioning():
+    description = {
+        "name": "stick",
+        "units": {"length": "m", "angle": "deg"},
+        "velocity": 60,
+        "joints": [{"name": "yaw", "axis": [0, 0, 1], "lower": -170, "upper": 170}],
+        "tool": {"name": "tip", "xyz": [0.3, 0, 0]},
+    }
+    robot = planner.Robot(planner.urdf_from_dh(description), tip="tip")
+    jac = robot.jacobian([0.3])
+    assert jac.shape == (6, 1)
+    np.testing.assert_allclose(jac[:3, 0], [-0.3 * np.sin(0.3), 0.3 * np.cos(0.3), 0.0], atol=1e-12)
+    inverse, manipulability = robot.conditioning(np.zeros((3, 1)))
+    np.testing.assert_allclose(inverse, 1.0)
+    np.testing.assert_allclose(manipulability, 0.3)

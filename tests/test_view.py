@@ -20,7 +20,7 @@ import planner
 
 from conftest import get_robot, needs_example_robot_data, run_cli
 
-viser = pytest.importorskip("viser", reason="viser is not installed (pip install 'planner[view]')")
+viser = pytest.importorskip("viser", reason="viser is not installed (pip install 'servo-arm-planner[view]')")
 
 from planner.view import Scene  # noqa: E402
 from planner.view.arm import ARM_COLOR  # noqa: E402
@@ -225,7 +225,9 @@ def test_without_viser_the_command_names_the_extra():
         [sys.executable, "-c", code, "view", "dh3", str(EXAMPLE)], capture_output=True, text=True, timeout=60
     )
     assert result.returncode == 1
-    assert result.stderr.strip() == "planner view: error: the 3-D view needs viser: pip install 'planner[view]'"
+    assert (
+        result.stderr.strip() == "planner view: error: the 3-D view needs viser: pip install 'servo-arm-planner[view]'"
+    )
 
 
 @contextlib.contextmanager

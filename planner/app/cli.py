@@ -451,7 +451,7 @@ def _view_plan(args: argparse.Namespace, robot: Robot, plan: MotionPlan) -> None
 def _add_view(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser(
         "view",
-        help="an interactive 3-D view of an arm (and a plan) in the browser (needs planner[view])",
+        help="an interactive 3-D view of an arm (and a plan) in the browser (needs the view extra)",
         description="Serve the arm on localhost with viser: joint sliders with live FK and singularity measures, a "
         "draggable IK target, and with a plan file playback of the plan. Ctrl-C stops.",
     )

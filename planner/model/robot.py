@@ -526,7 +526,8 @@ class Robot:
         }
         if reference not in refs:
             raise InvalidArgumentError(f"unknown reference {reference!r}; valid: {', '.join(refs)}")
-        return pin.computeFrameJacobian(self.model, self.data, self._pin_q(arr), fid, refs[reference]).copy()
+        jac = pin.computeFrameJacobian(self.model, self.data, self._pin_q(arr), fid, refs[reference])
+        return np.array(jac, dtype=float).reshape(6, self.model.nv)  # a 1-joint arm's comes back flat
 
     def resolve_task(self, task: Task | None) -> Task:
         """The task a singularity measure uses: `task`, or by default pose or position.

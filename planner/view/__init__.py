@@ -10,7 +10,7 @@ It sits just below :mod:`planner.app` and imports only the layers under it::
     scene.serve_forever()
 
 viser is imported when a :class:`Scene` is made; without it the error names the extra
-(``pip install 'planner[view]'``).
+(``pip install 'servo-arm-planner[view]'``).
 """
 
 from planner.view.scene import Scene, require_viser

@@ -21,6 +21,7 @@ from typing import TYPE_CHECKING, Any, Protocol
 
 import numpy as np
 
+from planner.core.version import install_hint
 from planner.exceptions import InvalidArgumentError, PlannerError
 from planner.geometry.target import Target
 from planner.ik.result import IKResult
@@ -76,7 +77,7 @@ def require_viser() -> Any:
     try:
         import viser
     except ImportError as exc:
-        raise PlannerError("the 3-D view needs viser: pip install 'planner[view]'") from exc
+        raise PlannerError(f"the 3-D view needs viser: {install_hint('view')}") from exc
     return viser
 
 
