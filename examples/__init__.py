@@ -1,0 +1,1 @@
+"""Example plan files shipped with the package (``planner examples`` lists and copies them)."""
