@@ -189,3 +189,15 @@ def test_the_example_plan_file_goes_around_its_block(capsys):
     assert main(["check", "al5c", str(example), "--json"]) == 0
     report = json.loads(capsys.readouterr().out)
     assert report["collision"]["clear"] and report["routes"] == [0]
+
+
+def test_the_readme_shows_what_planner_check_prints(capsys):
+    from pathlib import Path
+
+    root = Path(__file__).resolve().parents[1]
+    readme = (root / "README.md").read_text()
+    start = readme.index("planner check al5c examples/al5c_around_a_block.yaml\n# ")
+    block = readme[start : readme.index("```", start)].splitlines()[1:]
+    shown = [line.removeprefix("# ") for line in block if line.startswith("# ")]
+    assert main(["check", "al5c", str(root / "examples" / "al5c_around_a_block.yaml")]) == 0
+    assert capsys.readouterr().out.splitlines() == shown
