@@ -25,6 +25,7 @@ from typing import Any
 import numpy as np
 
 from planner.core.arrays import read_only
+from planner.core.files import positive_number
 from planner.core.rotations import rpy_to_matrix
 from planner.core.text import plain
 from planner.exceptions import InvalidArgumentError
@@ -33,15 +34,6 @@ __all__ = ["FLOOR", "Box", "Cylinder", "Obstacle", "Scene", "Shape", "Sphere", "
 
 #: The name the floor goes by in reports.
 FLOOR = "floor"
-
-
-def _positive(value: Any, what: str) -> float:
-    if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)):
-        raise InvalidArgumentError(f"{what} must be a number, got {plain(value)}")
-    x = float(value)
-    if not (math.isfinite(x) and x > 0):
-        raise InvalidArgumentError(f"{what} must be positive and finite, got {plain(value)}")
-    return x
 
 
 @dataclass(frozen=True)
@@ -53,7 +45,7 @@ class Box:
     def __post_init__(self) -> None:
         if not isinstance(self.size, Sequence) or len(self.size) != 3:
             raise InvalidArgumentError(f"a box needs three sizes [x, y, z], got {plain(self.size)}")
-        object.__setattr__(self, "size", tuple(_positive(v, "box size") for v in self.size))
+        object.__setattr__(self, "size", tuple(positive_number(v, "box size") for v in self.size))
 
 
 @dataclass(frozen=True)
@@ -63,7 +55,7 @@ class Sphere:
     radius: float
 
     def __post_init__(self) -> None:
-        object.__setattr__(self, "radius", _positive(self.radius, "sphere radius"))
+        object.__setattr__(self, "radius", positive_number(self.radius, "sphere radius"))
 
 
 @dataclass(frozen=True)
@@ -74,8 +66,8 @@ class Cylinder:
     length: float
 
     def __post_init__(self) -> None:
-        object.__setattr__(self, "radius", _positive(self.radius, "cylinder radius"))
-        object.__setattr__(self, "length", _positive(self.length, "cylinder length"))
+        object.__setattr__(self, "radius", positive_number(self.radius, "cylinder radius"))
+        object.__setattr__(self, "length", positive_number(self.length, "cylinder length"))
 
 
 Shape = Box | Sphere | Cylinder
@@ -188,12 +180,12 @@ def _shape(entry: Mapping[str, Any], where: str, length: float) -> Shape:
         return Box(tuple(_numbers(spec, f"{where}: box", 3) * length))
     if kind == "sphere":
         radius = spec.get("radius") if isinstance(spec, Mapping) else spec
-        return Sphere(_positive(radius, f"{where}: sphere radius") * length)
+        return Sphere(positive_number(radius, f"{where}: sphere radius") * length)
     if not isinstance(spec, Mapping) or set(spec) != {"radius", "length"}:
         raise InvalidArgumentError(f"{where}: cylinder must be {{radius: R, length: L}}, got {plain(spec)}")
     return Cylinder(
-        _positive(spec["radius"], f"{where}: cylinder radius") * length,
-        _positive(spec["length"], f"{where}: cylinder length") * length,
+        positive_number(spec["radius"], f"{where}: cylinder radius") * length,
+        positive_number(spec["length"], f"{where}: cylinder length") * length,
     )
 
 

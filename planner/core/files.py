@@ -19,7 +19,21 @@ from planner.core.text import plain
 from planner.core.units import ANGLE_UNITS, LENGTH_UNITS
 from planner.exceptions import InvalidArgumentError
 
-__all__ = ["input_error", "parse_number", "parse_numbers", "parse_units", "read_data_file"]
+__all__ = ["input_error", "parse_number", "parse_numbers", "parse_units", "positive_number", "read_data_file"]
+
+
+def positive_number(value: Any, what: str) -> float:
+    """`value` as a positive finite float.
+
+    Raises:
+        InvalidArgumentError: If it is not a number (booleans are not), or not positive and finite.
+    """
+    if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)):
+        raise InvalidArgumentError(f"{what} must be a number, got {plain(value)}")
+    x = float(value)
+    if not (math.isfinite(x) and x > 0):
+        raise InvalidArgumentError(f"{what} must be positive and finite, got {plain(value)}")
+    return x
 
 
 def read_data_file(path: str | Path, what: str) -> Any:

@@ -15,6 +15,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from planner.core.files import positive_number
 from planner.core.text import plain
 from planner.exceptions import InvalidArgumentError
 
@@ -27,6 +28,7 @@ __all__ = [
     "angle_to_steps",
     "check_calibrations",
     "default_calibrations",
+    "linear_units",
     "pulse_widths",
     "steps_to_angle",
 ]
@@ -82,13 +84,41 @@ def steps_to_angle(steps: int | np.ndarray, max_rotation: float, max_steps: int)
     return float(a) if a.ndim == 0 else a
 
 
-def _positive(value: float, what: str) -> float:
-    if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)):
-        raise InvalidArgumentError(f"{what} must be a number, got {plain(value)}")
-    x = float(value)
-    if not (math.isfinite(x) and x > 0):
-        raise InvalidArgumentError(f"{what} must be positive and finite, got {plain(value)}")
-    return x
+def linear_units(
+    angle: float | np.ndarray,
+    at_zero: float,
+    per_rad: float,
+    valid: tuple[float, float],
+    who: str,
+    unit: tuple[str, str],
+) -> float | np.ndarray:
+    """A controller value ``at_zero + per_rad * angle`` for joint angle(s) [rad], checked, not clipped.
+
+    Args:
+        angle: Joint angle(s) [rad].
+        at_zero: The value at angle 0.
+        per_rad: Change per radian, signed by the servo's direction.
+        valid: The smallest and largest value the controller takes.
+        who: The joint and its channel or id, for messages.
+        unit: What the value is and its unit, e.g. ``("pulse", "us")``.
+
+    Raises:
+        InvalidArgumentError: If an angle is NaN or needs a value outside `valid` (naming both).
+    """
+    a = np.asarray(angle, dtype=float)
+    if not np.all(np.isfinite(a)):
+        raise InvalidArgumentError(f"angle for {who} must be finite, got {plain(angle)}")
+    p = at_zero + per_rad * a
+    lo, hi = valid
+    out = (p < lo - 1e-9) | (p > hi + 1e-9)
+    if np.any(out):
+        k = np.argmax(out.reshape(-1))
+        bad_a, bad_p = float(a.reshape(-1)[k]), float(p.reshape(-1)[k])
+        raise InvalidArgumentError(
+            f"{who} angle {bad_a:.6g} rad needs {unit[0]} {bad_p:.1f} {unit[1]}, "
+            f"outside [{lo:g}, {hi:g}] {unit[1]}; adjust its calibration"
+        )
+    return float(p) if p.ndim == 0 else p
 
 
 @dataclass(frozen=True)
@@ -121,7 +151,7 @@ class ServoCalibration:
         if isinstance(self.channel, bool) or not isinstance(self.channel, (int, np.integer)) or self.channel < 0:
             raise InvalidArgumentError(f"{name}: channel must be a non-negative integer, got {self.channel!r}")
         object.__setattr__(self, "channel", int(self.channel))
-        object.__setattr__(self, "us_per_rad", _positive(self.us_per_rad, f"{name}: us_per_rad"))
+        object.__setattr__(self, "us_per_rad", positive_number(self.us_per_rad, f"{name}: us_per_rad"))
         if self.direction not in (1, -1) or isinstance(self.direction, bool):
             raise InvalidArgumentError(f"{name}: direction must be +1 or -1, got {self.direction!r}")
         for attr in ("pulse_at_zero", "min_pulse", "max_pulse"):
@@ -164,19 +194,14 @@ class ServoCalibration:
         Raises:
             InvalidArgumentError: If an angle is NaN or needs a pulse outside [min, max].
         """
-        a = np.asarray(angle, dtype=float)
-        if not np.all(np.isfinite(a)):
-            raise InvalidArgumentError(f"angle for joint {self.joint!r} must be finite, got {plain(angle)}")
-        p = self.pulse_at_zero + self.direction * self.us_per_rad * a
-        out = (p < self.min_pulse - 1e-9) | (p > self.max_pulse + 1e-9)
-        if np.any(out):
-            k = np.argmax(out.reshape(-1))
-            bad_a, bad_p = float(a.reshape(-1)[k]), float(p.reshape(-1)[k])
-            raise InvalidArgumentError(
-                f"joint {self.joint!r} (channel {self.channel}) angle {bad_a:.6g} rad needs pulse {bad_p:.1f} us, "
-                f"outside [{self.min_pulse:g}, {self.max_pulse:g}] us; adjust its calibration"
-            )
-        return float(p) if p.ndim == 0 else p
+        return linear_units(
+            angle,
+            self.pulse_at_zero,
+            self.direction * self.us_per_rad,
+            (self.min_pulse, self.max_pulse),
+            f"joint {self.joint!r} (channel {self.channel})",
+            ("pulse", "us"),
+        )
 
     def angle(self, pulse: float | np.ndarray) -> float | np.ndarray:
         """Joint angle [rad] for pulse width(s) [us]; the inverse of :meth:`pulse`."""

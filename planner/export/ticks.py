@@ -15,6 +15,7 @@ import numpy as np
 
 from planner.core.text import plain
 from planner.exceptions import InvalidArgumentError
+from planner.export.calibration import linear_units
 
 __all__ = ["STS_TICKS_PER_TURN", "TickCalibration", "tick_positions"]
 
@@ -83,19 +84,14 @@ class TickCalibration:
         Raises:
             InvalidArgumentError: If an angle is NaN or needs a position outside [min, max].
         """
-        a = np.asarray(angle, dtype=float)
-        if not np.all(np.isfinite(a)):
-            raise InvalidArgumentError(f"angle for joint {self.joint!r} must be finite, got {plain(angle)}")
-        p = self.ticks_at_zero + self.direction * self.ticks_per_rad * a
-        out = (p < self.min_ticks - 1e-9) | (p > self.max_ticks + 1e-9)
-        if np.any(out):
-            k = np.argmax(out.reshape(-1))
-            bad_a, bad_p = float(a.reshape(-1)[k]), float(p.reshape(-1)[k])
-            raise InvalidArgumentError(
-                f"joint {self.joint!r} (id {self.id}) angle {bad_a:.6g} rad needs position {bad_p:.1f} ticks, "
-                f"outside [{self.min_ticks:g}, {self.max_ticks:g}]; adjust its calibration"
-            )
-        return float(p) if p.ndim == 0 else p
+        return linear_units(
+            angle,
+            self.ticks_at_zero,
+            self.direction * self.ticks_per_rad,
+            (self.min_ticks, self.max_ticks),
+            f"joint {self.joint!r} (id {self.id})",
+            ("position", "ticks"),
+        )
 
     def angle(self, ticks: float | np.ndarray) -> float | np.ndarray:
         """Joint angle [rad] for position(s) [ticks]; the inverse of :meth:`ticks`."""
