@@ -152,6 +152,7 @@ class CollisionChecker:
         self._data = robot.model.createData()
         self._gdata = pin.GeometryData(geom)
         self._active: dict[tuple[str, ...], np.ndarray] = {}
+        self._active_now: np.ndarray | None = None
 
     def __repr__(self) -> str:
         return (
@@ -174,8 +175,11 @@ class CollisionChecker:
         return mask
 
     def _set_active(self, mask: np.ndarray) -> None:
+        if mask is self._active_now:
+            return  # masks are cached per allow set: the same object is the same pairs
         for k, on in enumerate(mask):
             self._gdata.activeCollisionPairs[k] = bool(on)
+        self._active_now = mask
 
     def clearance(self, q: Sequence[float] | np.ndarray, *, allow: Iterable[str] = ()) -> Clearance:
         """The closest pair of bodies at configuration `q`.
