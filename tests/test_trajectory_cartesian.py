@@ -6,6 +6,7 @@ import numpy as np
 import pinocchio as pin
 import pytest
 
+import planner
 from planner import InvalidArgumentError, Target, rotation_error, rpy_to_matrix
 from planner.app.motion_plan import plan_motion
 from planner.app.plan_file import parse_motion_request
@@ -266,3 +267,60 @@ def test_the_demo_lines_are_smooth_splines_within_every_limit():
             # A chain of time-optimal segments between the samples switched 100-120 times here.
             assert max(counts) <= 12, (k, counts)
             assert plan.line_deviation[k - 1] <= 1e-5
+
+
+def test_random_lines_are_smooth_and_keep_every_limit():
+    from planner.app.motion_plan import plan_motion
+    from planner.app.plan_file import parse_motion_request
+    from planner.motion.trajectory import LIMIT_TOLERANCE
+
+    rng = np.random.default_rng(5)
+    counts = []
+    for name, lines in (("al5c", 6), ("three_joint", 3)):  # three_joint's lines are metres long
+        robot = get_robot(name)
+        planned = 0
+        while planned < lines:
+            q = robot.random_configurations(rng, 2)
+            data = {
+                "targets": [
+                    {"position": robot.position(q[0]).tolist()},
+                    {"position": robot.position(q[1]).tolist(), "line": True},
+                ]
+            }
+            try:
+                plan = plan_motion(robot, parse_motion_request(data))
+            except planner.PlannerError:
+                continue
+            planned += 1
+            traj = plan.trajectory
+            peaks = traj.peak_ratios(None)
+            assert max(peaks["velocity"], peaks["acceleration"], peaks["jerk"]) <= 1 + LIMIT_TOLERANCE
+            assert peaks["position"] <= LIMIT_TOLERANCE * 4
+            np.testing.assert_allclose(traj.sample(traj.waypoint_times).q, traj.waypoints, atol=1e-12)
+            np.testing.assert_allclose(traj.sample(plan.waypoint_times).q, plan.waypoints, atol=1e-12)
+            counts.append(max(_jerk_sign_changes(traj, plan.departure_times[0], plan.waypoint_times[1], plan.limits)))
+    # A chain of time-optimal segments between the samples switches hundreds of times per line.
+    assert np.median(counts) <= 20, counts
+
+
+@pytest.mark.parametrize("count", [2, 3, 4, 9, 400])
+def test_the_rest_to_rest_spline_is_c2_through_its_samples(count):
+    from planner.motion.line_smoothing import rest_to_rest_spline
+
+    rng = np.random.default_rng(count)
+    t = np.cumsum(rng.uniform(0.01, 0.3, count))
+    q = rng.normal(size=(count, 3))
+    knots, p, v, a, j = rest_to_rest_spline(t, q)
+    h = np.diff(np.append(knots, t[-1]))[:, None]
+    end_p = p + v * h + a * h**2 / 2 + j * h**3 / 6
+    end_v = v + a * h + j * h**2 / 2
+    end_a = a + j * h
+    np.testing.assert_allclose(end_p[:-1], p[1:], atol=1e-9)
+    np.testing.assert_allclose(end_v[:-1], v[1:], atol=1e-8)
+    np.testing.assert_allclose(end_a[:-1], a[1:], atol=1e-7)
+    np.testing.assert_allclose([v[0], a[0], end_v[-1], end_a[-1]], 0.0, atol=1e-8)
+    np.testing.assert_allclose(p[0], q[0], atol=1e-12)
+    np.testing.assert_allclose(end_p[-1], q[-1], atol=1e-9)
+    on_samples = np.isin(knots, t)
+    np.testing.assert_allclose(p[on_samples], q[: int(on_samples.sum())], atol=1e-9)
+    assert len(knots) == count + 1
