@@ -152,6 +152,7 @@ class CollisionChecker:
         self._data = robot.model.createData()
         self._gdata = pin.GeometryData(geom)
         self._active: dict[tuple[str, ...], np.ndarray] = {}
+        self._active_now: np.ndarray | None = None  # the pairs active in _gdata (None: not set yet)
 
     def __repr__(self) -> str:
         return (
@@ -174,8 +175,13 @@ class CollisionChecker:
         return mask
 
     def _set_active(self, mask: np.ndarray) -> None:
+        # Setting the flags pair by pair from Python costs more than a UR5 distance query:
+        # only when the mask changes.
+        if self._active_now is not None and np.array_equal(self._active_now, mask):
+            return
         for k, on in enumerate(mask):
             self._gdata.activeCollisionPairs[k] = bool(on)
+        self._active_now = np.array(mask, dtype=bool)
 
     def clearance(self, q: Sequence[float] | np.ndarray, *, allow: Iterable[str] = ()) -> Clearance:
         """The closest pair of bodies at configuration `q`.
