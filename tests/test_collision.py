@@ -217,6 +217,37 @@ def test_known_configurations_of_mesh_arms(name, free, self_hit, floor_hit):
     assert c.in_collision and FLOOR in c.bodies
 
 
+@needs_example_robot_data
+@pytest.mark.parametrize("name", ["ur5", "panda"])
+def test_mesh_hulls_contain_the_meshes(name):
+    """Every contact of the URDF meshes is a contact of their hulls (UR5 links are not convex)."""
+    import pinocchio as pin
+
+    from planner.collision.arm import _package_dirs
+
+    robot = get_robot(name)
+    checker = CollisionChecker(robot)
+    full = pin.buildModelFromXML(robot.urdf)
+    meshes = pin.buildGeomFromUrdfString(full, robot.urdf, pin.GeometryType.COLLISION, None, _package_dirs(robot))
+    if robot.locked_joints:
+        q_ref = pin.neutral(full)
+        for joint, value in robot.locked_joints.items():
+            q_ref[full.joints[full.getJointId(joint)].idx_q] = value
+        _, meshes = pin.buildReducedModel(full, meshes, [full.getJointId(j) for j in robot.locked_joints], q_ref)
+    for a, b in checker.arm.self_pairs:
+        meshes.addCollisionPair(pin.CollisionPair(a, b))
+    data, gdata = robot.model.createData(), pin.GeometryData(meshes)
+    contacts = 0
+    for q in robot.random_configurations(np.random.default_rng(1), 150):
+        pin.computeCollisions(robot.model, data, meshes, gdata, robot.pinocchio_configuration(q), False)
+        hulls = checker.pair_distances(q, checker.pair_mask())
+        for k, result in enumerate(gdata.collisionResults):
+            if result.isCollision():
+                contacts += 1
+                assert hulls[k] <= 0.0, (q, checker.arm.self_pairs[k])
+    assert contacts > 0
+
+
 # ---------------------------------------------------------------------------- continuous checks
 
 

@@ -1,0 +1,461 @@
+"""Benchmark: collision checks and collision-free plans against roboplan, in the same run.
+
+For ur5 and panda (example-robot-data URDFs; roboplan reads the same URDF and that package's
+SRDF, whose disabled pairs are its self-collision filter; ours samples its own) and one scene
+for both: a table (a 1.6 x 1.6 x 0.05 m box whose top is 5 mm below the arm's base) and a box
+(0.25 x 0.25 x 0.5 m at x = 0.45 m standing on the table).
+
+1. **Checks per second**, on the same random configurations (fixed seed): ours
+   :meth:`CollisionChecker.in_collision` and :meth:`CollisionChecker.clearance` (a distance,
+   which roboplan has no call for), against roboplan's ``Scene.hasCollisions``; self only (no
+   obstacles) and self + scene. The share of configurations on which both checkers agree is
+   printed beside (the geometries differ: ours are the collision meshes' convex hulls,
+   roboplan's the meshes themselves).
+2. **Plans**: random start/goal pairs within the joint limits that both checkers find
+   collision-free (fixed seed). Ours: :func:`planner.app.motion_plan.plan_motion` with the
+   scene (a straight move when it is clear, else RRT-Connect + shortcuts, then jerk-limited
+   line timing along the route). roboplan: its RRT-Connect (5 s budget like ours, 10,000
+   nodes), its ``PathShortcutter``, then its TOPP-RA in its default ``Hermite`` mode (rest at
+   every waypoint of the path) and in ``Cubic`` mode (a spline through them). Same limits for
+   all: v from the URDF, a = 2 v, j = 10 a (roboplan takes v and a; TOPP-RA ignores jerk).
+   Planning time = wall time of the whole call (roboplan: RRT + shortcut + TOPP-RA at its
+   default 10 ms output step). Each trajectory is then sampled at 1 kHz (roboplan's generated
+   again with a 1 ms step; its velocities and accelerations as it reports them, jerk by
+   differences) for the worst velocity, acceleration and jerk ratios to the limits, and
+   checked for collisions at every sample by both checkers.
+
+Goals (from the issue): checks per second at least roboplan's on the same model; 100 % success
+wherever roboplan finds a path; planning time at most roboplan's median; duration within 10 %
+of roboplan's. Prints a Markdown table and writes JSON and the table to benchmarks/results/.
+
+    python benchmarks/bench_collision.py [--paths 50] [--arms ur5 panda] [--configs 2000] [--seed 0]
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+from planner import load_robot
+from planner.app.benchmark import run_record
+from planner.app.motion_plan import plan_motion
+from planner.app.plan_file import parse_motion_request
+from planner.collision import CollisionChecker, parse_scene
+from planner.exceptions import PlannerError
+from planner.model.catalog import EXAMPLE_ROBOTS, example_robot_data_dir
+from planner.motion.limits import JointLimits
+
+RESULTS = Path(__file__).resolve().parent / "results"
+
+#: The scene, in plan-file form (metres), for both planners.
+SCENE = {
+    "obstacles": [
+        {"name": "table", "box": [1.6, 1.6, 0.05], "position": [0.0, 0.0, -0.03]},
+        {"name": "box", "box": [0.25, 0.25, 0.5], "position": [0.45, 0.0, 0.25]},
+    ]
+}
+#: Each arm's SRDF in example-robot-data, and roboplan's joint group for the arm (None: all joints).
+SRDF = {"ur5": ("ur_description/srdf/ur5.srdf", None), "panda": ("panda_description/srdf/panda.srdf", "arm")}
+BUDGET = 5.0  # seconds, both planners
+RATE = 1000.0
+
+
+class Roboplan:
+    """roboplan's scene (same URDF, the arm's SRDF, the same limits and obstacles), RRT and TOPP-RA."""
+
+    def __init__(self, name: str, robot, limits: JointLimits, obstacles: bool) -> None:
+        import roboplan.core as rc
+        import roboplan.rrt as rr
+        import roboplan.toppra as rt
+
+        self.rc, self.rt = rc, rt
+        root = example_robot_data_dir()
+        assert root is not None
+        desc = rc.loadUrdfSceneDescription(str(root / EXAMPLE_ROBOTS[name].urdf), [str(root.parent.parent)])
+        self.scene = rc.Scene(name, desc)
+        srdf, group = SRDF[name]
+        self.scene.importSrdf((root / srdf).read_text())
+        self.group = group or ""
+        names = self.scene.getJointNames()
+        self.arm_joints = list(robot.joint_names)
+        # The full configuration: the arm's joints, the others (fingers) at planner's locked values.
+        self.index = np.array([names.index(j) for j in self.arm_joints])
+        self.full = np.array([robot.locked_joints.get(j, 0.0) for j in names])
+        with tempfile.NamedTemporaryFile("w", suffix=".yaml", delete=False) as f:
+            f.write("joint_limits:\n")
+            for j, a, jerk in zip(self.arm_joints, limits.acceleration, limits.jerk):
+                f.write(f"  {j}:\n    max_acceleration: [{float(a)!r}]\n    max_jerk: [{float(jerk)!r}]\n")
+        self.scene.importJointLimitsFromConfig(rc.loadJointLimitsConfig(f.name))
+        Path(f.name).unlink()
+        v = self.scene.getVelocityLimitVectors(self.group)[1]
+        a = self.scene.getAccelerationLimitVectors(self.group)[1]
+        assert np.allclose(v, limits.velocity) and np.allclose(a, limits.acceleration), (v, a)
+        if obstacles:
+            for ob in SCENE["obstacles"]:
+                tform = np.eye(4)
+                tform[:3, 3] = ob["position"]
+                color = np.array([0.5, 0.5, 0.5, 1.0])
+                self.scene.addBoxGeometry(ob["name"], "universe", rc.Box(*ob["box"]), tform, color)
+        self.scene.setJointPositions(self.full)
+        options = rr.RRTOptions()
+        options.group_name = self.group
+        options.rrt_connect = True
+        options.max_planning_time = BUDGET
+        options.max_nodes = 10000
+        options.max_connection_distance = 1.0
+        options.collision_check_step_size = 0.05
+        self.rrt = rr.RRT(self.scene, options)
+        self.shortcutter = rc.PathShortcutter(self.scene, rc.PathShortcuttingOptions(group_name=self.group))
+        self.toppra = rt.PathParameterizerTOPPRA(self.scene, self.group)
+
+    def q_full(self, q: np.ndarray) -> np.ndarray:
+        full = self.full.copy()
+        full[self.index] = q
+        return full
+
+    def in_collision(self, q_full: np.ndarray) -> bool:
+        return bool(self.scene.hasCollisions(q_full))
+
+    def plan(self, qa: np.ndarray, qb: np.ndarray, seed: int) -> dict:
+        """RRT-Connect + shortcut; then TOPP-RA per mode. Times and 1 ms trajectories."""
+        rc, rt = self.rc, self.rt
+        self.rrt.setRngSeed(seed)
+        t0 = time.perf_counter()
+        try:
+            path = self.rrt.plan(rc.JointConfiguration(self.arm_joints, qa), rc.JointConfiguration(self.arm_joints, qb))
+        except RuntimeError as exc:  # it raises when it gives up
+            return {"found": False, "path_time": time.perf_counter() - t0, "reason": str(exc)}
+        if path is None:
+            return {"found": False, "path_time": time.perf_counter() - t0, "reason": "no path"}
+        path = self.shortcutter.shortcut(path)
+        path_time = time.perf_counter() - t0
+        out: dict = {"found": True, "path_time": path_time, "path_points": len(path.positions)}
+        for mode in ("Hermite", "Cubic"):
+            m = getattr(rt.SplineFittingMode, mode)
+            t1 = time.perf_counter()
+            traj = self.toppra.generate(path, rt.TOPPRAOptions(dt=0.01, mode=m))
+            out[mode] = {"plan_time": path_time + time.perf_counter() - t1, "duration": float(traj.times[-1])}
+            fine = self.toppra.generate(path, rt.TOPPRAOptions(dt=1.0 / RATE, mode=m))
+            out[mode]["samples"] = (
+                np.array(fine.times),
+                np.array(fine.positions),
+                np.array(fine.velocities),
+                np.array(fine.accelerations),
+            )
+        return out
+
+
+def limit_ratios(t, q, qd, qdd, limits: JointLimits) -> dict:
+    """Worst |v|, |a| over the limits at the samples, |jerk| by differences of qdd."""
+    dt = np.diff(t)
+    jerk = np.diff(qdd, axis=0) / dt[:, None] if len(t) > 1 else np.zeros((0, q.shape[1]))
+    return {
+        "velocity": float(np.max(np.abs(qd) / limits.velocity)),
+        "acceleration": float(np.max(np.abs(qdd) / limits.acceleration)),
+        "jerk": float(np.max(np.abs(jerk) / limits.jerk)) if len(jerk) else 0.0,
+        "leaves_range": bool(np.any(q < limits.lower - 1e-9) or np.any(q > limits.upper + 1e-9)),
+    }
+
+
+def collisions(q: np.ndarray, ours: CollisionChecker, theirs: Roboplan | None) -> dict:
+    """Samples in collision by our checker and by roboplan's."""
+    out = {"ours_hits": int(sum(ours.in_collision(x) for x in q))}
+    if theirs is not None:
+        out["roboplan_hits"] = int(sum(theirs.in_collision(theirs.q_full(x)) for x in q))
+    return out
+
+
+def rate(fn, qs: np.ndarray) -> tuple[float, list]:
+    fn(qs[0])  # warm-up
+    t0 = time.perf_counter()
+    results = [fn(q) for q in qs]
+    return len(qs) / (time.perf_counter() - t0), results
+
+
+def bench_checks(name: str, robot, scene, limits, n: int, seed: int, have_roboplan: bool) -> dict:
+    qs = robot.random_configurations(np.random.default_rng(seed), n)
+    out: dict = {"configs": n}
+    for kind, sc in (("self", None), ("scene", scene)):
+        checker = CollisionChecker(robot, sc)
+        out[f"{kind}_pairs"] = checker.pair_count
+        out[f"ours_{kind}_in_collision_per_s"], hits = rate(checker.in_collision, qs)
+        out[f"ours_{kind}_clearance_per_s"], _ = rate(checker.clearance, qs)
+        out[f"ours_{kind}_colliding"] = int(sum(hits))
+        if have_roboplan:
+            rp = Roboplan(name, robot, limits, obstacles=sc is not None)
+            full = np.array([rp.q_full(q) for q in qs])
+            out[f"roboplan_{kind}_per_s"], theirs = rate(rp.in_collision, full)
+            out[f"roboplan_{kind}_colliding"] = int(sum(theirs))
+            out[f"{kind}_agreement"] = float(np.mean(np.array(hits) == np.array(theirs)))
+    return out
+
+
+def bench_plans(name: str, robot, limits, paths: int, seed: int, have_roboplan: bool) -> list[dict]:
+    checker = CollisionChecker(robot, parse_scene(SCENE))
+    rp = Roboplan(name, robot, limits, obstacles=True) if have_roboplan else None
+    rng = np.random.default_rng(seed)
+    pairs, drawn = [], 0
+    while len(pairs) < paths:
+        qa, qb = robot.random_configurations(rng, 2)
+        drawn += 1
+        if checker.in_collision(qa) or checker.in_collision(qb):
+            continue
+        if rp is not None and (rp.in_collision(rp.q_full(qa)) or rp.in_collision(rp.q_full(qb))):
+            continue
+        pairs.append((qa, qb))
+    # Warm-up (imports, CasADi/Ruckig first calls) on a pair outside the measured set.
+    qa, qb = pairs[0]
+    plan_motion(robot, parse_motion_request({"waypoints": [qa.tolist(), qb.tolist()], "scene": SCENE}))
+    rows = []
+    for i, (qa, qb) in enumerate(pairs):
+        row: dict = {"start": qa.tolist(), "goal": qb.tolist(), "drawn": drawn}
+        request = parse_motion_request(
+            {
+                "waypoints": [qa.tolist(), qb.tolist()],
+                "scene": SCENE,
+                "avoidance": {"seed": seed + i, "time_budget": BUDGET},
+            }
+        )
+        t0 = time.perf_counter()
+        try:
+            plan = plan_motion(robot, request)
+        except PlannerError as exc:
+            row["ours"] = {"found": False, "plan_time": time.perf_counter() - t0, "reason": str(exc)}
+        else:
+            traj = plan.trajectory
+            elapsed = time.perf_counter() - t0
+            peaks = traj.peak_ratios(RATE)
+            exact = traj.peak_ratios(None)
+            t = np.append(np.arange(0.0, traj.duration, 1.0 / RATE), traj.duration)
+            ours = {
+                "found": True,
+                "plan_time": elapsed,
+                "duration": traj.duration,
+                "routed": bool(plan.routes),
+                "reported_clear": bool(plan.collision is not None and plan.collision.clear),
+                "velocity": max(peaks["velocity"], exact["velocity"]),
+                "acceleration": max(peaks["acceleration"], exact["acceleration"]),
+                "jerk": max(peaks["jerk"], exact["jerk"]),
+                "leaves_range": max(peaks["position"], exact["position"]) > 1e-9,
+            }
+            ours.update(collisions(traj.sample(t).q, checker, rp))
+            row["ours"] = ours
+        if rp is not None:
+            res = rp.plan(qa, qb, seed + i)
+            theirs: dict = {"found": res["found"], "path_time": res["path_time"], "reason": res.get("reason", "")}
+            if res["found"]:
+                theirs["path_points"] = res["path_points"]
+                for mode in ("Hermite", "Cubic"):
+                    tt, q, qd, qdd = res[mode].pop("samples")
+                    entry = dict(res[mode])
+                    entry.update(limit_ratios(tt, q, qd, qdd, limits))
+                    entry.update(collisions(q, checker, rp))
+                    theirs[mode] = entry
+            row["roboplan"] = theirs
+        rows.append(row)
+    return rows
+
+
+def _p(values, q) -> float | None:
+    return float(np.percentile(values, q)) if len(values) else None
+
+
+def summarise(name: str, dof: int, checks: dict, rows: list[dict]) -> dict:
+    ok = [r for r in rows if r["ours"]["found"]]
+    s: dict = {"robot": name, "dof": dof, "paths": len(rows), "checks": checks}
+    s["ours"] = {
+        "success": len(ok) / len(rows),
+        "routed": sum(r["ours"].get("routed", False) for r in ok),
+        "plan_ms_median": _p([r["ours"]["plan_time"] * 1e3 for r in rows], 50),
+        "plan_ms_p95": _p([r["ours"]["plan_time"] * 1e3 for r in rows], 95),
+        "duration_median": _p([r["ours"]["duration"] for r in ok], 50),
+        "max_velocity_ratio": max((r["ours"]["velocity"] for r in ok), default=None),
+        "max_acceleration_ratio": max((r["ours"]["acceleration"] for r in ok), default=None),
+        "max_jerk_ratio": max((r["ours"]["jerk"] for r in ok), default=None),
+        "leaves_range": sum(r["ours"]["leaves_range"] for r in ok),
+        "colliding_ours_check": sum(r["ours"]["ours_hits"] > 0 for r in ok),
+        "colliding_roboplan_check": sum(r["ours"].get("roboplan_hits", 0) > 0 for r in ok),
+        "failures": [r["ours"]["reason"] for r in rows if not r["ours"]["found"]],
+    }
+    if rows and "roboplan" in rows[0]:
+        found = [r for r in rows if r["roboplan"]["found"]]
+        s["roboplan_success"] = len(found) / len(rows)
+        s["ours_success_where_roboplan_found"] = sum(r["ours"]["found"] for r in found) / len(found) if found else None
+        for mode in ("Hermite", "Cubic"):
+            both = [r for r in found if r["ours"]["found"]]
+            times = [r["roboplan"][mode]["plan_time"] * 1e3 if r["roboplan"]["found"] else None for r in rows]
+            # A failed search counts with the time it took.
+            times = [t if t is not None else r["roboplan"]["path_time"] * 1e3 for t, r in zip(times, rows)]
+            m = [r["roboplan"][mode] for r in found]
+            s[f"roboplan_{mode}"] = {
+                "plan_ms_median": _p(times, 50),
+                "plan_ms_p95": _p(times, 95),
+                "duration_median": _p([e["duration"] for e in m], 50),
+                "max_velocity_ratio": max((e["velocity"] for e in m), default=None),
+                "max_acceleration_ratio": max((e["acceleration"] for e in m), default=None),
+                "max_jerk_ratio": max((e["jerk"] for e in m), default=None),
+                "leaves_range": sum(e["leaves_range"] for e in m),
+                "colliding_ours_check": sum(e["ours_hits"] > 0 for e in m),
+                "colliding_roboplan_check": sum(e["roboplan_hits"] > 0 for e in m),
+                "median_ratio_ours_to_it": _p(
+                    [r["ours"]["duration"] / r["roboplan"][mode]["duration"] for r in both], 50
+                ),
+                "both_solved": len(both),
+            }
+    return s
+
+
+def _f(x, fmt: str = ".3f") -> str:
+    return "n/a" if x is None else format(x, fmt)
+
+
+def _k(x) -> str:
+    return "n/a" if x is None else f"{x / 1000:.1f} k"
+
+
+def markdown(summaries: list[dict]) -> str:
+    lines = [
+        "Collision checks per second (same random configurations; agreement = same verdict as roboplan):",
+        "",
+        "| arm | checks | pairs | ours in_collision | ours clearance (distance) | roboplan hasCollisions "
+        "| ours / roboplan | agreement |",
+        "|" + "---|" * 8,
+    ]
+    for s in summaries:
+        c = s["checks"]
+        for kind, label in (("self", "self"), ("scene", "self + table + box")):
+            ours, theirs = c[f"ours_{kind}_in_collision_per_s"], c.get(f"roboplan_{kind}_per_s")
+            lines.append(
+                f"| {s['robot']} | {label} | {c[f'{kind}_pairs']} | {_k(ours)} | "
+                f"{_k(c[f'ours_{kind}_clearance_per_s'])} | {_k(theirs)} | "
+                f"{_f(ours / theirs if theirs else None, '.2f')} | "
+                f"{_f(100 * c[f'{kind}_agreement'] if f'{kind}_agreement' in c else None, '.1f')} % |"
+            )
+    lines += [
+        "",
+        "Plans on the table-and-box scene (random collision-free start/goal pairs; limit ratios: worst "
+        "sampled |v|, |a|, |j| / limit at 1 kHz; colliding: trajectories with a sample in collision "
+        "by our check / roboplan's):",
+        "",
+        "| arm | method | success | plan ms median (p95) | median duration s | median duration ours / it "
+        "| worst v, a, j / limit | colliding |",
+        "|" + "---|" * 8,
+    ]
+    for s in summaries:
+        o = s["ours"]
+        lines.append(
+            f"| {s['robot']} | ours (plan_motion; {o['routed']} routed around the box) | {100 * o['success']:.0f} % | "
+            f"{_f(o['plan_ms_median'], '.1f')} ({_f(o['plan_ms_p95'], '.1f')}) | {_f(o['duration_median'])} | | "
+            f"{_f(o['max_velocity_ratio'], '.4f')}, {_f(o['max_acceleration_ratio'], '.4f')}, "
+            f"{_f(o['max_jerk_ratio'], '.4f')} | {o['colliding_ours_check']} / {o['colliding_roboplan_check']} |"
+        )
+        for mode, label in (("Hermite", "default: rest at waypoints"), ("Cubic", "cubic spline through")):
+            e = s.get(f"roboplan_{mode}")
+            if e is None:
+                continue
+            lines.append(
+                f"| {s['robot']} | roboplan RRT-Connect + TOPP-RA ({label}) | {100 * s['roboplan_success']:.0f} % | "
+                f"{_f(e['plan_ms_median'], '.1f')} ({_f(e['plan_ms_p95'], '.1f')}) | {_f(e['duration_median'])} | "
+                f"{_f(e['median_ratio_ours_to_it'])} | {_f(e['max_velocity_ratio'], '.4f')}, "
+                f"{_f(e['max_acceleration_ratio'], '.4f')}, {_f(e['max_jerk_ratio'], '.1f')} | "
+                f"{e['colliding_ours_check']} / {e['colliding_roboplan_check']} |"
+            )
+    return "\n".join(lines)
+
+
+def goals(summaries: list[dict]) -> list[str]:
+    out = []
+    for s in summaries:
+        c, o = s["checks"], s["ours"]
+        if "roboplan_self_per_s" not in c:
+            continue
+        for kind in ("self", "scene"):
+            r = c[f"ours_{kind}_in_collision_per_s"] / c[f"roboplan_{kind}_per_s"]
+            out.append(f"{s['robot']}: {kind} checks/s ours / roboplan = {r:.2f} (goal >= 1)")
+        out.append(
+            f"{s['robot']}: success where roboplan found a path: "
+            f"{_f(100 * (s['ours_success_where_roboplan_found'] or 0), '.0f')} % (goal 100 %)"
+        )
+        for mode in ("Hermite", "Cubic"):
+            e = s[f"roboplan_{mode}"]
+            out.append(
+                f"{s['robot']}: median plan time ours {o['plan_ms_median']:.1f} ms vs roboplan ({mode}) "
+                f"{e['plan_ms_median']:.1f} ms (goal <=); median duration ours / roboplan ({mode}) "
+                f"{_f(e['median_ratio_ours_to_it'])} (goal <= 1.10)"
+            )
+    return out
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--paths", type=int, default=50, help="random start/goal pairs per arm")
+    parser.add_argument("--arms", nargs="*", default=["ur5", "panda"], help="arms (default: ur5 panda)")
+    parser.add_argument("--configs", type=int, default=2000, help="random configurations for the checks/s")
+    parser.add_argument("--seed", type=int, default=0, help="seed of the configurations and pairs")
+    args = parser.parse_args(argv)
+    if example_robot_data_dir() is None:
+        print("example-robot-data is not installed (pip install 'servo-arm-planner[bench]'): nothing to do")
+        return 0
+    try:
+        import roboplan.core  # noqa: F401
+        import roboplan.rrt  # noqa: F401
+        import roboplan.toppra  # noqa: F401
+
+        have_roboplan = True
+    except ImportError as exc:
+        have_roboplan = False
+        print(f"roboplan is not importable ({exc}; pip install 'servo-arm-planner[bench]'): its columns are skipped")
+    summaries, raw = [], {}
+    for name in args.arms:
+        if name not in SRDF:
+            print(f"{name}: no SRDF known for roboplan; supported arms: {', '.join(SRDF)}")
+            continue
+        robot = load_robot(name)
+        limits = JointLimits.from_robot(robot)  # v from the URDF, a = 2 v, j = 10 a
+        t0 = time.perf_counter()
+        checks = bench_checks(name, robot, parse_scene(SCENE), limits, args.configs, args.seed, have_roboplan)
+        rows = bench_plans(name, robot, limits, args.paths, args.seed, have_roboplan)
+        print(f"{name}: {time.perf_counter() - t0:.0f} s", file=sys.stderr)
+        summaries.append(summarise(name, robot.dof, checks, rows))
+        raw[name] = rows
+    table = markdown(summaries)
+    print(table)
+    print()
+    lines = goals(summaries)
+    for line in lines:
+        print(line)
+    record = {
+        **run_record("bench_collision", ("pin", "coal", "ruckig", "numpy", "example-robot-data", "roboplan")),
+        "settings": {
+            "paths": args.paths,
+            "arms": args.arms,
+            "configs": args.configs,
+            "seed": args.seed,
+            "scene": SCENE,
+            "limits": "v = URDF, a = 2 v, j = 10 a",
+            "budget_s": BUDGET,
+            "roboplan": "RRT-Connect (max_nodes 10000, max_connection_distance 1.0, collision_check_step_size "
+            "0.05), PathShortcutter defaults, TOPP-RA dt 0.01 (timed) and 0.001 (checked)",
+            "sample_rate": RATE,
+        },
+        "summary": summaries,
+        "goals": lines,
+        "table": table,
+        "rows": raw,
+    }
+    RESULTS.mkdir(parents=True, exist_ok=True)
+    out = RESULTS / "bench_collision.json"
+    out.write_text(json.dumps(record, indent=1) + "\n")
+    (RESULTS / "bench_collision.md").write_text(table + "\n\n" + "\n".join(lines) + "\n")
+    print(f"\nwrote {out}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
