@@ -1,9 +1,10 @@
 """A collision-free joint path between two configurations: RRT-Connect, then shortcuts.
 
 :func:`find_clear_path` grows two trees (Kuffner and LaValle's RRT-Connect) from the start and
-the goal, each edge a straight joint-space segment certified by
-:func:`~planner.collision.continuous.check_segment`, then shortens the path by replacing
-stretches with straight segments that are also clear. It draws from its own generator seeded
+the goal, deciding each straight joint-space edge by distance checks every
+:attr:`PathOptions.resolution`, then certifies every edge of the path found with
+:func:`~planner.collision.continuous.check_segment` (growing new trees if one fails), and
+shortens the path by straight edges that are certified too. It draws from its own generator seeded
 by :attr:`PathOptions.seed`: the same seed gives the same path; no global state is touched.
 """
 
@@ -45,6 +46,8 @@ class PathOptions:
         shortcuts: Shortcut attempts on the path found.
         margin: Extra distance [m] kept beyond the scene's clearance, so that the timed
             trajectory, which follows the path closely but not exactly, still keeps it.
+        resolution: Largest joint change [rad or m] between the cheap distance checks that
+            decide edges while the trees grow (the path found is then certified edge by edge).
     """
 
     seed: int = 0
@@ -53,9 +56,10 @@ class PathOptions:
     time_budget: float = 5.0
     shortcuts: int = 60
     margin: float = 0.002
+    resolution: float = 0.05
 
     def __post_init__(self) -> None:
-        for name in ("step", "time_budget"):
+        for name in ("step", "time_budget", "resolution"):
             v = getattr(self, name)
             if not (isinstance(v, (int, float)) and np.isfinite(v) and v > 0):
                 raise InvalidArgumentError(f"PathOptions.{name} must be positive, got {v!r}")
@@ -147,19 +151,57 @@ def find_clear_path(
     def clear(a: np.ndarray, b: np.ndarray) -> bool:
         return _segment_clear(checker, a, b, allow, options.margin)
 
+    def quick(a: np.ndarray, b: np.ndarray) -> bool:
+        """Distance checks every `resolution` along the edge: cheap, not a certificate."""
+        n = max(1, int(np.ceil(float(np.max(np.abs(b - a))) / options.resolution)))
+        return all(checker.distance_at(a + s * (b - a), mask).distance >= need for s in np.arange(1, n + 1) / n)
+
     if clear(q0, q1):
         return PathResult(PathStatus.FOUND, read_only(np.array([q0, q1])), "", 0)
     rng = np.random.default_rng(options.seed)
     lo = np.where(np.isfinite(robot.lower), robot.lower, q0 - np.pi)
     hi = np.where(np.isfinite(robot.upper), robot.upper, q0 + np.pi)
-    trees = (_Tree(q0), _Tree(q1))
     deadline = time.perf_counter() + options.time_budget
-    for it in range(1, options.max_iterations + 1):
+    iterations = 0
+    # Grow the trees with cheap edge checks and certify the path found (conservative
+    # advancement on each edge); if an edge fails its certificate, grow new trees (the
+    # generator has moved on) until one certifies or the budget is spent.
+    while iterations < options.max_iterations and time.perf_counter() <= deadline:
+        left = options.max_iterations - iterations
+        path, used = _grow(q0, q1, quick, rng, lo, hi, options, checker, mask, need, deadline, left)
+        iterations += used
+        if path is None:
+            break
+        if all(clear(a, b) for a, b in zip(path, path[1:])):
+            path = _shortcut(path, quick, clear, rng, options.shortcuts)
+            return PathResult(PathStatus.FOUND, read_only(np.array(path)), "", iterations)
+    if time.perf_counter() > deadline:
+        return PathResult(PathStatus.NOT_FOUND, empty, f"no clear path within {options.time_budget:g} s", iterations)
+    return PathResult(PathStatus.NOT_FOUND, empty, f"no clear path in {options.max_iterations} extensions", iterations)
+
+
+def _grow(
+    q0: np.ndarray,
+    q1: np.ndarray,
+    edge_ok,
+    rng: np.random.Generator,
+    lo: np.ndarray,
+    hi: np.ndarray,
+    options: PathOptions,
+    checker: CollisionChecker,
+    mask: np.ndarray,
+    need: float,
+    deadline: float,
+    budget: int,
+) -> tuple[list[np.ndarray] | None, int]:
+    """RRT-Connect from both ends with `edge_ok` deciding edges: the path (start first) and the extensions used."""
+    trees = (_Tree(q0), _Tree(q1))
+    for it in range(1, budget + 1):
         if time.perf_counter() > deadline:
-            return PathResult(PathStatus.NOT_FOUND, empty, f"no clear path within {options.time_budget:g} s", it)
+            return None, it
         a, b = trees if it % 2 else trees[::-1]
         target = rng.uniform(lo, hi)
-        new = _extend(a, target, options.step, clear, checker, mask, need)
+        new = _extend(a, target, options.step, edge_ok, checker, mask, need)
         if new is None:
             continue
         # Connect: grow the other tree toward the new node until it arrives or is blocked.
@@ -170,16 +212,14 @@ def find_clear_path(
             delta = q_new - q_near
             far = float(np.max(np.abs(delta)))
             if far <= options.step:
-                if clear(q_near, q_new):
-                    path = _join(a, new, b, k, trees[0] is a)
-                    path = _shortcut(path, clear, rng, options.shortcuts)
-                    return PathResult(PathStatus.FOUND, read_only(np.array(path)), "", it)
+                if edge_ok(q_near, q_new):
+                    return _join(a, new, b, k, trees[0] is a), it
                 break
             q_next = q_near + delta * (options.step / far)
-            if checker.distance_at(q_next, mask).distance < need or not clear(q_near, q_next):
+            if checker.distance_at(q_next, mask).distance < need or not edge_ok(q_near, q_next):
                 break
             k = b.add(q_next, k)
-    return PathResult(PathStatus.NOT_FOUND, empty, f"no clear path in {options.max_iterations} extensions", it)
+    return None, budget
 
 
 def _segment_clear(
@@ -207,7 +247,8 @@ def _join(a: _Tree, ka: int, b: _Tree, kb: int, a_is_start: bool) -> list[np.nda
     return path if a_is_start else path[::-1]
 
 
-def _shortcut(path: list[np.ndarray], clear, rng: np.random.Generator, attempts: int) -> list[np.ndarray]:
+def _shortcut(path: list[np.ndarray], quick, clear, rng: np.random.Generator, attempts: int) -> list[np.ndarray]:
+    """Replace stretches of the path by straight edges that pass the cheap check and then certify."""
     path = list(path)
     for _ in range(attempts):
         if len(path) <= 2:
@@ -215,6 +256,6 @@ def _shortcut(path: list[np.ndarray], clear, rng: np.random.Generator, attempts:
         i, j = sorted(rng.choice(len(path), size=2, replace=False))
         if j - i < 2:
             continue
-        if clear(path[i], path[j]):
+        if quick(path[i], path[j]) and clear(path[i], path[j]):
             path = path[: i + 1] + path[j:]
     return path
