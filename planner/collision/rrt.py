@@ -95,17 +95,23 @@ class PathResult:
 
 class _Tree:
     def __init__(self, root: np.ndarray) -> None:
+        self._array = np.empty((64, len(root)))
+        self._array[0] = root
         self.nodes = [root]
         self.parent = [-1]
 
     def nearest(self, q: np.ndarray) -> int:
-        d = np.linalg.norm(np.asarray(self.nodes) - q, axis=1)
-        return int(np.argmin(d))
+        diff = self._array[: len(self.nodes)] - q
+        return int(np.argmin(np.einsum("ij,ij->i", diff, diff)))
 
     def add(self, q: np.ndarray, parent: int) -> int:
+        n = len(self.nodes)
+        if n == len(self._array):
+            self._array = np.concatenate([self._array, np.empty_like(self._array)])
+        self._array[n] = q
         self.nodes.append(q)
         self.parent.append(parent)
-        return len(self.nodes) - 1
+        return n
 
     def branch(self, k: int) -> list[np.ndarray]:
         out = []
@@ -154,7 +160,7 @@ def find_clear_path(
     def quick(a: np.ndarray, b: np.ndarray) -> bool:
         """Distance checks every `resolution` along the edge: cheap, not a certificate."""
         n = max(1, int(np.ceil(float(np.max(np.abs(b - a))) / options.resolution)))
-        return all(checker.distance_at(a + s * (b - a), mask).distance >= need for s in np.arange(1, n + 1) / n)
+        return all(_distance(checker, a + s * (b - a), mask) >= need for s in np.arange(1, n + 1) / n)
 
     if clear(q0, q1):
         return PathResult(PathStatus.FOUND, read_only(np.array([q0, q1])), "", 0)
@@ -216,7 +222,7 @@ def _grow(
                     return _join(a, new, b, k, trees[0] is a), it
                 break
             q_next = q_near + delta * (options.step / far)
-            if checker.distance_at(q_next, mask).distance < need or not edge_ok(q_near, q_next):
+            if _distance(checker, q_next, mask) < need or not edge_ok(q_near, q_next):
                 break
             k = b.add(q_next, k)
     return None, budget
@@ -236,9 +242,15 @@ def _extend(tree: _Tree, target: np.ndarray, step: float, clear, checker, mask, 
     if far == 0.0:
         return None
     q_new = q_near + delta * min(1.0, step / far)
-    if checker.distance_at(q_new, mask).distance < need or not clear(q_near, q_new):
+    if _distance(checker, q_new, mask) < need or not clear(q_near, q_new):
         return None
     return tree.add(q_new, k)
+
+
+def _distance(checker: CollisionChecker, q: np.ndarray, mask: np.ndarray) -> float:
+    """The smallest pair distance at `q` [m] (no penetration depth, no names: the search only compares)."""
+    d = checker.pair_distances(q, mask)
+    return float(d.min()) if d.size else float("inf")
 
 
 def _join(a: _Tree, ka: int, b: _Tree, kb: int, a_is_start: bool) -> list[np.ndarray]:
