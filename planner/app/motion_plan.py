@@ -20,7 +20,7 @@ import numpy as np
 from planner.app.outputs import write_plan_files
 from planner.app.plan_file import MotionRequest
 from planner.collision.checker import CollisionChecker
-from planner.collision.continuous import MotionClearance, check_segment, check_trajectory
+from planner.collision.continuous import MotionClearance, check_segment, check_trajectory, segment_is_clear
 from planner.collision.scene import Scene
 from planner.core.arrays import read_only
 from planner.core.files import input_error, parse_number
@@ -29,7 +29,7 @@ from planner.export.calibration import ServoCalibration
 from planner.export.calibration_file import ControllerSetup, controller_setup
 from planner.export.formats import ServoFormat
 from planner.model.robot import Robot
-from planner.motion.avoid import clear_route, joint_line, segment_is_clear
+from planner.motion.avoid import clear_route, joint_line
 from planner.motion.detours import Detour, SingularityOptions, plan_clear_of_singularities
 from planner.motion.limits import JointLimits
 from planner.motion.line import LinePath
@@ -367,6 +367,8 @@ def plan_motion(
     if checker is not None:
         _route_around_obstacles(checker, request, q_user, paths, cartesian, labels, allow)
 
+    timings: dict[int, Any] = {}  # line timing per LinePath (by id), kept across re-plans
+
     def build(paths: list[list[LinePath] | None]) -> tuple:
         """Nodes through every waypoint and line sample, and the line bookkeeping."""
         from planner.motion.line_timing import time_line
@@ -374,7 +376,7 @@ def plan_motion(
         nodes = [q_user[0]]
         user_pos = [0]
         line_ranges: list[tuple[int, int, int]] = []  # (user segment, first node, last node)
-        timings = []
+        line_timing = []
         for k in range(1, n):
             if paths[k] is None:
                 nodes.append(q_user[k])
@@ -383,9 +385,11 @@ def plan_motion(
                     first = len(nodes) - 1
                     nodes.extend(path.q[1:])
                     line_ranges.append((k - 1, first, len(nodes) - 1))
-                    timings.append(time_line(path, limits))
+                    if id(path) not in timings:
+                        timings[id(path)] = time_line(path, limits)
+                    line_timing.append(timings[id(path)])
             user_pos.append(len(nodes) - 1)
-        return np.array(nodes), user_pos, line_ranges, timings
+        return np.array(nodes), user_pos, line_ranges, line_timing
 
     def plan_once(paths: list[list[LinePath] | None]) -> tuple:
         q_nodes, user_pos, line_ranges, line_timing = build(paths)
@@ -470,13 +474,16 @@ def plan_motion(
             )
     # Continuous joints have no range to fit: default calibrations fit the plan's travel, sampled
     # at 1 kHz, with a margin far above what the servo files' own sample times can add to it.
-    q_travel = traj.sample(np.append(np.arange(0.0, traj.duration, 1e-3), traj.duration)).q
+    travel = None
+    if not (np.all(np.isfinite(robot.lower)) and np.all(np.isfinite(robot.upper))):
+        q_travel = traj.sample(np.append(np.arange(0.0, traj.duration, 1e-3), traj.duration)).q
+        travel = (q_travel.min(axis=0) - 1e-3, q_travel.max(axis=0) + 1e-3)
     setup = controller_setup(
         robot,
         controller or request.controller,
         calibration if calibration is not None else request.calibration,
         None if calibration is not None else _calibrations(robot, request),
-        travel=(q_travel.min(axis=0) - 1e-3, q_travel.max(axis=0) + 1e-3),
+        travel=travel,
     )
     return MotionPlan(
         robot=robot.name,

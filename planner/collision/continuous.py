@@ -24,7 +24,14 @@ import numpy as np
 from planner.collision.checker import Clearance, CollisionChecker
 from planner.exceptions import InvalidArgumentError
 
-__all__ = ["DEFAULT_TOLERANCE", "MotionClearance", "check_motion", "check_segment", "check_trajectory"]
+__all__ = [
+    "DEFAULT_TOLERANCE",
+    "MotionClearance",
+    "check_motion",
+    "check_segment",
+    "check_trajectory",
+    "segment_is_clear",
+]
 
 #: How far below the clearance a certified motion may come [m] (sets the smallest step).
 DEFAULT_TOLERANCE = 1e-4
@@ -138,7 +145,7 @@ def check_motion(
             step = max(step, end / 2000.0)  # past a hit: coarse steps, only to find the worst
         # Change of mask: check at the boundary too.
         if k_mask + 1 < len(masks):
-            step = min(step, max(masks[k_mask + 1][0] - x, 0.0) or step)
+            step = min(step, masks[k_mask + 1][0] - x)
         x = min(x + step, end)
     assert best is not None
     closest = checker.clearance_of(best[2])
@@ -172,6 +179,13 @@ def check_segment(
         stop_at_first=stop_at_first,
         clearance=clearance,
     )
+
+
+def segment_is_clear(
+    checker: CollisionChecker, q_start: np.ndarray, q_end: np.ndarray, *, allow: Sequence[str] = (), margin: float = 0.0
+) -> bool:
+    """Whether the straight joint segment keeps the scene's clearance plus `margin` throughout."""
+    return check_segment(checker, q_start, q_end, allow=allow, clearance=checker.scene.clearance + margin).clear
 
 
 def check_trajectory(

@@ -18,7 +18,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from planner.collision.checker import CollisionChecker
-from planner.collision.continuous import check_segment
+from planner.collision.continuous import segment_is_clear
 from planner.core.arrays import read_only
 from planner.exceptions import InvalidArgumentError
 
@@ -155,7 +155,7 @@ def find_clear_path(
             return PathResult(status, empty, f"the {what} does not keep the clearance: {c}", 0)
 
     def clear(a: np.ndarray, b: np.ndarray) -> bool:
-        return _segment_clear(checker, a, b, allow, options.margin)
+        return segment_is_clear(checker, a, b, allow=allow, margin=options.margin)
 
     def quick(a: np.ndarray, b: np.ndarray) -> bool:
         """Distance checks every `resolution` along the edge: cheap, not a certificate."""
@@ -226,12 +226,6 @@ def _grow(
                 break
             k = b.add(q_next, k)
     return None, budget
-
-
-def _segment_clear(
-    checker: CollisionChecker, a: np.ndarray, b: np.ndarray, allow: Sequence[str], margin: float
-) -> bool:
-    return check_segment(checker, a, b, allow=allow, clearance=checker.scene.clearance + margin).clear
 
 
 def _extend(tree: _Tree, target: np.ndarray, step: float, clear, checker, mask, need) -> int | None:

@@ -16,12 +16,11 @@ from collections.abc import Sequence
 import numpy as np
 
 from planner.collision.checker import CollisionChecker
-from planner.collision.continuous import check_segment
 from planner.collision.rrt import PathOptions, PathResult, find_clear_path
 from planner.model.robot import Robot
 from planner.motion.line import LinePath
 
-__all__ = ["EDGE_SPACING", "clear_route", "joint_line", "segment_is_clear"]
+__all__ = ["EDGE_SPACING", "clear_route", "joint_line"]
 
 #: Largest joint change between two samples of a joint-space line [rad or m].
 EDGE_SPACING = 0.05
@@ -56,10 +55,3 @@ def clear_route(
     if not result.found:
         return [], result
     return [joint_line(checker.robot, a, b) for a, b in zip(result.path, result.path[1:])], result
-
-
-def segment_is_clear(
-    checker: CollisionChecker, q_start: np.ndarray, q_end: np.ndarray, *, allow: Sequence[str] = (), margin: float = 0.0
-) -> bool:
-    """Whether the straight joint segment keeps the scene's clearance plus `margin` throughout."""
-    return check_segment(checker, q_start, q_end, allow=allow, clearance=checker.scene.clearance + margin).clear
