@@ -358,3 +358,11 @@ def test_ik_answers_are_checked_and_colliding_branches_skipped():
     for method in ("auto", "nlp"):
         caged = solve_ik(al5c, grasp, method=method, checker=cage)
         assert not caged.success and caged.status is IKStatus.IN_COLLISION and "cage" in caged.reason
+
+
+def test_batch_clearances_match_single_ones():
+    robot = get_robot("al5c")
+    checker = CollisionChecker(robot, _al5c_block_scene())
+    qs = robot.random_configurations(np.random.default_rng(8), 20)
+    batch = checker.clearances(qs, allow=["block"])
+    assert batch == [checker.clearance(q, allow=["block"]) for q in qs]
