@@ -158,9 +158,9 @@ def find_clear_path(
         return segment_is_clear(checker, a, b, allow=allow, margin=options.margin)
 
     def quick(a: np.ndarray, b: np.ndarray) -> bool:
-        """Distance checks every `resolution` along the edge: cheap, not a certificate."""
+        """Distance checks every `resolution` along the edge, its end first: cheap, not a certificate."""
         n = max(1, int(np.ceil(float(np.max(np.abs(b - a))) / options.resolution)))
-        return all(_distance(checker, a + s * (b - a), mask) >= need for s in np.arange(1, n + 1) / n)
+        return all(_distance(checker, a + s * (b - a), mask) >= need for s in np.arange(n, 0, -1) / n)
 
     if clear(q0, q1):
         return PathResult(PathStatus.FOUND, read_only(np.array([q0, q1])), "", 0)
@@ -174,7 +174,7 @@ def find_clear_path(
     # generator has moved on) until one certifies or the budget is spent.
     while iterations < options.max_iterations and time.perf_counter() <= deadline:
         left = options.max_iterations - iterations
-        path, used = _grow(q0, q1, quick, rng, lo, hi, options, checker, mask, need, deadline, left)
+        path, used = _grow(q0, q1, quick, rng, lo, hi, options.step, deadline, left)
         iterations += used
         if path is None:
             break
@@ -193,21 +193,22 @@ def _grow(
     rng: np.random.Generator,
     lo: np.ndarray,
     hi: np.ndarray,
-    options: PathOptions,
-    checker: CollisionChecker,
-    mask: np.ndarray,
-    need: float,
+    step: float,
     deadline: float,
     budget: int,
 ) -> tuple[list[np.ndarray] | None, int]:
-    """RRT-Connect from both ends with `edge_ok` deciding edges: the path (start first) and the extensions used."""
+    """RRT-Connect from both ends with `edge_ok` deciding edges (their ends included).
+
+    Returns:
+        The path, start first, or None; and the extensions used.
+    """
     trees = (_Tree(q0), _Tree(q1))
     for it in range(1, budget + 1):
         if time.perf_counter() > deadline:
             return None, it
         a, b = trees if it % 2 else trees[::-1]
         target = rng.uniform(lo, hi)
-        new = _extend(a, target, options.step, edge_ok, checker, mask, need)
+        new = _extend(a, target, step, edge_ok)
         if new is None:
             continue
         # Connect: grow the other tree toward the new node until it arrives or is blocked.
@@ -217,18 +218,19 @@ def _grow(
             q_near = b.nodes[k]
             delta = q_new - q_near
             far = float(np.max(np.abs(delta)))
-            if far <= options.step:
+            if far <= step:
                 if edge_ok(q_near, q_new):
                     return _join(a, new, b, k, trees[0] is a), it
                 break
-            q_next = q_near + delta * (options.step / far)
-            if _distance(checker, q_next, mask) < need or not edge_ok(q_near, q_next):
+            q_next = q_near + delta * (step / far)
+            if not edge_ok(q_near, q_next):
                 break
             k = b.add(q_next, k)
     return None, budget
 
 
-def _extend(tree: _Tree, target: np.ndarray, step: float, clear, checker, mask, need) -> int | None:
+def _extend(tree: _Tree, target: np.ndarray, step: float, edge_ok) -> int | None:
+    """Grow `tree` one step toward `target`; `edge_ok` decides the edge (its end included)."""
     k = tree.nearest(target)
     q_near = tree.nodes[k]
     delta = target - q_near
@@ -236,7 +238,7 @@ def _extend(tree: _Tree, target: np.ndarray, step: float, clear, checker, mask, 
     if far == 0.0:
         return None
     q_new = q_near + delta * min(1.0, step / far)
-    if _distance(checker, q_new, mask) < need or not clear(q_near, q_new):
+    if not edge_ok(q_near, q_new):
         return None
     return tree.add(q_new, k)
 
