@@ -109,6 +109,8 @@ def check_motion(
     c = checker.scene.clearance if clearance is None else float(clearance)
     masks = list(masks) if masks else [(0.0, checker.pair_mask())]
     self_pairs = checker.self_pairs
+    scene_pairs = ~self_pairs
+    has_self, has_scene = bool(self_pairs.any()), bool(scene_pairs.any())
     x, checks, k_mask = 0.0, 0, 0
     best: tuple[float, float, np.ndarray] | None = None
     first_hit: float | None = None
@@ -130,8 +132,8 @@ def check_motion(
                 break
         if x >= end:
             break
-        d_scene = d[~self_pairs].min() if (~self_pairs).any() else np.inf
-        d_self = d[self_pairs].min() if self_pairs.any() else np.inf
+        d_scene = d[scene_pairs].min() if has_scene else np.inf
+        d_self = d[self_pairs].min() if has_self else np.inf
         room = min(d_scene - c + tolerance, (d_self - c + tolerance) / 2.0)
         room = max(room, tolerance / 2.0)
         # The time h at which V h + A h^2 / 2 reaches the room left.
