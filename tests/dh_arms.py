@@ -15,6 +15,7 @@ import os
 
 import numpy as np
 import pinocchio as pin
+from hypothesis import HealthCheck, settings
 from hypothesis import strategies as st
 
 import planner
@@ -29,6 +30,16 @@ LENGTH_SCALE = {"m": 1.0, "cm": 0.01, "mm": 0.001}
 ANGLE_SCALE = {"rad": 1.0, "deg": math.pi / 180.0}
 
 _FLOAT = {"allow_nan": False, "allow_infinity": False, "allow_subnormal": False}
+
+
+def property_settings(examples: int) -> settings:
+    """The property tests' hypothesis settings: `examples` examples, derandomized, no deadline."""
+    return settings(
+        max_examples=examples,
+        deadline=None,
+        derandomize=True,
+        suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large],
+    )
 
 
 @functools.cache

@@ -9,8 +9,8 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from dh_arms import arm, arm_specs, configurations, reach_bound
-from hypothesis import HealthCheck, given, note, settings
+from dh_arms import arm, arm_specs, configurations, property_settings, reach_bound
+from hypothesis import given, note
 from hypothesis import strategies as st
 
 import planner
@@ -39,24 +39,15 @@ def obstacles(draw, reach: float) -> list[dict]:
     return out
 
 
-def _settings(examples: int) -> settings:
-    return settings(
-        max_examples=examples,
-        deadline=None,
-        derandomize=True,
-        suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large],
-    )
-
-
 @given(data=st.data(), spec=arm_specs())
-@_settings(25)
+@property_settings(25)
 def test_plans_with_random_scenes_are_clear_or_refused(data, spec):
     _check_a_random_scene(data, spec)
 
 
 @pytest.mark.slow
 @given(data=st.data(), spec=arm_specs())
-@_settings(400)
+@property_settings(400)
 def test_plans_with_random_scenes_are_clear_or_refused_many(data, spec):
     _check_a_random_scene(data, spec)
 

@@ -22,13 +22,14 @@ from dh_arms import (
     BUNDLED,
     bundled_robot,
     dh_descriptions,
+    property_settings,
     robot_from_description,
     seeds,
     targets,
     tip_errors,
     uncompiled_nlp,
 )
-from hypothesis import HealthCheck, given, note, settings
+from hypothesis import given, note
 from hypothesis import strategies as st
 
 import planner
@@ -40,15 +41,6 @@ ORIENTATION_TOLERANCE = 1e-6
 # Recomputing an error here may differ from the solver's own Pinocchio call by rounding.
 ROUNDING = 1e-12
 STATUSES = {status.value for status in planner.IKStatus}
-
-
-def _settings(examples: int) -> settings:
-    return settings(
-        max_examples=examples,
-        deadline=None,
-        derandomize=True,
-        suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large],
-    )
 
 
 def check_ik(robot: planner.Robot, target: planner.Target, where: str, q_seed, method: str) -> None:
@@ -97,7 +89,7 @@ def check_ik(robot: planner.Robot, target: planner.Target, where: str, q_seed, m
 def _bundled_ik_test(examples: int):
     @pytest.mark.parametrize("method", METHODS)
     @pytest.mark.parametrize("name", BUNDLED)
-    @_settings(examples)
+    @property_settings(examples)
     @given(data=st.data())
     def test(name, method, data):
         robot = bundled_robot(name)
@@ -109,7 +101,7 @@ def _bundled_ik_test(examples: int):
 
 
 def _dh_ik_test(examples: int):
-    @_settings(examples)
+    @property_settings(examples)
     @given(description=dh_descriptions(), data=st.data())
     def test(description, data):
         robot = robot_from_description(description)

@@ -22,8 +22,17 @@ import math
 import numpy as np
 import pinocchio as pin
 import pytest
-from dh_arms import ANGLE_SCALE, LENGTH_SCALE, arm, arm_specs, configurations, tip_errors, uncompiled_nlp
-from hypothesis import HealthCheck, event, given, note, settings
+from dh_arms import (
+    ANGLE_SCALE,
+    LENGTH_SCALE,
+    arm,
+    arm_specs,
+    configurations,
+    property_settings,
+    tip_errors,
+    uncompiled_nlp,
+)
+from hypothesis import event, given, note
 from hypothesis import strategies as st
 from trajectory_checks import assert_passes_waypoints, assert_within_limits
 
@@ -33,15 +42,6 @@ _FLOAT = {"allow_nan": False, "allow_infinity": False, "allow_subnormal": False}
 # The IK tolerances plan_motion's waypoints are solved to [m], [rad], plus recomputation rounding.
 POSITION_TOLERANCE = 1e-6 + 1e-12
 ORIENTATION_TOLERANCE = 1e-6 + 1e-12
-
-
-def _settings(examples: int) -> settings:
-    return settings(
-        max_examples=examples,
-        deadline=None,
-        derandomize=True,
-        suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large],
-    )
 
 
 @st.composite
@@ -175,7 +175,7 @@ def check_plan(spec: str | dict, data: dict, expected: dict) -> None:
 
 
 def _motion_test(examples: int):
-    @_settings(examples)
+    @property_settings(examples)
     @given(case=plans())
     def test(case):
         if isinstance(case[0], str):

@@ -18,23 +18,14 @@ import math
 
 import numpy as np
 import pytest
-from dh_arms import arm, arm_specs, bundled_robot, configurations
-from hypothesis import HealthCheck, given, note, settings
+from dh_arms import arm, arm_specs, bundled_robot, configurations, property_settings
+from hypothesis import given, note
 from hypothesis import strategies as st
 from trajectory_checks import assert_passes_waypoints, assert_within_limits
 
 import planner
 
 _FLOAT = {"allow_nan": False, "allow_infinity": False, "allow_subnormal": False}
-
-
-def _settings(examples: int) -> settings:
-    return settings(
-        max_examples=examples,
-        deadline=None,
-        derandomize=True,
-        suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large],
-    )
 
 
 @st.composite
@@ -130,7 +121,7 @@ def check_trajectory(spec: str | dict, limits: planner.JointLimits, waypoints: n
 
 
 def _trajectory_test(examples: int):
-    @_settings(examples)
+    @property_settings(examples)
     @given(problem=problems())
     def test(problem):
         check_trajectory(*problem)
