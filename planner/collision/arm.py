@@ -11,8 +11,10 @@ once per robot and kept in its ``derived`` cache.
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
+from types import MappingProxyType
 
 import coal
 import numpy as np
@@ -42,6 +44,8 @@ class ArmCollisionModel:
             or its meshes could not be found).
         reach: Per joint, an upper bound [m] on the distance from the joint's axis (or origin)
             to any point of the geometry it moves; bounds how fast the arm's surface can move.
+        fixed_lowest: Geometry objects whose height never changes (a base column turning about
+            a vertical axis), with the height of their lowest point [m]; found by sampling.
     """
 
     geometry: pin.GeometryModel
@@ -50,6 +54,7 @@ class ArmCollisionModel:
     excluded: tuple[tuple[str, str, str], ...]
     source: str
     reach: np.ndarray
+    fixed_lowest: Mapping[int, float]
 
 
 def _package_dirs(robot: Robot) -> list[str]:
@@ -224,6 +229,26 @@ def arm_collision_model(robot: Robot) -> ArmCollisionModel:
     return robot.derived.get(ArmCollisionModel, lambda: _build(robot))
 
 
+def _fixed_lowest(robot: Robot, geom: pin.GeometryModel) -> Mapping[int, float]:
+    """Objects whose distance to a floor is the same in 24 sampled configurations, and their lowest height."""
+    probe = pin.GeometryModel()
+    for obj in geom.geometryObjects:
+        probe.addGeometryObject(obj)
+    n = probe.ngeoms
+    floor = coal.Halfspace(np.array([0.0, 0.0, 1.0]), -10.0)
+    probe.addGeometryObject(pin.GeometryObject("probe_floor", 0, 0, pin.SE3.Identity(), floor))
+    for a in range(n):
+        probe.addCollisionPair(pin.CollisionPair(a, n))
+    data, gdata = robot.model.createData(), pin.GeometryData(probe)
+    rows = []
+    for q in robot.random_configurations(np.random.default_rng(0), 24):
+        pin.computeDistances(robot.model, data, probe, gdata, robot.pinocchio_configuration(q))
+        rows.append([r.min_distance for r in gdata.distanceResults])
+    d = np.array(rows)
+    # Distances to the probe floor at z = -10 m, less those 10 m: the lowest point's height.
+    return MappingProxyType({a: float(d[0, a]) - 10.0 for a in range(n) if np.ptp(d[:, a]) <= 1e-9})
+
+
 def _build(robot: Robot) -> ArmCollisionModel:
     geom = _from_urdf(robot)
     source = "urdf"
@@ -231,4 +256,4 @@ def _build(robot: Robot) -> ArmCollisionModel:
         geom, source = _capsules(robot), "capsules"
     link_of = _link_names(robot, geom)
     pairs, excluded = _self_pairs(robot, geom, link_of)
-    return ArmCollisionModel(geom, link_of, pairs, excluded, source, _reach(robot, geom))
+    return ArmCollisionModel(geom, link_of, pairs, excluded, source, _reach(robot, geom), _fixed_lowest(robot, geom))

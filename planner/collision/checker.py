@@ -70,32 +70,6 @@ def _coal_shape(obstacle: Obstacle) -> coal.CollisionGeometry:
     raise InvalidArgumentError(f"obstacle {obstacle.name!r}: unknown shape {type(shape).__name__}")
 
 
-def _fixed_height(robot: Robot, arm, floor: float, clearance: float) -> set[int]:
-    """Arm geometry that stands on the floor: its height never changes and it is within the clearance.
-
-    A base column turning about a vertical axis keeps its distance to the floor in every
-    configuration; when that distance is below the clearance the arm simply stands there, so
-    the floor is not checked against it (found by sampling configurations).
-    """
-    probe = pin.GeometryModel()
-    for obj in arm.geometry.geometryObjects:
-        probe.addGeometryObject(obj)
-    n = probe.ngeoms
-    probe.addGeometryObject(
-        pin.GeometryObject("probe_floor", 0, 0, pin.SE3.Identity(), coal.Halfspace(np.array([0.0, 0.0, 1.0]), -10.0))
-    )
-    for a in range(n):
-        probe.addCollisionPair(pin.CollisionPair(a, n))
-    data, gdata = robot.model.createData(), pin.GeometryData(probe)
-    rows = []
-    for q in robot.random_configurations(np.random.default_rng(0), 24):
-        pin.computeDistances(robot.model, data, probe, gdata, robot.pinocchio_configuration(q))
-        rows.append([r.min_distance for r in gdata.distanceResults])
-    d = np.array(rows)
-    # Distances to the probe floor at z = -10 m, less the way up to the real floor.
-    return {a for a in range(n) if np.ptp(d[:, a]) <= 1e-9 and d[0, a] - (floor + 10.0) < clearance}
-
-
 class CollisionChecker:
     """The arm against itself and a scene.
 
@@ -134,7 +108,9 @@ class CollisionChecker:
             names.append(obstacle.name)
         pairs: list[tuple[int, int]] = list(arm.self_pairs) if self_collision else []
         self._pair_scene: list[str | None] = [None] * len(pairs)
-        fixed = _fixed_height(robot, arm, self.scene.floor, self.scene.clearance) if FLOOR in scene_ids else set()
+        fixed = set()
+        if FLOOR in scene_ids:
+            fixed = {a for a, low in arm.fixed_lowest.items() if low - self.scene.floor < self.scene.clearance}
         for name, sid in scene_ids.items():
             for a in range(n_arm):
                 if arm.geometry.geometryObjects[a].parentJoint == 0:
