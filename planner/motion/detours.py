@@ -38,7 +38,8 @@ class SingularityOptions:
 
     Attributes:
         threshold: Inverse condition number below which a configuration is too close; None
-            (normalised to 1/30) is ``1 / DEFAULT_CONDITION_NUMBER``.
+            is the task's default, ``1 / DEFAULT_CONDITION_NUMBERS[task]`` of
+            :mod:`planner.motion.singularity` (resolved when the robot's task is known).
         task: Task Jacobian (``"position"`` or ``"pose"``); None as the robot chooses.
         rate: Sampling rate of the checks [Hz].
         max_detours: Most waypoints to insert.
@@ -56,7 +57,8 @@ class SingularityOptions:
     margin: float = 3.0
 
     def __post_init__(self) -> None:
-        object.__setattr__(self, "threshold", inverse_condition_threshold(self.threshold))
+        if self.threshold is not None:
+            object.__setattr__(self, "threshold", inverse_condition_threshold(self.threshold))
         max_detours = self.max_detours
         if isinstance(max_detours, bool) or not isinstance(max_detours, int) or max_detours < 0:
             raise InvalidArgumentError(f"max_detours must be a non-negative integer, got {plain(max_detours)}")
@@ -178,8 +180,8 @@ def plan_clear_of_singularities(
             state the planner cannot brake from.
     """
     opts = SingularityOptions() if options is None else options
-    thr = opts.threshold
     t_task = robot.resolve_task(opts.task)
+    thr = inverse_condition_threshold(opts.threshold, t_task)
     rate, max_detours, margin = opts.rate, opts.max_detours, opts.margin
     limits = request.limits
     if limits.dof != robot.dof:
