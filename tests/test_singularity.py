@@ -6,6 +6,9 @@ import re
 
 import numpy as np
 import pytest
+from dh_arms import property_settings
+from hypothesis import given
+from hypothesis import strategies as st
 
 from planner import InvalidArgumentError, Robot
 from planner.motion.detours import SingularityOptions, plan_clear_of_singularities
@@ -131,24 +134,72 @@ def test_options_and_kept_segments():
     assert none.detours == () and none.trajectory.duration == kept.trajectory.duration
 
 
-@pytest.mark.parametrize("count", [8, pytest.param(100, marks=pytest.mark.slow)])
-def test_no_plan_is_slower_than_resting_at_every_waypoint_for_detours_that_clear_nothing(count):
-    from planner.motion.detours import SingularityOptions, plan_clear_of_singularities
-    from planner.motion.limits import JointLimits
-    from planner.motion.plan import plan_trajectory
-    from planner.motion.request import TrajectoryRequest
+@st.composite
+def _elbow_crossing_paths(draw, alternate: bool) -> np.ndarray:
+    """dh3 joint waypoints (2-6) whose elbow angle q3 changes sign on every segment (alternate)
+    or at random; |q3| >= 0.1 rad, so the waypoints themselves are clear of the stretched arm."""
+    robot = get_robot("dh3")
+    n = draw(st.integers(2, 6))
+    rows = []
+    for k in range(n):
+        q = [draw(st.floats(float(lo), float(hi))) for lo, hi in zip(robot.lower[:2], robot.upper[:2])]
+        elbow = draw(st.floats(0.1, float(min(-robot.lower[2], robot.upper[2]))))
+        sign = (1 if k % 2 == 0 else -1) if alternate else draw(st.sampled_from([-1, 1]))
+        rows.append([*q, sign * elbow])
+    return np.array(rows)
 
+
+def _detoured_segments_clear(robot, plan, threshold: float) -> bool:
+    """Independently of the plan's report: every user segment with a detour stays >= threshold."""
+    traj, times = plan.trajectory, plan.waypoint_times
+    for k in {d.segment for d in plan.detours}:
+        t = np.linspace(times[k], times[k + 1], 400)
+        if float(np.min(robot.conditioning(traj.sample(t).q)[0])) < threshold:
+            return False
+    return True
+
+
+def _check_not_slower_than_resting(q: np.ndarray) -> None:
     robot = get_robot("dh3")
     limits = JointLimits.from_robot(robot)
-    rng = np.random.default_rng(11)
-    for _ in range(count):
-        q = robot.random_configurations(rng, 5)
-        q[:, 2] = np.abs(q[:, 2]) * np.array([1, -1, 1, -1, 1])  # every segment crosses the stretched elbow
-        plan = plan_clear_of_singularities(robot, TrajectoryRequest(q, limits), SingularityOptions())
-        rest = plan_trajectory(q, limits, strategy="stop")
-        assert not {d.segment for d in plan.detours} & set(plan.unresolved)
-        if plan.trajectory.duration > rest.duration * (1 + 1e-9):
-            assert plan.detours and not plan.unresolved
+    plan = plan_clear_of_singularities(robot, TrajectoryRequest(q, limits))
+    rest = plan_trajectory(q, limits, strategy="stop")
+    assert not {d.segment for d in plan.detours} & set(plan.unresolved)
+    if plan.trajectory.duration > rest.duration * (1 + 1e-9):
+        # Slower than resting at every waypoint only for detours that keep the arm clear.
+        assert plan.detours and _detoured_segments_clear(robot, plan, THRESHOLD)
+
+
+@property_settings(20)
+@given(q=_elbow_crossing_paths(alternate=True))
+def test_no_plan_is_slower_than_resting_at_every_waypoint_unless_its_detours_clear(q):
+    _check_not_slower_than_resting(q)
+
+
+@pytest.mark.slow
+@property_settings(150)
+@given(q=st.one_of(_elbow_crossing_paths(alternate=True), _elbow_crossing_paths(alternate=False)))
+def test_no_plan_is_slower_than_resting_at_every_waypoint_unless_its_detours_clear_many(q):
+    _check_not_slower_than_resting(q)
+
+
+def test_detours_taken_out_again_give_the_segment_its_minimum_duration_back(monkeypatch):
+    # The stretched elbow lies between these (q3 changes sign) but det J keeps its sign (the
+    # shoulder factor changes sign too), so detours are tried, clear nothing and are removed.
+    import planner.motion.detours as detours_module
+
+    calls = []
+    plan_request = detours_module.plan_trajectory_request
+    monkeypatch.setattr(detours_module, "plan_trajectory_request", lambda r: calls.append(r) or plan_request(r))
+    robot = get_robot("dh3")
+    limits = JointLimits.from_robot(robot)
+    q = np.array([[0.925, -0.977, 2.349], [2.231, -0.95, -0.877]])
+    minimum = 2 * plan_trajectory(q, limits).duration
+    plan = plan_clear_of_singularities(robot, TrajectoryRequest(q, limits, min_durations=[minimum]))
+    assert len(calls) >= 3 and len(calls[-2].waypoints) > 2  # detours were planned, then taken out
+    assert plan.detours == () and plan.unresolved == (0,)
+    assert len(plan.trajectory.waypoints) == 2
+    assert plan.trajectory.duration >= minimum * (1 - 1e-9)
 
 
 # ------------------------------------------------------------------ the measure on 6- and 7-joint arms

@@ -267,16 +267,21 @@ def plan_clear_of_singularities(
         return still
 
     still = unresolved_segments()
-    # Detours that did not clear their segment only cost time: take them out again.
+    # Detours that did not clear their segment only cost time: take them out again. Planning
+    # again changes the via states, so a neighbour's path may dip anew: repeat until none does.
     useless = [i for i, nd in enumerate(nodes) if nd[1] is None and nd[2] in still]
-    if useless:
+    while useless:
         for i in reversed(useless):
             del nodes[i]
             del states[i]
+        for i, (_, k, _) in enumerate(nodes[:-1]):  # a user segment whole again gets its minimum back
+            if k is not None and nodes[i + 1][1] == k + 1:
+                states[i] = (states[i][0], states[i][1], float(request.min_durations[k]))
         detours = [d for d in detours if d.segment not in still]
         traj = plan_nodes()
         report, t, _, inv = measure_singularities(robot, traj, thr, t_task, rate)
         still = unresolved_segments()
+        useless = [i for i, nd in enumerate(nodes) if nd[1] is None and nd[2] in still]
     user_idx = np.array([i for i, nd in enumerate(nodes) if nd[1] is not None])
     user_idx.setflags(write=False)
     return SingularityAwarePlan(

@@ -6,19 +6,25 @@ singular. For the pose task the Jacobian's angular rows are first multiplied by 
 characteristic length (:attr:`Robot.characteristic_length`, the length of its chain from the
 first joint to the tip), so that a tip rotation of 1 rad weighs like a tip translation of one
 arm length and the measure does not depend on the arm's size or the unit of length (with raw
-``[v; omega]`` rows it does: a threshold that suits one arm flags half the random
-configurations of another). A configuration is *too close* when it falls below a threshold.
+``[v; omega]`` rows it does, and the old threshold 1/30 flagged about half of the random
+configurations of ur5, panda and z1). That length is chosen because the kinematics alone fix
+it (no sampling, no tuning per arm) and it grows with the arm like the lever arms of its base
+joints; on ur5, lengths from a quarter of it to all of it separate configurations near a
+singularity from the others about equally well. A configuration is *too close* when it falls
+below a threshold.
 
 The default threshold depends on the task, as the two measures reach different values: the
 position rows of a 3-joint arm are often near isotropic, while a 6-joint pose Jacobian, whose
 wrist joints move the tip by a few centimetres, has an inverse condition number of about 0.12
 in good configurations of ur5 and panda. Defaults: a condition number of 30 for ``"position"``
 (inverse 1/30) and 100 for ``"pose"`` (inverse 0.01). The pose default is calibrated on random
-configurations of ur5, panda and z1 (``benchmarks/bench_singularity.py``): it flags 22 %, 14 %
-and 10 % of them (the raw measure at 1/30 flagged 46 %, 37 % and 50 %), nearly all within
-0.05 rad of a singular configuration and 95 % of the flagged within 0.15-0.25 rad of one, e.g.
-within about 4 degrees of UR5's wrist alignment (q5 = 0) or 6 degrees of its stretched elbow.
-The Yoshikawa manipulability (product of the singular values) is reported beside it.
+configurations of ur5, panda and z1 (``benchmarks/bench_singularity.py``): it flags 23 %, 15 %
+and 11 % of them (the raw measure at 1/30 flagged 46 %, 38 % and 49 %), among them 96-100 %
+of those within 0.05 rad of a singular configuration, and 95 % of the flagged lie within 0.16,
+0.25 and 0.15 rad of one (a first-order joint-space distance). From UR5's home pose the
+threshold is crossed 5 degrees from its wrist alignment (q5 = 0), 8 degrees from its stretched
+elbow (q3 = 0) and 3 degrees (of q2) from its shoulder singularity. The Yoshikawa
+manipulability (product of the singular values) is reported beside it.
 
 :func:`check_singularities` measures a trajectory at its waypoints and along samples.
 """
