@@ -349,3 +349,47 @@ def test_ur5_flags_only_configurations_near_its_singularities():
     assert np.all(distance[flagged] < 0.3)  # flagged: within 17 degrees of a singularity
     assert np.all(flagged[distance < 0.02])  # within about a degree: flagged
     assert flagged.mean() < 0.3  # the raw measure at 1/30 flagged about half
+
+
+_SLIDER = """<robot name="slider">
+  <link name="base"/><link name="l1"/><link name="l2"/><link name="l3"/><link name="tip"/>
+  <joint name="yaw" type="revolute"><parent link="base"/><child link="l1"/>
+    <origin xyz="0 0 0.1"/><axis xyz="0 0 1"/><limit lower="-3" upper="3" effort="1" velocity="1"/></joint>
+  <joint name="pitch" type="revolute"><parent link="l1"/><child link="l2"/>
+    <origin xyz="0 0 0.05"/><axis xyz="0 1 0"/><limit lower="-2" upper="2" effort="1" velocity="1"/></joint>
+  <joint name="slide" type="prismatic"><parent link="l2"/><child link="l3"/>
+    <origin xyz="0.2 0 0"/><axis xyz="1 0 0"/><limit lower="0" upper="0.3" effort="1" velocity="0.1"/></joint>
+  <joint name="fixed_tip" type="fixed"><parent link="l3"/><child link="tip"/><origin xyz="0.05 0 0"/></joint>
+</robot>"""
+
+
+@pytest.mark.parametrize("task", ["position", "pose"])
+def test_measure_with_a_prismatic_joint_does_not_depend_on_the_unit_of_length(task):
+    # The same arm in decimetres (lengths and the slide's travel times 10): the same measure.
+    robot = Robot(_SLIDER, tip="tip", validate=False)
+    text = re.sub(r'(xyz|lower|upper)="([^"]+)"', lambda m: f'{m[1]}="{_times_ten(m[2], m[1])}"', _SLIDER)
+    decimetres = Robot(text, tip="tip", validate=False)
+    assert robot.characteristic_length == pytest.approx(0.3)  # 0.05 + 0.2 + 0.05 at q = 0
+    assert decimetres.characteristic_length == pytest.approx(3.0)
+    q = robot.random_configurations(np.random.default_rng(4), 30)
+    q10 = q * np.array([1.0, 1.0, 10.0])
+    np.testing.assert_allclose(decimetres.conditioning(q10, task)[0], robot.conditioning(q, task)[0], rtol=1e-9)
+
+
+def _times_ten(text: str, key: str) -> str:
+    if key == "xyz":
+        return " ".join(str(10 * float(v)) for v in text.split())
+    value = float(text)
+    return str(10 * value) if value in (0.0, 0.3) else text  # only the slide's limits are lengths
+
+
+@needs_example_robot_data
+def test_default_thresholds_follow_the_task():
+    from planner.motion.branch_choice import TargetSolver
+
+    assert TargetSolver(get_robot("ur5")).threshold == pytest.approx(POSE_THRESHOLD)
+    assert TargetSolver(get_robot("dh3")).threshold == pytest.approx(THRESHOLD)
+    assert TargetSolver(get_robot("ur5"), task="position").threshold == pytest.approx(THRESHOLD)
+    ur5 = get_robot("ur5")
+    with pytest.raises(InvalidArgumentError, match=r"a condition number of 100 is 0.01\)"):
+        check_singularities(ur5, plan_trajectory([UR5_HOME, UR5_HOME], JointLimits.from_robot(ur5)), threshold=2)
