@@ -267,6 +267,16 @@ def test_measure_of_a_6_joint_arm_does_not_depend_on_its_size():
     assert np.max(np.abs(raw_scaled - raw)) > 0.05  # the raw [v; omega] ratio does depend on it
 
 
+@needs_example_robot_data
+@pytest.mark.parametrize(("name", "task"), [("ur5", "pose"), ("panda", "pose"), ("so101", "pose"), ("ur5", "position")])
+def test_manipulability_stays_yoshikawas_on_the_raw_jacobian(name, task):
+    robot = get_robot(name)
+    q = robot.random_configurations(np.random.default_rng(6), 10)
+    rows = slice(0, 3) if task == "position" else slice(0, 6)
+    expected = [np.prod(np.linalg.svd(robot.jacobian(row)[rows], compute_uv=False)) for row in q]
+    np.testing.assert_allclose(robot.conditioning(q, task)[1], expected, rtol=1e-9)
+
+
 @pytest.mark.parametrize("name", ["dh3", "three_joint", "al5c", "shelley"])
 def test_position_measure_of_the_seed_arms_is_the_raw_ratio(name):
     robot = get_robot(name)
