@@ -247,3 +247,20 @@ def test_random_reachable_batches_are_solved_and_verified(data):
     batch = solver(name).solve_batch(targets, seeds, IKOptions(time_budget=0.5))
     assert batch.success.all(), [batch.reason(i) for i in np.flatnonzero(~batch.success)]
     check_batch(robot, targets, batch)
+
+
+def test_restarts_from_an_rng_are_reproducible_and_the_time_budget_ends_restarts():
+    robot = get_robot("dh3")
+    ik = solver("dh3")
+    rng = np.random.default_rng(8)
+    q_true = robot.random_configurations(rng, 30)
+    targets = [make_target(robot, "position", q) for q in q_true]
+    a = ik.solve_batch(targets, options=IKOptions(rng=5))
+    b = ik.solve_batch(targets, options=IKOptions(rng=np.random.default_rng(5)))
+    np.testing.assert_array_equal(a.q, b.q)
+    assert a.success.all()
+    check_batch(robot, targets, a)
+    far = Target([50.0, 0.0, 0.0])
+    out = ik.solve_batch([far], options=IKOptions(time_budget=1e-9))
+    assert out.attempts.tolist() == [1]
+    assert "before the time budget ran out" in out[0].reason
