@@ -81,7 +81,7 @@ STALL = 0.9
 #: Restarts from the restart configurations nearest the target (in target space) before the rest.
 NEAREST = 4
 #: Times a slowly converging attempt (near a singularity) goes on for another run of steps.
-MAX_CONTINUATIONS = 10
+MAX_CONTINUATIONS = 2
 
 
 # ---------------------------------------------------------------------------- the kernel
