@@ -17,6 +17,7 @@ from planner import InvalidArgumentError, InvalidConfigurationError, JointLimitE
 from planner.app.benchmark import make_target
 from planner.geometry.joint_space import angular_joints, wrapped_distance
 from planner.geometry.target import target_errors
+from planner.geometry.target_batch import BatchTargets
 from planner.ik.numeric.batch_result import BatchIKResult
 from planner.ik.numeric.solver import DISTINCT, NlpIK
 from planner.ik.options import IKOptions
@@ -228,6 +229,13 @@ def test_bad_input_names_the_target_or_seed():
     outside[1, 0] = robot.upper[0] + 1.0
     with pytest.raises(JointLimitError, match=r"seed of target 1"):
         ik.solve_batch(positions[:1].repeat(2, axis=0), outside)
+    eye = np.eye(3)[None]
+    with pytest.raises(InvalidArgumentError, match=r"target 0: unknown kind 'orbit'; valid: position, pose, pitch"):
+        BatchTargets(np.zeros((1, 3)), eye, np.zeros(1), ["orbit"])
+    with pytest.raises(InvalidArgumentError, match=r"rotations must have shape \(1, 3, 3\), got \(3, 3\)"):
+        BatchTargets(np.zeros((1, 3)), np.eye(3), np.zeros(1), ["pose"])
+    with pytest.raises(InvalidArgumentError, match=r"target 0 holds NaN or infinite values"):
+        BatchTargets(np.zeros((1, 3)), eye, np.array([np.inf]), ["pitch"])
     with pytest.raises(InvalidArgumentError, match=r"options must be a planner.IKOptions"):
         ik.solve_batch(positions[:1], options={"time_budget": 1})  # type: ignore[arg-type]
 

@@ -11,7 +11,10 @@ from planner.core.rotations import ORTHONORMAL_TOL
 from planner.exceptions import InvalidArgumentError, PlannerError
 from planner.geometry.target import Target, as_target
 
-__all__ = ["BatchTargets"]
+__all__ = ["TARGET_KINDS", "BatchTargets"]
+
+#: The kinds of target, as :attr:`Target.kind <planner.geometry.target.Target.kind>` names them.
+TARGET_KINDS = ("position", "pose", "pitch")
 
 
 class BatchTargets:
@@ -25,6 +28,44 @@ class BatchTargets:
     """
 
     def __init__(self, positions: np.ndarray, rotations: np.ndarray, pitches: np.ndarray, kinds: np.ndarray) -> None:
+        """Targets from arrays, checked (vectorised): shapes, kinds, finite values, proper rotations.
+
+        Raises:
+            InvalidArgumentError: Naming the first bad target.
+        """
+        try:
+            positions = np.array(positions, dtype=float)
+            rotations = np.array(rotations, dtype=float)
+            pitches = np.array(pitches, dtype=float)
+        except (TypeError, ValueError) as exc:
+            raise InvalidArgumentError(f"targets must be numbers: {exc}") from exc
+        kinds = np.array(kinds, dtype=object)
+        n = len(positions) if positions.ndim else 0
+        shapes = {"positions": (n, 3), "rotations": (n, 3, 3), "pitches": (n,), "kinds": (n,)}
+        for label, arr in (("positions", positions), ("rotations", rotations), ("pitches", pitches), ("kinds", kinds)):
+            if arr.shape != shapes[label]:
+                raise InvalidArgumentError(f"{label} must have shape {shapes[label]}, got {arr.shape}")
+        unknown = ~np.isin(kinds, TARGET_KINDS)
+        if unknown.any():
+            i = int(np.argmax(unknown))
+            raise InvalidArgumentError(f"target {i}: unknown kind {kinds[i]!r}; valid: {', '.join(TARGET_KINDS)}")
+        values = np.hstack([positions, rotations.reshape(n, 9), pitches[:, None]])
+        bad = ~np.isfinite(values).all(axis=1)
+        if bad.any():
+            i = int(np.argmax(bad))
+            raise InvalidArgumentError(f"target {i} holds NaN or infinite values: {values[i].tolist()}")
+        pose = np.flatnonzero(kinds == "pose")
+        if len(pose):
+            rot = rotations[pose]
+            deviation = np.abs(np.swapaxes(rot, 1, 2) @ rot - np.eye(3)).max(axis=(1, 2))
+            det = np.linalg.det(rot)
+            bad = (deviation > ORTHONORMAL_TOL) | (det < 0)
+            if bad.any():
+                j = int(np.argmax(bad))
+                raise InvalidArgumentError(
+                    f"target {int(pose[j])}: rotation is not a proper orthonormal matrix "
+                    f"(|R^T R - I| = {deviation[j]:.3g}, det = {det[j]:.6g})"
+                )
         self.positions = read_only(positions)
         self.rotations = read_only(rotations)
         self.pitches = read_only(pitches)
@@ -76,29 +117,14 @@ class BatchTargets:
             arr = np.asarray(arr, dtype=float)
         except (TypeError, ValueError) as exc:
             raise InvalidArgumentError(f"targets must be numbers, got {arr!r}") from exc
+        n = len(arr) if arr.ndim else 0
         if arr.ndim == 2 and arr.shape[1] == 3:
-            positions, rotations, kind = arr.copy(), np.tile(np.eye(3), (len(arr), 1, 1)), "position"
-        elif arr.ndim == 3 and arr.shape[1:] == (4, 4):
-            positions, rotations, kind = arr[:, :3, 3].copy(), arr[:, :3, :3].copy(), "pose"
-        else:
-            raise InvalidArgumentError(
-                f"targets must have shape (N, 3) (positions [m]) or (N, 4, 4) (poses), got {arr.shape}"
-            )
-        bad = ~np.isfinite(arr.reshape(len(arr), arr[0].size if len(arr) else 0)).all(axis=1)
-        if bad.any():
-            i = int(np.argmax(bad))
-            raise InvalidArgumentError(f"target {i} holds NaN or infinite values: {arr[i].tolist()}")
-        if kind == "pose":
-            deviation = np.abs(np.swapaxes(rotations, 1, 2) @ rotations - np.eye(3)).max(axis=(1, 2))
-            bad = (deviation > ORTHONORMAL_TOL) | (np.linalg.det(rotations) < 0)
-            if bad.any():
-                i = int(np.argmax(bad))
-                raise InvalidArgumentError(
-                    f"target {i}: rotation is not a proper orthonormal matrix (|R^T R - I| = {deviation[i]:.3g}, "
-                    f"det = {np.linalg.det(rotations[i]):.6g})"
-                )
-        kinds = np.full(len(arr), kind, dtype=object)
-        return cls(positions, rotations, np.zeros(len(arr)), kinds)
+            return cls(arr, np.tile(np.eye(3), (n, 1, 1)), np.zeros(n), np.full(n, "position", dtype=object))
+        if arr.ndim == 3 and arr.shape[1:] == (4, 4):
+            return cls(arr[:, :3, 3], arr[:, :3, :3], np.zeros(n), np.full(n, "pose", dtype=object))
+        raise InvalidArgumentError(
+            f"targets must have shape (N, 3) (positions [m]) or (N, 4, 4) (poses), got {arr.shape}"
+        )
 
     def target(self, i: int) -> Target:
         """Target ``i`` as a :class:`~planner.geometry.target.Target`."""

@@ -29,7 +29,8 @@ class BatchIKResult(Sequence[IKResult]):
         attempt: Shape (N,) index of the attempt that answered, -1 where none did.
         seeded: Whether attempt 0 of every target was its seed (else every attempt is a
             restart from the fixed random starts).
-        wall_time: Time of the whole batch [s].
+        wall_time: Time of the whole batch [s] (each item's ``wall_time`` is its share, the
+            time over N).
         limit: What ended the restarts of the targets not solved: ``"attempt cap"`` or
             ``"time budget"``.
     """
