@@ -137,6 +137,9 @@ def test_mixed_target_kinds_and_one_seed_for_all():
     positions = np.array([t.position for t in targets])
     by_array = solver("al5c").solve_batch(positions, home)
     assert by_array.success.all()
+    as_objects = np.empty(len(targets), dtype=object)
+    as_objects[:] = targets
+    np.testing.assert_array_equal(solver("al5c").solve_batch(as_objects, home).q, batch.q)
     check_batch(robot, [Target(p) for p in positions], by_array)
 
 

@@ -88,8 +88,10 @@ class BatchTargets:
         """
         if isinstance(targets, BatchTargets):
             return targets
-        if isinstance(targets, np.ndarray) and targets.dtype != object:
-            return cls._from_array(targets)
+        if isinstance(targets, np.ndarray):
+            if targets.dtype != object:
+                return cls._from_array(targets)
+            targets = list(targets)
         if not isinstance(targets, Sequence) or isinstance(targets, str):
             raise InvalidArgumentError(
                 f"targets must be an array of positions (N, 3) or poses (N, 4, 4), or a sequence of targets, "
