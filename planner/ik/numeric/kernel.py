@@ -244,3 +244,87 @@ class Kernel:
         self._evaluate()
         if self._buffer.ret() != 0:
             raise RuntimeError(f"CasADi function {self.function.name()!r} failed (code {self._buffer.ret()})")
+
+
+#: Length of a kernel's parameter vector (:meth:`Kernel.set_target` and :func:`target_parameters`).
+N_PARAMS = _N_PARAMS
+#: Where the stop threshold and the orientation weight [m] sit in a parameter vector.
+PARAM_STOP, PARAM_SCALE = _STOP, _SCALE
+
+
+def step_functions(
+    kinematics: CasadiKinematics, kind: str, lower: np.ndarray, upper: np.ndarray, max_step: float
+) -> tuple[ca.Function, ca.Function]:
+    """The damped Gauss-Newton step of one configuration and its squared residual, as in :class:`Kernel`.
+
+    For other drivers of the same iteration (:mod:`planner.ik.numeric.batch` maps them over
+    many targets).
+
+    Args:
+        kinematics: The robot's symbolic kinematics.
+        kind: ``"position"``, ``"pose"`` or ``"pitch"``.
+        lower: Finite lower joint limits, shape (dof,) [rad or m].
+        upper: Finite upper joint limits, shape (dof,) [rad or m].
+        max_step: Longest joint step of one iteration [rad or m].
+
+    Returns:
+        ``(step, cost)``: ``step(q (dof,), par (N_PARAMS,)) -> q_next`` (within the limits) and
+        ``cost(q, par) -> |r|^2``.
+
+    Raises:
+        InvalidArgumentError: On an unknown target kind.
+    """
+    if kind not in KERNEL_KINDS:
+        raise InvalidArgumentError(f"unknown target kind {kind!r}; valid: {', '.join(KERNEL_KINDS)}")
+    n = kinematics.dof
+    q = ca.SX.sym("q", n)
+    par = ca.SX.sym("par", _N_PARAMS)
+    r = _residual(kinematics, kind, q, par)
+    jac = ca.jacobian(r, q)
+    cost = ca.dot(r, r)
+    step = -_ldl_solve(ca.mtimes(jac.T, jac) + (1e-6 + cost) * ca.SX.eye(n), ca.mtimes(jac.T, r))
+    step = step * ca.fmin(1.0, max_step / (ca.norm_2(step) + 1e-300))
+    q_next = ca.fmin(ca.fmax(q + step, ca.DM(lower)), ca.DM(upper))
+    return ca.Function("gn_step", [q, par], [q_next]), ca.Function("gn_cost", [q, par], [cost])
+
+
+def target_parameters(
+    kind: str,
+    positions: np.ndarray,
+    rotations: np.ndarray | None = None,
+    pitches: np.ndarray | None = None,
+) -> np.ndarray:
+    """The parameter vectors of N targets of one kind, as :meth:`Kernel.set_target` writes them.
+
+    Args:
+        kind: ``"position"``, ``"pose"`` or ``"pitch"``.
+        positions: Shape (N, 3) [m].
+        rotations: Shape (N, 3, 3), for poses.
+        pitches: Shape (N,) approach pitches [rad], for pitch targets.
+
+    Returns:
+        Shape (N, N_PARAMS); the stop threshold and the orientation weight are zero
+        (:func:`set_weighting_rows` sets them).
+    """
+    positions = np.asarray(positions, dtype=float)
+    par = np.zeros((len(positions), _N_PARAMS))
+    par[:, 0:3] = positions
+    if kind == "pose":
+        par[:, 3:12] = np.asarray(rotations, dtype=float).transpose(0, 2, 1).reshape(-1, 9)
+    elif kind == "pitch":
+        pitches = np.asarray(pitches, dtype=float)
+        cos_p = np.cos(pitches)
+        radial = np.hypot(positions[:, 0], positions[:, 1])
+        free = (radial <= RADIAL_EPS) | (np.abs(cos_p) <= VERTICAL)
+        scale = np.where(free, 0.0, np.sign(cos_p) / np.where(free, 1.0, radial))
+        par[:, 12] = scale * positions[:, 0]
+        par[:, 13] = scale * positions[:, 1]
+        par[:, 15] = np.sin(pitches)
+        par[:, 16] = np.abs(cos_p)
+    return par
+
+
+def set_weighting_rows(par: np.ndarray, scale: float, stop: float) -> None:
+    """Set the orientation weight [m] and stop threshold of parameter rows (N, N_PARAMS), in place."""
+    par[:, _SCALE] = scale
+    par[:, _STOP] = stop
