@@ -127,6 +127,9 @@ class CollisionChecker:
         self._self = np.array([s is None for s in self._pair_scene], dtype=bool)
         self._data = robot.model.createData()
         self._gdata = pin.GeometryData(geom)
+        # An AABB tree over the objects: in_collision runs the exact test only on pairs whose
+        # boxes overlap; it reads this GeometryData's active pairs, so allow masks hold.
+        self._broadphase = pin.BroadPhaseManager_DynamicAABBTreeCollisionManager(robot.model, geom, self._gdata)
         self._active: dict[tuple[str, ...], np.ndarray] = {}
         self._active_now: np.ndarray | None = None
 
@@ -200,7 +203,19 @@ class CollisionChecker:
         return Clearance(dist, (self.names[a], self.names[b]), self.scene.clearance)
 
     def _clearance(self, q: np.ndarray, mask: np.ndarray) -> Clearance:
-        return self.clearance_of(self.pair_distances(q, mask))
+        if not mask.any():
+            return Clearance(float("inf"), ("", ""), self.scene.clearance)
+        self._set_active(mask)
+        # Pinocchio returns the index of the active pair at the smallest distance: only that
+        # one result is read back (not one Python object per pair).
+        k = pin.computeDistances(
+            self.robot.model, self._data, self.geometry, self._gdata, self.robot.pinocchio_configuration(q)
+        )
+        dist = float(self._gdata.distanceResults[k].min_distance)
+        if dist <= 0.0:
+            dist = self._depth(k, dist)
+        a, b = (int(i) for i in self._pairs[k])
+        return Clearance(dist, (self.names[a], self.names[b]), self.scene.clearance)
 
     def _depth(self, k: int, dist: float) -> float:
         """The penetration depth of pair `k` (coal's distance is 0 or a signed estimate when overlapping)."""
@@ -232,7 +247,7 @@ class CollisionChecker:
         self._set_active(mask)
         return bool(
             pin.computeCollisions(
-                self.robot.model, self._data, self.geometry, self._gdata, self.robot.pinocchio_configuration(q), True
+                self.robot.model, self._data, self._broadphase, self.robot.pinocchio_configuration(q), True
             )
         )
 
