@@ -130,9 +130,10 @@ class CollisionChecker:
         self._self = np.array([s is None for s in self._pair_scene], dtype=bool)
         self._data = robot.model.createData()
         self._gdata = pin.GeometryData(geom)
-        # An AABB tree over the objects: in_collision runs the exact test only on pairs whose
-        # boxes overlap; it reads this GeometryData's active pairs, so allow masks hold.
-        self._broadphase = pin.BroadPhaseManager_DynamicAABBTreeCollisionManager(robot.model, geom, self._gdata)
+        # in_collision runs the exact test only on pairs whose world AABBs overlap; it reads this
+        # GeometryData's active pairs, so allow masks hold. With a few dozen objects coal's naive
+        # manager (every AABB pair) is faster than its AABB trees (measured: about 1.5x).
+        self._broadphase = pin.BroadPhaseManager_NaiveCollisionManager(robot.model, geom, self._gdata)
         self._active: dict[tuple[str, ...], np.ndarray] = {}
         self._active_now: np.ndarray | None = None
         self._everything = self._mask(())
