@@ -134,6 +134,10 @@ class CollisionChecker:
         # GeometryData's active pairs, so allow masks hold. With a few dozen objects coal's naive
         # manager (every AABB pair) is faster than its AABB trees (measured: about 1.5x).
         self._broadphase = pin.BroadPhaseManager_NaiveCollisionManager(robot.model, geom, self._gdata)
+        for request in self._gdata.collisionRequests:
+            # GJK starts from the pair's last separating direction (links keep their relative
+            # poses roughly): 6 to 30 % faster on ur5 and panda; a verdict does not depend on it.
+            request.gjk_initial_guess = coal.GJKInitialGuess.CachedGuess
         self._active: dict[tuple[str, ...], np.ndarray] = {}
         self._active_now: np.ndarray | None = None
         self._everything = self._mask(())
