@@ -29,7 +29,7 @@ from planner.export.calibration import ServoCalibration
 from planner.export.calibration_file import ControllerSetup, controller_setup
 from planner.export.formats import ServoFormat
 from planner.model.robot import Robot
-from planner.motion.avoid import clear_route, joint_line
+from planner.motion.avoid import clear_route, joint_line, time_joint_line
 from planner.motion.detours import Detour, SingularityOptions, plan_clear_of_singularities
 from planner.motion.limits import JointLimits
 from planner.motion.line import LinePath
@@ -386,7 +386,8 @@ def plan_motion(
                     nodes.extend(path.q[1:])
                     line_ranges.append((k - 1, first, len(nodes) - 1))
                     if id(path) not in timings:
-                        timings[id(path)] = time_line(path, limits)
+                        # A Cartesian line bends in joint space; a route's edge is straight there.
+                        timings[id(path)] = time_line(path, limits) if cartesian[k] else time_joint_line(path, limits)
                     line_timing.append(timings[id(path)])
             user_pos.append(len(nodes) - 1)
         return np.array(nodes), user_pos, line_ranges, line_timing

@@ -557,16 +557,22 @@ class Robot:
         t = self.resolve_task(task)
         arr = self.check_configuration(q)
         rows = arr.reshape(-1, self.dof)
-        inverse = np.empty(len(rows))
-        manipulability = np.empty(len(rows))
-        for k, row in enumerate(rows):
-            jac = self.jacobian(row)
-            if t == "position":
-                jac = jac[:3]
-            # Only the min(m, n) largest singular values: a 3x2 Jacobian has two.
-            s = np.linalg.svd(jac, compute_uv=False)[: min(jac.shape)]
-            inverse[k] = 0.0 if s[0] == 0.0 else s[-1] / s[0]
-            manipulability[k] = np.prod(s)
+        fid, ref = self.tip_frame_id, pin.ReferenceFrame.LOCAL_WORLD_ALIGNED
+        jacs = np.array(
+            [
+                np.asarray(pin.computeFrameJacobian(self.model, self.data, self._pin_q(row), fid, ref)).reshape(
+                    6, self.model.nv
+                )
+                for row in rows
+            ]
+        ).reshape(len(rows), 6, self.model.nv)
+        if t == "position":
+            jacs = jacs[:, :3]
+        # One batched SVD; only the min(m, n) largest singular values: a 3x2 Jacobian has two.
+        s = np.linalg.svd(jacs, compute_uv=False)[:, : min(jacs.shape[1:])]
+        largest = s[:, 0]
+        inverse = np.divide(s[:, -1], largest, out=np.zeros(len(rows)), where=largest != 0.0)
+        manipulability = np.prod(s, axis=1)
         shape = () if arr.ndim == 1 else (len(rows),)
         return inverse.reshape(shape), manipulability.reshape(shape)
 
