@@ -201,3 +201,49 @@ def test_the_readme_shows_what_planner_check_prints(capsys):
     shown = [line.removeprefix("# ") for line in block if line.startswith("# ")]
     assert main(["check", "al5c", str(root / "examples" / "al5c_around_a_block.yaml")]) == 0
     assert capsys.readouterr().out.splitlines() == shown
+
+
+def test_a_route_edge_is_timed_straight_within_the_limits():
+    """time_joint_line: every joint in proportion (on the line), within every limit, as fast as a direct move."""
+    from planner.collision.rrt import PathOptions
+    from planner.motion.avoid import joint_line, time_joint_line
+    from planner.motion.limits import JointLimits
+    from planner.motion.plan import plan_trajectory
+
+    robot = get_robot("al5c")
+    limits = JointLimits.from_robot(robot)
+    reach = CollisionChecker(robot).arm.reach
+    rng = np.random.default_rng(7)
+    for qa, qb in zip(robot.random_configurations(rng, 4), robot.random_configurations(rng, 4)):
+        line = joint_line(robot, qa, qb)
+        timing = time_joint_line(line, limits)
+        traj = plan_trajectory(
+            line.q,
+            limits,
+            stops=[0, len(line.q) - 1],
+            via_velocities=timing.velocity,
+            via_accelerations=timing.acceleration,
+            min_durations=np.diff(timing.t),
+        )
+        peaks = traj.peak_ratios(1000.0)
+        assert max(peaks["velocity"], peaks["acceleration"], peaks["jerk"]) <= 1 + LIMIT_TOLERANCE
+        q = traj.sample(traj.times(1000.0)).q
+        s = (q - qa) @ (qb - qa) / ((qb - qa) @ (qb - qa))
+        # How far any point of the arm can be from where the line puts it [m] (reach-weighted).
+        off_line = np.max(np.abs(q - (qa + s[:, None] * (qb - qa))) @ reach)
+        assert off_line < PathOptions().margin
+        direct = plan_trajectory(np.array([qa, qb]), limits).duration
+        assert traj.duration <= direct * 1.1  # the profile may be slowed a little so the chain keeps it
+
+
+def test_a_route_is_passed_smoothly_and_stays_clear():
+    """The route's nodes are passed without stopping where the timed motion stays clear."""
+    robot = get_robot("al5c")
+    plan = plan_with_scene(robot, BLOCK_PLAN)
+    assert plan.routes == (0,) and plan.collision_free
+    independent_check(robot, plan, 0.005)
+    traj = plan.trajectory
+    inner = traj.waypoints[1:-1]
+    assert len(inner) >= 1
+    moving = [np.max(np.abs(traj.sample(np.array([t])).qd)) for t in traj.waypoint_times[1:-1]]
+    assert max(moving) > 0.1  # [rad/s]: not at rest at every node

@@ -21,6 +21,7 @@ from planner.app.outputs import write_plan_files
 from planner.app.plan_file import MotionRequest
 from planner.collision.checker import CollisionChecker
 from planner.collision.continuous import MotionClearance, check_segment, check_trajectory, segment_is_clear
+from planner.collision.rrt import find_clear_path
 from planner.collision.scene import Scene
 from planner.core.arrays import read_only
 from planner.core.files import input_error, parse_number
@@ -29,7 +30,7 @@ from planner.export.calibration import ServoCalibration
 from planner.export.calibration_file import ControllerSetup, controller_setup
 from planner.export.formats import ServoFormat
 from planner.model.robot import Robot
-from planner.motion.avoid import clear_route, joint_line, time_joint_line
+from planner.motion.avoid import joint_line, time_joint_line
 from planner.motion.detours import Detour, SingularityOptions, plan_clear_of_singularities
 from planner.motion.limits import JointLimits
 from planner.motion.line import LinePath
@@ -203,11 +204,13 @@ def _route_around_obstacles(
     cartesian: list[bool],
     labels: list[str],
     allow: Sequence[tuple[str, ...]],
-) -> None:
+) -> dict[int, list[np.ndarray]]:
     """Check the waypoints and lines against the scene, and route free moves around obstacles.
 
-    Fills ``paths[k]`` with joint lines along a clear route for each free move into waypoint k
-    whose straight joint segment does not keep the clearance (plus the search's margin).
+    Returns:
+        For each free move into waypoint k whose straight joint segment does not keep the
+        clearance (plus the search's margin), the nodes of a clear route (its ends included),
+        by k.
 
     Raises:
         PlanningError: If a waypoint or a Cartesian line collides (naming the bodies), or no
@@ -222,6 +225,7 @@ def _route_around_obstacles(
                 f"({checker.scene.clearance * 1000:g} mm): {c}"
             )
     margin = request.path_options.margin
+    routes: dict[int, list[np.ndarray]] = {}
     for k in range(1, n):
         names = tuple(set(allow[k - 1]) | set(allow[k]))
         if cartesian[k]:
@@ -239,13 +243,14 @@ def _route_around_obstacles(
             continue
         if segment_is_clear(checker, q_user[k - 1], q_user[k], allow=names, margin=margin):
             continue
-        lines, result = clear_route(checker, q_user[k - 1], q_user[k], allow=names, options=request.path_options)
-        if not lines:
+        result = find_clear_path(checker, q_user[k - 1], q_user[k], options=request.path_options, allow=names)
+        if not result.found:
             raise PlanningError(
                 f"{request.source}: no collision-free way from {labels[k - 1]} to {labels[k]}: {result.reason} "
                 f"({result.status.value}); try another avoidance seed or time_budget, or move the obstacle"
             )
-        paths[k] = lines
+        routes[k] = list(result.path)
+    return routes
 
 
 def _calibrations(robot: Robot, request: MotionRequest) -> tuple[ServoCalibration, ...] | None:
@@ -364,8 +369,14 @@ def plan_motion(
             q_list.append(np.array(choice.q))
             q_prev = q_list[-1]
     q_user = np.array(q_list)
+    # routes[k]: the nodes of a clear route into waypoint k. Its edges are passed as via
+    # waypoints, smoothly; an edge the timed motion strays from into an obstacle is followed
+    # along its straight (clear) joint line instead (`dense`), from rest to rest.
+    routes: dict[int, list[np.ndarray]] = {}
+    dense: set[tuple[int, int]] = set()
+    edge_lines: dict[tuple[int, int], LinePath] = {}
     if checker is not None:
-        _route_around_obstacles(checker, request, q_user, paths, cartesian, labels, allow)
+        routes = _route_around_obstacles(checker, request, q_user, paths, cartesian, labels, allow)
 
     timings: dict[int, Any] = {}  # line timing per LinePath (by id), kept across re-plans
 
@@ -377,23 +388,39 @@ def plan_motion(
         user_pos = [0]
         line_ranges: list[tuple[int, int, int]] = []  # (user segment, first node, last node)
         line_timing = []
+        owner: list[tuple[int, int | None]] = []  # per node interval: (user segment into k, route edge)
+
+        def add_line(k: int, path: LinePath, edge: int | None) -> None:
+            first = len(nodes) - 1
+            nodes.extend(path.q[1:])
+            owner.extend([(k, edge)] * (len(path.q) - 1))
+            line_ranges.append((k - 1, first, len(nodes) - 1))
+            if id(path) not in timings:
+                # A Cartesian line bends in joint space; a route's edge is straight there.
+                timings[id(path)] = time_line(path, limits) if cartesian[k] else time_joint_line(path, limits)
+            line_timing.append(timings[id(path)])
+
         for k in range(1, n):
-            if paths[k] is None:
+            if k in routes:
+                for e, (a, b) in enumerate(zip(routes[k], routes[k][1:])):
+                    if (k, e) in dense:
+                        if (k, e) not in edge_lines:
+                            edge_lines[k, e] = joint_line(robot, a, b)
+                        add_line(k, edge_lines[k, e], e)
+                    else:
+                        nodes.append(b)
+                        owner.append((k, e))
+            elif paths[k] is None:
                 nodes.append(q_user[k])
+                owner.append((k, None))
             else:
                 for path in paths[k]:
-                    first = len(nodes) - 1
-                    nodes.extend(path.q[1:])
-                    line_ranges.append((k - 1, first, len(nodes) - 1))
-                    if id(path) not in timings:
-                        # A Cartesian line bends in joint space; a route's edge is straight there.
-                        timings[id(path)] = time_line(path, limits) if cartesian[k] else time_joint_line(path, limits)
-                    line_timing.append(timings[id(path)])
+                    add_line(k, path, None)
             user_pos.append(len(nodes) - 1)
-        return np.array(nodes), user_pos, line_ranges, line_timing
+        return np.array(nodes), user_pos, line_ranges, line_timing, owner
 
     def plan_once(paths: list[list[LinePath] | None]) -> tuple:
-        q_nodes, user_pos, line_ranges, line_timing = build(paths)
+        q_nodes, user_pos, line_ranges, line_timing, owner = build(paths)
         m = len(q_nodes)
         dwell = np.zeros(m)
         dwell[user_pos] = request.dwell
@@ -431,25 +458,31 @@ def plan_motion(
             if count:
                 report = measure_singularities(robot, smooth, threshold, robot.resolve_task(None), rate)[0]
                 plan = dataclasses.replace(plan, trajectory=smooth, report=report)
-        return plan, user_pos, line_ranges, m
+        return plan, user_pos, line_ranges, m, owner
 
-    plan, user_pos, line_ranges, m = plan_once(paths)
+    plan, user_pos, line_ranges, m, owner = plan_once(paths)
     collision = None
     if checker is not None:
         # The timed motion leaves the straight segments checked above: check it continuously;
-        # a free move that strays is made to follow its straight (clear) segment, and re-planned.
-        for _ in range(n):
+        # a free move or a route edge that strays is made to follow its straight (clear) joint
+        # line, and the motion re-planned.
+        for _ in range(n + sum(len(r) for r in routes.values())):
             times = plan.trajectory.waypoint_times[plan.waypoint_indices[user_pos]]
             windows = [(float(times[k - 1]), tuple(set(allow[k - 1]) | set(allow[k]))) for k in range(1, n)]
             collision = check_trajectory(checker, plan.trajectory, allow=windows)
             if collision.clear:
                 break
-            k = int(np.searchsorted(times, collision.first_hit, side="left"))
-            k = min(max(k, 1), n - 1)
-            if paths[k] is not None:
+            node_times = plan.trajectory.waypoint_times[plan.waypoint_indices]
+            i = int(np.searchsorted(node_times, collision.first_hit, side="right")) - 1
+            k, edge = owner[min(max(i, 0), m - 2)]
+            if k in routes and edge is not None and (k, edge) not in dense:
+                dense.add((k, edge))
+            elif k not in routes and paths[k] is None:
+                routes[k] = [q_user[k - 1], q_user[k]]
+                dense.add((k, 0))
+            else:
                 break  # already along clear lines: reported as it is
-            paths[k] = [joint_line(robot, q_user[k - 1], q_user[k])]
-            plan, user_pos, line_ranges, m = plan_once(paths)
+            plan, user_pos, line_ranges, m, owner = plan_once(paths)
 
     traj = plan.trajectory
     node_idx = plan.waypoint_indices
@@ -501,7 +534,7 @@ def plan_motion(
         line_deviation=tuple(deviation),
         limits=limits,
         collision=collision,
-        routes=tuple(k - 1 for k in range(1, n) if paths[k] is not None and not cartesian[k]),
+        routes=tuple(k - 1 for k in sorted(routes)),
         scene=request.scene,
         calibrations=setup.calibrations,
         servo_period_ms=request.servo_period_ms,
