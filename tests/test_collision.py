@@ -408,3 +408,21 @@ def test_a_pair_inside_the_wrist_is_bounded_by_the_wrist_joints_only():
         common = set(model.supports[joints[0]]) & set(model.supports[joints[1]]) - {0}
         # A joint both bodies hang from moves them together: it cannot bring them closer.
         assert all(weights[k, j - 1] == 0 for j in common)
+
+
+def test_ends_closer_than_the_margin_still_get_a_path_keeping_what_they_have():
+    from planner.collision.rrt import path_margin
+
+    assert path_margin(0.005, 0.006, 0.002) == pytest.approx(0.0005)
+    assert path_margin(0.005, 0.5, 0.002) == 0.002
+    assert path_margin(0.0, 0.0, 0.002) == 0.0
+    robot = get_robot("al5c")
+    checker = CollisionChecker(robot, _al5c_block_scene())
+    qa, qb = np.array([-0.6, 1.2, -1.4, -0.8, 0.0]), np.array([0.6, 1.2, -1.4, -0.8, 0.0])
+    ends = min(checker.clearance(qa).distance, checker.clearance(qb).distance)
+    options = PathOptions(seed=4, margin=1.0)  # far more than the ends have
+    result = find_clear_path(checker, qa, qb, options=options)
+    assert result.found
+    keep = checker.scene.clearance + path_margin(checker.scene.clearance, ends, options.margin)
+    for a, b in zip(result.path, result.path[1:]):
+        assert check_segment(checker, a, b, clearance=keep).clear

@@ -21,7 +21,7 @@ from planner.app.outputs import write_plan_files
 from planner.app.plan_file import MotionRequest
 from planner.collision.checker import CollisionChecker
 from planner.collision.continuous import MotionClearance, check_segment, check_trajectory, segment_is_clear
-from planner.collision.rrt import find_clear_path
+from planner.collision.rrt import find_clear_path, path_margin
 from planner.collision.scene import Scene
 from planner.core.arrays import read_only
 from planner.core.files import input_error, parse_number
@@ -241,7 +241,10 @@ def _route_around_obstacles(
                         f"{result.hit}; move the line or the obstacle, or drop `line: true` so the arm may go around"
                     )
             continue
-        if segment_is_clear(checker, q_user[k - 1], q_user[k], allow=names, margin=margin):
+        mask = checker.pair_mask(names)
+        end = min(checker.distance_at(q_user[k - 1], mask).distance, checker.distance_at(q_user[k], mask).distance)
+        edge_margin = path_margin(checker.scene.clearance, end, margin)
+        if segment_is_clear(checker, q_user[k - 1], q_user[k], allow=names, margin=edge_margin):
             continue
         result = find_clear_path(checker, q_user[k - 1], q_user[k], options=request.path_options, allow=names)
         if not result.found:

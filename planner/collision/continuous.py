@@ -80,6 +80,14 @@ class MotionClearance:
 _WEIGHTS: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
 
 
+class _ArmReach:
+    """Per object of an arm's collision model, its reach from every joint (kept in ``robot.derived``)."""
+
+    def __init__(self) -> None:
+        self.arm: object | None = None
+        self.table: dict[int, np.ndarray] = {}
+
+
 def _extent(obj) -> float:
     """Largest distance from a geometry object's placement origin to a point of it [m] (upper bound)."""
     g = obj.geometry
@@ -114,7 +122,12 @@ def pair_weights(checker: CollisionChecker) -> np.ndarray:
     )
     travel = np.zeros(model.njoints)
     travel[1:] = np.where(prismatic, np.maximum(np.abs(robot.lower), np.abs(robot.upper)), 0.0)
-    reach: dict[int, np.ndarray] = {}  # per moving object: r_j for every joint (0 off its chain)
+    # Per moving object of the arm: r_j for every joint (0 off its chain), kept per arm (the
+    # arm's objects come first in every checker's geometry, the scene's after them).
+    held = robot.derived.get(_ArmReach, _ArmReach)
+    if held.arm is not checker.arm:
+        held.arm, held.table = checker.arm, {}
+    reach: dict[int, np.ndarray] = held.table
 
     def reach_of(k: int) -> np.ndarray:
         if k not in reach:

@@ -26,7 +26,7 @@ from planner.collision.continuous import segment_is_clear
 from planner.core.arrays import read_only
 from planner.exceptions import InvalidArgumentError
 
-__all__ = ["PathOptions", "PathResult", "PathStatus", "find_clear_path"]
+__all__ = ["PathOptions", "PathResult", "PathStatus", "find_clear_path", "path_margin"]
 
 #: How much farther [m] than the clearance plus margin the cheap checks keep the shortcuts, so
 #: that their certificates (whose steps shrink with the distance left) stay quick.
@@ -53,7 +53,8 @@ class PathOptions:
         time_budget: Wall-clock limit of the search [s].
         shortcuts: Shortcut attempts on the path found.
         margin: Extra distance [m] kept beyond the scene's clearance, so that the timed
-            trajectory, which follows the path closely but not exactly, still keeps it.
+            trajectory, which follows the path closely but not exactly, still keeps it (less
+            where the start or goal is closer than that: see :func:`path_margin`).
         resolution: Largest joint change [rad or m] between the cheap distance checks that
             decide edges while the trees grow (the path found is then certified edge by edge).
     """
@@ -129,6 +130,16 @@ class _Tree:
         return out
 
 
+def path_margin(clearance: float, end_distance: float, margin: float) -> float:
+    """The margin a path can keep [m]: `margin`, or less when an end of it is closer than that.
+
+    A path cannot keep more distance than its ends have: where the start or the goal lies
+    within ``clearance + margin`` of something, the path keeps half of what that end has
+    beyond the clearance.
+    """
+    return float(min(margin, max(0.0, (end_distance - clearance) / 2.0)))
+
+
 def find_clear_path(
     checker: CollisionChecker,
     q_start: Sequence[float] | np.ndarray,
@@ -155,15 +166,18 @@ def find_clear_path(
     q0 = robot.check_configuration(q_start, batch=False)
     q1 = robot.check_configuration(q_goal, batch=False)
     mask = checker.pair_mask(allow)
-    need = checker.scene.clearance + options.margin
     empty = read_only(np.zeros((0, robot.dof)))
+    ends = []
     for q, status, what in ((q0, PathStatus.START_IN_COLLISION, "start"), (q1, PathStatus.GOAL_IN_COLLISION, "goal")):
         c = checker.distance_at(q, mask)
         if c.distance < checker.scene.clearance:
             return PathResult(status, empty, f"the {what} does not keep the clearance: {c}", 0)
+        ends.append(c.distance)
+    margin = path_margin(checker.scene.clearance, min(ends), options.margin)
+    need = checker.scene.clearance + margin
 
     def clear(a: np.ndarray, b: np.ndarray) -> bool:
-        return segment_is_clear(checker, a, b, allow=allow, margin=options.margin)
+        return segment_is_clear(checker, a, b, allow=allow, margin=margin)
 
     def quick(a: np.ndarray, b: np.ndarray, buffer: float = 0.0) -> bool:
         """Distance checks every `resolution` along the edge, its end first: cheap, not a certificate."""
