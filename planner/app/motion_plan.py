@@ -196,7 +196,7 @@ def _per_joint_si(value: float | np.ndarray, scale: np.ndarray) -> np.ndarray:
     return arr  # the wrong length: JointLimits names the joints in its error
 
 
-def _route_around_obstacles(
+def _check_against_scene(
     checker: CollisionChecker,
     request: MotionRequest,
     q_user: np.ndarray,
@@ -204,13 +204,8 @@ def _route_around_obstacles(
     cartesian: list[bool],
     labels: list[str],
     allow: Sequence[tuple[str, ...]],
-) -> dict[int, list[np.ndarray]]:
-    """Check the waypoints and lines against the scene, and route free moves around obstacles.
-
-    Returns:
-        For each free move into waypoint k whose straight joint segment does not keep the
-        clearance (plus the search's margin), the nodes of a clear route (its ends included),
-        by k.
+) -> None:
+    """Check the waypoints and the Cartesian lines against the scene.
 
     Raises:
         PlanningError: If a waypoint or a Cartesian line collides (naming the bodies), or no
@@ -224,36 +219,52 @@ def _route_around_obstacles(
                 f"{request.source}: {labels[k]} does not keep the clearance "
                 f"({checker.scene.clearance * 1000:g} mm): {c}"
             )
-    margin = request.path_options.margin
-    routes: dict[int, list[np.ndarray]] = {}
     for k in range(1, n):
+        if not cartesian[k]:
+            continue  # free moves: checked once timed (plan_motion)
         names = tuple(set(allow[k - 1]) | set(allow[k]))
-        if cartesian[k]:
-            samples = paths[k][0].q
-            for i, (a, b) in enumerate(zip(samples, samples[1:])):
-                result = check_segment(checker, a, b, allow=names)
-                if not result.clear:
-                    assert result.first_hit is not None and result.hit is not None
-                    where = 100.0 * (i + result.first_hit) / (len(samples) - 1)
-                    what = "collides" if result.hit.in_collision else "comes closer than the clearance"
-                    raise PlanningError(
-                        f"{request.source}: the straight line into {labels[k]} {what} {where:.0f} % of the way: "
-                        f"{result.hit}; move the line or the obstacle, or drop `line: true` so the arm may go around"
-                    )
-            continue
-        mask = checker.pair_mask(names)
-        end = min(checker.distance_at(q_user[k - 1], mask).distance, checker.distance_at(q_user[k], mask).distance)
-        edge_margin = path_margin(checker.scene.clearance, end, margin)
-        if segment_is_clear(checker, q_user[k - 1], q_user[k], allow=names, margin=edge_margin):
-            continue
-        result = find_clear_path(checker, q_user[k - 1], q_user[k], options=request.path_options, allow=names)
-        if not result.found:
-            raise PlanningError(
-                f"{request.source}: no collision-free way from {labels[k - 1]} to {labels[k]}: {result.reason} "
-                f"({result.status.value}); try another avoidance seed or time_budget, or move the obstacle"
-            )
-        routes[k] = list(result.path)
-    return routes
+        samples = paths[k][0].q
+        for i, (a, b) in enumerate(zip(samples, samples[1:])):
+            result = check_segment(checker, a, b, allow=names)
+            if not result.clear:
+                assert result.first_hit is not None and result.hit is not None
+                where = 100.0 * (i + result.first_hit) / (len(samples) - 1)
+                what = "collides" if result.hit.in_collision else "comes closer than the clearance"
+                raise PlanningError(
+                    f"{request.source}: the straight line into {labels[k]} {what} {where:.0f} % of the way: "
+                    f"{result.hit}; move the line or the obstacle, or drop `line: true` so the arm may go around"
+                )
+
+
+def _route(
+    checker: CollisionChecker,
+    request: MotionRequest,
+    q_user: np.ndarray,
+    k: int,
+    labels: list[str],
+    allow: Sequence[tuple[str, ...]],
+) -> list[np.ndarray]:
+    """The nodes of a clear way into waypoint k.
+
+    Its straight joint segment if that is clear (with the path search's margin), else a route
+    found around the obstacles.
+
+    Raises:
+        PlanningError: If no clear route exists (with the search's reason).
+    """
+    names = tuple(set(allow[k - 1]) | set(allow[k]))
+    mask = checker.pair_mask(names)
+    end = min(checker.distance_at(q_user[k - 1], mask).distance, checker.distance_at(q_user[k], mask).distance)
+    margin = path_margin(checker.scene.clearance, end, request.path_options.margin)
+    if segment_is_clear(checker, q_user[k - 1], q_user[k], allow=names, margin=margin):
+        return [q_user[k - 1], q_user[k]]
+    result = find_clear_path(checker, q_user[k - 1], q_user[k], options=request.path_options, allow=names)
+    if not result.found:
+        raise PlanningError(
+            f"{request.source}: no collision-free way from {labels[k - 1]} to {labels[k]}: {result.reason} "
+            f"({result.status.value}); try another avoidance seed or time_budget, or move the obstacle"
+        )
+    return list(result.path)
 
 
 def _calibrations(robot: Robot, request: MotionRequest) -> tuple[ServoCalibration, ...] | None:
@@ -379,7 +390,7 @@ def plan_motion(
     dense: set[tuple[int, int]] = set()
     edge_lines: dict[tuple[int, int], LinePath] = {}
     if checker is not None:
-        routes = _route_around_obstacles(checker, request, q_user, paths, cartesian, labels, allow)
+        _check_against_scene(checker, request, q_user, paths, cartesian, labels, allow)
 
     timings: dict[int, Any] = {}  # line timing per LinePath (by id), kept across re-plans
 
@@ -466,13 +477,15 @@ def plan_motion(
     plan, user_pos, line_ranges, m, owner = plan_once(paths)
     collision = None
     if checker is not None:
-        # The timed motion leaves the straight segments checked above: check it continuously;
-        # a free move or a route edge that strays is made to follow its straight (clear) joint
-        # line, and the motion re-planned.
-        for _ in range(n + sum(len(r) for r in routes.values())):
+        # Check the timed motion continuously. Where a free move comes too close, it follows
+        # its straight joint segment if that is clear (with the path search's margin), else a
+        # route found around the obstacles; where a route's edge does, that edge is followed
+        # along its straight joint line. Then the motion is re-planned and checked again. Each
+        # round adds a route or a followed edge, so the rounds end.
+        while True:
             times = plan.trajectory.waypoint_times[plan.waypoint_indices[user_pos]]
             windows = [(float(times[k - 1]), tuple(set(allow[k - 1]) | set(allow[k]))) for k in range(1, n)]
-            collision = check_trajectory(checker, plan.trajectory, allow=windows)
+            collision = check_trajectory(checker, plan.trajectory, allow=windows, stop_at_first=True)
             if collision.clear:
                 break
             node_times = plan.trajectory.waypoint_times[plan.waypoint_indices]
@@ -481,10 +494,13 @@ def plan_motion(
             if k in routes and edge is not None and (k, edge) not in dense:
                 dense.add((k, edge))
             elif k not in routes and paths[k] is None:
-                routes[k] = [q_user[k - 1], q_user[k]]
-                dense.add((k, 0))
+                routes[k] = _route(checker, request, q_user, k, labels, allow)
+                if len(routes[k]) == 2:
+                    dense.add((k, 0))
             else:
-                break  # already along clear lines: reported as it is
+                # Already along clear lines: reported as it is, with the closest pair throughout.
+                collision = check_trajectory(checker, plan.trajectory, allow=windows)
+                break
             plan, user_pos, line_ranges, m, owner = plan_once(paths)
 
     traj = plan.trajectory
