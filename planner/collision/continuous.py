@@ -104,6 +104,34 @@ def _extent(obj) -> float:
     return float(np.max(np.linalg.norm(corners, axis=1)))
 
 
+def _axis_reach(model, obj) -> float:
+    """Largest distance of a geometry object from the axis of the revolute joint carrying it [m].
+
+    The object lies within its bounding box, whose corners (in the joint's frame) bound the
+    distance from the axis (a convex function): inf for a joint that is not a plain rotation.
+    """
+    joint = model.joints[obj.parentJoint]
+    jdata = joint.createData()
+    joint.calc(jdata, np.zeros(model.nq))
+    motion = np.asarray(jdata.S, dtype=float).reshape(6, -1)
+    if motion.shape[1] != 1 or np.linalg.norm(motion[:3, 0]) > 1e-12:
+        return float("inf")
+    axis = motion[3:, 0] / np.linalg.norm(motion[3:, 0])
+    g = obj.geometry
+    g.computeLocalAABB()
+    box = g.aabb_local
+    corners = np.array(
+        [
+            [x, y, z]
+            for x in (box.min_[0], box.max_[0])
+            for y in (box.min_[1], box.max_[1])
+            for z in (box.min_[2], box.max_[2])
+        ]
+    )
+    points = corners @ obj.placement.rotation.T + obj.placement.translation
+    return float(np.max(np.linalg.norm(points - np.outer(points @ axis, axis), axis=1)))
+
+
 def pair_weights(checker: CollisionChecker) -> np.ndarray:
     """Per checked pair and joint, how fast the pair can approach per unit joint speed [m/rad or m/m].
 
@@ -139,6 +167,10 @@ def pair_weights(checker: CollisionChecker) -> np.ndarray:
                 # Offsets from joint jid down to the object's joint (a slide adds its travel).
                 below = [j for j in chain if j > jid]
                 r[jid - 1] = 1.0 if prismatic[jid - 1] else own + offset[below].sum() + travel[[jid, *below]].sum()
+            if obj.parentJoint > 0 and not prismatic[obj.parentJoint - 1]:
+                # The joint that carries the object itself turns it about its axis: what counts
+                # is the object's distance from that axis, not from the joint's origin.
+                r[obj.parentJoint - 1] = min(r[obj.parentJoint - 1], _axis_reach(model, obj))
             reach[k] = r
         return reach[k]
 

@@ -20,6 +20,7 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
+import pinocchio as pin
 
 from planner.collision.checker import CollisionChecker
 from planner.collision.continuous import segment_is_clear
@@ -27,10 +28,6 @@ from planner.core.arrays import read_only
 from planner.exceptions import InvalidArgumentError
 
 __all__ = ["PathOptions", "PathResult", "PathStatus", "find_clear_path", "path_margin"]
-
-#: How much farther [m] than the clearance plus margin the cheap checks keep the shortcuts, so
-#: that their certificates (whose steps shrink with the distance left) stay quick.
-_SHORTCUT_BUFFER = 0.0
 
 
 class PathStatus(str, enum.Enum):
@@ -60,7 +57,7 @@ class PathOptions:
     """
 
     seed: int = 0
-    step: float = 0.3
+    step: float = 0.6
     max_iterations: int = 4000
     time_budget: float = 5.0
     shortcuts: int = 60
@@ -179,13 +176,12 @@ def find_clear_path(
     def clear(a: np.ndarray, b: np.ndarray) -> bool:
         return segment_is_clear(checker, a, b, allow=allow, margin=margin)
 
-    def quick(a: np.ndarray, b: np.ndarray, buffer: float = 0.0) -> bool:
-        """Distance checks every `resolution` along the edge, its end first: cheap, not a certificate."""
-        n = max(1, int(np.ceil(float(np.max(np.abs(b - a))) / options.resolution)))
-        return all(_distance(checker, a + s * (b - a), mask) >= need + buffer for s in _order(n))
+    near = _Proximity(checker, mask, need)
 
-    def loose(a: np.ndarray, b: np.ndarray) -> bool:
-        return quick(a, b, _SHORTCUT_BUFFER)
+    def quick(a: np.ndarray, b: np.ndarray) -> bool:
+        """Proximity checks every `resolution` along the edge, its end first: cheap, not a certificate."""
+        n = max(1, int(np.ceil(float(np.max(np.abs(b - a))) / options.resolution)))
+        return not any(near(a + s * (b - a)) for s in _order(n))
 
     if clear(q0, q1):
         return PathResult(PathStatus.FOUND, read_only(np.array([q0, q1])), "", 0)
@@ -207,7 +203,7 @@ def find_clear_path(
         if path is None:
             break
         path = _merge_collinear(path)
-        short = _shortcut(path, loose, rng, options.shortcuts)
+        short = _shortcut(path, quick, rng, options.shortcuts)
         if all(clear(a, b) for a, b in zip(short, short[1:])):
             return PathResult(PathStatus.FOUND, read_only(np.array(short)), "", iterations)
         if all(clear(a, b) for a, b in zip(path, path[1:])):
@@ -299,10 +295,28 @@ def _order(n: int) -> np.ndarray:
     return out
 
 
-def _distance(checker: CollisionChecker, q: np.ndarray, mask: np.ndarray) -> float:
-    """The smallest pair distance at `q` [m] (no penetration depth, no names: the search only compares)."""
-    d = checker.pair_distances(q, mask)
-    return float(d.min()) if d.size else float("inf")
+class _Proximity:
+    """Whether any checked pair at q is closer than a distance.
+
+    Coal's collision test with that distance as its security margin: several times faster than
+    computing the distances, with the same verdict.
+    """
+
+    def __init__(self, checker: CollisionChecker, mask: np.ndarray, distance: float) -> None:
+        robot = checker.robot
+        self.model, self.data, self.geometry = robot.model, robot.model.createData(), checker.geometry
+        self.gdata = pin.GeometryData(checker.geometry)
+        for k, on in enumerate(mask):
+            self.gdata.activeCollisionPairs[k] = bool(on)
+        for request in self.gdata.collisionRequests:
+            request.security_margin = float(distance)
+        self.to_pinocchio = robot.pinocchio_configuration
+        self.any = bool(np.any(mask))
+
+    def __call__(self, q: np.ndarray) -> bool:
+        if not self.any:
+            return False
+        return bool(pin.computeCollisions(self.model, self.data, self.geometry, self.gdata, self.to_pinocchio(q), True))
 
 
 def _join(a: _Tree, ka: int, b: _Tree, kb: int, a_is_start: bool) -> list[np.ndarray]:
