@@ -86,6 +86,7 @@ class _ArmReach:
     def __init__(self) -> None:
         self.arm: object | None = None
         self.table: dict[int, np.ndarray] = {}
+        self.chains: list[list[int]] = []
 
 
 def _extent(obj) -> float:
@@ -155,12 +156,14 @@ def pair_weights(checker: CollisionChecker) -> np.ndarray:
     held = robot.derived.get(_ArmReach, _ArmReach)
     if held.arm is not checker.arm:
         held.arm, held.table = checker.arm, {}
+        held.chains = [sorted(set(model.supports[j]) - {0}) for j in range(model.njoints)]
     reach: dict[int, np.ndarray] = held.table
+    chain_of = held.chains
 
     def reach_of(k: int) -> np.ndarray:
         if k not in reach:
             obj = geom.geometryObjects[k]
-            chain = [j for j in model.supports[obj.parentJoint] if j > 0]
+            chain = chain_of[obj.parentJoint]
             own = float(np.linalg.norm(obj.placement.translation)) + _extent(obj)
             r = np.zeros(robot.dof)
             for jid in chain:
@@ -177,7 +180,7 @@ def pair_weights(checker: CollisionChecker) -> np.ndarray:
     weights = np.zeros((len(geom.collisionPairs), robot.dof))
     for k, pair in enumerate(geom.collisionPairs):
         ids = (pair.first, pair.second)
-        chains = [set(model.supports[geom.geometryObjects[i].parentJoint]) - {0} for i in ids]
+        chains = [set(chain_of[geom.geometryObjects[i].parentJoint]) for i in ids]
         for i, own, other in ((ids[0], chains[0], chains[1]), (ids[1], chains[1], chains[0])):
             only = [j - 1 for j in own - other]
             if only:
