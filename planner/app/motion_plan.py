@@ -208,8 +208,7 @@ def _check_against_scene(
     """Check the waypoints and the Cartesian lines against the scene.
 
     Raises:
-        PlanningError: If a waypoint or a Cartesian line collides (naming the bodies), or no
-            clear route exists between two waypoints (with the search's reason).
+        PlanningError: If a waypoint or a Cartesian line collides (naming the bodies).
     """
     n = len(q_user)
     for k in range(n):
