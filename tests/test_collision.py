@@ -426,3 +426,17 @@ def test_ends_closer_than_the_margin_still_get_a_path_keeping_what_they_have():
     keep = checker.scene.clearance + path_margin(checker.scene.clearance, ends, options.margin)
     for a, b in zip(result.path, result.path[1:]):
         assert check_segment(checker, a, b, clearance=keep).clear
+
+
+def test_a_segment_the_cheap_check_finds_blocked_is_blocked():
+    from planner.collision.rrt import segment_looks_clear
+
+    robot = get_robot("al5c")
+    checker = CollisionChecker(robot, _al5c_block_scene())
+    rng = np.random.default_rng(11)
+    seen = set()
+    for qa, qb in zip(robot.random_configurations(rng, 30), robot.random_configurations(rng, 30)):
+        looks, certified = segment_looks_clear(checker, qa, qb), check_segment(checker, qa, qb).clear
+        assert looks or not certified  # blocked at a sample point: no certificate either
+        seen.add((looks, certified))
+    assert (False, False) in seen and (True, True) in seen

@@ -21,7 +21,7 @@ from planner.app.outputs import write_plan_files
 from planner.app.plan_file import MotionRequest
 from planner.collision.checker import CollisionChecker
 from planner.collision.continuous import MotionClearance, check_segment, check_trajectory, segment_is_clear
-from planner.collision.rrt import find_clear_path, path_margin
+from planner.collision.rrt import find_clear_path, path_margin, segment_looks_clear
 from planner.collision.scene import Scene
 from planner.core.arrays import read_only
 from planner.core.files import input_error, parse_number
@@ -390,6 +390,13 @@ def plan_motion(
     edge_lines: dict[tuple[int, int], LinePath] = {}
     if checker is not None:
         _check_against_scene(checker, request, q_user, paths, cartesian, labels, allow)
+        for k in range(1, n):
+            # A free move whose straight segment is plainly blocked is routed before timing.
+            names = tuple(set(allow[k - 1]) | set(allow[k]))
+            if not cartesian[k] and not segment_looks_clear(checker, q_user[k - 1], q_user[k], allow=names):
+                routes[k] = _route(checker, request, q_user, k, labels, allow)
+                if len(routes[k]) == 2:
+                    dense.add((k, 0))
 
     timings: dict[int, Any] = {}  # line timing per LinePath (by id), kept across re-plans
 

@@ -27,7 +27,7 @@ from planner.collision.continuous import segment_is_clear
 from planner.core.arrays import read_only
 from planner.exceptions import InvalidArgumentError
 
-__all__ = ["PathOptions", "PathResult", "PathStatus", "find_clear_path", "path_margin"]
+__all__ = ["PathOptions", "PathResult", "PathStatus", "find_clear_path", "path_margin", "segment_looks_clear"]
 
 
 class PathStatus(str, enum.Enum):
@@ -125,6 +125,26 @@ class _Tree:
             out.append(self.nodes[k])
             k = self.parent[k]
         return out
+
+
+def segment_looks_clear(
+    checker: CollisionChecker,
+    q_start: np.ndarray,
+    q_end: np.ndarray,
+    *,
+    allow: Sequence[str] = (),
+    resolution: float = 0.05,
+) -> bool:
+    """Whether the straight joint segment keeps the scene's clearance at points every `resolution`.
+
+    Cheap (collision tests with the clearance as security margin), not a certificate: between
+    the points it may come closer (:func:`~planner.collision.continuous.segment_is_clear` is
+    the certificate). A segment this finds blocked is blocked.
+    """
+    a, b = np.asarray(q_start, dtype=float), np.asarray(q_end, dtype=float)
+    near = _Proximity(checker, checker.pair_mask(allow), checker.scene.clearance)
+    n = max(1, int(np.ceil(float(np.max(np.abs(b - a))) / resolution)))
+    return not near(a) and not any(near(a + s * (b - a)) for s in _order(n))
 
 
 def path_margin(clearance: float, end_distance: float, margin: float) -> float:
