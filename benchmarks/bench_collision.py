@@ -138,7 +138,13 @@ class Roboplan:
             return {"found": False, "path_time": time.perf_counter() - t0, "reason": "no path"}
         path = self.shortcutter.shortcut(path)
         path_time = time.perf_counter() - t0
-        out: dict = {"found": True, "path_time": path_time, "path_points": len(path.positions)}
+        points = np.array(path.positions)
+        out: dict = {
+            "found": True,
+            "path_time": path_time,
+            "path_points": len(points),
+            "path_length": float(np.sum(np.linalg.norm(np.diff(points, axis=0), axis=1))),
+        }
         for mode in ("Hermite", "Cubic"):
             m = getattr(rt.SplineFittingMode, mode)
             t1 = time.perf_counter()
@@ -164,6 +170,11 @@ def limit_ratios(t, q, qd, qdd, limits: JointLimits) -> dict:
         "jerk": float(np.max(np.abs(jerk) / limits.jerk)) if len(jerk) else 0.0,
         "leaves_range": bool(np.any(q < limits.lower - 1e-9) or np.any(q > limits.upper + 1e-9)),
     }
+
+
+def path_length(q: np.ndarray) -> float:
+    """Length of a joint path sampled densely [rad, Euclidean in joint space]."""
+    return float(np.sum(np.linalg.norm(np.diff(q, axis=0), axis=1)))
 
 
 def collisions(q: np.ndarray, ours: CollisionChecker, theirs: Roboplan | None) -> dict:
@@ -339,6 +350,8 @@ def bench_plans(name: str, robot, limits, paths: int, seed: int, have_roboplan: 
                 "plan_time": elapsed,
                 "duration": traj.duration,
                 "routed": bool(plan.routes),
+                "waypoints": len(traj.waypoints),
+                "path_length": path_length(traj.sample(t).q),
                 "reported_clear": bool(plan.collision is not None and plan.collision.clear),
                 "velocity": max(peaks["velocity"], exact["velocity"]),
                 "acceleration": max(peaks["acceleration"], exact["acceleration"]),
@@ -352,6 +365,7 @@ def bench_plans(name: str, robot, limits, paths: int, seed: int, have_roboplan: 
             theirs: dict = {"found": res["found"], "path_time": res["path_time"], "reason": res.get("reason", "")}
             if res["found"]:
                 theirs["path_points"] = res["path_points"]
+                theirs["path_length"] = res["path_length"]
                 for mode in ("Hermite", "Cubic"):
                     tt, q, qd, qdd = res[mode].pop("samples")
                     entry = dict(res[mode])
@@ -388,6 +402,22 @@ def summarise(name: str, dof: int, checks: dict, rows: list[dict]) -> dict:
         found = [r for r in rows if r["roboplan"]["found"]]
         s["roboplan_success"] = len(found) / len(rows)
         s["ours_success_where_roboplan_found"] = sum(r["ours"]["found"] for r in found) / len(found) if found else None
+        solved = [r for r in found if r["ours"]["found"]]
+        routed = [r for r in solved if r["ours"]["routed"]]
+        s["solved_by_both"] = {
+            "count": len(solved),
+            "routed": len(routed),
+            "ours_plan_ms_median": _p([r["ours"]["plan_time"] * 1e3 for r in solved], 50),
+            "roboplan_plan_ms_median": _p([r["roboplan"]["Hermite"]["plan_time"] * 1e3 for r in solved], 50),
+            "path_length_ratio_median": _p(
+                [r["ours"]["path_length"] / r["roboplan"]["path_length"] for r in solved], 50
+            ),
+            "routed_path_length_ratio_median": _p(
+                [r["ours"]["path_length"] / r["roboplan"]["path_length"] for r in routed], 50
+            ),
+            "routed_waypoints_median": _p([r["ours"]["waypoints"] for r in routed], 50),
+            "routed_roboplan_points_median": _p([r["roboplan"]["path_points"] for r in routed], 50),
+        }
         for mode in ("Hermite", "Cubic"):
             both = [r for r in found if r["ours"]["found"]]
             times = [r["roboplan"][mode]["plan_time"] * 1e3 if r["roboplan"]["found"] else None for r in rows]
@@ -406,6 +436,9 @@ def summarise(name: str, dof: int, checks: dict, rows: list[dict]) -> dict:
                 "colliding_roboplan_check": sum(e["roboplan_hits"] > 0 for e in m),
                 "median_ratio_ours_to_it": _p(
                     [r["ours"]["duration"] / r["roboplan"][mode]["duration"] for r in both], 50
+                ),
+                "median_ratio_routed": _p(
+                    [r["ours"]["duration"] / r["roboplan"][mode]["duration"] for r in both if r["ours"]["routed"]], 50
                 ),
                 "both_solved": len(both),
             }
@@ -517,6 +550,16 @@ def goals(summaries: list[dict]) -> list[str]:
         out.append(
             f"{s['robot']}: success where roboplan found a path: "
             f"{_f(100 * (s['ours_success_where_roboplan_found'] or 0), '.0f')} % (goal 100 %)"
+        )
+        b = s["solved_by_both"]
+        ours_ms, their_ms = _f(b["ours_plan_ms_median"], ".1f"), _f(b["roboplan_plan_ms_median"], ".1f")
+        out.append(
+            f"{s['robot']}: on the {b['count']} pairs both solved: median plan time ours {ours_ms} ms vs roboplan "
+            f"{their_ms} ms; joint path length ours / roboplan median {_f(b['path_length_ratio_median'])}; on the "
+            f"{b['routed']} we routed: path length ratio {_f(b['routed_path_length_ratio_median'])}, duration ratio "
+            f"(Hermite) {_f(s['roboplan_Hermite']['median_ratio_routed'])}, median trajectory waypoints ours "
+            f"{_f(b['routed_waypoints_median'], '.0f')} vs roboplan path points "
+            f"{_f(b['routed_roboplan_points_median'], '.0f')}"
         )
         for mode in ("Hermite", "Cubic"):
             e = s[f"roboplan_{mode}"]

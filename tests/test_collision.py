@@ -434,3 +434,77 @@ def test_batch_clearances_match_single_ones():
     qs = robot.random_configurations(np.random.default_rng(8), 20)
     batch = checker.clearances(qs, allow=["block"])
     assert batch == [checker.clearance(q, allow=["block"]) for q in qs]
+
+
+# ---------------------------------------------------------------------------- per-pair speed bounds
+
+
+@pytest.mark.parametrize("name", ["al5c", "dh3", pytest.param("ur5", marks=needs_example_robot_data)])
+def test_no_pair_approaches_faster_than_its_bound(name):
+    """|d_p(q + dq) - d_p(q)| <= pair_weights[p] . |dq| for small random joint steps (distances by coal)."""
+    from planner.collision.continuous import pair_weights
+
+    robot = get_robot(name)
+    scene = Scene(
+        floor=-0.05,
+        obstacles=(Obstacle("box", Box((0.1, 0.1, 0.1)), np.array([0.25, 0.05, 0.1])),),
+    )
+    checker = CollisionChecker(robot, scene)
+    weights = pair_weights(checker)
+    assert weights.shape == (checker.pair_count, robot.dof) and np.all(weights >= 0)
+    assert not np.any(np.all(weights == 0, axis=1))  # every pair moves with some joint
+    rng = np.random.default_rng(3)
+    mask = checker.pair_mask()
+    for q in robot.random_configurations(rng, 40):
+        dq = rng.normal(size=robot.dof) * 0.01
+        q2 = np.clip(q + dq, robot.lower, robot.upper)
+        d0, d1 = checker.pair_distances(q, mask), checker.pair_distances(q2, mask)
+        both = (d0 > 0) & (d1 > 0)  # coal's distance of overlapping bodies is not a distance
+        bound = weights @ np.abs(q2 - q)
+        assert np.all(np.abs(d1 - d0)[both] <= bound[both] + 1e-9)
+
+
+def test_a_pair_inside_the_wrist_is_bounded_by_the_wrist_joints_only():
+    from planner.collision.continuous import pair_weights
+
+    robot = get_robot("al5c")
+    checker = CollisionChecker(robot)
+    weights = pair_weights(checker)
+    model, geom = robot.model, checker.geometry
+    for k, pair in enumerate(geom.collisionPairs):
+        joints = [geom.geometryObjects[i].parentJoint for i in (pair.first, pair.second)]
+        common = set(model.supports[joints[0]]) & set(model.supports[joints[1]]) - {0}
+        # A joint both bodies hang from moves them together: it cannot bring them closer.
+        assert all(weights[k, j - 1] == 0 for j in common)
+
+
+def test_ends_closer_than_the_margin_still_get_a_path_keeping_what_they_have():
+    from planner.collision.rrt import path_margin
+
+    assert path_margin(0.005, 0.006, 0.002) == pytest.approx(0.0005)
+    assert path_margin(0.005, 0.5, 0.002) == 0.002
+    assert path_margin(0.0, 0.0, 0.002) == 0.0
+    robot = get_robot("al5c")
+    checker = CollisionChecker(robot, _al5c_block_scene())
+    qa, qb = np.array([-0.6, 1.2, -1.4, -0.8, 0.0]), np.array([0.6, 1.2, -1.4, -0.8, 0.0])
+    ends = min(checker.clearance(qa).distance, checker.clearance(qb).distance)
+    options = PathOptions(seed=4, margin=1.0)  # far more than the ends have
+    result = find_clear_path(checker, qa, qb, options=options)
+    assert result.found
+    keep = checker.scene.clearance + path_margin(checker.scene.clearance, ends, options.margin)
+    for a, b in zip(result.path, result.path[1:]):
+        assert check_segment(checker, a, b, clearance=keep).clear
+
+
+def test_a_segment_the_cheap_check_finds_blocked_is_blocked():
+    from planner.collision.rrt import segment_looks_clear
+
+    robot = get_robot("al5c")
+    checker = CollisionChecker(robot, _al5c_block_scene())
+    rng = np.random.default_rng(11)
+    seen = set()
+    for qa, qb in zip(robot.random_configurations(rng, 30), robot.random_configurations(rng, 30)):
+        looks, certified = segment_looks_clear(checker, qa, qb), check_segment(checker, qa, qb).clear
+        assert looks or not certified  # blocked at a sample point: no certificate either
+        seen.add((looks, certified))
+    assert (False, False) in seen and (True, True) in seen

@@ -137,7 +137,9 @@ def test_random_waypoints_and_boxes_on_the_bundled_arms():
     # clear when re-checked at 1 kHz by collision queries, keeps every limit and passes every
     # waypoint; any refusal is a PlannerError with a reason.
     rng = np.random.default_rng(2026)
-    planned = routed = 0
+    from planner.collision.continuous import check_segment
+
+    planned = blocked = 0
     for name, floor in (("al5c", 0.0), ("dh3", -0.02), ("three_joint", -1.0)):
         robot = get_robot(name)
         reach = float(np.sum(np.linalg.norm(np.diff(robot.joint_positions(np.zeros(robot.dof)), axis=0), axis=1)))
@@ -159,12 +161,17 @@ def test_random_waypoints_and_boxes_on_the_bundled_arms():
                 assert "no collision-free way" in str(error)
                 continue
             planned += 1
-            routed += bool(plan.routes)
+            # The box stands in the way of a straight joint move (the plan goes around it, by a
+            # route or along the curve its timing takes, and is re-checked below).
+            checker = CollisionChecker(robot, plan.scene)
+            blocked += bool(plan.routes) or not all(
+                check_segment(checker, a, b).clear for a, b in zip(plan.waypoints, plan.waypoints[1:])
+            )
             if plan.collision_free:
                 independent_check(robot, plan, 0.002 * reach)
             else:  # an outcome that names the time, the bodies and the depth
                 assert plan.collision.first_hit is not None and plan.collision.hit.bodies[0]
-    assert planned >= 10 and routed >= 2
+    assert planned >= 10 and blocked >= 2
 
 
 def test_planner_check_reports_the_clearance(tmp_path, capsys):
@@ -201,3 +208,49 @@ def test_the_readme_shows_what_planner_check_prints(capsys):
     shown = [line.removeprefix("# ") for line in block if line.startswith("# ")]
     assert main(["check", "al5c", str(root / "examples" / "al5c_around_a_block.yaml")]) == 0
     assert capsys.readouterr().out.splitlines() == shown
+
+
+def test_a_route_edge_is_timed_straight_within_the_limits():
+    """time_joint_line: every joint in proportion (on the line), within every limit, as fast as a direct move."""
+    from planner.collision.rrt import PathOptions
+    from planner.motion.avoid import joint_line, time_joint_line
+    from planner.motion.limits import JointLimits
+    from planner.motion.plan import plan_trajectory
+
+    robot = get_robot("al5c")
+    limits = JointLimits.from_robot(robot)
+    reach = CollisionChecker(robot).arm.reach
+    rng = np.random.default_rng(7)
+    for qa, qb in zip(robot.random_configurations(rng, 4), robot.random_configurations(rng, 4)):
+        line = joint_line(robot, qa, qb)
+        timing = time_joint_line(line, limits)
+        traj = plan_trajectory(
+            line.q,
+            limits,
+            stops=[0, len(line.q) - 1],
+            via_velocities=timing.velocity,
+            via_accelerations=timing.acceleration,
+            min_durations=np.diff(timing.t),
+        )
+        peaks = traj.peak_ratios(1000.0)
+        assert max(peaks["velocity"], peaks["acceleration"], peaks["jerk"]) <= 1 + LIMIT_TOLERANCE
+        q = traj.sample(traj.times(1000.0)).q
+        s = (q - qa) @ (qb - qa) / ((qb - qa) @ (qb - qa))
+        # How far any point of the arm can be from where the line puts it [m] (reach-weighted).
+        off_line = np.max(np.abs(q - (qa + s[:, None] * (qb - qa))) @ reach)
+        assert off_line < PathOptions().margin
+        direct = plan_trajectory(np.array([qa, qb]), limits).duration
+        assert traj.duration <= direct * 1.1  # the profile may be slowed a little so the chain keeps it
+
+
+def test_a_route_is_passed_smoothly_and_stays_clear():
+    """The route's nodes are passed without stopping where the timed motion stays clear."""
+    robot = get_robot("al5c")
+    plan = plan_with_scene(robot, BLOCK_PLAN)
+    assert plan.routes == (0,) and plan.collision_free
+    independent_check(robot, plan, 0.005)
+    traj = plan.trajectory
+    inner = traj.waypoints[1:-1]
+    assert len(inner) >= 1
+    moving = [np.max(np.abs(traj.sample(np.array([t])).qd)) for t in traj.waypoint_times[1:-1]]
+    assert max(moving) > 0.1  # [rad/s]: not at rest at every node

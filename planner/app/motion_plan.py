@@ -21,6 +21,7 @@ from planner.app.outputs import write_plan_files
 from planner.app.plan_file import MotionRequest
 from planner.collision.checker import CollisionChecker
 from planner.collision.continuous import MotionClearance, check_segment, check_trajectory, segment_is_clear
+from planner.collision.rrt import find_clear_path, path_margin, segment_looks_clear
 from planner.collision.scene import Scene
 from planner.core.arrays import read_only
 from planner.core.files import input_error, parse_number
@@ -29,7 +30,7 @@ from planner.export.calibration import ServoCalibration
 from planner.export.calibration_file import ControllerSetup, controller_setup
 from planner.export.formats import ServoFormat
 from planner.model.robot import Robot
-from planner.motion.avoid import clear_route, joint_line
+from planner.motion.avoid import joint_line, time_joint_line
 from planner.motion.detours import Detour, SingularityOptions, plan_clear_of_singularities
 from planner.motion.limits import JointLimits
 from planner.motion.line import LinePath
@@ -195,7 +196,7 @@ def _per_joint_si(value: float | np.ndarray, scale: np.ndarray) -> np.ndarray:
     return arr  # the wrong length: JointLimits names the joints in its error
 
 
-def _route_around_obstacles(
+def _check_against_scene(
     checker: CollisionChecker,
     request: MotionRequest,
     q_user: np.ndarray,
@@ -204,14 +205,10 @@ def _route_around_obstacles(
     labels: list[str],
     allow: Sequence[tuple[str, ...]],
 ) -> None:
-    """Check the waypoints and lines against the scene, and route free moves around obstacles.
-
-    Fills ``paths[k]`` with joint lines along a clear route for each free move into waypoint k
-    whose straight joint segment does not keep the clearance (plus the search's margin).
+    """Check the waypoints and the Cartesian lines against the scene.
 
     Raises:
-        PlanningError: If a waypoint or a Cartesian line collides (naming the bodies), or no
-            clear route exists between two waypoints (with the search's reason).
+        PlanningError: If a waypoint or a Cartesian line collides (naming the bodies).
     """
     n = len(q_user)
     for k in range(n):
@@ -221,31 +218,52 @@ def _route_around_obstacles(
                 f"{request.source}: {labels[k]} does not keep the clearance "
                 f"({checker.scene.clearance * 1000:g} mm): {c}"
             )
-    margin = request.path_options.margin
     for k in range(1, n):
+        if not cartesian[k]:
+            continue  # free moves: checked once timed (plan_motion)
         names = tuple(set(allow[k - 1]) | set(allow[k]))
-        if cartesian[k]:
-            samples = paths[k][0].q
-            for i, (a, b) in enumerate(zip(samples, samples[1:])):
-                result = check_segment(checker, a, b, allow=names)
-                if not result.clear:
-                    assert result.first_hit is not None and result.hit is not None
-                    where = 100.0 * (i + result.first_hit) / (len(samples) - 1)
-                    what = "collides" if result.hit.in_collision else "comes closer than the clearance"
-                    raise PlanningError(
-                        f"{request.source}: the straight line into {labels[k]} {what} {where:.0f} % of the way: "
-                        f"{result.hit}; move the line or the obstacle, or drop `line: true` so the arm may go around"
-                    )
-            continue
-        if segment_is_clear(checker, q_user[k - 1], q_user[k], allow=names, margin=margin):
-            continue
-        lines, result = clear_route(checker, q_user[k - 1], q_user[k], allow=names, options=request.path_options)
-        if not lines:
-            raise PlanningError(
-                f"{request.source}: no collision-free way from {labels[k - 1]} to {labels[k]}: {result.reason} "
-                f"({result.status.value}); try another avoidance seed or time_budget, or move the obstacle"
-            )
-        paths[k] = lines
+        samples = paths[k][0].q
+        for i, (a, b) in enumerate(zip(samples, samples[1:])):
+            result = check_segment(checker, a, b, allow=names)
+            if not result.clear:
+                assert result.first_hit is not None and result.hit is not None
+                where = 100.0 * (i + result.first_hit) / (len(samples) - 1)
+                what = "collides" if result.hit.in_collision else "comes closer than the clearance"
+                raise PlanningError(
+                    f"{request.source}: the straight line into {labels[k]} {what} {where:.0f} % of the way: "
+                    f"{result.hit}; move the line or the obstacle, or drop `line: true` so the arm may go around"
+                )
+
+
+def _route(
+    checker: CollisionChecker,
+    request: MotionRequest,
+    q_user: np.ndarray,
+    k: int,
+    labels: list[str],
+    allow: Sequence[tuple[str, ...]],
+) -> list[np.ndarray]:
+    """The nodes of a clear way into waypoint k.
+
+    Its straight joint segment if that is clear (with the path search's margin), else a route
+    found around the obstacles.
+
+    Raises:
+        PlanningError: If no clear route exists (with the search's reason).
+    """
+    names = tuple(set(allow[k - 1]) | set(allow[k]))
+    mask = checker.pair_mask(names)
+    end = min(checker.distance_at(q_user[k - 1], mask).distance, checker.distance_at(q_user[k], mask).distance)
+    margin = path_margin(checker.scene.clearance, end, request.path_options.margin)
+    if segment_is_clear(checker, q_user[k - 1], q_user[k], allow=names, margin=margin):
+        return [q_user[k - 1], q_user[k]]
+    result = find_clear_path(checker, q_user[k - 1], q_user[k], options=request.path_options, allow=names)
+    if not result.found:
+        raise PlanningError(
+            f"{request.source}: no collision-free way from {labels[k - 1]} to {labels[k]}: {result.reason} "
+            f"({result.status.value}); try another avoidance seed or time_budget, or move the obstacle"
+        )
+    return list(result.path)
 
 
 def _calibrations(robot: Robot, request: MotionRequest) -> tuple[ServoCalibration, ...] | None:
@@ -365,8 +383,21 @@ def plan_motion(
             q_list.append(np.array(choice.q))
             q_prev = q_list[-1]
     q_user = np.array(q_list)
+    # routes[k]: the nodes of a clear route into waypoint k. Its edges are passed as via
+    # waypoints, smoothly; an edge the timed motion strays from into an obstacle is followed
+    # along its straight (clear) joint line instead (`dense`), from rest to rest.
+    routes: dict[int, list[np.ndarray]] = {}
+    dense: set[tuple[int, int]] = set()
+    edge_lines: dict[tuple[int, int], LinePath] = {}
     if checker is not None:
-        _route_around_obstacles(checker, request, q_user, paths, cartesian, labels, allow)
+        _check_against_scene(checker, request, q_user, paths, cartesian, labels, allow)
+        for k in range(1, n):
+            # A free move whose straight segment is plainly blocked is routed before timing.
+            names = tuple(set(allow[k - 1]) | set(allow[k]))
+            if not cartesian[k] and not segment_looks_clear(checker, q_user[k - 1], q_user[k], allow=names):
+                routes[k] = _route(checker, request, q_user, k, labels, allow)
+                if len(routes[k]) == 2:
+                    dense.add((k, 0))
 
     timings: dict[int, Any] = {}  # line timing per LinePath (by id), kept across re-plans
 
@@ -378,22 +409,39 @@ def plan_motion(
         user_pos = [0]
         line_ranges: list[tuple[int, int, int]] = []  # (user segment, first node, last node)
         line_timing = []
+        owner: list[tuple[int, int | None]] = []  # per node interval: (user segment into k, route edge)
+
+        def add_line(k: int, path: LinePath, edge: int | None) -> None:
+            first = len(nodes) - 1
+            nodes.extend(path.q[1:])
+            owner.extend([(k, edge)] * (len(path.q) - 1))
+            line_ranges.append((k - 1, first, len(nodes) - 1))
+            if id(path) not in timings:
+                # A Cartesian line bends in joint space; a route's edge is straight there.
+                timings[id(path)] = time_line(path, limits) if cartesian[k] else time_joint_line(path, limits)
+            line_timing.append(timings[id(path)])
+
         for k in range(1, n):
-            if paths[k] is None:
+            if k in routes:
+                for e, (a, b) in enumerate(zip(routes[k], routes[k][1:])):
+                    if (k, e) in dense:
+                        if (k, e) not in edge_lines:
+                            edge_lines[k, e] = joint_line(robot, a, b)
+                        add_line(k, edge_lines[k, e], e)
+                    else:
+                        nodes.append(b)
+                        owner.append((k, e))
+            elif paths[k] is None:
                 nodes.append(q_user[k])
+                owner.append((k, None))
             else:
                 for path in paths[k]:
-                    first = len(nodes) - 1
-                    nodes.extend(path.q[1:])
-                    line_ranges.append((k - 1, first, len(nodes) - 1))
-                    if id(path) not in timings:
-                        timings[id(path)] = time_line(path, limits)
-                    line_timing.append(timings[id(path)])
+                    add_line(k, path, None)
             user_pos.append(len(nodes) - 1)
-        return np.array(nodes), user_pos, line_ranges, line_timing
+        return np.array(nodes), user_pos, line_ranges, line_timing, owner
 
     def plan_once(paths: list[list[LinePath] | None]) -> tuple:
-        q_nodes, user_pos, line_ranges, line_timing = build(paths)
+        q_nodes, user_pos, line_ranges, line_timing, owner = build(paths)
         m = len(q_nodes)
         dwell = np.zeros(m)
         dwell[user_pos] = request.dwell
@@ -431,25 +479,36 @@ def plan_motion(
             if count:
                 report = measure_singularities(robot, smooth, threshold, robot.resolve_task(None), rate)[0]
                 plan = dataclasses.replace(plan, trajectory=smooth, report=report)
-        return plan, user_pos, line_ranges, m
+        return plan, user_pos, line_ranges, m, owner
 
-    plan, user_pos, line_ranges, m = plan_once(paths)
+    plan, user_pos, line_ranges, m, owner = plan_once(paths)
     collision = None
     if checker is not None:
-        # The timed motion leaves the straight segments checked above: check it continuously;
-        # a free move that strays is made to follow its straight (clear) segment, and re-planned.
-        for _ in range(n):
+        # Check the timed motion continuously. Where a free move comes too close, it follows
+        # its straight joint segment if that is clear (with the path search's margin), else a
+        # route found around the obstacles; where a route's edge does, that edge is followed
+        # along its straight joint line. Then the motion is re-planned and checked again. Each
+        # round adds a route or a followed edge, so the rounds end.
+        while True:
             times = plan.trajectory.waypoint_times[plan.waypoint_indices[user_pos]]
             windows = [(float(times[k - 1]), tuple(set(allow[k - 1]) | set(allow[k]))) for k in range(1, n)]
-            collision = check_trajectory(checker, plan.trajectory, allow=windows)
+            collision = check_trajectory(checker, plan.trajectory, allow=windows, stop_at_first=True)
             if collision.clear:
                 break
-            k = int(np.searchsorted(times, collision.first_hit, side="left"))
-            k = min(max(k, 1), n - 1)
-            if paths[k] is not None:
-                break  # already along clear lines: reported as it is
-            paths[k] = [joint_line(robot, q_user[k - 1], q_user[k])]
-            plan, user_pos, line_ranges, m = plan_once(paths)
+            node_times = plan.trajectory.waypoint_times[plan.waypoint_indices]
+            i = int(np.searchsorted(node_times, collision.first_hit, side="right")) - 1
+            k, edge = owner[min(max(i, 0), m - 2)]
+            if k in routes and edge is not None and (k, edge) not in dense:
+                dense.add((k, edge))
+            elif k not in routes and paths[k] is None:
+                routes[k] = _route(checker, request, q_user, k, labels, allow)
+                if len(routes[k]) == 2:
+                    dense.add((k, 0))
+            else:
+                # Already along clear lines: reported as it is, with the closest pair throughout.
+                collision = check_trajectory(checker, plan.trajectory, allow=windows)
+                break
+            plan, user_pos, line_ranges, m, owner = plan_once(paths)
 
     traj = plan.trajectory
     node_idx = plan.waypoint_indices
@@ -501,7 +560,7 @@ def plan_motion(
         line_deviation=tuple(deviation),
         limits=limits,
         collision=collision,
-        routes=tuple(k - 1 for k in range(1, n) if paths[k] is not None and not cartesian[k]),
+        routes=tuple(k - 1 for k in sorted(routes)),
         scene=request.scene,
         calibrations=setup.calibrations,
         servo_period_ms=request.servo_period_ms,

@@ -1,21 +1,26 @@
 """Checks along a motion, not only at sample points: nothing thin is passed through.
 
-Between two checks no point of the arm may move farther than the distance found at the last
-check (conservative advancement). A point of the arm moves at most
-``sum_j |qd_j| * reach_j`` (:attr:`ArmCollisionModel.reach`: the farthest any geometry a joint
-moves lies from that joint; 1 for a sliding joint). Along a trajectory the joint speeds a time
-``h`` after a check are at most ``|qd_j| + a_j h`` (``a_j`` the acceleration limit), so the
-arm's surface moves at most ``V h + A h^2 / 2`` with ``V = sum_j |qd_j| reach_j`` and
-``A = sum_j a_j reach_j``; the next check comes when that reaches ``d - clearance + tolerance``
-(``d`` the distance found). Along a straight joint-space segment the bound is the segment's
-length-weighted ``sum_j |dq_j| reach_j`` per unit of path. Two links approach each other at most
-twice as fast. A motion that passes every
-check therefore keeps at least ``clearance - tolerance`` from everything checked, at every
-instant.
+Between two checks no pair of bodies may approach each other by more than the distance found
+at the last check (conservative advancement). Per pair, the speed at which the two bodies can
+approach is bounded by ``V = sum_j |qd_j| r_j``: a joint both bodies hang from moves them
+together and does not count; any other joint ``j`` moves its body's points at most
+``|qd_j| r_j`` apart, ``r_j`` an upper bound on the distance from the joint to that body (the
+joint offsets down the chain plus the body's own extent; 1 for a sliding joint). Along a
+trajectory the joint speeds a time ``h`` after a check are at most ``|qd_j| + a_j h``
+(``a_j`` the acceleration limit), so a pair approaches by at most ``V h + A h^2 / 2`` with
+``A = sum_j a_j r_j``; the next check comes when that reaches ``d - clearance + tolerance``
+for some pair (``d`` its distance found). Along a straight joint-space segment the bound is
+``sum_j |dq_j| r_j`` per unit of path. A motion that passes every check therefore keeps at
+least ``clearance - tolerance`` from everything checked, at every instant.
+
+Bounding each pair by its own joints (rather than the whole arm's speed) matters most for
+links that stay close in every configuration (a compact wrist): their distance changes only
+with the few joints between them.
 """
 
 from __future__ import annotations
 
+import weakref
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
@@ -30,6 +35,7 @@ __all__ = [
     "check_motion",
     "check_segment",
     "check_trajectory",
+    "pair_weights",
     "segment_is_clear",
 ]
 
@@ -71,9 +77,117 @@ class MotionClearance:
         )
 
 
-def _joint_factors(checker: CollisionChecker) -> np.ndarray:
-    reach = np.asarray(checker.arm.reach, dtype=float)
-    return np.where(np.array(checker.robot.joint_kinds) == "prismatic", 1.0, reach)
+_WEIGHTS: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
+
+
+class _ArmReach:
+    """Per object of an arm's collision model, its reach from every joint (kept in ``robot.derived``)."""
+
+    def __init__(self) -> None:
+        self.arm: object | None = None
+        self.table: dict[int, np.ndarray] = {}
+        self.chains: list[list[int]] = []
+
+
+def _extent(obj) -> float:
+    """Largest distance from a geometry object's placement origin to a point of it [m] (upper bound)."""
+    g = obj.geometry
+    g.computeLocalAABB()
+    box = g.aabb_local
+    corners = np.array(
+        [
+            [x, y, z]
+            for x in (box.min_[0], box.max_[0])
+            for y in (box.min_[1], box.max_[1])
+            for z in (box.min_[2], box.max_[2])
+        ]
+    )
+    return float(np.max(np.linalg.norm(corners, axis=1)))
+
+
+def _axis_reach(model, obj) -> float:
+    """Largest distance of a geometry object from the axis of the revolute joint carrying it [m].
+
+    The object lies within its bounding box, whose corners (in the joint's frame) bound the
+    distance from the axis (a convex function): inf for a joint that is not a plain rotation.
+    """
+    joint = model.joints[obj.parentJoint]
+    jdata = joint.createData()
+    joint.calc(jdata, np.zeros(model.nq))
+    motion = np.asarray(jdata.S, dtype=float).reshape(6, -1)
+    if motion.shape[1] != 1 or np.linalg.norm(motion[:3, 0]) > 1e-12:
+        return float("inf")
+    axis = motion[3:, 0] / np.linalg.norm(motion[3:, 0])
+    g = obj.geometry
+    g.computeLocalAABB()
+    box = g.aabb_local
+    corners = np.array(
+        [
+            [x, y, z]
+            for x in (box.min_[0], box.max_[0])
+            for y in (box.min_[1], box.max_[1])
+            for z in (box.min_[2], box.max_[2])
+        ]
+    )
+    points = corners @ obj.placement.rotation.T + obj.placement.translation
+    return float(np.max(np.linalg.norm(points - np.outer(points @ axis, axis), axis=1)))
+
+
+def pair_weights(checker: CollisionChecker) -> np.ndarray:
+    """Per checked pair and joint, how fast the pair can approach per unit joint speed [m/rad or m/m].
+
+    Row ``p`` holds ``r_j`` for the joints that move one body of pair ``p`` but not the other
+    (see the module docstring), zero elsewhere; shape (pairs, dof). Computed once per checker.
+    """
+    cached = _WEIGHTS.get(checker)
+    if cached is not None:
+        return cached
+    robot = checker.robot
+    model = robot.model
+    geom = checker.geometry
+    prismatic = np.array(robot.joint_kinds) == "prismatic"
+    offset = np.array(
+        [0.0] + [float(np.linalg.norm(model.jointPlacements[j].translation)) for j in range(1, model.njoints)]
+    )
+    travel = np.zeros(model.njoints)
+    travel[1:] = np.where(prismatic, np.maximum(np.abs(robot.lower), np.abs(robot.upper)), 0.0)
+    # Per moving object of the arm: r_j for every joint (0 off its chain), kept per arm (the
+    # arm's objects come first in every checker's geometry, the scene's after them).
+    held = robot.derived.get(_ArmReach, _ArmReach)
+    if held.arm is not checker.arm:
+        held.arm, held.table = checker.arm, {}
+        held.chains = [sorted(set(model.supports[j]) - {0}) for j in range(model.njoints)]
+    reach: dict[int, np.ndarray] = held.table
+    chain_of = held.chains
+
+    def reach_of(k: int) -> np.ndarray:
+        if k not in reach:
+            obj = geom.geometryObjects[k]
+            chain = chain_of[obj.parentJoint]
+            own = float(np.linalg.norm(obj.placement.translation)) + _extent(obj)
+            r = np.zeros(robot.dof)
+            for jid in chain:
+                # Offsets from joint jid down to the object's joint (a slide adds its travel).
+                below = [j for j in chain if j > jid]
+                r[jid - 1] = 1.0 if prismatic[jid - 1] else own + offset[below].sum() + travel[[jid, *below]].sum()
+            if obj.parentJoint > 0 and not prismatic[obj.parentJoint - 1]:
+                # The joint that carries the object itself turns it about its axis: what counts
+                # is the object's distance from that axis, not from the joint's origin.
+                r[obj.parentJoint - 1] = min(r[obj.parentJoint - 1], _axis_reach(model, obj))
+            reach[k] = r
+        return reach[k]
+
+    weights = np.zeros((len(geom.collisionPairs), robot.dof))
+    for k, pair in enumerate(geom.collisionPairs):
+        ids = (pair.first, pair.second)
+        chains = [set(chain_of[geom.geometryObjects[i].parentJoint]) for i in ids]
+        for i, own, other in ((ids[0], chains[0], chains[1]), (ids[1], chains[1], chains[0])):
+            only = [j - 1 for j in own - other]
+            if only:
+                weights[k, only] += reach_of(i)[only]
+    weights.setflags(write=False)
+    _WEIGHTS[checker] = weights
+    return weights
 
 
 def check_motion(
@@ -91,10 +205,12 @@ def check_motion(
 
     Args:
         checker: The collision checker.
-        sample: Returns the configuration at x and ``V``, the speed of the arm's surface there
-            [m per unit x] (an upper bound).
+        sample: Returns the configuration at x and ``V``, an upper bound on how fast pairs
+            approach there [m per unit x]: one number for the whole arm's surface, or one per
+            pair (from :func:`pair_weights`).
         end: Last x.
-        acceleration: ``A``: the surface speed ``h`` later is at most ``V + A h``.
+        acceleration: ``A``: the speed ``h`` later is at most ``V + A h`` (one number, or one
+            per pair).
         masks: ``(x_from, pair_mask)`` in ascending x: the pairs checked from each x on (from
             :meth:`CollisionChecker.pair_mask`); None checks every pair throughout.
         tolerance: See the module docstring [m].
@@ -108,19 +224,20 @@ def check_motion(
         raise InvalidArgumentError(f"tolerance must be a positive distance [m], got {tolerance!r}")
     c = checker.scene.clearance if clearance is None else float(clearance)
     masks = list(masks) if masks else [(0.0, checker.pair_mask())]
-    self_pairs = checker.self_pairs
-    scene_pairs = ~self_pairs
-    has_self, has_scene = bool(self_pairs.any()), bool(scene_pairs.any())
+    # A scalar bound is the whole arm's: two links approach each other at most twice as fast.
+    double = np.where(checker.self_pairs, 2.0, 1.0)
+    acc = np.maximum(np.asarray(acceleration, dtype=float), 0.0)
+    acc = acc * double if acc.ndim == 0 else acc
     x, checks, k_mask = 0.0, 0, 0
     best: tuple[float, float, np.ndarray] | None = None
     first_hit: float | None = None
     hit_d: np.ndarray | None = None
-    acc = max(float(acceleration), 0.0)
     while True:
         while k_mask + 1 < len(masks) and masks[k_mask + 1][0] <= x:
             k_mask += 1
         q, speed = sample(x)
-        speed = max(float(speed), 1e-12)
+        speed = np.asarray(speed, dtype=float)
+        speed = np.maximum(speed * double if speed.ndim == 0 else speed, 1e-12)
         d = checker.pair_distances(q, masks[k_mask][1])
         checks += 1
         dmin = float(d.min()) if d.size else np.inf
@@ -132,17 +249,15 @@ def check_motion(
                 break
         if x >= end:
             break
-        d_scene = d[scene_pairs].min() if has_scene else np.inf
-        d_self = d[self_pairs].min() if has_self else np.inf
-        room = min(d_scene - c + tolerance, (d_self - c + tolerance) / 2.0)
-        room = max(room, tolerance / 2.0)
-        # The time h at which V h + A h^2 / 2 reaches the room left.
-        if not np.isfinite(room):
+        live = np.isfinite(d)
+        if not live.any():
             step = end - x  # nothing checked here: nothing to step around
-        elif acc == 0.0:
-            step = room / speed
         else:
-            step = 2.0 * room / (speed + np.sqrt(speed * speed + 2.0 * acc * room))
+            # Per pair, the time h at which V h + A h^2 / 2 reaches the room left.
+            room = np.maximum(d[live] - c + tolerance, tolerance / 2.0)
+            v = speed[live] if speed.ndim else speed
+            a = acc[live] if acc.ndim else acc
+            step = float(np.min(2.0 * room / (v + np.sqrt(v * v + 2.0 * a * room))))
         if first_hit is not None:
             step = max(step, end / 2000.0)  # past a hit: coarse steps, only to find the worst
         # Change of mask: check at the boundary too.
@@ -171,7 +286,7 @@ def check_segment(
     """
     q0, q1 = np.asarray(q_start, dtype=float), np.asarray(q_end, dtype=float)
     dq = q1 - q0
-    speed = float(np.sum(np.abs(dq) * _joint_factors(checker)))
+    speed = pair_weights(checker) @ np.abs(dq)
     return check_motion(
         checker,
         lambda s: (q0 + s * dq, speed),
@@ -208,14 +323,14 @@ def check_trajectory(
         tolerance: See the module docstring [m].
         stop_at_first: Return at the first check below the clearance.
     """
-    factors = _joint_factors(checker)
+    weights = pair_weights(checker)
     # The limits hold to LIMIT_TOLERANCE; the bound takes a little more.
-    acceleration = float(np.sum(np.asarray(trajectory.limits.acceleration) * factors)) * (1.0 + 1e-6)
+    acceleration = weights @ np.asarray(trajectory.limits.acceleration) * (1.0 + 1e-6)
     vmax = np.asarray(trajectory.limits.velocity) * (1.0 + 1e-6)
 
-    def sample(t: float) -> tuple[np.ndarray, float]:
+    def sample(t: float) -> tuple[np.ndarray, np.ndarray]:
         state = trajectory.sample(t)
-        return state.q, float(np.sum(np.minimum(np.abs(state.qd) + 1e-12, vmax) * factors))
+        return state.q, weights @ np.minimum(np.abs(state.qd) + 1e-12, vmax)
 
     masks = [(0.0, checker.pair_mask())] + [(float(t), checker.pair_mask(names)) for t, names in allow]
     masks.sort(key=lambda m: m[0])

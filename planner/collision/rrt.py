@@ -2,10 +2,14 @@
 
 :func:`find_clear_path` grows two trees (Kuffner and LaValle's RRT-Connect) from the start and
 the goal, deciding each straight joint-space edge by distance checks every
-:attr:`PathOptions.resolution`, then certifies every edge of the path found with
-:func:`~planner.collision.continuous.check_segment` (growing new trees if one fails), and
-shortens the path by straight edges that are certified too. It draws from its own generator seeded
-by :attr:`PathOptions.seed`: the same seed gives the same path; no global state is touched.
+:attr:`PathOptions.resolution`. The path found is shortened by straight edges between random
+points along it (not only its nodes; Geraerts and Overmars 2007 call these partial shortcuts)
+and a greedy pass that joins each node to the farthest one it sees, all decided by the same
+cheap checks kept a centimetre farther from everything; then every edge is certified with
+:func:`~planner.collision.continuous.check_segment`. If one fails, the trees' own path is
+certified and shortened by certified edges only, and if that fails too new trees are grown.
+It draws from its own generator seeded by :attr:`PathOptions.seed`: the same seed gives the
+same path; no global state is touched.
 """
 
 from __future__ import annotations
@@ -16,13 +20,14 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
+import pinocchio as pin
 
 from planner.collision.checker import CollisionChecker
 from planner.collision.continuous import segment_is_clear
 from planner.core.arrays import read_only
 from planner.exceptions import InvalidArgumentError
 
-__all__ = ["PathOptions", "PathResult", "PathStatus", "find_clear_path"]
+__all__ = ["PathOptions", "PathResult", "PathStatus", "find_clear_path", "path_margin", "segment_looks_clear"]
 
 
 class PathStatus(str, enum.Enum):
@@ -45,13 +50,14 @@ class PathOptions:
         time_budget: Wall-clock limit of the search [s].
         shortcuts: Shortcut attempts on the path found.
         margin: Extra distance [m] kept beyond the scene's clearance, so that the timed
-            trajectory, which follows the path closely but not exactly, still keeps it.
+            trajectory, which follows the path closely but not exactly, still keeps it (less
+            where the start or goal is closer than that: see :func:`path_margin`).
         resolution: Largest joint change [rad or m] between the cheap distance checks that
             decide edges while the trees grow (the path found is then certified edge by edge).
     """
 
     seed: int = 0
-    step: float = 0.3
+    step: float = 0.6
     max_iterations: int = 4000
     time_budget: float = 5.0
     shortcuts: int = 60
@@ -121,6 +127,36 @@ class _Tree:
         return out
 
 
+def segment_looks_clear(
+    checker: CollisionChecker,
+    q_start: np.ndarray,
+    q_end: np.ndarray,
+    *,
+    allow: Sequence[str] = (),
+    resolution: float = 0.05,
+) -> bool:
+    """Whether the straight joint segment keeps the scene's clearance at points every `resolution`.
+
+    Cheap (collision tests with the clearance as security margin), not a certificate: between
+    the points it may come closer (:func:`~planner.collision.continuous.segment_is_clear` is
+    the certificate). A segment this finds blocked is blocked.
+    """
+    a, b = np.asarray(q_start, dtype=float), np.asarray(q_end, dtype=float)
+    near = _Proximity(checker, checker.pair_mask(allow), checker.scene.clearance)
+    n = max(1, int(np.ceil(float(np.max(np.abs(b - a))) / resolution)))
+    return not near(a) and not any(near(a + s * (b - a)) for s in _order(n))
+
+
+def path_margin(clearance: float, end_distance: float, margin: float) -> float:
+    """The margin a path can keep [m]: `margin`, or less when an end of it is closer than that.
+
+    A path cannot keep more distance than its ends have: where the start or the goal lies
+    within ``clearance + margin`` of something, the path keeps half of what that end has
+    beyond the clearance.
+    """
+    return float(min(margin, max(0.0, (end_distance - clearance) / 2.0)))
+
+
 def find_clear_path(
     checker: CollisionChecker,
     q_start: Sequence[float] | np.ndarray,
@@ -147,20 +183,25 @@ def find_clear_path(
     q0 = robot.check_configuration(q_start, batch=False)
     q1 = robot.check_configuration(q_goal, batch=False)
     mask = checker.pair_mask(allow)
-    need = checker.scene.clearance + options.margin
     empty = read_only(np.zeros((0, robot.dof)))
+    ends = []
     for q, status, what in ((q0, PathStatus.START_IN_COLLISION, "start"), (q1, PathStatus.GOAL_IN_COLLISION, "goal")):
         c = checker.distance_at(q, mask)
         if c.distance < checker.scene.clearance:
             return PathResult(status, empty, f"the {what} does not keep the clearance: {c}", 0)
+        ends.append(c.distance)
+    margin = path_margin(checker.scene.clearance, min(ends), options.margin)
+    need = checker.scene.clearance + margin
 
     def clear(a: np.ndarray, b: np.ndarray) -> bool:
-        return segment_is_clear(checker, a, b, allow=allow, margin=options.margin)
+        return segment_is_clear(checker, a, b, allow=allow, margin=margin)
+
+    near = _Proximity(checker, mask, need)
 
     def quick(a: np.ndarray, b: np.ndarray) -> bool:
-        """Distance checks every `resolution` along the edge, its end first: cheap, not a certificate."""
+        """Proximity checks every `resolution` along the edge, its end first: cheap, not a certificate."""
         n = max(1, int(np.ceil(float(np.max(np.abs(b - a))) / options.resolution)))
-        return all(_distance(checker, a + s * (b - a), mask) >= need for s in np.arange(n, 0, -1) / n)
+        return not any(near(a + s * (b - a)) for s in _order(n))
 
     if clear(q0, q1):
         return PathResult(PathStatus.FOUND, read_only(np.array([q0, q1])), "", 0)
@@ -169,17 +210,24 @@ def find_clear_path(
     hi = np.where(np.isfinite(robot.upper), robot.upper, q0 + np.pi)
     deadline = time.perf_counter() + options.time_budget
     iterations = 0
-    # Grow the trees with cheap edge checks and certify the path found (conservative
-    # advancement on each edge); if an edge fails its certificate, grow new trees (the
-    # generator has moved on) until one certifies or the budget is spent.
+    # Grow the trees with cheap edge checks, shorten the path found with cheap checks (kept a
+    # little farther from everything, so that certifying the shortened edges is quick), and
+    # certify its edges (conservative advancement). If a shortened edge fails its certificate,
+    # the tree's own path is certified instead and shortened only by certified edges; if that
+    # fails too, grow new trees (the generator has moved on) until one certifies or the
+    # budget is spent.
     while iterations < options.max_iterations and time.perf_counter() <= deadline:
         left = options.max_iterations - iterations
         path, used = _grow(q0, q1, quick, rng, lo, hi, options.step, deadline, left)
         iterations += used
         if path is None:
             break
+        path = _merge_collinear(path)
+        short = _shortcut(path, quick, rng, options.shortcuts)
+        if all(clear(a, b) for a, b in zip(short, short[1:])):
+            return PathResult(PathStatus.FOUND, read_only(np.array(short)), "", iterations)
         if all(clear(a, b) for a, b in zip(path, path[1:])):
-            path = _shortcut(path, quick, clear, rng, options.shortcuts)
+            path = _prune(path, lambda a, b: quick(a, b) and clear(a, b))
             return PathResult(PathStatus.FOUND, read_only(np.array(path)), "", iterations)
     if time.perf_counter() > deadline:
         return PathResult(PathStatus.NOT_FOUND, empty, f"no clear path within {options.time_budget:g} s", iterations)
@@ -243,10 +291,52 @@ def _extend(tree: _Tree, target: np.ndarray, step: float, edge_ok) -> int | None
     return tree.add(q_new, k)
 
 
-def _distance(checker: CollisionChecker, q: np.ndarray, mask: np.ndarray) -> float:
-    """The smallest pair distance at `q` [m] (no penetration depth, no names: the search only compares)."""
-    d = checker.pair_distances(q, mask)
-    return float(d.min()) if d.size else float("inf")
+_ORDERS: dict[int, np.ndarray] = {}
+
+
+def _order(n: int) -> np.ndarray:
+    """The points k / n, k = 1..n, the end first, then by bisection (halves, quarters, ...).
+
+    A blocked edge is usually blocked over a stretch: bisection meets it after few checks.
+    """
+    out = _ORDERS.get(n)
+    if out is None:
+        seen, order, step = {n}, [n], n
+        while step > 1:
+            step = (step + 1) // 2
+            for k in range(step, n, step):
+                if k not in seen:
+                    seen.add(k)
+                    order.append(k)
+        order += [k for k in range(1, n) if k not in seen]
+        out = np.array(order, dtype=float) / n
+        if len(_ORDERS) < 4096:
+            _ORDERS[n] = out
+    return out
+
+
+class _Proximity:
+    """Whether any checked pair at q is closer than a distance.
+
+    Coal's collision test with that distance as its security margin: several times faster than
+    computing the distances, with the same verdict.
+    """
+
+    def __init__(self, checker: CollisionChecker, mask: np.ndarray, distance: float) -> None:
+        robot = checker.robot
+        self.model, self.data, self.geometry = robot.model, robot.model.createData(), checker.geometry
+        self.gdata = pin.GeometryData(checker.geometry)
+        for k, on in enumerate(mask):
+            self.gdata.activeCollisionPairs[k] = bool(on)
+        for request in self.gdata.collisionRequests:
+            request.security_margin = float(distance)
+        self.to_pinocchio = robot.pinocchio_configuration
+        self.any = bool(np.any(mask))
+
+    def __call__(self, q: np.ndarray) -> bool:
+        if not self.any:
+            return False
+        return bool(pin.computeCollisions(self.model, self.data, self.geometry, self.gdata, self.to_pinocchio(q), True))
 
 
 def _join(a: _Tree, ka: int, b: _Tree, kb: int, a_is_start: bool) -> list[np.ndarray]:
@@ -255,15 +345,50 @@ def _join(a: _Tree, ka: int, b: _Tree, kb: int, a_is_start: bool) -> list[np.nda
     return path if a_is_start else path[::-1]
 
 
-def _shortcut(path: list[np.ndarray], quick, clear, rng: np.random.Generator, attempts: int) -> list[np.ndarray]:
-    """Replace stretches of the path by straight edges that pass the cheap check and then certify."""
-    path = list(path)
+def _merge_collinear(path: list[np.ndarray]) -> list[np.ndarray]:
+    """Drop nodes where the path goes straight on (the trees' connect steps): the edge is the same."""
+    out = [path[0]]
+    for k in range(1, len(path) - 1):
+        u, w = path[k] - out[-1], path[k + 1] - path[k]
+        nu, nw = float(np.linalg.norm(u)), float(np.linalg.norm(w))
+        if nu > 0 and nw > 0 and float(u @ w) >= nu * nw * (1.0 - 1e-12):
+            continue
+        out.append(path[k])
+    out.append(path[-1])
+    return out
+
+
+def _prune(path: list[np.ndarray], edge_ok) -> list[np.ndarray]:
+    """From each node, the farthest later node `edge_ok` connects it to straight (greedy)."""
+    out, i = [path[0]], 0
+    while i < len(path) - 1:
+        j = len(path) - 1
+        while j > i + 1 and not edge_ok(path[i], path[j]):
+            j -= 1
+        out.append(path[j])
+        i = j
+    return out
+
+
+def _shortcut(path: list[np.ndarray], edge_ok, rng: np.random.Generator, attempts: int) -> list[np.ndarray]:
+    """Shorten the path: the greedy prune, straight edges between random points along it, the prune again.
+
+    The points are drawn by length along the path (not only its nodes), so a corner is cut
+    wherever the straight edge past it is clear (`edge_ok`).
+    """
+    path = _prune(list(path), edge_ok)
     for _ in range(attempts):
         if len(path) <= 2:
             break
-        i, j = sorted(rng.choice(len(path), size=2, replace=False))
-        if j - i < 2:
+        cum = np.concatenate([[0.0], np.cumsum([float(np.linalg.norm(b - a)) for a, b in zip(path, path[1:])])])
+        x, y = np.sort(rng.uniform(0.0, cum[-1], size=2))
+        i = int(np.searchsorted(cum, x, side="right")) - 1
+        j = int(np.searchsorted(cum, y, side="right")) - 1
+        i, j = min(i, len(path) - 2), min(j, len(path) - 2)
+        if i == j:
             continue
-        if quick(path[i], path[j]) and clear(path[i], path[j]):
-            path = path[: i + 1] + path[j:]
-    return path
+        a = path[i] + (x - cum[i]) / (cum[i + 1] - cum[i]) * (path[i + 1] - path[i])
+        b = path[j] + (y - cum[j]) / (cum[j + 1] - cum[j]) * (path[j + 1] - path[j])
+        if edge_ok(a, b):
+            path = path[: i + 1] + [a, b] + path[j + 1 :]
+    return _prune(path, edge_ok)

@@ -594,26 +594,33 @@ class Robot:
         length = self._characteristic_length
         prismatic = np.array(self.joint_kinds) == "prismatic"
         columns = np.where(prismatic, length, 1.0)
-        # sqrt(det(D J J^T D)) = det(D) sqrt(det(J J^T)) for a wide Jacobian and row scales D.
-        rescale = t == "pose" and self.dof >= 6 and not prismatic.any()
-        inverse = np.empty(len(rows))
-        manipulability = np.empty(len(rows))
-        for k, row in enumerate(rows):
-            jac = self.jacobian(row)
-            if t == "position":
-                jac = jac[:3]
-            else:
-                jac[3:] *= length
-            # Only the min(m, n) largest singular values: a 3x2 Jacobian has two.
-            s = np.linalg.svd(jac * columns, compute_uv=False)[: min(jac.shape)]
-            inverse[k] = 0.0 if s[0] == 0.0 else s[-1] / s[0]
-            if t == "position" and not prismatic.any():
-                manipulability[k] = np.prod(s)
-            elif rescale:
-                manipulability[k] = np.prod(s) / length**3
-            else:
-                jac[3:] /= length
-                manipulability[k] = np.prod(np.linalg.svd(jac, compute_uv=False)[: min(jac.shape)])
+        fid, ref = self.tip_frame_id, pin.ReferenceFrame.LOCAL_WORLD_ALIGNED
+        jacs = np.array(
+            [
+                np.asarray(pin.computeFrameJacobian(self.model, self.data, self._pin_q(row), fid, ref)).reshape(
+                    6, self.model.nv
+                )
+                for row in rows
+            ]
+        ).reshape(len(rows), 6, self.model.nv)
+        if t == "position":
+            jacs = jacs[:, :3]
+            scaled = jacs * columns
+        else:
+            scaled = jacs * columns
+            scaled[:, 3:] *= length
+        # One batched SVD; only the min(m, n) largest singular values: a 3x2 Jacobian has two.
+        k = min(jacs.shape[1:])
+        s = np.linalg.svd(scaled, compute_uv=False)[:, :k]
+        largest = s[:, 0]
+        inverse = np.divide(s[:, -1], largest, out=np.zeros(len(rows)), where=largest != 0.0)
+        if not prismatic.any() and t == "position":
+            manipulability = np.prod(s, axis=1)
+        elif not prismatic.any() and self.dof >= 6:
+            # sqrt(det(D J J^T D)) = det(D) sqrt(det(J J^T)) for a wide Jacobian and row scales D.
+            manipulability = np.prod(s, axis=1) / length**3
+        else:
+            manipulability = np.prod(np.linalg.svd(jacs, compute_uv=False)[:, :k], axis=1)
         shape = () if arr.ndim == 1 else (len(rows),)
         return inverse.reshape(shape), manipulability.reshape(shape)
 
