@@ -37,8 +37,10 @@ KERNEL_KINDS = ("position", "pose", "pitch")
 VERTICAL = 1e-12
 
 # Kernel parameters: target position 3, rotation 9 (column-major), outward direction 3,
-# sin(pitch) 1, |cos(pitch)| 1, unused 1, stop threshold 1, orientation weight [m] 1.
+# sin(pitch) 1, |cos(pitch)| 1, searches allowed 1 (sequential kernel), stop threshold 1,
+# orientation weight [m] 1.
 _N_PARAMS = 20
+_SEARCHES = 17
 _STOP = 18
 _SCALE = 19
 
@@ -150,6 +152,102 @@ def _symbolic_kernel(
     )
 
 
+def _turn_nearest(q: ca.SX, ref: ca.SX, lower: np.ndarray, upper: np.ndarray, angular: np.ndarray) -> ca.SX:
+    """`q` with each angle shifted by whole turns towards `ref` where the limits allow (same pose)."""
+    out = []
+    for j in range(q.shape[0]):
+        if not angular[j]:
+            out.append(q[j])
+            continue
+        turns = ca.floor((ref[j] - q[j]) / (2 * math.pi) + 0.5)
+        best = q[j]
+        for k in (turns, turns - 1, turns + 1):
+            shifted = q[j] + 2 * math.pi * k
+            better = (
+                (shifted >= lower[j]) * (shifted <= upper[j]) * (ca.fabs(shifted - ref[j]) < ca.fabs(best - ref[j]))
+            )
+            best = ca.if_else(better, shifted, best)
+        out.append(best)
+    return ca.vertcat(*out)
+
+
+def _symbolic_sequential(
+    kinematics: CasadiKinematics,
+    kind: str,
+    searches: int,
+    lower: np.ndarray,
+    upper: np.ndarray,
+    chunk: int,
+    chunks: int,
+    max_step: float,
+    damping: float,
+    continuous: np.ndarray,
+    angular: np.ndarray,
+) -> ca.Function:
+    """Searches one after another: ``(q0 (dof, searches), par) -> (q, q_near, cost, iterations, search)``.
+
+    Search s starts from column s of `q0` and runs up to `chunks` chunks of `chunk` steps; the
+    next search starts only while none has converged (squared residual below ``par[_STOP]``)
+    and s is below ``par[_SEARCHES]``. ``q`` is the lowest-residual end point, continuous joints
+    wrapped into [-pi, pi); ``q_near`` is ``q`` with its angles shifted by whole turns towards
+    column 0 of `q0` (the seed) where the limits allow.
+    """
+    n = kinematics.dof
+    q = ca.SX.sym("q", n)
+    par = ca.SX.sym("par", _N_PARAMS)
+    r = _residual(kinematics, kind, q, par)
+    jac = ca.jacobian(r, q)
+    cost = ca.dot(r, r)
+    step = -_ldl_solve(ca.mtimes(jac.T, jac) + (1e-6 + damping * cost) * ca.SX.eye(n), ca.mtimes(jac.T, r))
+    step = step * ca.fmin(1.0, max_step / (ca.norm_2(step) + 1e-300))
+    q_next = ca.fmin(ca.fmax(q + step, ca.DM(lower)), ca.DM(upper))
+    step_f = ca.Function("sq_step", [q, par], [q_next])
+    cost_f = ca.Function("sq_cost", [q, par], [cost])
+    ref = ca.SX.sym("ref", n)
+    wrapped = ca.vertcat(
+        *[q[j] - 2 * math.pi * ca.floor((q[j] + math.pi) / (2 * math.pi)) if continuous[j] else q[j] for j in range(n)]
+    )
+    finish_f = ca.Function("sq_finish", [q, ref], [wrapped, _turn_nearest(wrapped, ref, lower, upper, angular)])
+
+    x_in = ca.MX.sym("x", n)
+    c_in = ca.MX.sym("c")
+    p_in = ca.MX.sym("par", _N_PARAMS)
+    x = x_in
+    for _ in range(chunk):
+        x = step_f(x, p_in)
+    run_chunk = ca.Function("sq_chunk", [x_in, c_in, p_in], [x, cost_f(x, p_in)])
+    keep = ca.Function("sq_keep", [x_in, c_in, p_in], [x_in, c_in])
+    maybe_chunk = ca.Function.if_else("sq_maybe_chunk", keep, run_chunk)
+    s_in = ca.MX.sym("s", n)
+    fresh = ca.Function("sq_fresh", [x_in, c_in, p_in, s_in], [s_in, cost_f(s_in, p_in)])
+    stay = ca.Function("sq_stay", [x_in, c_in, p_in, s_in], [x_in, c_in])
+    maybe_restart = ca.Function.if_else("sq_maybe_restart", stay, fresh)
+
+    q0 = ca.MX.sym("q0", n, searches)
+    x, c = q0[:, 0], cost_f(q0[:, 0], p_in)
+    best_x, best_c = x, c
+    iterations, search = ca.MX(0), ca.MX(0)
+    for s in range(searches):
+        if s > 0:
+            idle = (c < p_in[_STOP]) + (p_in[_SEARCHES] <= s)
+            x, c = maybe_restart(idle, x, c, p_in, q0[:, s])
+            search = ca.if_else(idle, search, s)
+        for _ in range(chunks):
+            done = (c < p_in[_STOP]) + (p_in[_SEARCHES] <= s)
+            x, c = maybe_chunk(done, x, c, p_in)
+            iterations = iterations + ca.if_else(done, 0, chunk)
+        lower_cost = c < best_c
+        best_x, best_c = ca.if_else(lower_cost, x, best_x), ca.fmin(c, best_c)
+    q_out, q_near = finish_f(best_x, q0[:, 0])
+    return ca.Function(
+        f"sq_{kind}_{n}x{searches}",
+        [q0, p_in],
+        [q_out, q_near, best_c, iterations, search],
+        ["q0", "par"],
+        ["q", "q_near", "cost", "iterations", "search"],
+    )
+
+
 class Kernel:
     """A batched solver function with numpy buffers bound to it (no conversion per call).
 
@@ -244,3 +342,93 @@ class Kernel:
         self._evaluate()
         if self._buffer.ret() != 0:
             raise RuntimeError(f"CasADi function {self.function.name()!r} failed (code {self._buffer.ret()})")
+
+
+class SequentialKernel(Kernel):
+    """Searches one after another in one compiled call, with numpy buffers bound to it.
+
+    The fast first stage of :class:`~planner.ik.numeric.solver.NlpIK`: search s starts from row
+    s of :attr:`q0` and runs only while no earlier one has converged, so an easy target costs
+    one search of a few iterations. Fill :attr:`q0` and the parameters (:meth:`set_target`,
+    :meth:`set_weighting`, :meth:`set_searches`), call it, read :attr:`q`, :attr:`q_near`,
+    :attr:`cost`, :attr:`iterations` and :attr:`search`.
+
+    Attributes:
+        function: The CasADi function (compiled or not).
+        compiled: Whether it runs as compiled C code.
+        q0: Starting configurations, shape (searches, dof) [rad or m]; row s starts search s.
+        par: The parameter vector.
+        q: The end point of lowest residual, shape (dof,) [rad or m], within the limits,
+            continuous joints wrapped into [-pi, pi).
+        q_near: :attr:`q` with its angles shifted by whole turns towards row 0 of :attr:`q0`
+            where the limits allow, shape (dof,).
+        cost: Squared weighted residual of :attr:`q`, shape (1,).
+        iterations: Gauss-Newton steps run in all, shape (1,).
+        search: Index of the last search run (the converged one when one has), shape (1,).
+    """
+
+    def __init__(self, function: ca.Function, searches: int, dof: int, compiled: bool) -> None:
+        """Bind buffers of `searches` starts of `dof` joints to `function`."""
+        self.function = function
+        self.compiled = compiled
+        self.q0 = np.zeros((searches, dof))
+        self.par = np.zeros(_N_PARAMS)
+        self.q = np.zeros(dof)
+        self.q_near = np.zeros(dof)
+        self.cost = np.zeros(1)
+        self.iterations = np.zeros(1)
+        self.search = np.zeros(1)
+        self._buffer, self._evaluate = function.buffer()
+        self._buffer.set_arg(0, memoryview(self.q0))
+        self._buffer.set_arg(1, memoryview(self.par))
+        for i, out in enumerate((self.q, self.q_near, self.cost, self.iterations, self.search)):
+            self._buffer.set_res(i, memoryview(out))
+
+    @classmethod
+    def build_sequential(
+        cls,
+        kinematics: CasadiKinematics,
+        kind: str,
+        *,
+        searches: int,
+        lower: np.ndarray,
+        upper: np.ndarray,
+        chunk: int,
+        chunks: int,
+        max_step: float,
+        damping: float,
+        continuous: np.ndarray,
+        angular: np.ndarray,
+        jit: bool,
+    ) -> SequentialKernel:
+        """Build (and compile, or load from the cache) the sequential kernel of one target kind.
+
+        Args:
+            kinematics: The robot's symbolic kinematics.
+            kind: ``"position"``, ``"pose"`` or ``"pitch"``.
+            searches: Starts per call at most.
+            lower: Finite lower joint limits, shape (dof,) [rad or m].
+            upper: Finite upper joint limits, shape (dof,) [rad or m].
+            chunk: Gauss-Newton steps between two convergence checks.
+            chunks: Chunks per search at most.
+            max_step: Longest joint step of one iteration [rad or m].
+            damping: Levenberg-Marquardt damping per unit squared residual (the damping is
+                ``1e-6 + damping * |r|^2``).
+            continuous: Which joints are continuous (wrapped into [-pi, pi)), shape (dof,).
+            angular: Which joints are angles (shifted by whole turns), shape (dof,).
+            jit: Compile to C (:func:`~planner.ik.numeric.codegen.compile_function`).
+
+        Raises:
+            InvalidArgumentError: On an unknown target kind.
+        """
+        if kind not in KERNEL_KINDS:
+            raise InvalidArgumentError(f"unknown target kind {kind!r}; valid: {', '.join(KERNEL_KINDS)}")
+        symbolic = _symbolic_sequential(
+            kinematics, kind, searches, lower, upper, chunk, chunks, max_step, damping, continuous, angular
+        )
+        function = compile_function(symbolic) if jit else symbolic
+        return cls(function, searches, kinematics.dof, function is not symbolic)
+
+    def set_searches(self, count: int) -> None:
+        """Run at most `count` searches (rows of :attr:`q0`) in the next call."""
+        self.par[_SEARCHES] = count

@@ -2,6 +2,15 @@
 
 How :meth:`NlpIK.solve` works:
 
+0. **First stage: searches one after another in one compiled call**
+   (:class:`~planner.ik.numeric.kernel.SequentialKernel`), without secondary objectives and
+   when a seed or extra seeds are given: from the caller's seed, then the extra seeds, then up
+   to 16 random configurations, each search at most 12 Levenberg-Marquardt steps with light
+   damping (``1e-6 + 0.1 |r|^2``) and steps up to 1.5 rad, stopping at the first that
+   converges. Most targets are reached from the seed in a few steps, so a call costs one
+   short search, one Pinocchio FK and the result. The angles are shifted by whole turns
+   towards the seed in the same compiled call. Only when none of these reaches the target do
+   the batches below run (and only then are extra seeds given as a function computed).
 1. **Batched damped Gauss-Newton in one compiled CasADi function**
    (:class:`~planner.ik.numeric.kernel.Kernel`; compiled and cached on disk by
    :mod:`planner.ik.numeric.codegen`): Levenberg-Marquardt steps clamped into the joint limits,
@@ -14,7 +23,8 @@ How :meth:`NlpIK.solve` works:
    attempts of the last batch when they are still converging (slow convergence near a
    singularity), with the orientation weight varied from batch to batch (0.25, 0.5, 0.12 of
    the chain length), which varies the basins of attraction. The attempt that succeeded and
-   its kind (``"seed"``, ``"closed_form"``, ``"random"``) are reported.
+   its kind (``"seed"``, ``"closed_form"``, ``"random"``) are reported; attempts count the
+   first stage's searches too.
 3. **Secondary objectives.** With ``near_seed=True`` or a manipulability floor, the batch runs
    to the end, its converged solutions are compared (nearest to the seed; above the floor)
    and, where the arm is redundant for the target, IPOPT moves along the redundancy
@@ -28,14 +38,17 @@ forward kinematics against the target, not the solver's own residual.
 chosen answer, else the most converged one, is kept), labelled with their attempt's kind,
 nearest to the seed first (without a seed, smallest error first). They come from the batch
 that reached the target (and, with secondary objectives, from every batch run): each further
-distinct answer costs one Pinocchio FK, nothing else is recomputed. All lie within the limits.
+distinct answer costs one Pinocchio FK, nothing else is recomputed. When the first stage
+answered, one batch from the seed, the extra seeds and random starts runs to its end when the
+solutions are first read, and its distinct answers follow the first stage's. All lie within
+the limits.
 """
 
 from __future__ import annotations
 
 import math
 import time
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 
 import numpy as np
 import pinocchio as pin
@@ -45,7 +58,7 @@ from planner.core.text import plain
 from planner.exceptions import InvalidArgumentError, InvalidConfigurationError
 from planner.geometry.joint_space import angular_joints, configurations_close, wrapped_distance
 from planner.geometry.target import Target, as_target, tip_errors
-from planner.ik.numeric.kernel import KERNEL_KINDS, Kernel
+from planner.ik.numeric.kernel import KERNEL_KINDS, Kernel, SequentialKernel
 from planner.ik.numeric.kinematics import CasadiKinematics
 from planner.ik.numeric.polish import Polisher
 from planner.ik.options import IKOptions
@@ -62,6 +75,14 @@ ATTEMPT_KINDS = ("seed", "closed_form", "random")
 #: varies the basins of attraction, which helps arms with fewer joints than the task.
 _SCALES = (0.25, 0.5, 0.12)
 _RANDOM_POOL = 64  # random seeds drawn once per solver for calls without an rng
+#: The first stage: searches one after another (the seed, the extra seeds, then random starts),
+#: each at most _SEARCH_CHUNKS chunks of _SEARCH_CHUNK steps, with lighter damping and longer
+#: steps than the batches (it converges in fewer steps from most starts).
+_SEARCHES = 16
+_SEARCH_CHUNK = 3
+_SEARCH_CHUNKS = 4
+_SEARCH_DAMPING = 0.1
+_SEARCH_MAX_STEP = 1.5
 _DEFAULT_OPTIONS = IKOptions()
 #: Joint distance [rad, m mixed; angles modulo 2 pi] at or below which two answers are one solution.
 DISTINCT = 1e-4
@@ -141,6 +162,8 @@ class NlpIK:
         self._q_pin = np.zeros(robot.model.nq)
         self._pool = robot.random_configurations(np.random.default_rng(0), _RANDOM_POOL * self.batch_size)
         self._kernels: dict[str, Kernel] = {}
+        self._sequential: dict[str, SequentialKernel] = {}
+        self._dirty_rows: dict[str, int] = {}  # rows of a sequential kernel's q0 not holding the pool
         self._polisher = Polisher(self.kinematics, self._lower, self._upper)
 
     @classmethod
@@ -159,6 +182,7 @@ class NlpIK:
         """
         for kind in kinds:
             self._kernel(kind)
+            self._sequential_kernel(kind)
         return self
 
     def compiled(self, kind: str = "pose") -> bool:
@@ -187,6 +211,28 @@ class NlpIK:
                 jit=self._jit,
             )
             self._kernels[kind] = kernel
+        return kernel
+
+    def _sequential_kernel(self, kind: str) -> SequentialKernel:
+        kernel = self._sequential.get(kind)
+        if kernel is None:
+            kernel = SequentialKernel.build_sequential(
+                self.kinematics,
+                kind,
+                searches=_SEARCHES,
+                lower=self._lower,
+                upper=self._upper,
+                chunk=_SEARCH_CHUNK,
+                chunks=_SEARCH_CHUNKS,
+                max_step=_SEARCH_MAX_STEP,
+                damping=_SEARCH_DAMPING,
+                continuous=self._continuous,
+                angular=np.array(self._angular_list, dtype=bool),
+                jit=self._jit,
+            )
+            kernel.q0[:] = self._pool[:_SEARCHES]
+            self._sequential[kind] = kernel
+            self._dirty_rows[kind] = 0
         return kernel
 
     # -------------------------------------------------------------------- Pinocchio checks
@@ -269,7 +315,7 @@ class NlpIK:
         q_seed: Sequence[float] | np.ndarray | None = None,
         options: IKOptions | None = None,
         *,
-        extra_seeds: Sequence[Sequence[float]] | np.ndarray | None = None,
+        extra_seeds: Sequence[Sequence[float]] | np.ndarray | Callable[[], Sequence | np.ndarray] | None = None,
     ) -> IKResult:
         """Joint values that put the tip on a target.
 
@@ -284,7 +330,10 @@ class NlpIK:
                 (pass the branches as `extra_seeds`).
             extra_seeds: Further starting configurations (M, dof), tried right after `q_seed`
                 and reported as ``"closed_form"`` attempts (meant for the closed-form
-                branches); clipped into the limits.
+                branches); clipped into the limits. Or a function returning them, called
+                only when needed: with a `q_seed` and an arm not redundant for the target,
+                when the first stage's searches from the seed and random starts do not
+                reach the target (or when the solutions are read); else at once.
 
         Returns:
             The result (status ``SOLVED``, ``NOT_CONVERGED`` or ``BELOW_MANIPULABILITY_FLOOR``,
@@ -306,15 +355,135 @@ class NlpIK:
             raise InvalidArgumentError(f"options must be a planner.IKOptions or None, got {type(options).__name__}")
         position_tolerance = options.position_tolerance
         orientation_tolerance = options.orientation_tolerance
+        max_attempts = options.max_attempts
+        near_seed = options.near_seed
+        manipulability_floor = options.manipulability_floor
+        if near_seed and seed is None:
+            raise InvalidArgumentError("near_seed=True needs a q_seed to stay near")
+        rng = options.generator()
+        # Extra seeds given as a function are computed only when the first stage misses, except
+        # where the arm is redundant for the target: there they come before the random starts,
+        # which would move the joints the target leaves free.
+        deferred = (
+            extra_seeds
+            if callable(extra_seeds)
+            and seed is not None
+            and not self._polisher.redundant(self._polisher.task_kind(target))
+            else None
+        )
+        if callable(extra_seeds) and deferred is None:
+            extra_seeds = extra_seeds()
+        extra = self._no_seeds if deferred is not None else self._check_extra_seeds(extra_seeds)
+        secondary = near_seed or manipulability_floor is not None
+        kinds: list[str] = []
+        iterations = 0
+        best: tuple[float, np.ndarray, float, float] | None = None
+
+        if not secondary and (seed is not None or len(extra)):
+            # First stage: one search after another in one compiled call; most targets are
+            # reached from the first start.
+            scale = _SCALES[0] * self.length
+            accept = position_tolerance**2 + 8.0 * (scale * math.sin(min(orientation_tolerance, 3.0) / 2)) ** 2
+            quick = self._sequential_kernel(target.kind)
+            quick.set_target(target)
+            quick.set_weighting(scale, max((0.01 * min(position_tolerance, scale * orientation_tolerance)) ** 2, 1e-30))
+            first = self._fill_sequential(quick, target.kind, seed, extra, rng)
+            quick.set_searches(_SEARCHES if max_attempts is None else min(_SEARCHES, max_attempts))
+            quick()
+            iterations = int(quick.iterations[0])
+            index = int(quick.search[0])
+            kinds = first[: index + 1]
+            q = (quick.q_near if seed is not None else quick.q).copy()
+            position_error, orientation_error = self._errors(target, q)
+            if (
+                quick.cost[0] <= accept
+                and position_error <= position_tolerance
+                and orientation_error <= orientation_tolerance
+            ):
+                tolerances = (position_tolerance, orientation_tolerance)
+                found = (index, q, position_error, orientation_error)
+                solutions = LazySolutions(
+                    lambda: self._more_solutions(target, found, seed, extra, deferred, kinds, tolerances, scale, accept)
+                )
+                return IKResult(
+                    q, True, IKStatus.SOLVED, f"reached by attempt {index} ({kinds[index]})", position_error,
+                    orientation_error, iterations, index + 1, index, kinds[index], time.perf_counter() - start,
+                    solutions=solutions,
+                )  # fmt: skip
+            best = (position_error + self._orientation_weight * orientation_error, q, position_error, orientation_error)
+        if deferred is not None:
+            extra = self._check_extra_seeds(deferred())
+        if max_attempts is not None and len(kinds) >= max_attempts:
+            return self._not_converged(best, len(kinds), max_attempts, iterations, start)
+        return self._batches(target, seed, extra, options, rng, kinds, iterations, best, start)
+
+    def _fill_sequential(
+        self,
+        kernel: SequentialKernel,
+        kind: str,
+        seed: np.ndarray | None,
+        extra: np.ndarray,
+        rng: np.random.Generator | None,
+    ) -> list[str]:
+        """Write the starts into a sequential kernel: seed, extra seeds, random; their kinds."""
+        rows = kernel.q0
+        fixed = 0
+        if seed is not None:
+            rows[0] = seed
+            fixed = 1
+        count = min(len(extra), _SEARCHES - fixed)
+        if count:
+            rows[fixed : fixed + count] = extra[:count]
+        kinds = ["seed"] * fixed + ["closed_form"] * count
+        fixed += count
+        if rng is not None:
+            rows[fixed:] = self.robot.random_configurations(rng, _SEARCHES - fixed)
+            self._dirty_rows[kind] = _SEARCHES
+        else:
+            dirty = self._dirty_rows[kind]
+            if dirty > fixed:
+                rows[fixed:dirty] = self._pool[fixed:dirty]
+            self._dirty_rows[kind] = fixed
+        return kinds + ["random"] * (_SEARCHES - fixed)
+
+    def _not_converged(
+        self,
+        best: tuple[float, np.ndarray, float, float] | None,
+        attempts: int,
+        max_attempts: int | None,
+        iterations: int,
+        start: float,
+    ) -> IKResult:
+        assert best is not None
+        _, q, position_error, orientation_error = best
+        limit = "attempt cap" if max_attempts is not None and attempts >= max_attempts else "time budget"
+        return IKResult(
+            q, False, IKStatus.NOT_CONVERGED,
+            f"none of {attempts} attempts reached the target before the {limit} ran out (best: position error "
+            f"{position_error:.3g} m, orientation error {orientation_error:.3g} rad); it may be out of reach",
+            position_error, orientation_error, iterations, attempts, None, None, time.perf_counter() - start,
+        )  # fmt: skip
+
+    def _batches(
+        self,
+        target: Target,
+        seed: np.ndarray | None,
+        extra: np.ndarray,
+        options: IKOptions,
+        rng: np.random.Generator | None,
+        kinds: list[str],
+        iterations: int,
+        best: tuple[float, np.ndarray, float, float] | None,
+        start: float,
+    ) -> IKResult:
+        """Batches of seeds with restarts, after the attempts in `kinds` (the first stage's)."""
+        position_tolerance = options.position_tolerance
+        orientation_tolerance = options.orientation_tolerance
         time_budget = options.time_budget
         max_attempts = options.max_attempts
         near_seed = options.near_seed
         manipulability_floor = options.manipulability_floor
         task = options.manipulability_task or ("pose" if self.robot.dof >= 6 else "position")
-        if near_seed and seed is None:
-            raise InvalidArgumentError("near_seed=True needs a q_seed to stay near")
-        rng = options.generator()
-        extra = self._check_extra_seeds(extra_seeds)
         secondary = near_seed or manipulability_floor is not None
 
         kernel = self._kernel(target.kind)
@@ -323,26 +492,24 @@ class NlpIK:
         fixed = ([seed] if seed is not None else []) + list(extra)
         fixed_kinds = (["seed"] if seed is not None else []) + ["closed_form"] * len(extra)
         k = self.batch_size
-        kinds: list[str] = []
+        base = len(kinds)
         carried: list[tuple[int, np.ndarray]] = []
-        pool_used = 0
-        iterations = 0
-        best: tuple[float, np.ndarray, float, float] | None = None
+        pool_used = _SEARCHES if base else 0  # the first stage's random starts: the pool's first rows
         reached: list[tuple[int, np.ndarray, float, float]] = []
         found: tuple[int, np.ndarray, float, float] | None = None
         further: tuple[np.ndarray, list[int]] | None = None  # rows of the last batch to check lazily
         while found is None:
-            scale = _SCALES[len(kinds) // k % len(_SCALES)] * self.length
+            scale = _SCALES[(len(kinds) - base) // k % len(_SCALES)] * self.length
             # Stop when converged well inside the tolerances (Gauss-Newton converges quadratically).
             stop = (0.01 * min(position_tolerance, scale * orientation_tolerance)) ** 2
             kernel.set_weighting(scale, -1.0 if secondary else max(stop, 1e-30))
             # The residual can only be this small when both errors are within tolerance.
             accept = position_tolerance**2 + 8.0 * (scale * math.sin(min(orientation_tolerance, 3.0) / 2)) ** 2
             slots: list[int] = []  # the attempt each row of the batch belongs to
-            while len(slots) < k and len(kinds) < len(fixed):
-                kernel.q0[len(slots)] = fixed[len(kinds)]
+            while len(slots) < k and len(kinds) - base < len(fixed):
+                kernel.q0[len(slots)] = fixed[len(kinds) - base]
                 slots.append(len(kinds))
-                kinds.append(fixed_kinds[len(kinds)])
+                kinds.append(fixed_kinds[len(kinds) - base])
             # Attempts still converging (slowly, e.g. near a singularity) continue in this batch.
             for index, q in carried[: k - len(slots)]:
                 kernel.q0[len(slots)] = q
@@ -423,15 +590,7 @@ class NlpIK:
                 position_error, orientation_error, iterations, attempts, None, None, time.perf_counter() - start,
                 solutions=solutions,
             )  # fmt: skip
-        assert best is not None
-        _, q, position_error, orientation_error = best
-        limit = "attempt cap" if max_attempts is not None and attempts >= max_attempts else "time budget"
-        return IKResult(
-            q, False, IKStatus.NOT_CONVERGED,
-            f"none of {attempts} attempts reached the target before the {limit} ran out (best: position error "
-            f"{position_error:.3g} m, orientation error {orientation_error:.3g} rad); it may be out of reach",
-            position_error, orientation_error, iterations, attempts, None, None, time.perf_counter() - start,
-        )  # fmt: skip
+        return self._not_converged(best, attempts, max_attempts, iterations, start)
 
     # -------------------------------------------------------------------- the solutions found
     def _other_rows(
@@ -447,6 +606,43 @@ class NlpIK:
         if len(rows) > 1:
             rows = sorted(rows, key=kernel.cost.__getitem__)
         return kernel.q[rows], [slots[r] for r in rows]
+
+    def _more_solutions(
+        self,
+        target: Target,
+        found: tuple[int, np.ndarray, float, float],
+        seed: np.ndarray | None,
+        extra: np.ndarray,
+        deferred: Callable[[], Sequence[Sequence[float]] | np.ndarray] | None,
+        kinds: list[str],
+        tolerances: tuple[float, float],
+        scale: float,
+        accept: float,
+    ) -> tuple[IKSolution, ...]:
+        """The first stage's answer and the distinct answers of one batch run to its end.
+
+        Run when the solutions are first read: one batch from the seed, the extra seeds and
+        random starts, every row to its last iteration; each distinct row that reaches the
+        target is verified by Pinocchio FK.
+        """
+        if deferred is not None:
+            extra = self._check_extra_seeds(deferred())
+        fixed = ([seed] if seed is not None else []) + list(extra)
+        labels = (["seed"] if seed is not None else []) + ["closed_form"] * len(extra)
+        kernel = self._kernel(target.kind)
+        k = self.batch_size
+        fixed, labels = fixed[:k], labels[:k]
+        kernel.set_target(target)
+        kernel.set_weighting(scale, -1.0)
+        if fixed:
+            kernel.q0[: len(fixed)] = fixed
+        kernel.q0[len(fixed) :] = self._pool[: k - len(fixed)]
+        kernel()
+        all_kinds = kinds + labels + ["random"] * (k - len(fixed))
+        rows = self._other_rows(
+            kernel, np.flatnonzero(kernel.cost <= accept).tolist(), range(len(kinds), len(all_kinds))
+        )
+        return self._solutions([found, *self._further_solutions(target, found[1], rows, tolerances)], all_kinds, seed)
 
     def _further_solutions(
         self,
