@@ -77,7 +77,7 @@ def _success(robot: Robot, target: Target, q: np.ndarray | None) -> bool:
     return position_error < POSITION_TOL and orientation_error < ORIENTATION_TOL
 
 
-def bench_peers(name: str, n: int, seed: int) -> dict:
+def bench_peers(name: str, n: int, seed: int, peers: list[str]) -> dict:
     """planner (solve_ik, method nlp) and the peers, interleaved target by target on one arm."""
     root = example_robot_data_dir()
     urdf, tip = PEER_ARMS[name]
@@ -93,7 +93,7 @@ def bench_peers(name: str, n: int, seed: int) -> dict:
     solvers = {"planner": (ours, targets)}
     skipped: dict[str, str] = {}
     notes: dict[str, str] = {}
-    for peer_name in PEERS:
+    for peer_name in peers:
         peer = make_peer(peer_name, robot, root / urdf, root.parent, np.random.default_rng(seed))
         if isinstance(peer, str):
             skipped[peer_name] = peer
@@ -169,6 +169,8 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--out", type=Path, default=RESULTS / "bench_ik.json", help="JSON output file")
     parser.add_argument("--peer-n", type=int, default=500, help="random pose targets per arm against the peers")
     parser.add_argument("--peers-only", action="store_true", help="only the comparison with the peers")
+    parser.add_argument("--peers", nargs="*", default=list(PEERS), choices=list(PEERS), help="peers to compare with")
+    parser.add_argument("--arms", nargs="*", default=list(PEER_ARMS), choices=list(PEER_ARMS), help="arms of the peers")
     parser.add_argument("--no-peers", action="store_true", help="skip the comparison with the peers")
     args = parser.parse_args(argv)
     if args.n < 1 or args.peer_n < 1:
@@ -178,7 +180,7 @@ def main(argv: list[str] | None = None) -> int:
         if example_robot_data_dir() is None:
             print("example-robot-data not installed: skipping the comparison with the peers")
         else:
-            peer_rows = [bench_peers(name, args.peer_n, args.seed) for name in PEER_ARMS]
+            peer_rows = [bench_peers(name, args.peer_n, args.seed, args.peers) for name in args.arms]
             peer_table = peers_markdown(peer_rows)
             print(peer_table)
             print()

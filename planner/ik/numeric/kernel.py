@@ -218,24 +218,30 @@ def _symbolic_sequential(
     run_chunk = ca.Function("sq_chunk", [x_in, c_in, p_in], [x, cost_f(x, p_in)])
     keep = ca.Function("sq_keep", [x_in, c_in, p_in], [x_in, c_in])
     maybe_chunk = ca.Function.if_else("sq_maybe_chunk", keep, run_chunk)
+    # One search: its chunks, each skipped once converged; the iterations it ran.
+    x, c, its = x_in, c_in, ca.MX(0)
+    for _ in range(chunks):
+        done = c < p_in[_STOP]
+        x, c = maybe_chunk(done, x, c, p_in)
+        its = its + ca.if_else(done, 0, chunk)
+    search_f = ca.Function("sq_search", [x_in, c_in, p_in], [x, c, its])
+    # A later search starts (from s_in) only while none has converged: a converged batch
+    # costs one switch per remaining search.
     s_in = ca.MX.sym("s", n)
-    fresh = ca.Function("sq_fresh", [x_in, c_in, p_in, s_in], [s_in, cost_f(s_in, p_in)])
-    stay = ca.Function("sq_stay", [x_in, c_in, p_in, s_in], [x_in, c_in])
-    maybe_restart = ca.Function.if_else("sq_maybe_restart", stay, fresh)
+    fresh = search_f(s_in, cost_f(s_in, p_in), p_in)
+    run_search = ca.Function("sq_fresh", [x_in, c_in, p_in, s_in], [*fresh, ca.MX(1)])
+    stay = ca.Function("sq_stay", [x_in, c_in, p_in, s_in], [x_in, c_in, ca.MX(0), ca.MX(0)])
+    maybe_search = ca.Function.if_else("sq_maybe_search", stay, run_search)
 
     q0 = ca.MX.sym("q0", n, searches)
-    x, c = q0[:, 0], cost_f(q0[:, 0], p_in)
+    x, c, iterations = search_f(q0[:, 0], cost_f(q0[:, 0], p_in), p_in)
     best_x, best_c = x, c
-    iterations, search = ca.MX(0), ca.MX(0)
-    for s in range(searches):
-        if s > 0:
-            idle = (c < p_in[_STOP]) + (p_in[_SEARCHES] <= s)
-            x, c = maybe_restart(idle, x, c, p_in, q0[:, s])
-            search = ca.if_else(idle, search, s)
-        for _ in range(chunks):
-            done = (c < p_in[_STOP]) + (p_in[_SEARCHES] <= s)
-            x, c = maybe_chunk(done, x, c, p_in)
-            iterations = iterations + ca.if_else(done, 0, chunk)
+    search = ca.MX(0)
+    for s in range(1, searches):
+        idle = (c < p_in[_STOP]) + (p_in[_SEARCHES] <= s)
+        x, c, its, ran = maybe_search(idle, x, c, p_in, q0[:, s])
+        iterations = iterations + its
+        search = search + ran
         lower_cost = c < best_c
         best_x, best_c = ca.if_else(lower_cost, x, best_x), ca.fmin(c, best_c)
     q_out, q_near = finish_f(best_x, q0[:, 0])
