@@ -262,8 +262,8 @@ def tip_errors(
     target: Target, position: np.ndarray, rotation: np.ndarray, approach_axis: np.ndarray
 ) -> tuple[float, float]:
     """Position [m] and orientation [rad] errors of a tip pose (see :func:`target_errors`)."""
-    d = position - target.position
-    position_error = math.sqrt(float(d @ d))
+    (x, y, z), (tx, ty, tz) = position.tolist(), target.position.tolist()
+    position_error = math.sqrt((x - tx) ** 2 + (y - ty) ** 2 + (z - tz) ** 2)
     if target.rotation is not None:
         # rotation_error's formula (atan2 of the antisymmetric part and the trace of R^T R_target,
         # accurate near 0) on Python floats: a third of the time of indexing the array.

@@ -181,14 +181,17 @@ def _symbolic_sequential(
     chunks: int,
     max_step: float,
     damping: float,
+    give_up_after: int,
+    give_up: float,
     continuous: np.ndarray,
     angular: np.ndarray,
 ) -> ca.Function:
     """Searches one after another: ``(q0 (dof, searches), par) -> (q, q_near, cost, iterations, search)``.
 
-    Search s starts from column s of `q0` and runs up to `chunks` chunks of `chunk` steps; the
-    next search starts only while none has converged (squared residual below ``par[_STOP]``)
-    and s is below ``par[_SEARCHES]``. ``q`` is the lowest-residual end point, continuous joints
+    Search s starts from column s of `q0` and runs up to `chunks` chunks of `chunk` steps (after
+    `give_up_after` chunks, only while its squared residual is at most `give_up`); the next
+    search starts only while none has converged (squared residual below ``par[_STOP]``) and s
+    is below ``par[_SEARCHES]``. ``q`` is the lowest-residual end point, continuous joints
     wrapped into [-pi, pi); ``q_near`` is ``q`` with its angles shifted by whole turns towards
     column 0 of `q0` (the seed) where the limits allow.
     """
@@ -218,10 +221,13 @@ def _symbolic_sequential(
     run_chunk = ca.Function("sq_chunk", [x_in, c_in, p_in], [x, cost_f(x, p_in)])
     keep = ca.Function("sq_keep", [x_in, c_in, p_in], [x_in, c_in])
     maybe_chunk = ca.Function.if_else("sq_maybe_chunk", keep, run_chunk)
-    # One search: its chunks, each skipped once converged; the iterations it ran.
+    # One search: its chunks, each skipped once converged or, from chunk `give_up_after` on,
+    # while the squared residual stays above `give_up` (far from converging); its iterations.
     x, c, its = x_in, c_in, ca.MX(0)
-    for _ in range(chunks):
+    for i in range(chunks):
         done = c < p_in[_STOP]
+        if i >= give_up_after:
+            done = done + (c > give_up)
         x, c = maybe_chunk(done, x, c, p_in)
         its = its + ca.if_else(done, 0, chunk)
     search_f = ca.Function("sq_search", [x_in, c_in, p_in], [x, c, its])
@@ -389,6 +395,8 @@ class SequentialKernel(Kernel):
         self._buffer.set_arg(1, memoryview(self.par))
         for i, out in enumerate((self.q, self.q_near, self.cost, self.iterations, self.search)):
             self._buffer.set_res(i, memoryview(out))
+        self._position = self.par[0:3]
+        self._rotation = self.par[3:12].reshape((3, 3), order="F")  # a view: column-major like CasADi
 
     @classmethod
     def build_sequential(
@@ -403,6 +411,8 @@ class SequentialKernel(Kernel):
         chunks: int,
         max_step: float,
         damping: float,
+        give_up_after: int,
+        give_up: float,
         continuous: np.ndarray,
         angular: np.ndarray,
         jit: bool,
@@ -420,6 +430,9 @@ class SequentialKernel(Kernel):
             max_step: Longest joint step of one iteration [rad or m].
             damping: Levenberg-Marquardt damping per unit squared residual (the damping is
                 ``1e-6 + damping * |r|^2``).
+            give_up_after: Chunks after which a search still above `give_up` stops.
+            give_up: Squared residual [m^2] above which a search stops after `give_up_after`
+                chunks (it is unlikely to converge: the next start is tried).
             continuous: Which joints are continuous (wrapped into [-pi, pi)), shape (dof,).
             angular: Which joints are angles (shifted by whole turns), shape (dof,).
             jit: Compile to C (:func:`~planner.ik.numeric.codegen.compile_function`).
@@ -430,10 +443,25 @@ class SequentialKernel(Kernel):
         if kind not in KERNEL_KINDS:
             raise InvalidArgumentError(f"unknown target kind {kind!r}; valid: {', '.join(KERNEL_KINDS)}")
         symbolic = _symbolic_sequential(
-            kinematics, kind, searches, lower, upper, chunk, chunks, max_step, damping, continuous, angular
-        )
+            kinematics, kind, searches, lower, upper, chunk, chunks, max_step, damping, give_up_after, give_up,
+            continuous, angular,
+        )  # fmt: skip
         function = compile_function(symbolic) if jit else symbolic
         return cls(function, searches, kinematics.dof, function is not symbolic)
+
+    def set_target(self, target: Target) -> None:
+        """Write a target into the parameters (the stop threshold and weight are kept).
+
+        Through views of the parameter vector: a call per target costs two copies.
+        """
+        self._position[:] = target.position
+        if target.rotation is not None:
+            self._rotation[:] = target.rotation
+        elif target.pitch is not None:
+            par = self.par
+            par[12:15] = outward_direction(target)
+            par[15] = math.sin(target.pitch)
+            par[16] = abs(math.cos(target.pitch))
 
     def set_searches(self, count: int) -> None:
         """Run at most `count` searches (rows of :attr:`q0`) in the next call."""
