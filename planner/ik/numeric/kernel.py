@@ -185,13 +185,20 @@ def _symbolic_sequential(
     give_up: float,
     continuous: np.ndarray,
     angular: np.ndarray,
+    pool: np.ndarray,
+    pool_poses: np.ndarray,
 ) -> ca.Function:
-    """Searches one after another: ``(q0 (dof, searches), par) -> (q, q_near, cost, iterations, search)``.
+    """Searches one after another: ``(q0, par, pooled) -> (q, q_near, cost, iterations, search)``.
+
+    ``q0`` has shape (dof, searches), ``pooled`` (searches,).
 
     Search s starts from column s of `q0` and runs up to `chunks` chunks of `chunk` steps (after
     `give_up_after` chunks, only while its squared residual is at most `give_up`); the next
     search starts only while none has converged (squared residual below ``par[_STOP]``) and s
-    is below ``par[_SEARCHES]``. ``q`` is the lowest-residual end point, continuous joints
+    is below ``par[_SEARCHES]``. Where ``pooled[s]`` is nonzero, search s starts instead from
+    the configuration of group s - 1 of `pool` (rows ``(s - 1) * G`` to ``s * G``, G = its
+    rows // (searches - 1)) whose tip pose (`pool_poses`: position, x axis, z axis) is nearest
+    the target. ``q`` is the lowest-residual end point, continuous joints
     wrapped into [-pi, pi); ``q_near`` is ``q`` with its angles shifted by whole turns towards
     column 0 of `q0` (the seed) where the limits allow.
     """
@@ -233,19 +240,44 @@ def _symbolic_sequential(
     search_f = ca.Function("sq_search", [x_in, c_in, p_in], [x, c, its])
     # A later search starts (from s_in) only while none has converged: a converged batch
     # costs one switch per remaining search.
+    # Its start: s_in, or (pooled) the configuration of a group of the pool whose tip pose is
+    # nearest the target (position, and for a pose the x and z axes weighted by par[_SCALE]).
+    group = pool_poses.shape[0] // max(searches - 1, 1)
+    poses_in = ca.SX.sym("poses", 9, group)
+    configs_in = ca.SX.sym("configs", n, group)
+    par_sx = ca.SX.sym("par", _N_PARAMS)
+    goal = ca.reshape(par_sx[3:12], 3, 3)
+    pick, nearest = configs_in[:, 0], ca.SX(np.inf)
+    for j in range(group):
+        d = ca.sumsqr(poses_in[0:3, j] - par_sx[0:3])
+        if kind == "pose":
+            d = d + par_sx[_SCALE] ** 2 * (
+                ca.sumsqr(poses_in[3:6, j] - goal[:, 0]) + ca.sumsqr(poses_in[6:9, j] - goal[:, 2])
+            )
+        pick = ca.if_else(d < nearest, configs_in[:, j], pick)
+        nearest = ca.fmin(d, nearest)
+    pick_f = ca.Function("sq_pick", [par_sx, poses_in, configs_in], [pick])
     s_in = ca.MX.sym("s", n)
-    fresh = search_f(s_in, cost_f(s_in, p_in), p_in)
-    run_search = ca.Function("sq_fresh", [x_in, c_in, p_in, s_in], [*fresh, ca.MX(1)])
-    stay = ca.Function("sq_stay", [x_in, c_in, p_in, s_in], [x_in, c_in, ca.MX(0), ca.MX(0)])
+    pooled_in = ca.MX.sym("pooled")
+    poses_mx, configs_mx = ca.MX.sym("poses", 9, group), ca.MX.sym("configs", n, group)
+    start = ca.if_else(pooled_in, pick_f(p_in, poses_mx, configs_mx), s_in)
+    fresh = search_f(start, cost_f(start, p_in), p_in)
+    inputs = [x_in, c_in, p_in, s_in, pooled_in, poses_mx, configs_mx]
+    run_search = ca.Function("sq_fresh", inputs, [*fresh, ca.MX(1)])
+    stay = ca.Function("sq_stay", inputs, [x_in, c_in, ca.MX(0), ca.MX(0)])
     maybe_search = ca.Function.if_else("sq_maybe_search", stay, run_search)
 
     q0 = ca.MX.sym("q0", n, searches)
+    pooled = ca.MX.sym("pooled", searches)
     x, c, iterations = search_f(q0[:, 0], cost_f(q0[:, 0], p_in), p_in)
     best_x, best_c = x, c
     search = ca.MX(0)
     for s in range(1, searches):
         idle = (c < p_in[_STOP]) + (p_in[_SEARCHES] <= s)
-        x, c, its, ran = maybe_search(idle, x, c, p_in, q0[:, s])
+        rows = slice((s - 1) * group, s * group)
+        x, c, its, ran = maybe_search(
+            idle, x, c, p_in, q0[:, s], pooled[s], ca.DM(pool_poses[rows].T), ca.DM(pool[rows].T)
+        )
         iterations = iterations + its
         search = search + ran
         lower_cost = c < best_c
@@ -253,9 +285,9 @@ def _symbolic_sequential(
     q_out, q_near = finish_f(best_x, q0[:, 0])
     return ca.Function(
         f"sq_{kind}_{n}x{searches}",
-        [q0, p_in],
+        [q0, p_in, pooled],
         [q_out, q_near, best_c, iterations, search],
-        ["q0", "par"],
+        ["q0", "par", "pooled"],
         ["q", "q_near", "cost", "iterations", "search"],
     )
 
@@ -368,8 +400,11 @@ class SequentialKernel(Kernel):
     Attributes:
         function: The CasADi function (compiled or not).
         compiled: Whether it runs as compiled C code.
-        q0: Starting configurations, shape (searches, dof) [rad or m]; row s starts search s.
+        q0: Starting configurations, shape (searches, dof) [rad or m]; row s starts search s
+            unless :attr:`pooled` says otherwise.
         par: The parameter vector.
+        pooled: Shape (searches,): where nonzero, search s starts instead from the configuration
+            of the pool's group s - 1 whose tip pose is nearest the target (row 0 ignores it).
         q: The end point of lowest residual, shape (dof,) [rad or m], within the limits,
             continuous joints wrapped into [-pi, pi).
         q_near: :attr:`q` with its angles shifted by whole turns towards row 0 of :attr:`q0`
@@ -385,6 +420,7 @@ class SequentialKernel(Kernel):
         self.compiled = compiled
         self.q0 = np.zeros((searches, dof))
         self.par = np.zeros(_N_PARAMS)
+        self.pooled = np.zeros(searches)
         self.q = np.zeros(dof)
         self.q_near = np.zeros(dof)
         self.cost = np.zeros(1)
@@ -393,6 +429,7 @@ class SequentialKernel(Kernel):
         self._buffer, self._evaluate = function.buffer()
         self._buffer.set_arg(0, memoryview(self.q0))
         self._buffer.set_arg(1, memoryview(self.par))
+        self._buffer.set_arg(2, memoryview(self.pooled))
         for i, out in enumerate((self.q, self.q_near, self.cost, self.iterations, self.search)):
             self._buffer.set_res(i, memoryview(out))
         self._position = self.par[0:3]
@@ -415,6 +452,8 @@ class SequentialKernel(Kernel):
         give_up: float,
         continuous: np.ndarray,
         angular: np.ndarray,
+        pool: np.ndarray,
+        pool_poses: np.ndarray,
         jit: bool,
     ) -> SequentialKernel:
         """Build (and compile, or load from the cache) the sequential kernel of one target kind.
@@ -435,6 +474,10 @@ class SequentialKernel(Kernel):
                 chunks (it is unlikely to converge: the next start is tried).
             continuous: Which joints are continuous (wrapped into [-pi, pi)), shape (dof,).
             angular: Which joints are angles (shifted by whole turns), shape (dof,).
+            pool: Configurations within the limits, shape (G * (searches - 1), dof): the
+                pooled starts (see :attr:`pooled`), G per search.
+            pool_poses: Their tip poses, shape (G * (searches - 1), 9): position [m], x
+                axis, z axis in the base frame.
             jit: Compile to C (:func:`~planner.ik.numeric.codegen.compile_function`).
 
         Raises:
@@ -444,7 +487,7 @@ class SequentialKernel(Kernel):
             raise InvalidArgumentError(f"unknown target kind {kind!r}; valid: {', '.join(KERNEL_KINDS)}")
         symbolic = _symbolic_sequential(
             kinematics, kind, searches, lower, upper, chunk, chunks, max_step, damping, give_up_after, give_up,
-            continuous, angular,
+            continuous, angular, pool, pool_poses,
         )  # fmt: skip
         function = compile_function(symbolic) if jit else symbolic
         return cls(function, searches, kinematics.dof, function is not symbolic)

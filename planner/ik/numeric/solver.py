@@ -170,8 +170,8 @@ class NlpIK:
         self._pool = robot.random_configurations(np.random.default_rng(0), _RANDOM_POOL * self.batch_size)
         self._kernels: dict[str, Kernel] = {}
         self._sequential: dict[str, SequentialKernel] = {}
-        self._dirty_rows: dict[str, int] = {}  # rows of a sequential kernel's q0 not holding the pool
         self._first_kinds: dict[tuple[int, int], list[str]] = {}  # attempt kinds of the first stage
+        self._pooled_from: dict[int, int] = {}  # the first pooled row of each sequential kernel
         self._weighting: dict[tuple[float, float], tuple[float, float, float]] = {}
         self._polisher = Polisher(self.kinematics, self._lower, self._upper)
 
@@ -225,6 +225,8 @@ class NlpIK:
     def _sequential_kernel(self, kind: str) -> SequentialKernel:
         kernel = self._sequential.get(kind)
         if kernel is None:
+            pooled = len(self._pool) // (_SEARCHES - 1) * (_SEARCHES - 1)
+            poses = np.asarray(self.robot.fk(self._pool[:pooled]))
             kernel = SequentialKernel.build_sequential(
                 self.kinematics,
                 kind,
@@ -239,11 +241,11 @@ class NlpIK:
                 give_up=(_GIVE_UP * self.length) ** 2,
                 continuous=self._continuous,
                 angular=np.array(self._angular_list, dtype=bool),
+                pool=self._pool[:pooled],
+                pool_poses=np.concatenate([poses[:, :3, 3], poses[:, :3, 0], poses[:, :3, 2]], axis=1),
                 jit=self._jit,
             )
-            kernel.q0[:] = self._pool[:_SEARCHES]
             self._sequential[kind] = kernel
-            self._dirty_rows[kind] = 0
         return kernel
 
     # -------------------------------------------------------------------- Pinocchio checks
@@ -408,7 +410,7 @@ class NlpIK:
             quick = self._sequential.get(kind) or self._sequential_kernel(kind)
             quick.set_target(target)
             quick.set_weighting(scale, stop)
-            first = self._fill_sequential(quick, kind, seed, extra, rng)
+            first = self._fill_sequential(quick, seed, extra, rng)
             quick.set_searches(_SEARCHES if max_attempts is None else min(_SEARCHES, max_attempts))
             quick()
             iterations = int(quick.iterations[0])
@@ -441,12 +443,15 @@ class NlpIK:
     def _fill_sequential(
         self,
         kernel: SequentialKernel,
-        kind: str,
         seed: np.ndarray | None,
         extra: np.ndarray,
         rng: np.random.Generator | None,
     ) -> list[str]:
-        """Write the starts into a sequential kernel: seed, extra seeds, random; their kinds."""
+        """Write the starts into a sequential kernel: seed, extra seeds, random; their kinds.
+
+        Without a generator, the random starts are the pool's configurations nearest the target
+        (one of each group, chosen in the kernel); with one, its draws.
+        """
         rows = kernel.q0
         fixed = 0
         if seed is not None:
@@ -464,12 +469,12 @@ class NlpIK:
         fixed += count
         if rng is not None:
             rows[fixed:] = self.robot.random_configurations(rng, _SEARCHES - fixed)
-            self._dirty_rows[kind] = _SEARCHES
-        else:
-            dirty = self._dirty_rows[kind]
-            if dirty > fixed:
-                rows[fixed:dirty] = self._pool[fixed:dirty]
-            self._dirty_rows[kind] = fixed
+            kernel.pooled[:] = 0.0
+            self._pooled_from[id(kernel)] = _SEARCHES
+        elif self._pooled_from.get(id(kernel)) != fixed:
+            kernel.pooled[:fixed] = 0.0
+            kernel.pooled[fixed:] = 1.0
+            self._pooled_from[id(kernel)] = fixed
         return kinds
 
     def _not_converged(
