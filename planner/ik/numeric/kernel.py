@@ -42,6 +42,7 @@ VERTICAL = 1e-12
 _N_PARAMS = 20
 _SEARCHES = 17
 _STOP = 18
+_SEARCH_BLOCK = 8  # later searches of a sequential kernel per switch
 _SCALE = 19
 
 
@@ -267,21 +268,41 @@ def _symbolic_sequential(
     stay = ca.Function("sq_stay", inputs, [x_in, c_in, ca.MX(0), ca.MX(0)])
     maybe_search = ca.Function.if_else("sq_maybe_search", stay, run_search)
 
+    # The later searches in blocks of `block`: a block starts only while none has converged,
+    # so a converged call skips the rest at one switch per block.
+    block = _SEARCH_BLOCK if (searches - 1) % _SEARCH_BLOCK == 0 else 1
+    bx, bc, bbx, bbc = ca.MX.sym("x", n), ca.MX.sym("c"), ca.MX.sym("best_x", n), ca.MX.sym("best_c")
+    b_first = ca.MX.sym("first")  # index of the block's first search
+    b_q0, b_pooled = ca.MX.sym("q0", n, block), ca.MX.sym("pooled", block)
+    b_poses, b_configs = ca.MX.sym("poses", 9, group * block), ca.MX.sym("configs", n, group * block)
+    x, c, best_x, best_c, its_b, last = bx, bc, bbx, bbc, ca.MX(0), ca.MX(0)
+    for b in range(block):
+        idle = (c < p_in[_STOP]) + (p_in[_SEARCHES] <= b_first + b)
+        cols = slice(b * group, (b + 1) * group)
+        x, c, its, ran = maybe_search(idle, x, c, p_in, b_q0[:, b], b_pooled[b], b_poses[:, cols], b_configs[:, cols])
+        its_b, last = its_b + its, last + ran
+        lower_cost = c < best_c
+        best_x, best_c = ca.if_else(lower_cost, x, best_x), ca.fmin(c, best_c)
+    b_inputs = [bx, bc, bbx, bbc, p_in, b_first, b_q0, b_pooled, b_poses, b_configs]
+    run_block = ca.Function("sq_block", b_inputs, [x, c, best_x, best_c, its_b, last])
+    skip_block = ca.Function("sq_skip", b_inputs, [bx, bc, bbx, bbc, ca.MX(0), ca.MX(0)])
+    maybe_block = ca.Function.if_else("sq_maybe_block", skip_block, run_block)
+
     q0 = ca.MX.sym("q0", n, searches)
     pooled = ca.MX.sym("pooled", searches)
     x, c, iterations = search_f(q0[:, 0], cost_f(q0[:, 0], p_in), p_in)
     best_x, best_c = x, c
     search = ca.MX(0)
-    for s in range(1, searches):
-        idle = (c < p_in[_STOP]) + (p_in[_SEARCHES] <= s)
-        rows = slice((s - 1) * group, s * group)
-        x, c, its, ran = maybe_search(
-            idle, x, c, p_in, q0[:, s], pooled[s], ca.DM(pool_poses[rows].T), ca.DM(pool[rows].T)
-        )
+    for first in range(1, searches, block):
+        idle = (c < p_in[_STOP]) + (p_in[_SEARCHES] <= first)
+        cols = slice(first, first + block)
+        rows = slice((first - 1) * group, (first - 1 + block) * group)
+        x, c, best_x, best_c, its, ran = maybe_block(
+            idle, x, c, best_x, best_c, p_in, first, q0[:, cols], pooled[cols],
+            ca.DM(pool_poses[rows].T), ca.DM(pool[rows].T),
+        )  # fmt: skip
         iterations = iterations + its
         search = search + ran
-        lower_cost = c < best_c
-        best_x, best_c = ca.if_else(lower_cost, x, best_x), ca.fmin(c, best_c)
     q_out, q_near = finish_f(best_x, q0[:, 0])
     return ca.Function(
         f"sq_{kind}_{n}x{searches}",

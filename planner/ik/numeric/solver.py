@@ -5,7 +5,7 @@ How :meth:`NlpIK.solve` works:
 0. **First stage: searches one after another in one compiled call**
    (:class:`~planner.ik.numeric.kernel.SequentialKernel`), without secondary objectives and
    when a seed or extra seeds are given: from the caller's seed, then the extra seeds, then
-   random configurations, 32 starts in all, each search at most 20 Levenberg-Marquardt steps
+   random configurations, 33 starts in all, each search at most 20 Levenberg-Marquardt steps
    with light damping (``1e-6 + 0.03 |r|^2``) and steps up to 1.5 rad (a search still far from
    the target after 8 steps gives way to the next start), stopping at the first that
    converges. Most targets are reached from the seed in a few steps, so a call costs one
@@ -75,14 +75,14 @@ ATTEMPT_KINDS = ("seed", "closed_form", "random")
 #: Orientation weights of successive batches, times the chain length: varying the weighting
 #: varies the basins of attraction, which helps arms with fewer joints than the task.
 _SCALES = (0.25, 0.5, 0.12)
-_RANDOM_POOL = 64  # random seeds drawn once per solver for calls without an rng
+_RANDOM_POOL = 128  # random seeds drawn once per solver for calls without an rng (times the batch size)
 #: The first stage: searches one after another (the seed, the extra seeds, then random starts),
 #: each at most _SEARCH_CHUNKS chunks of _SEARCH_CHUNK steps, with lighter damping and longer
 #: steps than the batches (it converges in fewer steps from most starts); a search whose residual
 #: is still above _GIVE_UP times the chain length after _GIVE_UP_AFTER chunks makes way for the
 #: next start. Chosen on the cost histories of 300 random targets and 16 starts each on ur5 and
 #: panda (fewest steps per target, median and mean).
-_SEARCHES = 32
+_SEARCHES = 33  # the seed's search and 4 blocks of 8 (planner.ik.numeric.kernel)
 _SEARCH_CHUNK = 4
 _SEARCH_CHUNKS = 5
 _SEARCH_DAMPING = 0.03
