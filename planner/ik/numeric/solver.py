@@ -377,20 +377,20 @@ class NlpIK:
         manipulability_floor = options.manipulability_floor
         if near_seed and seed is None:
             raise InvalidArgumentError("near_seed=True needs a q_seed to stay near")
-        rng = options.generator()
-        # Extra seeds given as a function are computed only when the first stage misses, except
-        # where the arm is redundant for the target: there they come before the random starts,
-        # which would move the joints the target leaves free.
-        deferred = (
-            extra_seeds
-            if callable(extra_seeds)
-            and seed is not None
-            and not self._polisher.redundant(self._polisher.task_kind(target))
-            else None
-        )
-        if callable(extra_seeds) and deferred is None:
-            extra_seeds = extra_seeds()
-        extra = self._no_seeds if deferred is not None else self._check_extra_seeds(extra_seeds)
+        rng = None if options.rng is None else options.generator()
+        deferred = None
+        if extra_seeds is None:
+            extra = self._no_seeds
+        elif callable(extra_seeds):
+            # Computed only when the first stage misses, except where the arm is redundant for
+            # the target: there they come before the random starts, which would move the joints
+            # the target leaves free.
+            if seed is not None and not self._polisher.redundant(self._polisher.task_kind(target)):
+                deferred, extra = extra_seeds, self._no_seeds
+            else:
+                extra = self._check_extra_seeds(extra_seeds())
+        else:
+            extra = self._check_extra_seeds(extra_seeds)
         secondary = near_seed or manipulability_floor is not None
         kinds: list[str] = []
         iterations = 0
