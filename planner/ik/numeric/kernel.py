@@ -20,6 +20,7 @@ nothing.
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 
 import casadi as ca
 import numpy as np
@@ -182,8 +183,7 @@ def _symbolic_sequential(
     chunks: int,
     max_step: float,
     damping: float,
-    give_up_after: int,
-    give_up: float,
+    give_up: Sequence[tuple[int, float]],
     continuous: np.ndarray,
     angular: np.ndarray,
     pool: np.ndarray,
@@ -194,7 +194,7 @@ def _symbolic_sequential(
     ``q0`` has shape (dof, searches), ``pooled`` (searches,).
 
     Search s starts from column s of `q0` and runs up to `chunks` chunks of `chunk` steps (after
-    `give_up_after` chunks, only while its squared residual is at most `give_up`); the next
+    k chunks, only while its squared residual is at most t, for each (k, t) in `give_up`); the next
     search starts only while none has converged (squared residual below ``par[_STOP]``) and s
     is below ``par[_SEARCHES]``. Where ``pooled[s]`` is nonzero, search s starts instead from
     the configuration of group s - 1 of `pool` (rows ``(s - 1) * G`` to ``s * G``, G = its
@@ -229,13 +229,14 @@ def _symbolic_sequential(
     run_chunk = ca.Function("sq_chunk", [x_in, c_in, p_in], [x, cost_f(x, p_in)])
     keep = ca.Function("sq_keep", [x_in, c_in, p_in], [x_in, c_in])
     maybe_chunk = ca.Function.if_else("sq_maybe_chunk", keep, run_chunk)
-    # One search: its chunks, each skipped once converged or, from chunk `give_up_after` on,
-    # while the squared residual stays above `give_up` (far from converging); its iterations.
+    # One search: its chunks, each skipped once converged or, from chunk k on, while the squared
+    # residual stays above t for a (k, t) of `give_up` (far from converging); its iterations.
     x, c, its = x_in, c_in, ca.MX(0)
     for i in range(chunks):
         done = c < p_in[_STOP]
-        if i >= give_up_after:
-            done = done + (c > give_up)
+        for after, threshold in give_up:
+            if i >= after:
+                done = done + (c > threshold)
         x, c = maybe_chunk(done, x, c, p_in)
         its = its + ca.if_else(done, 0, chunk)
     search_f = ca.Function("sq_search", [x_in, c_in, p_in], [x, c, its])
@@ -469,8 +470,7 @@ class SequentialKernel(Kernel):
         chunks: int,
         max_step: float,
         damping: float,
-        give_up_after: int,
-        give_up: float,
+        give_up: Sequence[tuple[int, float]],
         continuous: np.ndarray,
         angular: np.ndarray,
         pool: np.ndarray,
@@ -490,9 +490,8 @@ class SequentialKernel(Kernel):
             max_step: Longest joint step of one iteration [rad or m].
             damping: Levenberg-Marquardt damping per unit squared residual (the damping is
                 ``1e-6 + damping * |r|^2``).
-            give_up_after: Chunks after which a search still above `give_up` stops.
-            give_up: Squared residual [m^2] above which a search stops after `give_up_after`
-                chunks (it is unlikely to converge: the next start is tried).
+            give_up: Pairs (k, t): after k chunks, a search whose squared residual is above t
+                [m^2] stops (it is unlikely to converge: the next start is tried).
             continuous: Which joints are continuous (wrapped into [-pi, pi)), shape (dof,).
             angular: Which joints are angles (shifted by whole turns), shape (dof,).
             pool: Configurations within the limits, shape (G * (searches - 1), dof): the
@@ -507,7 +506,7 @@ class SequentialKernel(Kernel):
         if kind not in KERNEL_KINDS:
             raise InvalidArgumentError(f"unknown target kind {kind!r}; valid: {', '.join(KERNEL_KINDS)}")
         symbolic = _symbolic_sequential(
-            kinematics, kind, searches, lower, upper, chunk, chunks, max_step, damping, give_up_after, give_up,
+            kinematics, kind, searches, lower, upper, chunk, chunks, max_step, damping, give_up,
             continuous, angular, pool, pool_poses,
         )  # fmt: skip
         function = compile_function(symbolic) if jit else symbolic

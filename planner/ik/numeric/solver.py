@@ -5,9 +5,10 @@ How :meth:`NlpIK.solve` works:
 0. **First stage: searches one after another in one compiled call**
    (:class:`~planner.ik.numeric.kernel.SequentialKernel`), without secondary objectives and
    when a seed or extra seeds are given: from the caller's seed, then the extra seeds, then
-   random configurations, 33 starts in all, each search at most 20 Levenberg-Marquardt steps
+   random configurations (of each group of 32 in a fixed pool, the one whose tip pose is
+   nearest the target), 33 starts in all, each search at most 16 Levenberg-Marquardt steps
    with light damping (``1e-6 + 0.03 |r|^2``) and steps up to 1.5 rad (a search still far from
-   the target after 8 steps gives way to the next start), stopping at the first that
+   the target after 4 or 8 steps gives way to the next start), stopping at the first that
    converges. Most targets are reached from the seed in a few steps, so a call costs one
    short search, one Pinocchio FK and the result. The angles are shifted by whole turns
    towards the seed in the same compiled call. Only when none of these reaches the target do
@@ -78,17 +79,17 @@ _SCALES = (0.25, 0.5, 0.12)
 _RANDOM_POOL = 128  # random seeds drawn once per solver for calls without an rng (times the batch size)
 #: The first stage: searches one after another (the seed, the extra seeds, then random starts),
 #: each at most _SEARCH_CHUNKS chunks of _SEARCH_CHUNK steps, with lighter damping and longer
-#: steps than the batches (it converges in fewer steps from most starts); a search whose residual
-#: is still above _GIVE_UP times the chain length after _GIVE_UP_AFTER chunks makes way for the
-#: next start. Chosen on the cost histories of 300 random targets and 16 starts each on ur5 and
-#: panda (fewest steps per target, median and mean).
+#: steps than the batches (it converges in fewer steps from most starts); see _GIVE_UP. Chosen
+#: on the cost histories of 300 random pose targets and 16 starts each on ur5 and panda (fewest
+#: steps per target: median, p95 and mean).
 _SEARCHES = 33  # the seed's search and 4 blocks of 8 (planner.ik.numeric.kernel)
 _SEARCH_CHUNK = 4
-_SEARCH_CHUNKS = 5
+_SEARCH_CHUNKS = 4
 _SEARCH_DAMPING = 0.03
 _SEARCH_MAX_STEP = 1.5
-_GIVE_UP_AFTER = 2
-_GIVE_UP = 0.03
+#: (chunks, share of the chain length): a search whose residual is still above that share of
+#: the chain length after that many chunks gives way to the next start.
+_GIVE_UP = ((1, 0.24), (2, 0.03))
 _DEFAULT_OPTIONS = IKOptions()
 #: Joint distance [rad, m mixed; angles modulo 2 pi] at or below which two answers are one solution.
 DISTINCT = 1e-4
@@ -237,8 +238,7 @@ class NlpIK:
                 chunks=_SEARCH_CHUNKS,
                 max_step=_SEARCH_MAX_STEP,
                 damping=_SEARCH_DAMPING,
-                give_up_after=_GIVE_UP_AFTER,
-                give_up=(_GIVE_UP * self.length) ** 2,
+                give_up=tuple((after, (share * self.length) ** 2) for after, share in _GIVE_UP),
                 continuous=self._continuous,
                 angular=np.array(self._angular_list, dtype=bool),
                 pool=self._pool[:pooled],
