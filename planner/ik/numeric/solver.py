@@ -5,7 +5,7 @@ How :meth:`NlpIK.solve` works:
 0. **First stage: searches one after another in one compiled call**
    (:class:`~planner.ik.numeric.kernel.SequentialKernel`), without secondary objectives and
    when a seed or extra seeds are given: from the caller's seed, then the extra seeds, then
-   random configurations (of each group of 32 in a fixed pool, the one whose tip pose is
+   random configurations (of each group of 16 in a fixed pool, the one whose tip pose is
    nearest the target), 33 starts in all, each search at most 16 Levenberg-Marquardt steps
    with light damping (``1e-6 + 0.03 |r|^2``) and steps up to 1.5 rad (a search still far from
    the target after 4 or 8 steps gives way to the next start), stopping at the first that
@@ -76,7 +76,7 @@ ATTEMPT_KINDS = ("seed", "closed_form", "random")
 #: Orientation weights of successive batches, times the chain length: varying the weighting
 #: varies the basins of attraction, which helps arms with fewer joints than the task.
 _SCALES = (0.25, 0.5, 0.12)
-_RANDOM_POOL = 128  # random seeds drawn once per solver for calls without an rng (times the batch size)
+_RANDOM_POOL = 64  # random seeds drawn once per solver for calls without an rng (times the batch size)
 #: The first stage: searches one after another (the seed, the extra seeds, then random starts),
 #: each at most _SEARCH_CHUNKS chunks of _SEARCH_CHUNK steps, with lighter damping and longer
 #: steps than the batches (it converges in fewer steps from most starts); see _GIVE_UP. Chosen
