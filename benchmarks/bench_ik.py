@@ -32,8 +32,9 @@ the form it takes, built before the clock starts (a ``planner.Target``, a 4x4 ar
 quaternion). TRAC-IK runs two threads per call, whose work slows the next call of whichever
 solver follows on a two-core machine (both others' medians rose 1.5-3x beside it): it is timed
 in a pass of its own over the same targets and seeds. The table gives median and p95 wall times
-and the ratios planner / ik_LM; goal 1 of issue 12: both ratios <= 0.5 and 100 % solved. The ratios of the calls' CPU times
-(``time.thread_time``, blind to time the process waits on a shared machine) are given too.
+and the ratios planner / ik_LM; goal 1 of issue 12: both ratios <= 0.5 and 100 % solved. The
+ratios of the calls' CPU times (``time.thread_time``, blind to time the process waits on a
+shared machine) are given too.
 Written to benchmarks/results/bench_ik.md and the ``peers`` entry of bench_ik.json.
 
     python benchmarks/bench_ik.py [--n 1000] [--seed 0] [--robots ur5 panda] [--ipopt-baseline]
