@@ -8,9 +8,12 @@ for both: a table (a 1.6 x 1.6 x 0.05 m box whose top is 5 mm below the arm's ba
 1. **Checks per second**, on the same random configurations (fixed seed): ours
    :meth:`CollisionChecker.in_collision` and :meth:`CollisionChecker.clearance` (a distance,
    which roboplan has no call for), against roboplan's ``Scene.hasCollisions``; self only (no
-   obstacles) and self + scene. The share of configurations on which both checkers agree is
-   printed beside (the geometries differ: ours are the collision meshes' convex hulls,
-   roboplan's the meshes themselves).
+   obstacles) and self + scene. roboplan runs twice: given exactly our body pairs (its
+   ``setCollisions``: the same model and pair set) and with the arm's SRDF (what its users get;
+   the pairs that differ are listed). CPU time, interleaved in blocks; the speed ratio is the
+   median over blocks, on all configurations and again on those all checkers find free (where
+   none stops at a first collision). The verdicts are compared: the shapes still differ (ours
+   are the collision meshes' convex hulls, roboplan's the meshes' triangles).
 2. **Plans**: random start/goal pairs within the joint limits that both checkers find
    collision-free (fixed seed). Ours: :func:`planner.app.motion_plan.plan_motion` with the
    scene (a straight move when it is clear, else RRT-Connect + shortcuts, then jerk-limited
@@ -171,11 +174,75 @@ def collisions(q: np.ndarray, ours: CollisionChecker, theirs: Roboplan | None) -
     return out
 
 
-def rate(fn, qs: np.ndarray) -> tuple[float, list]:
-    fn(qs[0])  # warm-up
-    t0 = time.perf_counter()
-    results = [fn(q) for q in qs]
-    return len(qs) / (time.perf_counter() - t0), results
+def rates(calls: dict, blocks: int = 20) -> dict:
+    """Time each ``name: (fn, inputs)`` interleaved in `blocks` blocks (CPU time of this process).
+
+    Returns:
+        Per name: calls per second over all blocks, the time of each block [s] and the results.
+    """
+    times: dict = {k: [] for k in calls}
+    results: dict = {k: [] for k in calls}
+    for fn, inputs in calls.values():
+        fn(inputs[0])  # warm-up
+    n = len(next(iter(calls.values()))[1])
+    for b in range(blocks):
+        part = slice(b * n // blocks, (b + 1) * n // blocks)
+        for name, (fn, inputs) in calls.items():
+            t0 = time.process_time()
+            out = [fn(x) for x in inputs[part]]
+            times[name].append(time.process_time() - t0)
+            results[name] += out
+    return {k: (n / sum(times[k]), np.array(times[k]), results[k]) for k in calls}
+
+
+def body_pairs(checker: CollisionChecker) -> set:
+    """The (sorted) body-name pairs our checker checks."""
+    return {tuple(sorted((checker.names[p.first], checker.names[p.second]))) for p in checker.geometry.collisionPairs}
+
+
+def same_pairs(rp: Roboplan, checker: CollisionChecker) -> int:
+    """Give roboplan's scene exactly the body pairs our checker checks; the number of its geometry pairs."""
+    import pinocchio as pin
+
+    full = pin.buildModelFromXML(checker.robot.urdf)
+    bodies = [f.name for f in full.frames if f.type == pin.FrameType.BODY] + list(checker.scene.names)
+    ids = {b: list(rp.scene.getCollisionGeometryIDs(b)) for b in bodies}
+    bodies = [b for b in bodies if ids[b]]
+    ours = sorted(body_pairs(checker))
+    rp.scene.setCollisions([(a, b) for k, a in enumerate(bodies) for b in bodies[k + 1 :]], False)
+    rp.scene.setCollisions(ours, True)
+    return sum(len(ids[a]) * len(ids[b]) for a, b in ours)
+
+
+def srdf_pairs(name: str, robot, obstacles: bool) -> tuple[int, set, dict]:
+    """What roboplan checks with the arm's SRDF (its loading steps replayed with Pinocchio).
+
+    Returns:
+        The number of geometry pairs, the body-name pairs, and the SRDF's reason per disabled pair.
+    """
+    import xml.etree.ElementTree as ET
+
+    import pinocchio as pin
+
+    root = example_robot_data_dir()
+    assert root is not None
+    full = pin.buildModelFromXML(robot.urdf)
+    geom = pin.buildGeomFromUrdfString(full, robot.urdf, pin.GeometryType.COLLISION, None, [str(root.parent.parent)])
+    geom.addAllCollisionPairs()
+    pin.removeCollisionPairs(full, geom, str(root / SRDF[name][0]))
+    names = [full.frames[o.parentFrame].name for o in geom.geometryObjects]
+    count = len(geom.collisionPairs)
+    bodies = {tuple(sorted((names[p.first], names[p.second]))) for p in geom.collisionPairs}
+    if obstacles:  # roboplan pairs each added obstacle with every geometry before it
+        for ob in SCENE["obstacles"]:
+            count += len(names)
+            bodies |= {tuple(sorted((n, ob["name"]))) for n in names}
+            names = [*names, ob["name"]]
+    reasons = {
+        tuple(sorted((e.get("link1"), e.get("link2")))): e.get("reason", "no reason given")
+        for e in ET.parse(root / SRDF[name][0]).getroot().iter("disable_collisions")
+    }
+    return count, bodies, reasons
 
 
 def bench_checks(name: str, robot, scene, limits, n: int, seed: int, have_roboplan: bool) -> dict:
@@ -184,15 +251,49 @@ def bench_checks(name: str, robot, scene, limits, n: int, seed: int, have_robopl
     for kind, sc in (("self", None), ("scene", scene)):
         checker = CollisionChecker(robot, sc)
         out[f"{kind}_pairs"] = checker.pair_count
-        out[f"ours_{kind}_in_collision_per_s"], hits = rate(checker.in_collision, qs)
-        out[f"ours_{kind}_clearance_per_s"], _ = rate(checker.clearance, qs)
-        out[f"ours_{kind}_colliding"] = int(sum(hits))
+        calls: dict = {"in_collision": (checker.in_collision, qs), "clearance": (checker.clearance, qs)}
         if have_roboplan:
-            rp = Roboplan(name, robot, limits, obstacles=sc is not None)
-            full = np.array([rp.q_full(q) for q in qs])
-            out[f"roboplan_{kind}_per_s"], theirs = rate(rp.in_collision, full)
-            out[f"roboplan_{kind}_colliding"] = int(sum(theirs))
-            out[f"{kind}_agreement"] = float(np.mean(np.array(hits) == np.array(theirs)))
+            srdf = Roboplan(name, robot, limits, obstacles=sc is not None)
+            same = Roboplan(name, robot, limits, obstacles=sc is not None)
+            out[f"roboplan_same_{kind}_pairs"] = same_pairs(same, checker)
+            count, theirs, reasons = srdf_pairs(name, robot, sc is not None)
+            ours = body_pairs(checker)
+            out[f"roboplan_srdf_{kind}_pairs"] = count
+            out[f"srdf_{kind}_only_ours"] = [
+                f"{a}-{b} ({reasons.get((a, b), 'not in the SRDF')})" for a, b in sorted(ours - theirs)
+            ]
+            out[f"srdf_{kind}_only_roboplan"] = [f"{a}-{b}" for a, b in sorted(theirs - ours)]
+            full = np.array([srdf.q_full(q) for q in qs])
+            calls["roboplan_same"] = (same.in_collision, full)
+            calls["roboplan_srdf"] = (srdf.in_collision, full)
+        timed = rates(calls)
+        hits = np.array(timed["in_collision"][2])
+        out[f"ours_{kind}_in_collision_per_s"] = timed["in_collision"][0]
+        out[f"ours_{kind}_clearance_per_s"] = timed["clearance"][0]
+        out[f"ours_{kind}_colliding"] = int(hits.sum())
+        out[f"ours_{kind}_clearance_agrees"] = bool(np.all(hits == [c.in_collision for c in timed["clearance"][2]]))
+        for pairs in ("same", "srdf") if have_roboplan else ():
+            rate, block_times, verdicts = timed[f"roboplan_{pairs}"]
+            theirs = np.array(verdicts)
+            out[f"roboplan_{pairs}_{kind}_per_s"] = rate
+            # Speed ratio per block (the same configurations, back to back), then the median: robust
+            # to other processes' load on a shared machine.
+            out[f"ratio_{pairs}_{kind}"] = float(np.median(block_times / timed["in_collision"][1]))
+            out[f"roboplan_{pairs}_{kind}_colliding"] = int(theirs.sum())
+            out[f"{pairs}_{kind}_agreement"] = float(np.mean(hits == theirs))
+            out[f"{pairs}_{kind}_ours_only"] = int(np.sum(hits & ~theirs))
+            out[f"{pairs}_{kind}_roboplan_only"] = int(np.sum(theirs & ~hits))
+        if have_roboplan:
+            # Where a checker finds a collision it may stop at the first pair: time again on the
+            # configurations all find free, where every checker tests every pair.
+            free = ~hits & ~np.array(timed["roboplan_same"][2]) & ~np.array(timed["roboplan_srdf"][2])
+            out[f"{kind}_free_configs"] = int(free.sum())
+            again = rates(
+                {k: (calls[k][0], calls[k][1][free]) for k in ("in_collision", "roboplan_same", "roboplan_srdf")}
+            )
+            for pairs in ("same", "srdf"):
+                ratio = again[f"roboplan_{pairs}"][1] / again["in_collision"][1]
+                out[f"ratio_free_{pairs}_{kind}"] = float(np.median(ratio))
     return out
 
 
@@ -321,22 +422,53 @@ def _k(x) -> str:
 
 def markdown(summaries: list[dict]) -> str:
     lines = [
-        "Collision checks per second (same random configurations; agreement = same verdict as roboplan):",
+        "Collision checks per second (the same random configurations; CPU time, interleaved in 20 blocks; "
+        "ours / roboplan: median over the blocks of the speed ratio; in brackets on the configurations "
+        "that all find free, where no checker stops early). "
+        "roboplan's Scene is given exactly our pair set (same pairs) and, beside, the arm's SRDF "
+        "(its disabled pairs: what a roboplan user gets). Agreement: same verdict; ours only / roboplan "
+        "only: configurations only that checker finds in collision:",
         "",
-        "| arm | checks | pairs | ours in_collision | ours clearance (distance) | roboplan hasCollisions "
-        "| ours / roboplan | agreement |",
-        "|" + "---|" * 8,
+        "| arm | checks | pairs ours / roboplan SRDF | ours in_collision | ours clearance (distance) "
+        "| roboplan hasCollisions, same pairs | ours / roboplan | agreement, same pairs (ours only / roboplan only) "
+        "| roboplan hasCollisions, SRDF pairs | ours / roboplan SRDF "
+        "| agreement, SRDF pairs (ours only / roboplan only) |",
+        "|" + "---|" * 11,
     ]
     for s in summaries:
         c = s["checks"]
         for kind, label in (("self", "self"), ("scene", "self + table + box")):
-            ours, theirs = c[f"ours_{kind}_in_collision_per_s"], c.get(f"roboplan_{kind}_per_s")
-            lines.append(
-                f"| {s['robot']} | {label} | {c[f'{kind}_pairs']} | {_k(ours)} | "
-                f"{_k(c[f'ours_{kind}_clearance_per_s'])} | {_k(theirs)} | "
-                f"{_f(ours / theirs if theirs else None, '.2f')} | "
-                f"{_f(100 * c[f'{kind}_agreement'] if f'{kind}_agreement' in c else None, '.1f')} % |"
-            )
+            ours = c[f"ours_{kind}_in_collision_per_s"]
+            row = [s["robot"], label, f"{c[f'{kind}_pairs']} / {c.get(f'roboplan_srdf_{kind}_pairs', 'n/a')}"]
+            row += [_k(ours), _k(c[f"ours_{kind}_clearance_per_s"])]
+            for pairs in ("same", "srdf"):
+                row += [
+                    _k(c.get(f"roboplan_{pairs}_{kind}_per_s")),
+                    f"{_f(c.get(f'ratio_{pairs}_{kind}'), '.2f')} ({_f(c.get(f'ratio_free_{pairs}_{kind}'), '.2f')})",
+                ]
+                if f"{pairs}_{kind}_agreement" in c:
+                    row.append(
+                        f"{100 * c[f'{pairs}_{kind}_agreement']:.1f} % ({c[f'{pairs}_{kind}_ours_only']} / "
+                        f"{c[f'{pairs}_{kind}_roboplan_only']})"
+                    )
+                else:
+                    row.append("n/a")
+            lines.append("| " + " | ".join(row) + " |")
+    lines += [
+        "",
+        "Same pairs, different shapes: ours checks each URDF collision mesh as its convex hull (it "
+        "contains the mesh), roboplan the mesh's triangles, so a configuration only ours finds in "
+        "collision is one where the hulls touch and the meshes do not. With the SRDF the pair sets "
+        "differ too (body pairs; the SRDF's reason for disabling in brackets):",
+    ]
+    for s in summaries:
+        c = s["checks"]
+        for kind in ("self", "scene"):
+            if f"srdf_{kind}_only_ours" in c:
+                lines.append(
+                    f"- {s['robot']} {kind}: only ours checks {', '.join(c[f'srdf_{kind}_only_ours']) or 'none'}; "
+                    f"only roboplan checks {', '.join(c[f'srdf_{kind}_only_roboplan']) or 'none'}"
+                )
     lines += [
         "",
         "Plans on the table-and-box scene (random collision-free start/goal pairs; limit ratios: worst "
@@ -373,11 +505,15 @@ def goals(summaries: list[dict]) -> list[str]:
     out = []
     for s in summaries:
         c, o = s["checks"], s["ours"]
-        if "roboplan_self_per_s" not in c:
+        if "roboplan_same_self_per_s" not in c:
             continue
         for kind in ("self", "scene"):
-            r = c[f"ours_{kind}_in_collision_per_s"] / c[f"roboplan_{kind}_per_s"]
-            out.append(f"{s['robot']}: {kind} checks/s ours / roboplan = {r:.2f} (goal >= 1)")
+            out.append(
+                f"{s['robot']}: {kind} checks/s ours / roboplan = {c[f'ratio_same_{kind}']:.2f} on the same pairs "
+                f"({c[f'ratio_free_same_{kind}']:.2f} on free configurations) (goal >= 1); "
+                f"{c[f'ratio_srdf_{kind}']:.2f} ({c[f'ratio_free_srdf_{kind}']:.2f}) against roboplan on its "
+                "SRDF's pairs"
+            )
         out.append(
             f"{s['robot']}: success where roboplan found a path: "
             f"{_f(100 * (s['ours_success_where_roboplan_found'] or 0), '.0f')} % (goal 100 %)"

@@ -22,6 +22,7 @@ from planner.exceptions import (
     PlanningError,
     ServoExportError,
     StartPositionError,
+    TargetFileError,
     UnknownFrameError,
     UnknownRobotError,
     UnsupportedChainError,
@@ -139,6 +140,7 @@ __all__ = [
     "JointLimitError",
     "InvalidArgumentError",
     "UnsupportedChainError",
+    "TargetFileError",
 ]
 
 #: Where each lazily imported public name lives (the same names as the imports above).

@@ -116,6 +116,31 @@ class InvalidArgumentError(PlannerError, ValueError):
     """An argument has an invalid value (NaN target, non-positive time budget, ...)."""
 
 
+class TargetFileError(InvalidArgumentError):
+    """A file of IK targets (``planner ik --batch``) cannot be read; the message names the place.
+
+    Attributes:
+        path: The file, or None.
+        line: 1-based line of the file (the header is a line), or None.
+        column: The column's name, or None.
+    """
+
+    def __init__(self, message: str, *, path: str | None = None, line: int | None = None, column: str | None = None):
+        self.path = path
+        self.line = line
+        self.column = column
+        where = ", ".join(
+            part
+            for part in (
+                path,
+                None if line is None else f"line {line}",
+                None if column is None else f"column {column!r}",
+            )
+            if part
+        )
+        super().__init__(f"{where}: {message}" if where else message)
+
+
 class UnsupportedChainError(PlannerError):
     """A kinematic chain is outside the family a solver handles.
 

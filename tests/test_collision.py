@@ -12,6 +12,7 @@ from planner.collision import FLOOR, Box, CollisionChecker, Cylinder, Obstacle, 
 from planner.collision.arm import arm_collision_model
 from planner.collision.continuous import check_segment, check_trajectory
 from planner.collision.rrt import PathOptions, PathStatus, find_clear_path
+from planner.core.rotations import rpy_to_matrix
 from planner.motion.limits import JointLimits
 from planner.motion.plan import plan_trajectory
 
@@ -246,6 +247,73 @@ def test_mesh_hulls_contain_the_meshes(name):
                 contacts += 1
                 assert hulls[k] <= 0.0, (q, checker.arm.self_pairs[k])
     assert contacts > 0
+
+
+def _independent_pair_checks(checker: CollisionChecker, q: np.ndarray, mask: np.ndarray):
+    """Per active pair, coal's own distance and collision verdict at `q` (no Pinocchio query, no broadphase)."""
+    import coal
+    import pinocchio as pin
+
+    geom = checker.geometry
+    data, gdata = checker.robot.model.createData(), pin.GeometryData(geom)
+    pin.updateGeometryPlacements(checker.robot.model, data, geom, gdata, checker.robot.pinocchio_configuration(q))
+    placed = [coal.Transform3s(m.rotation, m.translation) for m in gdata.oMg]
+    request = coal.DistanceRequest()
+    request.gjk_tolerance, request.gjk_max_iterations = 1e-12, 1000  # as close to exact as GJK gets
+    distances, hits = [], []
+    for pair, on in zip(geom.collisionPairs, mask):
+        if not on:
+            continue
+        a, b = geom.geometryObjects[pair.first].geometry, geom.geometryObjects[pair.second].geometry
+        ta, tb = placed[pair.first], placed[pair.second]
+        d, c = coal.DistanceResult(), coal.CollisionResult()
+        coal.distance(a, ta, b, tb, request, d)
+        coal.collide(a, ta, b, tb, coal.CollisionRequest(), c)
+        distances.append(d.min_distance)
+        hits.append(c.isCollision())
+    return np.array(distances), np.array(hits)
+
+
+@pytest.mark.parametrize(
+    "name",
+    [
+        "al5c",
+        "dh3",
+        pytest.param("ur5", marks=needs_example_robot_data),
+        pytest.param("panda", marks=needs_example_robot_data),
+    ],
+)
+def test_checks_equal_an_independent_per_pair_computation(name):
+    """in_collision (AABB tree) and clearance (Pinocchio's closest pair) against coal pair by pair."""
+    robot = get_robot(name)
+    qs = robot.random_configurations(np.random.default_rng(3), 40)
+    r = max(float(np.linalg.norm(robot.position(q))) for q in qs)
+    scene = Scene(
+        floor=-0.05 * r,
+        obstacles=(
+            Obstacle("block", Box((0.3 * r, 0.3 * r, 0.4 * r)), np.array([0.6, 0.2, 0.2]) * r),
+            Obstacle("post", Cylinder(0.08 * r, r), np.array([-0.4, 0.5, 0.5]) * r, rpy_to_matrix([0.3, 0.0, 0.0])),
+            Obstacle("ball", Sphere(0.15 * r), np.array([0.0, -0.6, 0.6]) * r),
+        ),
+    )
+    checker = CollisionChecker(robot, scene)
+    verdicts = []
+    allows = ((), ("block",), ("floor", "ball"))
+    for q in qs:
+        checks = [_independent_pair_checks(checker, q, checker.pair_mask(allow)) for allow in allows]
+        # Each kind of query in turn over all allow sets, in opposite orders: a stale mask would show.
+        for allow, (_, hits) in zip(allows, checks):
+            assert checker.in_collision(q, allow=allow) == hits.any(), (q, allow)
+            verdicts.append(hits.any())
+        for allow, (distances, _) in reversed(list(zip(allows, checks))):
+            c = checker.clearance(q, allow=allow)
+            if distances.min() > 0:
+                # The checker's GJK stops at coal's default tolerance (1e-6), from a warm start
+                # that depends on earlier calls: equal to a few micrometres.
+                assert c.distance == pytest.approx(distances.min(), abs=1e-5), (q, allow)
+            else:
+                assert c.distance <= 0, (q, allow)
+    assert any(verdicts) and not all(verdicts)
 
 
 # ---------------------------------------------------------------------------- continuous checks

@@ -472,13 +472,29 @@ def _add_ik(sub: argparse._SubParsersAction) -> None:
         "ik",
         help="inverse kinematics: joint values that put the tip on a target",
         description="Solve inverse kinematics for a tip position, optionally with an approach pitch "
-        "(--pitch) or a full orientation (--rpy). An unreachable target is a result (exit code 0) whose "
-        "status says why; bad input exits 1.",
+        "(--pitch) or a full orientation (--rpy); or, with --batch FILE.csv, for every target of a CSV file "
+        "(header line x,y,z and optionally roll,pitch,yaw or qx,qy,qz,qw or approach_pitch; angles in rad, deg "
+        "with --deg), writing a CSV of joint values and status per target. An unreachable target is a result "
+        "(exit code 0) whose status says why; bad input exits 1.",
     )
     p.add_argument("robot", help="robot name (see `planner robots`) or URDF path")
-    p.add_argument("x", type=float, help="target x [m]")
-    p.add_argument("y", type=float, help="target y [m]")
-    p.add_argument("z", type=float, help="target z [m]")
+    p.add_argument("x", type=float, nargs="?", help="target x [m]")
+    p.add_argument("y", type=float, nargs="?", help="target y [m]")
+    p.add_argument("z", type=float, nargs="?", help="target z [m]")
+    p.add_argument(
+        "--batch",
+        default=None,
+        metavar="FILE.csv",
+        help="solve every target of a CSV file ('-': standard input) with the vectorised numerical solver, "
+        "seeded with --current; columns x,y,z [m], optionally roll,pitch,yaw or qx,qy,qz,qw or approach_pitch",
+    )
+    p.add_argument(
+        "--out",
+        type=Path,
+        default=None,
+        metavar="FILE.csv",
+        help="with --batch: write the answers here (default: standard output)",
+    )
     p.add_argument(
         "--pitch",
         type=float,
@@ -523,6 +539,10 @@ def _add_ik(sub: argparse._SubParsersAction) -> None:
 
 
 def _ik_target(args: argparse.Namespace) -> Target:
+    if args.out is not None:
+        raise InvalidArgumentError("--out is for --batch; a single target prints its answer")
+    if None in (args.x, args.y, args.z):
+        raise InvalidArgumentError("give the target x y z [m], or --batch FILE.csv")
     position = [args.x, args.y, args.z]
     if args.rpy is not None:
         if args.pitch is not None:
@@ -560,6 +580,8 @@ def _run_ik(args: argparse.Namespace) -> int:
     from planner.ik.solve import solve_ik
 
     robot = load_robot(args.robot, tip=args.tip)
+    if args.batch is not None:
+        return _run_ik_batch(args, robot)
     target = _ik_target(args)
     current = _ik_current(args, robot)
     head = {
@@ -603,6 +625,45 @@ def _run_ik(args: argparse.Namespace) -> int:
         )
     if rows:
         print(_table(["solution", f"q [{unit}]", "within limits", "singular", "position error [m]"], rows))
+    return 0
+
+
+def _run_ik_batch(args: argparse.Namespace, robot: Robot) -> int:
+    """``planner ik ROBOT --batch FILE.csv``: every target of the file, answers as CSV."""
+    from planner.app.target_file import read_targets, write_answers
+    from planner.ik.solvers import IKSolvers
+
+    given = [
+        flag
+        for flag, value in (
+            ("x y z", args.x is not None),
+            ("--pitch", args.pitch is not None),
+            ("--rpy", args.rpy is not None),
+            ("--all", args.all),
+            ("--json", args.json),
+        )
+        if value
+    ]
+    if given:
+        raise InvalidArgumentError(
+            f"--batch reads the targets (and their orientations) from the file; drop {', '.join(given)}"
+        )
+    if args.method not in ("auto", "nlp"):
+        raise InvalidArgumentError(
+            f"--batch solves with the vectorised numerical solver; --method {args.method} is for one target "
+            "(valid with --batch: auto, nlp)"
+        )
+    targets = read_targets(sys.stdin if args.batch == "-" else args.batch, deg=args.deg)
+    current = _ik_current(args, robot)
+    result = IKSolvers.of(robot).nlp.solve_batch(targets, current, _ik_options(args))
+    if args.out is None:
+        write_answers(sys.stdout, robot, result, deg=args.deg)
+        return 0
+    args.out.parent.mkdir(parents=True, exist_ok=True)
+    with args.out.open("w", newline="") as stream:
+        write_answers(stream, robot, result, deg=args.deg)
+    solved = int(np.sum(result.success))
+    print(f"{robot.name}: {solved} of {len(result)} targets solved in {result.wall_time:.3g} s; wrote {args.out}")
     return 0
 
 

@@ -35,7 +35,7 @@ from planner.motion.limits import JointLimits
 from planner.motion.line import LinePath
 from planner.motion.line_smoothing import smooth_lines
 from planner.motion.request import TrajectoryRequest
-from planner.motion.singularity import SingularityReport, measure_singularities
+from planner.motion.singularity import SingularityReport, inverse_condition_threshold, measure_singularities
 from planner.motion.trajectory import JointTrajectory
 
 __all__ = ["MotionPlan", "plan_motion"]
@@ -304,7 +304,8 @@ def plan_motion(
     if "servo_seconds_per_60deg" in request.limits:
         lim_kw["servo_seconds_per_60deg"] = request.limits["servo_seconds_per_60deg"]
     limits = JointLimits.from_robot(robot, **lim_kw)
-    threshold = 1.0 / request.condition_number
+    cond = request.condition_number
+    threshold = inverse_condition_threshold(None if cond is None else 1.0 / cond, robot.resolve_task(None))
 
     def state(value: np.ndarray | None, what: str) -> np.ndarray | None:
         if value is None:

@@ -15,7 +15,7 @@ A plan file is YAML or JSON (``.json`` is read as JSON, anything else as YAML)::
       acceleration: 120               # [angle/s^2]; default 2 x velocity
       jerk: 1200                      # [angle/s^3]; default 10 x acceleration
     start: {q: [...], velocity: [...], acceleration: [...]}   # optional state at the first waypoint
-    singularity: {condition_number: 30, detours: true, max_detours: 8}
+    singularity: {condition_number: 30, detours: true, max_detours: 8}   # default 30 (position), 100 (pose)
     strategy: optimized               # or heuristic, stop
     servos:                           # optional pulse-width calibration per joint
       - {channel: 0, pulse_at_zero: 1500, us_per_rad: 636.6, direction: 1, min_pulse: 500, max_pulse: 2500}
@@ -54,7 +54,6 @@ from planner.core.text import plain
 from planner.exceptions import InvalidArgumentError
 from planner.export.formats import SERVO_FORMATS
 from planner.geometry.target import Target
-from planner.motion.singularity import DEFAULT_CONDITION_NUMBER
 from planner.motion.vias import VIA_STRATEGIES
 
 __all__ = ["MotionRequest", "load_motion_request", "parse_motion_request"]
@@ -121,7 +120,8 @@ class MotionRequest:
             the first one; with targets the first IK solution is chosen nearest it.
         start_velocity: Velocity at the first waypoint as written, or None (at rest).
         start_acceleration: Acceleration at the first waypoint as written, or None.
-        condition_number: Singularity threshold as a Jacobian condition number.
+        condition_number: Singularity threshold as a Jacobian condition number; None is the
+            default of the robot's task (:data:`planner.motion.singularity.DEFAULT_CONDITION_NUMBERS`).
         detours: Whether to insert detours around singularities.
         max_detours: Most detours to insert.
         strategy: Via strategy (see :func:`planner.motion.trajectory.plan_trajectory`).
@@ -147,7 +147,7 @@ class MotionRequest:
     start_q: np.ndarray | None = None
     start_velocity: np.ndarray | None = None
     start_acceleration: np.ndarray | None = None
-    condition_number: float = DEFAULT_CONDITION_NUMBER
+    condition_number: float | None = None
     detours: bool = True
     max_detours: int = 8
     strategy: str = "optimized"
@@ -303,7 +303,7 @@ def parse_motion_request(data: Mapping[str, Any], source: str = "<request>") -> 
     _unknown_keys(sing, ("condition_number", "inverse_condition", "detours", "max_detours"), "singularity", source)
     if "condition_number" in sing and "inverse_condition" in sing:
         raise input_error(source, "singularity: give condition_number or inverse_condition, not both")
-    cond = DEFAULT_CONDITION_NUMBER
+    cond: float | None = None
     if "condition_number" in sing:
         cond = parse_number(sing["condition_number"], "singularity.condition_number", source)
         if cond <= 1.0:

@@ -131,6 +131,16 @@ def _default_tip(model: pin.Model) -> str:
     return model.frames[best[1]].name
 
 
+def _chain_length(model: pin.Model, tip_frame_id: int) -> float:
+    """Sum of the distances between consecutive joint origins, first joint to tip, at q = 0 [m]."""
+    data = model.createData()
+    pin.forwardKinematics(model, data, pin.neutral(model))
+    tip = pin.updateFramePlacement(model, data, tip_frame_id).translation
+    points = [data.oMi[j].translation for j in range(1, model.njoints)] + [tip]
+    length = float(sum(np.linalg.norm(b - a) for a, b in zip(points[:-1], points[1:])))
+    return length if length > 1e-9 else 1.0
+
+
 class Robot:
     """A serial chain from the URDF root to a tip frame, modelled in Pinocchio.
 
@@ -259,6 +269,7 @@ class Robot:
         self._velocity = read_only(model.velocityLimit)
         self._has_continuous = "continuous" in kinds
         self._idx_q = [model.joints[j].idx_q for j in range(1, model.njoints)]
+        self._characteristic_length = _chain_length(model, self.tip_frame_id)
         self.derived = DerivedCache()
 
     @classmethod
@@ -333,6 +344,19 @@ class Robot:
     def velocity_limit(self) -> np.ndarray:
         """Velocity limits from the URDF [rad/s or m/s], read-only."""
         return self._velocity
+
+    @property
+    def characteristic_length(self) -> float:
+        """The arm's length [m], which makes the singularity measure independent of its size.
+
+        The sum of the distances between consecutive joint origins from the first joint to the
+        tip (the first joint's pedestal excluded), taken at q = 0; for revolute joints it does
+        not depend on q. It bounds the tip's distance from the first joint origin, and equals
+        it when the arm can stretch out straight. :meth:`conditioning` weighs a tip rotation
+        of 1 rad like a tip translation of this length, and a prismatic joint's travel of this
+        length like a revolute joint's 1 rad (1 m for a chain of zero length).
+        """
+        return self._characteristic_length
 
     @property
     def frame_names(self) -> tuple[str, ...]:
@@ -545,7 +569,17 @@ class Robot:
         return task
 
     def conditioning(self, q: Sequence[float] | np.ndarray, task: Task | None = None) -> tuple[np.ndarray, np.ndarray]:
-        """Inverse condition number and manipulability together, from one SVD per configuration.
+        """Inverse condition number and manipulability together.
+
+        The inverse condition number is that of the task Jacobian made dimensionless by the
+        arm's :attr:`characteristic_length` L: the angular rows of a ``"pose"`` Jacobian are
+        multiplied by L (a tip rotation of 1 rad counts like a translation of L) and the columns
+        of prismatic joints by L (a travel of L counts like 1 rad). Both are then in metres per
+        radian, so the ratio does not depend on the unit of length or the arm's size: the same
+        arm scaled up or down has the same value in the same configuration (with the raw
+        ``[v; omega]`` rows a small arm's translation rows look weak beside its rotation rows
+        and a large arm's strong). A ``"position"`` Jacobian of revolute joints is unchanged by
+        this. The manipulability is Yoshikawa's on the raw Jacobian, as :meth:`manipulability`.
 
         Args:
             q: Shape (dof,) or (N, dof) [rad or m].
@@ -557,16 +591,29 @@ class Robot:
         t = self.resolve_task(task)
         arr = self.check_configuration(q)
         rows = arr.reshape(-1, self.dof)
+        length = self._characteristic_length
+        prismatic = np.array(self.joint_kinds) == "prismatic"
+        columns = np.where(prismatic, length, 1.0)
+        # sqrt(det(D J J^T D)) = det(D) sqrt(det(J J^T)) for a wide Jacobian and row scales D.
+        rescale = t == "pose" and self.dof >= 6 and not prismatic.any()
         inverse = np.empty(len(rows))
         manipulability = np.empty(len(rows))
         for k, row in enumerate(rows):
             jac = self.jacobian(row)
             if t == "position":
                 jac = jac[:3]
+            else:
+                jac[3:] *= length
             # Only the min(m, n) largest singular values: a 3x2 Jacobian has two.
-            s = np.linalg.svd(jac, compute_uv=False)[: min(jac.shape)]
+            s = np.linalg.svd(jac * columns, compute_uv=False)[: min(jac.shape)]
             inverse[k] = 0.0 if s[0] == 0.0 else s[-1] / s[0]
-            manipulability[k] = np.prod(s)
+            if t == "position" and not prismatic.any():
+                manipulability[k] = np.prod(s)
+            elif rescale:
+                manipulability[k] = np.prod(s) / length**3
+            else:
+                jac[3:] /= length
+                manipulability[k] = np.prod(np.linalg.svd(jac, compute_uv=False)[: min(jac.shape)])
         shape = () if arr.ndim == 1 else (len(rows),)
         return inverse.reshape(shape), manipulability.reshape(shape)
 

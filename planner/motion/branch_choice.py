@@ -23,6 +23,7 @@ from planner.ik.solve import solve_ik
 from planner.ik.solvers import IKSolvers
 from planner.ik.status import IKStatus
 from planner.model.robot import Robot, Task
+from planner.motion.singularity import inverse_condition_threshold
 
 __all__ = ["IKChoice", "TargetSolver"]
 
@@ -63,24 +64,25 @@ class TargetSolver:
     """
 
     def __init__(
-        self, robot: Robot, *, threshold: float = 1.0 / 30.0, task: Task | None = None, method: str | None = None
+        self, robot: Robot, *, threshold: float | None = None, task: Task | None = None, method: str | None = None
     ):
         """Build the solver.
 
         Args:
             robot: The robot.
-            threshold: Inverse condition number below which a solution is avoided if possible.
+            threshold: Inverse condition number below which a solution is avoided if possible;
+                None is the task's default (:func:`planner.motion.singularity.inverse_condition_threshold`).
             task: ``"position"`` or ``"pose"``; None as the robot chooses.
             method: ``"analytic"``, ``"nlp"`` or None (closed form when the chain allows).
 
         Raises:
-            InvalidArgumentError: On an unknown method.
+            InvalidArgumentError: On an unknown method or a threshold outside [0, 1).
             UnsupportedChainError: If ``method="analytic"`` and the chain has no closed form.
         """
         if method not in (None, "analytic", "nlp"):
             raise InvalidArgumentError(f"unknown IK method {method!r}; valid: analytic, nlp")
         self.robot = robot
-        self.threshold = float(threshold)
+        self.threshold = inverse_condition_threshold(threshold, robot.resolve_task(task))
         self.task = task
         solvers = IKSolvers.of(robot)
         if method == "analytic":

@@ -38,7 +38,8 @@ class SingularityOptions:
 
     Attributes:
         threshold: Inverse condition number below which a configuration is too close; None
-            (normalised to 1/30) is ``1 / DEFAULT_CONDITION_NUMBER``.
+            is the task's default, ``1 / DEFAULT_CONDITION_NUMBERS[task]`` of
+            :mod:`planner.motion.singularity` (resolved when the robot's task is known).
         task: Task Jacobian (``"position"`` or ``"pose"``); None as the robot chooses.
         rate: Sampling rate of the checks [Hz].
         max_detours: Most waypoints to insert.
@@ -56,7 +57,8 @@ class SingularityOptions:
     margin: float = 3.0
 
     def __post_init__(self) -> None:
-        object.__setattr__(self, "threshold", inverse_condition_threshold(self.threshold))
+        if self.threshold is not None:
+            object.__setattr__(self, "threshold", inverse_condition_threshold(self.threshold))
         max_detours = self.max_detours
         if isinstance(max_detours, bool) or not isinstance(max_detours, int) or max_detours < 0:
             raise InvalidArgumentError(f"max_detours must be a non-negative integer, got {plain(max_detours)}")
@@ -178,8 +180,8 @@ def plan_clear_of_singularities(
             state the planner cannot brake from.
     """
     opts = SingularityOptions() if options is None else options
-    thr = opts.threshold
     t_task = robot.resolve_task(opts.task)
+    thr = inverse_condition_threshold(opts.threshold, t_task)
     rate, max_detours, margin = opts.rate, opts.max_detours, opts.margin
     limits = request.limits
     if limits.dof != robot.dof:
@@ -265,16 +267,21 @@ def plan_clear_of_singularities(
         return still
 
     still = unresolved_segments()
-    # Detours that did not clear their segment only cost time: take them out again.
+    # Detours that did not clear their segment only cost time: take them out again. Planning
+    # again changes the via states, so a neighbour's path may dip anew: repeat until none does.
     useless = [i for i, nd in enumerate(nodes) if nd[1] is None and nd[2] in still]
-    if useless:
+    while useless:
         for i in reversed(useless):
             del nodes[i]
             del states[i]
+        for i, (_, k, _) in enumerate(nodes[:-1]):  # a user segment whole again gets its minimum back
+            if k is not None and nodes[i + 1][1] == k + 1:
+                states[i] = (states[i][0], states[i][1], float(request.min_durations[k]))
         detours = [d for d in detours if d.segment not in still]
         traj = plan_nodes()
         report, t, _, inv = measure_singularities(robot, traj, thr, t_task, rate)
         still = unresolved_segments()
+        useless = [i for i, nd in enumerate(nodes) if nd[1] is None and nd[2] in still]
     user_idx = np.array([i for i, nd in enumerate(nodes) if nd[1] is not None])
     user_idx.setflags(write=False)
     return SingularityAwarePlan(

@@ -144,7 +144,8 @@ class Scene:
         self.plan = plan
         if threshold is None and plan is not None:
             threshold = plan.singularity.threshold
-        self.threshold = inverse_condition_threshold(threshold)
+        task = robot.resolve_task(None if plan is None else plan.singularity.task)
+        self.threshold = inverse_condition_threshold(threshold, task)
         n_way = 0 if plan is None else len(plan.waypoints)
         given = list((plan.labels if plan is not None else ()) if labels is None else labels)
         if len(given) > n_way:

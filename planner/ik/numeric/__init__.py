@@ -2,6 +2,7 @@
 
 Modules, bottom up: ``kinematics`` (symbolic FK from :mod:`planner.geometry.chain`),
 ``codegen`` (compiling CasADi functions, the disk cache), ``kernel`` (the batched damped
-Gauss-Newton function), ``polish`` (IPOPT for the secondary objectives), ``solver``
+Gauss-Newton function), ``polish`` (IPOPT for the secondary objectives), ``batch`` and
+``batch_result`` (many targets through one compiled kernel, vectorised), ``solver``
 (:class:`~planner.ik.numeric.solver.NlpIK`: seeds, restarts, choice, solutions).
 """

@@ -30,12 +30,25 @@ from planner.geometry.target import RADIAL_EPS, Target
 from planner.ik.numeric.codegen import compile_function
 from planner.ik.numeric.kinematics import CasadiKinematics
 
-__all__ = ["KERNEL_KINDS", "VERTICAL", "Kernel", "outward_direction"]
+__all__ = [
+    "KERNEL_KINDS",
+    "SEARCH_DAMPING",
+    "SEARCH_MAX_STEP",
+    "VERTICAL",
+    "Kernel",
+    "SequentialKernel",
+    "outward_direction",
+]
 
 #: The target kinds a kernel is built for.
 KERNEL_KINDS = ("position", "pose", "pitch")
 #: |cos(pitch)| at or below which a pitch target is straight up or down (one direction).
 VERTICAL = 1e-12
+#: Levenberg-Marquardt damping per unit squared residual of a single call's first stage
+#: (:class:`SequentialKernel`) and of :func:`step_functions`; the batched :class:`Kernel` uses 1.
+SEARCH_DAMPING = 0.03
+#: Longest joint step [rad or m] of one iteration of the first stage.
+SEARCH_MAX_STEP = 1.5
 
 # Kernel parameters: target position 3, rotation 9 (column-major), outward direction 3,
 # sin(pitch) 1, |cos(pitch)| 1, searches allowed 1 (sequential kernel), stop threshold 1,
@@ -529,3 +542,95 @@ class SequentialKernel(Kernel):
     def set_searches(self, count: int) -> None:
         """Run at most `count` searches (rows of :attr:`q0`) in the next call."""
         self.par[_SEARCHES] = count
+
+
+#: Length of a kernel's parameter vector (:meth:`Kernel.set_target` and :func:`target_parameters`).
+N_PARAMS = _N_PARAMS
+#: Where the stop threshold and the orientation weight [m] sit in a parameter vector.
+PARAM_STOP, PARAM_SCALE = _STOP, _SCALE
+
+
+def step_functions(
+    kinematics: CasadiKinematics,
+    kind: str,
+    lower: np.ndarray,
+    upper: np.ndarray,
+    max_step: float,
+    damping: float = SEARCH_DAMPING,
+) -> tuple[ca.Function, ca.Function]:
+    """The damped Gauss-Newton step of one configuration and its squared residual.
+
+    By default that of a single call's first stage (:class:`SequentialKernel`, damping
+    :data:`SEARCH_DAMPING`), so that other drivers of the same iteration
+    (:mod:`planner.ik.numeric.batch` maps them over many targets) reach the same answer from
+    the same seed.
+
+    Args:
+        kinematics: The robot's symbolic kinematics.
+        kind: ``"position"``, ``"pose"`` or ``"pitch"``.
+        lower: Finite lower joint limits, shape (dof,) [rad or m].
+        upper: Finite upper joint limits, shape (dof,) [rad or m].
+        max_step: Longest joint step of one iteration [rad or m].
+        damping: Levenberg-Marquardt damping per unit squared residual (``1e-6 + damping |r|^2``).
+
+    Returns:
+        ``(step, cost)``: ``step(q (dof,), par (N_PARAMS,)) -> q_next`` (within the limits) and
+        ``cost(q, par) -> |r|^2``.
+
+    Raises:
+        InvalidArgumentError: On an unknown target kind.
+    """
+    if kind not in KERNEL_KINDS:
+        raise InvalidArgumentError(f"unknown target kind {kind!r}; valid: {', '.join(KERNEL_KINDS)}")
+    n = kinematics.dof
+    q = ca.SX.sym("q", n)
+    par = ca.SX.sym("par", _N_PARAMS)
+    r = _residual(kinematics, kind, q, par)
+    jac = ca.jacobian(r, q)
+    cost = ca.dot(r, r)
+    step = -_ldl_solve(ca.mtimes(jac.T, jac) + (1e-6 + damping * cost) * ca.SX.eye(n), ca.mtimes(jac.T, r))
+    step = step * ca.fmin(1.0, max_step / (ca.norm_2(step) + 1e-300))
+    q_next = ca.fmin(ca.fmax(q + step, ca.DM(lower)), ca.DM(upper))
+    return ca.Function("gn_step", [q, par], [q_next]), ca.Function("gn_cost", [q, par], [cost])
+
+
+def target_parameters(
+    kind: str,
+    positions: np.ndarray,
+    rotations: np.ndarray | None = None,
+    pitches: np.ndarray | None = None,
+) -> np.ndarray:
+    """The parameter vectors of N targets of one kind, as :meth:`Kernel.set_target` writes them.
+
+    Args:
+        kind: ``"position"``, ``"pose"`` or ``"pitch"``.
+        positions: Shape (N, 3) [m].
+        rotations: Shape (N, 3, 3), for poses.
+        pitches: Shape (N,) approach pitches [rad], for pitch targets.
+
+    Returns:
+        Shape (N, N_PARAMS); the stop threshold and the orientation weight are zero
+        (:func:`set_weighting_rows` sets them).
+    """
+    positions = np.asarray(positions, dtype=float)
+    par = np.zeros((len(positions), _N_PARAMS))
+    par[:, 0:3] = positions
+    if kind == "pose":
+        par[:, 3:12] = np.asarray(rotations, dtype=float).transpose(0, 2, 1).reshape(-1, 9)
+    elif kind == "pitch":
+        pitches = np.asarray(pitches, dtype=float)
+        cos_p = np.cos(pitches)
+        radial = np.hypot(positions[:, 0], positions[:, 1])
+        free = (radial <= RADIAL_EPS) | (np.abs(cos_p) <= VERTICAL)
+        scale = np.where(free, 0.0, np.sign(cos_p) / np.where(free, 1.0, radial))
+        par[:, 12] = scale * positions[:, 0]
+        par[:, 13] = scale * positions[:, 1]
+        par[:, 15] = np.sin(pitches)
+        par[:, 16] = np.abs(cos_p)
+    return par
+
+
+def set_weighting_rows(par: np.ndarray, scale: float, stop: float) -> None:
+    """Set the orientation weight [m] and stop threshold of parameter rows (N, N_PARAMS), in place."""
+    par[:, _SCALE] = scale
+    par[:, _STOP] = stop

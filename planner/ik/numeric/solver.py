@@ -60,7 +60,16 @@ from planner.core.text import plain
 from planner.exceptions import InvalidArgumentError, InvalidConfigurationError
 from planner.geometry.joint_space import angular_joints, configurations_close, wrapped_distance
 from planner.geometry.target import Target, as_target, tip_errors
-from planner.ik.numeric.kernel import KERNEL_KINDS, Kernel, SequentialKernel
+from planner.geometry.target_batch import BatchTargets
+from planner.ik.numeric.batch import BatchIK
+from planner.ik.numeric.batch_result import BatchIKResult
+from planner.ik.numeric.kernel import (
+    KERNEL_KINDS,
+    SEARCH_DAMPING,
+    SEARCH_MAX_STEP,
+    Kernel,
+    SequentialKernel,
+)
 from planner.ik.numeric.kinematics import CasadiKinematics
 from planner.ik.numeric.polish import Polisher
 from planner.ik.options import IKOptions
@@ -85,8 +94,6 @@ _RANDOM_POOL = 64  # random seeds drawn once per solver for calls without an rng
 _SEARCHES = 33  # the seed's search and 4 blocks of 8 (planner.ik.numeric.kernel)
 _SEARCH_CHUNK = 4
 _SEARCH_CHUNKS = 4
-_SEARCH_DAMPING = 0.03
-_SEARCH_MAX_STEP = 1.5
 #: (chunks, share of the chain length): a search whose residual is still above that share of
 #: the chain length after that many chunks gives way to the next start.
 _GIVE_UP = ((1, 0.24), (2, 0.03))
@@ -175,6 +182,7 @@ class NlpIK:
         self._pooled_from: dict[int, int] = {}  # the first pooled row of each sequential kernel
         self._weighting: dict[tuple[float, float], tuple[float, float, float]] = {}
         self._polisher = Polisher(self.kinematics, self._lower, self._upper)
+        self._batch: BatchIK | None = None
 
     @classmethod
     def from_robot(cls, robot: Robot, **options) -> NlpIK:
@@ -236,8 +244,8 @@ class NlpIK:
                 upper=self._upper,
                 chunk=_SEARCH_CHUNK,
                 chunks=_SEARCH_CHUNKS,
-                max_step=_SEARCH_MAX_STEP,
-                damping=_SEARCH_DAMPING,
+                max_step=SEARCH_MAX_STEP,
+                damping=SEARCH_DAMPING,
                 give_up=tuple((after, (share * self.length) ** 2) for after, share in _GIVE_UP),
                 continuous=self._continuous,
                 angular=np.array(self._angular_list, dtype=bool),
@@ -794,20 +802,62 @@ class NlpIK:
 
     def solve_batch(
         self,
-        targets: Sequence[Target | Sequence[float] | np.ndarray],
+        targets: BatchTargets | Sequence[Target | Sequence[float] | np.ndarray] | np.ndarray,
         q_seeds: Sequence[Sequence[float]] | np.ndarray | None = None,
         options: IKOptions | None = None,
-    ) -> list[IKResult]:
-        """Solve several targets in turn.
+    ) -> BatchIKResult:
+        """Solve many targets at once, vectorised (:mod:`planner.ik.numeric.batch`).
+
+        One compiled kernel advances a block of targets per call: first every target from its
+        seed, then fixed restart configurations for the targets not yet solved. Every answer is
+        verified as a single call's (Pinocchio FK within the tolerances, within the joint
+        limits; each angle nearest the seed). With ``near_seed`` or a manipulability floor the
+        targets are solved by single calls in turn.
 
         Args:
-            targets: N targets.
-            q_seeds: Seeds, shape (N, dof), or None.
-            options: Options of every call, as for :meth:`solve`.
+            targets: Positions (N, 3) [m], poses (N, 4, 4) [m], or a sequence of
+                :class:`Target` (any kinds, mixed), positions (3,) or poses (4, 4).
+            q_seeds: Seeds (N, dof) [rad or m] within the limits, one configuration (dof,) for
+                every target, or None (restarts only).
+            options: Tolerances, attempt cap per target, time budget (the batch's restarts stop
+                after ``N * time_budget``), restart generator; None: the defaults.
 
         Returns:
-            N results.
+            A sequence of N :class:`IKResult` (status ``SOLVED`` or ``NOT_CONVERGED`` each) with
+            the arrays over targets as attributes.
+
+        Raises:
+            InvalidArgumentError: On a bad target (naming it) or options.
+            InvalidConfigurationError: On seeds of the wrong shape or with NaN values.
+            JointLimitError: If a seed is outside the joint limits (naming its target).
         """
-        if q_seeds is not None and len(q_seeds) != len(targets):
-            raise InvalidArgumentError(f"got {len(targets)} targets but {len(q_seeds)} seeds")
-        return [self.solve(t, None if q_seeds is None else q_seeds[i], options) for i, t in enumerate(targets)]
+        start = time.perf_counter()
+        batch = BatchTargets.of(targets)
+        if options is None:
+            options = _DEFAULT_OPTIONS
+        elif not isinstance(options, IKOptions):
+            raise InvalidArgumentError(f"options must be a planner.IKOptions or None, got {type(options).__name__}")
+        if self._batch is None:
+            self._batch = BatchIK(
+                self.robot,
+                self.kinematics,
+                lower=self._lower,
+                upper=self._upper,
+                length=self.length,
+                restarts=self._pool,
+                scales=_SCALES,
+                scale_every=self.batch_size,
+                chunk=self._chunk,
+                max_chunks=self._max_chunks,
+                # The first stage's step (kernel.step_functions' default damping): the same answer
+                # from the same seed as a single call.
+                max_step=SEARCH_MAX_STEP,
+                jit=self._jit,
+            )
+        seeds = self._batch.check_seeds(q_seeds, len(batch))
+        if options.near_seed or options.manipulability_floor is not None:
+            results = [
+                self.solve(batch.target(i), None if seeds is None else seeds[i], options) for i in range(len(batch))
+            ]
+            return BatchIKResult.from_results(results, self.robot.dof, time.perf_counter() - start)
+        return self._batch.solve(batch, seeds, options, start)
