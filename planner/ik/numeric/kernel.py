@@ -539,6 +539,13 @@ class SequentialKernel(Kernel):
             par[15] = math.sin(target.pitch)
             par[16] = abs(math.cos(target.pitch))
 
+    def __call__(self) -> None:
+        """Run the searches from :attr:`q0` into :attr:`q`, :attr:`q_near` and the counts."""
+        self._evaluate()
+        # Compiled code of plain arithmetic cannot fail; CasADi's virtual machine reports here.
+        if not self.compiled and self._buffer.ret() != 0:
+            raise RuntimeError(f"CasADi function {self.function.name()!r} failed (code {self._buffer.ret()})")
+
     def set_searches(self, count: int) -> None:
         """Run at most `count` searches (rows of :attr:`q0`) in the next call."""
         self.par[_SEARCHES] = count
