@@ -484,3 +484,72 @@ def test_joint_distance_takes_angles_modulo_two_pi():
     assert wrapped_distance(np.array([3.1, 0.0]), np.array([-3.1, 0.0]), angular) == pytest.approx(2 * math.pi - 6.2)
     assert configurations_close([math.pi - 1e-6, 0.0], [-math.pi + 1e-6, 0.0], angular, 1e-4)
     assert not configurations_close([0.0, 0.0], [0.0, 2e-4], angular, 1e-4)
+
+
+# ------------------------------------------------------------------------------ the first stage
+@needs_example_robot_data
+@pytest.mark.parametrize("name", ["ur5", "panda", "so101", "z1"])
+def test_pose_targets_from_random_seeds_are_all_reached_and_verified(name):
+    # The benchmark's setting in small: random reachable poses, random seeds, default options.
+    robot = get_robot(name)
+    rng = np.random.default_rng(31)
+    for q, seed in zip(robot.random_configurations(rng, 25), robot.random_configurations(rng, 25)):
+        target = make_target(robot, "pose", q)
+        result = solver(name).solve(target, seed)
+        assert_reached(robot, target, result)
+        assert result.attempt_kind in ("seed", "random") and result.attempts >= 1
+
+
+def test_first_stage_answer_is_the_whole_turn_nearest_the_seed():
+    # Continuous, revolute and prismatic joints: no angle of the answer can move a whole turn
+    # nearer the seed within the limits (the turn is taken in the compiled first stage).
+    robot = Robot(MIXED_URDF, tip="tool")
+    nlp = NlpIK(robot)
+    rng = np.random.default_rng(8)
+    for q, seed in zip(robot.random_configurations(rng, 20), robot.random_configurations(rng, 20)):
+        target = make_target(robot, "position", q)
+        result = nlp.solve(target, seed)
+        assert_reached(robot, target, result)
+        for j, kind in enumerate(robot.joint_kinds):
+            if kind == "prismatic":
+                continue
+            for turn in (-2 * np.pi, 2 * np.pi):
+                shifted = result.q[j] + turn
+                nearer = abs(shifted - seed[j]) < abs(result.q[j] - seed[j]) - 1e-12
+                assert not (nearer and robot.lower[j] <= shifted <= robot.upper[j]), (result.q, seed)
+
+
+def test_deferred_extra_seeds_are_computed_only_when_needed():
+    robot = get_robot("dh3")
+    calls = []
+
+    def branches():
+        calls.append(1)
+        return [q]
+
+    q = np.array([0.4, 0.6, 0.9])
+    target = make_target(robot, "position", q)
+    result = solver("dh3").solve(target, q, extra_seeds=branches)
+    assert result.success and result.attempt_kind == "seed" and calls == []
+    assert len(result.solutions) >= 1 and calls == [1]  # reading the solutions runs one batch
+    # Without a seed they are the first starts, computed at once.
+    result = solver("dh3").solve(target, extra_seeds=branches)
+    assert result.success and result.attempt_kind == "closed_form" and calls == [1, 1]
+
+
+def test_attempt_cap_below_the_first_stage_is_kept():
+    target = Target([5.0, 0.0, 0.0])  # out of reach of shelley
+    result = solver("shelley").solve(target, np.zeros(2), IKOptions(max_attempts=3))
+    assert result.status is IKStatus.NOT_CONVERGED and result.attempts == 3
+    assert "none of 3 attempts reached the target before the attempt cap" in result.reason
+    assert get_robot("shelley").within_limits(result.q)
+
+
+def test_random_starts_from_a_generator_are_reproducible():
+    robot = get_robot("al5c")
+    rng = np.random.default_rng(12)
+    q, seed = robot.random_configurations(rng, 2)
+    target = make_target(robot, "pitch", q)
+    first = solver("al5c").solve(target, seed, IKOptions(rng=5))
+    again = solver("al5c").solve(target, seed, IKOptions(rng=5))
+    assert first.success and np.array_equal(first.q, again.q) and first.attempts == again.attempts

@@ -174,9 +174,9 @@ def _solve(
         raise InvalidArgumentError(f"solve_ik needs a planner.Robot, got {type(robot).__name__}")
     target = as_target(target)
     solvers = IKSolvers.of(robot)
-    seed = solvers.nlp.check_seed(q_seed)
     if method == "nlp":
-        return _numeric(solvers, target, seed, options)
+        return _numeric(solvers, target, q_seed, options)  # NlpIK.solve checks the seed
+    seed = solvers.nlp.check_seed(q_seed)
     analytic = solvers.require_analytic() if method == "analytic" else solvers.analytic
     if analytic is None:
         return _numeric(solvers, target, seed, options)
@@ -205,16 +205,29 @@ def _solve(
 
 
 def _numeric(
-    solvers: IKSolvers, target: Target, seed: np.ndarray | None, options: IKOptions, extra: np.ndarray | None = None
+    solvers: IKSolvers,
+    target: Target,
+    seed: Sequence[float] | np.ndarray | None,
+    options: IKOptions,
+    extra: np.ndarray | None = None,
 ) -> IKResult:
-    """The NLP's answer, started from the seed and (by default) the closed-form branches."""
+    """The NLP's answer, started from the seed and (by default) the closed-form branches.
+
+    The seed is checked by the NLP. With a seed, the branches are computed only when the NLP
+    asks for them: when its first searches (from the seed) miss the target, or when the
+    solutions are read.
+    """
     if extra is None and options.closed_form_seeds and solvers.analytic is not None:
-        try:
-            branches = solvers.analytic.solve(target, seed).solutions
-        except UnsupportedChainError:
-            branches = ()
-        if branches:
-            extra = np.array([s.q for s in branches], dtype=float)
+        analytic = solvers.analytic
+
+        def branches() -> np.ndarray | None:
+            try:
+                found = analytic.solve(target, solvers.nlp.check_seed(seed)).solutions
+            except UnsupportedChainError:
+                return None
+            return np.array([s.q for s in found], dtype=float) if found else None
+
+        return solvers.nlp.solve(target, seed, options, extra_seeds=branches if seed is not None else branches())
     return solvers.nlp.solve(target, seed, options, extra_seeds=extra)
 
 

@@ -20,6 +20,7 @@ nothing.
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 
 import casadi as ca
 import numpy as np
@@ -29,17 +30,33 @@ from planner.geometry.target import RADIAL_EPS, Target
 from planner.ik.numeric.codegen import compile_function
 from planner.ik.numeric.kinematics import CasadiKinematics
 
-__all__ = ["KERNEL_KINDS", "VERTICAL", "Kernel", "outward_direction"]
+__all__ = [
+    "KERNEL_KINDS",
+    "SEARCH_DAMPING",
+    "SEARCH_MAX_STEP",
+    "VERTICAL",
+    "Kernel",
+    "SequentialKernel",
+    "outward_direction",
+]
 
 #: The target kinds a kernel is built for.
 KERNEL_KINDS = ("position", "pose", "pitch")
 #: |cos(pitch)| at or below which a pitch target is straight up or down (one direction).
 VERTICAL = 1e-12
+#: Levenberg-Marquardt damping per unit squared residual of a single call's first stage
+#: (:class:`SequentialKernel`) and of :func:`step_functions`; the batched :class:`Kernel` uses 1.
+SEARCH_DAMPING = 0.03
+#: Longest joint step [rad or m] of one iteration of the first stage.
+SEARCH_MAX_STEP = 1.5
 
 # Kernel parameters: target position 3, rotation 9 (column-major), outward direction 3,
-# sin(pitch) 1, |cos(pitch)| 1, unused 1, stop threshold 1, orientation weight [m] 1.
+# sin(pitch) 1, |cos(pitch)| 1, searches allowed 1 (sequential kernel), stop threshold 1,
+# orientation weight [m] 1.
 _N_PARAMS = 20
+_SEARCHES = 17
 _STOP = 18
+_SEARCH_BLOCK = 8  # later searches of a sequential kernel per switch
 _SCALE = 19
 
 
@@ -150,6 +167,166 @@ def _symbolic_kernel(
     )
 
 
+def _turn_nearest(q: ca.SX, ref: ca.SX, lower: np.ndarray, upper: np.ndarray, angular: np.ndarray) -> ca.SX:
+    """`q` with each angle shifted by whole turns towards `ref` where the limits allow (same pose)."""
+    out = []
+    for j in range(q.shape[0]):
+        if not angular[j]:
+            out.append(q[j])
+            continue
+        turns = ca.floor((ref[j] - q[j]) / (2 * math.pi) + 0.5)
+        best = q[j]
+        for k in (turns, turns - 1, turns + 1):
+            shifted = q[j] + 2 * math.pi * k
+            better = (
+                (shifted >= lower[j]) * (shifted <= upper[j]) * (ca.fabs(shifted - ref[j]) < ca.fabs(best - ref[j]))
+            )
+            best = ca.if_else(better, shifted, best)
+        out.append(best)
+    return ca.vertcat(*out)
+
+
+def _symbolic_sequential(
+    kinematics: CasadiKinematics,
+    kind: str,
+    searches: int,
+    lower: np.ndarray,
+    upper: np.ndarray,
+    chunk: int,
+    chunks: int,
+    max_step: float,
+    damping: float,
+    give_up: Sequence[tuple[int, float]],
+    continuous: np.ndarray,
+    angular: np.ndarray,
+    pool: np.ndarray,
+    pool_poses: np.ndarray,
+) -> ca.Function:
+    """Searches one after another: ``(q0, par, pooled) -> (q, q_near, cost, iterations, search)``.
+
+    ``q0`` has shape (dof, searches), ``pooled`` (searches,).
+
+    Search s starts from column s of `q0` and runs up to `chunks` chunks of `chunk` steps (after
+    k chunks, only while its squared residual is at most t, for each (k, t) in `give_up`); the next
+    search starts only while none has converged (squared residual below ``par[_STOP]``) and s
+    is below ``par[_SEARCHES]``. Where ``pooled[s]`` is nonzero, search s starts instead from
+    the configuration of group s - 1 of `pool` (rows ``(s - 1) * G`` to ``s * G``, G = its
+    rows // (searches - 1)) whose tip pose (`pool_poses`: position, x axis, z axis) is nearest
+    the target. ``q`` is the lowest-residual end point, continuous joints
+    wrapped into [-pi, pi); ``q_near`` is ``q`` with its angles shifted by whole turns towards
+    column 0 of `q0` (the seed) where the limits allow.
+    """
+    n = kinematics.dof
+    q = ca.SX.sym("q", n)
+    par = ca.SX.sym("par", _N_PARAMS)
+    r = _residual(kinematics, kind, q, par)
+    jac = ca.jacobian(r, q)
+    cost = ca.dot(r, r)
+    step = -_ldl_solve(ca.mtimes(jac.T, jac) + (1e-6 + damping * cost) * ca.SX.eye(n), ca.mtimes(jac.T, r))
+    step = step * ca.fmin(1.0, max_step / (ca.norm_2(step) + 1e-300))
+    q_next = ca.fmin(ca.fmax(q + step, ca.DM(lower)), ca.DM(upper))
+    step_f = ca.Function("sq_step", [q, par], [q_next])
+    cost_f = ca.Function("sq_cost", [q, par], [cost])
+    ref = ca.SX.sym("ref", n)
+    wrapped = ca.vertcat(
+        *[q[j] - 2 * math.pi * ca.floor((q[j] + math.pi) / (2 * math.pi)) if continuous[j] else q[j] for j in range(n)]
+    )
+    finish_f = ca.Function("sq_finish", [q, ref], [wrapped, _turn_nearest(wrapped, ref, lower, upper, angular)])
+
+    x_in = ca.MX.sym("x", n)
+    c_in = ca.MX.sym("c")
+    p_in = ca.MX.sym("par", _N_PARAMS)
+    x = x_in
+    for _ in range(chunk):
+        x = step_f(x, p_in)
+    run_chunk = ca.Function("sq_chunk", [x_in, c_in, p_in], [x, cost_f(x, p_in)])
+    keep = ca.Function("sq_keep", [x_in, c_in, p_in], [x_in, c_in])
+    maybe_chunk = ca.Function.if_else("sq_maybe_chunk", keep, run_chunk)
+    # One search: its chunks, each skipped once converged or, from chunk k on, while the squared
+    # residual stays above t for a (k, t) of `give_up` (far from converging); its iterations.
+    x, c, its = x_in, c_in, ca.MX(0)
+    for i in range(chunks):
+        done = c < p_in[_STOP]
+        for after, threshold in give_up:
+            if i >= after:
+                done = done + (c > threshold)
+        x, c = maybe_chunk(done, x, c, p_in)
+        its = its + ca.if_else(done, 0, chunk)
+    search_f = ca.Function("sq_search", [x_in, c_in, p_in], [x, c, its])
+    # A later search starts (from s_in) only while none has converged: a converged batch
+    # costs one switch per remaining search.
+    # Its start: s_in, or (pooled) the configuration of a group of the pool whose tip pose is
+    # nearest the target (position, and for a pose the x and z axes weighted by par[_SCALE]).
+    group = pool_poses.shape[0] // max(searches - 1, 1)
+    poses_in = ca.SX.sym("poses", 9, group)
+    configs_in = ca.SX.sym("configs", n, group)
+    par_sx = ca.SX.sym("par", _N_PARAMS)
+    goal = ca.reshape(par_sx[3:12], 3, 3)
+    pick, nearest = configs_in[:, 0], ca.SX(np.inf)
+    for j in range(group):
+        d = ca.sumsqr(poses_in[0:3, j] - par_sx[0:3])
+        if kind == "pose":
+            d = d + par_sx[_SCALE] ** 2 * (
+                ca.sumsqr(poses_in[3:6, j] - goal[:, 0]) + ca.sumsqr(poses_in[6:9, j] - goal[:, 2])
+            )
+        pick = ca.if_else(d < nearest, configs_in[:, j], pick)
+        nearest = ca.fmin(d, nearest)
+    pick_f = ca.Function("sq_pick", [par_sx, poses_in, configs_in], [pick])
+    s_in = ca.MX.sym("s", n)
+    pooled_in = ca.MX.sym("pooled")
+    poses_mx, configs_mx = ca.MX.sym("poses", 9, group), ca.MX.sym("configs", n, group)
+    start = ca.if_else(pooled_in, pick_f(p_in, poses_mx, configs_mx), s_in)
+    fresh = search_f(start, cost_f(start, p_in), p_in)
+    inputs = [x_in, c_in, p_in, s_in, pooled_in, poses_mx, configs_mx]
+    run_search = ca.Function("sq_fresh", inputs, [*fresh, ca.MX(1)])
+    stay = ca.Function("sq_stay", inputs, [x_in, c_in, ca.MX(0), ca.MX(0)])
+    maybe_search = ca.Function.if_else("sq_maybe_search", stay, run_search)
+
+    # The later searches in blocks of `block`: a block starts only while none has converged,
+    # so a converged call skips the rest at one switch per block.
+    block = _SEARCH_BLOCK if (searches - 1) % _SEARCH_BLOCK == 0 else 1
+    bx, bc, bbx, bbc = ca.MX.sym("x", n), ca.MX.sym("c"), ca.MX.sym("best_x", n), ca.MX.sym("best_c")
+    b_first = ca.MX.sym("first")  # index of the block's first search
+    b_q0, b_pooled = ca.MX.sym("q0", n, block), ca.MX.sym("pooled", block)
+    b_poses, b_configs = ca.MX.sym("poses", 9, group * block), ca.MX.sym("configs", n, group * block)
+    x, c, best_x, best_c, its_b, last = bx, bc, bbx, bbc, ca.MX(0), ca.MX(0)
+    for b in range(block):
+        idle = (c < p_in[_STOP]) + (p_in[_SEARCHES] <= b_first + b)
+        cols = slice(b * group, (b + 1) * group)
+        x, c, its, ran = maybe_search(idle, x, c, p_in, b_q0[:, b], b_pooled[b], b_poses[:, cols], b_configs[:, cols])
+        its_b, last = its_b + its, last + ran
+        lower_cost = c < best_c
+        best_x, best_c = ca.if_else(lower_cost, x, best_x), ca.fmin(c, best_c)
+    b_inputs = [bx, bc, bbx, bbc, p_in, b_first, b_q0, b_pooled, b_poses, b_configs]
+    run_block = ca.Function("sq_block", b_inputs, [x, c, best_x, best_c, its_b, last])
+    skip_block = ca.Function("sq_skip", b_inputs, [bx, bc, bbx, bbc, ca.MX(0), ca.MX(0)])
+    maybe_block = ca.Function.if_else("sq_maybe_block", skip_block, run_block)
+
+    q0 = ca.MX.sym("q0", n, searches)
+    pooled = ca.MX.sym("pooled", searches)
+    x, c, iterations = search_f(q0[:, 0], cost_f(q0[:, 0], p_in), p_in)
+    best_x, best_c = x, c
+    search = ca.MX(0)
+    for first in range(1, searches, block):
+        idle = (c < p_in[_STOP]) + (p_in[_SEARCHES] <= first)
+        cols = slice(first, first + block)
+        rows = slice((first - 1) * group, (first - 1 + block) * group)
+        x, c, best_x, best_c, its, ran = maybe_block(
+            idle, x, c, best_x, best_c, p_in, first, q0[:, cols], pooled[cols],
+            ca.DM(pool_poses[rows].T), ca.DM(pool[rows].T),
+        )  # fmt: skip
+        iterations = iterations + its
+        search = search + ran
+    q_out, q_near = finish_f(best_x, q0[:, 0])
+    return ca.Function(
+        f"sq_{kind}_{n}x{searches}",
+        [q0, p_in, pooled],
+        [q_out, q_near, best_c, iterations, search],
+        ["q0", "par", "pooled"],
+        ["q", "q_near", "cost", "iterations", "search"],
+    )
+
+
 class Kernel:
     """A batched solver function with numpy buffers bound to it (no conversion per call).
 
@@ -246,6 +423,134 @@ class Kernel:
             raise RuntimeError(f"CasADi function {self.function.name()!r} failed (code {self._buffer.ret()})")
 
 
+class SequentialKernel(Kernel):
+    """Searches one after another in one compiled call, with numpy buffers bound to it.
+
+    The fast first stage of :class:`~planner.ik.numeric.solver.NlpIK`: search s starts from row
+    s of :attr:`q0` and runs only while no earlier one has converged, so an easy target costs
+    one search of a few iterations. Fill :attr:`q0` and the parameters (:meth:`set_target`,
+    :meth:`set_weighting`, :meth:`set_searches`), call it, read :attr:`q`, :attr:`q_near`,
+    :attr:`cost`, :attr:`iterations` and :attr:`search`.
+
+    Attributes:
+        function: The CasADi function (compiled or not).
+        compiled: Whether it runs as compiled C code.
+        q0: Starting configurations, shape (searches, dof) [rad or m]; row s starts search s
+            unless :attr:`pooled` says otherwise.
+        par: The parameter vector.
+        pooled: Shape (searches,): where nonzero, search s starts instead from the configuration
+            of the pool's group s - 1 whose tip pose is nearest the target (row 0 ignores it).
+        q: The end point of lowest residual, shape (dof,) [rad or m], within the limits,
+            continuous joints wrapped into [-pi, pi).
+        q_near: :attr:`q` with its angles shifted by whole turns towards row 0 of :attr:`q0`
+            where the limits allow, shape (dof,).
+        cost: Squared weighted residual of :attr:`q`, shape (1,).
+        iterations: Gauss-Newton steps run in all, shape (1,).
+        search: Index of the last search run (the converged one when one has), shape (1,).
+    """
+
+    def __init__(self, function: ca.Function, searches: int, dof: int, compiled: bool) -> None:
+        """Bind buffers of `searches` starts of `dof` joints to `function`."""
+        self.function = function
+        self.compiled = compiled
+        self.q0 = np.zeros((searches, dof))
+        self.par = np.zeros(_N_PARAMS)
+        self.pooled = np.zeros(searches)
+        self.q = np.zeros(dof)
+        self.q_near = np.zeros(dof)
+        self.cost = np.zeros(1)
+        self.iterations = np.zeros(1)
+        self.search = np.zeros(1)
+        self._buffer, self._evaluate = function.buffer()
+        self._buffer.set_arg(0, memoryview(self.q0))
+        self._buffer.set_arg(1, memoryview(self.par))
+        self._buffer.set_arg(2, memoryview(self.pooled))
+        for i, out in enumerate((self.q, self.q_near, self.cost, self.iterations, self.search)):
+            self._buffer.set_res(i, memoryview(out))
+        self._position = self.par[0:3]
+        self._rotation = self.par[3:12].reshape((3, 3), order="F")  # a view: column-major like CasADi
+
+    @classmethod
+    def build_sequential(
+        cls,
+        kinematics: CasadiKinematics,
+        kind: str,
+        *,
+        searches: int,
+        lower: np.ndarray,
+        upper: np.ndarray,
+        chunk: int,
+        chunks: int,
+        max_step: float,
+        damping: float,
+        give_up: Sequence[tuple[int, float]],
+        continuous: np.ndarray,
+        angular: np.ndarray,
+        pool: np.ndarray,
+        pool_poses: np.ndarray,
+        jit: bool,
+    ) -> SequentialKernel:
+        """Build (and compile, or load from the cache) the sequential kernel of one target kind.
+
+        Args:
+            kinematics: The robot's symbolic kinematics.
+            kind: ``"position"``, ``"pose"`` or ``"pitch"``.
+            searches: Starts per call at most.
+            lower: Finite lower joint limits, shape (dof,) [rad or m].
+            upper: Finite upper joint limits, shape (dof,) [rad or m].
+            chunk: Gauss-Newton steps between two convergence checks.
+            chunks: Chunks per search at most.
+            max_step: Longest joint step of one iteration [rad or m].
+            damping: Levenberg-Marquardt damping per unit squared residual (the damping is
+                ``1e-6 + damping * |r|^2``).
+            give_up: Pairs (k, t): after k chunks, a search whose squared residual is above t
+                [m^2] stops (it is unlikely to converge: the next start is tried).
+            continuous: Which joints are continuous (wrapped into [-pi, pi)), shape (dof,).
+            angular: Which joints are angles (shifted by whole turns), shape (dof,).
+            pool: Configurations within the limits, shape (G * (searches - 1), dof): the
+                pooled starts (see :attr:`pooled`), G per search.
+            pool_poses: Their tip poses, shape (G * (searches - 1), 9): position [m], x
+                axis, z axis in the base frame.
+            jit: Compile to C (:func:`~planner.ik.numeric.codegen.compile_function`).
+
+        Raises:
+            InvalidArgumentError: On an unknown target kind.
+        """
+        if kind not in KERNEL_KINDS:
+            raise InvalidArgumentError(f"unknown target kind {kind!r}; valid: {', '.join(KERNEL_KINDS)}")
+        symbolic = _symbolic_sequential(
+            kinematics, kind, searches, lower, upper, chunk, chunks, max_step, damping, give_up,
+            continuous, angular, pool, pool_poses,
+        )  # fmt: skip
+        function = compile_function(symbolic) if jit else symbolic
+        return cls(function, searches, kinematics.dof, function is not symbolic)
+
+    def set_target(self, target: Target) -> None:
+        """Write a target into the parameters (the stop threshold and weight are kept).
+
+        Through views of the parameter vector: a call per target costs two copies.
+        """
+        self._position[:] = target.position
+        if target.rotation is not None:
+            self._rotation[:] = target.rotation
+        elif target.pitch is not None:
+            par = self.par
+            par[12:15] = outward_direction(target)
+            par[15] = math.sin(target.pitch)
+            par[16] = abs(math.cos(target.pitch))
+
+    def __call__(self) -> None:
+        """Run the searches from :attr:`q0` into :attr:`q`, :attr:`q_near` and the counts."""
+        self._evaluate()
+        # Compiled code of plain arithmetic cannot fail; CasADi's virtual machine reports here.
+        if not self.compiled and self._buffer.ret() != 0:
+            raise RuntimeError(f"CasADi function {self.function.name()!r} failed (code {self._buffer.ret()})")
+
+    def set_searches(self, count: int) -> None:
+        """Run at most `count` searches (rows of :attr:`q0`) in the next call."""
+        self.par[_SEARCHES] = count
+
+
 #: Length of a kernel's parameter vector (:meth:`Kernel.set_target` and :func:`target_parameters`).
 N_PARAMS = _N_PARAMS
 #: Where the stop threshold and the orientation weight [m] sit in a parameter vector.
@@ -253,12 +558,19 @@ PARAM_STOP, PARAM_SCALE = _STOP, _SCALE
 
 
 def step_functions(
-    kinematics: CasadiKinematics, kind: str, lower: np.ndarray, upper: np.ndarray, max_step: float
+    kinematics: CasadiKinematics,
+    kind: str,
+    lower: np.ndarray,
+    upper: np.ndarray,
+    max_step: float,
+    damping: float = SEARCH_DAMPING,
 ) -> tuple[ca.Function, ca.Function]:
-    """The damped Gauss-Newton step of one configuration and its squared residual, as in :class:`Kernel`.
+    """The damped Gauss-Newton step of one configuration and its squared residual.
 
-    For other drivers of the same iteration (:mod:`planner.ik.numeric.batch` maps them over
-    many targets).
+    By default that of a single call's first stage (:class:`SequentialKernel`, damping
+    :data:`SEARCH_DAMPING`), so that other drivers of the same iteration
+    (:mod:`planner.ik.numeric.batch` maps them over many targets) reach the same answer from
+    the same seed.
 
     Args:
         kinematics: The robot's symbolic kinematics.
@@ -266,6 +578,7 @@ def step_functions(
         lower: Finite lower joint limits, shape (dof,) [rad or m].
         upper: Finite upper joint limits, shape (dof,) [rad or m].
         max_step: Longest joint step of one iteration [rad or m].
+        damping: Levenberg-Marquardt damping per unit squared residual (``1e-6 + damping |r|^2``).
 
     Returns:
         ``(step, cost)``: ``step(q (dof,), par (N_PARAMS,)) -> q_next`` (within the limits) and
@@ -282,7 +595,7 @@ def step_functions(
     r = _residual(kinematics, kind, q, par)
     jac = ca.jacobian(r, q)
     cost = ca.dot(r, r)
-    step = -_ldl_solve(ca.mtimes(jac.T, jac) + (1e-6 + cost) * ca.SX.eye(n), ca.mtimes(jac.T, r))
+    step = -_ldl_solve(ca.mtimes(jac.T, jac) + (1e-6 + damping * cost) * ca.SX.eye(n), ca.mtimes(jac.T, r))
     step = step * ca.fmin(1.0, max_step / (ca.norm_2(step) + 1e-300))
     q_next = ca.fmin(ca.fmax(q + step, ca.DM(lower)), ca.DM(upper))
     return ca.Function("gn_step", [q, par], [q_next]), ca.Function("gn_cost", [q, par], [cost])
