@@ -140,7 +140,8 @@ def bench_robot(
     Args:
         name: Robot name for :func:`planner.load_robot`.
         n: Number of random targets.
-        seed: Seed of the target configurations; the seeds/current configurations use seed + 1.
+        seed: Seed of the target configurations (stream ``[seed, 1000]``) and of the seeds / current
+            configurations (``[seed, 1001]``).
         time_budget: NLP time budget per call [s].
         baseline: Also time one bounded IPOPT solve from the seed (pose targets only).
         kind: Target kind (``"pose"``, ``"pitch"``, ``"position"``); None is the robot's first
@@ -151,8 +152,10 @@ def bench_robot(
     """
     robot = load_robot(name)
     kind = kind or KINDS.get(name, ("pose",))[0]
-    q_targets = robot.random_configurations(np.random.default_rng(seed), n)
-    q_seeds = robot.random_configurations(np.random.default_rng(seed + 1), n)
+    # Streams apart from the NLP's fixed restart pool (drawn from default_rng(0)): targets drawn
+    # from that stream would be the pool's own configurations, solved by a restart at once.
+    q_targets = robot.random_configurations(np.random.default_rng([seed, 1000]), n)
+    q_seeds = robot.random_configurations(np.random.default_rng([seed, 1001]), n)
     targets = [make_target(robot, kind, q) for q in q_targets]
     summaries = []
 

@@ -678,7 +678,12 @@ def _add_bench(sub: argparse._SubParsersAction) -> None:
     )
     p.add_argument("robots", nargs="*", help="robots (default: every bundled arm)")
     p.add_argument("--n", type=int, default=200, help="random targets per robot (default 200)")
-    p.add_argument("--seed", type=int, default=0, help="seed of the targets; the IK seeds use seed + 1 (default 0)")
+    p.add_argument(
+        "--seed",
+        type=int,
+        default=0,
+        help="seed of the targets and of the IK seeds (two streams apart from the solver's own; default 0)",
+    )
     p.add_argument("--time-budget", type=float, default=0.05, metavar="S", help="NLP time budget per call [s]")
     p.add_argument("--out", type=Path, default=None, help="write bench_ik.json (and with --plot bench_ik.png) here")
     p.add_argument("--plot", action="store_true", help="draw the solve rate and time chart (into --out or .)")
