@@ -53,7 +53,7 @@ from planner.core.arrays import read_only
 from planner.exceptions import InvalidArgumentError, PlanningError
 from planner.motion.limits import JointLimits
 from planner.motion.request import TrajectoryRequest
-from planner.motion.segments import brake_segment, merge_segment, piece_position_range
+from planner.motion.segments import brake_segment, merge_segment, segment_position_range
 from planner.motion.trajectory import JointTrajectory
 from planner.motion.vias import ViaChain, ViaStrategy, via_strategy
 
@@ -98,7 +98,8 @@ def _repair_range(chain: ViaChain) -> list[tuple[float, np.ndarray, np.ndarray]]
                         chain.acc[idx] = 0.0
                 any_bad = True
                 continue
-            local, pieces, residual = merge_segment(traj, d, start, chain.q[k + 1], chain.limits)
+            merged = merge_segment(traj, d, start, chain.q[k + 1], chain.limits)
+            local, pieces, residual = merged.knots, merged.pieces, merged.residual
             free = [
                 idx
                 for idx in (k, k + 1)
@@ -116,7 +117,7 @@ def _repair_range(chain: ViaChain) -> list[tuple[float, np.ndarray, np.ndarray]]
             segments.append((d, local, pieces))
             if not chain.seg.bounded or not len(local):
                 continue
-            lo, hi = piece_position_range(local, pieces, d)
+            lo, hi = segment_position_range(traj, merged, d)
             bad = (lo < chain.seg.lower) | (hi > chain.seg.upper)
             if not bad.any():
                 continue

@@ -12,6 +12,7 @@ all joints; :func:`piece_position_range` gives their exact position extrema; and
 from __future__ import annotations
 
 import math
+from typing import NamedTuple
 
 import numpy as np
 from ruckig import ControlInterface, InputParameter, Result, Ruckig, RuckigError, Synchronization
@@ -24,11 +25,13 @@ from planner.motion.trajectory import LIMIT_TOLERANCE
 __all__ = [
     "RANGE_TOLERANCE",
     "RUCKIG_PRECISION",
+    "SegmentPieces",
     "SegmentSolver",
     "brake_segment",
     "merge_segment",
     "piece_position_range",
     "range_with_tolerance",
+    "segment_position_range",
 ]
 
 #: Relative slack of the position-range checks [rad or m per unit of max(1, |bound|)]: a joint
@@ -109,6 +112,9 @@ class SegmentSolver:
         # parabola, which Ruckig 0.19 cannot take (see _on_one_parabola).
         still = np.abs(np.diff(q, axis=0)) <= 1e-9 * np.maximum(1.0, np.abs(q[1:]))
         self._still = [np.flatnonzero(row) if row.any() else None for row in still]
+        # The searches ask for the same segment state more than once (a line search's current
+        # state, the chain's durations between searches): answers are kept per end states.
+        self._cache: dict[tuple, tuple[float, np.ndarray | None, None]] = {}
 
     def solve(
         self, k: int, va: np.ndarray, aa: np.ndarray, vb: np.ndarray, ab: np.ndarray, keep: bool = False
@@ -120,6 +126,18 @@ class SegmentSolver:
             Ruckig's extrema put outside their range (None when none does), and the Ruckig
             trajectory when `keep`.
         """
+        if not keep:
+            key = (k, va.tobytes(), aa.tobytes(), vb.tobytes(), ab.tobytes())
+            hit = self._cache.get(key)
+            if hit is None:
+                hit = self._cache[key] = self._solve(k, va, aa, vb, ab, False)
+            return hit
+        return self._solve(k, va, aa, vb, ab, True)
+
+    def _solve(
+        self, k: int, va: np.ndarray, aa: np.ndarray, vb: np.ndarray, ab: np.ndarray, keep: bool
+    ) -> tuple[float, np.ndarray | None, RuckigTrajectory | None]:
+        """:meth:`solve` without the cache."""
         inp = self.inp
         still = self._still[k]
         if still is not None and self._on_one_parabola(still, va, aa, vb, ab):
@@ -203,13 +221,31 @@ class SegmentSolver:
             self.otg.calculate(self.inp, traj)  # keep the synchronised profile; merge_segment corrects it
 
 
+class SegmentPieces(NamedTuple):
+    """One Ruckig segment as constant-jerk pieces common to all joints (see :func:`merge_segment`).
+
+    Attributes:
+        knots: Local knot times, shape (K,) [s].
+        pieces: The stacked (p, v, a, j) at each knot, shape (4, K, dof).
+        residual: The end error left per joint, shape (dof,) [rad or m].
+        missed: Per joint, the lowest and highest turning point inside a phase of zero jerk
+            (which Ruckig's ``position_extrema`` misses), shapes (dof,) (inf and -inf where
+            none); None where the pieces are not Ruckig's profile (an end correction added).
+    """
+
+    knots: np.ndarray
+    pieces: np.ndarray
+    residual: np.ndarray
+    missed: tuple[np.ndarray, np.ndarray] | None
+
+
 def merge_segment(
     traj: RuckigTrajectory,
     duration: float,
     start: tuple[np.ndarray, np.ndarray, np.ndarray],
     end: np.ndarray | None = None,
     limits: JointLimits | None = None,
-) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+) -> SegmentPieces:
     """One Ruckig segment as constant-jerk pieces common to all joints.
 
     Every joint has its own seven phases (plus, for a start state beyond the limits, two brake
@@ -230,24 +266,23 @@ def merge_segment(
         limits: Limits to check a corrected joint against.
 
     Returns:
-        Local knot times, shape (K,) [s]; the stacked (p, v, a, j) at each knot, shape
-        (4, K, dof); and the end error left per joint, shape (dof,) [rad or m]: where the
-        correction would take a joint beyond its limits (a joint at its jerk limit all along),
-        the joint keeps Ruckig's profile, and the caller decides (see
+        The pieces; their residual is the end error left per joint: where the correction
+        would take a joint beyond its limits (a joint at its jerk limit all along), the joint
+        keeps Ruckig's profile, and the caller decides (see
         :func:`planner.motion.plan.plan_trajectory_request`).
     """
     profiles = traj.profiles[0]
     dof = len(profiles)
     if duration <= 0.0:
-        return np.empty(0), np.empty((4, 0, dof)), np.zeros(dof)
+        return SegmentPieces(np.empty(0), np.empty((4, 0, dof)), np.zeros(dof), None)
     t = np.array([prof.t for prof in profiles])  # (dof, 7)
-    jerk = np.array([prof.j for prof in profiles])
+    # An 8th phase holds the end state (zero jerk) in case a joint's profile ends early.
+    jerk = np.array([prof.j + [0.0] for prof in profiles])
     acc = np.array([prof.a for prof in profiles])  # (dof, 8): phase starts and the end state
     vel = np.array([prof.v for prof in profiles])
     pos = np.array([prof.p for prof in profiles])
-    # An 8th phase holds the end state (zero jerk) in case a joint's profile ends early.
-    jerk = np.hstack([jerk, np.zeros((dof, 1))])
-    starts = np.hstack([np.zeros((dof, 1)), np.cumsum(t, axis=1)])  # (dof, 8)
+    starts = np.zeros((dof, 8))
+    np.cumsum(t, axis=1, out=starts[:, 1:])
     brakes = [prof.brake for prof in profiles]
     if any(b.duration > 0 for b in brakes):
         offset = np.array([b.duration for b in brakes])[:, None]
@@ -265,6 +300,17 @@ def merge_segment(
     knots = np.unique(starts[starts < duration])
     if knots[0] != 0.0:  # pragma: no cover - every profile starts at 0
         knots = np.insert(knots, 0, 0.0)
+    # Ruckig's position extrema miss a turning point inside a phase of zero jerk (see
+    # piece_position_range), where the velocity changes sign: those are added here.
+    turns = (jerk[:, :-1] == 0.0) & (vel[:, :-1] * vel[:, 1:] < 0.0)
+    missed: tuple[np.ndarray, np.ndarray] | None = (np.full(dof, np.inf), np.full(dof, -np.inf))
+    if turns.any():
+        v0, a0 = vel[:, :-1][turns], acc[:, :-1][turns]
+        tz = -v0 / a0
+        p_turn = pos[:, :-1][turns] + tz * (v0 + tz * a0 / 2.0)
+        rows = np.nonzero(turns)[0]
+        np.minimum.at(missed[0], rows, p_turn)
+        np.maximum.at(missed[1], rows, p_turn)
     error = None
     if end is not None:
         error = np.asarray(end, dtype=float) - pos[:, -1]  # each profile's end position
@@ -279,11 +325,35 @@ def merge_segment(
         corrected = out.copy()
         if _add_s_curve(corrected, knots, duration, np.where(off, error, 0.0), limits):
             out = corrected
+            missed = None
         else:
             residual = np.where(off, error, 0.0)
     # The segment starts exactly at its waypoint state.
     out[0, 0], out[1, 0], out[2, 0] = start
-    return knots, out, residual
+    return SegmentPieces(knots, out, residual, missed)
+
+
+def segment_position_range(
+    traj: RuckigTrajectory, segment: SegmentPieces, duration: float
+) -> tuple[np.ndarray, np.ndarray]:
+    """Exact per-joint min and max position of a merged segment, shapes (dof,) [rad or m].
+
+    Ruckig's own extrema (computed in C++) with the turning points they miss, or
+    :func:`piece_position_range` where the pieces are not Ruckig's profile. The segment
+    should have been merged with its `end`: Ruckig's extrema take its profile's end
+    position, which the pieces reach only after the end correction.
+
+    Args:
+        traj: The Ruckig trajectory the segment was merged from.
+        segment: What :func:`merge_segment` made of it.
+        duration: The segment's duration [s].
+    """
+    if segment.missed is None:
+        return piece_position_range(segment.knots, segment.pieces, duration)
+    extrema = traj.position_extrema
+    lo = np.array([e.min for e in extrema])
+    hi = np.array([e.max for e in extrema])
+    return np.minimum(lo, segment.missed[0]), np.maximum(hi, segment.missed[1])
 
 
 def _phase_states(
@@ -388,7 +458,7 @@ def brake_segment(
         raise InvalidArgumentError(f"cannot brake from the start state (Ruckig: {result})")
     duration = float(traj.duration)
     rest = np.array([prof.p[-1] for prof in traj.profiles[0]])
-    local, pieces, _ = merge_segment(traj, duration, (q0, v0, a0))
+    local, pieces, _, _ = merge_segment(traj, duration, (q0, v0, a0))
     lo, hi = piece_position_range(local, pieces, duration) if len(local) else (q0, q0)
     lower, upper = range_with_tolerance(limits)
     bad = np.nonzero((lo < lower) | (hi > upper))[0]

@@ -141,22 +141,30 @@ class OptimizedStrategy(ViaStrategy):
         self,
         chain: ViaChain,
         i: int,
-        make: Callable[[float], tuple[np.ndarray, np.ndarray]],
+        make: Callable[[np.ndarray], tuple[np.ndarray, np.ndarray]],
         top: float,
         grid: Sequence[float] = _GRID,
         steps: int = _GOLDEN_STEPS,
     ) -> None:
-        """Minimise the pair cost over a scalar parameter in [0, top] (grid, then golden section)."""
+        """Minimise the pair cost over a scalar parameter in [0, top] (grid, then golden section).
+
+        `make` maps parameters, shape (G,), to admissible via states, shapes (G, dof).
+        """
         cache: dict[float, tuple[float, np.ndarray, np.ndarray]] = {}
 
         def cost(x: float) -> float:
             if x not in cache:
-                cache[x] = chain.pair_cost(i, *make(x))
+                cv, ca = make(np.array([x]))
+                cache[x] = chain.pair_cost(i, cv[0], ca[0], admissible=True)
             return cache[x][0]
 
         current = chain.pair_cost(i, chain.v[i], chain.acc[i])
         grid = sorted({min(g, top) for g in grid} | {top})
-        values = [cost(g) for g in grid]
+        cvs, cas = make(np.array(grid))
+        values = []
+        for x, cv, ca in zip(grid, cvs, cas):
+            cache[x] = chain.pair_cost(i, cv, ca, admissible=True)
+            values.append(cache[x][0])
         b = int(np.argmin(values))
         lo, hi = grid[max(b - 1, 0)], grid[min(b + 1, len(grid) - 1)]
         golden_minimum(cost, lo, hi, steps + 2)  # its evaluations fill the cache
@@ -174,18 +182,19 @@ class OptimizedStrategy(ViaStrategy):
         """
         lim = chain.limits
         mag, wmag = np.abs(u), np.abs(w)
+        su, sw = np.sign(u), np.sign(w)
         tops = [1.0]
         if np.any(mag > 0):
             tops.append(float(np.max(lim.velocity[mag > 0] / mag[mag > 0])))
         if np.any(wmag > 0):
             tops.append(math.sqrt(float(np.max(lim.acceleration[wmag > 0] / wmag[wmag > 0]))))
 
-        def candidate(x: float) -> tuple[np.ndarray, np.ndarray]:
-            return np.sign(u) * np.minimum(lim.velocity, x * mag), np.sign(w) * np.minimum(
-                lim.acceleration, x * x * wmag
-            )
+        def candidates(x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+            x = x[:, None]
+            cv = su * np.minimum(lim.velocity, x * mag)
+            return cv, admissible_acceleration(cv, sw * np.minimum(lim.acceleration, x * x * wmag), lim)
 
-        self._line_search(chain, i, candidate, min(max(tops), _MAX_SCALE))
+        self._line_search(chain, i, candidates, min(max(tops), _MAX_SCALE))
 
     def _settle(self, chain: ViaChain, free: list[int]) -> None:
         """Halve the via states of joints that (by Ruckig's extrema) leave their range.
@@ -266,10 +275,9 @@ class OptimizedStrategy(ViaStrategy):
         v_now, a_now = chain.v[i].copy(), chain.acc[i].copy()
         a_turn = -np.sign(dp) * lim.acceleration
 
-        def make(y: float) -> tuple[np.ndarray, np.ndarray]:
-            return (
-                np.where(turning, (1.0 - y) * v_now, v_now),
-                np.where(turning, (1.0 - y) * a_now + y * a_turn, a_now),
-            )
+        def make(y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+            y = y[:, None]
+            cv = np.where(turning, (1.0 - y) * v_now, v_now)
+            return cv, admissible_acceleration(cv, np.where(turning, (1.0 - y) * a_now + y * a_turn, a_now), lim)
 
         self._line_search(chain, i, make, 1.0, grid=_TURN_GRID, steps=_TURN_STEPS)
