@@ -83,7 +83,7 @@ def _repair_range(chain: ViaChain) -> list[tuple[float, np.ndarray, np.ndarray]]
     Raises:
         _StartOvershoot: If the given start state itself carries a joint out of its range.
     """
-    before = np.hstack([chain.v, chain.acc])
+    before_v, before_acc = chain.v.copy(), chain.acc.copy()
     halved = np.zeros(chain.v.shape, dtype=int)
     for _ in range(4 * _REPAIR_HALVINGS + chain.n):
         segments, any_bad = [], False
@@ -100,20 +100,21 @@ def _repair_range(chain: ViaChain) -> list[tuple[float, np.ndarray, np.ndarray]]
                 continue
             merged = merge_segment(traj, d, start, chain.q[k + 1], chain.limits)
             local, pieces, residual = merged.knots, merged.pieces, merged.residual
-            free = [
-                idx
-                for idx in (k, k + 1)
-                if idx > 0 and not chain.fixed[idx] and (np.any(chain.v[idx] != 0) or np.any(chain.acc[idx] != 0))
-            ]
-            if free and np.any(residual != 0.0):
-                # Ruckig's profile misses its end and no correction fits the limits: rest at the
-                # free ends, where it is exact. (Prescribed via states keep Ruckig's profile,
-                # which meets the next segment within its precision, RUCKIG_PRECISION.)
-                for idx in free:
-                    chain.v[idx] = 0.0
-                    chain.acc[idx] = 0.0
-                any_bad = True
-                continue
+            if residual.any():
+                free = [
+                    idx
+                    for idx in (k, k + 1)
+                    if idx > 0 and not chain.fixed[idx] and (chain.v[idx].any() or chain.acc[idx].any())
+                ]
+                if free:
+                    # Ruckig's profile misses its end and no correction fits the limits: rest at
+                    # the free ends, where it is exact. (Prescribed via states keep Ruckig's
+                    # profile, which meets the next segment within its precision, RUCKIG_PRECISION.)
+                    for idx in free:
+                        chain.v[idx] = 0.0
+                        chain.acc[idx] = 0.0
+                    any_bad = True
+                    continue
             segments.append((d, local, pieces))
             if not chain.seg.bounded or not len(local):
                 continue
@@ -140,9 +141,7 @@ def _repair_range(chain: ViaChain) -> list[tuple[float, np.ndarray, np.ndarray]]
                 chain.v[idx] *= factor
                 chain.acc[idx] *= factor
         if not any_bad:
-            after = np.hstack([chain.v, chain.acc])
-            dof = chain.v.shape[1]
-            chain.repaired |= (after[:, :dof] != before[:, :dof]) | (after[:, dof:] != before[:, dof:])
+            chain.repaired |= (chain.v != before_v) | (chain.acc != before_acc)
             return segments
     raise PlanningError(  # pragma: no cover - zero via speeds always fit
         "the via states could not be brought within the joint ranges; add stops at the waypoints near the range ends"
@@ -284,19 +283,27 @@ def plan_trajectory_request(request: TrajectoryRequest) -> JointTrajectory:
     else:  # every waypoint identical, no dwell: a motionless trajectory
         all_knots = np.array([0.0])
         pvaj = np.stack([q[:1], np.zeros((1, q.shape[1])), np.zeros((1, q.shape[1])), np.zeros((1, q.shape[1]))])
+    # Every array here is new (the request's are read-only already): freeze them in place.
+    pvaj.setflags(write=False)
     return JointTrajectory(
-        knots=read_only(all_knots),
-        p=read_only(pvaj[0]),
-        v=read_only(pvaj[1]),
-        a=read_only(pvaj[2]),
-        j=read_only(pvaj[3]),
+        knots=_frozen(all_knots),
+        p=pvaj[0],
+        v=pvaj[1],
+        a=pvaj[2],
+        j=pvaj[3],
         duration=float(t),
-        waypoints=read_only(q),
-        waypoint_times=read_only(times),
-        via_velocities=read_only(v),
-        via_accelerations=read_only(acc),
-        dwell=read_only(dw),
+        waypoints=q if not q.flags.writeable else read_only(q),
+        waypoint_times=_frozen(times),
+        via_velocities=_frozen(v),
+        via_accelerations=_frozen(acc),
+        dwell=dw if not dw.flags.writeable else read_only(dw),
         limits=limits,
         strategy=chooser.name,
-        repaired=read_only(repaired, dtype=bool),
+        repaired=_frozen(repaired),
     )
+
+
+def _frozen(arr: np.ndarray) -> np.ndarray:
+    """`arr` itself, made read-only (for arrays no one else holds)."""
+    arr.setflags(write=False)
+    return arr

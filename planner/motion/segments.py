@@ -19,7 +19,7 @@ from ruckig import ControlInterface, InputParameter, Result, Ruckig, RuckigError
 from ruckig import Trajectory as RuckigTrajectory
 
 from planner.exceptions import InvalidArgumentError
-from planner.motion.limits import JointLimits
+from planner.motion.limits import RANGE_TOLERANCE, JointLimits
 from planner.motion.trajectory import LIMIT_TOLERANCE
 
 __all__ = [
@@ -34,9 +34,6 @@ __all__ = [
     "segment_position_range",
 ]
 
-#: Relative slack of the position-range checks [rad or m per unit of max(1, |bound|)]: a joint
-#: counts as leaving its range only beyond it, so that rounding at a range end is no overshoot.
-RANGE_TOLERANCE = 1e-10
 #: End-position error [rad or m per unit of max(1, |target|)] beyond which a segment is corrected.
 END_TOLERANCE = 1e-13
 #: How far Ruckig may end a profile from its target state: position [rad or m], velocity
@@ -47,9 +44,7 @@ RUCKIG_PRECISION = (1e-8, 1e-8, 1e-10)
 
 def range_with_tolerance(limits: JointLimits) -> tuple[np.ndarray, np.ndarray]:
     """Lower and upper position bounds widened by :data:`RANGE_TOLERANCE`, shapes (dof,) [rad or m]."""
-    lower = limits.lower - RANGE_TOLERANCE * np.maximum(1.0, np.abs(np.nan_to_num(limits.lower)))
-    upper = limits.upper + RANGE_TOLERANCE * np.maximum(1.0, np.abs(np.nan_to_num(limits.upper)))
-    return lower, upper
+    return limits.checked_range
 
 
 def piece_position_range(knots: np.ndarray, pvaj: np.ndarray, end: float) -> tuple[np.ndarray, np.ndarray]:
@@ -297,9 +292,12 @@ def merge_segment(
         starts[none, :2] = 0.0
     if any(prof.accel.duration > 0 for prof in profiles):  # pragma: no cover - via states are admissible
         raise RuntimeError("Ruckig needed a post-profile: a via state exceeds the limits")
-    knots = np.unique(starts[starts < duration])
-    if knots[0] != 0.0:  # pragma: no cover - every profile starts at 0
-        knots = np.insert(knots, 0, 0.0)
+    knots = np.sort(starts, axis=None)
+    knots = knots[knots < duration]
+    first = np.empty(len(knots), dtype=bool)
+    first[0] = True
+    np.not_equal(knots[1:], knots[:-1], out=first[1:])
+    knots = knots[first]  # the distinct phase starts (every profile starts at 0)
     # Ruckig's position extrema miss a turning point inside a phase of zero jerk (see
     # piece_position_range), where the velocity changes sign: those are added here.
     turns = (jerk[:, :-1] == 0.0) & (vel[:, :-1] * vel[:, 1:] < 0.0)
@@ -319,7 +317,7 @@ def merge_segment(
             knots = np.union1d(knots, duration * np.array([0.25, 0.5, 0.75]))
         else:
             error = None
-    out = np.stack(_phase_states(knots, starts, (pos, vel, acc, jerk)))
+    out = _phase_states(knots, starts, (pos, vel, acc, jerk))
     residual = np.zeros(dof)
     if error is not None:
         corrected = out.copy()
@@ -356,22 +354,20 @@ def segment_position_range(
     return np.minimum(lo, segment.missed[0]), np.maximum(hi, segment.missed[1])
 
 
-def _phase_states(
-    times: np.ndarray, starts: np.ndarray, phases: tuple[np.ndarray, ...]
-) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """(p, v, a, j), each shape (len(times), dof), of per-joint phases at the given times."""
+def _phase_states(times: np.ndarray, starts: np.ndarray, phases: tuple[np.ndarray, ...]) -> np.ndarray:
+    """The stacked (p, v, a, j), shape (4, len(times), dof), of per-joint phases at the given times."""
     pos, vel, acc, jerk = phases
     # The phase of each joint in force at each time (the last one starting at or before it).
-    idx = np.sum(starts[:, None, :] <= times[None, :, None], axis=2).T - 1  # (K, dof)
-    cols = np.arange(starts.shape[0])
-    dt = times[:, None] - starts.T[idx, cols]
-    p0, v0, a0, j0 = pos.T[idx, cols], vel.T[idx, cols], acc.T[idx, cols], jerk.T[idx, cols]
-    return (
-        p0 + dt * (v0 + dt * (a0 / 2.0 + dt * j0 / 6.0)),
-        v0 + dt * (a0 + dt * j0 / 2.0),
-        a0 + dt * j0,
-        j0,
-    )
+    idx = np.count_nonzero(starts[:, None, :] <= times[None, :, None], axis=2).T - 1  # (K, dof)
+    flat = idx + np.arange(starts.shape[0]) * starts.shape[1]
+    dt = times[:, None] - starts.ravel()[flat]
+    out = np.empty((4,) + flat.shape)
+    p0, v0, a0, j0 = pos.ravel()[flat], vel.ravel()[flat], acc.ravel()[flat], jerk.ravel()[flat]
+    out[0] = p0 + dt * (v0 + dt * (a0 / 2.0 + dt * j0 / 6.0))
+    out[1] = v0 + dt * (a0 + dt * j0 / 2.0)
+    out[2] = a0 + dt * j0
+    out[3] = j0
+    return out
 
 
 def _add_s_curve(
