@@ -464,6 +464,27 @@ def test_segment_solver_answers_a_repeated_state_from_its_cache():
     assert solver.solve(1, v, a, np.zeros(2), np.zeros(2))[0] != first[0]
 
 
+def test_lazily_built_pieces_behave_like_given_ones():
+    # plan_trajectory builds the piece arrays on first use (JointTrajectory.lazy).
+    import dataclasses
+
+    from planner.motion.trajectory import JointTrajectory
+
+    limits = JointLimits(1.0, 2.0, 20.0, lower=[-2, -2], upper=[2, 2])
+    waypoints = [[0.0, 0.0], [1.0, -0.5], [0.5, 0.5], [0.0, 0.0]]
+    first, second = plan_trajectory(waypoints, limits), plan_trajectory(waypoints, limits)
+    sample = first.sample(np.linspace(0.0, first.duration, 50))
+    copy = replace(second, duration=second.duration)  # replace reads (and so builds) the pieces
+    np.testing.assert_array_equal(copy.knots, first.knots)
+    np.testing.assert_array_equal(copy.sample(sample.t).q, sample.q)
+    for name in ("knots", "p", "v", "a", "j"):
+        assert not getattr(first, name).flags.writeable
+        with pytest.raises(dataclasses.FrozenInstanceError):
+            setattr(first, name, np.zeros(1))
+    with pytest.raises(InvalidArgumentError, match="needs the fields"):
+        JointTrajectory.lazy(lambda: (), duration=1.0)
+
+
 def test_tiny_moves_end_on_their_waypoints():
     # Ruckig's time synchronisation ended the smaller of two 1e-7 rad moves 20 % off target.
     limits = JointLimits(velocity=1.0, acceleration=2.0, jerk=20.0, lower=[-1, -1], upper=[1, 1])

@@ -53,7 +53,7 @@ from planner.core.arrays import read_only
 from planner.exceptions import InvalidArgumentError, PlanningError
 from planner.motion.limits import JointLimits
 from planner.motion.request import TrajectoryRequest
-from planner.motion.segments import brake_segment, merge_segment, segment_position_range
+from planner.motion.segments import SegmentPieces, brake_segment, merge_segment, segment_position_range
 from planner.motion.trajectory import JointTrajectory
 from planner.motion.vias import ViaChain, ViaStrategy, via_strategy
 
@@ -67,7 +67,7 @@ class _StartOvershoot(Exception):
     """The given start state runs a joint out of its range in the first segment (caught by the planner)."""
 
 
-def _repair_range(chain: ViaChain) -> list[tuple[float, np.ndarray, np.ndarray]]:
+def _repair_range(chain: ViaChain) -> list[tuple[float, SegmentPieces]]:
     """Lower via velocities until no segment carries a joint outside its range.
 
     Every segment is checked exactly (:func:`planner.motion.segments.piece_position_range`);
@@ -78,7 +78,7 @@ def _repair_range(chain: ViaChain) -> list[tuple[float, np.ndarray, np.ndarray]]
         chain: The chain with its chosen via states (changed in place).
 
     Returns:
-        Per segment: its duration, local knot times and stacked (p, v, a, j) pieces.
+        Per segment: its duration and its pieces.
 
     Raises:
         _StartOvershoot: If the given start state itself carries a joint out of its range.
@@ -99,8 +99,7 @@ def _repair_range(chain: ViaChain) -> list[tuple[float, np.ndarray, np.ndarray]]
                 any_bad = True
                 continue
             merged = merge_segment(traj, d, start, chain.q[k + 1], chain.limits)
-            local, pieces, residual = merged.knots, merged.pieces, merged.residual
-            if residual.any():
+            if merged.residual.any():
                 free = [
                     idx
                     for idx in (k, k + 1)
@@ -115,8 +114,8 @@ def _repair_range(chain: ViaChain) -> list[tuple[float, np.ndarray, np.ndarray]]
                         chain.acc[idx] = 0.0
                     any_bad = True
                     continue
-            segments.append((d, local, pieces))
-            if not chain.seg.bounded or not len(local):
+            segments.append((d, merged))
+            if not chain.seg.bounded or d <= 0.0:
                 continue
             lo, hi = segment_position_range(traj, merged, d)
             bad = (lo < chain.seg.lower) | (hi > chain.seg.upper)
@@ -256,41 +255,44 @@ def plan_trajectory_request(request: TrajectoryRequest) -> JointTrajectory:
         v, acc, repaired = chain.v.copy(), chain.acc.copy(), chain.repaired.copy()
         v[0], acc[0] = v0, a0
 
-    knots, blocks, times = [], [], np.empty(n)
-    t = 0.0
-    if head is not None:
-        knots.append(head[1])
-        blocks.append(head[2])
-        t = head[0]
+    # The waypoint times now, the pieces when first used (JointTrajectory.lazy).
+    times, rests, starts = np.empty(n), np.empty(n), np.empty(n)
+    t = head[0] if head is not None else 0.0
     for k in range(n):
         times[k] = 0.0 if k == 0 else t
-        if dw[k] > 0:
-            knots.append(np.array([t]))
-            blocks.append(
-                np.stack([q[k][None], np.zeros((1, q.shape[1])), np.zeros((1, q.shape[1])), np.zeros((1, q.shape[1]))])
-            )
-            t += dw[k]
-        if k == n - 1:
-            break
-        dur, local, states = segments[k]
-        if len(local):
-            knots.append(t + local)
-            blocks.append(states)
-        t += dur
-    if knots:
-        all_knots = np.concatenate(knots)
-        pvaj = np.concatenate(blocks, axis=1)
-    else:  # every waypoint identical, no dwell: a motionless trajectory
-        all_knots = np.array([0.0])
-        pvaj = np.stack([q[:1], np.zeros((1, q.shape[1])), np.zeros((1, q.shape[1])), np.zeros((1, q.shape[1]))])
-    # Every array here is new (the request's are read-only already): freeze them in place.
-    pvaj.setflags(write=False)
-    return JointTrajectory(
-        knots=_frozen(all_knots),
-        p=pvaj[0],
-        v=pvaj[1],
-        a=pvaj[2],
-        j=pvaj[3],
+        rests[k] = t
+        t += dw[k]
+        starts[k] = t
+        if k < n - 1:
+            t += segments[k][0]
+    dof = q.shape[1]
+
+    def build() -> tuple[np.ndarray, ...]:
+        knots, blocks = [], []
+        if head is not None:
+            knots.append(head[1])
+            blocks.append(head[2])
+        for k in range(n):
+            if dw[k] > 0:
+                knots.append(np.array([rests[k]]))
+                blocks.append(np.concatenate([q[k][None, None], np.zeros((3, 1, dof))]))
+            if k < n - 1:
+                merged = segments[k][1]
+                if len(merged.knots):
+                    knots.append(starts[k] + merged.knots)
+                    blocks.append(merged.pieces)
+        if knots:
+            all_knots = np.concatenate(knots)
+            pvaj = np.concatenate(blocks, axis=1)
+        else:  # every waypoint identical, no dwell: a motionless trajectory
+            all_knots = np.array([0.0])
+            pvaj = np.concatenate([q[:1][None], np.zeros((3, 1, dof))])
+        # Every array here is new: freeze them in place.
+        pvaj.setflags(write=False)
+        return _frozen(all_knots), pvaj[0], pvaj[1], pvaj[2], pvaj[3]
+
+    return JointTrajectory.lazy(
+        build,
         duration=float(t),
         waypoints=q if not q.flags.writeable else read_only(q),
         waypoint_times=_frozen(times),

@@ -12,7 +12,7 @@ all joints; :func:`piece_position_range` gives their exact position extrema; and
 from __future__ import annotations
 
 import math
-from typing import NamedTuple
+from collections.abc import Callable
 
 import numpy as np
 from ruckig import ControlInterface, InputParameter, Result, Ruckig, RuckigError, Synchronization
@@ -216,22 +216,50 @@ class SegmentSolver:
             self.otg.calculate(self.inp, traj)  # keep the synchronised profile; merge_segment corrects it
 
 
-class SegmentPieces(NamedTuple):
+class SegmentPieces:
     """One Ruckig segment as constant-jerk pieces common to all joints (see :func:`merge_segment`).
 
+    The pieces are built on first use of :attr:`knots` or :attr:`pieces` (the range check
+    needs only :attr:`missed` and Ruckig's own extrema).
+
     Attributes:
-        knots: Local knot times, shape (K,) [s].
-        pieces: The stacked (p, v, a, j) at each knot, shape (4, K, dof).
         residual: The end error left per joint, shape (dof,) [rad or m].
         missed: Per joint, the lowest and highest turning point inside a phase of zero jerk
             (which Ruckig's ``position_extrema`` misses), shapes (dof,) (inf and -inf where
             none); None where the pieces are not Ruckig's profile (an end correction added).
     """
 
-    knots: np.ndarray
-    pieces: np.ndarray
-    residual: np.ndarray
-    missed: tuple[np.ndarray, np.ndarray] | None
+    __slots__ = ("_build", "_knots", "_pieces", "missed", "residual")
+
+    def __init__(
+        self,
+        build: Callable[[], tuple[np.ndarray, np.ndarray]],
+        residual: np.ndarray,
+        missed: tuple[np.ndarray, np.ndarray] | None,
+    ):
+        """Pieces that `build` makes (local knots (K,), stacked (p, v, a, j) (4, K, dof))."""
+        self._build: Callable[[], tuple[np.ndarray, np.ndarray]] | None = build
+        self._knots: np.ndarray | None = None
+        self._pieces: np.ndarray | None = None
+        self.residual = residual
+        self.missed = missed
+
+    def _made(self) -> None:
+        if self._build is not None:
+            self._knots, self._pieces = self._build()
+            self._build = None
+
+    @property
+    def knots(self) -> np.ndarray:
+        """Local knot times, shape (K,) [s]."""
+        self._made()
+        return self._knots
+
+    @property
+    def pieces(self) -> np.ndarray:
+        """The stacked (p, v, a, j) at each knot, shape (4, K, dof)."""
+        self._made()
+        return self._pieces
 
 
 def merge_segment(
@@ -269,15 +297,14 @@ def merge_segment(
     profiles = traj.profiles[0]
     dof = len(profiles)
     if duration <= 0.0:
-        return SegmentPieces(np.empty(0), np.empty((4, 0, dof)), np.zeros(dof), None)
-    t = np.array([prof.t for prof in profiles])  # (dof, 7)
+        return SegmentPieces(lambda: (np.empty(0), np.empty((4, 0, dof))), np.zeros(dof), None)
     # An 8th phase holds the end state (zero jerk) in case a joint's profile ends early.
     jerk = np.array([prof.j + [0.0] for prof in profiles])
     acc = np.array([prof.a for prof in profiles])  # (dof, 8): phase starts and the end state
     vel = np.array([prof.v for prof in profiles])
     pos = np.array([prof.p for prof in profiles])
     starts = np.zeros((dof, 8))
-    np.cumsum(t, axis=1, out=starts[:, 1:])
+    np.cumsum([prof.t for prof in profiles], axis=1, out=starts[:, 1:])
     brakes = [prof.brake for prof in profiles]
     if any(b.duration > 0 for b in brakes):
         offset = np.array([b.duration for b in brakes])[:, None]
@@ -292,16 +319,45 @@ def merge_segment(
         starts[none, :2] = 0.0
     if any(prof.accel.duration > 0 for prof in profiles):  # pragma: no cover - via states are admissible
         raise RuntimeError("Ruckig needed a post-profile: a via state exceeds the limits")
-    knots = np.sort(starts, axis=None)
-    knots = knots[knots < duration]
-    first = np.empty(len(knots), dtype=bool)
-    first[0] = True
-    np.not_equal(knots[1:], knots[:-1], out=first[1:])
-    knots = knots[first]  # the distinct phase starts (every profile starts at 0)
-    # Ruckig's position extrema miss a turning point inside a phase of zero jerk (see
-    # piece_position_range), where the velocity changes sign: those are added here.
+    phases = (pos, vel, acc, jerk)
+
+    def build(extra: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+        knots = np.sort(starts if extra is None else np.append(starts, extra), axis=None)
+        knots = knots[knots < duration]
+        first = np.empty(len(knots), dtype=bool)
+        first[0] = True
+        np.not_equal(knots[1:], knots[:-1], out=first[1:])
+        knots = knots[first]  # the distinct phase starts (every profile starts at 0)
+        out = _phase_states(knots, starts, phases)
+        # The segment starts exactly at its waypoint state.
+        out[0, 0], out[1, 0], out[2, 0] = start
+        return knots, out
+
+    residual = np.zeros(dof)
+    if end is not None:
+        error = np.asarray(end, dtype=float) - pos[:, -1]  # each profile's end position
+        off = np.abs(error) > END_TOLERANCE * np.maximum(1.0, np.abs(end))
+        if off.any():
+            knots, out = build(duration * np.array([0.25, 0.5, 0.75]))
+            corrected = out.copy()
+            if _add_s_curve(corrected, knots, duration, np.where(off, error, 0.0), limits):
+                corrected[0, 0], corrected[1, 0], corrected[2, 0] = start
+                return SegmentPieces(lambda: (knots, corrected), residual, None)
+            residual = np.where(off, error, 0.0)
+            return SegmentPieces(lambda: (knots, out), residual, _missed_turns(phases))
+    return SegmentPieces(build, residual, _missed_turns(phases))
+
+
+def _missed_turns(phases: tuple[np.ndarray, ...]) -> tuple[np.ndarray, np.ndarray]:
+    """Per joint, the lowest and highest turning point inside a phase of zero jerk, shapes (dof,).
+
+    Ruckig's position extrema miss them (see :func:`piece_position_range`): a velocity that
+    changes sign across such a phase. inf and -inf where a joint has none.
+    """
+    pos, vel, acc, jerk = phases
+    dof = len(pos)
     turns = (jerk[:, :-1] == 0.0) & (vel[:, :-1] * vel[:, 1:] < 0.0)
-    missed: tuple[np.ndarray, np.ndarray] | None = (np.full(dof, np.inf), np.full(dof, -np.inf))
+    missed = (np.full(dof, np.inf), np.full(dof, -np.inf))
     if turns.any():
         v0, a0 = vel[:, :-1][turns], acc[:, :-1][turns]
         tz = -v0 / a0
@@ -309,26 +365,7 @@ def merge_segment(
         rows = np.nonzero(turns)[0]
         np.minimum.at(missed[0], rows, p_turn)
         np.maximum.at(missed[1], rows, p_turn)
-    error = None
-    if end is not None:
-        error = np.asarray(end, dtype=float) - pos[:, -1]  # each profile's end position
-        off = np.abs(error) > END_TOLERANCE * np.maximum(1.0, np.abs(end))
-        if off.any():
-            knots = np.union1d(knots, duration * np.array([0.25, 0.5, 0.75]))
-        else:
-            error = None
-    out = _phase_states(knots, starts, (pos, vel, acc, jerk))
-    residual = np.zeros(dof)
-    if error is not None:
-        corrected = out.copy()
-        if _add_s_curve(corrected, knots, duration, np.where(off, error, 0.0), limits):
-            out = corrected
-            missed = None
-        else:
-            residual = np.where(off, error, 0.0)
-    # The segment starts exactly at its waypoint state.
-    out[0, 0], out[1, 0], out[2, 0] = start
-    return SegmentPieces(knots, out, residual, missed)
+    return missed
 
 
 def segment_position_range(
@@ -454,7 +491,8 @@ def brake_segment(
         raise InvalidArgumentError(f"cannot brake from the start state (Ruckig: {result})")
     duration = float(traj.duration)
     rest = np.array([prof.p[-1] for prof in traj.profiles[0]])
-    local, pieces, _, _ = merge_segment(traj, duration, (q0, v0, a0))
+    merged = merge_segment(traj, duration, (q0, v0, a0))
+    local, pieces = merged.knots, merged.pieces
     lo, hi = piece_position_range(local, pieces, duration) if len(local) else (q0, q0)
     lower, upper = range_with_tolerance(limits)
     bad = np.nonzero((lo < lower) | (hi > upper))[0]
