@@ -127,6 +127,11 @@ class JointLimits:
         return len(self.joint_names)
 
     @cached_property
+    def twice_jerk(self) -> np.ndarray:
+        """2 * jerk, shape (dof,) [rad/s^3 or m/s^3] (read-only; for the via-state rule)."""
+        return read_only(2.0 * self.jerk)
+
+    @cached_property
     def checked_range(self) -> tuple[np.ndarray, np.ndarray]:
         """Lower and upper bounds of the range checks, widened by :data:`RANGE_TOLERANCE`, shapes (dof,)."""
         lower = self.lower - RANGE_TOLERANCE * np.maximum(1.0, np.abs(np.nan_to_num(self.lower)))
@@ -217,5 +222,5 @@ def admissible_acceleration(v: np.ndarray, a: np.ndarray, limits: JointLimits) -
         The accelerations, each clipped to what its velocity allows (a new array).
     """
     room = np.maximum(limits.velocity - np.abs(v), 0.0)
-    amax = np.minimum(limits.acceleration, np.sqrt(2.0 * limits.jerk * room) * (1.0 - 1e-9))
+    amax = np.minimum(limits.acceleration, np.sqrt(limits.twice_jerk * room) * (1.0 - 1e-9))
     return np.maximum(np.minimum(a, amax), -amax)

@@ -304,7 +304,7 @@ def merge_segment(
     vel = np.array([prof.v for prof in profiles])
     pos = np.array([prof.p for prof in profiles])
     starts = np.zeros((dof, 8))
-    np.cumsum([prof.t for prof in profiles], axis=1, out=starts[:, 1:])
+    np.cumsum(np.array([prof.t for prof in profiles]), axis=1, out=starts[:, 1:])
     brakes = [prof.brake for prof in profiles]
     if any(b.duration > 0 for b in brakes):
         offset = np.array([b.duration for b in brakes])[:, None]

@@ -31,17 +31,20 @@ _MAX_SCALE = 1e100
 
 __all__ = ["OptimizedStrategy", "golden_minimum", "spline_via_states"]
 
-# Scale factors tried first for each via state (1 = the slope blend itself).
+# Scale factors tried first for each via state (1 = the slope blend itself), then golden-section
+# steps around the best. 5 steps here, 3 in the turn search and 8 spline evaluations took 28 %
+# more Ruckig solves for the same durations (these settings: median per path +0.01 %, mean
+# -0.02 %; random 5-waypoint paths of eight arms, two sets of 480).
 _GRID = (0.0, 0.5, 1.0, 1.4, 2.0, 3.0)
-_GOLDEN_STEPS = 5
+_GOLDEN_STEPS = 2
 # Spline stage: range of the common log time-scale of the segment durations searched, and
 # golden-section evaluations (a simplex over every duration gained nothing on top).
 _SPLINE_SCALE = (-0.5, 0.1)
-_SPLINE_SCALE_EVALS = 8
+_SPLINE_SCALE_EVALS = 6
 # A segment whose Ruckig extrema leave the range counts this much longer in the search.
 _SPLINE_PENALTY = 1.5
 _TURN_GRID = (0.0, 0.5, 1.0)
-_TURN_STEPS = 3
+_TURN_STEPS = 1
 # Rounds of halving the via states that leave the range before the search.
 _SETTLE_HALVINGS = 24
 
@@ -85,25 +88,27 @@ def spline_via_states(
         Velocities and accelerations at ``q[1:m]``, shapes (m-1, dof).
     """
     m = len(h)
-    slope = np.diff(q, axis=0) / h[:, None]  # (m, dof)
+    slope = (q[1:] - q[:-1]) / h[:, None]  # (m, dof)
     inv = 1.0 / h
     # Tridiagonal system for v_1 .. v_{m-1} (Thomas algorithm, one right-hand side per joint).
-    diag = 2.0 * (inv[:-1] + inv[1:])
+    diag = (2.0 * (inv[:-1] + inv[1:])).tolist()
     rhs = 3.0 * (slope[:-1] * inv[:-1, None] + slope[1:] * inv[1:, None])
-    rhs[0] -= inv[0] * v_start
-    rhs[-1] -= inv[-1] * v_end
-    c = np.empty(m - 1)
+    inv_list = inv.tolist()
+    rhs[0] -= inv_list[0] * v_start
+    rhs[-1] -= inv_list[-1] * v_end
+    c = [inv_list[1] / diag[0]]
     d = np.empty_like(rhs)
-    c[0], d[0] = inv[1] / diag[0], rhs[0] / diag[0]
+    d[0] = rhs[0] / diag[0]
     for r in range(1, m - 1):
-        den = diag[r] - inv[r] * c[r - 1]
-        c[r] = inv[r + 1] / den
-        d[r] = (rhs[r] - inv[r] * d[r - 1]) / den
+        den = diag[r] - inv_list[r] * c[r - 1]
+        c.append(inv_list[r + 1] / den)
+        d[r] = (rhs[r] - inv_list[r] * d[r - 1]) / den
     v = np.empty_like(rhs)
     v[-1] = d[-1]
     for r in range(m - 3, -1, -1):
         v[r] = d[r] - c[r] * v[r + 1]
-    v_next = np.vstack([v[1:], v_end[None]])
+    v_next = np.empty_like(v)
+    v_next[:-1], v_next[-1] = v[1:], v_end
     acc = (6.0 * slope[1:] - 4.0 * v - 2.0 * v_next) * inv[1:, None]
     return v, acc
 
@@ -236,7 +241,7 @@ class OptimizedStrategy(ViaStrategy):
 
         def cost(log_h: np.ndarray) -> float:
             v, acc = spline_via_states(q_run, np.exp(log_h), v_a, v_b)
-            v = np.clip(v, -lim.velocity, lim.velocity)
+            v = np.minimum(np.maximum(v, -lim.velocity), lim.velocity)
             acc = admissible_acceleration(v, acc, lim)
             total, inside = 0.0, True
             for k in range(a, b):
