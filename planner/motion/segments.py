@@ -355,17 +355,14 @@ def _missed_turns(phases: tuple[np.ndarray, ...]) -> tuple[np.ndarray, np.ndarra
     changes sign across such a phase. inf and -inf where a joint has none.
     """
     pos, vel, acc, jerk = phases
-    dof = len(pos)
-    turns = (jerk[:, :-1] == 0.0) & (vel[:, :-1] * vel[:, 1:] < 0.0)
-    missed = (np.full(dof, np.inf), np.full(dof, -np.inf))
-    if turns.any():
-        v0, a0 = vel[:, :-1][turns], acc[:, :-1][turns]
+    v0, a0 = vel[:, :-1], acc[:, :-1]
+    turns = (jerk[:, :-1] == 0.0) & (v0 * vel[:, 1:] < 0.0)
+    if not turns.any():
+        return np.full(len(pos), np.inf), np.full(len(pos), -np.inf)
+    with np.errstate(divide="ignore", invalid="ignore"):
         tz = -v0 / a0
-        p_turn = pos[:, :-1][turns] + tz * (v0 + tz * a0 / 2.0)
-        rows = np.nonzero(turns)[0]
-        np.minimum.at(missed[0], rows, p_turn)
-        np.maximum.at(missed[1], rows, p_turn)
-    return missed
+        p_turn = pos[:, :-1] + tz * (v0 + tz * a0 / 2.0)
+    return np.where(turns, p_turn, np.inf).min(axis=1), np.where(turns, p_turn, -np.inf).max(axis=1)
 
 
 def segment_position_range(
