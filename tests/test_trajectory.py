@@ -301,6 +301,14 @@ def test_nan_waypoint():
         plan_trajectory([[0, 0], [0, float("nan")]], LIM)
 
 
+def test_infinite_waypoint_of_a_joint_without_range():
+    # A continuous joint (infinite range) still needs finite waypoints.
+    limits = JointLimits(1.0, 2.0, 20.0, lower=[-1.0, -math.inf], upper=[1.0, math.inf], joint_names=("a", "b"))
+    with pytest.raises(InvalidConfigurationError, match=r"waypoint 1 holds inf for joint 'b'"):
+        plan_trajectory(np.array([[0.0, 0.0], [0.0, math.inf]]), limits)
+    assert plan_trajectory(np.array([[0.0, 0.0], [0.5, 10.0]]), limits).duration > 0.0
+
+
 def test_fewer_than_two_waypoints():
     with pytest.raises(InvalidArgumentError, match="at least two waypoints, got 1"):
         plan_trajectory([[0, 0]], LIM)
