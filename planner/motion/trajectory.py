@@ -10,6 +10,7 @@ from __future__ import annotations
 import csv
 import dataclasses
 import math
+import threading
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -48,6 +49,9 @@ class TrajectorySample:
     qddd: np.ndarray
 
 
+_BUILD_LOCK = threading.Lock()
+
+
 class _Pieces:
     """A piece array of :class:`JointTrajectory`: given to the constructor, or built on first use."""
 
@@ -60,9 +64,12 @@ class _Pieces:
         try:
             return obj.__dict__[self.name]
         except KeyError:
-            build = obj.__dict__.pop("_build_pieces")
-            for name, value in zip(("knots", "p", "v", "a", "j"), build()):
-                obj.__dict__[name] = value
+            with _BUILD_LOCK:  # one thread builds, the others then find the arrays
+                if self.name not in obj.__dict__:
+                    build = obj.__dict__["_build_pieces"]
+                    for name, value in zip(("knots", "p", "v", "a", "j"), build()):
+                        obj.__dict__[name] = value
+                    del obj.__dict__["_build_pieces"]
             return obj.__dict__[self.name]
 
     def __set__(self, obj: JointTrajectory, value: np.ndarray) -> None:
