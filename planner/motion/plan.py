@@ -28,8 +28,9 @@ chooses the state (velocity and acceleration) at every via waypoint itself:
 3. **Range repair.** A non-zero via state can carry a joint past its range inside a segment.
    The search discards such candidates (halving the offending joints' via state), and every
    final segment is checked exactly: the per-joint extrema of its constant-jerk pieces
-   (:func:`planner.motion.segments.piece_position_range`; Ruckig's own ``position_extrema`` misses turning points
-   inside constant-acceleration phases). Where one lies outside the range, that joint's via
+   (:func:`planner.motion.segments.segment_position_range`: Ruckig's own ``position_extrema``
+   plus the turning points inside constant-acceleration phases that they miss). Where one
+   lies outside the range, that joint's via
    state at the segment's ends is halved until it fits (after six halvings it is set to
    rest). Samples are never clipped: a joint at rest at both ends of a segment moves
    monotonically, so the repair ends inside the range.
@@ -70,7 +71,7 @@ class _StartOvershoot(Exception):
 def _repair_range(chain: ViaChain) -> list[tuple[float, SegmentPieces]]:
     """Lower via velocities until no segment carries a joint outside its range.
 
-    Every segment is checked exactly (:func:`planner.motion.segments.piece_position_range`);
+    Every segment is checked exactly (:func:`planner.motion.segments.segment_position_range`);
     where a joint leaves its range, its via state at the segment's free ends is halved (after
     a few halvings set to rest) and the chain is solved again. Sets ``chain.repaired``.
 

@@ -4,9 +4,11 @@ The community edition of Ruckig computes time-optimal state-to-state motions (po
 velocity and acceleration at both ends) under velocity, acceleration and jerk limits, but has
 no intermediate waypoints and no position limits. :class:`SegmentSolver` solves the segments
 between fixed positions (reusing one Ruckig instance) and flags joints that Ruckig's extrema put
-outside their range; :func:`merge_segment` turns a segment into constant-jerk pieces common to
-all joints; :func:`piece_position_range` gives their exact position extrema; and
-:func:`brake_segment` brings a moving start state to rest.
+outside their range (remembering the answers: the via search asks for some states more than
+once); :func:`merge_segment` turns a segment into constant-jerk pieces common to all joints
+(built when first used); :func:`segment_position_range` gives a segment's exact position
+extrema from Ruckig's own plus the turning points they miss (:func:`piece_position_range`
+computes them from the pieces); and :func:`brake_segment` brings a moving start state to rest.
 """
 
 from __future__ import annotations
