@@ -31,9 +31,10 @@ timed on the same path, one after the other); median duration within 0.5 % of th
 estimate (the "optimum gap": duration / optimum - 1, median over the paths solved as an NLP).
 The duration figures are medians over paths of per-path ratios (duration / the reference's
 duration); the ratio of the median durations is shown as well. Prints a Markdown table and
-writes JSON and Markdown to benchmarks/results/. Times are the process's CPU time
-(``time.process_time``; ``--clock wall`` for wall time): the machine is shared, and wall time
-counts the time other processes hold the CPU.
+writes JSON and Markdown to benchmarks/results/. Times are the CPU time of the planning
+thread (``time.thread_time``; ``--clock wall`` for wall time): the machine is shared, and wall
+time counts the time other processes hold the CPU, process CPU time the spinning of the BLAS
+threads TOPPRA leaves behind.
 
     python benchmarks/bench_trajectory.py [--paths 100] [--seed 0] [--optimum-every K] [--clock cpu|wall]
 """
@@ -57,9 +58,9 @@ from planner.motion.plan import plan_trajectory
 from planner.motion.trajectory import LIMIT_TOLERANCE
 
 RESULTS = Path(__file__).resolve().parent / "results"
-#: The clock of every timing: the process's CPU time by default (other processes on a shared
-#: machine do not inflate it), wall time with ``--clock wall``.
-CLOCKS = {"cpu": time.process_time, "wall": time.perf_counter}
+#: The clock of every timing: the calling thread's CPU time by default (neither other processes
+#: on a shared machine nor idle-spinning BLAS threads inflate it), wall time with ``--clock wall``.
+CLOCKS = {"cpu": time.thread_time, "wall": time.perf_counter}
 _clock = [CLOCKS["cpu"]]
 
 
