@@ -301,6 +301,14 @@ def test_nan_waypoint():
         plan_trajectory([[0, 0], [0, float("nan")]], LIM)
 
 
+def test_infinite_waypoint_of_a_joint_without_range():
+    # A continuous joint (infinite range) still needs finite waypoints.
+    limits = JointLimits(1.0, 2.0, 20.0, lower=[-1.0, -math.inf], upper=[1.0, math.inf], joint_names=("a", "b"))
+    with pytest.raises(InvalidConfigurationError, match=r"waypoint 1 holds inf for joint 'b'"):
+        plan_trajectory(np.array([[0.0, 0.0], [0.0, math.inf]]), limits)
+    assert plan_trajectory(np.array([[0.0, 0.0], [0.5, 10.0]]), limits).duration > 0.0
+
+
 def test_fewer_than_two_waypoints():
     with pytest.raises(InvalidArgumentError, match="at least two waypoints, got 1"):
         plan_trajectory([[0, 0]], LIM)
@@ -420,6 +428,69 @@ def test_out_and_back_on_one_parabola_is_no_profile_not_a_crash():
     a = np.array([-10.47197551196598 * 0.999])
     duration, _, _ = solver.solve(0, np.array([0.3]), a, np.array([-0.3]), a)
     assert duration == math.inf
+
+
+def test_segment_range_from_ruckig_extrema_equals_the_exact_piece_range():
+    # Ruckig's position_extrema miss turning points inside phases of zero jerk; the range
+    # check adds them, and must agree with the extrema computed from the pieces themselves.
+    from planner.motion.limits import admissible_acceleration
+    from planner.motion.segments import (
+        SegmentSolver,
+        merge_segment,
+        piece_position_range,
+        segment_position_range,
+    )
+
+    rng = np.random.default_rng(3)
+    dof = 4
+    limits = JointLimits(1.0, 2.0, 20.0, lower=np.full(dof, -3.0), upper=np.full(dof, 3.0))
+    turned = 0
+    for _ in range(300):
+        q = rng.uniform(-1.0, 1.0, (2, dof))
+        v = rng.uniform(-1.0, 1.0, (2, dof)) * rng.choice([0.0, 0.5, 1.0], (2, 1))
+        a = admissible_acceleration(v, rng.uniform(-2.0, 2.0, (2, dof)), limits)
+        duration, _, traj = SegmentSolver(q, limits).solve(0, v[0], a[0], v[1], a[1], keep=True)
+        merged = merge_segment(traj, duration, (q[0], v[0], a[0]), q[1], limits)
+        lo, hi = segment_position_range(traj, merged, duration)
+        lo_exact, hi_exact = piece_position_range(merged.knots, merged.pieces, duration)
+        np.testing.assert_allclose(lo, lo_exact, rtol=0.0, atol=1e-13)
+        np.testing.assert_allclose(hi, hi_exact, rtol=0.0, atol=1e-13)
+        turned += merged.missed is not None and bool(np.isfinite(merged.missed[0]).any())
+    assert turned > 100  # the case Ruckig's extrema miss is common with moving end states
+
+
+def test_segment_solver_answers_a_repeated_state_from_its_cache():
+    from planner.motion.segments import SegmentSolver
+
+    limits = JointLimits(1.0, 2.0, 20.0, lower=[-2, -2], upper=[2, 2])
+    solver = SegmentSolver(np.array([[0.0, 0.0], [1.0, -0.5], [0.5, 0.5]]), limits)
+    v, a = np.array([0.3, -0.2]), np.array([0.1, 0.0])
+    first = solver.solve(0, np.zeros(2), np.zeros(2), v, a)
+    fresh = SegmentSolver(solver.q, limits).solve(0, np.zeros(2), np.zeros(2), v, a)
+    assert solver.solve(0, np.zeros(2), np.zeros(2), v, a) is first
+    assert first[0] == fresh[0]
+    assert solver.solve(1, v, a, np.zeros(2), np.zeros(2))[0] != first[0]
+
+
+def test_lazily_built_pieces_behave_like_given_ones():
+    # plan_trajectory builds the piece arrays on first use (JointTrajectory.lazy).
+    import dataclasses
+
+    from planner.motion.trajectory import JointTrajectory
+
+    limits = JointLimits(1.0, 2.0, 20.0, lower=[-2, -2], upper=[2, 2])
+    waypoints = [[0.0, 0.0], [1.0, -0.5], [0.5, 0.5], [0.0, 0.0]]
+    first, second = plan_trajectory(waypoints, limits), plan_trajectory(waypoints, limits)
+    sample = first.sample(np.linspace(0.0, first.duration, 50))
+    copy = replace(second, duration=second.duration)  # replace reads (and so builds) the pieces
+    np.testing.assert_array_equal(copy.knots, first.knots)
+    np.testing.assert_array_equal(copy.sample(sample.t).q, sample.q)
+    for name in ("knots", "p", "v", "a", "j"):
+        assert not getattr(first, name).flags.writeable
+        with pytest.raises(dataclasses.FrozenInstanceError):
+            setattr(first, name, np.zeros(1))
+    with pytest.raises(InvalidArgumentError, match="needs the fields"):
+        JointTrajectory.lazy(lambda: (), duration=1.0)
 
 
 def test_tiny_moves_end_on_their_waypoints():

@@ -27,7 +27,21 @@ def check_waypoints(waypoints: Sequence[Sequence[float]] | np.ndarray, limits: J
         JointLimitError: If a waypoint lies outside a joint's range (joint and value named).
     """
     names = limits.joint_names
-    rows = list(waypoints) if not isinstance(waypoints, np.ndarray) else list(waypoints)
+    try:  # the common case at once; anything it rejects is checked row by row for the message
+        whole = np.array(waypoints, dtype=float)
+    except (TypeError, ValueError):
+        whole = None
+    if (
+        whole is not None
+        and whole.ndim == 2
+        and whole.shape[0] >= 2
+        and whole.shape[1] == limits.dof
+        and np.all(np.isfinite(whole))
+        and np.all(whole >= limits.lower)
+        and np.all(whole <= limits.upper)
+    ):
+        return whole
+    rows = list(waypoints)
     if len(rows) < 2:
         raise InvalidArgumentError(f"a trajectory needs at least two waypoints, got {len(rows)}")
     out = np.empty((len(rows), limits.dof))
@@ -111,6 +125,8 @@ def check_given(
         InvalidArgumentError: On a wrong shape, a value beyond its limit or a negative duration.
     """
     dof = limits.dof
+    if velocities is None and accelerations is None and min_durations is None:
+        return np.full((n, dof), np.nan), np.zeros((n, dof)), np.zeros(n - 1)
     out = []
     for what, value, lim in (
         ("via_velocities", velocities, limits.velocity),

@@ -10,6 +10,7 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass, field
+from functools import cached_property
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -22,7 +23,11 @@ from planner.exceptions import InvalidLimitsError
 if TYPE_CHECKING:
     from planner.model.robot import Robot
 
-__all__ = ["JointLimits", "admissible_acceleration", "per_joint_limit"]
+__all__ = ["RANGE_TOLERANCE", "JointLimits", "admissible_acceleration", "per_joint_limit"]
+
+#: Relative slack of the position-range checks [rad or m per unit of max(1, |bound|)]: a joint
+#: counts as leaving its range only beyond it, so that rounding at a range end is no overshoot.
+RANGE_TOLERANCE = 1e-10
 
 
 def per_joint_limit(
@@ -121,6 +126,18 @@ class JointLimits:
         """Number of joints."""
         return len(self.joint_names)
 
+    @cached_property
+    def twice_jerk(self) -> np.ndarray:
+        """2 * jerk, shape (dof,) [rad/s^3 or m/s^3] (read-only; for the via-state rule)."""
+        return read_only(2.0 * self.jerk)
+
+    @cached_property
+    def checked_range(self) -> tuple[np.ndarray, np.ndarray]:
+        """Lower and upper bounds of the range checks, widened by :data:`RANGE_TOLERANCE`, shapes (dof,)."""
+        lower = self.lower - RANGE_TOLERANCE * np.maximum(1.0, np.abs(np.nan_to_num(self.lower)))
+        upper = self.upper + RANGE_TOLERANCE * np.maximum(1.0, np.abs(np.nan_to_num(self.upper)))
+        return read_only(lower), read_only(upper)
+
     @classmethod
     def from_robot(
         cls,
@@ -205,5 +222,5 @@ def admissible_acceleration(v: np.ndarray, a: np.ndarray, limits: JointLimits) -
         The accelerations, each clipped to what its velocity allows (a new array).
     """
     room = np.maximum(limits.velocity - np.abs(v), 0.0)
-    amax = np.minimum(limits.acceleration, np.sqrt(2.0 * limits.jerk * room) * (1.0 - 1e-9))
+    amax = np.minimum(limits.acceleration, np.sqrt(limits.twice_jerk * room) * (1.0 - 1e-9))
     return np.maximum(np.minimum(a, amax), -amax)

@@ -28,8 +28,9 @@ chooses the state (velocity and acceleration) at every via waypoint itself:
 3. **Range repair.** A non-zero via state can carry a joint past its range inside a segment.
    The search discards such candidates (halving the offending joints' via state), and every
    final segment is checked exactly: the per-joint extrema of its constant-jerk pieces
-   (:func:`planner.motion.segments.piece_position_range`; Ruckig's own ``position_extrema`` misses turning points
-   inside constant-acceleration phases). Where one lies outside the range, that joint's via
+   (:func:`planner.motion.segments.segment_position_range`: Ruckig's own ``position_extrema``
+   plus the turning points inside constant-acceleration phases that they miss). Where one
+   lies outside the range, that joint's via
    state at the segment's ends is halved until it fits (after six halvings it is set to
    rest). Samples are never clipped: a joint at rest at both ends of a segment moves
    monotonically, so the repair ends inside the range.
@@ -53,7 +54,7 @@ from planner.core.arrays import read_only
 from planner.exceptions import InvalidArgumentError, PlanningError
 from planner.motion.limits import JointLimits
 from planner.motion.request import TrajectoryRequest
-from planner.motion.segments import brake_segment, merge_segment, piece_position_range
+from planner.motion.segments import SegmentPieces, brake_segment, merge_segment, segment_position_range
 from planner.motion.trajectory import JointTrajectory
 from planner.motion.vias import ViaChain, ViaStrategy, via_strategy
 
@@ -67,10 +68,10 @@ class _StartOvershoot(Exception):
     """The given start state runs a joint out of its range in the first segment (caught by the planner)."""
 
 
-def _repair_range(chain: ViaChain) -> list[tuple[float, np.ndarray, np.ndarray]]:
+def _repair_range(chain: ViaChain) -> list[tuple[float, SegmentPieces]]:
     """Lower via velocities until no segment carries a joint outside its range.
 
-    Every segment is checked exactly (:func:`planner.motion.segments.piece_position_range`);
+    Every segment is checked exactly (:func:`planner.motion.segments.segment_position_range`);
     where a joint leaves its range, its via state at the segment's free ends is halved (after
     a few halvings set to rest) and the chain is solved again. Sets ``chain.repaired``.
 
@@ -78,12 +79,12 @@ def _repair_range(chain: ViaChain) -> list[tuple[float, np.ndarray, np.ndarray]]
         chain: The chain with its chosen via states (changed in place).
 
     Returns:
-        Per segment: its duration, local knot times and stacked (p, v, a, j) pieces.
+        Per segment: its duration and its pieces.
 
     Raises:
         _StartOvershoot: If the given start state itself carries a joint out of its range.
     """
-    before = np.hstack([chain.v, chain.acc])
+    before_v, before_acc = chain.v.copy(), chain.acc.copy()
     halved = np.zeros(chain.v.shape, dtype=int)
     for _ in range(4 * _REPAIR_HALVINGS + chain.n):
         segments, any_bad = [], False
@@ -98,25 +99,26 @@ def _repair_range(chain: ViaChain) -> list[tuple[float, np.ndarray, np.ndarray]]
                         chain.acc[idx] = 0.0
                 any_bad = True
                 continue
-            local, pieces, residual = merge_segment(traj, d, start, chain.q[k + 1], chain.limits)
-            free = [
-                idx
-                for idx in (k, k + 1)
-                if idx > 0 and not chain.fixed[idx] and (np.any(chain.v[idx] != 0) or np.any(chain.acc[idx] != 0))
-            ]
-            if free and np.any(residual != 0.0):
-                # Ruckig's profile misses its end and no correction fits the limits: rest at the
-                # free ends, where it is exact. (Prescribed via states keep Ruckig's profile,
-                # which meets the next segment within its precision, RUCKIG_PRECISION.)
-                for idx in free:
-                    chain.v[idx] = 0.0
-                    chain.acc[idx] = 0.0
-                any_bad = True
+            merged = merge_segment(traj, d, start, chain.q[k + 1], chain.limits)
+            if merged.residual.any():
+                free = [
+                    idx
+                    for idx in (k, k + 1)
+                    if idx > 0 and not chain.fixed[idx] and (chain.v[idx].any() or chain.acc[idx].any())
+                ]
+                if free:
+                    # Ruckig's profile misses its end and no correction fits the limits: rest at
+                    # the free ends, where it is exact. (Prescribed via states keep Ruckig's
+                    # profile, which meets the next segment within its precision, RUCKIG_PRECISION.)
+                    for idx in free:
+                        chain.v[idx] = 0.0
+                        chain.acc[idx] = 0.0
+                    any_bad = True
+                    continue
+            segments.append((d, merged))
+            if not chain.seg.bounded or d <= 0.0:
                 continue
-            segments.append((d, local, pieces))
-            if not chain.seg.bounded or not len(local):
-                continue
-            lo, hi = piece_position_range(local, pieces, d)
+            lo, hi = segment_position_range(traj, merged, d)
             bad = (lo < chain.seg.lower) | (hi > chain.seg.upper)
             if not bad.any():
                 continue
@@ -139,9 +141,7 @@ def _repair_range(chain: ViaChain) -> list[tuple[float, np.ndarray, np.ndarray]]
                 chain.v[idx] *= factor
                 chain.acc[idx] *= factor
         if not any_bad:
-            after = np.hstack([chain.v, chain.acc])
-            dof = chain.v.shape[1]
-            chain.repaired |= (after[:, :dof] != before[:, :dof]) | (after[:, dof:] != before[:, dof:])
+            chain.repaired |= (chain.v != before_v) | (chain.acc != before_acc)
             return segments
     raise PlanningError(  # pragma: no cover - zero via speeds always fit
         "the via states could not be brought within the joint ranges; add stops at the waypoints near the range ends"
@@ -256,46 +256,57 @@ def plan_trajectory_request(request: TrajectoryRequest) -> JointTrajectory:
         v, acc, repaired = chain.v.copy(), chain.acc.copy(), chain.repaired.copy()
         v[0], acc[0] = v0, a0
 
-    knots, blocks, times = [], [], np.empty(n)
-    t = 0.0
-    if head is not None:
-        knots.append(head[1])
-        blocks.append(head[2])
-        t = head[0]
+    # The waypoint times now, the pieces when first used (JointTrajectory.lazy).
+    times, rests, starts = np.empty(n), np.empty(n), np.empty(n)
+    t = head[0] if head is not None else 0.0
     for k in range(n):
         times[k] = 0.0 if k == 0 else t
-        if dw[k] > 0:
-            knots.append(np.array([t]))
-            blocks.append(
-                np.stack([q[k][None], np.zeros((1, q.shape[1])), np.zeros((1, q.shape[1])), np.zeros((1, q.shape[1]))])
-            )
-            t += dw[k]
-        if k == n - 1:
-            break
-        dur, local, states = segments[k]
-        if len(local):
-            knots.append(t + local)
-            blocks.append(states)
-        t += dur
-    if knots:
-        all_knots = np.concatenate(knots)
-        pvaj = np.concatenate(blocks, axis=1)
-    else:  # every waypoint identical, no dwell: a motionless trajectory
-        all_knots = np.array([0.0])
-        pvaj = np.stack([q[:1], np.zeros((1, q.shape[1])), np.zeros((1, q.shape[1])), np.zeros((1, q.shape[1]))])
-    return JointTrajectory(
-        knots=read_only(all_knots),
-        p=read_only(pvaj[0]),
-        v=read_only(pvaj[1]),
-        a=read_only(pvaj[2]),
-        j=read_only(pvaj[3]),
+        rests[k] = t
+        t += dw[k]
+        starts[k] = t
+        if k < n - 1:
+            t += segments[k][0]
+    dof = q.shape[1]
+
+    def build() -> tuple[np.ndarray, ...]:
+        knots, blocks = [], []
+        if head is not None:
+            knots.append(head[1])
+            blocks.append(head[2])
+        for k in range(n):
+            if dw[k] > 0:
+                knots.append(np.array([rests[k]]))
+                blocks.append(np.concatenate([q[k][None, None], np.zeros((3, 1, dof))]))
+            if k < n - 1:
+                merged = segments[k][1]
+                if len(merged.knots):
+                    knots.append(starts[k] + merged.knots)
+                    blocks.append(merged.pieces)
+        if knots:
+            all_knots = np.concatenate(knots)
+            pvaj = np.concatenate(blocks, axis=1)
+        else:  # every waypoint identical, no dwell: a motionless trajectory
+            all_knots = np.array([0.0])
+            pvaj = np.concatenate([q[:1][None], np.zeros((3, 1, dof))])
+        # Every array here is new: freeze them in place.
+        pvaj.setflags(write=False)
+        return _frozen(all_knots), pvaj[0], pvaj[1], pvaj[2], pvaj[3]
+
+    return JointTrajectory.lazy(
+        build,
         duration=float(t),
-        waypoints=read_only(q),
-        waypoint_times=read_only(times),
-        via_velocities=read_only(v),
-        via_accelerations=read_only(acc),
-        dwell=read_only(dw),
+        waypoints=q if not q.flags.writeable else read_only(q),
+        waypoint_times=_frozen(times),
+        via_velocities=_frozen(v),
+        via_accelerations=_frozen(acc),
+        dwell=dw if not dw.flags.writeable else read_only(dw),
         limits=limits,
         strategy=chooser.name,
-        repaired=read_only(repaired, dtype=bool),
+        repaired=_frozen(repaired),
     )
+
+
+def _frozen(arr: np.ndarray) -> np.ndarray:
+    """`arr` itself, made read-only (for arrays no one else holds)."""
+    arr.setflags(write=False)
+    return arr

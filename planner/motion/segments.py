@@ -4,36 +4,38 @@ The community edition of Ruckig computes time-optimal state-to-state motions (po
 velocity and acceleration at both ends) under velocity, acceleration and jerk limits, but has
 no intermediate waypoints and no position limits. :class:`SegmentSolver` solves the segments
 between fixed positions (reusing one Ruckig instance) and flags joints that Ruckig's extrema put
-outside their range; :func:`merge_segment` turns a segment into constant-jerk pieces common to
-all joints; :func:`piece_position_range` gives their exact position extrema; and
-:func:`brake_segment` brings a moving start state to rest.
+outside their range (remembering the answers: the via search asks for some states more than
+once); :func:`merge_segment` turns a segment into constant-jerk pieces common to all joints
+(built when first used); :func:`segment_position_range` gives a segment's exact position
+extrema from Ruckig's own plus the turning points they miss (:func:`piece_position_range`
+computes them from the pieces); and :func:`brake_segment` brings a moving start state to rest.
 """
 
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 
 import numpy as np
 from ruckig import ControlInterface, InputParameter, Result, Ruckig, RuckigError, Synchronization
 from ruckig import Trajectory as RuckigTrajectory
 
 from planner.exceptions import InvalidArgumentError
-from planner.motion.limits import JointLimits
+from planner.motion.limits import RANGE_TOLERANCE, JointLimits
 from planner.motion.trajectory import LIMIT_TOLERANCE
 
 __all__ = [
     "RANGE_TOLERANCE",
     "RUCKIG_PRECISION",
+    "SegmentPieces",
     "SegmentSolver",
     "brake_segment",
     "merge_segment",
     "piece_position_range",
     "range_with_tolerance",
+    "segment_position_range",
 ]
 
-#: Relative slack of the position-range checks [rad or m per unit of max(1, |bound|)]: a joint
-#: counts as leaving its range only beyond it, so that rounding at a range end is no overshoot.
-RANGE_TOLERANCE = 1e-10
 #: End-position error [rad or m per unit of max(1, |target|)] beyond which a segment is corrected.
 END_TOLERANCE = 1e-13
 #: How far Ruckig may end a profile from its target state: position [rad or m], velocity
@@ -44,9 +46,7 @@ RUCKIG_PRECISION = (1e-8, 1e-8, 1e-10)
 
 def range_with_tolerance(limits: JointLimits) -> tuple[np.ndarray, np.ndarray]:
     """Lower and upper position bounds widened by :data:`RANGE_TOLERANCE`, shapes (dof,) [rad or m]."""
-    lower = limits.lower - RANGE_TOLERANCE * np.maximum(1.0, np.abs(np.nan_to_num(limits.lower)))
-    upper = limits.upper + RANGE_TOLERANCE * np.maximum(1.0, np.abs(np.nan_to_num(limits.upper)))
-    return lower, upper
+    return limits.checked_range
 
 
 def piece_position_range(knots: np.ndarray, pvaj: np.ndarray, end: float) -> tuple[np.ndarray, np.ndarray]:
@@ -109,6 +109,9 @@ class SegmentSolver:
         # parabola, which Ruckig 0.19 cannot take (see _on_one_parabola).
         still = np.abs(np.diff(q, axis=0)) <= 1e-9 * np.maximum(1.0, np.abs(q[1:]))
         self._still = [np.flatnonzero(row) if row.any() else None for row in still]
+        # The searches ask for the same segment state more than once (a line search's current
+        # state, the chain's durations between searches): answers are kept per end states.
+        self._cache: dict[tuple, tuple[float, np.ndarray | None, None]] = {}
 
     def solve(
         self, k: int, va: np.ndarray, aa: np.ndarray, vb: np.ndarray, ab: np.ndarray, keep: bool = False
@@ -120,6 +123,18 @@ class SegmentSolver:
             Ruckig's extrema put outside their range (None when none does), and the Ruckig
             trajectory when `keep`.
         """
+        if not keep:
+            key = (k, va.tobytes(), aa.tobytes(), vb.tobytes(), ab.tobytes())
+            hit = self._cache.get(key)
+            if hit is None:
+                hit = self._cache[key] = self._solve(k, va, aa, vb, ab, False)
+            return hit
+        return self._solve(k, va, aa, vb, ab, True)
+
+    def _solve(
+        self, k: int, va: np.ndarray, aa: np.ndarray, vb: np.ndarray, ab: np.ndarray, keep: bool
+    ) -> tuple[float, np.ndarray | None, RuckigTrajectory | None]:
+        """:meth:`solve` without the cache."""
         inp = self.inp
         still = self._still[k]
         if still is not None and self._on_one_parabola(still, va, aa, vb, ab):
@@ -203,13 +218,59 @@ class SegmentSolver:
             self.otg.calculate(self.inp, traj)  # keep the synchronised profile; merge_segment corrects it
 
 
+class SegmentPieces:
+    """One Ruckig segment as constant-jerk pieces common to all joints (see :func:`merge_segment`).
+
+    The pieces are built on first use of :attr:`knots` or :attr:`pieces` (the range check
+    needs only :attr:`missed` and Ruckig's own extrema).
+
+    Attributes:
+        residual: The end error left per joint, shape (dof,) [rad or m].
+        missed: Per joint, the lowest and highest turning point inside a phase of zero jerk
+            (which Ruckig's ``position_extrema`` misses), shapes (dof,) (inf and -inf where
+            none); None where the pieces are not Ruckig's profile (an end correction added).
+    """
+
+    __slots__ = ("_build", "_knots", "_pieces", "missed", "residual")
+
+    def __init__(
+        self,
+        build: Callable[[], tuple[np.ndarray, np.ndarray]],
+        residual: np.ndarray,
+        missed: tuple[np.ndarray, np.ndarray] | None,
+    ):
+        """Pieces that `build` makes (local knots (K,), stacked (p, v, a, j) (4, K, dof))."""
+        self._build: Callable[[], tuple[np.ndarray, np.ndarray]] | None = build
+        self._knots: np.ndarray | None = None
+        self._pieces: np.ndarray | None = None
+        self.residual = residual
+        self.missed = missed
+
+    def _made(self) -> None:
+        if self._build is not None:
+            self._knots, self._pieces = self._build()
+            self._build = None
+
+    @property
+    def knots(self) -> np.ndarray:
+        """Local knot times, shape (K,) [s]."""
+        self._made()
+        return self._knots
+
+    @property
+    def pieces(self) -> np.ndarray:
+        """The stacked (p, v, a, j) at each knot, shape (4, K, dof)."""
+        self._made()
+        return self._pieces
+
+
 def merge_segment(
     traj: RuckigTrajectory,
     duration: float,
     start: tuple[np.ndarray, np.ndarray, np.ndarray],
     end: np.ndarray | None = None,
     limits: JointLimits | None = None,
-) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+) -> SegmentPieces:
     """One Ruckig segment as constant-jerk pieces common to all joints.
 
     Every joint has its own seven phases (plus, for a start state beyond the limits, two brake
@@ -230,24 +291,22 @@ def merge_segment(
         limits: Limits to check a corrected joint against.
 
     Returns:
-        Local knot times, shape (K,) [s]; the stacked (p, v, a, j) at each knot, shape
-        (4, K, dof); and the end error left per joint, shape (dof,) [rad or m]: where the
-        correction would take a joint beyond its limits (a joint at its jerk limit all along),
-        the joint keeps Ruckig's profile, and the caller decides (see
+        The pieces; their residual is the end error left per joint: where the correction
+        would take a joint beyond its limits (a joint at its jerk limit all along), the joint
+        keeps Ruckig's profile, and the caller decides (see
         :func:`planner.motion.plan.plan_trajectory_request`).
     """
     profiles = traj.profiles[0]
     dof = len(profiles)
     if duration <= 0.0:
-        return np.empty(0), np.empty((4, 0, dof)), np.zeros(dof)
-    t = np.array([prof.t for prof in profiles])  # (dof, 7)
-    jerk = np.array([prof.j for prof in profiles])
+        return SegmentPieces(lambda: (np.empty(0), np.empty((4, 0, dof))), np.zeros(dof), None)
+    # An 8th phase holds the end state (zero jerk) in case a joint's profile ends early.
+    jerk = np.array([prof.j + [0.0] for prof in profiles])
     acc = np.array([prof.a for prof in profiles])  # (dof, 8): phase starts and the end state
     vel = np.array([prof.v for prof in profiles])
     pos = np.array([prof.p for prof in profiles])
-    # An 8th phase holds the end state (zero jerk) in case a joint's profile ends early.
-    jerk = np.hstack([jerk, np.zeros((dof, 1))])
-    starts = np.hstack([np.zeros((dof, 1)), np.cumsum(t, axis=1)])  # (dof, 8)
+    starts = np.zeros((dof, 8))
+    np.cumsum(np.array([prof.t for prof in profiles]), axis=1, out=starts[:, 1:])
     brakes = [prof.brake for prof in profiles]
     if any(b.duration > 0 for b in brakes):
         offset = np.array([b.duration for b in brakes])[:, None]
@@ -262,46 +321,89 @@ def merge_segment(
         starts[none, :2] = 0.0
     if any(prof.accel.duration > 0 for prof in profiles):  # pragma: no cover - via states are admissible
         raise RuntimeError("Ruckig needed a post-profile: a via state exceeds the limits")
-    knots = np.unique(starts[starts < duration])
-    if knots[0] != 0.0:  # pragma: no cover - every profile starts at 0
-        knots = np.insert(knots, 0, 0.0)
-    error = None
+    phases = (pos, vel, acc, jerk)
+
+    def build(extra: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+        knots = np.sort(starts if extra is None else np.append(starts, extra), axis=None)
+        knots = knots[knots < duration]
+        first = np.empty(len(knots), dtype=bool)
+        first[0] = True
+        np.not_equal(knots[1:], knots[:-1], out=first[1:])
+        knots = knots[first]  # the distinct phase starts (every profile starts at 0)
+        out = _phase_states(knots, starts, phases)
+        # The segment starts exactly at its waypoint state.
+        out[0, 0], out[1, 0], out[2, 0] = start
+        return knots, out
+
+    residual = np.zeros(dof)
     if end is not None:
         error = np.asarray(end, dtype=float) - pos[:, -1]  # each profile's end position
         off = np.abs(error) > END_TOLERANCE * np.maximum(1.0, np.abs(end))
         if off.any():
-            knots = np.union1d(knots, duration * np.array([0.25, 0.5, 0.75]))
-        else:
-            error = None
-    out = np.stack(_phase_states(knots, starts, (pos, vel, acc, jerk)))
-    residual = np.zeros(dof)
-    if error is not None:
-        corrected = out.copy()
-        if _add_s_curve(corrected, knots, duration, np.where(off, error, 0.0), limits):
-            out = corrected
-        else:
+            knots, out = build(duration * np.array([0.25, 0.5, 0.75]))
+            corrected = out.copy()
+            if _add_s_curve(corrected, knots, duration, np.where(off, error, 0.0), limits):
+                corrected[0, 0], corrected[1, 0], corrected[2, 0] = start
+                return SegmentPieces(lambda: (knots, corrected), residual, None)
             residual = np.where(off, error, 0.0)
-    # The segment starts exactly at its waypoint state.
-    out[0, 0], out[1, 0], out[2, 0] = start
-    return knots, out, residual
+            return SegmentPieces(lambda: (knots, out), residual, _missed_turns(phases))
+    return SegmentPieces(build, residual, _missed_turns(phases))
 
 
-def _phase_states(
-    times: np.ndarray, starts: np.ndarray, phases: tuple[np.ndarray, ...]
-) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """(p, v, a, j), each shape (len(times), dof), of per-joint phases at the given times."""
+def _missed_turns(phases: tuple[np.ndarray, ...]) -> tuple[np.ndarray, np.ndarray]:
+    """Per joint, the lowest and highest turning point inside a phase of zero jerk, shapes (dof,).
+
+    Ruckig's position extrema miss them (see :func:`piece_position_range`): a velocity that
+    changes sign across such a phase. inf and -inf where a joint has none.
+    """
+    pos, vel, acc, jerk = phases
+    v0, a0 = vel[:, :-1], acc[:, :-1]
+    turns = (jerk[:, :-1] == 0.0) & (v0 * vel[:, 1:] < 0.0)
+    if not turns.any():
+        return np.full(len(pos), np.inf), np.full(len(pos), -np.inf)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        tz = -v0 / a0
+        p_turn = pos[:, :-1] + tz * (v0 + tz * a0 / 2.0)
+    return np.where(turns, p_turn, np.inf).min(axis=1), np.where(turns, p_turn, -np.inf).max(axis=1)
+
+
+def segment_position_range(
+    traj: RuckigTrajectory, segment: SegmentPieces, duration: float
+) -> tuple[np.ndarray, np.ndarray]:
+    """Exact per-joint min and max position of a merged segment, shapes (dof,) [rad or m].
+
+    Ruckig's own extrema (computed in C++) with the turning points they miss, or
+    :func:`piece_position_range` where the pieces are not Ruckig's profile. The segment
+    should have been merged with its `end`: Ruckig's extrema take its profile's end
+    position, which the pieces reach only after the end correction.
+
+    Args:
+        traj: The Ruckig trajectory the segment was merged from.
+        segment: What :func:`merge_segment` made of it.
+        duration: The segment's duration [s].
+    """
+    if segment.missed is None:
+        return piece_position_range(segment.knots, segment.pieces, duration)
+    extrema = traj.position_extrema
+    lo = np.array([e.min for e in extrema])
+    hi = np.array([e.max for e in extrema])
+    return np.minimum(lo, segment.missed[0]), np.maximum(hi, segment.missed[1])
+
+
+def _phase_states(times: np.ndarray, starts: np.ndarray, phases: tuple[np.ndarray, ...]) -> np.ndarray:
+    """The stacked (p, v, a, j), shape (4, len(times), dof), of per-joint phases at the given times."""
     pos, vel, acc, jerk = phases
     # The phase of each joint in force at each time (the last one starting at or before it).
-    idx = np.sum(starts[:, None, :] <= times[None, :, None], axis=2).T - 1  # (K, dof)
-    cols = np.arange(starts.shape[0])
-    dt = times[:, None] - starts.T[idx, cols]
-    p0, v0, a0, j0 = pos.T[idx, cols], vel.T[idx, cols], acc.T[idx, cols], jerk.T[idx, cols]
-    return (
-        p0 + dt * (v0 + dt * (a0 / 2.0 + dt * j0 / 6.0)),
-        v0 + dt * (a0 + dt * j0 / 2.0),
-        a0 + dt * j0,
-        j0,
-    )
+    idx = np.count_nonzero(starts[:, None, :] <= times[None, :, None], axis=2).T - 1  # (K, dof)
+    flat = idx + np.arange(starts.shape[0]) * starts.shape[1]
+    dt = times[:, None] - starts.ravel()[flat]
+    out = np.empty((4,) + flat.shape)
+    p0, v0, a0, j0 = pos.ravel()[flat], vel.ravel()[flat], acc.ravel()[flat], jerk.ravel()[flat]
+    out[0] = p0 + dt * (v0 + dt * (a0 / 2.0 + dt * j0 / 6.0))
+    out[1] = v0 + dt * (a0 + dt * j0 / 2.0)
+    out[2] = a0 + dt * j0
+    out[3] = j0
+    return out
 
 
 def _add_s_curve(
@@ -388,7 +490,8 @@ def brake_segment(
         raise InvalidArgumentError(f"cannot brake from the start state (Ruckig: {result})")
     duration = float(traj.duration)
     rest = np.array([prof.p[-1] for prof in traj.profiles[0]])
-    local, pieces, _ = merge_segment(traj, duration, (q0, v0, a0))
+    merged = merge_segment(traj, duration, (q0, v0, a0))
+    local, pieces = merged.knots, merged.pieces
     lo, hi = piece_position_range(local, pieces, duration) if len(local) else (q0, q0)
     lower, upper = range_with_tolerance(limits)
     bad = np.nonzero((lo < lower) | (hi > upper))[0]

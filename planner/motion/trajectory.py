@@ -8,8 +8,10 @@ limits, and writes itself as CSV. :data:`LIMIT_TOLERANCE` states the limit guara
 from __future__ import annotations
 
 import csv
+import dataclasses
 import math
-from collections.abc import Sequence
+import threading
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -47,6 +49,33 @@ class TrajectorySample:
     qddd: np.ndarray
 
 
+_BUILD_LOCK = threading.Lock()
+
+
+class _Pieces:
+    """A piece array of :class:`JointTrajectory`: given to the constructor, or built on first use."""
+
+    def __set_name__(self, owner: type, name: str) -> None:
+        self.name = name
+
+    def __get__(self, obj: JointTrajectory | None, objtype: type | None = None) -> np.ndarray:
+        if obj is None:
+            raise AttributeError(self.name)  # no class-level value: the dataclass field has no default
+        try:
+            return obj.__dict__[self.name]
+        except KeyError:
+            with _BUILD_LOCK:  # one thread builds, the others then find the arrays
+                if self.name not in obj.__dict__:
+                    build = obj.__dict__["_build_pieces"]
+                    for name, value in zip(("knots", "p", "v", "a", "j"), build()):
+                        obj.__dict__[name] = value
+                    del obj.__dict__["_build_pieces"]
+            return obj.__dict__[self.name]
+
+    def __set__(self, obj: JointTrajectory, value: np.ndarray) -> None:
+        obj.__dict__[self.name] = value
+
+
 @dataclass(frozen=True, eq=False)
 class JointTrajectory:
     """A jerk-limited joint trajectory through waypoints (piecewise-constant jerk).
@@ -75,11 +104,11 @@ class JointTrajectory:
             mostly for the ``"heuristic"`` strategy and prescribed via states.
     """
 
-    knots: np.ndarray
-    p: np.ndarray
-    v: np.ndarray
-    a: np.ndarray
-    j: np.ndarray
+    knots: np.ndarray = _Pieces()
+    p: np.ndarray = _Pieces()
+    v: np.ndarray = _Pieces()
+    a: np.ndarray = _Pieces()
+    j: np.ndarray = _Pieces()
     duration: float
     waypoints: np.ndarray
     waypoint_times: np.ndarray
@@ -89,6 +118,28 @@ class JointTrajectory:
     limits: JointLimits
     strategy: str
     repaired: np.ndarray
+
+    @classmethod
+    def lazy(
+        cls, build: Callable[[], tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]], **fields: object
+    ) -> JointTrajectory:
+        """A trajectory whose piece arrays are made by `build` when first used.
+
+        The planner decides a trajectory without its pieces (the segments' durations and range
+        checks come from Ruckig directly); building them costs about as much again.
+
+        Args:
+            build: Returns the read-only ``knots, p, v, a, j`` (see the attributes).
+            **fields: Every other attribute.
+        """
+        missing = {f.name for f in dataclasses.fields(cls)} - set(fields) - {"knots", "p", "v", "a", "j"}
+        if missing:
+            raise InvalidArgumentError(f"JointTrajectory.lazy needs the fields {', '.join(sorted(missing))}")
+        obj = cls.__new__(cls)
+        for name, value in fields.items():
+            object.__setattr__(obj, name, value)
+        obj.__dict__["_build_pieces"] = build
+        return obj
 
     @property
     def dof(self) -> int:

@@ -90,14 +90,18 @@ class ViaChain:
             out[k] = self.seg.solve(k, self.v[k], self.acc[k], self.v[k + 1], self.acc[k + 1])[0]
         return out
 
-    def pair_cost(self, i: int, cv: np.ndarray, ca: np.ndarray) -> tuple[float, np.ndarray, np.ndarray]:
+    def pair_cost(
+        self, i: int, cv: np.ndarray, ca: np.ndarray, admissible: bool = False
+    ) -> tuple[float, np.ndarray, np.ndarray]:
         """Duration of the two segments around via i with state (cv, ca) there.
 
         A joint that would leave its range gets its via speed and acceleration halved until
         it does not (Ruckig's extrema are used here for speed; the final plan rechecks exactly).
+        With `admissible`, `ca` already obeys :func:`admissible_acceleration` for `cv`.
         """
         cv = np.array(cv, dtype=float)
-        ca = admissible_acceleration(cv, np.asarray(ca, dtype=float), self.limits)
+        ca = np.asarray(ca, dtype=float)
+        ca = ca.copy() if admissible else admissible_acceleration(cv, ca, self.limits)
         for attempt in range(SEARCH_HALVINGS + 1):
             d1, bad1, _ = self.seg.solve(i - 1, self.v[i - 1], self.acc[i - 1], cv, ca)
             d2, bad2, _ = self.seg.solve(i, cv, ca, self.v[i + 1], self.acc[i + 1])

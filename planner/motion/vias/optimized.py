@@ -31,17 +31,20 @@ _MAX_SCALE = 1e100
 
 __all__ = ["OptimizedStrategy", "golden_minimum", "spline_via_states"]
 
-# Scale factors tried first for each via state (1 = the slope blend itself).
+# Scale factors tried first for each via state (1 = the slope blend itself), then golden-section
+# steps around the best. 5 steps here, 3 in the turn search and 8 spline evaluations took 28 %
+# more Ruckig solves for the same durations (these settings: median per path +0.01 %, mean
+# -0.02 %; random 5-waypoint paths of eight arms, two sets of 480).
 _GRID = (0.0, 0.5, 1.0, 1.4, 2.0, 3.0)
-_GOLDEN_STEPS = 5
+_GOLDEN_STEPS = 2
 # Spline stage: range of the common log time-scale of the segment durations searched, and
 # golden-section evaluations (a simplex over every duration gained nothing on top).
 _SPLINE_SCALE = (-0.5, 0.1)
-_SPLINE_SCALE_EVALS = 8
+_SPLINE_SCALE_EVALS = 6
 # A segment whose Ruckig extrema leave the range counts this much longer in the search.
 _SPLINE_PENALTY = 1.5
 _TURN_GRID = (0.0, 0.5, 1.0)
-_TURN_STEPS = 3
+_TURN_STEPS = 1
 # Rounds of halving the via states that leave the range before the search.
 _SETTLE_HALVINGS = 24
 
@@ -85,25 +88,27 @@ def spline_via_states(
         Velocities and accelerations at ``q[1:m]``, shapes (m-1, dof).
     """
     m = len(h)
-    slope = np.diff(q, axis=0) / h[:, None]  # (m, dof)
+    slope = (q[1:] - q[:-1]) / h[:, None]  # (m, dof)
     inv = 1.0 / h
     # Tridiagonal system for v_1 .. v_{m-1} (Thomas algorithm, one right-hand side per joint).
-    diag = 2.0 * (inv[:-1] + inv[1:])
+    diag = (2.0 * (inv[:-1] + inv[1:])).tolist()
     rhs = 3.0 * (slope[:-1] * inv[:-1, None] + slope[1:] * inv[1:, None])
-    rhs[0] -= inv[0] * v_start
-    rhs[-1] -= inv[-1] * v_end
-    c = np.empty(m - 1)
+    inv_list = inv.tolist()
+    rhs[0] -= inv_list[0] * v_start
+    rhs[-1] -= inv_list[-1] * v_end
+    c = [inv_list[1] / diag[0]]
     d = np.empty_like(rhs)
-    c[0], d[0] = inv[1] / diag[0], rhs[0] / diag[0]
+    d[0] = rhs[0] / diag[0]
     for r in range(1, m - 1):
-        den = diag[r] - inv[r] * c[r - 1]
-        c[r] = inv[r + 1] / den
-        d[r] = (rhs[r] - inv[r] * d[r - 1]) / den
+        den = diag[r] - inv_list[r] * c[r - 1]
+        c.append(inv_list[r + 1] / den)
+        d[r] = (rhs[r] - inv_list[r] * d[r - 1]) / den
     v = np.empty_like(rhs)
     v[-1] = d[-1]
     for r in range(m - 3, -1, -1):
         v[r] = d[r] - c[r] * v[r + 1]
-    v_next = np.vstack([v[1:], v_end[None]])
+    v_next = np.empty_like(v)
+    v_next[:-1], v_next[-1] = v[1:], v_end
     acc = (6.0 * slope[1:] - 4.0 * v - 2.0 * v_next) * inv[1:, None]
     return v, acc
 
@@ -141,22 +146,30 @@ class OptimizedStrategy(ViaStrategy):
         self,
         chain: ViaChain,
         i: int,
-        make: Callable[[float], tuple[np.ndarray, np.ndarray]],
+        make: Callable[[np.ndarray], tuple[np.ndarray, np.ndarray]],
         top: float,
         grid: Sequence[float] = _GRID,
         steps: int = _GOLDEN_STEPS,
     ) -> None:
-        """Minimise the pair cost over a scalar parameter in [0, top] (grid, then golden section)."""
+        """Minimise the pair cost over a scalar parameter in [0, top] (grid, then golden section).
+
+        `make` maps parameters, shape (G,), to admissible via states, shapes (G, dof).
+        """
         cache: dict[float, tuple[float, np.ndarray, np.ndarray]] = {}
 
         def cost(x: float) -> float:
             if x not in cache:
-                cache[x] = chain.pair_cost(i, *make(x))
+                cv, ca = make(np.array([x]))
+                cache[x] = chain.pair_cost(i, cv[0], ca[0], admissible=True)
             return cache[x][0]
 
         current = chain.pair_cost(i, chain.v[i], chain.acc[i])
         grid = sorted({min(g, top) for g in grid} | {top})
-        values = [cost(g) for g in grid]
+        cvs, cas = make(np.array(grid))
+        values = []
+        for x, cv, ca in zip(grid, cvs, cas):
+            cache[x] = chain.pair_cost(i, cv, ca, admissible=True)
+            values.append(cache[x][0])
         b = int(np.argmin(values))
         lo, hi = grid[max(b - 1, 0)], grid[min(b + 1, len(grid) - 1)]
         golden_minimum(cost, lo, hi, steps + 2)  # its evaluations fill the cache
@@ -174,18 +187,19 @@ class OptimizedStrategy(ViaStrategy):
         """
         lim = chain.limits
         mag, wmag = np.abs(u), np.abs(w)
+        su, sw = np.sign(u), np.sign(w)
         tops = [1.0]
         if np.any(mag > 0):
             tops.append(float(np.max(lim.velocity[mag > 0] / mag[mag > 0])))
         if np.any(wmag > 0):
             tops.append(math.sqrt(float(np.max(lim.acceleration[wmag > 0] / wmag[wmag > 0]))))
 
-        def candidate(x: float) -> tuple[np.ndarray, np.ndarray]:
-            return np.sign(u) * np.minimum(lim.velocity, x * mag), np.sign(w) * np.minimum(
-                lim.acceleration, x * x * wmag
-            )
+        def candidates(x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+            x = x[:, None]
+            cv = su * np.minimum(lim.velocity, x * mag)
+            return cv, admissible_acceleration(cv, sw * np.minimum(lim.acceleration, x * x * wmag), lim)
 
-        self._line_search(chain, i, candidate, min(max(tops), _MAX_SCALE))
+        self._line_search(chain, i, candidates, min(max(tops), _MAX_SCALE))
 
     def _settle(self, chain: ViaChain, free: list[int]) -> None:
         """Halve the via states of joints that (by Ruckig's extrema) leave their range.
@@ -227,7 +241,7 @@ class OptimizedStrategy(ViaStrategy):
 
         def cost(log_h: np.ndarray) -> float:
             v, acc = spline_via_states(q_run, np.exp(log_h), v_a, v_b)
-            v = np.clip(v, -lim.velocity, lim.velocity)
+            v = np.minimum(np.maximum(v, -lim.velocity), lim.velocity)
             acc = admissible_acceleration(v, acc, lim)
             total, inside = 0.0, True
             for k in range(a, b):
@@ -266,10 +280,9 @@ class OptimizedStrategy(ViaStrategy):
         v_now, a_now = chain.v[i].copy(), chain.acc[i].copy()
         a_turn = -np.sign(dp) * lim.acceleration
 
-        def make(y: float) -> tuple[np.ndarray, np.ndarray]:
-            return (
-                np.where(turning, (1.0 - y) * v_now, v_now),
-                np.where(turning, (1.0 - y) * a_now + y * a_turn, a_now),
-            )
+        def make(y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+            y = y[:, None]
+            cv = np.where(turning, (1.0 - y) * v_now, v_now)
+            return cv, admissible_acceleration(cv, np.where(turning, (1.0 - y) * a_now + y * a_turn, a_now), lim)
 
         self._line_search(chain, i, make, 1.0, grid=_TURN_GRID, steps=_TURN_STEPS)
