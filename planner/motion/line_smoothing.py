@@ -39,6 +39,7 @@ from dataclasses import replace
 import numpy as np
 
 from planner.core.arrays import read_only
+from planner.motion.limits import JointLimits
 from planner.motion.trajectory import LIMIT_TOLERANCE, JointTrajectory
 
 __all__ = ["rest_to_rest_spline", "smooth_lines"]
@@ -168,7 +169,7 @@ def smooth_lines(
         q = np.array(traj.waypoints[a : b + 1], dtype=float)
         if b - a < 1 or not chain > 0:
             continue
-        cuts = [0, *_corners(q, lim.velocity), len(q) - 1]
+        cuts = [0, *_corners(q, lim), len(q) - 1]
         pieces = [_smooth_piece(q[i : k + 1], traj, bound) for i, k in zip(cuts, cuts[1:])]
         if any(p is None for p in pieces):
             continue
@@ -186,17 +187,30 @@ def smooth_lines(
     return traj, smoothed
 
 
-def _corners(q: np.ndarray, velocity: np.ndarray) -> list[int]:
-    """Inner samples where the path turns by more than :data:`CORNER_ANGLE` (local maxima)."""
-    d = np.diff(q, axis=0) / velocity
+def _corners(q: np.ndarray, limits: JointLimits) -> list[int]:
+    """Inner samples where the path turns a corner.
+
+    A joint arriving at or leaving a range end (the sample at the end next to one inside it),
+    however small its share of the motion: its own path has a kink there. And a turn by more
+    than :data:`CORNER_ANGLE` between neighbouring steps (speed-normalised joint space).
+    """
+    near = [1e-9 * np.maximum(1.0, np.abs(np.nan_to_num(b))) for b in (limits.lower, limits.upper)]
+    on_end = (q <= limits.lower + near[0]) | (q >= limits.upper - near[1])
+    change = on_end[1:] != on_end[:-1]  # between samples k and k + 1
+    at_end = set(np.nonzero(np.any(change & on_end[1:], axis=1))[0] + 1)
+    at_end |= set(np.nonzero(np.any(change & on_end[:-1], axis=1))[0])
+    d = np.diff(q, axis=0) / limits.velocity
     h = np.linalg.norm(d, axis=1)
     if len(q) < 3 or np.any(h <= 0):
-        return []
+        return sorted(int(k) for k in at_end if 0 < k < len(q) - 1)
     u = d / h[:, None]
     angle = np.arccos(np.clip(np.sum(u[1:] * u[:-1], axis=1), -1.0, 1.0))  # at samples 1..M-2
-    padded = np.concatenate([[0.0], angle, [0.0]])
-    peak = (angle > CORNER_ANGLE) & (angle >= padded[:-2]) & (angle > padded[2:])
-    return (np.nonzero(peak)[0] + 1).tolist()
+    # A corner turns at one sample (or two, when it lies between them) while the path two
+    # samples away runs straight on; a tight smooth bend turns as much at every sample.
+    padded = np.concatenate([[0.0, 0.0], angle, [0.0, 0.0]])
+    around = np.maximum(padded[:-4], padded[4:])
+    turns = set(np.nonzero((angle > CORNER_ANGLE) & (angle > 3.0 * around))[0] + 1)
+    return sorted(int(k) for k in turns | at_end if 0 < k < len(q) - 1)
 
 
 def _natural_spline(x: np.ndarray, y: np.ndarray) -> np.ndarray:
