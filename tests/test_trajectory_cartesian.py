@@ -337,3 +337,27 @@ def test_the_rest_to_rest_spline_is_c2_through_its_samples(count):
     on_samples = np.isin(knots, t)
     np.testing.assert_allclose(p[on_samples], q[: int(on_samples.sum())], atol=1e-9)
     assert len(knots) == count + 1
+
+
+def test_a_path_into_a_range_end_stops_at_the_corner_and_is_smooth_on_either_side():
+    from planner.motion.line_smoothing import smooth_lines
+    from planner.motion.plan import plan_trajectory
+
+    # Joint 0 runs into its upper end at sample 40 and stays there while joint 1 takes over
+    # (as IK does when a joint reaches a range end): its path has a kink there.
+    limits = JointLimits(
+        velocity=[1.0, 1.5], acceleration=[4.0, 6.0], jerk=[40.0, 60.0], lower=[-1, -2], upper=[0.5, 2]
+    )
+    u = np.linspace(0.0, 1.0, 81)
+    q = np.column_stack([np.minimum(-0.5 + 2.0 * u, 0.5), np.sin(u) - 0.3 * np.maximum(u - 0.5, 0.0)])
+    chain = plan_trajectory(q, limits)
+    traj, count = smooth_lines(chain, [(0, len(q) - 1)])
+    assert count == 1
+    assert_within_limits_sampled_and_exact(traj)
+    np.testing.assert_allclose(traj.sample(traj.waypoint_times).q, traj.waypoints, atol=1e-12)
+    np.testing.assert_allclose(traj.waypoints, q, atol=1e-6)  # the path through the samples
+    np.testing.assert_allclose(traj.sample(traj.waypoint_times[[0, 40, 80]]).qd, 0.0, atol=1e-12)
+    for a, b in ((0, 40), (40, 80)):  # one smooth rest-to-rest piece on either side
+        counts = _jerk_sign_changes(traj, traj.waypoint_times[a], traj.waypoint_times[b], limits)
+        assert max(counts) <= 4, counts
+    assert traj.duration < chain.duration

@@ -133,8 +133,8 @@ def rest_to_rest_spline(
 KNOT_SPACING = 0.01
 #: Angle between neighbouring sample steps (speed-normalised joint space) that marks a corner [rad].
 CORNER_ANGLE = 0.1
-#: Ramp lengths tried, as fractions of the time at constant speed.
-_RAMPS = (0.1, 0.2, 0.4, 0.7, 1.0, 1.5)
+#: Ramp lengths tried, as fractions of the time at constant speed (1: the ramps meet).
+_RAMPS = (0.1, 0.2, 0.3, 0.45, 0.65, 1.0)
 #: Largest move of a knot off a joint bound the spline may make [rad or m].
 MAX_NUDGE = 1e-3
 
@@ -256,6 +256,16 @@ def _ramp_position(t: np.ndarray, total: float, ramp: float) -> np.ndarray:
     return np.where(t > total - ramp, (total - ramp) - ramp * (y**3 - y**4 / 2.0), out)
 
 
+def _time_grid(total: float, ramp: float) -> np.ndarray:
+    """Knot times: evenly spaced within each ramp and the cruise, the jerk steps on knots."""
+    ends = [0.0, ramp, total - ramp, total]
+    parts = [np.zeros(1)]
+    for a, b in zip(ends, ends[1:]):
+        if b - a > 1e-12 * total:
+            parts.append(np.linspace(a, b, max(2, int(math.ceil((b - a) / KNOT_SPACING))) + 1)[1:])
+    return np.concatenate(parts)
+
+
 def _ramp_time(s: np.ndarray, total: float, ramp: float) -> np.ndarray:
     """Inverse of :func:`_ramp_position` (bisection; the distance only grows)."""
     lo, hi = np.zeros_like(s), np.full_like(s, total)
@@ -285,13 +295,13 @@ def _smooth_piece(q: np.ndarray, template: JointTrajectory, bound: float) -> tup
     best = None
     for fraction in _RAMPS:
         total, ramp = length * (1.0 + fraction), length * fraction
-        n = max(6, int(math.ceil(total / KNOT_SPACING)))
-        s = np.clip(_ramp_position(np.linspace(0.0, total, n + 1), total, ramp), 0.0, length)
+        grid = _time_grid(total, ramp)
+        s = np.clip(_ramp_position(grid, total, ramp), 0.0, length)
         qk = np.clip(_spline_at(sigma, q, moments, s), lower, upper)
         qk[0], qk[-1] = q[0], q[-1]
         scale = 1.0
         for _ in range(6):
-            t = np.linspace(0.0, total * scale, n + 1)
+            t = grid * scale
             knots, p, v, acc, j = rest_to_rest_spline(t, qk)
             alone = replace(template, knots=knots, p=p, v=v, a=acc, j=j, duration=float(t[-1]))
             peaks = alone.peak_ratios(None)
