@@ -12,16 +12,18 @@ by it buzzes.
 1. The joint path: the samples joined by a natural cubic spline ``q(sigma)`` in the
    speed-normalised joint arc length ``sigma`` (as :func:`planner.motion.line_timing.time_line`
    parametrises it). Where the samples turn a corner (a joint arriving at or leaving a range
-   end, while the others take over its share of the line: the joint path has a kink there,
-   which no motion with bounded acceleration passes without stopping), the path is split and the
-   arm stops at the corner for an instant.
+   end, while the others take over its share of the line, or a turn by more than
+   :data:`CORNER_ANGLE` at one sample: the joint path has a kink there, which no motion with
+   bounded acceleration passes without stopping), the path is split and the arm stops at the
+   corner for an instant.
 2. The time-scaling of each piece: ``sigma`` runs at a constant speed between two ramps, each a
    smoothstep ``3x^2 - 2x^3`` in speed (acceleration continuous, one jerk sign change per
    ramp); of a few ramp lengths, the fastest is kept.
 3. The trajectory: the C2 cubic spline in time (:func:`rest_to_rest_spline`) through the path
-   at evenly spaced times (:data:`KNOT_SPACING`), at rest at both ends of the piece, then slowed
-   down uniformly by the least factor that keeps every joint's velocity, acceleration and jerk
-   (evaluated exactly; ``v ~ 1/k``, ``a ~ 1/k^2``, ``j ~ 1/k^3``).
+   at evenly spaced times (:data:`KNOT_SPACING`; knots on the ramps' ends), at rest at both ends
+   of the piece, then scaled in time uniformly so that the tightest joint just reaches its
+   velocity, acceleration or jerk limit (evaluated exactly; ``v ~ 1/k``, ``a ~ 1/k^2``,
+   ``j ~ 1/k^3``).
 
 Jerk follows the path's own third derivative and the ramps instead of switching: a few sign
 changes per joint and piece. A line running along a joint limit has samples exactly at it, and
@@ -287,8 +289,8 @@ def _smooth_piece(q: np.ndarray, template: JointTrajectory, bound: float) -> tup
     steps = np.linalg.norm(np.diff(q, axis=0) / lim.velocity, axis=1)
     sigma = np.concatenate([[0.0], np.cumsum(steps)])
     length = float(sigma[-1])
-    if not length > 0:
-        return None
+    if not np.all(steps > 0):
+        return None  # a repeated sample: no path parameter through it
     moments = _natural_spline(sigma, q)
     lower = np.where(np.isfinite(lim.lower), lim.lower, -np.inf)
     upper = np.where(np.isfinite(lim.upper), lim.upper, np.inf)
@@ -299,22 +301,24 @@ def _smooth_piece(q: np.ndarray, template: JointTrajectory, bound: float) -> tup
         s = np.clip(_ramp_position(grid, total, ramp), 0.0, length)
         qk = np.clip(_spline_at(sigma, q, moments, s), lower, upper)
         qk[0], qk[-1] = q[0], q[-1]
-        scale = 1.0
-        for _ in range(6):
+        scale, ok = 1.0, False
+        for _ in range(8):
             t = grid * scale
             knots, p, v, acc, j = rest_to_rest_spline(t, qk)
             alone = replace(template, knots=knots, p=p, v=v, a=acc, j=j, duration=float(t[-1]))
             peaks = alone.peak_ratios(None)
+            if peaks["position"] > LIMIT_TOLERANCE * bound:
+                if not _nudge(qk, alone, lower, upper):
+                    break
+                continue
+            # A uniform time scaling by k scales v, a, j by 1/k, 1/k^2, 1/k^3: the tightest
+            # joint then reaches its limit (faster or slower).
             k = max(peaks["velocity"], peaks["acceleration"] ** 0.5, peaks["jerk"] ** (1.0 / 3.0))
-            fits = max(peaks["velocity"], peaks["acceleration"], peaks["jerk"]) <= 1 + LIMIT_TOLERANCE
-            inside = peaks["position"] <= LIMIT_TOLERANCE * bound
-            if inside and fits:
+            if max(peaks["velocity"], peaks["acceleration"], peaks["jerk"]) <= 1 + LIMIT_TOLERANCE and k > 1 - 1e-6:
+                ok = True
                 break
-            if not inside and not _nudge(qk, alone, lower, upper):
-                break
-            if not fits:
-                scale *= k * (1.0 + 1e-9)
-        if not (inside and fits):
+            scale *= k * (1.0 + 1e-9)
+        if not ok:
             continue
         if best is None or t[-1] < best[0][-1]:
             at = _ramp_time(sigma, total, ramp) * scale
