@@ -473,7 +473,7 @@ def plan_motion(
         )
         plan = plan_clear_of_singularities(robot, trajectory_request, options, keep_segments=keep)
         if line_ranges:
-            # Each line as one smooth spline through its samples, not a chain of bang-bang segments.
+            # Each line as smooth pieces between its corners, not a chain of bang-bang segments.
             stretches = [(int(plan.waypoint_indices[a]), int(plan.waypoint_indices[b])) for _, a, b in line_ranges]
             smooth, count = smooth_lines(plan.trajectory, stretches)
             if count:

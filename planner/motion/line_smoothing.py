@@ -1,31 +1,47 @@
-"""Smooth motion along densely sampled paths: one C2 cubic spline in time instead of a chain.
+"""Smooth motion along densely sampled paths: one smooth time-scaling per stretch between corners.
 
 A line (a straight Cartesian line, or a straight joint-space edge of a route around
-obstacles) is planned as Ruckig segments between its samples, each reaching the next sample
-with the line timing's state (:mod:`planner.motion.line_timing`). Each of those segments is
-time-optimal on its own: its jerk switches between +limit and -limit several times, so along a
-line of 30 samples a joint's jerk changes sign a hundred times, and a servo driven by it buzzes.
+obstacles) is first planned as Ruckig segments between its samples, each reaching the next
+sample with the line timing's state (:mod:`planner.motion.line_timing`). Each of those
+segments is time-optimal on its own: its jerk switches between +limit and -limit several times,
+so along a line of 30 samples a joint's jerk changes sign a hundred times, and a servo driven
+by it buzzes.
 
-:func:`smooth_lines` replaces each such stretch by the cubic spline in time through the same
-samples at the same times, at rest at both ends (velocity and acceleration zero: two extra
-knots, in the first and last interval, give the spline the freedom for that). A cubic spline is
-twice continuously differentiable: velocity and acceleration are continuous and the jerk,
-constant per interval, follows the path's own third derivative instead of switching. The
-spline passes through every sample; where it would exceed a limit (velocity, acceleration,
-jerk, evaluated exactly), it is slowed down by the least factor that keeps them (up to
-``max_stretch``). A line running along a joint limit has samples exactly at it, and the spline
-through them rings slightly beyond: those inner samples are moved inward by twice the excess
-(at most :data:`MAX_NUDGE`); if that does not keep the range, the stretch keeps its Ruckig chain.
+:func:`smooth_lines` replaces each such chain by a motion that is smooth by construction:
+
+1. The joint path: the samples joined by a natural cubic spline ``q(sigma)`` in the
+   speed-normalised joint arc length ``sigma`` (as :func:`planner.motion.line_timing.time_line`
+   parametrises it). Where the samples turn a corner (a joint arriving at or leaving a range
+   end, while the others take over its share of the line, or a turn by more than
+   :data:`CORNER_ANGLE` at one sample: the joint path has a kink there, which no motion with
+   bounded acceleration passes without stopping), the path is split and the arm stops at the
+   corner for an instant.
+2. The time-scaling of each piece: ``sigma`` runs at a constant speed between two ramps, each a
+   smoothstep ``3x^2 - 2x^3`` in speed (acceleration continuous, one jerk sign change per
+   ramp); of a few ramp lengths, the fastest is kept.
+3. The trajectory: the C2 cubic spline in time (:func:`rest_to_rest_spline`) through the path
+   at evenly spaced times (:data:`KNOT_SPACING`; knots on the ramps' ends), at rest at both ends
+   of the piece, then scaled in time uniformly so that the tightest joint just reaches its
+   velocity, acceleration or jerk limit (evaluated exactly; ``v ~ 1/k``, ``a ~ 1/k^2``,
+   ``j ~ 1/k^3``).
+
+Jerk follows the path's own third derivative and the ramps instead of switching: a few sign
+changes per joint and piece. A line running along a joint limit has samples exactly at it, and
+the spline through them may ring slightly beyond: knots there are moved inward by twice the
+excess (at most :data:`MAX_NUDGE`). A stretch whose smooth motion would leave a joint's range,
+or take more than ``max_stretch`` times its chain, keeps its Ruckig chain.
 """
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
 from dataclasses import replace
 
 import numpy as np
 
 from planner.core.arrays import read_only
+from planner.motion.limits import JointLimits
 from planner.motion.trajectory import LIMIT_TOLERANCE, JointTrajectory
 
 __all__ = ["rest_to_rest_spline", "smooth_lines"]
@@ -115,22 +131,34 @@ def rest_to_rest_spline(
     return x[:-1], y[:-1], v, moments[:-1], jerk
 
 
+#: Time between the knots of the smooth spline in time [s] (at least 6 intervals per piece).
+KNOT_SPACING = 0.01
+#: Angle between neighbouring sample steps (speed-normalised joint space) that marks a corner [rad].
+CORNER_ANGLE = 0.1
+#: Ramp lengths tried, as fractions of the time at constant speed (1: the ramps meet).
+_RAMPS = (0.1, 0.2, 0.3, 0.45, 0.65, 1.0)
+#: Largest move of a knot off a joint bound the spline may make [rad or m].
+MAX_NUDGE = 1e-3
+
+
 def smooth_lines(
     trajectory: JointTrajectory, stretches: Sequence[tuple[int, int]], *, max_stretch: float = 1.25
 ) -> tuple[JointTrajectory, int]:
-    """Replace the trajectory between waypoints ``a`` and ``b`` of each stretch by a rest-to-rest spline.
+    """Replace the trajectory between waypoints ``a`` and ``b`` of each stretch by a smooth motion.
 
     Args:
         trajectory: A trajectory that rests at waypoints ``a`` and ``b`` of each stretch (after
             ``a``'s dwell) and passes the waypoints between them (the samples of a line).
         stretches: ``(a, b)`` waypoint index pairs, a < b, not overlapping.
-        max_stretch: Where the spline at the chain's times would exceed a limit, it is slowed
-            down by the factor that brings it within (everything after it moves later by the
-            time added), up to this factor; beyond it the stretch keeps its chain.
+        max_stretch: A stretch whose smooth motion takes longer than this factor times its
+            chain keeps the chain (everything after a smoothed stretch moves by the time it
+            adds or saves).
 
     Returns:
-        The trajectory with every stretch smoothed whose spline keeps every limit, and how many
-        stretches were smoothed (the others keep their Ruckig chain).
+        The trajectory with every stretch smoothed whose motion keeps every limit, and how many
+        stretches were smoothed (the others keep their Ruckig chain). The waypoints inside a
+        smoothed stretch become the positions it passes at their times (within the spline's
+        interpolation error of the samples, or a nudge off a joint bound).
     """
     traj = trajectory
     smoothed = 0
@@ -138,48 +166,174 @@ def smooth_lines(
     finite = np.concatenate([lim.lower[np.isfinite(lim.lower)], lim.upper[np.isfinite(lim.upper)]])
     bound = max(1.0, float(np.max(np.abs(finite), initial=1.0)))
     for a, b in sorted(stretches):
-        t = traj.waypoint_times[a : b + 1].copy()
-        t[0] += traj.dwell[a]
-        if b - a < 1 or np.any(np.diff(t) <= 0):
-            continue
+        start = float(traj.waypoint_times[a] + traj.dwell[a])
+        chain = float(traj.waypoint_times[b] - start)
         q = np.array(traj.waypoints[a : b + 1], dtype=float)
-        span = float(t[-1] - t[0])
-        for _ in range(4):
-            knots, p, v, acc, j = rest_to_rest_spline(t, q)
-            alone = replace(traj, knots=knots - t[0], p=p, v=v, a=acc, j=j, duration=span)
-            peaks = alone.peak_ratios(None)
-            if peaks["position"] <= LIMIT_TOLERANCE * bound or not _nudge(q, alone, lim.lower, lim.upper):
-                break
-        if peaks["position"] > LIMIT_TOLERANCE * bound:
-            continue  # the spline bulges out of a joint's range: keep the chain
-        # Slower by the factor that brings every derivative within its limit (v ~ 1/k,
-        # a ~ 1/k^2, j ~ 1/k^3), if the spline's timing is tighter than the chain's.
-        k = max(1.0, peaks["velocity"], peaks["acceleration"] ** 0.5, peaks["jerk"] ** (1.0 / 3.0))
-        if k > max_stretch:
+        if b - a < 1 or not chain > 0:
             continue
-        if k > 1.0:
-            k *= 1.0 + 1e-9
-            t = t[0] + (t - t[0]) * k
-            knots, p, v, acc, j = rest_to_rest_spline(t, q)
-            # Only the new piece can break a limit: the rest of the trajectory just moves later.
-            alone = replace(traj, knots=knots - t[0], p=p, v=v, a=acc, j=j, duration=float(t[-1] - t[0]))
-            peaks = alone.peak_ratios(None)
-        if max(peaks["velocity"], peaks["acceleration"], peaks["jerk"]) > 1 + LIMIT_TOLERANCE:
+        cuts = [0, *_corners(q, lim), len(q) - 1]
+        pieces = [_smooth_piece(q[i : k + 1], traj, bound) for i, k in zip(cuts, cuts[1:])]
+        if any(p is None for p in pieces):
             continue
-        traj = _splice(traj, a, b, t, q, knots, p, v, acc, j)
+        if sum(p[0][-1] for p in pieces) > max_stretch * chain:
+            continue
+        t, pos, parts, offset = [np.zeros(1)], [q[:1]], [], 0.0
+        for times, positions, knots, p, v, acc, j in pieces:
+            t.append(offset + times[1:])
+            pos.append(positions[1:])
+            parts.append((offset + knots, p, v, acc, j))
+            offset += float(times[-1])
+        knots, p, v, acc, j = (np.concatenate(x) for x in zip(*parts))
+        traj = _splice(traj, a, b, start + np.concatenate(t), np.concatenate(pos), start + knots, p, v, acc, j)
         smoothed += 1
     return traj, smoothed
 
 
-#: Largest move of a line's inner sample off a joint bound the spline may make [rad or m].
-MAX_NUDGE = 1e-3
+def _corners(q: np.ndarray, limits: JointLimits) -> list[int]:
+    """Inner samples where the path turns a corner.
+
+    A joint arriving at or leaving a range end (the sample at the end next to one inside it),
+    however small its share of the motion: its own path has a kink there. And a turn by more
+    than :data:`CORNER_ANGLE` between neighbouring steps (speed-normalised joint space).
+    """
+    near = [1e-9 * np.maximum(1.0, np.abs(np.nan_to_num(b))) for b in (limits.lower, limits.upper)]
+    on_end = (q <= limits.lower + near[0]) | (q >= limits.upper - near[1])
+    change = on_end[1:] != on_end[:-1]  # between samples k and k + 1
+    at_end = set(np.nonzero(np.any(change & on_end[1:], axis=1))[0] + 1)
+    at_end |= set(np.nonzero(np.any(change & on_end[:-1], axis=1))[0])
+    d = np.diff(q, axis=0) / limits.velocity
+    h = np.linalg.norm(d, axis=1)
+    if len(q) < 3 or np.any(h <= 0):
+        return sorted(int(k) for k in at_end if 0 < k < len(q) - 1)
+    u = d / h[:, None]
+    angle = np.arccos(np.clip(np.sum(u[1:] * u[:-1], axis=1), -1.0, 1.0))  # at samples 1..M-2
+    # A corner turns at one sample (or two, when it lies between them) while the path two
+    # samples away runs straight on; a tight smooth bend turns as much at every sample.
+    padded = np.concatenate([[0.0, 0.0], angle, [0.0, 0.0]])
+    around = np.maximum(padded[:-4], padded[4:])
+    turns = set(np.nonzero((angle > CORNER_ANGLE) & (angle > 3.0 * around))[0] + 1)
+    return sorted(int(k) for k in turns | at_end if 0 < k < len(q) - 1)
+
+
+def _natural_spline(x: np.ndarray, y: np.ndarray) -> np.ndarray:
+    """Second derivatives at the nodes of the natural cubic spline through ``y`` at ``x``, shape of y."""
+    n = len(x)
+    moments = np.zeros_like(y)
+    if n < 3:
+        return moments
+    h = np.diff(x)
+    diag = 2.0 * (h[:-1] + h[1:])
+    off = h[1:-1]
+    rhs = 6.0 * ((y[2:] - y[1:-1]) / h[1:, None] - (y[1:-1] - y[:-2]) / h[:-1, None])
+    m = n - 2
+    cp, dp = np.zeros(m), np.zeros_like(rhs)
+    cp[0], dp[0] = (off[0] / diag[0] if m > 1 else 0.0), rhs[0] / diag[0]
+    for k in range(1, m):
+        den = diag[k] - off[k - 1] * cp[k - 1]
+        cp[k] = off[k] / den if k < m - 1 else 0.0
+        dp[k] = (rhs[k] - off[k - 1] * dp[k - 1]) / den
+    for k in range(m - 2, -1, -1):
+        dp[k] -= cp[k] * dp[k + 1]
+    moments[1:-1] = dp
+    return moments
+
+
+def _spline_at(x: np.ndarray, y: np.ndarray, moments: np.ndarray, xq: np.ndarray) -> np.ndarray:
+    """The cubic spline with node values ``y`` and second derivatives ``moments`` at ``xq``."""
+    i = np.clip(np.searchsorted(x, xq, side="right") - 1, 0, len(x) - 2)
+    h = (x[i + 1] - x[i])[:, None]
+    s0, s1 = (x[i + 1][:, None] - xq[:, None]) / h, (xq[:, None] - x[i][:, None]) / h
+    return s0 * y[i] + s1 * y[i + 1] + h * h / 6.0 * ((s0**3 - s0) * moments[i] + (s1**3 - s1) * moments[i + 1])
+
+
+def _ramp_position(t: np.ndarray, total: float, ramp: float) -> np.ndarray:
+    """Distance covered at time ``t`` at unit cruise speed with smoothstep ramps of length ``ramp``.
+
+    The speed rises as ``3x^2 - 2x^3`` (x = t / ramp), stays at 1, and falls symmetrically to
+    rest at ``total``; the distance at ``total`` is ``total - ramp``.
+    """
+    x = np.clip(t / ramp, 0.0, 1.0)
+    y = np.clip((total - t) / ramp, 0.0, 1.0)
+    out = np.where(t < ramp, ramp * (x**3 - x**4 / 2.0), ramp / 2.0 + (t - ramp))
+    return np.where(t > total - ramp, (total - ramp) - ramp * (y**3 - y**4 / 2.0), out)
+
+
+def _time_grid(total: float, ramp: float) -> np.ndarray:
+    """Knot times: evenly spaced within each ramp and the cruise, the jerk steps on knots."""
+    ends = [0.0, ramp, total - ramp, total]
+    parts = [np.zeros(1)]
+    for a, b in zip(ends, ends[1:]):
+        if b - a > 1e-12 * total:
+            parts.append(np.linspace(a, b, max(2, int(math.ceil((b - a) / KNOT_SPACING))) + 1)[1:])
+    return np.concatenate(parts)
+
+
+def _ramp_time(s: np.ndarray, total: float, ramp: float) -> np.ndarray:
+    """Inverse of :func:`_ramp_position` (bisection; the distance only grows)."""
+    lo, hi = np.zeros_like(s), np.full_like(s, total)
+    for _ in range(60):
+        mid = (lo + hi) / 2.0
+        below = _ramp_position(mid, total, ramp) < s
+        lo, hi = np.where(below, mid, lo), np.where(below, hi, mid)
+    return (lo + hi) / 2.0
+
+
+def _smooth_piece(q: np.ndarray, template: JointTrajectory, bound: float) -> tuple | None:
+    """The fastest smooth rest-to-rest motion along the samples q (M, dof) within every limit.
+
+    Returns:
+        ``(t, positions, knots, p, v, a, j)`` from time 0: the times at which the samples are
+        passed and the positions there, and the spline's pieces; None if none keeps the range.
+    """
+    lim = template.limits
+    steps = np.linalg.norm(np.diff(q, axis=0) / lim.velocity, axis=1)
+    sigma = np.concatenate([[0.0], np.cumsum(steps)])
+    length = float(sigma[-1])
+    if not np.all(steps > 0):
+        return None  # a repeated sample: no path parameter through it
+    moments = _natural_spline(sigma, q)
+    lower = np.where(np.isfinite(lim.lower), lim.lower, -np.inf)
+    upper = np.where(np.isfinite(lim.upper), lim.upper, np.inf)
+    best = None
+    for fraction in _RAMPS:
+        total, ramp = length * (1.0 + fraction), length * fraction
+        grid = _time_grid(total, ramp)
+        s = np.clip(_ramp_position(grid, total, ramp), 0.0, length)
+        qk = np.clip(_spline_at(sigma, q, moments, s), lower, upper)
+        qk[0], qk[-1] = q[0], q[-1]
+        scale, ok = 1.0, False
+        for _ in range(8):
+            t = grid * scale
+            knots, p, v, acc, j = rest_to_rest_spline(t, qk)
+            alone = replace(template, knots=knots, p=p, v=v, a=acc, j=j, duration=float(t[-1]))
+            peaks = alone.peak_ratios(None)
+            if peaks["position"] > LIMIT_TOLERANCE * bound:
+                if not _nudge(qk, alone, lower, upper):
+                    break
+                continue
+            # A uniform time scaling by k scales v, a, j by 1/k, 1/k^2, 1/k^3: the tightest
+            # joint then reaches its limit (faster or slower).
+            k = max(peaks["velocity"], peaks["acceleration"] ** 0.5, peaks["jerk"] ** (1.0 / 3.0))
+            if max(peaks["velocity"], peaks["acceleration"], peaks["jerk"]) <= 1 + LIMIT_TOLERANCE and k > 1 - 1e-6:
+                ok = True
+                break
+            scale *= k * (1.0 + 1e-9)
+        if not ok:
+            continue
+        if best is None or t[-1] < best[0][-1]:
+            at = _ramp_time(sigma, total, ramp) * scale
+            at[0], at[-1] = 0.0, t[-1]
+            best = (at, alone.sample(at).q, knots, p, v, acc, j)
+    if best is not None:
+        best[1][0], best[1][-1] = q[0], q[-1]
+    return best
 
 
 def _nudge(q: np.ndarray, spline: JointTrajectory, lower: np.ndarray, upper: np.ndarray) -> bool:
-    """Move inner samples that sit at a joint bound inward by twice the spline's excess there.
+    """Move inner knots near a joint bound inward by twice the spline's excess there.
 
     A line running along a joint limit has samples exactly at it; the spline through them rings
-    a little beyond. Returns whether a sample was moved (never by more than :data:`MAX_NUDGE`).
+    a little beyond. Returns whether a knot was moved (never by more than :data:`MAX_NUDGE`).
     """
     s = spline.sample(np.linspace(0.0, spline.duration, 40 * len(q)))
     below = np.maximum(lower - s.q.min(axis=0), 0.0)

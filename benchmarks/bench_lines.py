@@ -1,0 +1,171 @@
+"""Benchmark: how smooth straight Cartesian lines are, and how long they take (issue 11).
+
+For the demo's AL5C plan (``planner demo``) and for random lines on al5c and three_joint (two
+random configurations within the joint limits per line, ``--seed``; the tip positions by
+forward kinematics; lines IK cannot follow are skipped and counted), ``plan_motion`` plans the
+line and the trajectory is sampled at 1 kHz from the departure to the arrival:
+
+- jerk sign changes per joint: sign changes of the sampled jerk where |jerk| > 1 % of the
+  joint's jerk limit (the count of issue 11); per line, the worst joint;
+- per piece: the same between two instants where the arm rests inside the line (it stops at
+  corners of the joint path: a joint arriving at or leaving a range end);
+- every limit: peak velocity, acceleration and jerk over their limits (exact and 1 kHz) and the
+  position excess; the tip's largest distance from the line (``line_deviation``);
+- duration over the Ruckig chain the line had before it was smoothed (the line timing's
+  segments between the samples, :func:`planner.motion.line_timing.line_trajectory`).
+
+Goal (issue 11): single digits of jerk sign changes per joint per line, as a joint-space
+S-curve has. Prints Markdown tables, writes JSON to benchmarks/results/bench_lines.json (and
+the tables to bench_lines.md).
+
+    python benchmarks/bench_lines.py [--lines 40] [--seed 5]
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from pathlib import Path
+
+import numpy as np
+
+import planner
+from planner.app.demo import al5c_request
+from planner.app.motion_plan import plan_motion
+from planner.app.plan_file import parse_motion_request
+from planner.model.robot import Robot
+from planner.motion.branch_choice import TargetSolver
+from planner.motion.line import line_waypoints
+from planner.motion.line_timing import line_trajectory
+
+RESULTS = Path(__file__).resolve().parent / "results"
+
+
+def sign_changes(traj, t0: float, t1: float, jerk_limit: np.ndarray) -> np.ndarray:
+    """Per joint, sign changes of the 1 kHz jerk where |jerk| > 1 % of its limit."""
+    s = traj.sample(np.arange(t0, t1, 1e-3))
+    out = []
+    for d in range(s.qddd.shape[1]):
+        x = s.qddd[:, d]
+        x = x[np.abs(x) > 0.01 * jerk_limit[d]]
+        out.append(int(np.sum(np.sign(x[1:]) != np.sign(x[:-1]))))
+    return np.array(out)
+
+
+def line_figures(plan, k: int) -> dict:
+    """Figures of the line into user waypoint k of a plan."""
+    traj, lim = plan.trajectory, plan.limits
+    t0, t1 = float(plan.departure_times[k - 1]), float(plan.waypoint_times[k])
+    inside = traj.waypoint_times[(traj.waypoint_times > t0 + 1e-9) & (traj.waypoint_times < t1 - 1e-9)]
+    rests = [t for t in inside if np.all(np.abs(traj.sample(np.array([t])).qd[0]) <= 1e-9 * lim.velocity)]
+    bounds = [t0, *rests, t1]
+    pieces = [int(sign_changes(traj, a, b, lim.jerk).max()) for a, b in zip(bounds, bounds[1:])]
+    counts = sign_changes(traj, t0, t1, lim.jerk)
+    peaks = [traj.peak_ratios(None), traj.peak_ratios(1000.0)]
+    return {
+        "sign_changes": counts.tolist(),
+        "worst_joint": int(counts.max()),
+        "pieces": len(pieces),
+        "worst_piece": max(pieces),
+        "limit_ratio": max(max(p["velocity"], p["acceleration"], p["jerk"]) for p in peaks),
+        "position_excess": max(p["position"] for p in peaks),
+        "deviation": float(plan.line_deviation[k - 1]),
+        "duration": t1 - t0,
+    }
+
+
+def random_lines(robot: Robot, count: int, rng: np.random.Generator) -> tuple[list[dict], int]:
+    out, skipped = [], 0
+    solver = TargetSolver(robot)
+    while len(out) < count:
+        q = robot.random_configurations(rng, 2)
+        data = {
+            "targets": [
+                {"position": robot.position(q[0]).tolist()},
+                {"position": robot.position(q[1]).tolist(), "line": True},
+            ]
+        }
+        try:
+            request = parse_motion_request(data)
+            plan = plan_motion(robot, request)
+        except planner.PlannerError:
+            skipped += 1
+            continue
+        fig = line_figures(plan, 1)
+        # The chain through the same samples (the same IK from the same start).
+        start = solver.choose(request.targets[0], None).q
+        path = line_waypoints(solver, request.targets[0], request.targets[1], start)
+        chain = line_trajectory(path, plan.limits)
+        fig["chain_ratio"] = fig["duration"] / chain.duration
+        out.append(fig)
+    return out, skipped
+
+
+def summary(name: str, lines: list[dict]) -> dict:
+    per_joint = [c for f in lines for c in f["sign_changes"]]
+    worst = [f["worst_joint"] for f in lines]
+    pieces = [f["worst_piece"] for f in lines]
+    ratios = [f["chain_ratio"] for f in lines if "chain_ratio" in f]
+    return {
+        "robot": name,
+        "lines": len(lines),
+        "with_corners": sum(f["pieces"] > 1 for f in lines),
+        "per_joint_median": float(np.median(per_joint)),
+        "per_joint_max": int(max(per_joint)),
+        "worst_joint_median": float(np.median(worst)),
+        "worst_joint_max": int(max(worst)),
+        "single_digit_lines": sum(w <= 9 for w in worst),
+        "worst_piece_max": int(max(pieces)),
+        "limit_ratio_max": max(f["limit_ratio"] for f in lines),
+        "position_excess_max": max(f["position_excess"] for f in lines),
+        "deviation_max": max(f["deviation"] for f in lines),
+        "chain_ratio": [float(np.median(ratios)), min(ratios), max(ratios)] if ratios else None,
+    }
+
+
+def table(rows: list[dict]) -> str:
+    head = (
+        "| lines | count (with corners) | sign changes per joint: median / max | worst joint per line: "
+        "median / max | lines single digit | worst piece | peak limit ratio | tip off line max [m] | "
+        "duration / chain: median (range) |\n|---|---|---|---|---|---|---|---|---|\n"
+    )
+    body = ""
+    for r in rows:
+        ratio = "-" if r["chain_ratio"] is None else "{:.2f} ({:.2f}-{:.2f})".format(*r["chain_ratio"])
+        body += (
+            f"| {r['robot']} | {r['lines']} ({r['with_corners']}) | {r['per_joint_median']:g} / {r['per_joint_max']} "
+            f"| {r['worst_joint_median']:g} / {r['worst_joint_max']} | {r['single_digit_lines']} / {r['lines']} "
+            f"| {r['worst_piece_max']} | {r['limit_ratio_max']:.9f} | {r['deviation_max']:.1e} | {ratio} |\n"
+        )
+    return head + body
+
+
+def main(argv=None) -> None:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    parser.add_argument("--lines", type=int, default=40, help="random lines per robot")
+    parser.add_argument("--seed", type=int, default=5)
+    args = parser.parse_args(argv)
+    rng = np.random.default_rng(args.seed)
+    rows, record = [], {"seed": args.seed, "lines_per_robot": args.lines, "robots": {}}
+    request, _ = al5c_request()
+    al5c = planner.load_robot("al5c")
+    demo = plan_motion(al5c, parse_motion_request(request))
+    demo_lines = [line_figures(demo, k) for k in range(1, len(demo.waypoints)) if demo.branches[k] == "line"]
+    rows.append(summary("al5c demo", demo_lines))
+    record["robots"]["al5c demo"] = {"summary": rows[-1], "lines": demo_lines}
+    for name in ("al5c", "three_joint"):
+        robot = planner.load_robot(name)
+        lines, skipped = random_lines(robot, args.lines, rng)
+        rows.append(summary(name, lines))
+        record["robots"][name] = {"summary": rows[-1], "skipped": skipped, "lines": lines}
+        print(f"{name}: {len(lines)} lines, {skipped} skipped (IK cannot follow)", file=sys.stderr)
+    text = table(rows)
+    print(text)
+    RESULTS.mkdir(exist_ok=True)
+    (RESULTS / "bench_lines.json").write_text(json.dumps(record, indent=2) + "\n")
+    (RESULTS / "bench_lines.md").write_text(text)
+
+
+if __name__ == "__main__":
+    main()
