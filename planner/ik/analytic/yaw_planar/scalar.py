@@ -9,7 +9,8 @@ from __future__ import annotations
 
 import math
 
-from planner.core.arrays import read_only
+import numpy as np
+
 from planner.geometry.chain import wrap_scalar
 from planner.geometry.target import Target, pitch_error_scalar
 from planner.ik.analytic.geometry import SINGULAR_TOL, wrap_pi
@@ -184,27 +185,33 @@ def solve_scalar(arm: ArmGeometry, target: Target, qc: list[float] | None) -> An
 def finish_scalar(arm: ArmGeometry, sols, cats, dist, qc, target) -> AnalyticResult:
     """The result from the branches' raw solutions: wrapped into the limits, sorted, with status."""
     lower, upper = arm.lower, arm.upper
-    solutions = []
-    details = []
     dof = arm.dof
-    for slot, q, singular, perr, oerr in sols:
+    ref = qc if qc is not None else [0.0] * dof
+    within_flags = []
+    for _, q, _, _, _ in sols:
         within = True
         for j in range(dof):
-            v, lo, hi = q[j], lower[j], upper[j]
-            ref = qc[j] if qc is not None else 0.0
-            if lo <= v <= hi and -PI <= v - ref <= PI:
+            v, lo, hi, r = q[j], lower[j], upper[j], ref[j]
+            if lo <= v <= hi and -PI <= v - r <= PI:
                 continue  # already in range and the equivalent nearest ref
-            v = wrap_scalar(v, lo, hi, ref)
+            v = wrap_scalar(v, lo, hi, r)
             q[j] = v
             if v < lo or v > hi:
                 within = False
-        sol = AnalyticSolution(read_only(q), within, BRANCHES[slot], singular, perr, oerr)
+        within_flags.append(within)
+    order = range(len(sols))
+    if qc is not None and len(sols) > 1:
+        order = sorted(order, key=lambda i: sum((a - b) * (a - b) for a, b in zip(sols[i][1], qc)))
+    # One frozen array for all solutions; each solution's q is a (read-only) row of it.
+    rows = np.array([sols[i][1] for i in order], dtype=float).reshape(len(sols), dof)
+    rows.setflags(write=False)
+    solutions = []
+    details = []
+    for row, i in zip(rows, order):
+        slot, _, singular, perr, oerr = sols[i]
+        sol = AnalyticSolution(row, within_flags[i], BRANCHES[slot], singular, perr, oerr)
         solutions.append(sol)
         details.append((slot, sol))
-    if qc is not None and len(solutions) > 1:
-        order = sorted(
-            range(len(solutions)), key=lambda i: sum((a - b) ** 2 for a, b in zip(solutions[i].q.tolist(), qc))
-        )
-        solutions = [solutions[i] for i in order]
+    details.sort(key=lambda item: item[0])
     status, reason = status_and_reason(arm, cats, dist, details, target)
     return AnalyticResult(status, reason, tuple(solutions), any(s.singular for s in solutions))
