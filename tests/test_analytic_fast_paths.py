@@ -9,17 +9,21 @@ same closed form over arrays), also for targets moved off the reachable set.
 
 from __future__ import annotations
 
+import functools
 import math
 
 import numpy as np
 import pytest
 from dh_arms import property_settings
-from hypothesis import given
+from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from planner import Robot, Target, load_robot, rotation_error
+from planner.geometry.target import approach_pitch, pitch_error
 from planner.ik.analytic import closed_form_solver
 from planner.ik.analytic.yaw_planar.arrays import result_from_arrays, solve_arrays
+from planner.ik.analytic.yaw_planar.corrected import real_tip_pose, solve_corrected_scalar
+from planner.model.catalog import example_robot_data_dir
 
 TOL_POS = 1e-9
 TOL_ROT = 1e-9
@@ -38,21 +42,31 @@ def _joint(name, parent, child, xyz, axis, lower, upper):
 
 
 @st.composite
-def yaw_planar_arms(draw) -> Robot:
-    """A random arm of the yaw-planar family, built from a URDF string."""
+def yaw_planar_arms(draw, tilt: float = 0.0, n_pitch: int | None = None) -> Robot:
+    """A random arm of the yaw-planar family, built from a URDF string.
+
+    `tilt` [rad] turns every axis by about that much off the family's ideal direction.
+    """
     length = st.floats(0.05, 0.3, **_FLOAT)
     offset = st.floats(-0.03, 0.03, **_FLOAT)
     sign = st.sampled_from([-1.0, 1.0])
     limit = st.floats(1.0, math.pi, **_FLOAT)
-    n_pitch = draw(st.integers(2, 3))
+    n_pitch = n_pitch or draw(st.integers(2, 3))
     roll = draw(st.booleans())
     joints = [("yaw", (draw(offset), draw(offset), draw(length)), (0.0, 0.0, draw(sign)))]
     joints.append(("p0", (draw(offset), draw(offset), draw(offset)), (0.0, draw(sign), 0.0)))
     for k in range(1, n_pitch):
         joints.append((f"p{k}", (draw(length), draw(offset), draw(offset)), (0.0, draw(sign), 0.0)))
     if roll:
-        tilt = draw(st.floats(-0.5, 0.5, **_FLOAT))
-        joints.append(("roll", (draw(length), draw(offset), draw(offset)), (math.cos(tilt), 0.0, math.sin(tilt))))
+        slope = draw(st.floats(-0.5, 0.5, **_FLOAT))
+        joints.append(("roll", (draw(length), draw(offset), draw(offset)), (math.cos(slope), 0.0, math.sin(slope))))
+    if tilt:
+        turned = []
+        for name, xyz, axis in joints:
+            off = np.array([draw(st.floats(0.5, 1.0, **_FLOAT)) * draw(sign) for _ in range(3)]) * tilt
+            a = np.asarray(axis) + off
+            turned.append((name, xyz, tuple((a / np.linalg.norm(a)).tolist())))
+        joints = turned
     parts = ['<robot name="random_yaw_planar"><link name="base"/>']
     parent = "base"
     for k, (name, xyz, axis) in enumerate(joints):
@@ -65,6 +79,11 @@ def yaw_planar_arms(draw) -> Robot:
         f'<origin xyz="{tip[0]!r} {tip[1]!r} {tip[2]!r}"/></joint></robot>'
     )
     return Robot("".join(parts), tip="tip", approach_axis=(1.0, 0.0, 0.0))
+
+
+@functools.cache
+def so101() -> Robot:
+    return load_robot("so101")
 
 
 def configuration(data, robot: Robot) -> np.ndarray:
@@ -85,7 +104,8 @@ def assert_same(got, want):
     assert got.status == want.status, (got, want)
     assert [s.branch for s in got.solutions] == [s.branch for s in want.solutions], (got, want)
     for a, b in zip(got.solutions, want.solutions):
-        np.testing.assert_allclose(a.q, b.q, atol=1e-9)
+        # Equal modulo 2 pi (an angle on a limit at +-pi may round either way).
+        np.testing.assert_allclose(np.abs((a.q - b.q + np.pi) % (2 * np.pi) - np.pi), 0.0, atol=1e-9)
         assert a.within_limits == b.within_limits
         assert a.singular == b.singular
         assert not a.q.flags.writeable
@@ -140,3 +160,61 @@ def test_pose_targets_on_bundled_arms(name, data):
     assert_same(result, reference(solver, target, None))
     assert_reproduces(robot, target, result)
     assert has(result, q) or result.singular
+
+
+@st.composite
+def inexact_arms(draw) -> Robot:
+    """A random 3-pitch arm whose axes deviate from the family's by micro-radians (as SO-101's)."""
+    return draw(yaw_planar_arms(tilt=draw(st.floats(1e-7, 2e-5, **_FLOAT)), n_pitch=3))
+
+
+def check_corrected(robot, solver, target, q_current):
+    """The corrected scalar path (when it answers) against the vectorised path and Pinocchio FK."""
+    fast = solve_corrected_scalar(solver.arm, real_tip_pose(robot), target, list(q_current))
+    if fast is None:  # declined: the solver takes the vectorised path (tested elsewhere)
+        return None
+    assert_same(fast, reference(solver, target, q_current))
+    for sol in fast.solutions:
+        pose = robot.fk(sol.q)
+        assert np.linalg.norm(pose[:3, 3] - target.position) < TOL_POS, sol
+        if target.pitch is not None:
+            a = pose[:3, :3] @ robot.approach_axis
+            assert pitch_error(a, target.position, target.pitch) < TOL_ROT, sol
+    return fast
+
+
+@settings(parent=property_settings(100), suppress_health_check=list(HealthCheck))
+@given(robot=inexact_arms(), data=st.data())
+def test_corrected_path_on_random_inexact_arms(robot, data):
+    solver = closed_form_solver(robot)
+    assert not solver.exact
+    q = configuration(data, robot)
+    pose = robot.fk(q)
+    for target in (Target(pose[:3, 3]), Target(pose[:3, 3], pitch=approach_pitch(robot, q))):
+        if target.pitch is not None and not solver.arm.pitch_supported:
+            continue
+        result = check_corrected(robot, solver, target, q)
+        if result is not None:
+            assert result.ok
+            assert has(result, q) or result.singular
+
+
+@property_settings(150)
+@given(data=st.data())
+def test_corrected_path_on_so101(data):
+    if example_robot_data_dir() is None:
+        pytest.skip("example-robot-data is not installed")
+    robot = so101()
+    solver = closed_form_solver(robot)
+    q = configuration(data, robot)
+    q_current = q if data.draw(st.booleans()) else configuration(data, robot)
+    pose = robot.fk(q)
+    for target in (Target(pose[:3, 3]), Target(pose[:3, 3], pitch=approach_pitch(robot, q))):
+        result = check_corrected(robot, solver, target, q_current)
+        if result is not None:
+            assert result.ok
+            assert has(result, q) or q_current is not q
+    # Through the public solver too.
+    result = solver.solve(Target(pose[:3, 3], pitch=approach_pitch(robot, q)), q_current=q)
+    assert_reproduces(robot, Target(pose[:3, 3]), result)
+    assert has(result, q)

@@ -44,8 +44,10 @@ geometry and then corrected on the real one (:mod:`~planner.ik.analytic.yaw_plan
 
 Speed: :meth:`YawPlanarIK.solve` runs every target on exact chains in scalar arithmetic, each
 branch verified by the forward model (a few ``robot.fk`` call times: ``scalar`` for position and
-pitch targets, ``scalar_pose`` for full poses); inexact chains go through the vectorised path
-(hundreds of microseconds for one target). ``solve_batch`` is vectorised over targets (in
+pitch targets, ``scalar_pose`` for full poses); on inexact chains position and pitch targets
+are solved per branch and corrected by two rounds on the real model (``corrected``), the rest
+(poses, and targets that path declines) go through the vectorised path (hundreds of
+microseconds for one target). ``solve_batch`` is vectorised over targets (in
 slices of 16384 to stay in cache). The search within the limits, only for targets that need
 it, costs about 1.5 ms for the approach pitch and 3-12 ms with SO-101's roll.
 
@@ -53,7 +55,7 @@ Modules, in the order of the data flow: ``layout`` (does a chain fit, which join
 ``arm`` (the geometry, :class:`~planner.ik.analytic.yaw_planar.arm.ArmGeometry`), ``branches``
 (branch names and failure categories), ``orientation`` and ``free_pitch`` (the end angle, yaw
 and roll a target fixes or leaves free), ``core`` (the ideal closed form over arrays),
-``scalar`` and ``scalar_pose`` (the same for one target without NumPy), ``real_model`` and ``refine`` (the real
+``scalar``, ``scalar_pose`` and ``corrected`` (the same for one target without NumPy), ``real_model`` and ``refine`` (the real
 geometry), ``status`` (status and reason), ``arrays`` (the pipeline per batch), ``end_angle``
 and ``search`` (free joints within the limits), ``batch`` (slices), ``solver``
 (:class:`YawPlanarIK`).

@@ -24,6 +24,7 @@ from planner.ik.analytic.yaw_planar.arm import arm_geometry
 from planner.ik.analytic.yaw_planar.arrays import BranchArrays, result_from_arrays, solve_arrays
 from planner.ik.analytic.yaw_planar.batch import solve_chunked
 from planner.ik.analytic.yaw_planar.branches import BRANCHES
+from planner.ik.analytic.yaw_planar.corrected import real_tip_pose, solve_corrected_scalar
 from planner.ik.analytic.yaw_planar.layout import chain_layout
 from planner.ik.analytic.yaw_planar.real_model import true_fk
 from planner.ik.analytic.yaw_planar.scalar import solve_scalar
@@ -74,6 +75,7 @@ class YawPlanarIK(AnalyticIK):
         self.link_lengths = arm.link_lengths
         self.lateral_offset = arm.lateral_offset
         self._pose_frame = pose_frame(arm) if arm.exact else None
+        self._real_tip_pose = None if arm.exact else real_tip_pose(robot)
 
     def describe(self) -> dict:
         """The detected geometry, for reports and tests (lengths [m], angles [rad])."""
@@ -110,6 +112,8 @@ class YawPlanarIK(AnalyticIK):
             result = solve_scalar(arm, target, qc)
         elif arm.exact:
             result = solve_pose_scalar(arm, self._pose_frame, target, qc)
+        elif (result := solve_corrected_scalar(arm, self._real_tip_pose, target, qc)) is not None:
+            return result
         else:
             arrays = solve_arrays(arm, *_one_target_arrays(target, qc))
             result = result_from_arrays(arm, arrays, 0, target, qc)
