@@ -55,10 +55,10 @@ Modules, in the order of the data flow: ``layout`` (does a chain fit, which join
 ``arm`` (the geometry, :class:`~planner.ik.analytic.yaw_planar.arm.ArmGeometry`), ``branches``
 (branch names and failure categories), ``orientation`` and ``free_pitch`` (the end angle, yaw
 and roll a target fixes or leaves free), ``core`` (the ideal closed form over arrays),
-``scalar``, ``scalar_pose`` and ``corrected`` (the same for one target without NumPy), ``real_model`` and ``refine`` (the real
-geometry), ``status`` (status and reason), ``arrays`` (the pipeline per batch), ``end_angle``
-and ``search`` (free joints within the limits), ``batch`` (slices), ``solver``
-(:class:`YawPlanarIK`).
+``scalar``, ``scalar_pose`` and ``corrected`` (the same for one target without NumPy),
+``real_model`` and ``refine`` (the real geometry), ``status`` (status and reason), ``arrays``
+(the pipeline per batch), ``end_angle`` and ``search`` (free joints within the limits),
+``batch`` (slices), ``solver`` (:class:`YawPlanarIK`).
 """
 
 from planner.ik.analytic.yaw_planar.branches import BRANCHES
