@@ -22,7 +22,8 @@ from planner import Robot, Target, load_robot, rotation_error
 from planner.geometry.target import approach_pitch, pitch_error
 from planner.ik.analytic import closed_form_solver
 from planner.ik.analytic.yaw_planar.arrays import result_from_arrays, solve_arrays
-from planner.ik.analytic.yaw_planar.corrected import real_tip_pose, solve_corrected_scalar
+from planner.ik.analytic.yaw_planar.corrected import real_tip_pose, solve_corrected_pose, solve_corrected_scalar
+from planner.ik.analytic.yaw_planar.scalar_pose import pose_frame
 from planner.model.catalog import example_robot_data_dir
 
 TOL_POS = 1e-9
@@ -197,6 +198,11 @@ def test_corrected_path_on_random_inexact_arms(robot, data):
         if result is not None:
             assert result.ok
             assert has(result, q) or result.singular
+    target = Target(pose[:3, 3], rotation=pose[:3, :3])
+    fast = solve_corrected_pose(solver.arm, pose_frame(solver.arm), real_tip_pose(robot), target, None)
+    if fast is not None:
+        assert_same(fast, reference(solver, target, None))
+        assert_reproduces(robot, target, fast)
 
 
 @property_settings(150)
@@ -214,6 +220,13 @@ def test_corrected_path_on_so101(data):
         if result is not None:
             assert result.ok
             assert has(result, q) or q_current is not q
+    # Full poses: the corrected pose path.
+    target = Target(pose[:3, 3], rotation=pose[:3, :3])
+    fast = solve_corrected_pose(solver.arm, pose_frame(solver.arm), real_tip_pose(robot), target, None)
+    if fast is not None:
+        assert_same(fast, reference(solver, target, None))
+        assert_reproduces(robot, target, fast)
+        assert has(fast, q)
     # Through the public solver too.
     result = solver.solve(Target(pose[:3, 3], pitch=approach_pitch(robot, q)), q_current=q)
     assert_reproduces(robot, Target(pose[:3, 3]), result)

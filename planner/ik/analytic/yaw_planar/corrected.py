@@ -1,4 +1,4 @@
-"""Position and pitch targets on inexact 3-pitch chains (SO-101), in scalar arithmetic.
+"""Targets on inexact chains (SO-101), in scalar arithmetic: every branch corrected in a fixed number of rounds.
 
 The fast path of :meth:`~planner.ik.analytic.yaw_planar.solver.YawPlanarIK.solve` for chains
 whose axes deviate from the family's by round-off: each branch is solved on the ideal geometry
@@ -7,7 +7,10 @@ corrected on the real one (Pinocchio's FK) by a fixed number of the rounds of
 :func:`~planner.ik.analytic.yaw_planar.refine.refine`: the branch re-solved for its target
 shifted by the error it left (position and branch pitch), which shrinks the error by about the
 deviation (micro-radians) per round, so two rounds take it from the deviation's micrometres to
-round-off. The approach pitch a position-only target leaves free is ``q_current``'s, measured on
+round-off. Position and pitch targets (:func:`solve_corrected_scalar`, 3 pitch joints) are
+solved one branch at a time; full poses (:func:`solve_corrected_pose`) by the pose closed form
+of :mod:`~planner.ik.analytic.yaw_planar.scalar_pose` for the pose composed with the inverse
+error. The approach pitch a position-only target leaves free is ``q_current``'s, measured on
 the real arm, where reachable, else the default choice (:mod:`~planner.ik.analytic.yaw_planar.free_pitch`).
 
 Targets this path does not settle in those rounds, or that need more than the plain closed form
@@ -30,9 +33,10 @@ from planner.ik.analytic.yaw_planar.arm import ArmGeometry
 from planner.ik.analytic.yaw_planar.branches import BEYOND, INSIDE, VALID
 from planner.ik.analytic.yaw_planar.free_pitch import free_pitch_failure, free_pitch_scalar
 from planner.ik.analytic.yaw_planar.scalar import finish_scalar
+from planner.ik.analytic.yaw_planar.scalar_pose import PoseFrame, pose_branches
 from planner.model.robot import Robot
 
-__all__ = ["ROUNDS", "TipPose", "real_tip_pose", "solve_corrected_scalar"]
+__all__ = ["ROUNDS", "TipPose", "real_tip_pose", "solve_corrected_scalar", "solve_corrected_pose"]
 
 PI = math.pi
 
@@ -270,12 +274,89 @@ def solve_corrected_scalar(
             return None
         sols.append((slot, q, abs(ue) < axis_tol, perr, oerr))
     # Branches that converged onto one solution (refine's twins): the vectorised path.
+    if _twins(arm, sols):
+        return None
+    result = finish_scalar(arm, sols, cats, dist, qc, target)
+    return result if result.status == STATUS_SOLVED else None
+
+
+def _angle(rot_a: list[list[float]], rot_b: np.ndarray) -> float:
+    """Angle [rad] of the rotation between two orientations (``rotation_error``), one as rows."""
+    rel = np.array(rot_a).T @ rot_b
+    (r00, r01, r02), (r10, r11, r12), (r20, r21, r22) = rel.tolist()
+    cos_a = 0.5 * (r00 + r11 + r22 - 1.0)
+    sin_a = 0.5 * math.sqrt((r21 - r12) ** 2 + (r02 - r20) ** 2 + (r10 - r01) ** 2)
+    return math.atan2(sin_a, min(1.0, max(-1.0, cos_a)))
+
+
+def solve_corrected_pose(
+    arm: ArmGeometry, frame: PoseFrame, tip_pose: TipPose, target: Target, qc: list[float] | None
+) -> AnalyticResult | None:
+    """Every branch of a full-pose target on an inexact chain, or None (see the module).
+
+    Each branch of the ideal closed form (:func:`~planner.ik.analytic.yaw_planar.scalar_pose.pose_branches`)
+    is re-solved for the pose composed with the inverse of the error it left, as
+    :func:`~planner.ik.analytic.yaw_planar.refine.refine` does, :data:`ROUNDS` times.
+
+    Args:
+        arm: The geometry (inexact).
+        frame: Its plane-basis constants.
+        tip_pose: The real arm's FK (:func:`real_tip_pose`).
+        target: A full-pose target.
+        qc: The current configuration, or None.
+
+    Returns:
+        The result when every branch settles and one lies within the limits, else None.
+    """
+    pos = target.position
+    rot = target.rotation
+    sols, cats, dist = pose_branches(arm, frame, pos.tolist(), rot, qc)
+    # Next to a stretched or folded elbow or the yaw axis the vectorised path starts the branches
+    # apart (solve_core's seeds): take it there.
+    near_elbow = math.sin(arm.elbow_seed)
+    reach = math.hypot(pos[0] - arm.bx, pos[1] - arm.by)
+    if reach <= abs(arm.lateral_offset) + arm.scale * 1e-3 + math.sqrt(2.0 * arm.scale * arm.core_len_tol):
+        return None
+    for _, q, singular, _, _ in sols:
+        e = arm.signs[1] * q[arm.pitch_idx[1]] + (arm.g2 if arm.n_pitch == 3 else 0.0) - arm.g1
+        if singular or (arm.n_pitch == 3 and abs(math.sin(e)) < 2.0 * near_elbow):
+            return None
+    settle = 1e-14 * max(1.0, arm.scale)
+    pos_tol = 1e-10 * max(1.0, arm.scale)
+    out = []
+    for slot, q, singular, _, _ in sols:
+        p_eff, r_eff = pos, rot
+        for round_ in range(ROUNDS + 1):
+            p, r = tip_pose(q)
+            dp = pos - np.array(p)
+            perr = math.sqrt(float(dp @ dp))
+            oerr = _angle(r, rot)
+            if (perr <= settle and oerr <= 1e-13) or round_ == ROUNDS:
+                break
+            # T_eff <- T_eff FK(q)^-1 T: the pose error, expressed at the tip, undone.
+            r_t = np.array(r).T
+            p_eff = p_eff + r_eff @ (r_t @ dp)
+            r_eff = r_eff @ r_t @ rot
+            moved, _, _ = pose_branches(arm, frame, p_eff.tolist(), r_eff, qc)
+            q = next((m[1] for m in moved if m[0] == slot), None)
+            if q is None:
+                return None
+        if perr > pos_tol or oerr > 1e-9:
+            return None
+        out.append((slot, q, singular, perr, oerr))
+    if _twins(arm, out):
+        return None
+    result = finish_scalar(arm, out, cats, dist, qc, target)
+    return result if result.status == STATUS_SOLVED else None
+
+
+def _twins(arm: ArmGeometry, sols) -> bool:
+    """Whether two branches converged onto one solution (refine's twins)."""
     shoulder = arm.pitch_idx[0]
     for i in range(len(sols)):
         for j in range(i + 1, len(sols)):
             qi, qj = sols[i][1], sols[j][1]
             if abs(wrap_pi(qi[0] - qj[0])) < 1e-7 and abs(wrap_pi(qi[shoulder] - qj[shoulder])) < 1e-7:
                 if max(abs(wrap_pi(a - b)) for a, b in zip(qi, qj)) < 1e-7:
-                    return None
-    result = finish_scalar(arm, sols, cats, dist, qc, target)
-    return result if result.status == STATUS_SOLVED else None
+                    return True
+    return False

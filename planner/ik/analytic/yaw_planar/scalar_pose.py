@@ -26,7 +26,7 @@ from planner.ik.analytic.yaw_planar.arm import ArmGeometry
 from planner.ik.analytic.yaw_planar.branches import BEYOND, CYLINDER, DUPLICATE, INSIDE, ORIENT, VALID
 from planner.ik.analytic.yaw_planar.scalar import finish_scalar
 
-__all__ = ["PoseFrame", "pose_frame", "solve_pose_scalar"]
+__all__ = ["PoseFrame", "pose_frame", "pose_branches", "solve_pose_scalar"]
 
 PI = math.pi
 
@@ -74,9 +74,31 @@ def pose_frame(arm: ArmGeometry) -> PoseFrame:
 
 def solve_pose_scalar(arm: ArmGeometry, frame: PoseFrame, target: Target, qc: list[float] | None) -> AnalyticResult:
     """Every closed-form solution of a full-pose target on an exact chain (scalar arithmetic)."""
+    sols, cats, dist = _pose(arm, frame, target.position.tolist(), target.rotation, qc, True)
+    return finish_scalar(arm, sols, cats, dist, qc, target)
+
+
+def pose_branches(arm: ArmGeometry, frame: PoseFrame, position: list[float], rotation: np.ndarray, qc):
+    """The ideal closed form's branches of a pose, unverified (for the correction of inexact chains).
+
+    Args:
+        arm: The geometry.
+        frame: Its plane-basis constants (:func:`pose_frame`).
+        position: Target position [m] (3 floats).
+        rotation: Target rotation, shape (3, 3).
+        qc: The current configuration (list), or None.
+
+    Returns:
+        (solutions, categories, distances): solutions as (slot, q, singular, None, None), q a
+        list not yet wrapped into the limits; the 4 branch categories; the 4 wrist distances.
+    """
+    return _pose(arm, frame, position, rotation, qc, False)
+
+
+def _pose(arm: ArmGeometry, frame: PoseFrame, position, rotation, qc, verify: bool):
     cos, sin, atan2, sqrt, hypot = math.cos, math.sin, math.atan2, math.sqrt, math.hypot
-    px, py, pz = target.position.tolist()
-    flat = (frame.linear @ target.rotation.reshape(9)).tolist()
+    px, py, pz = position
+    flat = (frame.linear @ rotation.reshape(9)).tolist()
     m = (flat[0:3], flat[3:6], flat[6:9])
     # End point: the tip, or the roll centre (the tip minus its offset turned by the target).
     if arm.has_roll:
@@ -191,6 +213,9 @@ def solve_pose_scalar(arm: ArmGeometry, frame: PoseFrame, target: Target, qc: li
             q[idx[2]] = signs[2] * (phi - phi2_3)
         if roll_idx is not None:
             q[roll_idx] = rolls[side]
+        if not verify:
+            sols.append((slot, q, elbow_singular or free or abs(ue[side]) < scale_axis, None, None))
+            continue
         # Forward model at q.
         f2 = signs[0] * q[idx[0]]
         f3 = f2 + signs[1] * q[idx[1]]
@@ -228,7 +253,7 @@ def solve_pose_scalar(arm: ArmGeometry, frame: PoseFrame, target: Target, qc: li
             continue
         singular = elbow_singular or free or abs(ue[side]) < scale_axis
         sols.append((slot, q, singular, perr, oerr))
-    return finish_scalar(arm, sols, cats, dist, qc, target)
+    return sols, cats, dist
 
 
 def _three_pitch(arm: ArmGeometry, ue, ze, tu, tz, phis, cat):

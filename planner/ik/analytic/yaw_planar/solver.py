@@ -24,7 +24,7 @@ from planner.ik.analytic.yaw_planar.arm import arm_geometry
 from planner.ik.analytic.yaw_planar.arrays import BranchArrays, result_from_arrays, solve_arrays
 from planner.ik.analytic.yaw_planar.batch import solve_chunked
 from planner.ik.analytic.yaw_planar.branches import BRANCHES
-from planner.ik.analytic.yaw_planar.corrected import real_tip_pose, solve_corrected_scalar
+from planner.ik.analytic.yaw_planar.corrected import real_tip_pose, solve_corrected_pose, solve_corrected_scalar
 from planner.ik.analytic.yaw_planar.layout import chain_layout
 from planner.ik.analytic.yaw_planar.real_model import true_fk
 from planner.ik.analytic.yaw_planar.scalar import solve_scalar
@@ -74,7 +74,7 @@ class YawPlanarIK(AnalyticIK):
         self.has_roll = arm.has_roll
         self.link_lengths = arm.link_lengths
         self.lateral_offset = arm.lateral_offset
-        self._pose_frame = pose_frame(arm) if arm.exact else None
+        self._pose_frame = pose_frame(arm)
         self._real_tip_pose = None if arm.exact else real_tip_pose(robot)
 
     def describe(self) -> dict:
@@ -112,7 +112,11 @@ class YawPlanarIK(AnalyticIK):
             result = solve_scalar(arm, target, qc)
         elif arm.exact:
             result = solve_pose_scalar(arm, self._pose_frame, target, qc)
-        elif (result := solve_corrected_scalar(arm, self._real_tip_pose, target, qc)) is not None:
+        elif target.rotation is None and (result := solve_corrected_scalar(arm, self._real_tip_pose, target, qc)):
+            return result
+        elif target.rotation is not None and (
+            result := solve_corrected_pose(arm, self._pose_frame, self._real_tip_pose, target, qc)
+        ):
             return result
         else:
             arrays = solve_arrays(arm, *_one_target_arrays(target, qc))
