@@ -268,10 +268,24 @@ def rotation_about(axis: np.ndarray, angle: np.ndarray | float) -> np.ndarray:
         Shape S + (3, 3).
     """
     a = np.asarray(angle, dtype=float)
-    k = np.array([[0.0, -axis[2], axis[1]], [axis[2], 0.0, -axis[0]], [-axis[1], axis[0], 0.0]])
-    s = np.sin(a)[..., None, None]
-    c = np.cos(a)[..., None, None]
-    return np.eye(3) + s * k + (1.0 - c) * (k @ k)
+    out = np.empty(a.shape + (3, 3))
+    for i, row in enumerate(_rodrigues(axis, np.sin(a), np.cos(a))):
+        for j, value in enumerate(row):
+            out[..., i, j] = value
+    return out
+
+
+def _rodrigues(axis, s, c):
+    """The rows of ``c I + s [axis]x + (1 - c) axis axis^T`` as nested lists of arrays."""
+    x, y, z = (float(v) for v in axis)
+    v = 1.0 - c
+    vx, vy, vz = v * x, v * y, v * z
+    sx, sy, sz = s * x, s * y, s * z
+    return [
+        [c + vx * x, vx * y - sz, vx * z + sy],
+        [vy * x + sz, c + vy * y, vy * z - sx],
+        [vz * x - sy, vz * y + sx, c + vz * z],
+    ]
 
 
 def poe_fk(
@@ -282,6 +296,9 @@ def poe_fk(
     q: np.ndarray,
 ) -> tuple[np.ndarray, np.ndarray]:
     """Tip pose by the product of exponentials of revolute screws.
+
+    Computed on the nine components as separate arrays (contiguous, one pass per product), not on
+    stacks of 3x3 matrices.
 
     Args:
         axes: Unit joint axes at q = 0, n of shape (3,).
@@ -295,14 +312,34 @@ def poe_fk(
     """
     q = np.asarray(q, dtype=float)
     shape = q.shape[:-1]
-    rot = np.broadcast_to(np.eye(3), shape + (3, 3))
-    trans = np.zeros(shape + (3,))
+    rot = None
+    trans = None
     for k, (axis, point) in enumerate(zip(axes, points)):
-        r_k = rotation_about(axis, q[..., k])
-        t_k = point - r_k @ point
-        trans = trans + np.einsum("...ij,...j->...i", rot, t_k)
-        rot = rot @ r_k
-    return np.einsum("...ij,j->...i", rot, tip_position) + trans, rot @ tip_rotation
+        angle = q[..., k]
+        r_k = _rodrigues(axis, np.sin(angle), np.cos(angle))
+        p = [float(v) for v in point]
+        t_k = [p[i] - (r[0] * p[0] + r[1] * p[1] + r[2] * p[2]) for i, r in enumerate(r_k)]
+        if rot is None:
+            rot, trans = r_k, t_k
+            continue
+        trans = [trans[i] + rot[i][0] * t_k[0] + rot[i][1] * t_k[1] + rot[i][2] * t_k[2] for i in range(3)]
+        rot = [
+            [rot[i][0] * r_k[0][j] + rot[i][1] * r_k[1][j] + rot[i][2] * r_k[2][j] for j in range(3)] for i in range(3)
+        ]
+    pos_out = np.empty(shape + (3,))
+    rot_out = np.empty(shape + (3, 3))
+    tp = [float(v) for v in tip_position]
+    tr = np.asarray(tip_rotation, dtype=float).tolist()
+    if rot is None:  # no joints
+        pos_out[...] = tp
+        rot_out[...] = tr
+        return pos_out, rot_out
+    for i in range(3):
+        r0, r1, r2 = rot[i]
+        pos_out[..., i] = r0 * tp[0] + r1 * tp[1] + r2 * tp[2] + trans[i]
+        for j in range(3):
+            rot_out[..., i, j] = r0 * tr[0][j] + r1 * tr[1][j] + r2 * tr[2][j]
+    return pos_out, rot_out
 
 
 def wrap_scalar(x: float, lower: float, upper: float, ref: float) -> float:

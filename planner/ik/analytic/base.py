@@ -179,6 +179,10 @@ class AnalyticIK(ABC):
     def _q_current_list(self, q_current: Sequence[float] | np.ndarray | None) -> list[float] | None:
         if q_current is None:
             return None
+        if isinstance(q_current, np.ndarray) and q_current.shape == (self.dof,) and q_current.dtype == np.float64:
+            values = q_current.tolist()  # the common case, checked without a NumPy round trip
+            if all(map(math.isfinite, values)):
+                return values
         return self.robot.check_configuration(q_current, batch=False).tolist()
 
     def _check_target(self, target: Target) -> None:

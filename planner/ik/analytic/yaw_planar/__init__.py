@@ -42,20 +42,25 @@ Free joints within the limits: where no branch lies within the joint limits at t
 Chains whose axes deviate from the ideal directions by round-off are solved on the ideal
 geometry and then corrected on the real one (:mod:`~planner.ik.analytic.yaw_planar.refine`).
 
-Speed: :meth:`YawPlanarIK.solve` runs position and pitch targets on exact chains in scalar
-arithmetic (tens of microseconds); rotation targets and inexact chains go through the
-vectorised path (hundreds of microseconds for one target). ``solve_batch`` is vectorised over
-targets (in slices of 16384 to stay in cache). The search within the limits, only for targets
-that need it, costs about 1.5 ms for the approach pitch and 3-12 ms with SO-101's roll.
+Speed: :meth:`YawPlanarIK.solve` runs every target on exact chains in scalar arithmetic, each
+branch verified by the forward model (a few ``robot.fk`` call times: ``scalar`` for position and
+pitch targets, ``scalar_pose`` for full poses); on inexact chains every branch is solved on
+the ideal geometry and corrected by two rounds on the real model (``corrected``); the targets
+that path declines (next to the yaw axis or a stretched elbow, a free pitch without
+``q_current``, branches that do not settle, no branch within the limits) go through the
+vectorised path (hundreds of microseconds for one target, milliseconds with its search).
+``solve_batch`` is vectorised over targets (in slices of 16384 to stay in cache). The search
+within the limits, only for targets that need it, costs about 1.5 ms for the approach pitch
+and 3-12 ms with SO-101's roll.
 
 Modules, in the order of the data flow: ``layout`` (does a chain fit, which joint is which),
 ``arm`` (the geometry, :class:`~planner.ik.analytic.yaw_planar.arm.ArmGeometry`), ``branches``
 (branch names and failure categories), ``orientation`` and ``free_pitch`` (the end angle, yaw
 and roll a target fixes or leaves free), ``core`` (the ideal closed form over arrays),
-``scalar`` (the same for one target without NumPy), ``real_model`` and ``refine`` (the real
-geometry), ``status`` (status and reason), ``arrays`` (the pipeline per batch), ``end_angle``
-and ``search`` (free joints within the limits), ``batch`` (slices), ``solver``
-(:class:`YawPlanarIK`).
+``scalar``, ``scalar_pose`` and ``corrected`` (the same for one target without NumPy),
+``real_model`` and ``refine`` (the real geometry), ``status`` (status and reason), ``arrays``
+(the pipeline per batch), ``end_angle`` and ``search`` (free joints within the limits),
+``batch`` (slices), ``solver`` (:class:`YawPlanarIK`).
 """
 
 from planner.ik.analytic.yaw_planar.branches import BRANCHES

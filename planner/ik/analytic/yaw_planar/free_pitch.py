@@ -44,7 +44,9 @@ def free_pitch_scalar(arm: ArmGeometry, psi, ue, ze, tu, tz, lt, gt, qc):
         return None
     rho = lo
     a = (rho * rho - lt * lt + de * de) / (2.0 * de)
-    h = math.sqrt(max(rho * rho - a * a, 0.0))
+    # On the line through the shoulder (rho = |de - lt|) the circles touch: h is 0, not the
+    # square root of round-off (which would move the angle by ~1e-8).
+    h = 0.0 if abs(de - lt) >= rmin else math.sqrt(max(rho * rho - a * a, 0.0))
     ux, uz = ex / de, ez / de
     best = None
     for sgn in (1.0, -1.0):
@@ -78,7 +80,7 @@ def free_pitch_array(arm: ArmGeometry, psi, ue, ze, tu, tz, qc):
     safe = np.where(de == 0.0, 1.0, de)
     with np.errstate(over="ignore"):  # a wrist centre almost on the shoulder: those rows fail above
         a = (lo * lo - lt * lt + safe * safe) / (2.0 * safe)
-        h = np.sqrt(np.maximum(lo * lo - a * a, 0.0))
+        h = np.where(np.abs(de - lt) >= rmin, 0.0, np.sqrt(np.maximum(lo * lo - a * a, 0.0)))
     ux, uz = ex / safe, ez / safe
     best_phi = None
     best_lift = None

@@ -9,11 +9,12 @@ from __future__ import annotations
 
 import math
 
-from planner.core.arrays import read_only
+import numpy as np
+
 from planner.geometry.chain import wrap_scalar
 from planner.geometry.target import Target, pitch_error_scalar
 from planner.ik.analytic.geometry import SINGULAR_TOL, wrap_pi
-from planner.ik.analytic.result import AnalyticResult, AnalyticSolution
+from planner.ik.analytic.result import STATUS_SOLVED, AnalyticResult, AnalyticSolution
 from planner.ik.analytic.yaw_planar.arm import ArmGeometry
 from planner.ik.analytic.yaw_planar.branches import BEYOND, BRANCHES, CYLINDER, DUPLICATE, INSIDE, ORIENT, VALID
 from planner.ik.analytic.yaw_planar.free_pitch import free_pitch_failure, free_pitch_scalar
@@ -22,6 +23,7 @@ from planner.ik.analytic.yaw_planar.status import status_and_reason
 __all__ = ["solve_scalar", "finish_scalar"]
 
 PI = math.pi
+TWO_PI = 2.0 * math.pi
 
 
 def solve_scalar(arm: ArmGeometry, target: Target, qc: list[float] | None) -> AnalyticResult:
@@ -184,27 +186,39 @@ def solve_scalar(arm: ArmGeometry, target: Target, qc: list[float] | None) -> An
 def finish_scalar(arm: ArmGeometry, sols, cats, dist, qc, target) -> AnalyticResult:
     """The result from the branches' raw solutions: wrapped into the limits, sorted, with status."""
     lower, upper = arm.lower, arm.upper
-    solutions = []
-    details = []
     dof = arm.dof
-    for slot, q, singular, perr, oerr in sols:
+    ref = qc if qc is not None else [0.0] * dof
+    within_flags = []
+    any_within = False
+    for _, q, _, _, _ in sols:
         within = True
         for j in range(dof):
-            v, lo, hi = q[j], lower[j], upper[j]
-            ref = qc[j] if qc is not None else 0.0
-            if lo <= v <= hi and -PI <= v - ref <= PI:
+            v, lo, hi, r = q[j], lower[j], upper[j], ref[j]
+            if lo <= v <= hi and -PI <= v - r <= PI:
                 continue  # already in range and the equivalent nearest ref
-            v = wrap_scalar(v, lo, hi, ref)
-            q[j] = v
-            if v < lo or v > hi:
-                within = False
-        sol = AnalyticSolution(read_only(q), within, BRANCHES[slot], singular, perr, oerr)
-        solutions.append(sol)
-        details.append((slot, sol))
-    if qc is not None and len(solutions) > 1:
-        order = sorted(
-            range(len(solutions)), key=lambda i: sum((a - b) ** 2 for a, b in zip(solutions[i].q.tolist(), qc))
-        )
-        solutions = [solutions[i] for i in order]
+            w = v + TWO_PI * round((r - v) / TWO_PI)  # wrap_scalar's first step; in range, its answer
+            if not lo <= w <= hi:
+                w = wrap_scalar(v, lo, hi, r)
+                if w < lo or w > hi:
+                    within = False
+            q[j] = w
+        within_flags.append(within)
+        any_within = any_within or within
+    n = len(sols)
+    order = range(n)
+    if qc is not None and n > 1:
+        order = sorted(order, key=lambda i: sum((a - b) * (a - b) for a, b in zip(sols[i][1], qc)))
+    # One frozen array for all solutions; each solution's q is a (read-only) row of it.
+    rows = np.array([sols[i][1] for i in order], dtype=float).reshape(n, dof)
+    rows.setflags(write=False)
+    solutions = tuple(
+        AnalyticSolution(row, within_flags[i], BRANCHES[sols[i][0]], sols[i][2], sols[i][3], sols[i][4])
+        for row, i in zip(rows, order)
+    )
+    singular = any(s[2] for s in sols)
+    if any_within:
+        return AnalyticResult(STATUS_SOLVED, "", solutions, singular)
+    by_slot = {sols[i][0]: sol for i, sol in zip(order, solutions)}
+    details = [(slot, by_slot[slot]) for slot in sorted(by_slot)]
     status, reason = status_and_reason(arm, cats, dist, details, target)
-    return AnalyticResult(status, reason, tuple(solutions), any(s.singular for s in solutions))
+    return AnalyticResult(status, reason, solutions, singular)

@@ -24,9 +24,11 @@ from planner.ik.analytic.yaw_planar.arm import arm_geometry
 from planner.ik.analytic.yaw_planar.arrays import BranchArrays, result_from_arrays, solve_arrays
 from planner.ik.analytic.yaw_planar.batch import solve_chunked
 from planner.ik.analytic.yaw_planar.branches import BRANCHES
+from planner.ik.analytic.yaw_planar.corrected import real_tip_pose, solve_corrected_pose, solve_corrected_scalar
 from planner.ik.analytic.yaw_planar.layout import chain_layout
 from planner.ik.analytic.yaw_planar.real_model import true_fk
 from planner.ik.analytic.yaw_planar.scalar import solve_scalar
+from planner.ik.analytic.yaw_planar.scalar_pose import pose_frame, solve_pose_scalar
 from planner.ik.analytic.yaw_planar.search import free_joints, solve_searched
 from planner.model.robot import Robot
 
@@ -72,6 +74,8 @@ class YawPlanarIK(AnalyticIK):
         self.has_roll = arm.has_roll
         self.link_lengths = arm.link_lengths
         self.lateral_offset = arm.lateral_offset
+        self._pose_frame = pose_frame(arm)
+        self._real_tip_pose = None if arm.exact else real_tip_pose(robot)
 
     def describe(self) -> dict:
         """The detected geometry, for reports and tests (lengths [m], angles [rad])."""
@@ -106,6 +110,14 @@ class YawPlanarIK(AnalyticIK):
         arrays = None
         if arm.exact and target.rotation is None:
             result = solve_scalar(arm, target, qc)
+        elif arm.exact:
+            result = solve_pose_scalar(arm, self._pose_frame, target, qc)
+        elif target.rotation is None and (result := solve_corrected_scalar(arm, self._real_tip_pose, target, qc)):
+            return result
+        elif target.rotation is not None and (
+            result := solve_corrected_pose(arm, self._pose_frame, self._real_tip_pose, target, qc)
+        ):
+            return result
         else:
             arrays = solve_arrays(arm, *_one_target_arrays(target, qc))
             result = result_from_arrays(arm, arrays, 0, target, qc)

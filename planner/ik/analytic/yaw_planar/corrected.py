@@ -1,0 +1,362 @@
+"""Targets on inexact chains (SO-101), in scalar arithmetic: every branch corrected in a fixed number of rounds.
+
+The fast path of :meth:`~planner.ik.analytic.yaw_planar.solver.YawPlanarIK.solve` for chains
+whose axes deviate from the family's by round-off: each branch is solved on the ideal geometry
+(the closed form of :mod:`~planner.ik.analytic.yaw_planar.core`, one branch at a time), then
+corrected on the real one (Pinocchio's FK) by a fixed number of the rounds of
+:func:`~planner.ik.analytic.yaw_planar.refine.refine`: the branch re-solved for its target
+shifted by the error it left (position and branch pitch), which shrinks the error by about the
+deviation (micro-radians) per round, so two rounds take it from the deviation's micrometres to
+round-off. Position and pitch targets (:func:`solve_corrected_scalar`, 3 pitch joints) are
+solved one branch at a time; full poses (:func:`solve_corrected_pose`) by the pose closed form
+of :mod:`~planner.ik.analytic.yaw_planar.scalar_pose` for the pose composed with the inverse
+error. The approach pitch a position-only target leaves free is ``q_current``'s, measured on
+the real arm, where reachable, else the default choice (:mod:`~planner.ik.analytic.yaw_planar.free_pitch`).
+
+Targets this path does not settle in those rounds, or that need more than the plain closed form
+(no ``q_current`` for a free pitch, next to the yaw axis or a stretched elbow, branches that merge,
+no branch within the limits: the search), return None: the caller takes the vectorised path.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+
+import numpy as np
+import pinocchio as pin
+
+from planner.geometry.target import Target, pitch_error_scalar
+from planner.ik.analytic.geometry import SINGULAR_TOL, wrap_pi
+from planner.ik.analytic.result import STATUS_SOLVED, AnalyticResult
+from planner.ik.analytic.yaw_planar.arm import ArmGeometry
+from planner.ik.analytic.yaw_planar.branches import BEYOND, INSIDE, VALID
+from planner.ik.analytic.yaw_planar.free_pitch import free_pitch_failure, free_pitch_scalar
+from planner.ik.analytic.yaw_planar.scalar import finish_scalar
+from planner.ik.analytic.yaw_planar.scalar_pose import PoseFrame, pose_branches
+from planner.model.robot import Robot
+
+__all__ = ["ROUNDS", "TipPose", "real_tip_pose", "solve_corrected_scalar", "solve_corrected_pose"]
+
+PI = math.pi
+
+#: Correction rounds per branch (each: one real FK, one closed-form re-solve), then one real FK
+#: to verify. The error shrinks by about the chain's deviation per round.
+ROUNDS = 2
+
+#: The real arm's FK for one configuration (a list [rad]): tip position, rotation rows (lists).
+TipPose = Callable[[list[float]], tuple[list[float], list[list[float]]]]
+
+
+def real_tip_pose(robot: Robot) -> TipPose:
+    """The robot's FK (Pinocchio) as lists, on a Pinocchio Data of its own (no input checks).
+
+    Args:
+        robot: The robot.
+
+    Returns:
+        q (list, dof) -> tip position (list, 3) [m], rotation rows (3 lists of 3).
+    """
+    model, fid = robot.model, robot.tip_frame_id
+    if model.nq != robot.dof:  # continuous joints: Pinocchio's (cos, sin) coordinates
+
+        def converted(q: list[float]):
+            p, r = robot.tip_pose(np.array(q))
+            return p.tolist(), r.tolist()
+
+        return converted
+    data = model.createData()
+    forward, update, array = pin.forwardKinematics, pin.updateFramePlacement, np.array
+
+    def direct(q: list[float]):
+        forward(model, data, array(q))
+        placement = update(model, data, fid)
+        return placement.translation.tolist(), placement.rotation.tolist()
+
+    return direct
+
+
+def _approach(rot, local) -> tuple[float, float, float]:
+    """The approach axis ``rot @ local`` (rotation rows, local axis as lists)."""
+    ax_l, ay_l, az_l = local
+    (r00, r01, r02), (r10, r11, r12), (r20, r21, r22) = rot
+    return (
+        r00 * ax_l + r01 * ay_l + r02 * az_l,
+        r10 * ax_l + r11 * ay_l + r12 * az_l,
+        r20 * ax_l + r21 * ay_l + r22 * az_l,
+    )
+
+
+def _branch_pitch(arm: ArmGeometry, q, a, front: bool) -> float:
+    """The real tip's branch pitch of approach axis `a` (``real_model.true_pitch``): alpha in front, pi - alpha back."""
+    ax, ay, az = a
+    yaw = arm.mu + arm.sigma * q[0]
+    horiz = math.hypot(ax, ay)
+    if math.cos(yaw) * ax + math.sin(yaw) * ay < 0.0:
+        horiz = -horiz
+    alpha = math.atan2(az, horiz)
+    return alpha if front else PI - alpha
+
+
+def _end_vector(arm: ArmGeometry, roll: float) -> tuple[float, float, float]:
+    """The in-plane end vector (tu, tz) and lateral offset d at a wrist roll."""
+    if arm.tip_on_roll_axis:
+        return arm.tip_fixed
+    cr, sr = math.cos(roll), math.sin(roll)
+    return (
+        arm.tip0[0] + arm.tipc[0] * cr + arm.tips[0] * sr,
+        arm.tip0[1] + arm.tipc[1] * cr + arm.tips[1] * sr,
+        arm.tip0[2] + arm.tipc[2] * cr + arm.tips[2] * sr,
+    )
+
+
+def _yaws(arm: ArmGeometry, px: float, py: float, d: float):
+    """(psi front, psi back, u) of an end point on the ideal geometry, or None next to the yaw axis."""
+    hx, hy = px - arm.bx, py - arm.by
+    under = hx * hx + hy * hy - d * d
+    u = math.sqrt(under) if under > 0.0 else 0.0
+    # solve_core's start separation next to the yaw axis (and the cylinder, the axis itself).
+    if u <= math.sqrt(2.0 * abs(d) * arm.core_len_tol) or u <= arm.len_tol:
+        return None
+    ang = math.atan2(hy, hx) - arm.mu
+    return ang - math.atan2(-d, u), ang - math.atan2(-d, -u), u
+
+
+def _branch(arm: ArmGeometry, psi: float, ue: float, pz: float, alpha: float, tu, tz, roll, slot: int):
+    """One branch of the ideal closed form: (q, category, wrist distance); q None unless VALID.
+
+    `alpha` is the in-plane approach angle of the branch's side.
+    """
+    cos, sin, atan2 = math.cos, math.sin, math.atan2
+    l1, l2, g1, g2, su, sz = arm.l1, arm.l2, arm.g1, arm.g2, arm.su, arm.sz
+    phi = alpha - arm.beta
+    cp, sp = cos(phi), sin(phi)
+    vx = ue - (cp * tu - sp * tz) - su
+    vz = pz - (sp * tu + cp * tz) - sz
+    dd = math.hypot(vx, vz)
+    len_tol = arm.core_len_tol
+    if dd > l1 + l2 + len_tol:
+        return None, BEYOND, dd
+    if dd < abs(l1 - l2) - len_tol:
+        return None, INSIDE, dd
+    c = (dd * dd - l1 * l1 - l2 * l2) / (2.0 * l1 * l2)
+    c = 1.0 if c > 1.0 else (-1.0 if c < -1.0 else c)
+    s = math.sqrt(1.0 - c * c)
+    if s < math.sin(arm.elbow_seed) or s < SINGULAR_TOL:
+        return None, -1, dd  # next to a stretched or folded elbow: the vectorised path
+    e_abs = atan2(s, c)
+    base = atan2(vz, vx)
+    half = atan2(l2 * s, l1 + l2 * c)
+    # Slots: front-up (e <= 0), front-down, back-up (e >= 0), back-down (solve_core's order).
+    up = slot in (0, 3)
+    a1 = base + half if up else base - half
+    e = -e_abs if up else e_abs
+    phi2 = a1 - g1
+    phi3 = a1 + e - g2
+    signs, idx = arm.signs, arm.pitch_idx
+    q = [0.0] * arm.dof
+    q[0] = arm.sigma * psi
+    q[idx[0]] = signs[0] * phi2
+    q[idx[1]] = signs[1] * (phi3 - phi2)
+    q[idx[2]] = signs[2] * (phi - phi3)
+    if arm.roll_idx is not None:
+        q[arm.roll_idx] = roll
+    return q, VALID, dd
+
+
+def solve_corrected_scalar(
+    arm: ArmGeometry, tip_pose: TipPose, target: Target, qc: list[float] | None
+) -> AnalyticResult | None:
+    """Every branch of a position or pitch target on an inexact 3-pitch chain, or None (see the module).
+
+    Args:
+        arm: The geometry (inexact, 3 pitch joints).
+        tip_pose: The real arm's FK: q (dof,) -> tip position (3,), rotation (3, 3).
+        target: A position or position + pitch target.
+        qc: The current configuration, or None.
+
+    Returns:
+        The result when every branch settles and one lies within the limits, else None.
+    """
+    if arm.n_pitch != 3 or target.rotation is not None:
+        return None
+    pitch = target.pitch
+    if pitch is None and qc is None:
+        return None
+    local = arm.approach_local.tolist()
+    px, py, pz = target.position.tolist()
+    roll = qc[arm.roll_idx] if arm.has_roll and qc is not None else 0.0
+    if arm.has_roll and not arm.lower[arm.roll_idx] <= roll <= arm.upper[arm.roll_idx]:
+        return None
+    tu, tz, d = _end_vector(arm, roll)
+    yaws = _yaws(arm, px, py, d)
+    if yaws is None:
+        return None
+    psi_f, psi_b, u = yaws
+    # The branch pitch goal per side (core: world_pitch; front alpha, back pi - alpha).
+    goals = []
+    unreached = [None, None]  # per side, the category where no pitch reaches
+    if pitch is not None:
+        for psi in (psi_f, psi_b):
+            yaw = psi + arm.mu
+            outward = math.cos(yaw) * px + math.sin(yaw) * py >= 0.0
+            alpha = pitch if outward else PI - pitch
+            goals.append(alpha)
+        goals[1] = PI - goals[1]
+    else:
+        # q_current's approach, measured on the real arm as a front branch (free_pitch.current_alpha).
+        _, rot_c = tip_pose(qc)
+        alpha_c = _branch_pitch(arm, qc, _approach(rot_c, local), True)
+        rmin = max(abs(arm.l1 - arm.l2), arm.rmin_lim) - arm.core_len_tol
+        rmax = min(arm.l1 + arm.l2, arm.rmax_lim) + arm.core_len_tol
+        for side, (psi, ue) in enumerate(((psi_f, u), (psi_b, -u))):
+            alpha = alpha_c if math.cos(psi - arm.sigma * qc[0]) >= 0.0 else PI - alpha_c
+            phi = alpha - arm.beta
+            cp, sp = math.cos(phi), math.sin(phi)
+            dd = math.hypot(ue - (cp * tu - sp * tz) - arm.su, pz - (sp * tu + cp * tz) - arm.sz)
+            if not rmin <= dd <= rmax:
+                # Out of reach at q_current's pitch: the default choice (free_pitch.free_pitch_array).
+                lt = math.hypot(tu, tz)
+                phi = free_pitch_scalar(arm, psi, ue, pz, tu, tz, lt, math.atan2(tz, tu), None)
+                if phi is None:
+                    unreached[side] = free_pitch_failure(arm, ue, pz, lt)
+                    phi = 0.0
+                alpha = arm.beta + phi
+            goals.append(alpha if side == 0 else PI - alpha)
+    if pitch is not None:
+        cos_p, sin_p = math.cos(pitch), math.sin(pitch)
+        elevation = math.atan2(sin_p, abs(cos_p))
+    settle = 1e-14 * max(1.0, arm.scale)
+    pos_tol = 1e-10 * max(1.0, arm.scale)
+    axis_tol = SINGULAR_TOL * arm.scale
+    cats = [VALID] * 4
+    dist = [math.nan] * 4
+    sols = []
+    for slot in range(4):
+        front = slot < 2
+        goal = goals[0 if front else 1]
+        if unreached[0 if front else 1] is not None:
+            cats[slot] = unreached[0 if front else 1]
+            continue
+        psi, ue = (psi_f, u) if front else (psi_b, -u)
+        q, cat, dd = _branch(arm, psi, ue, pz, goal if front else PI - goal, tu, tz, roll, slot)
+        if cat == -1:
+            return None
+        dist[slot] = dd
+        if q is None:
+            cats[slot] = cat
+            continue
+        ex, ey, ez, pitch_eff = px, py, pz, goal
+        for round_ in range(ROUNDS + 1):
+            p, rot = tip_pose(q)
+            dx, dy, dz = px - p[0], py - p[1], pz - p[2]
+            perr = math.sqrt(dx * dx + dy * dy + dz * dz)
+            a = _approach(rot, local)
+            miss = wrap_pi(goal - _branch_pitch(arm, q, a, front))
+            if (perr <= settle and abs(miss) <= 1e-13) or round_ == ROUNDS:
+                break
+            ex, ey, ez, pitch_eff = ex + dx, ey + dy, ez + dz, pitch_eff + miss
+            moved = _yaws(arm, ex, ey, d)
+            if moved is None:
+                return None
+            psi = moved[0] if front else moved[1]
+            ue = moved[2] if front else -moved[2]
+            q_new, cat, dd = _branch(arm, psi, ue, ez, pitch_eff if front else PI - pitch_eff, tu, tz, roll, slot)
+            if q_new is None:
+                return None
+            q, dist[slot] = q_new, dd
+        oerr = None
+        if pitch is not None:
+            oerr = pitch_error_scalar(a[0], a[1], a[2], px, py, cos_p, sin_p, elevation)
+            if oerr > 1e-9:
+                return None
+        if perr > pos_tol or abs(miss) > 1e-9:
+            return None
+        sols.append((slot, q, abs(ue) < axis_tol, perr, oerr))
+    # Branches that converged onto one solution (refine's twins): the vectorised path.
+    if _twins(arm, sols):
+        return None
+    result = finish_scalar(arm, sols, cats, dist, qc, target)
+    return result if result.status == STATUS_SOLVED else None
+
+
+def _angle(rot_a: list[list[float]], rot_b: np.ndarray) -> float:
+    """Angle [rad] of the rotation between two orientations (``rotation_error``), one as rows."""
+    rel = np.array(rot_a).T @ rot_b
+    (r00, r01, r02), (r10, r11, r12), (r20, r21, r22) = rel.tolist()
+    cos_a = 0.5 * (r00 + r11 + r22 - 1.0)
+    sin_a = 0.5 * math.sqrt((r21 - r12) ** 2 + (r02 - r20) ** 2 + (r10 - r01) ** 2)
+    return math.atan2(sin_a, min(1.0, max(-1.0, cos_a)))
+
+
+def solve_corrected_pose(
+    arm: ArmGeometry, frame: PoseFrame, tip_pose: TipPose, target: Target, qc: list[float] | None
+) -> AnalyticResult | None:
+    """Every branch of a full-pose target on an inexact chain, or None (see the module).
+
+    Each branch of the ideal closed form (:func:`~planner.ik.analytic.yaw_planar.scalar_pose.pose_branches`)
+    is re-solved for the pose composed with the inverse of the error it left, as
+    :func:`~planner.ik.analytic.yaw_planar.refine.refine` does, :data:`ROUNDS` times.
+
+    Args:
+        arm: The geometry (inexact).
+        frame: Its plane-basis constants.
+        tip_pose: The real arm's FK (:func:`real_tip_pose`).
+        target: A full-pose target.
+        qc: The current configuration, or None.
+
+    Returns:
+        The result when every branch settles and one lies within the limits, else None.
+    """
+    pos = target.position
+    rot = target.rotation
+    sols, cats, dist = pose_branches(arm, frame, pos.tolist(), rot, qc)
+    # Next to a stretched or folded elbow or the yaw axis the vectorised path starts the branches
+    # apart (solve_core's seeds): take it there.
+    near_elbow = math.sin(arm.elbow_seed)
+    reach = math.hypot(pos[0] - arm.bx, pos[1] - arm.by)
+    if reach <= abs(arm.lateral_offset) + arm.scale * 1e-3 + math.sqrt(2.0 * arm.scale * arm.core_len_tol):
+        return None
+    for _, q, singular, _, _ in sols:
+        e = arm.signs[1] * q[arm.pitch_idx[1]] + (arm.g2 if arm.n_pitch == 3 else 0.0) - arm.g1
+        if singular or (arm.n_pitch == 3 and abs(math.sin(e)) < 2.0 * near_elbow):
+            return None
+    settle = 1e-14 * max(1.0, arm.scale)
+    pos_tol = 1e-10 * max(1.0, arm.scale)
+    out = []
+    for slot, q, singular, _, _ in sols:
+        p_eff, r_eff = pos, rot
+        for round_ in range(ROUNDS + 1):
+            p, r = tip_pose(q)
+            dp = pos - np.array(p)
+            perr = math.sqrt(float(dp @ dp))
+            oerr = _angle(r, rot)
+            if (perr <= settle and oerr <= 1e-13) or round_ == ROUNDS:
+                break
+            # T_eff <- T_eff FK(q)^-1 T: the pose error, expressed at the tip, undone.
+            r_t = np.array(r).T
+            p_eff = p_eff + r_eff @ (r_t @ dp)
+            r_eff = r_eff @ r_t @ rot
+            moved, _, _ = pose_branches(arm, frame, p_eff.tolist(), r_eff, qc)
+            q = next((m[1] for m in moved if m[0] == slot), None)
+            if q is None:
+                return None
+        if perr > pos_tol or oerr > 1e-9:
+            return None
+        out.append((slot, q, singular, perr, oerr))
+    if _twins(arm, out):
+        return None
+    result = finish_scalar(arm, out, cats, dist, qc, target)
+    return result if result.status == STATUS_SOLVED else None
+
+
+def _twins(arm: ArmGeometry, sols) -> bool:
+    """Whether two branches converged onto one solution (refine's twins)."""
+    shoulder = arm.pitch_idx[0]
+    for i in range(len(sols)):
+        for j in range(i + 1, len(sols)):
+            qi, qj = sols[i][1], sols[j][1]
+            if abs(wrap_pi(qi[0] - qj[0])) < 1e-7 and abs(wrap_pi(qi[shoulder] - qj[shoulder])) < 1e-7:
+                if max(abs(wrap_pi(a - b)) for a, b in zip(qi, qj)) < 1e-7:
+                    return True
+    return False

@@ -1,0 +1,371 @@
+"""Full-pose targets on exact chains, in scalar arithmetic (no NumPy per branch).
+
+The fast path of :meth:`~planner.ik.analytic.yaw_planar.solver.YawPlanarIK.solve` for rotation
+targets: the closed form of :func:`~planner.ik.analytic.yaw_planar.core.solve_core` with a
+rotation (:mod:`~planner.ik.analytic.yaw_planar.orientation`), one target at a time, with the
+same branch order, categories and tolerances, and each branch verified by the forward model.
+
+Everything orientational is done in the plane basis ``B = [n, e_u, z]`` (right-handed; a
+rotation about z, so it commutes with the yaw): there the tip rotation relative to q = 0 is
+``Rz(psi) Rx(phi + kappa) Ry(roll) Rx(-kappa)`` (yaw, pitch sum, roll about the in-plane roll
+axis at angle kappa), and the target enters once as ``m = B^T R rot0^T B Rx(kappa)``, whose
+columns give the roll axis's and the pitch axis's images.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from planner.geometry.target import Target
+from planner.ik.analytic.geometry import SINGULAR_TOL, wrap_pi
+from planner.ik.analytic.result import AnalyticResult
+from planner.ik.analytic.yaw_planar.arm import ArmGeometry
+from planner.ik.analytic.yaw_planar.branches import BEYOND, CYLINDER, DUPLICATE, INSIDE, ORIENT, VALID
+from planner.ik.analytic.yaw_planar.scalar import finish_scalar
+
+__all__ = ["PoseFrame", "pose_frame", "pose_branches", "solve_pose_scalar"]
+
+PI = math.pi
+
+
+@dataclass(frozen=True)
+class PoseFrame:
+    """Constants of the plane basis for rotation targets (see the module docstring).
+
+    Attributes:
+        linear: Shape (9, 9) or (12, 9): ``m`` (row-major) from the target rotation ``R``
+            (row-major) as one product, ``kron(B^T, C^T)`` with ``C = rot0^T B Rx(kappa)``,
+            then (with a tip offset) the rows of ``R l``.
+        kappa: The roll axis's in-plane angle (0 without a roll).
+        tip_offset: The roll centre to the tip in the tip frame, as ``Rx(-kappa) B^T rot0 l``
+            (plane basis), or None when the tip is the roll centre (or there is no roll).
+        shift_local: The roll centre to the tip in the tip frame, shape (3,), or None (as above).
+    """
+
+    linear: np.ndarray
+    kappa: float
+    tip_offset: tuple[float, float, float] | None
+    shift_local: tuple[float, float, float] | None
+
+
+def _rot_x(a: float) -> np.ndarray:
+    ca, sa = math.cos(a), math.sin(a)
+    return np.array([[1.0, 0.0, 0.0], [0.0, ca, -sa], [0.0, sa, ca]])
+
+
+def pose_frame(arm: ArmGeometry) -> PoseFrame:
+    """The plane-basis constants of an arm (computed once per solver)."""
+    b = np.column_stack([arm.n, arm.e_u, [0.0, 0.0, 1.0]])
+    kappa = float(arm.kappa) if arm.has_roll else 0.0
+    c = arm.rot0.T @ b @ _rot_x(kappa)
+    tip_offset = shift_local = None
+    if arm.has_roll and float(np.linalg.norm(arm.centre_to_tip_local)) > 0.0:
+        local = np.asarray(arm.centre_to_tip_local, dtype=float)
+        shift_local = tuple(local.tolist())
+        tip_offset = tuple((_rot_x(-kappa) @ b.T @ arm.rot0 @ local).tolist())
+    linear = np.kron(b.T, c.T)
+    if shift_local is not None:
+        linear = np.vstack([linear, np.kron(np.eye(3), np.asarray(shift_local)[None, :])])
+    return PoseFrame(linear, kappa, tip_offset, shift_local)
+
+
+def solve_pose_scalar(arm: ArmGeometry, frame: PoseFrame, target: Target, qc: list[float] | None) -> AnalyticResult:
+    """Every closed-form solution of a full-pose target on an exact chain (scalar arithmetic)."""
+    sols, cats, dist = _pose(arm, frame, target.position.tolist(), target.rotation, qc, True)
+    return finish_scalar(arm, sols, cats, dist, qc, target)
+
+
+def pose_branches(arm: ArmGeometry, frame: PoseFrame, position: list[float], rotation: np.ndarray, qc):
+    """The ideal closed form's branches of a pose, unverified (for the correction of inexact chains).
+
+    Args:
+        arm: The geometry.
+        frame: Its plane-basis constants (:func:`pose_frame`).
+        position: Target position [m] (3 floats).
+        rotation: Target rotation, shape (3, 3).
+        qc: The current configuration (list), or None.
+
+    Returns:
+        (solutions, categories, distances): solutions as (slot, q, singular, None, None), q a
+        list not yet wrapped into the limits; the 4 branch categories; the 4 wrist distances.
+    """
+    return _pose(arm, frame, position, rotation, qc, False)
+
+
+def _pose(arm: ArmGeometry, frame: PoseFrame, position, rotation, qc, verify: bool):
+    cos, sin, atan2, sqrt, hypot = math.cos, math.sin, math.atan2, math.sqrt, math.hypot
+    px, py, pz = position
+    flat = (frame.linear @ rotation.reshape(9)).tolist()
+    m = (flat[0:3], flat[3:6], flat[6:9])
+    # End point: the tip, or the roll centre (the tip minus its offset turned by the target).
+    if arm.has_roll:
+        tu, tz, d = arm.centre
+        if frame.shift_local is not None:
+            ex, ey, ez = px - flat[9], py - flat[10], pz - flat[11]
+        else:
+            ex, ey, ez = px, py, pz
+    else:
+        tu, tz, d = arm.tip_fixed
+        ex, ey, ez = px, py, pz
+    hx, hy = ex - arm.bx, ey - arm.by
+    rho2 = hx * hx + hy * hy
+    axis_tol = arm.len_tol
+    free = rho2 <= axis_tol * axis_tol and abs(d) <= axis_tol
+    len_tol = arm.core_len_tol
+    under = rho2 - d * d
+    cylinder = not free and under < -2.0 * abs(d) * len_tol
+    u = sqrt(under) if under > 0.0 else 0.0
+    ang = atan2(hy, hx)
+    mu = arm.mu
+    psi = [ang - mu - atan2(-d, u), ang - mu - atan2(-d, -u)]
+    back_dup = free or u == 0.0
+    if free:
+        psi[0] = arm.sigma * qc[0] if qc is not None else 0.0
+        u = 0.0
+    ue = [u, -u]
+    cat = [CYLINDER, CYLINDER] if cylinder else [VALID, VALID]
+    if back_dup and not cylinder:
+        cat[1] = DUPLICATE
+    # The yaw from the rotation (orientation.yaw_for_rotation).
+    if arm.has_roll:
+        w1, w2 = m[0][1], m[1][1]  # the roll axis's image (its n and e_u parts)
+        horiz = hypot(w1, w2)
+        psi_a = atan2(-w1, w2)
+        use = horiz > 1e-9 and horiz * arm.scale >= u
+    else:
+        psi_a = atan2(m[1][0], m[0][0])  # the pitch axis's image, from n
+        use = True
+    if use:
+        cy, sy = cos(mu + psi_a), sin(mu + psi_a)
+        ue_a = hx * cy + hy * sy
+        lat_a = hx * sy - hy * cy
+        forward = ue_a >= 0.0
+        tol = max(arm.consistency_tol, arm.core_len_tol)
+        off_plane = ORIENT if abs(lat_a - d) > tol else VALID
+        if arm.has_roll:
+            off_back = ORIENT if abs(-lat_a - d) > tol else VALID
+            front = psi_a if forward else psi_a + PI
+            psi = [front, front + PI]
+            cat_rot = [off_plane, off_back] if forward else [off_back, off_plane]
+        else:
+            psi = [psi_a, psi_a]
+            cat_rot = [off_plane, DUPLICATE] if forward else [DUPLICATE, off_plane]
+        ue = [abs(ue_a), -abs(ue_a)]
+        cat = [c if c == CYLINDER else r for c, r in zip(cat, cat_rot)]
+    # Per side: the pitch sum and its residual, the roll (orientation.pitch_from_rotation).
+    orient_tol = arm.orient_tol
+    kappa = frame.kappa
+    ck, sk = cos(kappa), sin(kappa)
+    col0 = (m[0][0], m[1][0], m[2][0])
+    col1 = (m[0][1], m[1][1], m[2][1])
+    phis = [0.0, 0.0]
+    rolls = [0.0, 0.0]
+    twisted = [False, False]  # the rotation is not the arm's at this yaw
+    for side in (0, 1):
+        cp_, sp_ = cos(psi[side]), sin(psi[side])
+        x1 = cp_ * col1[0] + sp_ * col1[1]
+        x2 = -sp_ * col1[0] + cp_ * col1[1]
+        x3 = col1[2]
+        if arm.has_roll:
+            phi = atan2(x3, x2) - kappa
+            residual = math.asin(min(1.0, abs(x1)))
+            # roll: Rx(-phi) Rz(-psi) (the pitch axis's image).
+            v1 = cp_ * col0[0] + sp_ * col0[1]
+            v2 = -sp_ * col0[0] + cp_ * col0[1]
+            v3 = col0[2]
+            cf, sf = cos(phi), sin(phi)
+            b2 = cf * v2 + sf * v3
+            b3 = -sf * v2 + cf * v3
+            rolls[side] = atan2(sk * b2 - ck * b3, v1)
+        else:
+            phi = atan2(x3, x2)
+            residual = _rotation_angle(m, cp_, sp_, phi, 0.0)
+        phis[side] = phi
+        twisted[side] = residual > orient_tol
+    if arm.n_pitch == 3:
+        cat = [ORIENT if c == VALID and t else c for c, t in zip(cat, twisted)]
+        cands, cats, dist = _three_pitch(arm, ue, ez, tu, tz, phis, cat)
+    else:
+        cands, cats, dist = _two_pitch(arm, ue, ez, tu, tz, phis, cat, twisted)
+    # Assemble and verify each branch by the forward model (tip position and rotation).
+    sols = []
+    dof = arm.dof
+    sigma, signs, idx, roll_idx = arm.sigma, arm.signs, arm.pitch_idx, arm.roll_idx
+    three = arm.n_pitch == 3
+    l1, g1, l2, g2, su, sz = arm.l1, arm.g1, arm.l2, arm.g2, arm.su, arm.sz
+    bx, by = arm.bx, arm.by
+    scale_axis = SINGULAR_TOL * arm.scale
+    pos_tol = 1e-10 * max(1.0, arm.scale)
+    offset = frame.tip_offset
+    smu, cmu = math.sin(mu), math.cos(mu)
+    last_key = None
+    for slot, side, a1, phi2_3, elbow_singular in cands:
+        side_psi, phi = psi[side], phis[side]
+        q = [0.0] * dof
+        q[0] = sigma * side_psi
+        phi2 = a1 - g1
+        q[idx[0]] = signs[0] * phi2
+        q[idx[1]] = signs[1] * (phi2_3 - phi2)
+        if three:
+            q[idx[2]] = signs[2] * (phi - phi2_3)
+        if roll_idx is not None:
+            q[roll_idx] = rolls[side]
+        if not verify:
+            sols.append((slot, q, elbow_singular or free or abs(ue[side]) < scale_axis, None, None))
+            continue
+        # Forward model at q.
+        f2 = signs[0] * q[idx[0]]
+        f3 = f2 + signs[1] * q[idx[1]]
+        fu = su + l1 * cos(f2 + g1)
+        fz = sz + l1 * sin(f2 + g1)
+        if three:
+            fu += l2 * cos(f3 + g2)
+            fz += l2 * sin(f3 + g2)
+            f4 = f3 + signs[2] * q[idx[2]]
+        else:
+            f4 = f3
+        c4, s4 = cos(f4), sin(f4)
+        fu += c4 * tu - s4 * tz
+        fz += s4 * tu + c4 * tz
+        yaw = sigma * q[0]
+        theta = q[roll_idx] if roll_idx is not None else 0.0
+        key = (yaw, f4, theta)
+        if key != last_key:  # the elbow branches of a side share these (bitwise)
+            last_key = key
+            cyw, syw = cos(yaw), sin(yaw)
+            cm, sm = cos(mu + yaw), sin(mu + yaw)
+            oerr = _rotation_angle(m, cyw, syw, f4 + kappa, theta)
+            if offset is not None:
+                ox, oy, oz = _turn(cyw, syw, f4 + kappa, theta, offset)
+                # In the base frame: B = [n, e_u, z], n = (sin mu, -cos mu, 0), e_u = (cos mu, sin mu, 0).
+                ox, oy = smu * ox + cmu * oy, -cmu * ox + smu * oy
+        fx = bx + cm * fu + sm * d
+        fy = by + sm * fu - cm * d
+        if offset is not None:
+            perr = sqrt((fx + ox - px) ** 2 + (fy + oy - py) ** 2 + (fz + oz - pz) ** 2)
+        else:
+            perr = sqrt((fx - ex) ** 2 + (fy - ey) ** 2 + (fz - ez) ** 2)
+        if perr > pos_tol or oerr > orient_tol:
+            cats[slot] = ORIENT
+            continue
+        singular = elbow_singular or free or abs(ue[side]) < scale_axis
+        sols.append((slot, q, singular, perr, oerr))
+    return sols, cats, dist
+
+
+def _three_pitch(arm: ArmGeometry, ue, ze, tu, tz, phis, cat):
+    """Branch candidates (slot, side, a1, e + a1 (link 2's angle), elbow singular) of a 3-pitch arm."""
+    cos, sin, atan2, sqrt, hypot = math.cos, math.sin, math.atan2, math.sqrt, math.hypot
+    l1, l2, su, sz, g2 = arm.l1, arm.l2, arm.su, arm.sz, arm.g2
+    len_tol = arm.core_len_tol
+    cats = [cat[0], cat[0], cat[1], cat[1]]
+    dist = [0.0] * 4
+    cands = []
+    for side in (0, 1):
+        phi = phis[side]
+        cp, sp = cos(phi), sin(phi)
+        vx = ue[side] - (cp * tu - sp * tz) - su
+        vz = ze - (sp * tu + cp * tz) - sz
+        dd = hypot(vx, vz)
+        dist[2 * side] = dist[2 * side + 1] = dd
+        if cat[side] != VALID:
+            continue
+        if dd > l1 + l2 + len_tol:
+            cats[2 * side] = cats[2 * side + 1] = BEYOND
+            continue
+        if dd < abs(l1 - l2) - len_tol:
+            cats[2 * side] = cats[2 * side + 1] = INSIDE
+            continue
+        c = (dd * dd - l1 * l1 - l2 * l2) / (2.0 * l1 * l2) if l1 > 0.0 and l2 > 0.0 else 1.0
+        c = 1.0 if c > 1.0 else (-1.0 if c < -1.0 else c)
+        s = sqrt(1.0 - c * c)
+        singular = s < SINGULAR_TOL
+        if singular:
+            s, c = 0.0, (1.0 if c >= 0 else -1.0)
+        e_abs = atan2(s, c)
+        base = atan2(vz, vx)
+        half = atan2(l2 * s, l1 + l2 * c)
+        first, second = (base + half, -e_abs), (base - half, e_abs)
+        if side == 1:
+            first, second = second, first
+        # Link 2's angle a1 + e (less g2, as solve_core's phi3).
+        cands.append((2 * side, side, first[0], first[0] + first[1] - g2, singular))
+        if singular:
+            cats[2 * side + 1] = DUPLICATE
+        else:
+            cands.append((2 * side + 1, side, second[0], second[0] + second[1] - g2, False))
+    return cands, cats, dist
+
+
+def _two_pitch(arm: ArmGeometry, ue, ze, tu, tz, phis, cat, twisted):
+    """Branch candidates of a 2-pitch arm: the rotation fixes the last link, one per side."""
+    cos, sin, atan2, hypot = math.cos, math.sin, math.atan2, math.hypot
+    l1, su, sz = arm.l1, arm.su, arm.sz
+    len_tol = arm.core_len_tol
+    l2, g2 = hypot(tu, tz), atan2(tz, tu)
+    tol = max(arm.consistency_tol, len_tol)
+    cats = [cat[0], cat[0], cat[1], cat[1]]
+    dist = [0.0] * 4
+    cands = []
+    for side in (0, 1):
+        de = hypot(ue[side] - su, ze - sz)
+        dist[2 * side] = dist[2 * side + 1] = de
+        side_cat = cat[side]
+        if side_cat == VALID and de > l1 + l2 + len_tol:
+            side_cat = BEYOND
+        elif side_cat == VALID and de < abs(l1 - l2) - len_tol:
+            side_cat = INSIDE
+        if side_cat == VALID and twisted[side]:
+            side_cat = ORIENT
+        phi = phis[side]
+        cp, sp = cos(phi), sin(phi)
+        ex = ue[side] - (cp * tu - sp * tz) - su
+        ez = ze - (sp * tu + cp * tz) - sz
+        if side_cat == VALID and abs(hypot(ex, ez) - l1) > tol:
+            side_cat = ORIENT
+        if side_cat != VALID:
+            cats[2 * side] = cats[2 * side + 1] = side_cat
+            continue
+        a1 = atan2(ez, ex)
+        e = wrap_pi(phi + g2 - a1)
+        up = e <= 0.0 if side == 0 else e >= 0.0
+        slot = 2 * side + (0 if up else 1)
+        cats[slot ^ 1] = DUPLICATE
+        # The last link's angle is the pitch sum: phi3 = phi.
+        cands.append((slot, side, a1, phi, abs(math.sin(e)) < SINGULAR_TOL))
+    return cands, cats, dist
+
+
+def _turn(cyw: float, syw: float, alpha: float, theta: float, v) -> tuple[float, float, float]:
+    """``Rz(yaw) Rx(alpha) Ry(theta) v`` (plane basis)."""
+    ca, sa, ct, st = math.cos(alpha), math.sin(alpha), math.cos(theta), math.sin(theta)
+    x, y, z = v
+    a = ct * x + st * z
+    c = -st * x + ct * z
+    b, c = ca * y - sa * c, sa * y + ca * c
+    return cyw * a - syw * b, syw * a + cyw * b, c
+
+
+def _rotation_angle(m, cyw: float, syw: float, alpha: float, theta: float) -> float:
+    """Angle [rad] between ``E = Rz(yaw) Rx(alpha) Ry(theta)`` and ``m`` (as rotation_error)."""
+    ca, sa, ct, st = math.cos(alpha), math.sin(alpha), math.cos(theta), math.sin(theta)
+    e00, e01, e02 = cyw * ct - syw * sa * st, -syw * ca, cyw * st + syw * sa * ct
+    e10, e11, e12 = syw * ct + cyw * sa * st, cyw * ca, syw * st - cyw * sa * ct
+    e20, e21, e22 = -ca * st, sa, ca * ct
+    (m00, m01, m02), (m10, m11, m12), (m20, m21, m22) = m
+    # rel = E^T m
+    r00 = e00 * m00 + e10 * m10 + e20 * m20
+    r11 = e01 * m01 + e11 * m11 + e21 * m21
+    r22 = e02 * m02 + e12 * m12 + e22 * m22
+    r21 = e02 * m01 + e12 * m11 + e22 * m21
+    r12 = e01 * m02 + e11 * m12 + e21 * m22
+    r02 = e00 * m02 + e10 * m12 + e20 * m22
+    r20 = e02 * m00 + e12 * m10 + e22 * m20
+    r10 = e01 * m00 + e11 * m10 + e21 * m20
+    r01 = e00 * m01 + e10 * m11 + e20 * m21
+    cos_a = 0.5 * (r00 + r11 + r22 - 1.0)
+    sin_a = 0.5 * math.sqrt((r21 - r12) ** 2 + (r02 - r20) ** 2 + (r10 - r01) ** 2)
+    return math.atan2(sin_a, min(1.0, max(-1.0, cos_a)))

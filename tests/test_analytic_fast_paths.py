@@ -1,0 +1,237 @@
+"""Property tests of the closed form's scalar fast paths (``YawPlanarIK.solve``).
+
+On random arms of the yaw-planar family (base yaw, 2 or 3 parallel pitch joints with in-plane
+and sideways offsets, flipped axes, an optional wrist roll about an in-plane axis, a tip off the
+roll axis) and on the bundled arms: FK(IK(FK(q))) == FK(q) by Pinocchio for every branch, q
+among the answers, and the answers equal those of the vectorised path (the reference: the
+same closed form over arrays), also for targets moved off the reachable set.
+"""
+
+from __future__ import annotations
+
+import functools
+import math
+
+import numpy as np
+import pytest
+from dh_arms import property_settings
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
+from planner import Robot, Target, load_robot, rotation_error
+from planner.geometry.target import approach_pitch, pitch_error
+from planner.ik.analytic import closed_form_solver
+from planner.ik.analytic.yaw_planar.arrays import result_from_arrays, solve_arrays
+from planner.ik.analytic.yaw_planar.corrected import real_tip_pose, solve_corrected_pose, solve_corrected_scalar
+from planner.ik.analytic.yaw_planar.scalar_pose import pose_frame
+from planner.model.catalog import example_robot_data_dir
+
+TOL_POS = 1e-9
+TOL_ROT = 1e-9
+TOL_Q = 1e-6
+
+_FLOAT = {"allow_nan": False, "allow_infinity": False}
+
+
+def _joint(name, parent, child, xyz, axis, lower, upper):
+    return (
+        f'<link name="{child}"/><joint name="{name}" type="revolute"><parent link="{parent}"/>'
+        f'<child link="{child}"/><origin xyz="{xyz[0]!r} {xyz[1]!r} {xyz[2]!r}" rpy="0 0 0"/>'
+        f'<axis xyz="{axis[0]!r} {axis[1]!r} {axis[2]!r}"/>'
+        f'<limit lower="{lower!r}" upper="{upper!r}" effort="1" velocity="1"/></joint>'
+    )
+
+
+@st.composite
+def yaw_planar_arms(draw, tilt: float = 0.0, n_pitch: int | None = None) -> Robot:
+    """A random arm of the yaw-planar family, built from a URDF string.
+
+    `tilt` [rad] turns every axis by about that much off the family's ideal direction.
+    """
+    length = st.floats(0.05, 0.3, **_FLOAT)
+    offset = st.floats(-0.03, 0.03, **_FLOAT)
+    sign = st.sampled_from([-1.0, 1.0])
+    limit = st.floats(1.0, math.pi, **_FLOAT)
+    n_pitch = n_pitch or draw(st.integers(2, 3))
+    roll = draw(st.booleans())
+    joints = [("yaw", (draw(offset), draw(offset), draw(length)), (0.0, 0.0, draw(sign)))]
+    joints.append(("p0", (draw(offset), draw(offset), draw(offset)), (0.0, draw(sign), 0.0)))
+    for k in range(1, n_pitch):
+        joints.append((f"p{k}", (draw(length), draw(offset), draw(offset)), (0.0, draw(sign), 0.0)))
+    if roll:
+        slope = draw(st.floats(-0.5, 0.5, **_FLOAT))
+        joints.append(("roll", (draw(length), draw(offset), draw(offset)), (math.cos(slope), 0.0, math.sin(slope))))
+    if tilt:
+        turned = []
+        for name, xyz, axis in joints:
+            off = np.array([draw(st.floats(0.5, 1.0, **_FLOAT)) * draw(sign) for _ in range(3)]) * tilt
+            a = np.asarray(axis) + off
+            turned.append((name, xyz, tuple((a / np.linalg.norm(a)).tolist())))
+        joints = turned
+    parts = ['<robot name="random_yaw_planar"><link name="base"/>']
+    parent = "base"
+    for k, (name, xyz, axis) in enumerate(joints):
+        lim = draw(limit)
+        parts.append(_joint(name, parent, f"l{k}", xyz, axis, -lim, lim))
+        parent = f"l{k}"
+    tip = (draw(length), draw(offset) if roll else 0.0, draw(offset) if roll else 0.0)
+    parts.append(
+        f'<link name="tip"/><joint name="tip_fixed" type="fixed"><parent link="{parent}"/><child link="tip"/>'
+        f'<origin xyz="{tip[0]!r} {tip[1]!r} {tip[2]!r}"/></joint></robot>'
+    )
+    return Robot("".join(parts), tip="tip", approach_axis=(1.0, 0.0, 0.0))
+
+
+@functools.cache
+def so101() -> Robot:
+    return load_robot("so101")
+
+
+def configuration(data, robot: Robot) -> np.ndarray:
+    return np.array([data.draw(st.floats(float(lo), float(hi), **_FLOAT)) for lo, hi in zip(robot.lower, robot.upper)])
+
+
+def reference(solver, target: Target, q_current):
+    """The vectorised path's answer for one target (a batch of one through the same closed form)."""
+    arm = solver.arm
+    qc = None if q_current is None else np.asarray(q_current, dtype=float)[None, :]
+    pit = None if target.pitch is None else np.array([target.pitch])
+    rot = None if target.rotation is None else target.rotation[None]
+    arrays = solve_arrays(arm, target.position[None, :], pit, rot, qc)
+    return result_from_arrays(arm, arrays, 0, target, None if q_current is None else list(q_current))
+
+
+def assert_same(got, want):
+    assert got.status == want.status, (got, want)
+    # Matched by branch: the order (by distance to q_current) may differ where a joint sits on
+    # +-pi at a limit of +-pi, which round-off puts on either end.
+    assert sorted(s.branch for s in got.solutions) == sorted(s.branch for s in want.solutions), (got, want)
+    by_branch = {s.branch: s for s in want.solutions}
+    for a in got.solutions:
+        b = by_branch[a.branch]
+        # Equal modulo 2 pi (an angle on a limit at +-pi may round either way).
+        np.testing.assert_allclose(np.abs((a.q - b.q + np.pi) % (2 * np.pi) - np.pi), 0.0, atol=1e-9)
+        assert a.within_limits == b.within_limits
+        assert a.singular == b.singular
+        assert not a.q.flags.writeable
+
+
+def assert_reproduces(robot, target, result):
+    for sol in result.solutions:
+        pose = robot.fk(sol.q)
+        assert np.linalg.norm(pose[:3, 3] - target.position) < TOL_POS, sol
+        assert sol.position_error < TOL_POS
+        assert sol.within_limits == bool(robot.within_limits(sol.q))
+        if target.rotation is not None:
+            assert rotation_error(pose[:3, :3], target.rotation) < TOL_ROT, sol
+            assert sol.orientation_error < TOL_ROT
+
+
+def has(result, q) -> bool:
+    return any(np.max(np.abs((s.q - q + np.pi) % (2 * np.pi) - np.pi)) < TOL_Q for s in result.solutions)
+
+
+@property_settings(150)
+@given(robot=yaw_planar_arms(), data=st.data())
+def test_pose_targets_on_random_arms(robot, data):
+    solver = closed_form_solver(robot)
+    q = configuration(data, robot)
+    pose = robot.fk(q)
+    q_current = configuration(data, robot) if data.draw(st.booleans()) else None
+    target = Target(pose[:3, 3], rotation=pose[:3, :3])
+    result = solver.solve(target, q_current=q_current)
+    assert_same(result, reference(solver, target, q_current))
+    assert_reproduces(robot, target, result)
+    assert result.solutions
+    assert has(result, q) or result.singular
+    # The same rotation elsewhere: mostly not achievable; the same answer as the reference.
+    shift = np.array([data.draw(st.floats(-0.2, 0.2, **_FLOAT)) for _ in range(3)])
+    moved = Target(pose[:3, 3] + shift, rotation=pose[:3, :3])
+    result = solver.solve(moved, q_current=q_current)
+    assert_same(result, reference(solver, moved, q_current))
+    assert_reproduces(robot, moved, result)
+
+
+@pytest.mark.parametrize("name", ["dh3", "three_joint", "al5c"])
+@property_settings(100)
+@given(data=st.data())
+def test_pose_targets_on_bundled_arms(name, data):
+    robot = load_robot(name)
+    solver = closed_form_solver(robot)
+    q = configuration(data, robot)
+    pose = robot.fk(q)
+    target = Target(pose[:3, 3], rotation=pose[:3, :3])
+    result = solver.solve(target)
+    assert_same(result, reference(solver, target, None))
+    assert_reproduces(robot, target, result)
+    assert has(result, q) or result.singular
+
+
+@st.composite
+def inexact_arms(draw) -> Robot:
+    """A random 3-pitch arm whose axes deviate from the family's by micro-radians (as SO-101's)."""
+    return draw(yaw_planar_arms(tilt=draw(st.floats(1e-7, 2e-5, **_FLOAT)), n_pitch=3))
+
+
+def check_corrected(robot, solver, target, q_current):
+    """The corrected scalar path (when it answers) against the vectorised path and Pinocchio FK."""
+    fast = solve_corrected_scalar(solver.arm, real_tip_pose(robot), target, list(q_current))
+    if fast is None:  # declined: the solver takes the vectorised path (tested elsewhere)
+        return None
+    assert_same(fast, reference(solver, target, q_current))
+    for sol in fast.solutions:
+        pose = robot.fk(sol.q)
+        assert np.linalg.norm(pose[:3, 3] - target.position) < TOL_POS, sol
+        if target.pitch is not None:
+            a = pose[:3, :3] @ robot.approach_axis
+            assert pitch_error(a, target.position, target.pitch) < TOL_ROT, sol
+    return fast
+
+
+@settings(parent=property_settings(100), suppress_health_check=list(HealthCheck))
+@given(robot=inexact_arms(), data=st.data())
+def test_corrected_path_on_random_inexact_arms(robot, data):
+    solver = closed_form_solver(robot)
+    assert not solver.exact
+    q = configuration(data, robot)
+    pose = robot.fk(q)
+    for target in (Target(pose[:3, 3]), Target(pose[:3, 3], pitch=approach_pitch(robot, q))):
+        if target.pitch is not None and not solver.arm.pitch_supported:
+            continue
+        result = check_corrected(robot, solver, target, q)
+        if result is not None:
+            assert result.ok
+            assert has(result, q) or result.singular
+    target = Target(pose[:3, 3], rotation=pose[:3, :3])
+    fast = solve_corrected_pose(solver.arm, pose_frame(solver.arm), real_tip_pose(robot), target, None)
+    if fast is not None:
+        assert_same(fast, reference(solver, target, None))
+        assert_reproduces(robot, target, fast)
+
+
+@property_settings(150)
+@given(data=st.data())
+def test_corrected_path_on_so101(data):
+    if example_robot_data_dir() is None:
+        pytest.skip("example-robot-data is not installed")
+    robot = so101()
+    solver = closed_form_solver(robot)
+    q = configuration(data, robot)
+    q_current = q if data.draw(st.booleans()) else configuration(data, robot)
+    pose = robot.fk(q)
+    for target in (Target(pose[:3, 3]), Target(pose[:3, 3], pitch=approach_pitch(robot, q))):
+        result = check_corrected(robot, solver, target, q_current)
+        if result is not None:
+            assert result.ok
+            assert has(result, q) or q_current is not q
+    # Full poses: the corrected pose path.
+    target = Target(pose[:3, 3], rotation=pose[:3, :3])
+    fast = solve_corrected_pose(solver.arm, pose_frame(solver.arm), real_tip_pose(robot), target, None)
+    if fast is not None:
+        assert_same(fast, reference(solver, target, None))
+        assert_reproduces(robot, target, fast)
+        assert has(fast, q)
+    # Through the public solver too.
+    result = solver.solve(Target(pose[:3, 3], pitch=approach_pitch(robot, q)), q_current=q)
+    assert_reproduces(robot, Target(pose[:3, 3]), result)
+    assert has(result, q)
