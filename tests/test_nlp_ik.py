@@ -627,3 +627,30 @@ def test_seeds_at_the_limits_pass_and_infinite_seeds_raise():
         np.testing.assert_array_equal(ik.check_seed(list(seed)), seed)
     with pytest.raises(InvalidConfigurationError, match="q holds inf for joint 'shoulder'"):
         ik.solve(target, [0.0, math.inf, 0.0])
+
+
+def test_calls_of_other_kinds_in_between_change_no_answer():
+    # The first stage keeps its starts' set-up between calls; calls with a generator or extra
+    # seeds in between must not leak into a plain call, nor the other way round.
+    robot = get_robot("three_joint")
+    shared = NlpIK(robot)
+    alone = {kind: NlpIK(robot) for kind in ("plain", "rng", "extra")}
+    rng = np.random.default_rng(14)
+    q_targets, q_seeds = robot.random_configurations(rng, 60), robot.random_configurations(rng, 60)
+    far = robot.random_configurations(rng, 2)
+    calls = {
+        "plain": lambda ik, target, seed: ik.solve(target, seed),
+        "rng": lambda ik, target, seed: ik.solve(target, seed, IKOptions(rng=3)),
+        "extra": lambda ik, target, seed: ik.solve(target, seed, extra_seeds=far),
+    }
+    for i, (q_target, q_seed) in enumerate(zip(q_targets, q_seeds)):
+        kind = ("plain", "rng", "plain", "extra")[i % 4]
+        target = make_target(robot, "pitch", q_target)
+        a, b = calls[kind](shared, target, q_seed), calls[kind](alone[kind], target, q_seed)
+        np.testing.assert_array_equal(a.q, b.q)
+        assert (a.iterations, a.attempts, a.attempt_kind, a.reason) == (
+            b.iterations,
+            b.attempts,
+            b.attempt_kind,
+            b.reason,
+        )

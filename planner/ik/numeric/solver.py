@@ -181,6 +181,7 @@ class NlpIK:
         self._kernels: dict[str, Kernel] = {}
         self._sequential: dict[str, SequentialKernel] = {}
         self._first_kinds: dict[tuple[int, int], list[str]] = {}  # attempt kinds of the first stage
+        self._seed_kinds = self._first_kinds[(1, 0)] = ["seed"] + ["random"] * (_SEARCHES - 1)
         self._pooled_from: dict[int, int] = {}  # the first pooled row of each sequential kernel
         self._plans: dict[int, tuple] = {}  # per options object (see _plan)
         self._polisher = Polisher(self.kinematics, self._lower, self._upper)
@@ -489,6 +490,9 @@ class NlpIK:
         (one of each group, chosen in the kernel); with one, its draws.
         """
         rows = kernel.q0
+        if seed is not None and not len(extra) and rng is None and self._pooled_from.get(id(kernel)) == 1:
+            rows[0] = seed  # the common call: a seed, nothing else, the pool as before
+            return self._seed_kinds
         fixed = 0
         if seed is not None:
             rows[0] = seed
