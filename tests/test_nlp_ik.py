@@ -553,3 +553,104 @@ def test_random_starts_from_a_generator_are_reproducible():
     first = solver("al5c").solve(target, seed, IKOptions(rng=5))
     again = solver("al5c").solve(target, seed, IKOptions(rng=5))
     assert first.success and np.array_equal(first.q, again.q) and first.attempts == again.attempts
+
+
+def _fields(result: IKResult) -> dict:
+    return {f.name: getattr(result, f.name) for f in dataclasses.fields(IKResult)}
+
+
+def test_solver_results_equal_the_constructors():
+    # The first stage builds its result without the dataclass constructor: the same object.
+    robot = get_robot("three_joint")
+    ik = solver("three_joint")
+    rng = np.random.default_rng(12)
+    for q_target, q_seed in zip(robot.random_configurations(rng, 20), robot.random_configurations(rng, 20)):
+        target = make_target(robot, "pitch", q_target)
+        result = ik.solve(target, q_seed)
+        assert result.attempt_kind is not None  # answered by the first stage
+        assert_reached(robot, target, result)
+        rebuilt = IKResult(**_fields(result))
+        for name, value in _fields(result).items():
+            if name == "q":
+                np.testing.assert_array_equal(value, rebuilt.q)
+                assert value.dtype == float and value.shape == (robot.dof,)
+            else:
+                assert value == getattr(rebuilt, name), name
+                assert type(value) is type(getattr(rebuilt, name)), name
+        assert result.status is IKStatus.SOLVED
+        assert not result.q.flags.writeable and result.q.base is None
+        with pytest.raises(dataclasses.FrozenInstanceError):
+            result.reason = "x"  # type: ignore[misc]
+        assert result.as_dict() == {**rebuilt.as_dict(), "solutions": result.as_dict()["solutions"]}
+        assert dataclasses.replace(result, wall_time=1.0).wall_time == 1.0
+    # A later call does not change an earlier result (no view of the solver's buffers).
+    kept = result.q.copy()
+    ik.solve(make_target(robot, "pitch", np.array([0.2, 0.4, -0.3, 0.1])), np.zeros(robot.dof))
+    np.testing.assert_array_equal(result.q, kept)
+
+
+def test_from_solver_equals_the_constructor():
+    q = np.array([0.1, 0.2, 0.3])
+    args = (True, IKStatus.SOLVED, "r", 1e-9, 2e-9, 3, 1, 0, "seed", 1e-5, "nlp", ())
+    a, b = IKResult.from_solver(q.copy(), *args), IKResult(q, *args)
+    np.testing.assert_array_equal(a.q, b.q)
+    assert {k: v for k, v in _fields(a).items() if k != "q"} == {k: v for k, v in _fields(b).items() if k != "q"}
+    assert not a.q.flags.writeable and a.as_dict() == b.as_dict()
+
+
+def test_options_objects_each_give_their_own_answer():
+    # The solver works out what an options object needs once and keeps it: a call with other
+    # options (more of them than it keeps, and new objects at reused addresses) is never
+    # answered with another's tolerances.
+    robot = get_robot("three_joint")
+    ik, fresh = solver("three_joint"), NlpIK(robot)
+    rng = np.random.default_rng(13)
+    q_targets, q_seeds = robot.random_configurations(rng, 80), robot.random_configurations(rng, 80)
+    for i, (q_target, q_seed) in enumerate(zip(q_targets, q_seeds)):
+        tolerance = 10.0 ** -(1 + i % 7)
+        options = IKOptions(position_tolerance=tolerance, orientation_tolerance=tolerance)
+        target = make_target(robot, "pitch", q_target)
+        a = ik.solve(target, q_seed, options)
+        b = fresh.solve(target, q_seed, IKOptions(position_tolerance=tolerance, orientation_tolerance=tolerance))
+        np.testing.assert_array_equal(a.q, b.q)
+        assert (a.iterations, a.attempts, a.status) == (b.iterations, b.attempts, b.status)
+        assert a.success and a.position_error <= tolerance and a.orientation_error <= tolerance
+        if i % 5 == 0:  # the defaults in between
+            np.testing.assert_array_equal(ik.solve(target, q_seed).q, fresh.solve(target, q_seed, IKOptions()).q)
+
+
+def test_seeds_at_the_limits_pass_and_infinite_seeds_raise():
+    ik = solver("dh3")
+    robot = ik.robot
+    target = Target([0.1, 0.0, 0.1])
+    for seed in (robot.lower, robot.upper):
+        np.testing.assert_array_equal(ik.check_seed(list(seed)), seed)
+    with pytest.raises(InvalidConfigurationError, match="q holds inf for joint 'shoulder'"):
+        ik.solve(target, [0.0, math.inf, 0.0])
+
+
+def test_calls_of_other_kinds_in_between_change_no_answer():
+    # The first stage keeps its starts' set-up between calls; calls with a generator or extra
+    # seeds in between must not leak into a plain call, nor the other way round.
+    robot = get_robot("three_joint")
+    shared = NlpIK(robot)
+    alone = {kind: NlpIK(robot) for kind in ("plain", "rng", "extra")}
+    rng = np.random.default_rng(14)
+    q_targets, q_seeds = robot.random_configurations(rng, 60), robot.random_configurations(rng, 60)
+    far = robot.random_configurations(rng, 2)
+    calls = {
+        "plain": lambda ik, target, seed: ik.solve(target, seed),
+        "rng": lambda ik, target, seed: ik.solve(target, seed, IKOptions(rng=3)),
+        "extra": lambda ik, target, seed: ik.solve(target, seed, extra_seeds=far),
+    }
+    for i, (q_target, q_seed) in enumerate(zip(q_targets, q_seeds)):
+        kind = ("plain", "rng", "plain", "extra")[i % 4]
+        target = make_target(robot, "pitch", q_target)
+        a, b = calls[kind](shared, target, q_seed), calls[kind](alone[kind], target, q_seed)
+        np.testing.assert_array_equal(a.q, b.q)
+        assert (a.iterations, a.attempts, a.attempt_kind, a.reason) == (
+            b.iterations,
+            b.attempts,
+            b.attempt_kind,
+            b.reason,
+        )

@@ -81,3 +81,27 @@ def test_approach_pitch_of_configurations(name):
         assert math.sin(pitch[k]) == pytest.approx(a[2], abs=1e-12)
         assert math.cos(pitch[k]) * (a[:2] @ poses[k, :2, 3]) >= 0.0
         assert pitch_error(a, poses[k, :3, 3], pitch[k]) <= 1e-12
+
+
+def test_tip_errors_agree_with_pinocchio_log3():
+    import pinocchio as pin
+
+    from planner import Target
+    from planner.geometry.target import tip_errors
+
+    rng = np.random.default_rng(41)
+    axis = np.array([0.0, 0.0, 1.0])
+    for k in range(300):
+        rotation, goal = pin.SE3.Random().rotation, pin.SE3.Random().rotation
+        if k % 3 == 0:  # small and tiny angles, where atan2 of the antisymmetric part is needed
+            goal = rotation @ pin.exp3(rng.normal(size=3) * 10.0 ** -rng.uniform(1, 12))
+        if k % 50 == 1:  # at pi
+            goal = rotation @ pin.exp3(np.array([0.0, math.pi, 0.0]))
+        position, wanted = rng.normal(size=3), rng.normal(size=3)
+        target = Target(wanted, rotation=goal)
+        position_error, orientation_error = tip_errors(target, position, rotation, axis)
+        assert position_error == pytest.approx(float(np.linalg.norm(position - wanted)), rel=1e-15, abs=1e-15)
+        assert orientation_error == pytest.approx(float(np.linalg.norm(pin.log3(rotation.T @ goal))), abs=1e-9)
+        # Pinocchio's Fortran-ordered placements give the same numbers as C-ordered copies.
+        fortran = np.asfortranarray(rotation)
+        assert tip_errors(target, position, fortran, axis) == (position_error, orientation_error)

@@ -267,7 +267,8 @@ def tip_errors(
     if target.rotation is not None:
         # rotation_error's formula (atan2 of the antisymmetric part and the trace of R^T R_target,
         # accurate near 0) on Python floats: a third of the time of indexing the array.
-        r00, r01, r02, r10, r11, r12, r20, r21, r22 = (rotation.T @ target.rotation).ravel().tolist()
+        # (ndarray.dot: half the time of the @ operator on 3x3 arrays.)
+        r00, r01, r02, r10, r11, r12, r20, r21, r22 = rotation.T.dot(target.rotation).ravel().tolist()
         cos = 0.5 * (r00 + r11 + r22 - 1.0)
         sin = 0.5 * math.sqrt((r21 - r12) ** 2 + (r02 - r20) ** 2 + (r10 - r01) ** 2)
         return position_error, math.atan2(sin, min(1.0, max(-1.0, cos)))

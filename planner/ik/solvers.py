@@ -52,7 +52,8 @@ class IKSolvers:
     @property
     def analytic(self) -> AnalyticIK | None:
         """The closed-form solver, or None when the chain is outside the closed-form families."""
-        self._detect()
+        if self._analytic_reason is None:
+            self._detect()
         return self._analytic
 
     @property

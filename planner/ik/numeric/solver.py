@@ -49,6 +49,7 @@ the limits.
 from __future__ import annotations
 
 import math
+import operator
 import time
 from collections.abc import Callable, Sequence
 
@@ -98,6 +99,7 @@ _SEARCH_CHUNKS = 4
 #: the chain length after that many chunks gives way to the next start.
 _GIVE_UP = ((1, 0.24), (2, 0.03))
 _DEFAULT_OPTIONS = IKOptions()
+_PLANS = 64  # options objects whose plan is kept at most
 #: Joint distance [rad, m mixed; angles modulo 2 pi] at or below which two answers are one solution.
 DISTINCT = 1e-4
 
@@ -179,8 +181,9 @@ class NlpIK:
         self._kernels: dict[str, Kernel] = {}
         self._sequential: dict[str, SequentialKernel] = {}
         self._first_kinds: dict[tuple[int, int], list[str]] = {}  # attempt kinds of the first stage
+        self._seed_kinds = self._first_kinds[(1, 0)] = ["seed"] + ["random"] * (_SEARCHES - 1)
         self._pooled_from: dict[int, int] = {}  # the first pooled row of each sequential kernel
-        self._weighting: dict[tuple[float, float], tuple[float, float, float]] = {}
+        self._plans: dict[int, tuple] = {}  # per options object (see _plan)
         self._polisher = Polisher(self.kinematics, self._lower, self._upper)
         self._batch: BatchIK | None = None
 
@@ -292,7 +295,8 @@ class NlpIK:
         if (
             q is None
             or q.shape != self._q_shape
-            or not all(lo <= v <= hi for lo, v, hi in zip(self._lower_list, q.tolist(), self._upper_list))
+            or not all(map(operator.le, self._lower_list, values := q.tolist()))
+            or not all(map(operator.le, values, self._upper_list))
         ):
             q = self.robot.check_configuration(q_seed, batch=False)
             self.robot.check_limits(q, context="seed")
@@ -372,18 +376,16 @@ class NlpIK:
             JointLimitError: If `q_seed` is outside the joint limits.
         """
         start = time.perf_counter()
-        target = as_target(target)
+        if target.__class__ is not Target:
+            target = as_target(target)
         seed = self.check_seed(q_seed)
         if options is None:
             options = _DEFAULT_OPTIONS
-        elif not isinstance(options, IKOptions):
-            raise InvalidArgumentError(f"options must be a planner.IKOptions or None, got {type(options).__name__}")
-        position_tolerance = options.position_tolerance
-        orientation_tolerance = options.orientation_tolerance
-        max_attempts = options.max_attempts
-        near_seed = options.near_seed
-        manipulability_floor = options.manipulability_floor
-        if near_seed and seed is None:
+        plan = self._plans.get(id(options))
+        if plan is None or plan[0] is not options:
+            plan = self._plan(options)
+        _, position_tolerance, orientation_tolerance, max_attempts, secondary, searches, scale, stop, accept = plan
+        if options.near_seed and seed is None:
             raise InvalidArgumentError("near_seed=True needs a q_seed to stay near")
         rng = None if options.rng is None else options.generator()
         deferred = None
@@ -399,7 +401,6 @@ class NlpIK:
                 extra = self._check_extra_seeds(extra_seeds())
         else:
             extra = self._check_extra_seeds(extra_seeds)
-        secondary = near_seed or manipulability_floor is not None
         kinds: list[str] = []
         iterations = 0
         best: tuple[float, np.ndarray, float, float] | None = None
@@ -407,19 +408,12 @@ class NlpIK:
         if not secondary and (seed is not None or len(extra)):
             # First stage: one search after another in one compiled call; most targets are
             # reached from the first start.
-            weighting = self._weighting.get((position_tolerance, orientation_tolerance))
-            if weighting is None:
-                scale = _SCALES[0] * self.length
-                stop = max((0.01 * min(position_tolerance, scale * orientation_tolerance)) ** 2, 1e-30)
-                accept = position_tolerance**2 + 8.0 * (scale * math.sin(min(orientation_tolerance, 3.0) / 2)) ** 2
-                weighting = self._weighting[(position_tolerance, orientation_tolerance)] = (scale, stop, accept)
-            scale, stop, accept = weighting
             kind = target.kind
             quick = self._sequential.get(kind) or self._sequential_kernel(kind)
             quick.set_target(target)
             quick.set_weighting(scale, stop)
             first = self._fill_sequential(quick, seed, extra, rng)
-            quick.set_searches(_SEARCHES if max_attempts is None else min(_SEARCHES, max_attempts))
+            quick.set_searches(searches)
             quick()
             iterations = int(quick.iterations[0])
             index = int(quick.search[0])
@@ -431,15 +425,14 @@ class NlpIK:
                 and position_error <= position_tolerance
                 and orientation_error <= orientation_tolerance
             ):
-                tolerances = (position_tolerance, orientation_tolerance)
                 found = (index, q, position_error, orientation_error)
                 solutions = LazySolutions(
-                    lambda: self._more_solutions(target, found, seed, extra, deferred, kinds, tolerances, scale, accept)
+                    lambda: self._more_solutions(target, found, seed, extra, deferred, kinds, plan[1:3], scale, accept)
                 )
-                return IKResult(
+                return IKResult.from_solver(
                     q, True, IKStatus.SOLVED, f"reached by attempt {index} ({kinds[index]})", position_error,
                     orientation_error, iterations, index + 1, index, kinds[index], time.perf_counter() - start,
-                    solutions=solutions,
+                    "nlp", solutions,
                 )  # fmt: skip
             best = (position_error + self._orientation_weight * orientation_error, q, position_error, orientation_error)
         if deferred is not None:
@@ -447,6 +440,42 @@ class NlpIK:
         if max_attempts is not None and len(kinds) >= max_attempts:
             return self._not_converged(best, len(kinds), max_attempts, iterations, start)
         return self._batches(target, seed, extra, options, rng, kinds, iterations, best, start)
+
+    def _plan(self, options: IKOptions) -> tuple[IKOptions, float, float, int | None, bool, int, float, float, float]:
+        """What a call with these options needs before its first search, worked out once per options object.
+
+        Returns:
+            ``(options, position tolerance [m], orientation tolerance [rad], attempt cap,
+            whether there are secondary objectives, first-stage searches, the first stage's
+            orientation weight [m], stop and acceptance thresholds on the squared residual)``.
+
+        Raises:
+            InvalidArgumentError: If `options` is not an :class:`IKOptions`.
+        """
+        if not isinstance(options, IKOptions):
+            raise InvalidArgumentError(f"options must be a planner.IKOptions or None, got {type(options).__name__}")
+        position_tolerance = options.position_tolerance
+        orientation_tolerance = options.orientation_tolerance
+        max_attempts = options.max_attempts
+        scale = _SCALES[0] * self.length
+        stop = max((0.01 * min(position_tolerance, scale * orientation_tolerance)) ** 2, 1e-30)
+        accept = position_tolerance**2 + 8.0 * (scale * math.sin(min(orientation_tolerance, 3.0) / 2)) ** 2
+        plan = (
+            options,
+            position_tolerance,
+            orientation_tolerance,
+            max_attempts,
+            options.near_seed or options.manipulability_floor is not None,
+            _SEARCHES if max_attempts is None else min(_SEARCHES, max_attempts),
+            scale,
+            stop,
+            accept,
+        )
+        if len(self._plans) >= _PLANS:
+            self._plans.clear()
+        # Keyed by identity and holding the options: an id is not reused while the entry lives.
+        self._plans[id(options)] = plan
+        return plan
 
     def _fill_sequential(
         self,
@@ -461,6 +490,9 @@ class NlpIK:
         (one of each group, chosen in the kernel); with one, its draws.
         """
         rows = kernel.q0
+        if seed is not None and not len(extra) and rng is None and self._pooled_from.get(id(kernel)) == 1:
+            rows[0] = seed  # the common call: a seed, nothing else, the pool as before
+            return self._seed_kinds
         fixed = 0
         if seed is not None:
             rows[0] = seed
