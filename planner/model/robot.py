@@ -610,14 +610,12 @@ class Robot:
         length = self._characteristic_length
         columns = np.where(np.array(self.joint_kinds) == "prismatic", length, 1.0)
         fid, ref = self.tip_frame_id, pin.ReferenceFrame.LOCAL_WORLD_ALIGNED
-        jacs = np.array(
-            [
-                np.asarray(pin.computeFrameJacobian(self.model, self.data, self._pin_q(row), fid, ref)).reshape(
-                    6, self.model.nv
-                )
-                for row in q
-            ]
-        ).reshape(len(q), 6, self.model.nv)
+        jacs = np.empty((len(q), 6, self.model.nv))
+        # Written in place row by row (a 1-joint arm's Jacobian comes back flat: reshaped).
+        one = self.model.nv == 1
+        for k, row in enumerate(q):
+            jac = pin.computeFrameJacobian(self.model, self.data, self._pin_q(row), fid, ref)
+            jacs[k] = np.reshape(jac, (6, 1)) if one else jac
         if t == "position":
             jacs = jacs[:, :3]
             scaled = jacs * columns
