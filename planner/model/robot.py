@@ -591,38 +591,97 @@ class Robot:
         t = self.resolve_task(task)
         arr = self.check_configuration(q)
         rows = arr.reshape(-1, self.dof)
+        inverse, manipulability = self.conditioning_of(*self.task_jacobians(rows, t), t)
+        shape = () if arr.ndim == 1 else (len(rows),)
+        return inverse.reshape(shape), manipulability.reshape(shape)
+
+    def task_jacobians(self, q: np.ndarray, task: Task | None = None) -> tuple[np.ndarray, np.ndarray]:
+        """The tip's task Jacobians, raw and made dimensionless as in :meth:`conditioning`.
+
+        Args:
+            q: Configurations, shape (N, dof) [rad or m], not checked (for inner loops).
+            task: As for :meth:`manipulability`.
+
+        Returns:
+            ``(raw, scaled)``, each of shape (N, m, dof) with m = 3 for ``"position"``, 6 for
+            ``"pose"`` (raw in m/rad, m/m and rad/rad; scaled in m/rad).
+        """
+        t = self.resolve_task(task)
         length = self._characteristic_length
-        prismatic = np.array(self.joint_kinds) == "prismatic"
-        columns = np.where(prismatic, length, 1.0)
+        columns = np.where(np.array(self.joint_kinds) == "prismatic", length, 1.0)
         fid, ref = self.tip_frame_id, pin.ReferenceFrame.LOCAL_WORLD_ALIGNED
-        jacs = np.array(
-            [
-                np.asarray(pin.computeFrameJacobian(self.model, self.data, self._pin_q(row), fid, ref)).reshape(
-                    6, self.model.nv
-                )
-                for row in rows
-            ]
-        ).reshape(len(rows), 6, self.model.nv)
+        jacs = np.empty((len(q), 6, self.model.nv))
+        # Written in place row by row (a 1-joint arm's Jacobian comes back flat: reshaped).
+        one = self.model.nv == 1
+        for k, row in enumerate(q):
+            jac = pin.computeFrameJacobian(self.model, self.data, self._pin_q(row), fid, ref)
+            jacs[k] = np.reshape(jac, (6, 1)) if one else jac
         if t == "position":
             jacs = jacs[:, :3]
             scaled = jacs * columns
         else:
             scaled = jacs * columns
             scaled[:, 3:] *= length
+        return jacs, scaled
+
+    def conditioning_of(
+        self, raw: np.ndarray, scaled: np.ndarray, task: Task | None = None
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """:meth:`conditioning` from :meth:`task_jacobians` (the same values, row by row).
+
+        Returns:
+            ``(inverse_condition_number, manipulability)``, each of shape (N,).
+        """
+        return self.conditioning_from(*self.task_singular_values(raw, scaled, task), task)
+
+    def task_singular_values(
+        self, raw: np.ndarray, scaled: np.ndarray, task: Task | None = None
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """The singular values :meth:`conditioning` is computed from, largest first.
+
+        Returns:
+            Those of the scaled Jacobians and those the manipulability is the product of (the
+            same array when :meth:`manipulability_divisor` is not None, else the raw Jacobians'),
+            each of shape (N, min(m, dof)).
+        """
         # One batched SVD; only the min(m, n) largest singular values: a 3x2 Jacobian has two.
-        k = min(jacs.shape[1:])
+        k = min(raw.shape[1:])
         s = np.linalg.svd(scaled, compute_uv=False)[:, :k]
-        largest = s[:, 0]
-        inverse = np.divide(s[:, -1], largest, out=np.zeros(len(rows)), where=largest != 0.0)
-        if not prismatic.any() and t == "position":
-            manipulability = np.prod(s, axis=1)
-        elif not prismatic.any() and self.dof >= 6:
-            # sqrt(det(D J J^T D)) = det(D) sqrt(det(J J^T)) for a wide Jacobian and row scales D.
-            manipulability = np.prod(s, axis=1) / length**3
-        else:
-            manipulability = np.prod(np.linalg.svd(jacs, compute_uv=False)[:, :k], axis=1)
-        shape = () if arr.ndim == 1 else (len(rows),)
-        return inverse.reshape(shape), manipulability.reshape(shape)
+        if self.manipulability_divisor(task) is not None:
+            return s, s
+        return s, np.linalg.svd(raw, compute_uv=False)[:, :k]
+
+    def conditioning_from(
+        self, s_scaled: np.ndarray, s_manipulability: np.ndarray, task: Task | None = None
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """:meth:`conditioning` from :meth:`task_singular_values`.
+
+        Returns:
+            ``(inverse_condition_number, manipulability)``, each of shape (N,).
+        """
+        largest = s_scaled[:, 0]
+        inverse = np.divide(s_scaled[:, -1], largest, out=np.zeros(len(s_scaled)), where=largest != 0.0)
+        divisor = self.manipulability_divisor(task)
+        manipulability = np.prod(s_manipulability, axis=1)
+        if divisor is not None and divisor != 1.0:
+            manipulability = manipulability / divisor
+        return inverse, manipulability
+
+    def manipulability_divisor(self, task: Task | None = None) -> float | None:
+        """The product of the scaled Jacobian's singular values over the manipulability, if fixed.
+
+        Returns:
+            The divisor (1 for ``"position"``, ``L**3`` for ``"pose"`` with 6 or more joints),
+            or None where :meth:`conditioning_of` takes the raw Jacobian's singular values
+            (prismatic joints, or fewer than 6 joints for ``"pose"``).
+        """
+        t = self.resolve_task(task)
+        if any(kind == "prismatic" for kind in self.joint_kinds):
+            return None
+        if t == "position":
+            return 1.0
+        # sqrt(det(D J J^T D)) = det(D) sqrt(det(J J^T)) for a wide Jacobian and row scales D.
+        return self._characteristic_length**3 if self.dof >= 6 else None
 
     def manipulability(self, q: Sequence[float] | np.ndarray, task: Task | None = None) -> np.ndarray | float:
         """Yoshikawa manipulability of the tip, the product of the Jacobian's singular values.

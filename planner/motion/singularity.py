@@ -47,6 +47,7 @@ __all__ = [
     "DEFAULT_CONDITION_NUMBER",
     "DEFAULT_CONDITION_NUMBERS",
     "SingularityReport",
+    "bounded_conditioning",
     "check_singularities",
     "inverse_condition_threshold",
     "measure_singularities",
@@ -139,6 +140,95 @@ def _intervals(t: np.ndarray, low: np.ndarray) -> tuple[tuple[float, float], ...
     return tuple(out)
 
 
+#: Samples between the first rows :func:`bounded_conditioning` measures exactly.
+ANCHOR_SPACING = 16
+
+
+def bounded_conditioning(
+    robot: Robot, q: np.ndarray, task: Task, threshold: float, keep: np.ndarray | None = None
+) -> tuple[np.ndarray, np.ndarray]:
+    """:meth:`Robot.conditioning` of a dense sequence of configurations, exact only where it matters.
+
+    Every :data:`ANCHOR_SPACING`-th row, the last and the rows `keep` are measured exactly; every
+    row between two exact ones gets lower bounds from both by Weyl's inequality: a singular value
+    moves by at most the spectral norm (below the Frobenius norm) of the change of the matrix, so
+    with ``e = ||J - J_a||_F`` the inverse condition number is at least
+    ``(s_min(J_a) - e) / (s_max(J_a) + e)`` and the manipulability (a fixed factor times the
+    product of the singular values of the matrix it is computed from) at least that factor times
+    the product of ``max(s_i - e, 0)``. Where a bound between two exact rows could be below the
+    threshold or below the smallest exact value so far, the row halfway is measured too, and so
+    on: in the end every row below the threshold and the row of each minimum hold the exact
+    value, and the others a lower bound above the threshold and above both minima.
+
+    Args:
+        robot: The robot.
+        q: Configurations, shape (n, dof) [rad or m], checked.
+        task: Resolved task (``"position"`` or ``"pose"``).
+        threshold: Inverse condition number below which values must be exact.
+        keep: Rows measured exactly in any case.
+
+    Returns:
+        ``(inverse_condition_number, manipulability)``, each of shape (n,).
+    """
+    n = len(q)
+    raw, scaled = robot.task_jacobians(q, task)
+    k = min(raw.shape[1:])
+    # The manipulability is a fixed factor times the product of the scaled Jacobian's singular
+    # values, or of the raw Jacobian's: its bound is on the matrix it is computed from.
+    divisor = robot.manipulability_divisor(task)
+    inv, man = np.empty(n), np.empty(n)
+    s_inv, s_man = np.zeros((n, k)), np.zeros((n, k))  # singular values at the exact rows
+    exact = np.zeros(n, dtype=bool)
+
+    def measure(idx: np.ndarray) -> None:
+        s_inv[idx], s_man[idx] = robot.task_singular_values(raw[idx], scaled[idx], task)
+        inv[idx], man[idx] = robot.conditioning_from(s_inv[idx], s_man[idx], task)
+        exact[idx] = True
+
+    first = np.concatenate([np.arange(0, n, ANCHOR_SPACING), [n - 1], [] if keep is None else np.asarray(keep)])
+    measure(np.unique(first.astype(int)))
+    scale = 1.0 if divisor is None else 1.0 / divisor
+    lo_inv, lo_man = np.zeros(n), np.zeros(n)
+    rows = np.nonzero(~exact)[0]  # rows whose bounds are (re)computed
+    while len(rows):
+        ends = np.nonzero(exact)[0]
+        right = np.searchsorted(ends, rows)
+        lo_inv[rows], lo_man[rows] = 0.0, 0.0
+        for a in (ends[right - 1], ends[right]):
+            # Rounding of the SVDs and norms: a margin far above it.
+            e = np.linalg.norm(scaled[rows] - scaled[a], axis=(1, 2)) + 1e-9 * (s_inv[a, 0] + 1.0)
+            if divisor is None:
+                e_man = np.linalg.norm(raw[rows] - raw[a], axis=(1, 2)) + 1e-9 * (s_man[a, 0] + 1.0)
+            else:
+                e_man = e
+            lo_inv[rows] = np.maximum(lo_inv[rows], np.maximum(s_inv[a, -1] - e, 0.0) / (s_inv[a, 0] + e))
+            lo_man[rows] = np.maximum(lo_man[rows], np.prod(np.maximum(s_man[a] - e_man[:, None], 0.0), axis=1))
+        lo_man[rows] *= scale * (1.0 - 1e-9)
+        # The smallest exact values only fall as rows are added: a row certified stays certified.
+        open_rows = np.nonzero(~exact)[0]
+        near = (lo_inv[open_rows] <= max(threshold, float(np.min(inv[exact])))) | (
+            lo_man[open_rows] <= float(np.min(man[exact]))
+        )
+        if not near.any():
+            break
+        # Split each gap holding a row too near: its middle row (a short gap: all its rows).
+        pos = np.searchsorted(ends, open_rows[near])
+        lo_end, hi_end = np.unique(ends[pos - 1]), None
+        hi_end = ends[np.searchsorted(ends, lo_end) + 1]
+        short = hi_end - lo_end <= 4
+        mids = (lo_end[~short] + hi_end[~short]) // 2
+        whole = [np.arange(x + 1, y) for x, y in zip(lo_end[short], hi_end[short])]
+        measure(np.unique(np.concatenate([mids, *whole]).astype(int)))
+        # Bounds again for the rows of the gaps split (the others' ends are unchanged).
+        split = np.zeros(n, dtype=bool)
+        for x, y in zip(lo_end[~short], hi_end[~short]):
+            split[x + 1 : y] = True
+        rows = np.nonzero(split & ~exact)[0]
+    free = ~exact
+    inv[free], man[free] = lo_inv[free], lo_man[free]
+    return inv, man
+
+
 def measure_singularities(
     robot: Robot, trajectory: JointTrajectory, threshold: float, task: Task, rate: float
 ) -> tuple[SingularityReport, np.ndarray, np.ndarray, np.ndarray]:
@@ -153,12 +243,14 @@ def measure_singularities(
 
     Returns:
         The report, the sample times (n,) [s], the sampled configurations (n, dof) and their
-        inverse condition numbers (n,).
+        inverse condition numbers (n,): exact (as :meth:`Robot.conditioning`) at the waypoints,
+        wherever below the threshold and at the minimum, elsewhere a lower bound above both
+        (see :func:`bounded_conditioning`).
     """
     t = _sample_times(trajectory, rate)
     q = trajectory.sample(t).q
-    inv, man = robot.conditioning(q, task)
     w_idx = np.searchsorted(t, trajectory.waypoint_times)
+    inv, man = bounded_conditioning(robot, q, task, threshold, w_idx)
     w_inv, w_man = inv[w_idx], man[w_idx]
     k = int(np.argmin(inv))
     report = SingularityReport(

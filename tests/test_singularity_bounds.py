@@ -1,0 +1,137 @@
+"""The bounded singularity measure against the exact one (every sample through Robot.conditioning)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from dh_arms import property_settings
+from hypothesis import given
+from hypothesis import strategies as st
+
+from planner.motion.limits import JointLimits
+from planner.motion.plan import plan_trajectory
+from planner.motion.singularity import (
+    SingularityReport,
+    bounded_conditioning,
+    inverse_condition_threshold,
+    measure_singularities,
+)
+
+from conftest import HAVE_EXAMPLE_ROBOT_DATA, get_robot
+
+ARMS = ["dh3", "al5c", "three_joint", "shelley"] + (["ur5", "panda", "z1"] if HAVE_EXAMPLE_ROBOT_DATA else [])
+
+
+def _intervals(t: np.ndarray, low: np.ndarray) -> tuple[tuple[float, float], ...]:
+    """The runs of `low` as (first, last) times: written out again here, independent of the module."""
+    out, start = [], None
+    for k, flag in enumerate(low):
+        if flag and start is None:
+            start = k
+        if start is not None and (not flag or k == len(low) - 1):
+            end = k if flag else k - 1
+            out.append((float(t[start]), float(t[end])))
+            start = None
+    return tuple(out)
+
+
+def _reference(robot, trajectory, threshold, task, rate) -> tuple[SingularityReport, np.ndarray, np.ndarray]:
+    """The report as computed before the bounds: every sample measured exactly."""
+    t = np.unique(np.concatenate([trajectory.times(rate), trajectory.waypoint_times]))
+    q = trajectory.sample(t).q
+    inv, man = robot.conditioning(q, task)
+    w = np.searchsorted(t, trajectory.waypoint_times)
+    k = int(np.argmin(inv))
+    report = SingularityReport(
+        threshold=threshold,
+        task=task,
+        rate=rate,
+        waypoint_inverse_condition=inv[w],
+        waypoint_manipulability=man[w],
+        singular_waypoints=tuple(int(i) for i in np.nonzero(inv[w] < threshold)[0]),
+        min_inverse_condition=float(inv[k]),
+        min_manipulability=float(np.min(man)),
+        time_of_minimum=float(t[k]),
+        q_at_minimum=q[k],
+        below_threshold=_intervals(t, inv < threshold),
+    )
+    return report, inv, man
+
+
+@pytest.mark.parametrize("name", ARMS)
+@given(seed=st.integers(0, 2**32 - 1), points=st.integers(2, 4), scale=st.sampled_from([1.0, 3.0, 10.0]))
+@property_settings(8)
+def test_bounded_measure_matches_the_exact_one(name, seed, points, scale):
+    robot = get_robot(name)
+    task = robot.resolve_task(None)
+    # Thresholds up to 10 times the default: most samples near it, where bounds must give way.
+    threshold = min(inverse_condition_threshold(None, task) * scale, 0.5)
+    q = robot.random_configurations(np.random.default_rng(seed), points)
+    trajectory = plan_trajectory(q, JointLimits.from_robot(robot))
+    expected, inv_all, man_all = _reference(robot, trajectory, threshold, task, 1000.0)
+    report, t, _, inv = measure_singularities(robot, trajectory, threshold, task, 1000.0)
+    for field in expected.__dataclass_fields__:
+        got, want = getattr(report, field), getattr(expected, field)
+        if isinstance(want, np.ndarray):
+            assert np.array_equal(got, want), field
+        else:
+            assert got == want, field
+    # Exact below the threshold and at the minimum, a lower bound above the threshold elsewhere.
+    exact = inv == inv_all
+    assert exact[inv_all < threshold].all()
+    assert np.all(inv <= inv_all)
+    assert np.all(inv[~exact] > threshold) and np.all(inv[~exact] > inv_all.min())
+
+
+@pytest.mark.parametrize("name", ARMS)
+def test_bounded_conditioning_bounds_both_measures(name):
+    robot = get_robot(name)
+    task = robot.resolve_task(None)
+    rng = np.random.default_rng(7)
+    # A dense random walk, and rows far apart (bounds useless: everything measured).
+    walk = robot.random_configurations(rng, 1) + np.cumsum(rng.normal(0.0, 2e-3, (3000, robot.dof)), axis=0)
+    walk = np.clip(walk, robot.lower, robot.upper)
+    for q in (walk, robot.random_configurations(rng, 200)):
+        inv_all, man_all = robot.conditioning(q, task)
+        inv, man = bounded_conditioning(robot, q, task, inverse_condition_threshold(None, task), keep=[5])
+        assert np.all(inv <= inv_all) and np.all(man <= man_all)
+        assert inv.min() == inv_all.min() and man.min() == man_all.min()
+        assert int(np.argmin(inv)) == int(np.argmin(inv_all))
+        assert inv[5] == inv_all[5] and man[5] == man_all[5]
+
+
+@pytest.mark.parametrize("name", ARMS)
+def test_conditioning_in_a_batch_equals_one_by_one(name):
+    # Detours' gradient steps measure several configurations in one batch.
+    robot = get_robot(name)
+    q = robot.random_configurations(np.random.default_rng(11), 50)
+    inv, man = robot.conditioning(q)
+    for k, row in enumerate(q):
+        one_inv, one_man = robot.conditioning(row)
+        assert float(one_inv) == inv[k] and float(one_man) == man[k]
+
+
+@pytest.mark.parametrize("name", ARMS)
+@pytest.mark.parametrize("task", ["position", "pose"])
+def test_conditioning_equals_the_direct_formula(name, task):
+    # Written out as before the split into task_jacobians / task_singular_values / conditioning_from.
+    robot = get_robot(name)
+    q = robot.random_configurations(np.random.default_rng(13), 40)
+    length = robot.characteristic_length
+    prismatic = np.array(robot.joint_kinds) == "prismatic"
+    jacs = np.array([robot.jacobian(row) for row in q])
+    jacs = jacs[:, :3] if task == "position" else jacs
+    scaled = jacs * np.where(prismatic, length, 1.0)
+    if task == "pose":
+        scaled[:, 3:] *= length
+    k = min(jacs.shape[1:])
+    s = np.linalg.svd(scaled, compute_uv=False)[:, :k]
+    inverse = np.divide(s[:, -1], s[:, 0], out=np.zeros(len(q)), where=s[:, 0] != 0.0)
+    if not prismatic.any() and task == "position":
+        manipulability = np.prod(s, axis=1)
+    elif not prismatic.any() and robot.dof >= 6:
+        manipulability = np.prod(s, axis=1) / length**3
+    else:
+        manipulability = np.prod(np.linalg.svd(jacs, compute_uv=False)[:, :k], axis=1)
+    inv, man = robot.conditioning(q, task)
+    assert np.array_equal(inv, inverse) and np.array_equal(man, manipulability)
