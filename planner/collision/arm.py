@@ -24,7 +24,7 @@ from planner.core.rotations import homogeneous
 from planner.model.catalog import example_robot_data_dir
 from planner.model.robot import Robot
 
-__all__ = ["ArmCollisionModel", "arm_collision_model"]
+__all__ = ["ArmCollisionModel", "arm_collision_model", "bounding_radius", "box_corners"]
 
 #: Configurations sampled to find link pairs that are always in contact.
 PAIR_SAMPLES = 300
@@ -140,12 +140,12 @@ def _link_names(robot: Robot, geom: pin.GeometryModel) -> tuple[str, ...]:
     return tuple(out)
 
 
-def _bounding_radius(obj: pin.GeometryObject) -> float:
-    """Largest distance from an object's placement origin to a point of it [m] (upper bound)."""
+def box_corners(obj: pin.GeometryObject) -> np.ndarray:
+    """The 8 corners of a geometry object's bounding box in its own frame [m], shape (8, 3)."""
     g = obj.geometry
     g.computeLocalAABB()
     box = g.aabb_local
-    corners = np.array(
+    return np.array(
         [
             [x, y, z]
             for x in (box.min_[0], box.max_[0])
@@ -153,7 +153,11 @@ def _bounding_radius(obj: pin.GeometryObject) -> float:
             for z in (box.min_[2], box.max_[2])
         ]
     )
-    return float(np.max(np.linalg.norm(corners, axis=1)))
+
+
+def bounding_radius(obj: pin.GeometryObject) -> float:
+    """Largest distance from an object's placement origin to a point of it [m] (upper bound)."""
+    return float(np.max(np.linalg.norm(box_corners(obj), axis=1)))
 
 
 def _reach(robot: Robot, geom: pin.GeometryModel) -> np.ndarray:
@@ -176,7 +180,7 @@ def _reach(robot: Robot, geom: pin.GeometryModel) -> np.ndarray:
             for j in path:  # a slide adds its travel
                 if robot.joint_kinds[j - 1] == "prismatic":
                     dist += max(abs(robot.lower[j - 1]), abs(robot.upper[j - 1]))
-            dist += float(np.linalg.norm(obj.placement.translation)) + _bounding_radius(obj)
+            dist += float(np.linalg.norm(obj.placement.translation)) + bounding_radius(obj)
             best = max(best, dist)
         reach[jid - 1] = best
     return reach

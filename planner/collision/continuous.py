@@ -26,6 +26,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from planner.collision.arm import bounding_radius, box_corners
 from planner.collision.checker import Clearance, CollisionChecker
 from planner.exceptions import InvalidArgumentError
 
@@ -89,22 +90,6 @@ class _ArmReach:
         self.chains: list[list[int]] = []
 
 
-def _extent(obj) -> float:
-    """Largest distance from a geometry object's placement origin to a point of it [m] (upper bound)."""
-    g = obj.geometry
-    g.computeLocalAABB()
-    box = g.aabb_local
-    corners = np.array(
-        [
-            [x, y, z]
-            for x in (box.min_[0], box.max_[0])
-            for y in (box.min_[1], box.max_[1])
-            for z in (box.min_[2], box.max_[2])
-        ]
-    )
-    return float(np.max(np.linalg.norm(corners, axis=1)))
-
-
 def _axis_reach(model, obj) -> float:
     """Largest distance of a geometry object from the axis of the revolute joint carrying it [m].
 
@@ -118,18 +103,7 @@ def _axis_reach(model, obj) -> float:
     if motion.shape[1] != 1 or np.linalg.norm(motion[:3, 0]) > 1e-12:
         return float("inf")
     axis = motion[3:, 0] / np.linalg.norm(motion[3:, 0])
-    g = obj.geometry
-    g.computeLocalAABB()
-    box = g.aabb_local
-    corners = np.array(
-        [
-            [x, y, z]
-            for x in (box.min_[0], box.max_[0])
-            for y in (box.min_[1], box.max_[1])
-            for z in (box.min_[2], box.max_[2])
-        ]
-    )
-    points = corners @ obj.placement.rotation.T + obj.placement.translation
+    points = box_corners(obj) @ obj.placement.rotation.T + obj.placement.translation
     return float(np.max(np.linalg.norm(points - np.outer(points @ axis, axis), axis=1)))
 
 
@@ -164,7 +138,7 @@ def pair_weights(checker: CollisionChecker) -> np.ndarray:
         if k not in reach:
             obj = geom.geometryObjects[k]
             chain = chain_of[obj.parentJoint]
-            own = float(np.linalg.norm(obj.placement.translation)) + _extent(obj)
+            own = float(np.linalg.norm(obj.placement.translation)) + bounding_radius(obj)
             r = np.zeros(robot.dof)
             for jid in chain:
                 # Offsets from joint jid down to the object's joint (a slide adds its travel).
