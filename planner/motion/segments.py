@@ -33,6 +33,7 @@ __all__ = [
     "merge_segment",
     "piece_position_range",
     "range_with_tolerance",
+    "rest_to_rest_segments",
     "segment_position_range",
 ]
 
@@ -42,6 +43,7 @@ END_TOLERANCE = 1e-13
 #: [rad/s or m/s], acceleration [rad/s^2 or m/s^2] (Ruckig's own acceptance thresholds). Where
 #: a segment cannot be corrected within the limits, consecutive segments meet within these.
 RUCKIG_PRECISION = (1e-8, 1e-8, 1e-10)
+_SOLVED = (Result.Working, Result.Finished)
 
 
 def range_with_tolerance(limits: JointLimits) -> tuple[np.ndarray, np.ndarray]:
@@ -72,6 +74,59 @@ def piece_position_range(knots: np.ndarray, pvaj: np.ndarray, end: float) -> tup
     return stacked.min(axis=0), stacked.max(axis=0)
 
 
+def rest_to_rest_segments(q: np.ndarray, limits: JointLimits) -> list[tuple[float, RuckigTrajectory]] | None:
+    """The rest-to-rest Ruckig segments between the rows of `q`, where they need nothing more.
+
+    One Ruckig calculate per segment. The planner's chain (:class:`SegmentSolver` and the
+    range repair) would take each profile as it is unless Ruckig finds none, a joint misses
+    its target by more than :data:`END_TOLERANCE` (re-solved unsynchronised there), a joint
+    turns round inside a phase of zero jerk (which Ruckig's extrema miss) or an extremum lies
+    outside the range: in any of these cases this returns None and the chain decides. Else
+    the durations and trajectories are exactly the chain's.
+
+    Args:
+        q: Waypoints within the limits, shape (N, dof) [rad or m].
+        limits: The limits.
+
+    Returns:
+        Per segment its duration [s] and Ruckig trajectory, or None.
+    """
+    dof = q.shape[1]
+    otg, inp = Ruckig(dof), InputParameter(dof)
+    inp.max_velocity, inp.max_acceleration, inp.max_jerk = limits.ruckig_limits
+    bounds = limits.checked_bounds if limits.bounded else None
+    rows = q.tolist()
+    # Per target, the end error that the chain would correct (see SegmentSolver._unsynchronise_missed).
+    tolerances = (END_TOLERANCE * np.maximum(1.0, np.abs(q[1:]))).tolist()
+    out = []
+    for start, goal, tolerance in zip(rows, rows[1:], tolerances):
+        inp.current_position, inp.target_position = start, goal
+        traj = RuckigTrajectory(dof)
+        try:
+            if otg.calculate(inp, traj) not in _SOLVED:
+                return None
+        except RuckigError:
+            return None
+        duration = traj.duration
+        check = bounds is not None and duration > 0.0
+        for prof, x, tol in zip(traj.profiles[0], goal, tolerance):
+            if abs(prof.p[-1] - x) > tol:
+                return None
+            if check:
+                v = prof.v
+                if min(v) < 0.0 < max(v):  # a sign change, often only a rounding at the end
+                    j = prof.j
+                    w = v if j[-1] == 0.0 else v[:-1]
+                    if min(w) < 0.0 < max(w) and any(j[i] == 0.0 and v[i] * v[i + 1] < 0.0 for i in range(len(j))):
+                        return None
+        if check:
+            for e, (lo, hi) in zip(traj.position_extrema, bounds):
+                if e.min < lo or e.max > hi:
+                    return None
+        out.append((duration, traj))
+    return out
+
+
 class SegmentSolver:
     """Ruckig state-to-state segments between fixed positions, with position-range checks.
 
@@ -97,13 +152,11 @@ class SegmentSolver:
         self._min_set = False
         self.dof = q.shape[1]
         self.lower, self.upper = range_with_tolerance(limits)
-        self._bounds = list(zip(self.lower.tolist(), self.upper.tolist()))
-        self.bounded = bool(np.any(np.isfinite(limits.lower)) or np.any(np.isfinite(limits.upper)))
+        self._bounds = limits.checked_bounds
+        self.bounded = limits.bounded
         self.otg = Ruckig(self.dof)
         self.inp = InputParameter(self.dof)
-        self.inp.max_velocity = limits.velocity.tolist()
-        self.inp.max_acceleration = limits.acceleration.tolist()
-        self.inp.max_jerk = limits.jerk.tolist()
+        self.inp.max_velocity, self.inp.max_acceleration, self.inp.max_jerk = limits.ruckig_limits
         self.scratch = RuckigTrajectory(self.dof)
         # Per segment, the joints that do not move: only they can go out and back on one
         # parabola, which Ruckig 0.19 cannot take (see _on_one_parabola).
@@ -156,7 +209,7 @@ class SegmentSolver:
             result = self.otg.calculate(inp, traj)
         except RuckigError:  # Ruckig's own failure on an input it accepts: no profile from it
             return math.inf, None, None
-        if result not in (Result.Working, Result.Finished):
+        if result not in _SOLVED:
             return math.inf, None, None
         if keep:
             self._unsynchronise_missed(k, traj, vb, ab)
