@@ -150,6 +150,7 @@ class SegmentSolver:
         self.rows = [row.tolist() for row in q]
         self.min_durations = min_durations if min_durations is not None and np.any(min_durations > 0) else None
         self._min_set = False
+        self._k = -1  # the segment whose positions the input holds
         self.dof = q.shape[1]
         self.lower, self.upper = range_with_tolerance(limits)
         self._bounds = limits.checked_bounds
@@ -192,10 +193,12 @@ class SegmentSolver:
         still = self._still[k]
         if still is not None and self._on_one_parabola(still, va, aa, vb, ab):
             return math.inf, None, None
-        inp.current_position = self.rows[k]
+        if k != self._k:  # the searches solve one segment many times in a row
+            inp.current_position = self.rows[k]
+            inp.target_position = self.rows[k + 1]
+            self._k = k
         inp.current_velocity = va.tolist()
         inp.current_acceleration = aa.tolist()
-        inp.target_position = self.rows[k + 1]
         inp.target_velocity = vb.tolist()
         inp.target_acceleration = ab.tolist()
         if self.min_durations is not None and self.min_durations[k] > 0:
@@ -215,9 +218,11 @@ class SegmentSolver:
             self._unsynchronise_missed(k, traj, vb, ab)
         bad = None
         if self.bounded:
-            flags = [e.min < lo or e.max > hi for e, (lo, hi) in zip(traj.position_extrema, self._bounds)]
-            if any(flags):
-                bad = np.array(flags)
+            extrema = traj.position_extrema
+            for e, (lo, hi) in zip(extrema, self._bounds):
+                if e.min < lo or e.max > hi:
+                    bad = np.array([e.min < lo or e.max > hi for e, (lo, hi) in zip(extrema, self._bounds)])
+                    break
         return traj.duration, bad, traj if keep else None
 
     @staticmethod
