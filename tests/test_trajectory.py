@@ -456,6 +456,16 @@ def test_segment_range_from_ruckig_extrema_equals_the_exact_piece_range():
         np.testing.assert_allclose(lo, lo_exact, rtol=0.0, atol=1e-13)
         np.testing.assert_allclose(hi, hi_exact, rtol=0.0, atol=1e-13)
         turned += merged.missed is not None and bool(np.isfinite(merged.missed[0]).any())
+        if merged.missed is not None:  # read from Ruckig's lists: exactly the turning points of its phases
+            profiles = traj.profiles[0]
+            pos, vel, acc = (np.array([getattr(p, x) for p in profiles])[:, :-1] for x in "pva")
+            vel_end = np.array([p.v for p in profiles])[:, 1:]
+            with np.errstate(divide="ignore", invalid="ignore"):
+                tz = -vel / acc
+                turn = pos + tz * (vel + tz * acc / 2.0)
+            turns = (np.array([p.j for p in profiles]) == 0.0) & (vel * vel_end < 0.0)
+            np.testing.assert_array_equal(merged.missed[0], np.where(turns, turn, np.inf).min(axis=1))
+            np.testing.assert_array_equal(merged.missed[1], np.where(turns, turn, -np.inf).max(axis=1))
     assert turned > 100  # the case Ruckig's extrema miss is common with moving end states
 
 

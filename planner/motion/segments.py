@@ -358,6 +358,66 @@ def merge_segment(
     dof = len(profiles)
     if duration <= 0.0:
         return SegmentPieces(lambda: (np.empty(0), np.empty((4, 0, dof))), np.zeros(dof), None)
+    if any(prof.accel.duration > 0 for prof in profiles):  # pragma: no cover - via states are admissible
+        raise RuntimeError("Ruckig needed a post-profile: a via state exceeds the limits")
+    missed = _plain_missed_turns(profiles, end)
+    if missed is not None:
+        # The common case, decided from Ruckig's lists: the arrays are read when first used.
+        def build_plain() -> tuple[np.ndarray, np.ndarray]:
+            return _merged_pieces(*_profile_phases(profiles), duration, start)
+
+        return SegmentPieces(build_plain, np.zeros(dof), missed)
+    starts, phases = _profile_phases(profiles)
+    pos = phases[0]
+
+    def build(extra: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+        return _merged_pieces(starts, phases, duration, start, extra)
+
+    residual = np.zeros(dof)
+    if end is not None:
+        error = np.asarray(end, dtype=float) - pos[:, -1]  # each profile's end position
+        off = np.abs(error) > END_TOLERANCE * np.maximum(1.0, np.abs(end))
+        if off.any():
+            knots, out = build(duration * np.array([0.25, 0.5, 0.75]))
+            corrected = out.copy()
+            if _add_s_curve(corrected, knots, duration, np.where(off, error, 0.0), limits):
+                corrected[0, 0], corrected[1, 0], corrected[2, 0] = start
+                return SegmentPieces(lambda: (knots, corrected), residual, None)
+            residual = np.where(off, error, 0.0)
+            return SegmentPieces(lambda: (knots, out), residual, _missed_turns(phases))
+    return SegmentPieces(build, residual, _missed_turns(phases))
+
+
+def _plain_missed_turns(profiles: list, end: np.ndarray | None) -> tuple[np.ndarray, np.ndarray] | None:
+    """:func:`_missed_turns` from Ruckig's lists, where :func:`merge_segment` needs nothing else.
+
+    That is: no brake phase and every profile ending on `end` within :data:`END_TOLERANCE`
+    (no end correction); else None. The turning points are computed as there, bit for bit.
+    """
+    goals = None if end is None else np.asarray(end, dtype=float).tolist()
+    dof = len(profiles)
+    low, high = [math.inf] * dof, [-math.inf] * dof
+    for k, prof in enumerate(profiles):
+        if prof.brake.duration > 0:
+            return None
+        if goals is not None and abs(goals[k] - prof.p[-1]) > END_TOLERANCE * max(1.0, abs(goals[k])):
+            return None
+        v = prof.v
+        if min(v) < 0.0 < max(v):  # a sign change, often only a rounding at the end
+            j = prof.j
+            for i in range(len(j)):
+                v0 = v[i]
+                if j[i] == 0.0 and v0 * v[i + 1] < 0.0:
+                    a0 = prof.a[i]
+                    tz = -v0 / a0
+                    turn = prof.p[i] + tz * (v0 + tz * a0 / 2.0)
+                    low[k], high[k] = min(low[k], turn), max(high[k], turn)
+    return np.array(low), np.array(high)
+
+
+def _profile_phases(profiles: list) -> tuple[np.ndarray, tuple[np.ndarray, ...]]:
+    """Per joint, the phase start times (dof, P) and the (p, v, a, j) at each phase start (dof, P)."""
+    dof = len(profiles)
     # An 8th phase holds the end state (zero jerk) in case a joint's profile ends early.
     jerk = np.array([prof.j + [0.0] for prof in profiles])
     acc = np.array([prof.a for prof in profiles])  # (dof, 8): phase starts and the end state
@@ -377,35 +437,27 @@ def merge_segment(
         # A joint without a brake phase has zero-length ones: skip them.
         none = offset[:, 0] <= 0
         starts[none, :2] = 0.0
-    if any(prof.accel.duration > 0 for prof in profiles):  # pragma: no cover - via states are admissible
-        raise RuntimeError("Ruckig needed a post-profile: a via state exceeds the limits")
-    phases = (pos, vel, acc, jerk)
+    return starts, (pos, vel, acc, jerk)
 
-    def build(extra: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
-        knots = np.sort(starts if extra is None else np.append(starts, extra), axis=None)
-        knots = knots[knots < duration]
-        first = np.empty(len(knots), dtype=bool)
-        first[0] = True
-        np.not_equal(knots[1:], knots[:-1], out=first[1:])
-        knots = knots[first]  # the distinct phase starts (every profile starts at 0)
-        out = _phase_states(knots, starts, phases)
-        # The segment starts exactly at its waypoint state.
-        out[0, 0], out[1, 0], out[2, 0] = start
-        return knots, out
 
-    residual = np.zeros(dof)
-    if end is not None:
-        error = np.asarray(end, dtype=float) - pos[:, -1]  # each profile's end position
-        off = np.abs(error) > END_TOLERANCE * np.maximum(1.0, np.abs(end))
-        if off.any():
-            knots, out = build(duration * np.array([0.25, 0.5, 0.75]))
-            corrected = out.copy()
-            if _add_s_curve(corrected, knots, duration, np.where(off, error, 0.0), limits):
-                corrected[0, 0], corrected[1, 0], corrected[2, 0] = start
-                return SegmentPieces(lambda: (knots, corrected), residual, None)
-            residual = np.where(off, error, 0.0)
-            return SegmentPieces(lambda: (knots, out), residual, _missed_turns(phases))
-    return SegmentPieces(build, residual, _missed_turns(phases))
+def _merged_pieces(
+    starts: np.ndarray,
+    phases: tuple[np.ndarray, ...],
+    duration: float,
+    start: tuple[np.ndarray, np.ndarray, np.ndarray],
+    extra: np.ndarray | None = None,
+) -> tuple[np.ndarray, np.ndarray]:
+    """Local knots (the distinct phase starts, and `extra` times) and the stacked (p, v, a, j) there."""
+    knots = np.sort(starts if extra is None else np.append(starts, extra), axis=None)
+    knots = knots[knots < duration]
+    first = np.empty(len(knots), dtype=bool)
+    first[0] = True
+    np.not_equal(knots[1:], knots[:-1], out=first[1:])
+    knots = knots[first]  # the distinct phase starts (every profile starts at 0)
+    out = _phase_states(knots, starts, phases)
+    # The segment starts exactly at its waypoint state.
+    out[0, 0], out[1, 0], out[2, 0] = start
+    return knots, out
 
 
 def _missed_turns(phases: tuple[np.ndarray, ...]) -> tuple[np.ndarray, np.ndarray]:
