@@ -18,7 +18,7 @@ from planner.motion.limits import JointLimits
 from planner.motion.plan import plan_trajectory, plan_trajectory_request
 from planner.motion.request import TrajectoryRequest
 from planner.motion.trajectory import LIMIT_TOLERANCE
-from planner.motion.vias import VIA_STRATEGIES, HeuristicStrategy, ViaStrategy
+from planner.motion.vias import VIA_STRATEGIES, HeuristicStrategy, StopStrategy, ViaStrategy
 from planner.motion.vias.optimized import spline_via_states
 
 from conftest import get_robot
@@ -456,6 +456,16 @@ def test_segment_range_from_ruckig_extrema_equals_the_exact_piece_range():
         np.testing.assert_allclose(lo, lo_exact, rtol=0.0, atol=1e-13)
         np.testing.assert_allclose(hi, hi_exact, rtol=0.0, atol=1e-13)
         turned += merged.missed is not None and bool(np.isfinite(merged.missed[0]).any())
+        if merged.missed is not None:  # read from Ruckig's lists: exactly the turning points of its phases
+            profiles = traj.profiles[0]
+            pos, vel, acc = (np.array([getattr(p, x) for p in profiles])[:, :-1] for x in "pva")
+            vel_end = np.array([p.v for p in profiles])[:, 1:]
+            with np.errstate(divide="ignore", invalid="ignore"):
+                tz = -vel / acc
+                turn = pos + tz * (vel + tz * acc / 2.0)
+            turns = (np.array([p.j for p in profiles]) == 0.0) & (vel * vel_end < 0.0)
+            np.testing.assert_array_equal(merged.missed[0], np.where(turns, turn, np.inf).min(axis=1))
+            np.testing.assert_array_equal(merged.missed[1], np.where(turns, turn, -np.inf).max(axis=1))
     assert turned > 100  # the case Ruckig's extrema miss is common with moving end states
 
 
@@ -504,3 +514,87 @@ def test_tiny_moves_end_on_their_waypoints():
         # Continuous: no step between neighbouring samples beyond what the speed allows.
         assert np.all(np.abs(np.diff(q, axis=0)) <= 1.0 * (t[1] - t[0]) * (1 + 1e-6))
         assert np.all(np.abs(q[-1] - waypoints[-1]) <= 1e-15)
+
+
+class _EagerStop(StopStrategy):
+    """The stop strategy through the full via chain (plan_trajectory's shortcut skips it)."""
+
+
+_TRAJECTORY_FIELDS = (
+    "knots",
+    "p",
+    "v",
+    "a",
+    "j",
+    "waypoints",
+    "waypoint_times",
+    "via_velocities",
+    "via_accelerations",
+    "dwell",
+    "repaired",
+)
+
+
+def assert_same_plan(fast, eager):
+    assert fast.duration == eager.duration
+    assert fast.strategy == eager.strategy == "stop"
+    assert fast.limits is eager.limits
+    for name in _TRAJECTORY_FIELDS:
+        mine, theirs = getattr(fast, name), getattr(eager, name)
+        assert mine.dtype == theirs.dtype and mine.shape == theirs.shape, name
+        np.testing.assert_array_equal(mine, theirs, err_msg=name)
+        assert not mine.flags.writeable, name
+
+
+@pytest.mark.parametrize("name", ["al5c", "three_joint", "dh3", "shelley"])
+def test_stop_shortcut_equals_the_chain_bit_for_bit(name):
+    # strategy="stop" plans rest-to-rest segments without the via chain, the pieces merged on
+    # first use; every field must be what the chain makes of the same request.
+    robot = get_robot(name)
+    limits = JointLimits.from_robot(robot)
+    rng = np.random.default_rng(7)
+    for n in (2, 3, 5, 8):
+        q = robot.random_configurations(rng, n)
+        q[n // 2] = q[n // 2 - 1]  # a segment of zero length
+        eager = plan_trajectory(q, limits, strategy=_EagerStop())
+        fast = plan_trajectory(q, limits, strategy="stop")
+        assert_same_plan(fast, eager)
+        request = plan_trajectory_request(TrajectoryRequest(q, limits, strategy="stop"))
+        assert_same_plan(request, eager)
+        assert_within_limits(fast)
+
+
+@given(
+    st.lists(
+        st.lists(st.floats(-1.5, 1.5, allow_nan=False, allow_subnormal=False), min_size=2, max_size=2),
+        min_size=2,
+        max_size=6,
+    ),
+    st.sampled_from([1e-7, 1e-3, 1.0]),
+)
+@SETTINGS
+def test_stop_shortcut_equals_the_chain_on_generated_waypoints(points, scale):
+    # Small scales give tiny moves, where the chain re-solves joints unsynchronised.
+    limits = JointLimits(velocity=[1.0, 0.3], acceleration=[2.0, 5.0], jerk=[20.0, 9.0], lower=-2, upper=2)
+    q = np.array(points) * scale
+    assert_same_plan(plan_trajectory(q, limits, strategy="stop"), plan_trajectory(q, limits, strategy=_EagerStop()))
+
+
+@pytest.mark.parametrize(
+    ("waypoints", "error", "match"),
+    [
+        ([[0.0, 0.0]], InvalidArgumentError, "at least two waypoints"),
+        ([[0.0, 0.0], [0.0, 3.0]], JointLimitError, "3"),
+        ([[0.0, 0.0], [0.0, math.nan]], InvalidConfigurationError, "nan"),
+        ([[0.0, 0.0], [0.0, math.inf]], InvalidConfigurationError, "inf"),
+        ([[0.0, 0.0], [0.0]], InvalidConfigurationError, "1 values"),
+        ("ab", InvalidConfigurationError, "waypoint 0"),
+    ],
+)
+def test_stop_shortcut_keeps_the_input_errors(waypoints, error, match):
+    limits = JointLimits(1.0, 2.0, 20.0, lower=[-2, -2], upper=[2, 2])
+    for strategy in ("stop", "optimized"):
+        with pytest.raises(error, match=match):
+            plan_trajectory(waypoints, limits, strategy=strategy)
+    with pytest.raises(InvalidArgumentError, match="JointLimits"):
+        plan_trajectory([[0.0, 0.0], [1.0, 1.0]], "fast", strategy="stop")

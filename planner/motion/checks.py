@@ -15,7 +15,23 @@ from planner.core.text import plain
 from planner.exceptions import InvalidArgumentError, InvalidConfigurationError, JointLimitError
 from planner.motion.limits import JointLimits
 
-__all__ = ["check_dwell", "check_given", "check_state", "check_stops", "check_waypoints"]
+__all__ = ["check_dwell", "check_given", "check_state", "check_stops", "check_waypoints", "waypoints_within"]
+
+
+def waypoints_within(waypoints: Sequence[Sequence[float]] | np.ndarray, limits: JointLimits) -> np.ndarray | None:
+    """The waypoints as a new (N, dof) float array if :func:`check_waypoints` accepts them at once, else None.
+
+    The common case in one comparison (:attr:`JointLimits.finite_range` rejects NaN and
+    infinities too); None leaves the diagnosis to :func:`check_waypoints`.
+    """
+    try:
+        whole = np.array(waypoints, dtype=float)
+    except (TypeError, ValueError):
+        return None
+    if whole.ndim != 2 or whole.shape[0] < 2 or whole.shape[1] != limits.dof:
+        return None
+    lower, upper = limits.finite_range
+    return whole if ((whole >= lower) & (whole <= upper)).all() else None
 
 
 def check_waypoints(waypoints: Sequence[Sequence[float]] | np.ndarray, limits: JointLimits) -> np.ndarray:
@@ -26,21 +42,10 @@ def check_waypoints(waypoints: Sequence[Sequence[float]] | np.ndarray, limits: J
         InvalidConfigurationError: If a waypoint has the wrong length or a NaN/infinite value.
         JointLimitError: If a waypoint lies outside a joint's range (joint and value named).
     """
-    names = limits.joint_names
-    try:  # the common case at once; anything it rejects is checked row by row for the message
-        whole = np.array(waypoints, dtype=float)
-    except (TypeError, ValueError):
-        whole = None
-    if (
-        whole is not None
-        and whole.ndim == 2
-        and whole.shape[0] >= 2
-        and whole.shape[1] == limits.dof
-        and np.all(np.isfinite(whole))
-        and np.all(whole >= limits.lower)
-        and np.all(whole <= limits.upper)
-    ):
+    whole = waypoints_within(waypoints, limits)
+    if whole is not None:
         return whole
+    names = limits.joint_names
     rows = list(waypoints)
     if len(rows) < 2:
         raise InvalidArgumentError(f"a trajectory needs at least two waypoints, got {len(rows)}")

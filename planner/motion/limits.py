@@ -138,6 +138,33 @@ class JointLimits:
         upper = self.upper + RANGE_TOLERANCE * np.maximum(1.0, np.abs(np.nan_to_num(self.upper)))
         return read_only(lower), read_only(upper)
 
+    @cached_property
+    def finite_range(self) -> tuple[np.ndarray, np.ndarray]:
+        """The position range with infinite ends replaced by the largest finite floats, shapes (dof,).
+
+        A value lies within it exactly when it is finite and within the range.
+        """
+        big = np.finfo(float).max
+        return read_only(np.where(np.isfinite(self.lower), self.lower, -big)), read_only(
+            np.where(np.isfinite(self.upper), self.upper, big)
+        )
+
+    @cached_property
+    def ruckig_limits(self) -> tuple[tuple[float, ...], tuple[float, ...], tuple[float, ...]]:
+        """Velocity, acceleration and jerk limits as tuples of floats, for Ruckig's ``InputParameter``."""
+        return tuple(self.velocity.tolist()), tuple(self.acceleration.tolist()), tuple(self.jerk.tolist())
+
+    @cached_property
+    def bounded(self) -> bool:
+        """Whether any joint has a finite range end."""
+        return bool(np.any(np.isfinite(self.lower)) or np.any(np.isfinite(self.upper)))
+
+    @cached_property
+    def checked_bounds(self) -> tuple[tuple[float, float], ...]:
+        """:attr:`checked_range` as one (lower, upper) pair of floats per joint."""
+        lower, upper = self.checked_range
+        return tuple(zip(lower.tolist(), upper.tolist()))
+
     @classmethod
     def from_robot(
         cls,

@@ -52,11 +52,18 @@ import numpy as np
 
 from planner.core.arrays import read_only
 from planner.exceptions import InvalidArgumentError, PlanningError
+from planner.motion.checks import waypoints_within
 from planner.motion.limits import JointLimits
 from planner.motion.request import TrajectoryRequest
-from planner.motion.segments import SegmentPieces, brake_segment, merge_segment, segment_position_range
+from planner.motion.segments import (
+    SegmentPieces,
+    brake_segment,
+    merge_segment,
+    rest_to_rest_segments,
+    segment_position_range,
+)
 from planner.motion.trajectory import JointTrajectory
-from planner.motion.vias import ViaChain, ViaStrategy, via_strategy
+from planner.motion.vias import StopStrategy, ViaChain, ViaStrategy, via_strategy
 
 __all__ = ["plan_trajectory", "plan_trajectory_request"]
 
@@ -190,6 +197,24 @@ def plan_trajectory(
         InvalidConfigurationError: A waypoint with the wrong length or a NaN.
         JointLimitError: A waypoint outside its joint range (joint and value named).
     """
+    if (
+        isinstance(strategy, str)
+        and strategy == StopStrategy.name
+        and isinstance(limits, JointLimits)
+        and start_velocity is None
+        and start_acceleration is None
+        and stops is None
+        and dwell is None
+        and via_velocities is None
+        and via_accelerations is None
+        and min_durations is None
+    ):
+        # The baseline at Ruckig's own speed: nothing to choose, so no request and no chain
+        # unless the waypoints or a segment need them (they then give the same plan or error).
+        q = waypoints_within(waypoints, limits)
+        planned = _plan_at_rest(q, limits) if q is not None else None
+        if planned is not None:
+            return planned
     return plan_trajectory_request(
         TrajectoryRequest(
             waypoints,
@@ -223,6 +248,15 @@ def plan_trajectory_request(request: TrajectoryRequest) -> JointTrajectory:
         raise InvalidArgumentError(f"request must be a TrajectoryRequest, got {type(request).__name__}")
     chooser = via_strategy(request.strategy)
     limits = request.limits
+    if (
+        type(chooser) is StopStrategy
+        and not request.moving_start
+        and not request.dwell.any()
+        and not request.min_durations.any()
+    ):
+        planned = _plan_at_rest(request.waypoints, limits)
+        if planned is not None:
+            return planned
     q, v0, a0, dw = request.waypoints, request.start_velocity, request.start_acceleration, request.dwell
     n = len(q)
     stop = np.zeros(n, dtype=bool)
@@ -266,31 +300,9 @@ def plan_trajectory_request(request: TrajectoryRequest) -> JointTrajectory:
         starts[k] = t
         if k < n - 1:
             t += segments[k][0]
-    dof = q.shape[1]
 
     def build() -> tuple[np.ndarray, ...]:
-        knots, blocks = [], []
-        if head is not None:
-            knots.append(head[1])
-            blocks.append(head[2])
-        for k in range(n):
-            if dw[k] > 0:
-                knots.append(np.array([rests[k]]))
-                blocks.append(np.concatenate([q[k][None, None], np.zeros((3, 1, dof))]))
-            if k < n - 1:
-                merged = segments[k][1]
-                if len(merged.knots):
-                    knots.append(starts[k] + merged.knots)
-                    blocks.append(merged.pieces)
-        if knots:
-            all_knots = np.concatenate(knots)
-            pvaj = np.concatenate(blocks, axis=1)
-        else:  # every waypoint identical, no dwell: a motionless trajectory
-            all_knots = np.array([0.0])
-            pvaj = np.concatenate([q[:1][None], np.zeros((3, 1, dof))])
-        # Every array here is new: freeze them in place.
-        pvaj.setflags(write=False)
-        return _frozen(all_knots), pvaj[0], pvaj[1], pvaj[2], pvaj[3]
+        return _assemble(q, dw, rests, starts, [merged for _, merged in segments], head)
 
     return JointTrajectory.lazy(
         build,
@@ -303,6 +315,80 @@ def plan_trajectory_request(request: TrajectoryRequest) -> JointTrajectory:
         limits=limits,
         strategy=chooser.name,
         repaired=_frozen(repaired),
+    )
+
+
+def _assemble(
+    q: np.ndarray,
+    dw: np.ndarray,
+    rests: np.ndarray,
+    starts: np.ndarray,
+    merged: list[SegmentPieces],
+    head: list | None,
+) -> tuple[np.ndarray, ...]:
+    """The trajectory's read-only ``knots, p, v, a, j`` from its segments, rests and braking head."""
+    dof = q.shape[1]
+    knots, blocks = [], []
+    if head is not None:
+        knots.append(head[1])
+        blocks.append(head[2])
+    for k in range(len(q)):
+        if dw[k] > 0:
+            knots.append(np.array([rests[k]]))
+            blocks.append(np.concatenate([q[k][None, None], np.zeros((3, 1, dof))]))
+        if k < len(q) - 1 and len(merged[k].knots):
+            knots.append(starts[k] + merged[k].knots)
+            blocks.append(merged[k].pieces)
+    if knots:
+        all_knots = np.concatenate(knots)
+        pvaj = np.concatenate(blocks, axis=1)
+    else:  # every waypoint identical, no dwell: a motionless trajectory
+        all_knots = np.array([0.0])
+        pvaj = np.concatenate([q[:1][None], np.zeros((3, 1, dof))])
+    # Every array here is new: freeze them in place.
+    pvaj.setflags(write=False)
+    return _frozen(all_knots), pvaj[0], pvaj[1], pvaj[2], pvaj[3]
+
+
+def _plan_at_rest(q: np.ndarray, limits: JointLimits) -> JointTrajectory | None:
+    """The plan resting at every waypoint (no dwell, no start state), or None if the chain must decide.
+
+    What :func:`plan_trajectory_request` makes of such a request, bit for bit, with one Ruckig
+    calculate per segment (:func:`planner.motion.segments.rest_to_rest_segments`); the pieces
+    are merged when first used. None where a segment needs the chain's corrections.
+
+    Args:
+        q: Validated waypoints, shape (N, dof) [rad or m]; kept (frozen) as the result's.
+        limits: The limits.
+    """
+    segments = rest_to_rest_segments(q, limits)
+    if segments is None:
+        return None
+    n, dof = q.shape
+    times = np.empty(n)
+    t = times[0] = 0.0
+    for k, (d, _) in enumerate(segments, 1):
+        t += d
+        times[k] = t
+    dw = np.zeros(n)
+
+    def build() -> tuple[np.ndarray, ...]:
+        rest = np.zeros(dof)
+        merged = [merge_segment(traj, d, (q[k], rest, rest), q[k + 1], limits) for k, (d, traj) in enumerate(segments)]
+        return _assemble(q, dw, times, times, merged, None)
+
+    via = _frozen(np.zeros((n, dof)))
+    return JointTrajectory.lazy(
+        build,
+        duration=float(t),
+        waypoints=q if not q.flags.writeable else _frozen(q),
+        waypoint_times=_frozen(times),
+        via_velocities=via,
+        via_accelerations=via,
+        dwell=_frozen(dw),
+        limits=limits,
+        strategy=StopStrategy.name,
+        repaired=_frozen(np.zeros((n, dof), dtype=bool)),
     )
 
 

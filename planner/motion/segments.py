@@ -33,6 +33,7 @@ __all__ = [
     "merge_segment",
     "piece_position_range",
     "range_with_tolerance",
+    "rest_to_rest_segments",
     "segment_position_range",
 ]
 
@@ -42,6 +43,7 @@ END_TOLERANCE = 1e-13
 #: [rad/s or m/s], acceleration [rad/s^2 or m/s^2] (Ruckig's own acceptance thresholds). Where
 #: a segment cannot be corrected within the limits, consecutive segments meet within these.
 RUCKIG_PRECISION = (1e-8, 1e-8, 1e-10)
+_SOLVED = (Result.Working, Result.Finished)
 
 
 def range_with_tolerance(limits: JointLimits) -> tuple[np.ndarray, np.ndarray]:
@@ -72,6 +74,59 @@ def piece_position_range(knots: np.ndarray, pvaj: np.ndarray, end: float) -> tup
     return stacked.min(axis=0), stacked.max(axis=0)
 
 
+def rest_to_rest_segments(q: np.ndarray, limits: JointLimits) -> list[tuple[float, RuckigTrajectory]] | None:
+    """The rest-to-rest Ruckig segments between the rows of `q`, where they need nothing more.
+
+    One Ruckig calculate per segment. The planner's chain (:class:`SegmentSolver` and the
+    range repair) would take each profile as it is unless Ruckig finds none, a joint misses
+    its target by more than :data:`END_TOLERANCE` (re-solved unsynchronised there), a joint
+    turns round inside a phase of zero jerk (which Ruckig's extrema miss) or an extremum lies
+    outside the range: in any of these cases this returns None and the chain decides. Else
+    the durations and trajectories are exactly the chain's.
+
+    Args:
+        q: Waypoints within the limits, shape (N, dof) [rad or m].
+        limits: The limits.
+
+    Returns:
+        Per segment its duration [s] and Ruckig trajectory, or None.
+    """
+    dof = q.shape[1]
+    otg, inp = Ruckig(dof), InputParameter(dof)
+    inp.max_velocity, inp.max_acceleration, inp.max_jerk = limits.ruckig_limits
+    bounds = limits.checked_bounds if limits.bounded else None
+    rows = q.tolist()
+    # Per target, the end error that the chain would correct (see SegmentSolver._unsynchronise_missed).
+    tolerances = (END_TOLERANCE * np.maximum(1.0, np.abs(q[1:]))).tolist()
+    out = []
+    for start, goal, tolerance in zip(rows, rows[1:], tolerances):
+        inp.current_position, inp.target_position = start, goal
+        traj = RuckigTrajectory(dof)
+        try:
+            if otg.calculate(inp, traj) not in _SOLVED:
+                return None
+        except RuckigError:
+            return None
+        duration = traj.duration
+        check = bounds is not None and duration > 0.0
+        for prof, x, tol in zip(traj.profiles[0], goal, tolerance):
+            if abs(prof.p[-1] - x) > tol:
+                return None
+            if check:
+                v = prof.v
+                if min(v) < 0.0 < max(v):  # a sign change, often only a rounding at the end
+                    j = prof.j
+                    w = v if j[-1] == 0.0 else v[:-1]
+                    if min(w) < 0.0 < max(w) and any(j[i] == 0.0 and v[i] * v[i + 1] < 0.0 for i in range(len(j))):
+                        return None
+        if check:
+            for e, (lo, hi) in zip(traj.position_extrema, bounds):
+                if e.min < lo or e.max > hi:
+                    return None
+        out.append((duration, traj))
+    return out
+
+
 class SegmentSolver:
     """Ruckig state-to-state segments between fixed positions, with position-range checks.
 
@@ -95,15 +150,14 @@ class SegmentSolver:
         self.rows = [row.tolist() for row in q]
         self.min_durations = min_durations if min_durations is not None and np.any(min_durations > 0) else None
         self._min_set = False
+        self._k = -1  # the segment whose positions the input holds
         self.dof = q.shape[1]
         self.lower, self.upper = range_with_tolerance(limits)
-        self._bounds = list(zip(self.lower.tolist(), self.upper.tolist()))
-        self.bounded = bool(np.any(np.isfinite(limits.lower)) or np.any(np.isfinite(limits.upper)))
+        self._bounds = limits.checked_bounds
+        self.bounded = limits.bounded
         self.otg = Ruckig(self.dof)
         self.inp = InputParameter(self.dof)
-        self.inp.max_velocity = limits.velocity.tolist()
-        self.inp.max_acceleration = limits.acceleration.tolist()
-        self.inp.max_jerk = limits.jerk.tolist()
+        self.inp.max_velocity, self.inp.max_acceleration, self.inp.max_jerk = limits.ruckig_limits
         self.scratch = RuckigTrajectory(self.dof)
         # Per segment, the joints that do not move: only they can go out and back on one
         # parabola, which Ruckig 0.19 cannot take (see _on_one_parabola).
@@ -139,10 +193,12 @@ class SegmentSolver:
         still = self._still[k]
         if still is not None and self._on_one_parabola(still, va, aa, vb, ab):
             return math.inf, None, None
-        inp.current_position = self.rows[k]
+        if k != self._k:  # the searches solve one segment many times in a row
+            inp.current_position = self.rows[k]
+            inp.target_position = self.rows[k + 1]
+            self._k = k
         inp.current_velocity = va.tolist()
         inp.current_acceleration = aa.tolist()
-        inp.target_position = self.rows[k + 1]
         inp.target_velocity = vb.tolist()
         inp.target_acceleration = ab.tolist()
         if self.min_durations is not None and self.min_durations[k] > 0:
@@ -156,15 +212,17 @@ class SegmentSolver:
             result = self.otg.calculate(inp, traj)
         except RuckigError:  # Ruckig's own failure on an input it accepts: no profile from it
             return math.inf, None, None
-        if result not in (Result.Working, Result.Finished):
+        if result not in _SOLVED:
             return math.inf, None, None
         if keep:
             self._unsynchronise_missed(k, traj, vb, ab)
         bad = None
         if self.bounded:
-            flags = [e.min < lo or e.max > hi for e, (lo, hi) in zip(traj.position_extrema, self._bounds)]
-            if any(flags):
-                bad = np.array(flags)
+            extrema = traj.position_extrema
+            for e, (lo, hi) in zip(extrema, self._bounds):
+                if e.min < lo or e.max > hi:
+                    bad = np.array([e.min < lo or e.max > hi for e, (lo, hi) in zip(extrema, self._bounds)])
+                    break
         return traj.duration, bad, traj if keep else None
 
     @staticmethod
@@ -300,6 +358,66 @@ def merge_segment(
     dof = len(profiles)
     if duration <= 0.0:
         return SegmentPieces(lambda: (np.empty(0), np.empty((4, 0, dof))), np.zeros(dof), None)
+    if any(prof.accel.duration > 0 for prof in profiles):  # pragma: no cover - via states are admissible
+        raise RuntimeError("Ruckig needed a post-profile: a via state exceeds the limits")
+    missed = _plain_missed_turns(profiles, end)
+    if missed is not None:
+        # The common case, decided from Ruckig's lists: the arrays are read when first used.
+        def build_plain() -> tuple[np.ndarray, np.ndarray]:
+            return _merged_pieces(*_profile_phases(profiles), duration, start)
+
+        return SegmentPieces(build_plain, np.zeros(dof), missed)
+    starts, phases = _profile_phases(profiles)
+    pos = phases[0]
+
+    def build(extra: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+        return _merged_pieces(starts, phases, duration, start, extra)
+
+    residual = np.zeros(dof)
+    if end is not None:
+        error = np.asarray(end, dtype=float) - pos[:, -1]  # each profile's end position
+        off = np.abs(error) > END_TOLERANCE * np.maximum(1.0, np.abs(end))
+        if off.any():
+            knots, out = build(duration * np.array([0.25, 0.5, 0.75]))
+            corrected = out.copy()
+            if _add_s_curve(corrected, knots, duration, np.where(off, error, 0.0), limits):
+                corrected[0, 0], corrected[1, 0], corrected[2, 0] = start
+                return SegmentPieces(lambda: (knots, corrected), residual, None)
+            residual = np.where(off, error, 0.0)
+            return SegmentPieces(lambda: (knots, out), residual, _missed_turns(phases))
+    return SegmentPieces(build, residual, _missed_turns(phases))
+
+
+def _plain_missed_turns(profiles: list, end: np.ndarray | None) -> tuple[np.ndarray, np.ndarray] | None:
+    """:func:`_missed_turns` from Ruckig's lists, where :func:`merge_segment` needs nothing else.
+
+    That is: no brake phase and every profile ending on `end` within :data:`END_TOLERANCE`
+    (no end correction); else None. The turning points are computed as there, bit for bit.
+    """
+    goals = None if end is None else np.asarray(end, dtype=float).tolist()
+    dof = len(profiles)
+    low, high = [math.inf] * dof, [-math.inf] * dof
+    for k, prof in enumerate(profiles):
+        if prof.brake.duration > 0:
+            return None
+        if goals is not None and abs(goals[k] - prof.p[-1]) > END_TOLERANCE * max(1.0, abs(goals[k])):
+            return None
+        v = prof.v
+        if min(v) < 0.0 < max(v):  # a sign change, often only a rounding at the end
+            j = prof.j
+            for i in range(len(j)):
+                v0 = v[i]
+                if j[i] == 0.0 and v0 * v[i + 1] < 0.0:
+                    a0 = prof.a[i]
+                    tz = -v0 / a0
+                    turn = prof.p[i] + tz * (v0 + tz * a0 / 2.0)
+                    low[k], high[k] = min(low[k], turn), max(high[k], turn)
+    return np.array(low), np.array(high)
+
+
+def _profile_phases(profiles: list) -> tuple[np.ndarray, tuple[np.ndarray, ...]]:
+    """Per joint, the phase start times (dof, P) and the (p, v, a, j) at each phase start (dof, P)."""
+    dof = len(profiles)
     # An 8th phase holds the end state (zero jerk) in case a joint's profile ends early.
     jerk = np.array([prof.j + [0.0] for prof in profiles])
     acc = np.array([prof.a for prof in profiles])  # (dof, 8): phase starts and the end state
@@ -319,35 +437,27 @@ def merge_segment(
         # A joint without a brake phase has zero-length ones: skip them.
         none = offset[:, 0] <= 0
         starts[none, :2] = 0.0
-    if any(prof.accel.duration > 0 for prof in profiles):  # pragma: no cover - via states are admissible
-        raise RuntimeError("Ruckig needed a post-profile: a via state exceeds the limits")
-    phases = (pos, vel, acc, jerk)
+    return starts, (pos, vel, acc, jerk)
 
-    def build(extra: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
-        knots = np.sort(starts if extra is None else np.append(starts, extra), axis=None)
-        knots = knots[knots < duration]
-        first = np.empty(len(knots), dtype=bool)
-        first[0] = True
-        np.not_equal(knots[1:], knots[:-1], out=first[1:])
-        knots = knots[first]  # the distinct phase starts (every profile starts at 0)
-        out = _phase_states(knots, starts, phases)
-        # The segment starts exactly at its waypoint state.
-        out[0, 0], out[1, 0], out[2, 0] = start
-        return knots, out
 
-    residual = np.zeros(dof)
-    if end is not None:
-        error = np.asarray(end, dtype=float) - pos[:, -1]  # each profile's end position
-        off = np.abs(error) > END_TOLERANCE * np.maximum(1.0, np.abs(end))
-        if off.any():
-            knots, out = build(duration * np.array([0.25, 0.5, 0.75]))
-            corrected = out.copy()
-            if _add_s_curve(corrected, knots, duration, np.where(off, error, 0.0), limits):
-                corrected[0, 0], corrected[1, 0], corrected[2, 0] = start
-                return SegmentPieces(lambda: (knots, corrected), residual, None)
-            residual = np.where(off, error, 0.0)
-            return SegmentPieces(lambda: (knots, out), residual, _missed_turns(phases))
-    return SegmentPieces(build, residual, _missed_turns(phases))
+def _merged_pieces(
+    starts: np.ndarray,
+    phases: tuple[np.ndarray, ...],
+    duration: float,
+    start: tuple[np.ndarray, np.ndarray, np.ndarray],
+    extra: np.ndarray | None = None,
+) -> tuple[np.ndarray, np.ndarray]:
+    """Local knots (the distinct phase starts, and `extra` times) and the stacked (p, v, a, j) there."""
+    knots = np.sort(starts if extra is None else np.append(starts, extra), axis=None)
+    knots = knots[knots < duration]
+    first = np.empty(len(knots), dtype=bool)
+    first[0] = True
+    np.not_equal(knots[1:], knots[:-1], out=first[1:])
+    knots = knots[first]  # the distinct phase starts (every profile starts at 0)
+    out = _phase_states(knots, starts, phases)
+    # The segment starts exactly at its waypoint state.
+    out[0, 0], out[1, 0], out[2, 0] = start
+    return knots, out
 
 
 def _missed_turns(phases: tuple[np.ndarray, ...]) -> tuple[np.ndarray, np.ndarray]:

@@ -132,9 +132,12 @@ class JointTrajectory:
             build: Returns the read-only ``knots, p, v, a, j`` (see the attributes).
             **fields: Every other attribute.
         """
-        missing = {f.name for f in dataclasses.fields(cls)} - set(fields) - {"knots", "p", "v", "a", "j"}
-        if missing:
-            raise InvalidArgumentError(f"JointTrajectory.lazy needs the fields {', '.join(sorted(missing))}")
+        if fields.keys() != _LAZY_FIELDS:
+            missing = _LAZY_FIELDS - fields.keys()
+            raise InvalidArgumentError(
+                f"JointTrajectory.lazy needs the fields {', '.join(sorted(missing or _LAZY_FIELDS))}"
+                + (f", not {', '.join(sorted(fields.keys() - _LAZY_FIELDS))}" if fields.keys() - _LAZY_FIELDS else "")
+            )
         obj = cls.__new__(cls)
         for name, value in fields.items():
             object.__setattr__(obj, name, value)
@@ -287,3 +290,7 @@ class JointTrajectory:
             for row in data:
                 w.writerow([repr(float(x)) for x in row])
         return out
+
+
+#: The fields :meth:`JointTrajectory.lazy` takes (all but the piece arrays).
+_LAZY_FIELDS = frozenset(f.name for f in dataclasses.fields(JointTrajectory)) - {"knots", "p", "v", "a", "j"}
