@@ -598,3 +598,21 @@ def test_stop_shortcut_keeps_the_input_errors(waypoints, error, match):
             plan_trajectory(waypoints, limits, strategy=strategy)
     with pytest.raises(InvalidArgumentError, match="JointLimits"):
         plan_trajectory([[0.0, 0.0], [1.0, 1.0]], "fast", strategy="stop")
+
+
+@pytest.mark.parametrize("strategy", ["heuristic", "optimized", "stop"])
+def test_a_tiny_move_to_a_range_end_beside_moving_joints_plans(strategy):
+    # Found by the slow property test: Ruckig's unsynchronised re-solve of the 5e-8 rad move
+    # to the range end raised RuckigError ("error in step 2") out of plan_trajectory.
+    end = 2.356194490192345
+    limits = JointLimits(
+        np.full(3, 5.23598775598299),
+        np.full(3, 10.47197551196598),
+        np.full(3, 104.7197551196598),
+        -np.full(3, end),
+        np.full(3, end),
+    )
+    q = np.array([[0.0, 0.0, 0.0], [-2.3561944401923447] * 3, [-end] * 3, [0.0, 0.0, -end]])
+    traj = plan_trajectory(q, limits, strategy=strategy)
+    assert_within_limits(traj)
+    assert_passes_waypoints(traj, q)
