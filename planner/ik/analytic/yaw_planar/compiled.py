@@ -40,8 +40,9 @@ __all__ = ["BLOCK", "SMALL_BLOCK", "CompiledKernels", "compiled_supported", "sol
 
 PI = math.pi
 TWO_PI = 2.0 * math.pi
-#: C compiler flags: no errno after sqrt (inline square roots); no FMA contraction on x86-64.
-FLAGS = ("-O3", "-fno-math-errno", "-fPIC", "-shared")
+#: C compiler flags: no errno after sqrt (inline square roots), CasADi's helpers inlined; no
+#: FMA contraction on x86-64 (no -march).
+FLAGS = ("-O3", "-fno-math-errno", "-fno-semantic-interposition", "-fPIC", "-shared")
 #: Targets per call of the compiled function (the last block is padded).
 BLOCK = 4096
 #: Targets per call for the rest.
@@ -70,7 +71,8 @@ def _rint(y):
     """``numpy.round``: to the nearest integer, halves to even (exact, unlike floor(y + 0.5))."""
     r = ca.floor(y)
     frac = y - r
-    return r + ca.logic_or(frac > 0.5, ca.logic_and(frac == 0.5, ca.fmod(r, 2.0) != 0.0))
+    odd = r - 2.0 * ca.floor(0.5 * r) != 0.0
+    return r + ca.logic_or(frac > 0.5, ca.logic_and(frac == 0.5, odd))
 
 
 def _wrap_pi(x):
