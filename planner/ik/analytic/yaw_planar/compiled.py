@@ -320,13 +320,26 @@ def solve_compiled(
 ) -> BranchArrays:
     """The batch closed form of N targets by the compiled function (see the module docstring).
 
-    Only where :func:`compiled_supported` holds; `compiled` as :meth:`CompiledKernels.function`'s. Returns the arrays of
-    :func:`~planner.ik.analytic.yaw_planar.batch.solve_chunked` (``cat``, ``oerr``, ``dist`` None).
+    Only where :func:`compiled_supported` holds; `compiled` as :meth:`CompiledKernels.function`'s.
+
+    Returns:
+        The arrays of :func:`~planner.ik.analytic.yaw_planar.batch.solve_chunked` (``cat``,
+        ``oerr``, ``dist`` None).
     """
     n = pos.shape[0]
     dof = kernels.arm.dof
-    width = 4 * dof + 4 * 4 + 2
-    out = np.empty((n, width))
+    out = BranchArrays(
+        q=np.empty((n, 4, dof)),
+        cat=None,
+        valid=np.empty((n, 4), dtype=bool),
+        within=np.empty((n, 4), dtype=bool),
+        singular=np.empty((n, 4), dtype=bool),
+        perr=np.empty((n, 4)),
+        oerr=None,
+        status=np.empty(n, dtype=np.int8),
+        best=np.empty(n, dtype=np.intp),
+        dist=None,
+    )
     pos = np.ascontiguousarray(pos, dtype=float)
     pit = None if pit is None else np.ascontiguousarray(pit, dtype=float)
     # Full blocks, then the rest in small ones (two compiled functions per arm and kind).
@@ -334,40 +347,37 @@ def solve_compiled(
     pitch = pit is not None
     _run(kernels.function(pitch, block, compiled), pos, pit, out, 0, full, block)
     _run(kernels.function(pitch, SMALL_BLOCK, compiled), pos, pit, out, full, n, SMALL_BLOCK)
-    o = 4 * dof
-    return BranchArrays(
-        q=out[:, :o].reshape(n, 4, dof),
-        cat=None,
-        valid=out[:, o : o + 4] != 0.0,
-        within=out[:, o + 4 : o + 8] != 0.0,
-        singular=out[:, o + 8 : o + 12] != 0.0,
-        perr=out[:, o + 12 : o + 16].copy(),
-        oerr=None,
-        status=out[:, o + 16].astype(np.int8),
-        best=out[:, o + 17].astype(np.intp),
-        dist=None,
-    )
+    return out
 
 
-def _run(fn: ca.Function, pos, pit, out: np.ndarray, start: int, stop: int, b: int) -> None:
+def _run(fn: ca.Function, pos, pit, out: BranchArrays, start: int, stop: int, b: int) -> None:
     """Rows `start` to `stop` of `out` by `fn` (mapped over `b` targets), block by block."""
     if start >= stop:
         return
     buffer, evaluate = fn.buffer()
+    dof = out.q.shape[2]
+    o = 4 * dof
+    # One block's results, reused (in cache): (b, width) in C order is CasADi's (width, b).
+    res = np.empty((b, o + 4 * 4 + 2))
+    buffer.set_res(0, memoryview(res))
     for first in range(start, stop, b):
         last = min(first + b, stop)
+        k = last - first
         # (b, 3) rows in C order are CasADi's (3, b) columns: no copies for full blocks.
         args = [_block(pos[first:last], b)]
         if pit is not None:
             args.append(_block(pit[first:last], b))
-        whole = last - first == b
-        res = out[first:last] if whole else np.empty((b, out.shape[1]))
         for i, arg in enumerate(args):
             buffer.set_arg(i, memoryview(arg))
-        buffer.set_res(0, memoryview(res))
         evaluate()
-        if not whole:
-            out[first:last] = res[: last - first]
+        rows = slice(first, last)
+        out.q[rows] = res[:k, :o].reshape(k, 4, dof)
+        np.not_equal(res[:k, o : o + 4], 0.0, out=out.valid[rows])
+        np.not_equal(res[:k, o + 4 : o + 8], 0.0, out=out.within[rows])
+        np.not_equal(res[:k, o + 8 : o + 12], 0.0, out=out.singular[rows])
+        out.perr[rows] = res[:k, o + 12 : o + 16]
+        out.status[rows] = res[:k, o + 16]
+        out.best[rows] = res[:k, o + 17]
 
 
 def _block(x: np.ndarray, b: int) -> np.ndarray:
