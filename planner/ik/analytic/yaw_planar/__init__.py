@@ -49,7 +49,9 @@ the ideal geometry and corrected by two rounds on the real model (``corrected``)
 that path declines (next to the yaw axis or a stretched elbow, a free pitch without
 ``q_current``, branches that do not settle, no branch within the limits) go through the
 vectorised path (hundreds of microseconds for one target, milliseconds with its search).
-``solve_batch`` is vectorised over targets (in slices of 16384 to stay in cache). The search
+``solve_batch`` is vectorised over targets (in slices of 16384 to stay in cache); on exact
+chains, position targets of two-pitch arms and approach-pitch targets run through the same
+closed form compiled to C instead (``compiled``: about twice as fast, the same answers). The search
 within the limits, only for targets that need it, costs about 1.5 ms for the approach pitch
 and 3-12 ms with SO-101's roll.
 
@@ -60,7 +62,8 @@ and roll a target fixes or leaves free), ``core`` (the ideal closed form over ar
 ``scalar``, ``scalar_pose`` and ``corrected`` (the same for one target without NumPy),
 ``real_model`` and ``refine`` (the real geometry), ``status`` (status and reason), ``arrays``
 (the pipeline per batch), ``end_angle`` and ``search`` (free joints within the limits),
-``batch`` (slices), ``solver`` (:class:`YawPlanarIK`).
+``compiled`` (the batch closed form as one compiled CasADi function), ``batch`` (slices or
+the compiled path), ``solver`` (:class:`YawPlanarIK`).
 """
 
 from planner.ik.analytic.yaw_planar.branches import BRANCHES

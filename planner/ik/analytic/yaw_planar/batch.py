@@ -6,16 +6,26 @@ import numpy as np
 
 from planner.ik.analytic.yaw_planar.arm import ArmGeometry
 from planner.ik.analytic.yaw_planar.arrays import BranchArrays, solve_arrays
+from planner.ik.analytic.yaw_planar.compiled import CompiledKernels, compiled_supported, solve_compiled
 from planner.ik.analytic.yaw_planar.search import free_joints, solve_searched
 
 __all__ = ["solve_chunked", "solve_arrays_within"]
 
 #: Targets per slice: keeps the temporaries in cache.
 CHUNK = 16384
+#: The fewest targets for the compiled path (smaller batches: NumPy, no compiling for them).
+COMPILED_MIN = 1024
 
 
-def solve_chunked(arm: ArmGeometry, pos, pit, rot, qc, chunk: int = CHUNK) -> BranchArrays:
-    """:func:`solve_arrays_within` over slices of the targets.
+def solve_chunked(
+    arm: ArmGeometry, pos, pit, rot, qc, chunk: int = CHUNK, kernels: CompiledKernels | None = None
+) -> BranchArrays:
+    """:func:`solve_arrays_within` over slices of the targets, or the compiled closed form.
+
+    With `kernels` (`arm`'s), from :data:`COMPILED_MIN` targets, where
+    :func:`~planner.ik.analytic.yaw_planar.compiled.compiled_supported` holds and a C compiler
+    built the function, :func:`~planner.ik.analytic.yaw_planar.compiled.solve_compiled` gives
+    the same arrays (about twice as fast).
 
     Args:
         arm: The geometry.
@@ -24,11 +34,19 @@ def solve_chunked(arm: ArmGeometry, pos, pit, rot, qc, chunk: int = CHUNK) -> Br
         rot: Target rotations, shape (N, 3, 3), or None.
         qc: Current configurations, shape (N, dof) [rad], or None.
         chunk: Targets per slice.
+        kernels: The arm's compiled closed form, or None (NumPy only).
 
     Returns:
         The branch arrays (``cat``, ``oerr`` and ``dist`` None when sliced).
     """
     n = pos.shape[0]
+    if (
+        n >= COMPILED_MIN
+        and kernels is not None
+        and compiled_supported(arm, pit, rot, qc)
+        and kernels.available(pit is not None)
+    ):
+        return solve_compiled(kernels, pos, pit)
     if n <= chunk:
         return solve_arrays_within(arm, pos, pit, rot, qc)
     out = BranchArrays(

@@ -24,6 +24,7 @@ from planner.ik.analytic.yaw_planar.arm import arm_geometry
 from planner.ik.analytic.yaw_planar.arrays import BranchArrays, result_from_arrays, solve_arrays
 from planner.ik.analytic.yaw_planar.batch import solve_chunked
 from planner.ik.analytic.yaw_planar.branches import BRANCHES
+from planner.ik.analytic.yaw_planar.compiled import CompiledKernels
 from planner.ik.analytic.yaw_planar.corrected import real_tip_pose, solve_corrected_pose, solve_corrected_scalar
 from planner.ik.analytic.yaw_planar.layout import chain_layout
 from planner.ik.analytic.yaw_planar.real_model import true_fk
@@ -76,6 +77,7 @@ class YawPlanarIK(AnalyticIK):
         self.lateral_offset = arm.lateral_offset
         self._pose_frame = pose_frame(arm)
         self._real_tip_pose = None if arm.exact else real_tip_pose(robot)
+        self._kernels = CompiledKernels(arm)
 
     def describe(self) -> dict:
         """The detected geometry, for reports and tests (lengths [m], angles [rad])."""
@@ -180,7 +182,7 @@ class YawPlanarIK(AnalyticIK):
         pos, pit, rot, qc = self._batch_inputs(positions, pitch, rotations, q_current)
         if pit is not None and not self.arm.pitch_supported:
             self._raise_pitch_unsupported()
-        a = solve_chunked(self.arm, pos, pit, rot, qc)
+        a = solve_chunked(self.arm, pos, pit, rot, qc, kernels=self._kernels)
         for arr in (a.q, a.valid, a.within, a.singular, a.perr):
             arr.setflags(write=False)  # freshly built here: frozen in place, not copied
         return AnalyticBatchResult(

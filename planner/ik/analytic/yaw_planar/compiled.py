@@ -1,0 +1,388 @@
+"""The batch closed form as one compiled function over targets (exact chains, position or pitch).
+
+On exact chains (no correction on the real geometry) whose tip lies on the roll axis (or
+that have no roll), position targets without a free end angle (two pitch joints) and
+approach-pitch targets need no search: each target's four branches follow from a fixed
+sequence of square roots and arc tangents. :class:`CompiledKernels` writes that sequence, the
+same as :func:`~planner.ik.analytic.yaw_planar.core.solve_core`,
+:func:`~planner.ik.analytic.yaw_planar.core.ideal_position_error`, the wrapping into the
+joint ranges (:func:`~planner.geometry.chain.wrap_array`) and
+:func:`~planner.ik.analytic.yaw_planar.status.status_codes`, as one CasADi SX function of
+one target, maps it over a block of targets and compiles it to C
+(:func:`~planner.ik.numeric.codegen.compile_function`; CasADi's virtual machine without a
+compiler; :class:`CompiledKernels`). :func:`solve_compiled` runs it block by block. Branches, categories, statuses and
+masks are the NumPy path's; joint values and errors agree to round-off.
+"""
+
+from __future__ import annotations
+
+import math
+
+import casadi as ca
+import numpy as np
+
+from planner.geometry.chain import LIMIT_SNAP
+from planner.ik.analytic.geometry import SINGULAR_TOL
+from planner.ik.analytic.result import (
+    STATUS_BEYOND_MAX_REACH,
+    STATUS_CODES,
+    STATUS_INSIDE_MIN_REACH,
+    STATUS_ORIENTATION_NOT_ACHIEVABLE,
+    STATUS_OUTSIDE_JOINT_LIMITS,
+    STATUS_SOLVED,
+)
+from planner.ik.analytic.yaw_planar.arm import ArmGeometry
+from planner.ik.analytic.yaw_planar.arrays import BranchArrays
+from planner.ik.analytic.yaw_planar.branches import BEYOND, CYLINDER, DUPLICATE, INSIDE, ORIENT, VALID
+from planner.ik.numeric.codegen import compile_function
+
+__all__ = ["BLOCK", "SMALL_BLOCK", "CompiledKernels", "compiled_supported", "solve_compiled"]
+
+PI = math.pi
+TWO_PI = 2.0 * math.pi
+#: C compiler flags: no errno after sqrt (inline square roots), CasADi's helpers inlined; no
+#: FMA contraction on x86-64 (no -march).
+FLAGS = ("-O3", "-fno-math-errno", "-fno-semantic-interposition", "-fPIC", "-shared")
+#: Targets per call of the compiled function (the last block is padded).
+BLOCK = 4096
+#: Targets per call for the rest.
+SMALL_BLOCK = 64
+REP = (0, 0, 1, 1)
+
+
+def compiled_supported(arm: ArmGeometry, pit, rot, qc) -> bool:
+    """Whether :func:`solve_compiled` gives the NumPy path's answers for these inputs."""
+    if not arm.exact or rot is not None or qc is not None or not arm.tip_on_roll_axis:
+        return False
+    if arm.elbow_seed > 0.0:
+        return False
+    if arm.n_pitch == 3 and pit is None:
+        return False  # the free end angle and its search stay in NumPy
+    if arm.has_roll and not arm.lower[arm.roll_idx] <= 0.0 <= arm.upper[arm.roll_idx]:
+        return False
+    return True
+
+
+def _where(cond, a, b):
+    return ca.if_else(cond, a, b)
+
+
+def _rint(y):
+    """``numpy.round``: to the nearest integer, halves to even (exact, unlike floor(y + 0.5))."""
+    r = ca.floor(y)
+    frac = y - r
+    odd = r - 2.0 * ca.floor(0.5 * r) != 0.0
+    return r + ca.logic_or(frac > 0.5, ca.logic_and(frac == 0.5, odd))
+
+
+def _wrap_pi(x):
+    """:func:`~planner.ik.analytic.geometry.wrap_pi` as NumPy's float remainder computes it."""
+    m = ca.fmod(x + PI, TWO_PI)
+    return _where(m < 0.0, m + TWO_PI, m) - PI
+
+
+def _wrap(x, lower: float, upper: float):
+    """:func:`~planner.geometry.chain.wrap_array` with ref 0, one value."""
+    x = x - TWO_PI * _rint(x / TWO_PI)
+    if not (math.isfinite(lower) or math.isfinite(upper)):
+        return x
+    down = x - TWO_PI
+    x = _where(x > upper, _where(ca.logic_or(down >= lower - LIMIT_SNAP, (x - upper) > (lower - down)), down, x), x)
+    up = x + TWO_PI
+    x = _where(x < lower, _where(ca.logic_or(up <= upper + LIMIT_SNAP, (lower - x) > (up - upper)), up, x), x)
+    x = _where(ca.logic_and(x > upper, x <= upper + LIMIT_SNAP), upper, x)
+    return _where(ca.logic_and(x < lower, x >= lower - LIMIT_SNAP), lower, x)
+
+
+def _one_target(arm: ArmGeometry, pitch: bool) -> ca.Function:
+    """The closed form of one target as an SX function: (position, pitch) -> the per-target arrays."""
+    p = ca.SX.sym("p", 3)
+    pit = ca.SX.sym("pit") if pitch else None
+    dof = arm.dof
+    tu, tz, d = arm.tip_fixed
+    hx = p[0] - arm.bx
+    hy = p[1] - arm.by
+    ze = p[2]
+    rho2 = hx * hx + hy * hy
+    axis_tol = arm.len_tol
+    free = ca.logic_and(rho2 <= axis_tol * axis_tol, abs(d) <= axis_tol)
+    len_tol = arm.core_len_tol
+    under = rho2 - d * d
+    cylinder = ca.logic_and(ca.logic_not(free), under < -2.0 * abs(d) * len_tol)
+    u = ca.sqrt(ca.fmax(under, 0.0))
+    ang = ca.atan2(hy, hx)
+    if d == 0.0:
+        # NumPy's atan2(-0.0, u) and atan2(-0.0, -u) for u >= 0 (CasADi folds -0.0 into 0).
+        psi_f = ang - arm.mu
+        psi_b = ang - arm.mu + PI
+    else:
+        psi_f = ang - arm.mu - ca.atan2(-d, u)
+        psi_b = ang - arm.mu - ca.atan2(-d, -u)
+    back_dup = ca.logic_or(free, u == 0.0)
+    psi_f = _where(free, 0.0, psi_f)
+    u = _where(free, 0.0, u)
+    psi = [psi_f, psi_b]
+    ue = [u, -u]
+    cat = [_where(cylinder, CYLINDER, VALID), _where(cylinder, CYLINDER, _where(back_dup, DUPLICATE, VALID))]
+    cy = [ca.cos(psi[k] + arm.mu) for k in range(2)]
+    sy = [ca.sin(psi[k] + arm.mu) for k in range(2)]
+    alpha_t = None
+    if pitch:
+        alpha_t = [_where(cy[k] * p[0] + sy[k] * p[1] >= 0.0, pit, PI - pit) for k in range(2)]
+    l1, g1, su, sz = arm.l1, arm.g1, arm.su, arm.sz
+    sg, idx = arm.signs, arm.pitch_idx
+    q = [[None] * dof for _ in range(4)]
+    cat4 = [None] * 4
+    if arm.n_pitch == 2 and pitch:
+        l2 = math.hypot(tu, tz)
+        g2 = math.atan2(tz, tu)
+        dist2 = []
+        sing2 = []
+        for k in range(2):
+            de = ca.sqrt((ue[k] - su) ** 2 + (ze - sz) ** 2)
+            c = cat[k]
+            c = _where(ca.logic_and(c == VALID, de > l1 + l2 + len_tol), BEYOND, c)
+            c = _where(ca.logic_and(c == VALID, de < abs(l1 - l2) - len_tol), INSIDE, c)
+            phi = alpha_t[k] - arm.beta
+            cp, sp = ca.cos(phi), ca.sin(phi)
+            ex = ue[k] - (cp * tu - sp * tz) - su
+            ez = ze - (sp * tu + cp * tz) - sz
+            tol = max(arm.consistency_tol, len_tol)
+            c = _where(ca.logic_and(c == VALID, abs(ca.sqrt(ex * ex + ez * ez) - l1) > tol), ORIENT, c)
+            a1 = ca.atan2(ez, ex)
+            e = _wrap_pi(phi + g2 - a1)
+            up = (e <= 0.0) if k == 0 else (e >= 0.0)
+            phi2 = a1 - g1
+            for m, chosen in ((2 * k, up), (2 * k + 1, ca.logic_not(up))):
+                q[m][0] = arm.sigma * psi[k]
+                q[m][idx[0]] = sg[0] * phi2
+                q[m][idx[1]] = sg[1] * (phi - phi2)
+                cat4[m] = _where(ca.logic_and(c == VALID, ca.logic_not(chosen)), DUPLICATE, c)
+            dist2.append(de)
+            sing2.append(
+                ca.logic_or(ca.logic_or(abs(ca.sin(e)) < SINGULAR_TOL, free), abs(ue[k]) < SINGULAR_TOL * arm.scale)
+            )
+        dist = [dist2[r] for r in REP]
+        singular = [sing2[r] for r in REP]
+    else:
+        if arm.n_pitch == 3:
+            l2, g2 = arm.l2, arm.g2
+            phi = [alpha_t[k] - arm.beta for k in range(2)]
+            cp = [ca.cos(phi[k]) for k in range(2)]
+            sp = [ca.sin(phi[k]) for k in range(2)]
+            wu = [ue[k] - (cp[k] * tu - sp[k] * tz) for k in range(2)]
+            wz = [ze - (sp[k] * tu + cp[k] * tz) for k in range(2)]
+        else:
+            l2 = math.hypot(tu, tz)
+            g2 = math.atan2(tz, tu)
+            wu, wz = ue, [ze, ze]
+        dist2, sing2, e_abs, base, half = [], [], [], [], []
+        for k in range(2):
+            vx = wu[k] - su
+            vz = wz[k] - sz
+            dk = ca.sqrt(vx * vx + vz * vz)
+            c = cat[k]
+            c = _where(ca.logic_and(c == VALID, dk > l1 + l2 + len_tol), BEYOND, c)
+            cat[k] = _where(ca.logic_and(c == VALID, dk < abs(l1 - l2) - len_tol), INSIDE, c)
+            cc = ca.fmin(ca.fmax((dk * dk - l1 * l1 - l2 * l2) / (2.0 * l1 * l2), -1.0), 1.0)
+            s = ca.sqrt(1.0 - cc * cc)
+            es = s < SINGULAR_TOL
+            s = _where(es, 0.0, s)
+            cc = _where(es, ca.sign(cc) + (cc == 0), cc)
+            e_abs.append(ca.atan2(s, cc))
+            base.append(ca.atan2(vz, vx))
+            half.append(ca.atan2(l2 * s, l1 + l2 * cc))
+            dist2.append(dk)
+            sing2.append(es)
+        e = [-e_abs[0], e_abs[0], e_abs[1], -e_abs[1]]
+        a1 = [base[0] + half[0], base[0] - half[0], base[1] - half[1], base[1] + half[1]]
+        for m in range(4):
+            k = REP[m]
+            phi2 = a1[m] - g1
+            phi3 = a1[m] + e[m] - g2
+            q[m][0] = arm.sigma * psi[k]
+            q[m][idx[0]] = sg[0] * phi2
+            q[m][idx[1]] = sg[1] * (phi3 - phi2)
+            if arm.n_pitch == 3:
+                q[m][idx[2]] = sg[2] * (phi[k] - phi3)
+            if arm.has_roll:
+                q[m][arm.roll_idx] = ca.SX(0.0)
+            c = cat[k]
+            if m in (1, 3):
+                c = _where(ca.logic_and(c == VALID, sing2[k]), DUPLICATE, c)
+            cat4[m] = c
+        dist = [dist2[r] for r in REP]
+        singular = [
+            ca.logic_or(ca.logic_or(sing2[REP[m]], free), abs(ue[REP[m]]) < SINGULAR_TOL * arm.scale) for m in range(4)
+        ]
+    # The ideal forward model's position error (before wrapping: 2 pi turns change nothing).
+    perr = []
+    for m in range(4):
+        k = REP[m]
+        phi2 = sg[0] * q[m][idx[0]]
+        phi3 = phi2 + sg[1] * q[m][idx[1]]
+        a = phi2 + arm.g1
+        fu = arm.su + arm.l1 * ca.cos(a)
+        fz = arm.sz + arm.l1 * ca.sin(a)
+        if arm.n_pitch == 3:
+            phi4 = phi3 + sg[2] * q[m][idx[2]]
+            a = phi3 + arm.g2
+            fu += arm.l2 * ca.cos(a)
+            fz += arm.l2 * ca.sin(a)
+        else:
+            phi4 = phi3
+        c4, s4 = ca.cos(phi4), ca.sin(phi4)
+        fu += c4 * tu - s4 * tz
+        fz += s4 * tu + c4 * tz
+        # The yaw mu + sigma q0 is psi + mu (sigma is +-1): the same value as cy, sy's.
+        cyk, syk = cy[k], sy[k]
+        dx = arm.bx + cyk * fu + syk * d - p[0]
+        dy = arm.by + syk * fu - cyk * d - p[1]
+        dz = fz - p[2]
+        perr.append(ca.sqrt(dx * dx + dy * dy + dz * dz))
+    valid = [cat4[m] == VALID for m in range(4)]
+    within = list(valid)
+    nan = ca.SX(float("nan"))
+    for m in range(4):
+        for j in range(dof):
+            if not (arm.has_roll and j == arm.roll_idx):
+                q[m][j] = _wrap(q[m][j], arm.lower[j], arm.upper[j])
+            within[m] = ca.logic_and(within[m], ca.logic_and(q[m][j] >= arm.lower[j], q[m][j] <= arm.upper[j]))
+        q[m] = [_where(valid[m], x, nan) for x in q[m]]
+        perr[m] = _where(valid[m], perr[m], nan)
+        singular[m] = ca.logic_and(singular[m], valid[m])
+    any_valid = ca.logic_or(ca.logic_or(valid[0], valid[1]), ca.logic_or(valid[2], valid[3]))
+    any_within = ca.logic_or(ca.logic_or(within[0], within[1]), ca.logic_or(within[2], within[3]))
+    code = STATUS_CODES
+    status = ca.SX(code[STATUS_OUTSIDE_JOINT_LIMITS])
+    if arm.n_pitch == 3:
+        beyond = [dist[m] > arm.rmax_lim + arm.len_tol for m in range(4)]
+        inside = [dist[m] < arm.rmin_lim - arm.len_tol for m in range(4)]
+        reach = any_valid
+        any_beyond = ca.SX(0)
+        for m in range(4):
+            reach = ca.logic_and(reach, _where(valid[m], ca.logic_or(beyond[m], inside[m]), 1))
+            any_beyond = ca.logic_or(any_beyond, ca.logic_and(valid[m], beyond[m]))
+        status = _where(reach, _where(any_beyond, code[STATUS_BEYOND_MAX_REACH], code[STATUS_INSIDE_MIN_REACH]), status)
+    live = [cat4[m] != DUPLICATE for m in range(4)]
+    any_orient = ca.SX(0)
+    any_beyond_cat = ca.SX(0)
+    for m in range(4):
+        any_orient = ca.logic_or(any_orient, ca.logic_and(live[m], cat4[m] == ORIENT))
+        any_beyond_cat = ca.logic_or(any_beyond_cat, ca.logic_and(live[m], cat4[m] == BEYOND))
+    none = _where(
+        any_orient,
+        code[STATUS_ORIENTATION_NOT_ACHIEVABLE],
+        _where(any_beyond_cat, code[STATUS_BEYOND_MAX_REACH], code[STATUS_INSIDE_MIN_REACH]),
+    )
+    status = _where(any_valid, status, none)
+    status = _where(any_within, code[STATUS_SOLVED], status)
+    best = _where(within[0], 0, _where(within[1], 1, _where(within[2], 2, _where(within[3], 3, -1))))
+    out = ca.vertcat(*[x for m in range(4) for x in q[m]], *valid, *within, *singular, *perr, status, best)
+    inputs = [p, pit] if pitch else [p]
+    return ca.Function("yaw_planar_closed_form", inputs, [ca.cse(out)])
+
+
+class CompiledKernels:
+    """The compiled closed-form functions of one arm, built on first use (owned by its solver).
+
+    Attributes:
+        arm: The geometry.
+    """
+
+    def __init__(self, arm: ArmGeometry) -> None:
+        self.arm = arm
+        self._functions: dict[tuple[bool, int, bool], ca.Function] = {}
+
+    def function(self, pitch: bool, block: int = BLOCK, compiled: bool = True) -> ca.Function:
+        """The closed form of pitch or position targets mapped over `block` targets.
+
+        With `compiled`, built to C by :func:`~planner.ik.numeric.codegen.compile_function`
+        (which falls back to CasADi's virtual machine without a compiler or with
+        ``PLANNER_JIT=0``); without, the virtual machine's.
+        """
+        key = (pitch, block, compiled)
+        fn = self._functions.get(key)
+        if fn is None:
+            fn = _one_target(self.arm, pitch).map(block, "serial")
+            if compiled:
+                fn = compile_function(fn, flags=FLAGS)
+            self._functions[key] = fn
+        return fn
+
+    def available(self, pitch: bool) -> bool:
+        """Whether :meth:`function` is compiled C (without a compiler NumPy is faster)."""
+        return self.function(pitch).class_name() == "External"
+
+
+def solve_compiled(
+    kernels: CompiledKernels, pos: np.ndarray, pit: np.ndarray | None, block: int = BLOCK, *, compiled: bool = True
+) -> BranchArrays:
+    """The batch closed form of N targets by the compiled function (see the module docstring).
+
+    Only where :func:`compiled_supported` holds; `compiled` as :meth:`CompiledKernels.function`'s.
+
+    Returns:
+        The arrays of :func:`~planner.ik.analytic.yaw_planar.batch.solve_chunked` (``cat``,
+        ``oerr``, ``dist`` None).
+    """
+    n = pos.shape[0]
+    dof = kernels.arm.dof
+    out = BranchArrays(
+        q=np.empty((n, 4, dof)),
+        cat=None,
+        valid=np.empty((n, 4), dtype=bool),
+        within=np.empty((n, 4), dtype=bool),
+        singular=np.empty((n, 4), dtype=bool),
+        perr=np.empty((n, 4)),
+        oerr=None,
+        status=np.empty(n, dtype=np.int8),
+        best=np.empty(n, dtype=np.intp),
+        dist=None,
+    )
+    pos = np.ascontiguousarray(pos, dtype=float)
+    pit = None if pit is None else np.ascontiguousarray(pit, dtype=float)
+    # Full blocks, then the rest in small ones (two compiled functions per arm and kind).
+    full = n // block * block
+    pitch = pit is not None
+    _run(kernels.function(pitch, block, compiled), pos, pit, out, 0, full, block)
+    _run(kernels.function(pitch, SMALL_BLOCK, compiled), pos, pit, out, full, n, SMALL_BLOCK)
+    return out
+
+
+def _run(fn: ca.Function, pos, pit, out: BranchArrays, start: int, stop: int, b: int) -> None:
+    """Rows `start` to `stop` of `out` by `fn` (mapped over `b` targets), block by block."""
+    if start >= stop:
+        return
+    buffer, evaluate = fn.buffer()
+    dof = out.q.shape[2]
+    o = 4 * dof
+    # One block's results, reused (in cache): (b, width) in C order is CasADi's (width, b).
+    res = np.empty((b, o + 4 * 4 + 2))
+    buffer.set_res(0, memoryview(res))
+    for first in range(start, stop, b):
+        last = min(first + b, stop)
+        k = last - first
+        # (b, 3) rows in C order are CasADi's (3, b) columns: no copies for full blocks.
+        args = [_block(pos[first:last], b)]
+        if pit is not None:
+            args.append(_block(pit[first:last], b))
+        for i, arg in enumerate(args):
+            buffer.set_arg(i, memoryview(arg))
+        evaluate()
+        rows = slice(first, last)
+        out.q[rows] = res[:k, :o].reshape(k, 4, dof)
+        np.not_equal(res[:k, o : o + 4], 0.0, out=out.valid[rows])
+        np.not_equal(res[:k, o + 4 : o + 8], 0.0, out=out.within[rows])
+        np.not_equal(res[:k, o + 8 : o + 12], 0.0, out=out.singular[rows])
+        out.perr[rows] = res[:k, o + 12 : o + 16]
+        out.status[rows] = res[:k, o + 16]
+        out.best[rows] = res[:k, o + 17]
+
+
+def _block(x: np.ndarray, b: int) -> np.ndarray:
+    """`x` (k, ...) padded with copies of its last row to (b, ...)."""
+    k = x.shape[0]
+    if k == b:
+        return x
+    return np.concatenate([x, np.repeat(x[-1:], b - k, axis=0)], axis=0)

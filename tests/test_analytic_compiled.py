@@ -1,0 +1,122 @@
+"""The compiled batch closed form (planner.ik.analytic.yaw_planar.compiled) against the NumPy path.
+
+On dh3, three_joint and al5c (exact yaw + 2 or 3 pitch arms) and on random exact arms of the
+family: the same branches, masks, statuses and best branch as
+:func:`~planner.ik.analytic.yaw_planar.batch.solve_arrays_within`, joint values and position
+errors equal to round-off, for targets by FK of random configurations (some on the joint range
+ends), targets moved off the reachable set and random points; compiled to C and on CasADi's
+virtual machine. Solved answers reproduce the target by Pinocchio FK.
+"""
+
+from __future__ import annotations
+
+import functools
+
+import numpy as np
+import pytest
+from dh_arms import property_settings
+from hypothesis import assume, given
+from hypothesis import strategies as st
+from test_analytic_fast_paths import yaw_planar_arms
+
+from planner import load_robot
+from planner.geometry.target import approach_pitch
+from planner.ik.analytic import closed_form_solver
+from planner.ik.analytic.yaw_planar.batch import solve_arrays_within
+from planner.ik.analytic.yaw_planar.compiled import SMALL_BLOCK, CompiledKernels, compiled_supported, solve_compiled
+
+KINDS = [("dh3", False), ("dh3", True), ("three_joint", True), ("al5c", True)]
+TOL_POS = 1e-9
+
+
+@functools.cache
+def solver(name):
+    return closed_form_solver(load_robot(name))
+
+
+def targets(robot, rng, n):
+    """Positions and pitches: FK of random configurations (a quarter with joints on their range
+    ends), a quarter of them moved by up to 20 % of the reach, and random points."""
+    lo, hi = np.asarray(robot.lower), np.asarray(robot.upper)
+    q = rng.uniform(lo, hi, (n, len(lo)))
+    ends = rng.random((n, len(lo))) < 0.25
+    q = np.where(ends, np.where(rng.random((n, len(lo))) < 0.5, lo, hi), q)
+    pos = robot.fk(q)[:, :3, 3]
+    pit = np.asarray(approach_pitch(robot, q), dtype=float)
+    reach = float(np.max(np.linalg.norm(pos, axis=1)))
+    moved = rng.random(n) < 0.25
+    pos[moved] += rng.normal(0.0, 0.2 * reach, (int(moved.sum()), 3))
+    loose = rng.random(n) < 0.1
+    pos[loose] = rng.uniform(-1.5 * reach, 1.5 * reach, (int(loose.sum()), 3))
+    pit[loose] = rng.uniform(-np.pi, np.pi, int(loose.sum()))
+    # Exactly on the x axis, where the back branch's yaw is pi, on a range end.
+    pos[:4, 1] = 0.0
+    return pos, pit
+
+
+def assert_same(got, want):
+    for name in ("valid", "within", "singular", "status", "best"):
+        np.testing.assert_array_equal(getattr(got, name), getattr(want, name), err_msg=name)
+    np.testing.assert_array_equal(np.isnan(got.q), np.isnan(want.q))
+    np.testing.assert_allclose(got.q, want.q, rtol=0.0, atol=1e-9)
+    np.testing.assert_allclose(got.perr, want.perr, rtol=0.0, atol=1e-12)
+
+
+@pytest.mark.parametrize("compiled", [True, False], ids=["C", "vm"])
+@pytest.mark.parametrize(("name", "pitch"), KINDS)
+def test_compiled_equals_numpy(name, pitch, compiled):
+    s = solver(name)
+    arm = s.arm
+    rng = np.random.default_rng(12)
+    n = 4096 + 3 * SMALL_BLOCK + 17  # a full block, small blocks and a padded rest
+    pos, pit = targets(s.robot, rng, n)
+    pit = pit if pitch else None
+    assert compiled_supported(arm, pit, None, None)
+    got = solve_compiled(CompiledKernels(arm), pos, pit, compiled=compiled)
+    want = solve_arrays_within(arm, pos, pit, None, None)
+    assert_same(got, want)
+    statuses = set(np.unique(got.status).tolist())
+    assert 0 in statuses and len(statuses) >= 2  # solved and failing targets both met
+    solved = got.best >= 0
+    q = got.q[np.flatnonzero(solved), got.best[solved]]
+    pose = s.robot.fk(q)
+    assert np.max(np.linalg.norm(pose[:, :3, 3] - pos[solved], axis=1)) < TOL_POS
+    if pitch:
+        err = np.abs(np.asarray(approach_pitch(s.robot, q)) - pit[solved])
+        assert np.max(np.minimum(err, 2 * np.pi - err)) < 1e-9
+    assert np.all(s.robot.within_limits(q))
+
+
+@pytest.mark.parametrize(("name", "pitch"), KINDS)
+def test_solve_batch_uses_the_same_answers(name, pitch):
+    """The public solve_batch (the compiled path here) equals the NumPy arrays."""
+    s = solver(name)
+    rng = np.random.default_rng(3)
+    pos, pit = targets(s.robot, rng, 1500)
+    pit = pit if pitch else None
+    batch = s.solve_batch(pos, pitch=pit)
+    want = solve_arrays_within(s.arm, pos, pit, None, None)
+    np.testing.assert_array_equal(batch.status, want.status)
+    np.testing.assert_array_equal(batch.best, want.best)
+    np.testing.assert_array_equal(batch.valid, want.valid)
+    np.testing.assert_array_equal(batch.within_limits, want.within)
+    np.testing.assert_allclose(batch.q, want.q, rtol=0.0, atol=1e-9)
+
+
+def test_not_supported_where_numpy_must_search():
+    three = solver("three_joint").arm
+    assert not compiled_supported(three, None, None, None)  # free end angle
+    assert not compiled_supported(three, np.zeros(1), None, np.zeros((1, 4)))  # q_current
+    assert not compiled_supported(three, None, np.eye(3)[None], None)  # rotations
+
+
+@property_settings(25)
+@given(robot=yaw_planar_arms(), seed=st.integers(0, 2**32 - 1), pitch=st.booleans())
+def test_random_exact_arms_vm(robot, seed, pitch):
+    s = closed_form_solver(robot)
+    rng = np.random.default_rng(seed)
+    pos, pit = targets(robot, rng, 40)
+    pit = pit if pitch else None
+    assume(s.arm.exact and (not pitch or s.arm.pitch_supported) and compiled_supported(s.arm, pit, None, None))
+    got = solve_compiled(CompiledKernels(s.arm), pos, pit, compiled=False)
+    assert_same(got, solve_arrays_within(s.arm, pos, pit, None, None))
