@@ -227,7 +227,7 @@ def solve_corrected_scalar(
         cos_p, sin_p = math.cos(pitch), math.sin(pitch)
         elevation = math.atan2(sin_p, abs(cos_p))
     settle = 1e-14 * max(1.0, arm.scale)
-    pos_tol = 1e-10 * max(1.0, arm.scale)
+    pos_tol = 1e-12 * max(1.0, arm.scale)
     axis_tol = SINGULAR_TOL * arm.scale
     cats = [VALID] * 4
     dist = [math.nan] * 4
@@ -322,7 +322,7 @@ def solve_corrected_pose(
         if singular or (arm.n_pitch == 3 and abs(math.sin(e)) < 2.0 * near_elbow):
             return None
     settle = 1e-14 * max(1.0, arm.scale)
-    pos_tol = 1e-10 * max(1.0, arm.scale)
+    pos_tol = 1e-12 * max(1.0, arm.scale)
     out = []
     for slot, q, singular, _, _ in sols:
         p_eff, r_eff = pos, rot
