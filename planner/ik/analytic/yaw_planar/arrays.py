@@ -61,6 +61,22 @@ class BranchArrays:
     best: np.ndarray | None
     dist: np.ndarray | None
 
+    @classmethod
+    def empty(cls, n: int, dof: int) -> BranchArrays:
+        """Unfilled batch arrays for N targets (``cat``, ``oerr`` and ``dist`` None), to be written into."""
+        return cls(
+            q=np.empty((n, 4, dof)),
+            cat=None,
+            valid=np.empty((n, 4), dtype=bool),
+            within=np.empty((n, 4), dtype=bool),
+            singular=np.empty((n, 4), dtype=bool),
+            perr=np.empty((n, 4)),
+            oerr=None,
+            status=np.empty(n, dtype=np.int8),
+            best=np.empty(n, dtype=np.intp),
+            dist=None,
+        )
+
     def branch_diagonal(self, m: int) -> BranchArrays:
         """From arrays over 4 m rows (row 4 i + s solved for branch s), branch s of row 4 i + s.
 

@@ -2,8 +2,6 @@
 
 from __future__ import annotations
 
-import numpy as np
-
 from planner.ik.analytic.yaw_planar.arm import ArmGeometry
 from planner.ik.analytic.yaw_planar.arrays import BranchArrays, solve_arrays
 from planner.ik.analytic.yaw_planar.compiled import CompiledKernels, compiled_supported, solve_compiled
@@ -49,18 +47,7 @@ def solve_chunked(
         return solve_compiled(kernels, pos, pit)
     if n <= chunk:
         return solve_arrays_within(arm, pos, pit, rot, qc)
-    out = BranchArrays(
-        q=np.empty((n, 4, arm.dof)),
-        cat=None,
-        valid=np.empty((n, 4), dtype=bool),
-        within=np.empty((n, 4), dtype=bool),
-        singular=np.empty((n, 4), dtype=bool),
-        perr=np.empty((n, 4)),
-        oerr=None,
-        status=np.empty(n, dtype=np.int8),
-        best=np.empty(n, dtype=np.intp),
-        dist=None,
-    )
+    out = BranchArrays.empty(n, arm.dof)
     names = ("q", "valid", "within", "singular", "perr", "status", "best")
     for start in range(0, n, chunk):
         sl = slice(start, start + chunk)

@@ -328,18 +328,7 @@ def solve_compiled(
     """
     n = pos.shape[0]
     dof = kernels.arm.dof
-    out = BranchArrays(
-        q=np.empty((n, 4, dof)),
-        cat=None,
-        valid=np.empty((n, 4), dtype=bool),
-        within=np.empty((n, 4), dtype=bool),
-        singular=np.empty((n, 4), dtype=bool),
-        perr=np.empty((n, 4)),
-        oerr=None,
-        status=np.empty(n, dtype=np.int8),
-        best=np.empty(n, dtype=np.intp),
-        dist=None,
-    )
+    out = BranchArrays.empty(n, dof)
     pos = np.ascontiguousarray(pos, dtype=float)
     pit = None if pit is None else np.ascontiguousarray(pit, dtype=float)
     # Full blocks, then the rest in small ones (two compiled functions per arm and kind).
