@@ -14,6 +14,7 @@ computes them from the pieces); and :func:`brake_segment` brings a moving start 
 from __future__ import annotations
 
 import math
+import threading
 from collections.abc import Callable
 
 import numpy as np
@@ -92,15 +93,15 @@ def rest_to_rest_segments(q: np.ndarray, limits: JointLimits) -> list[tuple[floa
         Per segment its duration [s] and Ruckig trajectory, or None.
     """
     dof = q.shape[1]
-    otg, inp = Ruckig(dof), InputParameter(dof)
+    otg, inp = _rest_solver(dof)
     inp.max_velocity, inp.max_acceleration, inp.max_jerk = limits.ruckig_limits
     bounds = limits.checked_bounds if limits.bounded else None
     rows = q.tolist()
-    # Per target, the end error that the chain would correct (see SegmentSolver._unsynchronise_missed).
-    tolerances = (END_TOLERANCE * np.maximum(1.0, np.abs(q[1:]))).tolist()
     out = []
-    for start, goal, tolerance in zip(rows, rows[1:], tolerances):
+    start = rows[0]
+    for goal in rows[1:]:
         inp.current_position, inp.target_position = start, goal
+        start = goal
         traj = RuckigTrajectory(dof)
         try:
             if otg.calculate(inp, traj) not in _SOLVED:
@@ -108,23 +109,44 @@ def rest_to_rest_segments(q: np.ndarray, limits: JointLimits) -> list[tuple[floa
         except RuckigError:
             return None
         duration = traj.duration
-        check = bounds is not None and duration > 0.0
-        for prof, x, tol in zip(traj.profiles[0], goal, tolerance):
-            if abs(prof.p[-1] - x) > tol:
-                return None
-            if check:
+        # Where the chain would correct the end (see SegmentSolver._unsynchronise_missed): at_time
+        # at the end gives every profile's last position, as one list.
+        reached = traj.at_time(duration)[0]
+        if reached != goal:
+            for x, g in zip(reached, goal):
+                if abs(x - g) > END_TOLERANCE * (g if g > 1.0 else -g if g < -1.0 else 1.0):
+                    return None
+        if bounds is not None and duration > 0.0:
+            for e, (lo, hi) in zip(traj.position_extrema, bounds):
+                if e.min < lo or e.max > hi:
+                    return None
+            for prof in traj.profiles[0]:
                 v = prof.v
                 if min(v) < 0.0 < max(v):  # a sign change, often only a rounding at the end
                     j = prof.j
                     w = v if j[-1] == 0.0 else v[:-1]
                     if min(w) < 0.0 < max(w) and any(j[i] == 0.0 and v[i] * v[i + 1] < 0.0 for i in range(len(j))):
                         return None
-        if check:
-            for e, (lo, hi) in zip(traj.position_extrema, bounds):
-                if e.min < lo or e.max > hi:
-                    return None
         out.append((duration, traj))
     return out
+
+
+_LOCAL = threading.local()
+
+
+def _rest_solver(dof: int) -> tuple[Ruckig, InputParameter]:
+    """This thread's Ruckig instance and input for rest-to-rest segments of `dof` joints.
+
+    Kept between plans (making them costs as much as solving a segment); only
+    :func:`rest_to_rest_segments` sets its input, always the limits and both positions.
+    """
+    solvers = getattr(_LOCAL, "solvers", None)
+    if solvers is None:
+        solvers = _LOCAL.solvers = {}
+    pair = solvers.get(dof)
+    if pair is None:
+        pair = solvers[dof] = (Ruckig(dof), InputParameter(dof))
+    return pair
 
 
 class SegmentSolver:
