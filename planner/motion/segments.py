@@ -180,41 +180,47 @@ class SegmentSolver:
         self.otg = Ruckig(self.dof)
         self.inp = InputParameter(self.dof)
         self.inp.max_velocity, self.inp.max_acceleration, self.inp.max_jerk = limits.ruckig_limits
-        self.scratch = RuckigTrajectory(self.dof)
         # Per segment, the joints that do not move: only they can go out and back on one
         # parabola, which Ruckig 0.19 cannot take (see _on_one_parabola).
         still = np.abs(np.diff(q, axis=0)) <= 1e-9 * np.maximum(1.0, np.abs(q[1:]))
         self._still = [np.flatnonzero(row) if row.any() else None for row in still]
-        # The searches ask for the same segment state more than once (a line search's current
-        # state, the chain's durations between searches): answers are kept per end states.
-        self._cache: dict[tuple, tuple[float, np.ndarray | None, None]] = {}
+        self._cache: dict[tuple, tuple[float, np.ndarray | None, RuckigTrajectory | None]] = {}
 
     def solve(
         self, k: int, va: np.ndarray, aa: np.ndarray, vb: np.ndarray, ab: np.ndarray, keep: bool = False
     ) -> tuple[float, np.ndarray | None, RuckigTrajectory | None]:
         """Segment k from state (va, aa) to (vb, ab).
 
+        Answers are kept per end states: the searches ask for the same state more than once
+        (a line search's current state, the chain's durations between searches), and the
+        final chain takes its trajectories from them.
+
+        Args:
+            k: The segment, from ``q[k]`` to ``q[k+1]``.
+            va: Start velocities, shape (dof,).
+            aa: Start accelerations, shape (dof,).
+            vb: End velocities, shape (dof,).
+            ab: End accelerations, shape (dof,).
+            keep: The trajectory is kept by the caller: a joint that Ruckig's time
+                synchronisation leaves short of a target at rest is then solved on its own
+                (see :meth:`_unsynchronise_missed`), in a new trajectory.
+
         Returns:
             The duration [s] (inf when Ruckig finds no profile), a bool mask of the joints that
             Ruckig's extrema put outside their range (None when none does), and the Ruckig
-            trajectory when `keep`.
+            trajectory (None without a profile; not to be changed).
         """
-        if not keep:
-            key = (k, va.tobytes(), aa.tobytes(), vb.tobytes(), ab.tobytes())
-            hit = self._cache.get(key)
-            if hit is None:
-                hit = self._cache[key] = self._solve(k, va, aa, vb, ab, False)
-            return hit
-        return self._solve(k, va, aa, vb, ab, True)
+        key = (k, va.tobytes(), aa.tobytes(), vb.tobytes(), ab.tobytes())
+        hit = self._cache.get(key)
+        if hit is None:
+            hit = self._cache[key] = self._solve(k, va, aa, vb, ab)
+        if keep and hit[2] is not None:
+            return self._unsynchronise_missed(k, hit, va, aa, vb, ab)
+        return hit
 
-    def _solve(
-        self, k: int, va: np.ndarray, aa: np.ndarray, vb: np.ndarray, ab: np.ndarray, keep: bool
-    ) -> tuple[float, np.ndarray | None, RuckigTrajectory | None]:
-        """:meth:`solve` without the cache."""
+    def _set_input(self, k: int, va: np.ndarray, aa: np.ndarray, vb: np.ndarray, ab: np.ndarray) -> None:
+        """Ruckig's input for segment k between the given states."""
         inp = self.inp
-        still = self._still[k]
-        if still is not None and self._on_one_parabola(still, va, aa, vb, ab):
-            return math.inf, None, None
         if k != self._k:  # the searches solve one segment many times in a row
             inp.current_position = self.rows[k]
             inp.target_position = self.rows[k + 1]
@@ -229,23 +235,32 @@ class SegmentSolver:
         elif self._min_set:
             inp.minimum_duration = None
             self._min_set = False
-        traj = RuckigTrajectory(self.dof) if keep else self.scratch
+
+    def _solve(
+        self, k: int, va: np.ndarray, aa: np.ndarray, vb: np.ndarray, ab: np.ndarray
+    ) -> tuple[float, np.ndarray | None, RuckigTrajectory | None]:
+        """:meth:`solve` without the cache (and without `keep`)."""
+        still = self._still[k]
+        if still is not None and self._on_one_parabola(still, va, aa, vb, ab):
+            return math.inf, None, None
+        self._set_input(k, va, aa, vb, ab)
+        traj = RuckigTrajectory(self.dof)
         try:
-            result = self.otg.calculate(inp, traj)
+            result = self.otg.calculate(self.inp, traj)
         except RuckigError:  # Ruckig's own failure on an input it accepts: no profile from it
             return math.inf, None, None
         if result not in _SOLVED:
             return math.inf, None, None
-        if keep:
-            self._unsynchronise_missed(k, traj, vb, ab)
-        bad = None
+        return traj.duration, self._outside(traj), traj
+
+    def _outside(self, traj: RuckigTrajectory) -> np.ndarray | None:
+        """The joints that Ruckig's extrema put outside their range (bool mask), or None."""
         if self.bounded:
             extrema = traj.position_extrema
             for e, (lo, hi) in zip(extrema, self._bounds):
                 if e.min < lo or e.max > hi:
-                    bad = np.array([e.min < lo or e.max > hi for e, (lo, hi) in zip(extrema, self._bounds)])
-                    break
-        return traj.duration, bad, traj if keep else None
+                    return np.array([e.min < lo or e.max > hi for e, (lo, hi) in zip(extrema, self._bounds)])
+        return None
 
     @staticmethod
     def _on_one_parabola(still: np.ndarray, va: np.ndarray, aa: np.ndarray, vb: np.ndarray, ab: np.ndarray) -> bool:
@@ -272,32 +287,45 @@ class SegmentSolver:
                     return True
         return False
 
-    def _unsynchronise_missed(self, k: int, traj: RuckigTrajectory, vb: np.ndarray, ab: np.ndarray) -> None:
-        """Re-solve a kept segment whose synchronised profile misses a target that is at rest.
+    def _unsynchronise_missed(
+        self,
+        k: int,
+        solved: tuple[float, np.ndarray | None, RuckigTrajectory],
+        va: np.ndarray,
+        aa: np.ndarray,
+        vb: np.ndarray,
+        ab: np.ndarray,
+    ) -> tuple[float, np.ndarray | None, RuckigTrajectory | None]:
+        """`solved` re-solved where its synchronised profile misses a target that is at rest.
 
         Ruckig's time synchronisation loses precision on very small moves (a joint moving
         1e-7 rad beside one that sets the duration ends 20 % off). Such a joint, when it is to
         arrive at rest, is solved unsynchronised: it reaches its target on its own time-optimal
         profile and rests there until the segment ends (same duration). Misses at other end
-        states are corrected by :func:`merge_segment`.
+        states are corrected by :func:`merge_segment`. `solved` itself is left as it is.
         """
+        duration, _, traj = solved
         target = self.rows[k + 1]
+        # The end positions of all profiles in one call (see rest_to_rest_segments).
+        reached = traj.at_time(duration)[0]
+        rest = ((vb == 0.0) & (ab == 0.0)).tolist()
         missed = [
-            abs(prof.p[-1] - goal) > END_TOLERANCE * max(1.0, abs(goal)) and vb[j] == 0.0 and ab[j] == 0.0
-            for j, (prof, goal) in enumerate(zip(traj.profiles[0], target))
+            r and abs(x - goal) > END_TOLERANCE * max(1.0, abs(goal)) for r, x, goal in zip(rest, reached, target)
         ]
         if not any(missed):
-            return
-        duration = traj.duration
+            return solved
+        self._set_input(k, va, aa, vb, ab)
+        out = RuckigTrajectory(self.dof)
         self.inp.per_dof_synchronization = [Synchronization.No if m else Synchronization.Time for m in missed]
         try:
-            result = self.otg.calculate(self.inp, traj)
+            result = self.otg.calculate(self.inp, out)
         except RuckigError:  # its step 2 can fail on such tiny moves beside moving joints
             result = None
         finally:
             self.inp.per_dof_synchronization = None
-        if result not in (Result.Working, Result.Finished) or traj.duration != duration:
-            self.otg.calculate(self.inp, traj)  # keep the synchronised profile; merge_segment corrects it
+        if result not in _SOLVED or out.duration != duration:
+            return solved  # keep the synchronised profile; merge_segment corrects it
+        return duration, self._outside(out), out
 
 
 class SegmentPieces:
