@@ -155,6 +155,8 @@ class OptimizedStrategy(ViaStrategy):
     ) -> None:
         """Minimise the pair cost over a scalar parameter in [0, top] (grid, then golden section).
 
+        The grid is walked upwards until a point is slower than the one before; golden-section
+        steps then refine around the best point if it beats the current state.
         `make` maps parameters, shape (G,), to admissible via states, shapes (G, dof).
         """
         cache: dict[float, tuple[float, np.ndarray, np.ndarray]] = {}
@@ -174,6 +176,9 @@ class OptimizedStrategy(ViaStrategy):
         for x, cv, ca in zip(grid, cvs, cas):
             cache[x] = chain.pair_cost(i, cv, ca, admissible=True)
             values.append(cache[x][0])
+            if len(values) >= 2 and values[-1] > values[-2]:
+                break  # past the minimum: the duration is mostly unimodal in the parameter
+        grid = grid[: len(values)]
         b = int(np.argmin(values))
         if values[b] < current[0]:  # refine only a grid point that beats the current state
             lo, hi = grid[max(b - 1, 0)], grid[min(b + 1, len(grid) - 1)]
@@ -241,10 +246,23 @@ class OptimizedStrategy(ViaStrategy):
             return
         q_run = chain.q[a : b + 1]
         v_a, v_b = chain.v[a], chain.v[b]
+        # Scaling every duration by s scales the spline's via velocities by 1/s and its via
+        # accelerations by 1/s^2, except the parts due to the end velocities (by 1 and 1/s):
+        # one spline at the durations h0 gives the via states at every scale.
+        zero = np.zeros_like(v_a)
+        v_q, acc_q = spline_via_states(q_run, h0, zero, zero)
+        moving_ends = bool(v_a.any() or v_b.any())
+        if moving_ends:
+            v_e, acc_e = spline_via_states(q_run, h0, v_a, v_b)
+            v_e, acc_e = v_e - v_q, acc_e - acc_q
         best: list = [math.inf, None, None]
 
-        def cost(log_h: np.ndarray) -> float:
-            v, acc = spline_via_states(q_run, np.exp(log_h), v_a, v_b)
+        def cost(x: float) -> float:
+            inv = math.exp(-x)
+            v, acc = v_q * inv, acc_q * (inv * inv)
+            if moving_ends:
+                v += v_e
+                acc += acc_e * inv
             v = np.minimum(np.maximum(v, -lim.velocity), lim.velocity)
             acc = admissible_acceleration(v, acc, lim)
             total, inside = 0.0, True
@@ -264,8 +282,7 @@ class OptimizedStrategy(ViaStrategy):
         for k in range(a, b):
             d, bad, _ = chain.seg.solve(k, chain.v[k], chain.acc[k], chain.v[k + 1], chain.acc[k + 1])
             current += math.inf if bad is not None else d
-        log_h = np.log(h0)
-        golden_minimum(lambda x: cost(log_h + x), *_SPLINE_SCALE, _SPLINE_SCALE_EVALS)
+        golden_minimum(cost, *_SPLINE_SCALE, _SPLINE_SCALE_EVALS)
         if best[0] < current:
             chain.v[a + 1 : b], chain.acc[a + 1 : b] = best[1], best[2]
 
