@@ -23,8 +23,8 @@ chooses the state (velocity and acceleration) at every via waypoint itself:
    tried on a grid and refined by golden-section search, minimising the duration of the two
    segments next to the waypoint. A second search moves joints that turn round at the
    waypoint towards a time-optimal turn: at rest, still braking at full deceleration. Each
-   search keeps the current state unless a candidate is faster (resting at the via is the
-   fallback where the current state has no profile).
+   search keeps the current state unless a candidate is faster; resting at the via (scale
+   0) is on the grid.
 3. **Range repair.** A non-zero via state can carry a joint past its range inside a segment.
    The search discards such candidates (halving the offending joints' via state), and every
    final segment is checked exactly: the per-joint extrema of its constant-jerk pieces

@@ -175,7 +175,7 @@ class SegmentSolver:
         self._k = -1  # the segment whose positions the input holds
         self.dof = q.shape[1]
         self.lower, self.upper = range_with_tolerance(limits)
-        self._bounds = limits.checked_bounds
+        self._lows, self._highs = self.lower.tolist(), self.upper.tolist()
         self.bounded = limits.bounded
         self.otg = Ruckig(self.dof)
         self.inp = InputParameter(self.dof)
@@ -251,15 +251,15 @@ class SegmentSolver:
             return math.inf, None, None
         if result not in _SOLVED:
             return math.inf, None, None
-        return traj.duration, self._outside(traj), traj
+        return traj.duration, self._outside(traj) if self.bounded else None, traj
 
     def _outside(self, traj: RuckigTrajectory) -> np.ndarray | None:
         """The joints that Ruckig's extrema put outside their range (bool mask), or None."""
         if self.bounded:
             extrema = traj.position_extrema
-            for e, (lo, hi) in zip(extrema, self._bounds):
+            for e, lo, hi in zip(extrema, self._lows, self._highs):
                 if e.min < lo or e.max > hi:
-                    return np.array([e.min < lo or e.max > hi for e, (lo, hi) in zip(extrema, self._bounds)])
+                    return np.array([e.min < lo or e.max > hi for e, lo, hi in zip(extrema, self._lows, self._highs)])
         return None
 
     @staticmethod
