@@ -171,15 +171,15 @@ class SegmentSolver:
         self.q = q
         self.rows = [row.tolist() for row in q]
         self.min_durations = min_durations if min_durations is not None and np.any(min_durations > 0) else None
-        self._min_set = False
-        self._k = -1  # the segment whose positions the input holds
         self.dof = q.shape[1]
         self.lower, self.upper = range_with_tolerance(limits)
         self._lows, self._highs = self.lower.tolist(), self.upper.tolist()
         self.bounded = limits.bounded
         self.otg = Ruckig(self.dof)
-        self.inp = InputParameter(self.dof)
-        self.inp.max_velocity, self.inp.max_acceleration, self.inp.max_jerk = limits.ruckig_limits
+        self._limits = limits.ruckig_limits
+        # One Ruckig input per segment (made when first used), holding its positions: the
+        # searches alternate between the two segments next to a via.
+        self._inputs: list[InputParameter | None] = [None] * (len(q) - 1)
         # Per segment, the joints that do not move: only they can go out and back on one
         # parabola, which Ruckig 0.19 cannot take (see _on_one_parabola).
         still = np.abs(np.diff(q, axis=0)) <= 1e-9 * np.maximum(1.0, np.abs(q[1:]))
@@ -218,23 +218,21 @@ class SegmentSolver:
             return self._unsynchronise_missed(k, hit, va, aa, vb, ab)
         return hit
 
-    def _set_input(self, k: int, va: np.ndarray, aa: np.ndarray, vb: np.ndarray, ab: np.ndarray) -> None:
+    def _input(self, k: int, va: np.ndarray, aa: np.ndarray, vb: np.ndarray, ab: np.ndarray) -> InputParameter:
         """Ruckig's input for segment k between the given states."""
-        inp = self.inp
-        if k != self._k:  # the searches solve one segment many times in a row
+        inp = self._inputs[k]
+        if inp is None:
+            inp = self._inputs[k] = InputParameter(self.dof)
+            inp.max_velocity, inp.max_acceleration, inp.max_jerk = self._limits
             inp.current_position = self.rows[k]
             inp.target_position = self.rows[k + 1]
-            self._k = k
+            if self.min_durations is not None and self.min_durations[k] > 0:
+                inp.minimum_duration = float(self.min_durations[k])
         inp.current_velocity = va.tolist()
         inp.current_acceleration = aa.tolist()
         inp.target_velocity = vb.tolist()
         inp.target_acceleration = ab.tolist()
-        if self.min_durations is not None and self.min_durations[k] > 0:
-            inp.minimum_duration = float(self.min_durations[k])
-            self._min_set = True
-        elif self._min_set:
-            inp.minimum_duration = None
-            self._min_set = False
+        return inp
 
     def _solve(
         self, k: int, va: np.ndarray, aa: np.ndarray, vb: np.ndarray, ab: np.ndarray
@@ -243,10 +241,9 @@ class SegmentSolver:
         still = self._still[k]
         if still is not None and self._on_one_parabola(still, va, aa, vb, ab):
             return math.inf, None, None
-        self._set_input(k, va, aa, vb, ab)
         traj = RuckigTrajectory(self.dof)
         try:
-            result = self.otg.calculate(self.inp, traj)
+            result = self.otg.calculate(self._input(k, va, aa, vb, ab), traj)
         except RuckigError:  # Ruckig's own failure on an input it accepts: no profile from it
             return math.inf, None, None
         if result not in _SOLVED:
@@ -314,15 +311,15 @@ class SegmentSolver:
         ]
         if not any(missed):
             return solved
-        self._set_input(k, va, aa, vb, ab)
+        inp = self._input(k, va, aa, vb, ab)
         out = RuckigTrajectory(self.dof)
-        self.inp.per_dof_synchronization = [Synchronization.No if m else Synchronization.Time for m in missed]
+        inp.per_dof_synchronization = [Synchronization.No if m else Synchronization.Time for m in missed]
         try:
-            result = self.otg.calculate(self.inp, out)
+            result = self.otg.calculate(inp, out)
         except RuckigError:  # its step 2 can fail on such tiny moves beside moving joints
             result = None
         finally:
-            self.inp.per_dof_synchronization = None
+            inp.per_dof_synchronization = None
         if result not in _SOLVED or out.duration != duration:
             return solved  # keep the synchronised profile; merge_segment corrects it
         return duration, self._outside(out), out
