@@ -37,7 +37,7 @@ __all__ = ["OptimizedStrategy", "golden_minimum", "spline_via_states"]
 # this takes 45 % fewer Ruckig solves than evaluating the whole grid with two golden steps always
 # (with the turn search likewise), for durations +0.15 % on average (median per path 0).
 _GRID = (0.0, 0.5, 1.0, 1.4, 2.0, 3.0)
-_GRID_START = 1.0
+_GRID_START = 1.4
 _GOLDEN_STEPS = 1
 # Spline stage: range of the common log time-scale of the segment durations searched, and
 # golden-section evaluations (a simplex over every duration gained nothing on top).
