@@ -97,7 +97,7 @@ def _repair_range(chain: ViaChain) -> list[tuple[float, SegmentPieces]]:
         segments, any_bad = [], False
         for k in range(chain.n - 1):
             start = (chain.q[k], chain.v[k], chain.acc[k])
-            d, _, traj = chain.seg.solve(k, chain.v[k], chain.acc[k], chain.v[k + 1], chain.acc[k + 1], keep=True)
+            d, outside, traj = chain.seg.solve(k, chain.v[k], chain.acc[k], chain.v[k + 1], chain.acc[k + 1], keep=True)
             if traj is None:
                 # Ruckig found no profile: rest at the free ends of this segment.
                 for idx in (k, k + 1):
@@ -125,8 +125,13 @@ def _repair_range(chain: ViaChain) -> list[tuple[float, SegmentPieces]]:
             segments.append((d, merged))
             if not chain.seg.bounded or d <= 0.0:
                 continue
-            lo, hi = segment_position_range(traj, merged, d)
-            bad = (lo < chain.seg.lower) | (hi > chain.seg.upper)
+            if merged.missed is None:
+                lo, hi = segment_position_range(traj, merged, d)
+                bad = (lo < chain.seg.lower) | (hi > chain.seg.upper)
+            else:  # segment_position_range from Ruckig's extrema, which the solver checked already
+                bad = (merged.missed[0] < chain.seg.lower) | (merged.missed[1] > chain.seg.upper)
+                if outside is not None:
+                    bad |= outside
             if not bad.any():
                 continue
             any_bad = True

@@ -93,7 +93,7 @@ def rest_to_rest_segments(q: np.ndarray, limits: JointLimits) -> list[tuple[floa
         Per segment its duration [s] and Ruckig trajectory, or None.
     """
     dof = q.shape[1]
-    otg, inp = _rest_solver(dof)
+    otg, inp = _thread_solver(dof)
     inp.max_velocity, inp.max_acceleration, inp.max_jerk = limits.ruckig_limits
     bounds = limits.checked_bounds if limits.bounded else None
     rows = q.tolist()
@@ -134,11 +134,12 @@ def rest_to_rest_segments(q: np.ndarray, limits: JointLimits) -> list[tuple[floa
 _LOCAL = threading.local()
 
 
-def _rest_solver(dof: int) -> tuple[Ruckig, InputParameter]:
-    """This thread's Ruckig instance and input for rest-to-rest segments of `dof` joints.
+def _thread_solver(dof: int) -> tuple[Ruckig, InputParameter]:
+    """This thread's Ruckig instance for `dof` joints and an input for rest-to-rest segments.
 
-    Kept between plans (making them costs as much as solving a segment); only
-    :func:`rest_to_rest_segments` sets its input, always the limits and both positions.
+    Kept between plans (making them costs as much as solving a segment): Ruckig's calculate
+    depends on its input only. Only :func:`rest_to_rest_segments` sets this input, always the
+    limits and both positions; :class:`SegmentSolver` keeps inputs of its own.
     """
     solvers = getattr(_LOCAL, "solvers", None)
     if solvers is None:
@@ -175,7 +176,7 @@ class SegmentSolver:
         self.lower, self.upper = range_with_tolerance(limits)
         self._lows, self._highs = self.lower.tolist(), self.upper.tolist()
         self.bounded = limits.bounded
-        self.otg = Ruckig(self.dof)
+        self.otg = _thread_solver(self.dof)[0]
         self._limits = limits.ruckig_limits
         # One Ruckig input per segment (made when first used), holding its positions: the
         # searches alternate between the two segments next to a via.

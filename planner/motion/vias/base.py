@@ -72,8 +72,9 @@ class ViaChain:
         if given is not None:
             gv, ga, min_durations = given
             rows = np.all(np.isfinite(gv), axis=1) & ~stop
-            self.v[rows], self.acc[rows] = gv[rows], admissible_acceleration(gv[rows], ga[rows], limits)
-            self.fixed |= rows
+            if rows.any():
+                self.v[rows], self.acc[rows] = gv[rows], admissible_acceleration(gv[rows], ga[rows], limits)
+                self.fixed |= rows
         self.v[0], self.acc[0] = v0, a0
         self.fixed[0] = self.fixed[-1] = True
         self.fixed |= stop
