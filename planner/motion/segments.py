@@ -16,6 +16,7 @@ from __future__ import annotations
 import math
 import threading
 from collections.abc import Callable
+from operator import sub
 
 import numpy as np
 from ruckig import ControlInterface, InputParameter, Result, Ruckig, RuckigError, Synchronization
@@ -112,7 +113,7 @@ def rest_to_rest_segments(q: np.ndarray, limits: JointLimits) -> list[tuple[floa
         # Where the chain would correct the end (see SegmentSolver._unsynchronise_missed): at_time
         # at the end gives every profile's last position, as one list.
         reached = traj.at_time(duration)[0]
-        if reached != goal:
+        if max(map(abs, map(sub, reached, goal))) > END_TOLERANCE:  # else within every joint's tolerance
             for x, g in zip(reached, goal):
                 if abs(x - g) > END_TOLERANCE * (g if g > 1.0 else -g if g < -1.0 else 1.0):
                     return None
