@@ -19,7 +19,7 @@ from planner.motion.plan import plan_trajectory, plan_trajectory_request
 from planner.motion.request import TrajectoryRequest
 from planner.motion.trajectory import LIMIT_TOLERANCE
 from planner.motion.vias import VIA_STRATEGIES, HeuristicStrategy, StopStrategy, ViaStrategy
-from planner.motion.vias.optimized import spline_via_states
+from planner.motion.vias.optimized import golden_minimum, golden_points, spline_via_states
 
 from conftest import get_robot
 
@@ -123,6 +123,40 @@ def test_spline_via_states_are_those_of_the_c2_cubic_spline(segments):
     acc_end = -6 * dq / hh**2 + (2 * vel[:-1] + 4 * vel[1:]) / hh
     np.testing.assert_allclose(acc_end[:-1], acc_start[1:], atol=1e-9)
     np.testing.assert_allclose(acc, acc_start[1:], atol=1e-9)
+
+
+@given(
+    st.floats(-5.0, 5.0),
+    st.floats(1e-3, 10.0),
+    st.integers(2, 6),
+    st.lists(st.floats(-1.0, 1.0), min_size=6, max_size=6),
+)
+def test_golden_points_hold_every_point_the_golden_section_evaluates(lo, width, evals, values):
+    # The line search makes the candidate states of these points in one batch: the search
+    # itself must not ask for any other (bit for bit), whichever way its comparisons go.
+    seen = []
+
+    def f(x):
+        seen.append(x)
+        return values[len(seen) - 1]
+
+    golden_minimum(f, lo, lo + width, evals)
+    assert set(seen) <= golden_points(lo, lo + width, evals)
+
+
+def test_spline_via_states_scale_with_the_durations():
+    # The spline search evaluates every time scale s from one spline: via velocities scale by
+    # 1/s and accelerations by 1/s^2, the parts due to the end velocities by 1 and 1/s.
+    rng = np.random.default_rng(7)
+    q = rng.uniform(-1, 1, (5, 3))
+    h = rng.uniform(0.2, 2.0, 4)
+    v_start, v_end = rng.uniform(-1, 1, 3), rng.uniform(-1, 1, 3)
+    v_q, acc_q = spline_via_states(q, h, 0 * v_start, 0 * v_end)
+    v_1, acc_1 = spline_via_states(q, h, v_start, v_end)
+    for s in (0.5, 0.9, 1.3):
+        v, acc = spline_via_states(q, s * h, v_start, v_end)
+        np.testing.assert_allclose(v, v_q / s + (v_1 - v_q), atol=1e-12)
+        np.testing.assert_allclose(acc, acc_q / s**2 + (acc_1 - acc_q) / s, atol=1e-12)
 
 
 def test_position_overshoot_is_detected_and_repaired():

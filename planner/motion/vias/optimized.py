@@ -29,7 +29,7 @@ from planner.motion.vias.heuristic import via_directions
 #: 0, not NaN), far beyond any scale at which every joint already saturates.
 _MAX_SCALE = 1e100
 
-__all__ = ["OptimizedStrategy", "golden_minimum", "spline_via_states"]
+__all__ = ["OptimizedStrategy", "golden_minimum", "golden_points", "spline_via_states"]
 
 # Scale factors of the slope blend for each via state (1 = the blend itself): the grid is walked
 # from _GRID_START up while the duration falls, else down, then one golden-section step refines
@@ -70,6 +70,26 @@ def golden_minimum(f: Callable[[float], float], lo: float, hi: float, evals: int
             x2 = lo + g * (hi - lo)
             f2 = f(x2)
     return x1 if f1 <= f2 else x2
+
+
+def golden_points(lo: float, hi: float, evals: int) -> set[float]:
+    """Every argument :func:`golden_minimum` may evaluate on [lo, hi] with `evals` evaluations.
+
+    Both outcomes of each comparison are followed, with the same arithmetic.
+    """
+    g = (math.sqrt(5.0) - 1.0) / 2.0
+    x1, x2 = hi - g * (hi - lo), lo + g * (hi - lo)
+    points = {x1, x2}
+    brackets = [(lo, hi, x1, x2)]
+    for _ in range(max(evals - 2, 0)):
+        following = []
+        for lo_, hi_, x1_, x2_ in brackets:
+            left = x2_ - g * (x2_ - lo_)  # f1 <= f2: the bracket [lo, x2] with x1 kept as its upper point
+            right = x1_ + g * (hi_ - x1_)  # else: [x1, hi] with x2 kept as its lower point
+            points.update((left, right))
+            following += [(lo_, x2_, left, x1_), (x1_, hi_, x2_, right)]
+        brackets = following
+    return points
 
 
 def spline_via_states(
@@ -156,19 +176,24 @@ class OptimizedStrategy(ViaStrategy):
     ) -> None:
         """Minimise the pair cost over a scalar parameter in [0, top] (grid, then golden section).
 
-        The grid is walked upwards until a point is slower than the one before; golden-section
-        steps then refine around the best point if it beats the current state.
-        `make` maps parameters, shape (G,), to admissible via states, shapes (G, dof).
+        The grid is walked from `start` upwards while the duration falls, else downwards;
+        golden-section steps then refine around the best point if it beats the current state.
+        `make` maps parameters, shape (G,), to admissible via states, shapes (G, dof); the
+        chain's current via state is admissible too (every strategy step keeps it so).
         """
         cache: dict[float, tuple[float, np.ndarray, np.ndarray]] = {}
+        states: dict[float, tuple[np.ndarray, np.ndarray]] = {}
 
         def cost(x: float) -> float:
             if x not in cache:
-                cv, ca = make(np.array([x]))
-                cache[x] = chain.pair_cost(i, cv[0], ca[0], admissible=True)
+                state = states.get(x)
+                if state is None:
+                    cv, ca = make(np.array([x]))
+                    state = cv[0], ca[0]
+                cache[x] = chain.pair_cost(i, *state, admissible=True)
             return cache[x][0]
 
-        current = chain.pair_cost(i, chain.v[i], chain.acc[i])
+        current = chain.pair_cost(i, chain.v[i], chain.acc[i], admissible=True)
         grid = sorted({min(g, top) for g in grid} | {top})
         if not math.isfinite(current[0]) and 0.0 not in grid:
             grid.insert(0, 0.0)  # resting at the via: the fallback where the current state has no profile
@@ -194,6 +219,9 @@ class OptimizedStrategy(ViaStrategy):
         b = int(np.argmin(values))
         if values[b] < current[0]:  # refine only a grid point that beats the current state
             lo, hi = grid[max(b - 1, 0)], grid[min(b + 1, len(grid) - 1)]
+            # Every point the golden section may ask for, made in one batch.
+            points = sorted(golden_points(lo, hi, steps + 2))
+            states.update(zip(points, zip(*make(np.array(points)))))
             golden_minimum(cost, lo, hi, steps + 2)  # its evaluations fill the cache
             best = min(cache.values(), key=lambda c: c[0])
             _, chain.v[i], chain.acc[i] = best
