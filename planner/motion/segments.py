@@ -185,7 +185,9 @@ class SegmentSolver:
         # Per segment, the joints that do not move: only they can go out and back on one
         # parabola, which Ruckig 0.19 cannot take (see _on_one_parabola).
         still = np.abs(np.diff(q, axis=0)) <= 1e-9 * np.maximum(1.0, np.abs(q[1:]))
-        self._still = [np.flatnonzero(row) if row.any() else None for row in still]
+        self._still = (
+            [np.flatnonzero(row) if row.any() else None for row in still] if still.any() else [None] * len(still)
+        )
         self._cache: dict[tuple, tuple[float, np.ndarray | None, RuckigTrajectory | None]] = {}
 
     def solve(

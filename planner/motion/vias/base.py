@@ -79,8 +79,11 @@ class ViaChain:
         self.fixed[0] = self.fixed[-1] = True
         self.fixed |= stop
         self.v[-1] = self.acc[-1] = 0.0
-        self.v[stop & (np.arange(self.n) > 0)] = 0.0
-        self.acc[stop & (np.arange(self.n) > 0)] = 0.0
+        rest = stop.copy()
+        rest[0] = False
+        if rest.any():
+            self.v[rest] = 0.0
+            self.acc[rest] = 0.0
         self.seg = SegmentSolver(q, limits, min_durations)
         self.repaired = np.zeros(q.shape, dtype=bool)
 

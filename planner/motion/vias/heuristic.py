@@ -47,9 +47,9 @@ def via_directions(
         return zero, zero
     sp, sn = dp / tp, dn / tn
     u = (sp * tn + sn * tp) / (tp + tn)
-    u = np.clip(u, -limits.velocity, limits.velocity)
+    u = np.minimum(np.maximum(u, -limits.velocity), limits.velocity)  # np.clip, without its overhead
     w = 2.0 * (sn - sp) / (tp + tn)
-    return u, np.clip(w, -limits.acceleration, limits.acceleration)
+    return u, np.minimum(np.maximum(w, -limits.acceleration), limits.acceleration)
 
 
 class HeuristicStrategy(ViaStrategy):

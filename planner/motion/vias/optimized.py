@@ -216,7 +216,7 @@ class OptimizedStrategy(ViaStrategy):
             g = g0
             while g > 0 and at(g - 1) <= values[g]:
                 g -= 1
-        b = int(np.argmin(values))
+        b = min(range(len(values)), key=values.__getitem__)  # the first smallest, as np.argmin
         if values[b] < current[0]:  # refine only a grid point that beats the current state
             lo, hi = grid[max(b - 1, 0)], grid[min(b + 1, len(grid) - 1)]
             # Every point the golden section may ask for, made in one batch.
