@@ -21,7 +21,6 @@ no branch within the limits: the search), return None: the caller takes the vect
 from __future__ import annotations
 
 import math
-from collections.abc import Callable
 
 import numpy as np
 import pinocchio as pin
@@ -30,26 +29,78 @@ from planner.geometry.target import Target, pitch_error_scalar
 from planner.ik.analytic.geometry import SINGULAR_TOL, wrap_pi
 from planner.ik.analytic.result import STATUS_SOLVED, AnalyticResult
 from planner.ik.analytic.yaw_planar.arm import ArmGeometry
-from planner.ik.analytic.yaw_planar.branches import BEYOND, INSIDE, VALID
+from planner.ik.analytic.yaw_planar.branches import BEYOND, INSIDE, ORIENT, VALID
 from planner.ik.analytic.yaw_planar.free_pitch import free_pitch_failure, free_pitch_scalar
+from planner.ik.analytic.yaw_planar.newton import NewtonKernel
 from planner.ik.analytic.yaw_planar.scalar import finish_scalar
 from planner.ik.analytic.yaw_planar.scalar_pose import PoseFrame, pose_branches
 from planner.model.robot import Robot
 
-__all__ = ["ROUNDS", "TipPose", "real_tip_pose", "solve_corrected_scalar", "solve_corrected_pose"]
+__all__ = ["CALLS", "RealTip", "TipPose", "real_tip_pose", "solve_corrected_scalar", "solve_corrected_pose"]
 
 PI = math.pi
 
-#: Correction rounds per branch (each: one real FK, one closed-form re-solve), then one real FK
-#: to verify. The error shrinks by about the chain's deviation per round.
-ROUNDS = 2
+#: Calls of the compiled Newton steps (:data:`~planner.ik.analytic.yaw_planar.newton.STEPS`
+#: each) at most per target: one settles well-conditioned branches; the others, only while a
+#: branch has not settled (started next to a stretched elbow or the yaw axis).
+CALLS = 3
+
+#: Position error [m, times the arm's size above 1 m] of a settled branch (1e-13 rad for
+#: orientations): round-off, which Newton's steps reach where the branch's Jacobian is regular;
+#: at a stretched elbow (the boundary of the reach) they only creep, and the branch is left to
+#: the vectorised path.
+SETTLE = 1e-14
+
+
+class RealTip:
+    """The real arm's FK (Pinocchio) as lists, and its compiled Newton steps.
+
+    The FK runs on a Pinocchio Data of its own (no input checks); the Newton steps are
+    :class:`~planner.ik.analytic.yaw_planar.newton.NewtonKernel`, built on first use. Not
+    thread-safe (its buffers serve one call at a time).
+    """
+
+    __slots__ = ("_fk", "_kernel")
+
+    def __init__(self, robot: Robot) -> None:
+        model, fid = robot.model, robot.tip_frame_id
+        self._kernel: NewtonKernel | None = None
+        if model.nq != robot.dof:  # continuous joints: Pinocchio's (cos, sin) coordinates
+
+            def converted(q: list[float]):
+                p, r = robot.tip_pose(np.array(q))
+                return p.tolist(), r.tolist()
+
+            self._fk = converted
+            return
+        data = model.createData()
+        forward, update, array = pin.forwardKinematics, pin.updateFramePlacement, np.array
+
+        def direct(q: list[float]):
+            forward(model, data, array(q))
+            placement = update(model, data, fid)
+            return placement.translation.tolist(), placement.rotation.tolist()
+
+        self._fk = direct
+
+    def __call__(self, q: list[float]) -> tuple[list[float], list[list[float]]]:
+        """Tip position (list, 3) [m] and rotation rows (3 lists of 3) at q (list, dof) [rad]."""
+        return self._fk(q)
+
+    def kernel(self, arm: ArmGeometry) -> NewtonKernel:
+        """The arm's compiled Newton steps."""
+        kernel = self._kernel
+        if kernel is None or kernel.arm is not arm:
+            kernel = self._kernel = NewtonKernel(arm)
+        return kernel
+
 
 #: The real arm's FK for one configuration (a list [rad]): tip position, rotation rows (lists).
-TipPose = Callable[[list[float]], tuple[list[float], list[list[float]]]]
+TipPose = RealTip
 
 
-def real_tip_pose(robot: Robot) -> TipPose:
-    """The robot's FK (Pinocchio) as lists, on a Pinocchio Data of its own (no input checks).
+def real_tip_pose(robot: Robot) -> RealTip:
+    """The robot's FK (Pinocchio) as lists, with the compiled Newton steps (:class:`RealTip`).
 
     Args:
         robot: The robot.
@@ -57,23 +108,7 @@ def real_tip_pose(robot: Robot) -> TipPose:
     Returns:
         q (list, dof) -> tip position (list, 3) [m], rotation rows (3 lists of 3).
     """
-    model, fid = robot.model, robot.tip_frame_id
-    if model.nq != robot.dof:  # continuous joints: Pinocchio's (cos, sin) coordinates
-
-        def converted(q: list[float]):
-            p, r = robot.tip_pose(np.array(q))
-            return p.tolist(), r.tolist()
-
-        return converted
-    data = model.createData()
-    forward, update, array = pin.forwardKinematics, pin.updateFramePlacement, np.array
-
-    def direct(q: list[float]):
-        forward(model, data, array(q))
-        placement = update(model, data, fid)
-        return placement.translation.tolist(), placement.rotation.tolist()
-
-    return direct
+    return RealTip(robot)
 
 
 def _approach(rot, local) -> tuple[float, float, float]:
@@ -111,15 +146,18 @@ def _end_vector(arm: ArmGeometry, roll: float) -> tuple[float, float, float]:
 
 
 def _yaws(arm: ArmGeometry, px: float, py: float, d: float):
-    """(psi front, psi back, u) of an end point on the ideal geometry, or None next to the yaw axis."""
+    """(psi front, psi back, u, seeded) of an end point on the ideal geometry, or None on the yaw axis.
+
+    `seeded`: within ``solve_core``'s start separation next to the yaw axis, where the yaw is
+    ill-conditioned (the vectorised path flags such branches singular; so does this one).
+    """
     hx, hy = px - arm.bx, py - arm.by
     under = hx * hx + hy * hy - d * d
     u = math.sqrt(under) if under > 0.0 else 0.0
-    # solve_core's start separation next to the yaw axis (and the cylinder, the axis itself).
-    if u <= math.sqrt(2.0 * abs(d) * arm.core_len_tol) or u <= arm.len_tol:
+    if u <= arm.len_tol:
         return None
     ang = math.atan2(hy, hx) - arm.mu
-    return ang - math.atan2(-d, u), ang - math.atan2(-d, -u), u
+    return ang - math.atan2(-d, u), ang - math.atan2(-d, -u), u, u < math.sqrt(2.0 * abs(d) * arm.core_len_tol)
 
 
 def _branch(arm: ArmGeometry, psi: float, ue: float, pz: float, alpha: float, tu, tz, roll, slot: int):
@@ -142,8 +180,12 @@ def _branch(arm: ArmGeometry, psi: float, ue: float, pz: float, alpha: float, tu
     c = (dd * dd - l1 * l1 - l2 * l2) / (2.0 * l1 * l2)
     c = 1.0 if c > 1.0 else (-1.0 if c < -1.0 else c)
     s = math.sqrt(1.0 - c * c)
-    if s < math.sin(arm.elbow_seed) or s < SINGULAR_TOL:
-        return None, -1, dd  # next to a stretched or folded elbow: the vectorised path
+    near = math.sin(arm.elbow_seed)
+    if s < near:
+        # Next to a stretched or folded elbow the real arm's two elbow solutions lie about
+        # sqrt(deviation) apart where the ideal model sees one: start them apart (solve_core's seeds).
+        s = near
+        c = math.cos(arm.elbow_seed) if c > 0.0 else -math.cos(arm.elbow_seed)
     e_abs = atan2(s, c)
     base = atan2(vz, vx)
     half = atan2(l2 * s, l1 + l2 * c)
@@ -192,7 +234,7 @@ def solve_corrected_scalar(
     yaws = _yaws(arm, px, py, d)
     if yaws is None:
         return None
-    psi_f, psi_b, u = yaws
+    psi_f, psi_b, u, seeded = yaws
     # The branch pitch goal per side (core: world_pitch; front alpha, back pi - alpha).
     goals = []
     unreached = [None, None]  # per side, the category where no pitch reaches
@@ -223,61 +265,78 @@ def solve_corrected_scalar(
                     phi = 0.0
                 alpha = arm.beta + phi
             goals.append(alpha if side == 0 else PI - alpha)
-    if pitch is not None:
-        cos_p, sin_p = math.cos(pitch), math.sin(pitch)
-        elevation = math.atan2(sin_p, abs(cos_p))
-    settle = 1e-14 * max(1.0, arm.scale)
-    pos_tol = 1e-12 * max(1.0, arm.scale)
-    axis_tol = SINGULAR_TOL * arm.scale
     cats = [VALID] * 4
     dist = [math.nan] * 4
-    sols = []
+    slots, starts, aims = [], [], []
     for slot in range(4):
-        front = slot < 2
-        goal = goals[0 if front else 1]
-        if unreached[0 if front else 1] is not None:
-            cats[slot] = unreached[0 if front else 1]
+        side = 0 if slot < 2 else 1
+        if unreached[side] is not None:
+            cats[slot] = unreached[side]
             continue
-        psi, ue = (psi_f, u) if front else (psi_b, -u)
-        q, cat, dd = _branch(arm, psi, ue, pz, goal if front else PI - goal, tu, tz, roll, slot)
-        if cat == -1:
-            return None
+        alpha = goals[0] if side == 0 else PI - goals[1]
+        q, cat, dd = _branch(arm, psi_f if side == 0 else psi_b, u if side == 0 else -u, pz, alpha, tu, tz, roll, slot)
         dist[slot] = dd
         if q is None:
             cats[slot] = cat
             continue
-        ex, ey, ez, pitch_eff = px, py, pz, goal
-        for round_ in range(ROUNDS + 1):
-            p, rot = tip_pose(q)
-            dx, dy, dz = px - p[0], py - p[1], pz - p[2]
-            perr = math.sqrt(dx * dx + dy * dy + dz * dz)
-            a = _approach(rot, local)
-            miss = wrap_pi(goal - _branch_pitch(arm, q, a, front))
-            if (perr <= settle and abs(miss) <= 1e-13) or round_ == ROUNDS:
-                break
-            ex, ey, ez, pitch_eff = ex + dx, ey + dy, ez + dz, pitch_eff + miss
-            moved = _yaws(arm, ex, ey, d)
-            if moved is None:
-                return None
-            psi = moved[0] if front else moved[1]
-            ue = moved[2] if front else -moved[2]
-            q_new, cat, dd = _branch(arm, psi, ue, ez, pitch_eff if front else PI - pitch_eff, tu, tz, roll, slot)
-            if q_new is None:
-                return None
-            q, dist[slot] = q_new, dd
-        oerr = None
-        if pitch is not None:
-            oerr = pitch_error_scalar(a[0], a[1], a[2], px, py, cos_p, sin_p, elevation)
-            if oerr > 1e-9:
-                return None
-        if perr > pos_tol or abs(miss) > 1e-9:
+        slots.append(slot)
+        starts.append(q)
+        aims.append(alpha)
+    sols = []
+    if slots:
+        settled = _settle_pitch(arm, tip_pose, px, py, pz, slots, starts, aims, local)
+        if settled is None:
             return None
-        sols.append((slot, q, abs(ue) < axis_tol, perr, oerr))
+        if pitch is not None:
+            cos_p, sin_p = math.cos(pitch), math.sin(pitch)
+            elevation = math.atan2(sin_p, abs(cos_p))
+        axis_tol = SINGULAR_TOL * arm.scale
+        for slot, (q, perr, a) in zip(slots, settled):
+            oerr = None
+            if pitch is not None:
+                oerr = pitch_error_scalar(a[0], a[1], a[2], px, py, cos_p, sin_p, elevation)
+                if oerr > 1e-9:
+                    return None
+            sols.append((slot, q, seeded or u < axis_tol, perr, oerr))
     # Branches that converged onto one solution (refine's twins): the vectorised path.
     if _twins(arm, sols):
         return None
     result = finish_scalar(arm, sols, cats, dist, qc, target)
     return result if result.status == STATUS_SOLVED else None
+
+
+def _settle_pitch(arm: ArmGeometry, tip_pose: RealTip, px, py, pz, slots, starts, aims, local):
+    """The branches' Newton steps on the real model, each verified by its FK (Pinocchio).
+
+    Returns:
+        Per branch (q, position error [m], approach axis), or None when a branch did not settle
+        to round-off (:data:`SETTLE`) within :data:`CALLS` calls (the ideal closed form's
+        branches exist on the real arm but next to the boundary of the reach or the yaw axis,
+        where the steps need not converge: the vectorised path decides).
+    """
+    dof = arm.dof
+    kernel = tip_pose.kernel(arm)
+    pos_tol = SETTLE * max(1.0, arm.scale)
+    k = len(slots)
+    flat = [v for i in range(4) for v in starts[i if i < k else 0]]
+    aim4 = [aims[i if i < k else 0] for i in range(4)]
+    target = [px, py, pz]
+    for _ in range(CALLS):
+        flat = kernel.pitch(flat, target, aim4)
+        out = []
+        for i in range(k):
+            q = flat[i * dof : (i + 1) * dof]
+            p, rot = tip_pose(q)
+            dx, dy, dz = px - p[0], py - p[1], pz - p[2]
+            perr = math.sqrt(dx * dx + dy * dy + dz * dz)
+            a = _approach(rot, local)
+            miss = abs(wrap_pi(aims[i] - _branch_pitch(arm, q, a, True)))
+            if not (perr <= pos_tol and miss <= 1e-13):
+                break
+            out.append((q, perr, a))
+        else:
+            return out
+    return None
 
 
 def _angle(rot_a: list[list[float]], rot_b: np.ndarray) -> float:
@@ -295,8 +354,10 @@ def solve_corrected_pose(
     """Every branch of a full-pose target on an inexact chain, or None (see the module).
 
     Each branch of the ideal closed form (:func:`~planner.ik.analytic.yaw_planar.scalar_pose.pose_branches`)
-    is re-solved for the pose composed with the inverse of the error it left, as
-    :func:`~planner.ik.analytic.yaw_planar.refine.refine` does, :data:`ROUNDS` times.
+    is taken to the real model's solution by Gauss-Newton steps on it (compiled,
+    :mod:`~planner.ik.analytic.yaw_planar.newton`). Branches whose steps stall far from the
+    target are not solutions on the real arm (the ideal model accepts an orientation residual
+    up to about the chain's deviation): categorised ORIENT, as the vectorised path does.
 
     Args:
         arm: The geometry (inexact).
@@ -310,44 +371,70 @@ def solve_corrected_pose(
     """
     pos = target.position
     rot = target.rotation
-    sols, cats, dist = pose_branches(arm, frame, pos.tolist(), rot, qc)
-    # Next to a stretched or folded elbow or the yaw axis the vectorised path starts the branches
-    # apart (solve_core's seeds): take it there.
+    position = pos.tolist()
+    sols, cats, dist = pose_branches(arm, frame, position, rot, qc)
+    # Next to a stretched or folded elbow the vectorised path starts the elbow branches apart
+    # (solve_core's seeds): take it there.
     near_elbow = math.sin(arm.elbow_seed)
-    reach = math.hypot(pos[0] - arm.bx, pos[1] - arm.by)
-    if reach <= abs(arm.lateral_offset) + arm.scale * 1e-3 + math.sqrt(2.0 * arm.scale * arm.core_len_tol):
-        return None
     for _, q, singular, _, _ in sols:
         e = arm.signs[1] * q[arm.pitch_idx[1]] + (arm.g2 if arm.n_pitch == 3 else 0.0) - arm.g1
         if singular or (arm.n_pitch == 3 and abs(math.sin(e)) < 2.0 * near_elbow):
             return None
-    settle = 1e-14 * max(1.0, arm.scale)
-    pos_tol = 1e-12 * max(1.0, arm.scale)
-    out = []
-    for slot, q, singular, _, _ in sols:
-        p_eff, r_eff = pos, rot
-        for round_ in range(ROUNDS + 1):
+    if not sols:
+        result = finish_scalar(arm, sols, cats, dist, qc, target)
+        return result if result.status == STATUS_SOLVED else None
+    seeded = _seeded_pose(arm, position, rot)
+    dof = arm.dof
+    kernel = tip_pose.kernel(arm)
+    pos_tol = SETTLE * max(1.0, arm.scale)
+    k = len(sols)
+    flat = [v for i in range(4) for v in sols[i if i < k else 0][1]]
+    last = [math.inf] * k
+    for call in range(CALLS):
+        flat = kernel.pose(flat, position, rot)
+        out = []
+        for i, (slot, _, singular, _, _) in enumerate(sols):
+            q = flat[i * dof : (i + 1) * dof]
             p, r = tip_pose(q)
-            dp = pos - np.array(p)
-            perr = math.sqrt(float(dp @ dp))
+            dx, dy, dz = position[0] - p[0], position[1] - p[1], position[2] - p[2]
+            perr = math.sqrt(dx * dx + dy * dy + dz * dz)
             oerr = _angle(r, rot)
-            if (perr <= settle and oerr <= 1e-13) or round_ == ROUNDS:
+            error, last[i] = (last[i], perr / arm.scale + oerr)
+            if perr <= pos_tol and oerr <= 1e-13:
+                out.append((slot, q, singular or seeded, perr, oerr))
+            elif call < CALLS - 1:
                 break
-            # T_eff <- T_eff FK(q)^-1 T: the pose error, expressed at the tip, undone.
-            r_t = np.array(r).T
-            p_eff = p_eff + r_eff @ (r_t @ dp)
-            r_eff = r_eff @ r_t @ rot
-            moved, _, _ = pose_branches(arm, frame, p_eff.tolist(), r_eff, qc)
-            q = next((m[1] for m in moved if m[0] == slot), None)
-            if q is None:
+            elif last[i] > 1e-9 and last[i] >= 0.5 * error:
+                # The steps stalled far from the target: no solution next to the ideal one
+                # (its orientation residual, accepted up to the chain's deviation, is real).
+                cats[slot] = ORIENT
+            else:
                 return None
-        if perr > pos_tol or oerr > 1e-9:
-            return None
-        out.append((slot, q, singular, perr, oerr))
+        else:
+            break
     if _twins(arm, out):
         return None
     result = finish_scalar(arm, out, cats, dist, qc, target)
     return result if result.status == STATUS_SOLVED else None
+
+
+def _seeded_pose(arm: ArmGeometry, position: list[float], rot: np.ndarray) -> bool:
+    """Whether ``solve_core`` starts this pose's yaws apart next to the yaw axis (and flags them singular)."""
+    ex, ey = position[0], position[1]
+    if arm.has_roll:
+        shift = rot @ arm.centre_to_tip_local
+        ex, ey = ex - float(shift[0]), ey - float(shift[1])
+        d = arm.centre[2]
+    else:
+        d = arm.tip_fixed[2]
+    hx, hy = ex - arm.bx, ey - arm.by
+    rho2 = hx * hx + hy * hy
+    if rho2 <= arm.len_tol * arm.len_tol and abs(d) <= arm.len_tol:
+        return False  # free: flagged singular by the closed form itself
+    under = rho2 - d * d
+    if under < -2.0 * abs(d) * arm.core_len_tol:
+        return False  # the cylinder
+    return math.sqrt(max(under, 0.0)) < math.sqrt(2.0 * abs(d) * arm.core_len_tol)
 
 
 def _twins(arm: ArmGeometry, sols) -> bool:
