@@ -321,21 +321,24 @@ def _settle_pitch(arm: ArmGeometry, tip_pose: RealTip, px, py, pz, slots, starts
     flat = [v for i in range(4) for v in starts[i if i < k else 0]]
     aim4 = [aims[i if i < k else 0] for i in range(4)]
     target = [px, py, pz]
+    out = [None] * k
+    pending = range(k)
     for _ in range(CALLS):
         flat = kernel.pitch(flat, target, aim4)
-        out = []
-        for i in range(k):
+        left = []
+        for i in pending:
             q = flat[i * dof : (i + 1) * dof]
             p, rot = tip_pose(q)
             dx, dy, dz = px - p[0], py - p[1], pz - p[2]
             perr = math.sqrt(dx * dx + dy * dy + dz * dz)
             a = _approach(rot, local)
-            miss = abs(wrap_pi(aims[i] - _branch_pitch(arm, q, a, True)))
-            if not (perr <= pos_tol and miss <= 1e-13):
-                break
-            out.append((q, perr, a))
-        else:
+            if perr <= pos_tol and abs(wrap_pi(aims[i] - _branch_pitch(arm, q, a, True))) <= 1e-13:
+                out[i] = (q, perr, a)
+            else:
+                left.append(i)
+        if not left:
             return out
+        pending = left
     return None
 
 
@@ -389,29 +392,35 @@ def solve_corrected_pose(
     pos_tol = SETTLE * max(1.0, arm.scale)
     k = len(sols)
     flat = [v for i in range(4) for v in sols[i if i < k else 0][1]]
+    found = [None] * k
     last = [math.inf] * k
-    for call in range(CALLS):
+    pending = range(k)
+    for _ in range(CALLS):
         flat = kernel.pose(flat, position, rot)
-        out = []
-        for i, (slot, _, singular, _, _) in enumerate(sols):
+        left = []
+        for i in pending:
+            slot, _, singular, _, _ = sols[i]
             q = flat[i * dof : (i + 1) * dof]
             p, r = tip_pose(q)
             dx, dy, dz = position[0] - p[0], position[1] - p[1], position[2] - p[2]
             perr = math.sqrt(dx * dx + dy * dy + dz * dz)
             oerr = _angle(r, rot)
-            error, last[i] = (last[i], perr / arm.scale + oerr)
+            error = perr / arm.scale + oerr
             if perr <= pos_tol and oerr <= 1e-13:
-                out.append((slot, q, singular or seeded, perr, oerr))
-            elif call < CALLS - 1:
-                break
-            elif last[i] > 1e-9 and last[i] >= 0.5 * error:
+                found[i] = (slot, q, singular or seeded, perr, oerr)
+            elif error > 1e-9 and error >= 0.5 * last[i]:
                 # The steps stalled far from the target: no solution next to the ideal one
                 # (its orientation residual, accepted up to the chain's deviation, is real).
                 cats[slot] = ORIENT
             else:
-                return None
-        else:
+                last[i] = error
+                left.append(i)
+        if not left:
             break
+        pending = left
+    else:
+        return None
+    out = [f for f in found if f is not None]
     if _twins(arm, out):
         return None
     result = finish_scalar(arm, out, cats, dist, qc, target)

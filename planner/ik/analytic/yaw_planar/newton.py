@@ -34,7 +34,7 @@ import numpy as np
 from planner.ik.analytic.yaw_planar.arm import ArmGeometry
 from planner.ik.numeric.codegen import compile_function
 
-__all__ = ["STEPS", "NewtonKernel", "pitch_kernel", "pose_kernel", "arm_parameters"]
+__all__ = ["STEPS", "NewtonKernel", "newton_kernel", "pitch_kernel", "pose_kernel", "arm_parameters"]
 
 #: Newton steps per call. From the ideal answer (1e-6 of the arm's size off) two reach
 #: round-off where the Jacobian is well conditioned; callers repeat the call for branches
@@ -45,6 +45,7 @@ STEPS = 2
 FLAGS = ("-O2", "-fno-math-errno", "-fPIC", "-shared")
 
 _FUNCTIONS: dict[tuple, ca.Function] = {}
+_KERNELS: dict[int, NewtonKernel] = {}
 
 
 def arm_parameters(arm: ArmGeometry) -> np.ndarray:
@@ -245,3 +246,13 @@ class NewtonKernel:
             res = np.asarray(fn(q0[rows].T, target[rows].T, per, self.prm))
             out[first:last] = res.T[: last - first]
         return out
+
+
+def newton_kernel(arm: ArmGeometry) -> NewtonKernel:
+    """A shared :class:`NewtonKernel` of `arm` (for :meth:`NewtonKernel.many`; the last 16 arms kept)."""
+    kernel = _KERNELS.get(id(arm))
+    if kernel is None or kernel.arm is not arm:
+        if len(_KERNELS) >= 16:
+            _KERNELS.clear()
+        kernel = _KERNELS[id(arm)] = NewtonKernel(arm)
+    return kernel
