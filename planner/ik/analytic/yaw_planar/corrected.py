@@ -39,6 +39,7 @@ from planner.model.robot import Robot
 __all__ = ["CALLS", "RealTip", "TipPose", "real_tip_pose", "solve_corrected_scalar", "solve_corrected_pose"]
 
 PI = math.pi
+TWO_PI = 2.0 * math.pi
 
 #: Calls of the compiled Newton steps (:data:`~planner.ik.analytic.yaw_planar.newton.STEPS`
 #: each) at most per target: one settles well-conditioned branches; the others, only while a
@@ -60,7 +61,7 @@ class RealTip:
     thread-safe (its buffers serve one call at a time).
     """
 
-    __slots__ = ("_fk", "_kernel")
+    __slots__ = ("_fk", "_rows", "_kernel")
 
     def __init__(self, robot: Robot) -> None:
         model, fid = robot.model, robot.tip_frame_id
@@ -71,7 +72,11 @@ class RealTip:
                 p, r = robot.tip_pose(np.array(q))
                 return p.tolist(), r.tolist()
 
-            self._fk = converted
+            def converted_rows(q: list[float]):
+                p, r = converted(q)
+                return [r[0] + [p[0]], r[1] + [p[1]], r[2] + [p[2]], [0.0, 0.0, 0.0, 1.0]]
+
+            self._fk, self._rows = converted, converted_rows
             return
         data = model.createData()
         forward, update, array = pin.forwardKinematics, pin.updateFramePlacement, np.array
@@ -81,11 +86,19 @@ class RealTip:
             placement = update(model, data, fid)
             return placement.translation.tolist(), placement.rotation.tolist()
 
-        self._fk = direct
+        def rows(q: list[float]):
+            forward(model, data, array(q))
+            return update(model, data, fid).homogeneous.tolist()
+
+        self._fk, self._rows = direct, rows
 
     def __call__(self, q: list[float]) -> tuple[list[float], list[list[float]]]:
         """Tip position (list, 3) [m] and rotation rows (3 lists of 3) at q (list, dof) [rad]."""
         return self._fk(q)
+
+    def rows(self, q: list[float]) -> list[list[float]]:
+        """The tip's homogeneous transform at q as 4 rows (one conversion: the cheapest)."""
+        return self._rows(q)
 
     def kernel(self, arm: ArmGeometry) -> NewtonKernel:
         """The arm's compiled Newton steps."""
@@ -146,10 +159,13 @@ def _end_vector(arm: ArmGeometry, roll: float) -> tuple[float, float, float]:
 
 
 def _yaws(arm: ArmGeometry, px: float, py: float, d: float):
-    """(psi front, psi back, u, seeded) of an end point on the ideal geometry, or None on the yaw axis.
+    """The yaws of an end point on the ideal geometry, or None on the yaw axis.
 
-    `seeded`: within ``solve_core``'s start separation next to the yaw axis, where the yaw is
-    ill-conditioned (the vectorised path flags such branches singular; so does this one).
+    Returns:
+        (psi front, psi back, u, seeded, psi front, psi back, u): the yaws and in-plane
+        distance ``solve_core`` starts the branches at (next to the yaw axis, where the yaw
+        is ill-conditioned, apart: `seeded`; the vectorised path flags such branches singular,
+        so does this one), then the end point's own.
     """
     hx, hy = px - arm.bx, py - arm.by
     under = hx * hx + hy * hy - d * d
@@ -157,7 +173,11 @@ def _yaws(arm: ArmGeometry, px: float, py: float, d: float):
     if u <= arm.len_tol:
         return None
     ang = math.atan2(hy, hx) - arm.mu
-    return ang - math.atan2(-d, u), ang - math.atan2(-d, -u), u, u < math.sqrt(2.0 * abs(d) * arm.core_len_tol)
+    own = ang - math.atan2(-d, u), ang - math.atan2(-d, -u), u
+    u_seed = math.sqrt(2.0 * abs(d) * arm.core_len_tol)
+    if u >= u_seed:
+        return (*own, False, *own)
+    return ang - math.atan2(-d, u_seed), ang - math.atan2(-d, -u_seed), u_seed, True, *own
 
 
 def _branch(arm: ArmGeometry, psi: float, ue: float, pz: float, alpha: float, tu, tz, roll, slot: int):
@@ -234,12 +254,14 @@ def solve_corrected_scalar(
     yaws = _yaws(arm, px, py, d)
     if yaws is None:
         return None
-    psi_f, psi_b, u, seeded = yaws
+    psi_f, psi_b, u, seeded, end_f, end_b, u_end = yaws
     # The branch pitch goal per side (core: world_pitch; front alpha, back pi - alpha).
     goals = []
     unreached = [None, None]  # per side, the category where no pitch reaches
     if pitch is not None:
-        for psi in (psi_f, psi_b):
+        # The side from the yaws the end point itself gives (solve_core: not the seeded ones,
+        # which next to the yaw axis turn the plane enough to flip it).
+        for psi in (end_f, end_b):
             yaw = psi + arm.mu
             outward = math.cos(yaw) * px + math.sin(yaw) * py >= 0.0
             alpha = pitch if outward else PI - pitch
@@ -275,6 +297,12 @@ def solve_corrected_scalar(
             continue
         alpha = goals[0] if side == 0 else PI - goals[1]
         q, cat, dd = _branch(arm, psi_f if side == 0 else psi_b, u if side == 0 else -u, pz, alpha, tu, tz, roll, slot)
+        if q is None and seeded:
+            # The seeds moved the wrist out of reach (the vectorised path stops there): start
+            # at the end point's own yaw instead.
+            q, cat, dd = _branch(
+                arm, end_f if side == 0 else end_b, u_end if side == 0 else -u_end, pz, alpha, tu, tz, roll, slot
+            )
         dist[slot] = dd
         if q is None:
             cats[slot] = cat
@@ -297,7 +325,7 @@ def solve_corrected_scalar(
                 oerr = pitch_error_scalar(a[0], a[1], a[2], px, py, cos_p, sin_p, elevation)
                 if oerr > 1e-9:
                     return None
-            sols.append((slot, q, seeded or u < axis_tol, perr, oerr))
+            sols.append((slot, q, seeded or u_end < axis_tol, perr, oerr))
     # Branches that converged onto one solution (refine's twins): the vectorised path.
     if _twins(arm, sols):
         return None
@@ -321,6 +349,10 @@ def _settle_pitch(arm: ArmGeometry, tip_pose: RealTip, px, py, pz, slots, starts
     flat = [v for i in range(4) for v in starts[i if i < k else 0]]
     aim4 = [aims[i if i < k else 0] for i in range(4)]
     target = [px, py, pz]
+    lx, ly, lz = local
+    mu, sigma = arm.mu, arm.sigma
+    cos, sin, atan2, sqrt = math.cos, math.sin, math.atan2, math.sqrt
+    rows = tip_pose.rows
     out = [None] * k
     pending = range(k)
     for _ in range(CALLS):
@@ -328,11 +360,17 @@ def _settle_pitch(arm: ArmGeometry, tip_pose: RealTip, px, py, pz, slots, starts
         left = []
         for i in pending:
             q = flat[i * dof : (i + 1) * dof]
-            p, rot = tip_pose(q)
-            dx, dy, dz = px - p[0], py - p[1], pz - p[2]
-            perr = math.sqrt(dx * dx + dy * dy + dz * dz)
-            a = _approach(rot, local)
-            if perr <= pos_tol and abs(wrap_pi(aims[i] - _branch_pitch(arm, q, a, True))) <= 1e-13:
+            (r00, r01, r02, x), (r10, r11, r12, y), (r20, r21, r22, z), _ = rows(q)
+            dx, dy, dz = px - x, py - y, pz - z
+            perr = sqrt(dx * dx + dy * dy + dz * dz)
+            a = (r00 * lx + r01 * ly + r02 * lz, r10 * lx + r11 * ly + r12 * lz, r20 * lx + r21 * ly + r22 * lz)
+            # The approach's elevation along the plane direction (_branch_pitch, front).
+            yaw = mu + sigma * q[0]
+            horiz = sqrt(a[0] * a[0] + a[1] * a[1])
+            if cos(yaw) * a[0] + sin(yaw) * a[1] < 0.0:
+                horiz = -horiz
+            miss = aims[i] - atan2(a[2], horiz)
+            if perr <= pos_tol and abs(miss - TWO_PI * round(miss / TWO_PI)) <= 1e-13:
                 out[i] = (q, perr, a)
             else:
                 left.append(i)
@@ -342,12 +380,20 @@ def _settle_pitch(arm: ArmGeometry, tip_pose: RealTip, px, py, pz, slots, starts
     return None
 
 
-def _angle(rot_a: list[list[float]], rot_b: np.ndarray) -> float:
-    """Angle [rad] of the rotation between two orientations (``rotation_error``), one as rows."""
-    rel = np.array(rot_a).T @ rot_b
-    (r00, r01, r02), (r10, r11, r12), (r20, r21, r22) = rel.tolist()
-    cos_a = 0.5 * (r00 + r11 + r22 - 1.0)
-    sin_a = 0.5 * math.sqrt((r21 - r12) ** 2 + (r02 - r20) ** 2 + (r10 - r01) ** 2)
+def _angle(rot_a: list[list[float]], rot_b: list[list[float]]) -> float:
+    """Angle [rad] of the rotation between two orientations (``rotation_error``), given by rows.
+
+    The first may have 4 columns (a homogeneous transform's rows); the fourth is ignored.
+    """
+    (a00, a01, a02, *_), (a10, a11, a12, *_), (a20, a21, a22, *_) = rot_a[:3]
+    (b00, b01, b02), (b10, b11, b12), (b20, b21, b22) = rot_b
+    # rel = A^T B: its trace and the differences of its off-diagonal pairs.
+    trace = a00 * b00 + a10 * b10 + a20 * b20 + a01 * b01 + a11 * b11 + a21 * b21 + a02 * b02 + a12 * b12 + a22 * b22
+    s0 = (a01 * b02 + a11 * b12 + a21 * b22) - (a02 * b01 + a12 * b11 + a22 * b21)
+    s1 = (a02 * b00 + a12 * b10 + a22 * b20) - (a00 * b02 + a10 * b12 + a20 * b22)
+    s2 = (a00 * b01 + a10 * b11 + a20 * b21) - (a01 * b00 + a11 * b10 + a21 * b20)
+    cos_a = 0.5 * (trace - 1.0)
+    sin_a = 0.5 * math.sqrt(s0 * s0 + s1 * s1 + s2 * s2)
     return math.atan2(sin_a, min(1.0, max(-1.0, cos_a)))
 
 
@@ -392,6 +438,9 @@ def solve_corrected_pose(
     pos_tol = SETTLE * max(1.0, arm.scale)
     k = len(sols)
     flat = [v for i in range(4) for v in sols[i if i < k else 0][1]]
+    px, py, pz = position
+    rot_rows = rot.tolist()
+    rows = tip_pose.rows
     found = [None] * k
     last = [math.inf] * k
     pending = range(k)
@@ -401,10 +450,10 @@ def solve_corrected_pose(
         for i in pending:
             slot, _, singular, _, _ = sols[i]
             q = flat[i * dof : (i + 1) * dof]
-            p, r = tip_pose(q)
-            dx, dy, dz = position[0] - p[0], position[1] - p[1], position[2] - p[2]
+            r = rows(q)
+            dx, dy, dz = px - r[0][3], py - r[1][3], pz - r[2][3]
             perr = math.sqrt(dx * dx + dy * dy + dz * dz)
-            oerr = _angle(r, rot)
+            oerr = _angle(r, rot_rows)
             error = perr / arm.scale + oerr
             if perr <= pos_tol and oerr <= 1e-13:
                 found[i] = (slot, q, singular or seeded, perr, oerr)
