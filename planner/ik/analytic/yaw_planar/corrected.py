@@ -26,7 +26,7 @@ import numpy as np
 import pinocchio as pin
 
 from planner.geometry.target import Target, pitch_error_scalar
-from planner.ik.analytic.geometry import SINGULAR_TOL, wrap_pi
+from planner.ik.analytic.geometry import SINGULAR_TOL
 from planner.ik.analytic.result import STATUS_SOLVED, AnalyticResult
 from planner.ik.analytic.yaw_planar.arm import ArmGeometry
 from planner.ik.analytic.yaw_planar.branches import BEYOND, INSIDE, ORIENT, VALID
@@ -125,9 +125,9 @@ def real_tip_pose(robot: Robot) -> RealTip:
 
 
 def _approach(rot, local) -> tuple[float, float, float]:
-    """The approach axis ``rot @ local`` (rotation rows, local axis as lists)."""
+    """The approach axis ``rot @ local`` (rotation rows, or a transform's, local axis as lists)."""
     ax_l, ay_l, az_l = local
-    (r00, r01, r02), (r10, r11, r12), (r20, r21, r22) = rot
+    (r00, r01, r02, *_), (r10, r11, r12, *_), (r20, r21, r22, *_) = rot[:3]
     return (
         r00 * ax_l + r01 * ay_l + r02 * az_l,
         r10 * ax_l + r11 * ay_l + r12 * az_l,
@@ -180,23 +180,24 @@ def _yaws(arm: ArmGeometry, px: float, py: float, d: float):
     return ang - math.atan2(-d, u_seed), ang - math.atan2(-d, -u_seed), u_seed, True, *own
 
 
-def _branch(arm: ArmGeometry, psi: float, ue: float, pz: float, alpha: float, tu, tz, roll, slot: int):
-    """One branch of the ideal closed form: (q, category, wrist distance); q None unless VALID.
+def _side(arm: ArmGeometry, psi: float, ue: float, pz: float, alpha: float, tu, tz, roll, front: bool):
+    """A side's two branches of the ideal closed form: (q elbow-up, q elbow-down, category, wrist distance).
 
-    `alpha` is the in-plane approach angle of the branch's side.
+    The q are None unless the category is VALID; `alpha` is the side's in-plane approach angle.
+    Elbow-up is e <= 0 in front, e >= 0 at the back (solve_core's slots 0 and 3).
     """
     cos, sin, atan2 = math.cos, math.sin, math.atan2
-    l1, l2, g1, g2, su, sz = arm.l1, arm.l2, arm.g1, arm.g2, arm.su, arm.sz
+    l1, l2, g1, g2 = arm.l1, arm.l2, arm.g1, arm.g2
     phi = alpha - arm.beta
     cp, sp = cos(phi), sin(phi)
-    vx = ue - (cp * tu - sp * tz) - su
-    vz = pz - (sp * tu + cp * tz) - sz
+    vx = ue - (cp * tu - sp * tz) - arm.su
+    vz = pz - (sp * tu + cp * tz) - arm.sz
     dd = math.hypot(vx, vz)
     len_tol = arm.core_len_tol
     if dd > l1 + l2 + len_tol:
-        return None, BEYOND, dd
+        return None, None, BEYOND, dd
     if dd < abs(l1 - l2) - len_tol:
-        return None, INSIDE, dd
+        return None, None, INSIDE, dd
     c = (dd * dd - l1 * l1 - l2 * l2) / (2.0 * l1 * l2)
     c = 1.0 if c > 1.0 else (-1.0 if c < -1.0 else c)
     s = math.sqrt(1.0 - c * c)
@@ -209,21 +210,23 @@ def _branch(arm: ArmGeometry, psi: float, ue: float, pz: float, alpha: float, tu
     e_abs = atan2(s, c)
     base = atan2(vz, vx)
     half = atan2(l2 * s, l1 + l2 * c)
-    # Slots: front-up (e <= 0), front-down, back-up (e >= 0), back-down (solve_core's order).
-    up = slot in (0, 3)
-    a1 = base + half if up else base - half
-    e = -e_abs if up else e_abs
-    phi2 = a1 - g1
-    phi3 = a1 + e - g2
-    signs, idx = arm.signs, arm.pitch_idx
-    q = [0.0] * arm.dof
-    q[0] = arm.sigma * psi
-    q[idx[0]] = signs[0] * phi2
-    q[idx[1]] = signs[1] * (phi3 - phi2)
-    q[idx[2]] = signs[2] * (phi - phi3)
-    if arm.roll_idx is not None:
-        q[arm.roll_idx] = roll
-    return q, VALID, dd
+    signs, idx, roll_idx = arm.signs, arm.pitch_idx, arm.roll_idx
+    q0 = arm.sigma * psi
+    out = []
+    for a1, e in (
+        ((base + half, -e_abs), (base - half, e_abs)) if ue >= 0.0 else ((base - half, e_abs), (base + half, -e_abs))
+    ):
+        phi2 = a1 - g1
+        phi3 = a1 + e - g2
+        q = [0.0] * arm.dof
+        q[0] = q0
+        q[idx[0]] = signs[0] * phi2
+        q[idx[1]] = signs[1] * (phi3 - phi2)
+        q[idx[2]] = signs[2] * (phi - phi3)
+        if roll_idx is not None:
+            q[roll_idx] = roll
+        out.append(q)
+    return out[0], out[1], VALID, dd
 
 
 def solve_corrected_scalar(
@@ -269,8 +272,7 @@ def solve_corrected_scalar(
         goals[1] = PI - goals[1]
     else:
         # q_current's approach, measured on the real arm as a front branch (free_pitch.current_alpha).
-        _, rot_c = tip_pose(qc)
-        alpha_c = _branch_pitch(arm, qc, _approach(rot_c, local), True)
+        alpha_c = _branch_pitch(arm, qc, _approach(tip_pose.rows(qc), local), True)
         rmin = max(abs(arm.l1 - arm.l2), arm.rmin_lim) - arm.core_len_tol
         rmax = min(arm.l1 + arm.l2, arm.rmax_lim) + arm.core_len_tol
         for side, (psi, ue) in enumerate(((psi_f, u), (psi_b, -u))):
@@ -290,26 +292,28 @@ def solve_corrected_scalar(
     cats = [VALID] * 4
     dist = [math.nan] * 4
     slots, starts, aims = [], [], []
-    for slot in range(4):
-        side = 0 if slot < 2 else 1
+    for side in (0, 1):
         if unreached[side] is not None:
-            cats[slot] = unreached[side]
+            cats[2 * side] = cats[2 * side + 1] = unreached[side]
             continue
         alpha = goals[0] if side == 0 else PI - goals[1]
-        q, cat, dd = _branch(arm, psi_f if side == 0 else psi_b, u if side == 0 else -u, pz, alpha, tu, tz, roll, slot)
-        if q is None and seeded:
+        up, down, cat, dd = _side(
+            arm, psi_f if side == 0 else psi_b, u if side == 0 else -u, pz, alpha, tu, tz, roll, side == 0
+        )
+        if up is None and seeded:
             # The seeds moved the wrist out of reach (the vectorised path stops there): start
             # at the end point's own yaw instead.
-            q, cat, dd = _branch(
-                arm, end_f if side == 0 else end_b, u_end if side == 0 else -u_end, pz, alpha, tu, tz, roll, slot
+            up, down, cat, dd = _side(
+                arm, end_f if side == 0 else end_b, u_end if side == 0 else -u_end, pz, alpha, tu, tz, roll, side == 0
             )
-        dist[slot] = dd
-        if q is None:
-            cats[slot] = cat
+        # Slots: front-up, front-down, back-up, back-down.
+        dist[2 * side] = dist[2 * side + 1] = dd
+        if up is None:
+            cats[2 * side] = cats[2 * side + 1] = cat
             continue
-        slots.append(slot)
-        starts.append(q)
-        aims.append(alpha)
+        slots += [2 * side, 2 * side + 1]
+        starts += [up, down]
+        aims += [alpha, alpha]
     sols = []
     if slots:
         settled = _settle_pitch(arm, tip_pose, px, py, pz, slots, starts, aims, local)
@@ -440,12 +444,13 @@ def solve_corrected_pose(
     flat = [v for i in range(4) for v in sols[i if i < k else 0][1]]
     px, py, pz = position
     rot_rows = rot.tolist()
+    rot_columns = rot.T.reshape(9).tolist()
     rows = tip_pose.rows
     found = [None] * k
     last = [math.inf] * k
     pending = range(k)
     for _ in range(CALLS):
-        flat = kernel.pose(flat, position, rot)
+        flat = kernel.pose(flat, position, rot_columns)
         left = []
         for i in pending:
             slot, _, singular, _, _ = sols[i]
@@ -496,12 +501,16 @@ def _seeded_pose(arm: ArmGeometry, position: list[float], rot: np.ndarray) -> bo
 
 
 def _twins(arm: ArmGeometry, sols) -> bool:
-    """Whether two branches converged onto one solution (refine's twins)."""
+    """Whether two branches converged onto one solution (refine's twins: 1e-7 rad on every joint)."""
     shoulder = arm.pitch_idx[0]
-    for i in range(len(sols)):
-        for j in range(i + 1, len(sols)):
-            qi, qj = sols[i][1], sols[j][1]
-            if abs(wrap_pi(qi[0] - qj[0])) < 1e-7 and abs(wrap_pi(qi[shoulder] - qj[shoulder])) < 1e-7:
-                if max(abs(wrap_pi(a - b)) for a, b in zip(qi, qj)) < 1e-7:
-                    return True
+    n = len(sols)
+    for i in range(n):
+        qi = sols[i][1]
+        for j in range(i + 1, n):
+            qj = sols[j][1]
+            d = qi[shoulder] - qj[shoulder]
+            if abs(d - TWO_PI * round(d / TWO_PI)) >= 1e-7:
+                continue  # the usual case: the shoulders differ
+            if max(abs(a - b - TWO_PI * round((a - b) / TWO_PI)) for a, b in zip(qi, qj)) < 1e-7:
+                return True
     return False

@@ -174,8 +174,19 @@ def _function(kind: str, dof: int, roll_idx: int | None, width: int) -> ca.Funct
     fn = _FUNCTIONS.get(key)
     if fn is None:
         one = pitch_kernel(dof, roll_idx) if kind == "pitch" else pose_kernel(dof)
-        shared = ([1, 2, 3] if kind == "pose" else [1, 3]) if width == 4 else [3]
-        fn = compile_function(one.map(f"{one.name()}_{width}", "serial", width, shared, []), flags=FLAGS)
+        if width == 4:
+            # One target's: its inputs as one vector (one copy per call): the 4 starts, the
+            # target position, the 4 goals or the rotation (column-major).
+            mapped = one.map(f"{one.name()}_4", "serial", 4, [1, 2, 3] if kind == "pose" else [1, 3], [])
+            x = ca.MX.sym("x", 4 * dof + 3 + (9 if kind == "pose" else 4))
+            prm = ca.MX.sym("prm", 6 * dof + 18)
+            o = 4 * dof
+            other = ca.reshape(x[o + 3 :], 3, 3) if kind == "pose" else ca.reshape(x[o + 3 :], 1, 4)
+            out = mapped(ca.reshape(x[:o], dof, 4), x[o : o + 3], other, prm)
+            fn = ca.Function(f"{one.name()}_one", [x, prm], [out])
+        else:
+            fn = one.map(f"{one.name()}_{width}", "serial", width, [3], [])
+        fn = compile_function(fn, flags=FLAGS)
         _FUNCTIONS[key] = fn
     return fn
 
@@ -196,35 +207,28 @@ class NewtonKernel:
         call = self._calls.get(kind)
         if call is None:
             fn = _function(kind, self.dof, self.arm.roll_idx, 4)
-            dof = self.dof
-            q0 = np.zeros(4 * dof)
-            target = np.zeros(3)
-            other = np.zeros(4 if kind == "pitch" else 9)
+            x = np.zeros(4 * self.dof + 3 + (9 if kind == "pose" else 4))
             prm = self.prm.copy()
-            out = np.zeros(4 * dof)
+            out = np.zeros(4 * self.dof)
             buffer, evaluate = fn.buffer()
-            for i, arg in enumerate((q0, target, other, prm)):
-                buffer.set_arg(i, memoryview(arg))
+            buffer.set_arg(0, memoryview(x))
+            buffer.set_arg(1, memoryview(prm))
             buffer.set_res(0, memoryview(out))
-            call = (buffer, evaluate, q0, target, other, prm, out)
+            call = (buffer, evaluate, x, prm, out)
             self._calls[kind] = call
         return call
 
     def pitch(self, q0: list[float], target: list[float], goals: list[float]) -> list[float]:
         """Four branches (q0: 4 x dof, flat) at their elevation goals (4) -> q (4 x dof, flat)."""
-        _, evaluate, q_in, t_in, g_in, _, out = self._call("pitch")
-        q_in[:] = q0
-        t_in[:] = target
-        g_in[:] = goals
+        _, evaluate, x, _, out = self._call("pitch")
+        x[:] = q0 + target + goals
         evaluate()
         return out.tolist()
 
-    def pose(self, q0: list[float], target: list[float], rotation: np.ndarray) -> list[float]:
-        """Four branches (q0: 4 x dof, flat) of a pose -> q (4 x dof, flat)."""
-        _, evaluate, q_in, t_in, r_in, _, out = self._call("pose")
-        q_in[:] = q0
-        t_in[:] = target
-        r_in[:] = rotation.T.reshape(9)
+    def pose(self, q0: list[float], target: list[float], rotation: list[float]) -> list[float]:
+        """Four branches (q0: 4 x dof, flat) of a pose (rotation column-major, 9) -> q (4 x dof, flat)."""
+        _, evaluate, x, _, out = self._call("pose")
+        x[:] = q0 + target + rotation
         evaluate()
         return out.tolist()
 
