@@ -1,21 +1,28 @@
-"""Targets on inexact chains (SO-101), in scalar arithmetic: every branch corrected in a fixed number of rounds.
+"""Targets on inexact chains (SO-101), in scalar arithmetic: every branch by a few Newton steps on the real arm.
 
 The fast path of :meth:`~planner.ik.analytic.yaw_planar.solver.YawPlanarIK.solve` for chains
 whose axes deviate from the family's by round-off: each branch is solved on the ideal geometry
-(the closed form of :mod:`~planner.ik.analytic.yaw_planar.core`, one branch at a time), then
-corrected on the real one (Pinocchio's FK) by a fixed number of the rounds of
-:func:`~planner.ik.analytic.yaw_planar.refine.refine`: the branch re-solved for its target
-shifted by the error it left (position and branch pitch), which shrinks the error by about the
-deviation (micro-radians) per round, so two rounds take it from the deviation's micrometres to
-round-off. Position and pitch targets (:func:`solve_corrected_scalar`, 3 pitch joints) are
-solved one branch at a time; full poses (:func:`solve_corrected_pose`) by the pose closed form
-of :mod:`~planner.ik.analytic.yaw_planar.scalar_pose` for the pose composed with the inverse
-error. The approach pitch a position-only target leaves free is ``q_current``'s, measured on
-the real arm, where reachable, else the default choice (:mod:`~planner.ik.analytic.yaw_planar.free_pitch`).
+(the closed form of :mod:`~planner.ik.analytic.yaw_planar.core`, both elbows of a side at
+once), which misses the target by about the deviation (micro-radians) times the arm's size,
+then taken to the real arm's solution by Newton's steps on its product of exponentials
+(compiled, 2 steps per call, four branches per call:
+:mod:`~planner.ik.analytic.yaw_planar.newton`), the error squaring per step, and checked by
+Pinocchio's FK to round-off (:data:`SETTLE`); up to :data:`CALLS` calls. Position and pitch
+targets (:func:`solve_corrected_scalar`, 3 pitch joints) solve the tip position and the
+branch's approach elevation (the roll is given); full poses (:func:`solve_corrected_pose`)
+every joint by Gauss-Newton from the pose closed form of
+:mod:`~planner.ik.analytic.yaw_planar.scalar_pose`. The branches start where ``solve_core``
+starts them (apart next to a stretched elbow and next to the yaw axis), so they reach the
+vectorised path's solutions. The approach pitch a position-only target leaves free is
+``q_current``'s, measured on the real arm, where reachable, else the default choice
+(:mod:`~planner.ik.analytic.yaw_planar.free_pitch`).
 
-Targets this path does not settle in those rounds, or that need more than the plain closed form
-(no ``q_current`` for a free pitch, next to the yaw axis or a stretched elbow, branches that merge,
-no branch within the limits: the search), return None: the caller takes the vectorised path.
+Pose branches whose steps stall far from the target are not solutions on the real arm (the
+ideal model accepts an orientation residual up to about its deviation): ORIENT. Targets whose
+branches do not settle within those calls (next to the boundary of the real reach: about 0.1 %
+of SO-101's random targets), branches that merge, a free pitch without ``q_current``, the yaw
+axis itself, or no branch within the limits (the search) return None: the caller takes the
+vectorised path.
 """
 
 from __future__ import annotations
@@ -354,27 +361,21 @@ def _settle_pitch(arm: ArmGeometry, tip_pose: RealTip, px, py, pz, slots, starts
     aim4 = [aims[i if i < k else 0] for i in range(4)]
     target = [px, py, pz]
     lx, ly, lz = local
-    mu, sigma = arm.mu, arm.sigma
-    cos, sin, atan2, sqrt = math.cos, math.sin, math.atan2, math.sqrt
     rows = tip_pose.rows
     out = [None] * k
     pending = range(k)
     for _ in range(CALLS):
-        flat = kernel.pitch(flat, target, aim4)
+        flat, misses = kernel.pitch(flat, target, aim4)
         left = []
         for i in pending:
             q = flat[i * dof : (i + 1) * dof]
             (r00, r01, r02, x), (r10, r11, r12, y), (r20, r21, r22, z), _ = rows(q)
             dx, dy, dz = px - x, py - y, pz - z
-            perr = sqrt(dx * dx + dy * dy + dz * dz)
-            a = (r00 * lx + r01 * ly + r02 * lz, r10 * lx + r11 * ly + r12 * lz, r20 * lx + r21 * ly + r22 * lz)
-            # The approach's elevation along the plane direction (_branch_pitch, front).
-            yaw = mu + sigma * q[0]
-            horiz = sqrt(a[0] * a[0] + a[1] * a[1])
-            if cos(yaw) * a[0] + sin(yaw) * a[1] < 0.0:
-                horiz = -horiz
-            miss = aims[i] - atan2(a[2], horiz)
-            if perr <= pos_tol and abs(miss - TWO_PI * round(miss / TWO_PI)) <= 1e-13:
+            perr = math.sqrt(dx * dx + dy * dy + dz * dz)
+            # The position by Pinocchio's FK; the branch's elevation (not the target's, for a
+            # position target) by the compiled model's.
+            if perr <= pos_tol and abs(misses[i]) <= 1e-13:
+                a = (r00 * lx + r01 * ly + r02 * lz, r10 * lx + r11 * ly + r12 * lz, r20 * lx + r21 * ly + r22 * lz)
                 out[i] = (q, perr, a)
             else:
                 left.append(i)

@@ -95,18 +95,30 @@ def _fk(q, axes, points, tip_p, tip_r):
     return ca.mtimes(rot, tip_p) + trans, ca.mtimes(rot, tip_r), ws, rs
 
 
-def _pitch_step(q, target, goal, prm, dof: int, active: tuple[int, ...]):
-    axes, points, tip_p, tip_r, approach, mu, sigma, _ = _unpack(prm, dof)
-    p, rot, ws, rs = _fk(q, axes, points, tip_p, tip_r)
+def _elevation(q, rot, approach, mu, sigma):
+    """The approach axis and its elevation (``real_model.true_pitch``'s front value).
+
+    Returns:
+        The axis, the sign of its part along the plane direction, its horizontal size, that
+        size counted along the plane direction, and the elevation.
+    """
     a = ca.mtimes(rot, approach)
     yaw = mu + sigma * q[0]
     along = ca.cos(yaw) * a[0] + ca.sin(yaw) * a[1]
     h = ca.sqrt(a[0] * a[0] + a[1] * a[1])
     sign = ca.if_else(along >= 0.0, 1.0, -1.0)
-    big_s = sign * h
-    alpha = ca.atan2(a[2], big_s)
-    miss = alpha - goal
-    res = ca.vertcat(p - target, ca.atan2(ca.sin(miss), ca.cos(miss)))
+    return a, sign, h, sign * h, ca.atan2(a[2], sign * h)
+
+
+def _wrapped(x):
+    return ca.atan2(ca.sin(x), ca.cos(x))
+
+
+def _pitch_step(q, target, goal, prm, dof: int, active: tuple[int, ...]):
+    axes, points, tip_p, tip_r, approach, mu, sigma, _ = _unpack(prm, dof)
+    p, rot, ws, rs = _fk(q, axes, points, tip_p, tip_r)
+    a, sign, h, big_s, alpha = _elevation(q, rot, approach, mu, sigma)
+    res = ca.vertcat(p - target, _wrapped(alpha - goal))
     denom = a[2] * a[2] + big_s * big_s
     cols = []
     for j in active:
@@ -136,7 +148,9 @@ def _pose_step(q, target, rot_t, prm, dof: int):
 
 
 def pitch_kernel(dof: int, roll_idx: int | None, steps: int = STEPS) -> ca.Function:
-    """SX function (q0 (dof), target (3), branch elevation goal, parameters) -> q (dof).
+    """SX function (q0 (dof), target (3), branch elevation goal, parameters) -> q (dof), miss.
+
+    `miss`: the elevation's miss [rad] at the returned q, by this model.
 
     The goal is the approach axis's elevation ``alpha`` (``real_model.true_pitch``'s front value:
     its horizontal part counted along the arm's plane direction at the branch's yaw).
@@ -149,7 +163,10 @@ def pitch_kernel(dof: int, roll_idx: int | None, steps: int = STEPS) -> ca.Funct
     q = q0
     for _ in range(steps):
         q = _pitch_step(q, target, goal, prm, dof, active)
-    return ca.Function("newton_pitch", [q0, target, goal, prm], [q])
+    axes, points, tip_p, tip_r, approach, mu, sigma, _ = _unpack(prm, dof)
+    _, rot, _, _ = _fk(q, axes, points, tip_p, tip_r)
+    miss = _wrapped(_elevation(q, rot, approach, mu, sigma)[4] - goal)
+    return ca.Function("newton_pitch", [q0, target, goal, prm], [q, miss])
 
 
 def pose_kernel(dof: int, steps: int = STEPS) -> ca.Function:
@@ -183,7 +200,7 @@ def _function(kind: str, dof: int, roll_idx: int | None, width: int) -> ca.Funct
             o = 4 * dof
             other = ca.reshape(x[o + 3 :], 3, 3) if kind == "pose" else ca.reshape(x[o + 3 :], 1, 4)
             out = mapped(ca.reshape(x[:o], dof, 4), x[o : o + 3], other, prm)
-            fn = ca.Function(f"{one.name()}_one", [x, prm], [out])
+            fn = ca.Function(f"{one.name()}_one", [x, prm], list(out) if isinstance(out, (tuple, list)) else [out])
         else:
             fn = one.map(f"{one.name()}_{width}", "serial", width, [3], [])
         fn = compile_function(fn, flags=FLAGS)
@@ -210,24 +227,27 @@ class NewtonKernel:
             x = np.zeros(4 * self.dof + 3 + (9 if kind == "pose" else 4))
             prm = self.prm.copy()
             out = np.zeros(4 * self.dof)
+            miss = np.zeros(4)
             buffer, evaluate = fn.buffer()
             buffer.set_arg(0, memoryview(x))
             buffer.set_arg(1, memoryview(prm))
             buffer.set_res(0, memoryview(out))
-            call = (buffer, evaluate, x, prm, out)
+            if kind == "pitch":
+                buffer.set_res(1, memoryview(miss))
+            call = (buffer, evaluate, x, prm, out, miss)
             self._calls[kind] = call
         return call
 
-    def pitch(self, q0: list[float], target: list[float], goals: list[float]) -> list[float]:
-        """Four branches (q0: 4 x dof, flat) at their elevation goals (4) -> q (4 x dof, flat)."""
-        _, evaluate, x, _, out = self._call("pitch")
+    def pitch(self, q0: list[float], target: list[float], goals: list[float]) -> tuple[list[float], list[float]]:
+        """Four branches (q0: 4 x dof, flat) at their elevation goals (4) -> q (4 x dof, flat), misses (4)."""
+        _, evaluate, x, _, out, miss = self._call("pitch")
         x[:] = q0 + target + goals
         evaluate()
-        return out.tolist()
+        return out.tolist(), miss.tolist()
 
     def pose(self, q0: list[float], target: list[float], rotation: list[float]) -> list[float]:
         """Four branches (q0: 4 x dof, flat) of a pose (rotation column-major, 9) -> q (4 x dof, flat)."""
-        _, evaluate, x, _, out = self._call("pose")
+        _, evaluate, x, _, out, _ = self._call("pose")
         x[:] = q0 + target + rotation
         evaluate()
         return out.tolist()
@@ -247,7 +267,8 @@ class NewtonKernel:
                 per = np.transpose(other[rows], (1, 0, 2)).reshape(3, 3 * width)
             else:
                 per = np.asarray(other, dtype=float)[rows][None, :]
-            res = np.asarray(fn(q0[rows].T, target[rows].T, per, self.prm))
+            res = fn(q0[rows].T, target[rows].T, per, self.prm)
+            res = np.asarray(res[0] if isinstance(res, (tuple, list)) else res)
             out[first:last] = res.T[: last - first]
         return out
 

@@ -3,10 +3,12 @@
 Chains whose axes deviate from the ideal directions by round-off (up to
 :data:`~planner.ik.analytic.base.FAMILY_ANGLE_TOL`, e.g. SO-101's URDF, a few micro-radians) are
 solved on the ideal geometry and then corrected on the real one (product of exponentials):
-each branch is re-solved for the target shifted by the error it left, which converges by about
-the deviation per round, and branches that do not settle (next to a stretched elbow) are
-finished by damped Gauss-Newton steps. Only branches that then reproduce the target (1e-10 m,
-1e-9 rad) are kept. On exact chains this only measures the errors.
+each branch by Newton's steps on it (compiled: :func:`newton`), which square the error per
+step; branches they do not settle (next to the boundary of the real reach) are finished by
+damped Gauss-Newton steps (:func:`polish`). Without those Newton steps (two pitch joints and
+no rotation) each branch is re-solved for the target shifted by the error it left, which
+converges by about the deviation per round. Only branches that then reproduce the target
+(1e-10 m, 1e-9 rad) are kept. On exact chains this only measures the errors.
 """
 
 from __future__ import annotations
