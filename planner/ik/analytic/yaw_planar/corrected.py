@@ -504,14 +504,14 @@ def _seeded_pose(arm: ArmGeometry, position: list[float], rot: np.ndarray) -> bo
 def _twins(arm: ArmGeometry, sols) -> bool:
     """Whether two branches converged onto one solution (refine's twins: 1e-7 rad on every joint)."""
     shoulder = arm.pitch_idx[0]
+    near = TWO_PI - 1e-7
     n = len(sols)
     for i in range(n):
         qi = sols[i][1]
         for j in range(i + 1, n):
             qj = sols[j][1]
-            d = qi[shoulder] - qj[shoulder]
-            if abs(d - TWO_PI * round(d / TWO_PI)) >= 1e-7:
+            if 1e-7 <= (qi[shoulder] - qj[shoulder]) % TWO_PI <= near:
                 continue  # the usual case: the shoulders differ
-            if max(abs(a - b - TWO_PI * round((a - b) / TWO_PI)) for a, b in zip(qi, qj)) < 1e-7:
+            if all(not 1e-7 <= (a - b) % TWO_PI <= near for a, b in zip(qi, qj)):
                 return True
     return False
