@@ -26,8 +26,6 @@ singularity the steps need not).
 
 from __future__ import annotations
 
-import math
-
 import casadi as ca
 import numpy as np
 
@@ -43,6 +41,10 @@ STEPS = 2
 
 #: C compiler flags (as the batch closed form's: no errno after sqrt, no FMA contraction).
 FLAGS = ("-O2", "-fno-math-errno", "-fPIC", "-shared")
+
+#: Branches per call of the batch kernels (the last block padded), and for the rest.
+BLOCK = 256
+SMALL_BLOCK = 8
 
 _FUNCTIONS: dict[tuple, ca.Function] = {}
 _KERNELS: dict[int, NewtonKernel] = {}
@@ -252,24 +254,29 @@ class NewtonKernel:
         evaluate()
         return out.tolist()
 
-    def many(self, q0: np.ndarray, target: np.ndarray, other: np.ndarray, kind: str, block: int = 256) -> np.ndarray:
-        """K branches at once: q0 (K, dof), targets (K, 3), goals (K,) or rotations (K, 3, 3) -> q (K, dof)."""
+    def many(self, q0: np.ndarray, target: np.ndarray, other: np.ndarray, kind: str) -> np.ndarray:
+        """K branches at once: q0 (K, dof), targets (K, 3), goals (K,) or rotations (K, 3, 3) -> q (K, dof).
+
+        In blocks of :data:`BLOCK` branches, the rest in blocks of :data:`SMALL_BLOCK` (two
+        compiled functions per kind).
+        """
         k = q0.shape[0]
         out = np.empty((k, self.dof))
-        if k == 0:
-            return out
-        width = min(block, max(8, 1 << math.ceil(math.log2(k))))
-        fn = _function(kind, self.dof, self.arm.roll_idx, width)
-        for first in range(0, k, width):
-            last = min(first + width, k)
-            rows = np.arange(first, first + width).clip(max=last - 1)
-            if kind == "pose":
-                per = np.transpose(other[rows], (1, 0, 2)).reshape(3, 3 * width)
-            else:
-                per = np.asarray(other, dtype=float)[rows][None, :]
-            res = fn(q0[rows].T, target[rows].T, per, self.prm)
-            res = np.asarray(res[0] if isinstance(res, (tuple, list)) else res)
-            out[first:last] = res.T[: last - first]
+        full = k // BLOCK * BLOCK
+        for width, start, stop in ((BLOCK, 0, full), (SMALL_BLOCK, full, k)):
+            if start >= stop:
+                continue
+            fn = _function(kind, self.dof, self.arm.roll_idx, width)
+            for first in range(start, stop, width):
+                last = min(first + width, stop)
+                rows = np.arange(first, first + width).clip(max=last - 1)
+                if kind == "pose":
+                    per = np.transpose(other[rows], (1, 0, 2)).reshape(3, 3 * width)
+                else:
+                    per = np.asarray(other, dtype=float)[rows][None, :]
+                res = fn(q0[rows].T, target[rows].T, per, self.prm)
+                res = np.asarray(res[0] if isinstance(res, (tuple, list)) else res)
+                out[first:last] = res.T[: last - first]
         return out
 
 
