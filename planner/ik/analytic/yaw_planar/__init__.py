@@ -45,9 +45,9 @@ geometry and then corrected on the real one (:mod:`~planner.ik.analytic.yaw_plan
 Speed: :meth:`YawPlanarIK.solve` runs every target on exact chains in scalar arithmetic, each
 branch verified by the forward model (a few ``robot.fk`` call times: ``scalar`` for position and
 pitch targets, ``scalar_pose`` for full poses); on inexact chains every branch is solved on
-the ideal geometry and corrected by two rounds on the real model (``corrected``); the targets
-that path declines (next to the yaw axis or a stretched elbow, a free pitch without
-``q_current``, branches that do not settle, no branch within the limits) go through the
+the ideal geometry and corrected by compiled Newton steps on the real model (``corrected``,
+``newton``); the targets that path declines (branches that do not settle, next to the
+boundary of the real reach; a free pitch without ``q_current``; no branch within the limits) go through the
 vectorised path (hundreds of microseconds for one target, milliseconds with its search).
 ``solve_batch`` is vectorised over targets (in slices of 16384 to stay in cache); on exact
 chains, position targets of two-pitch arms and approach-pitch targets run through the same
@@ -60,7 +60,7 @@ Modules, in the order of the data flow: ``layout`` (does a chain fit, which join
 (branch names and failure categories), ``orientation`` and ``free_pitch`` (the end angle, yaw
 and roll a target fixes or leaves free), ``core`` (the ideal closed form over arrays),
 ``scalar``, ``scalar_pose`` and ``corrected`` (the same for one target without NumPy),
-``real_model`` and ``refine`` (the real geometry), ``status`` (status and reason), ``arrays``
+``real_model``, ``newton`` and ``refine`` (the real geometry), ``status`` (status and reason), ``arrays``
 (the pipeline per batch), ``end_angle`` and ``search`` (free joints within the limits),
 ``compiled`` (the batch closed form as one compiled CasADi function), ``batch`` (slices or
 the compiled path), ``solver`` (:class:`YawPlanarIK`).

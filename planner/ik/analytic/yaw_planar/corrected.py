@@ -1,55 +1,126 @@
-"""Targets on inexact chains (SO-101), in scalar arithmetic: every branch corrected in a fixed number of rounds.
+"""Targets on inexact chains (SO-101), in scalar arithmetic: every branch by a few Newton steps on the real arm.
 
 The fast path of :meth:`~planner.ik.analytic.yaw_planar.solver.YawPlanarIK.solve` for chains
 whose axes deviate from the family's by round-off: each branch is solved on the ideal geometry
-(the closed form of :mod:`~planner.ik.analytic.yaw_planar.core`, one branch at a time), then
-corrected on the real one (Pinocchio's FK) by a fixed number of the rounds of
-:func:`~planner.ik.analytic.yaw_planar.refine.refine`: the branch re-solved for its target
-shifted by the error it left (position and branch pitch), which shrinks the error by about the
-deviation (micro-radians) per round, so two rounds take it from the deviation's micrometres to
-round-off. Position and pitch targets (:func:`solve_corrected_scalar`, 3 pitch joints) are
-solved one branch at a time; full poses (:func:`solve_corrected_pose`) by the pose closed form
-of :mod:`~planner.ik.analytic.yaw_planar.scalar_pose` for the pose composed with the inverse
-error. The approach pitch a position-only target leaves free is ``q_current``'s, measured on
-the real arm, where reachable, else the default choice (:mod:`~planner.ik.analytic.yaw_planar.free_pitch`).
+(the closed form of :mod:`~planner.ik.analytic.yaw_planar.core`, both elbows of a side at
+once), which misses the target by about the deviation (micro-radians) times the arm's size,
+then taken to the real arm's solution by Newton's steps on its product of exponentials
+(compiled, 2 steps per call, four branches per call:
+:mod:`~planner.ik.analytic.yaw_planar.newton`), the error squaring per step, and checked by
+Pinocchio's FK to round-off (:data:`SETTLE`); up to :data:`CALLS` calls. Position and pitch
+targets (:func:`solve_corrected_scalar`, 3 pitch joints) solve the tip position and the
+branch's approach elevation (the roll is given); full poses (:func:`solve_corrected_pose`)
+every joint by Gauss-Newton from the pose closed form of
+:mod:`~planner.ik.analytic.yaw_planar.scalar_pose`. The branches start where ``solve_core``
+starts them (apart next to a stretched elbow and next to the yaw axis), so they reach the
+vectorised path's solutions. The approach pitch a position-only target leaves free is
+``q_current``'s, measured on the real arm, where reachable, else the default choice
+(:mod:`~planner.ik.analytic.yaw_planar.free_pitch`).
 
-Targets this path does not settle in those rounds, or that need more than the plain closed form
-(no ``q_current`` for a free pitch, next to the yaw axis or a stretched elbow, branches that merge,
-no branch within the limits: the search), return None: the caller takes the vectorised path.
+Pose branches whose steps stall far from the target are not solutions on the real arm (the
+ideal model accepts an orientation residual up to about its deviation): ORIENT. Targets whose
+branches do not settle within those calls (next to the boundary of the real reach: about 0.1 %
+of SO-101's random targets), branches that merge, a free pitch without ``q_current``, the yaw
+axis itself, or no branch within the limits (the search) return None: the caller takes the
+vectorised path.
 """
 
 from __future__ import annotations
 
 import math
-from collections.abc import Callable
 
 import numpy as np
 import pinocchio as pin
 
 from planner.geometry.target import Target, pitch_error_scalar
-from planner.ik.analytic.geometry import SINGULAR_TOL, wrap_pi
+from planner.ik.analytic.geometry import SINGULAR_TOL
 from planner.ik.analytic.result import STATUS_SOLVED, AnalyticResult
 from planner.ik.analytic.yaw_planar.arm import ArmGeometry
-from planner.ik.analytic.yaw_planar.branches import BEYOND, INSIDE, VALID
+from planner.ik.analytic.yaw_planar.branches import BEYOND, INSIDE, ORIENT, VALID
 from planner.ik.analytic.yaw_planar.free_pitch import free_pitch_failure, free_pitch_scalar
+from planner.ik.analytic.yaw_planar.newton import NewtonKernel
 from planner.ik.analytic.yaw_planar.scalar import finish_scalar
 from planner.ik.analytic.yaw_planar.scalar_pose import PoseFrame, pose_branches
 from planner.model.robot import Robot
 
-__all__ = ["ROUNDS", "TipPose", "real_tip_pose", "solve_corrected_scalar", "solve_corrected_pose"]
+__all__ = ["CALLS", "RealTip", "TipPose", "real_tip_pose", "solve_corrected_scalar", "solve_corrected_pose"]
 
 PI = math.pi
+TWO_PI = 2.0 * math.pi
 
-#: Correction rounds per branch (each: one real FK, one closed-form re-solve), then one real FK
-#: to verify. The error shrinks by about the chain's deviation per round.
-ROUNDS = 2
+#: Calls of the compiled Newton steps (:data:`~planner.ik.analytic.yaw_planar.newton.STEPS`
+#: each) at most per target: one settles well-conditioned branches; the others, only while a
+#: branch has not settled (started next to a stretched elbow or the yaw axis).
+CALLS = 3
+
+#: Position error [m, times the arm's size above 1 m] of a settled branch (1e-13 rad for
+#: orientations): round-off, which Newton's steps reach where the branch's Jacobian is regular;
+#: at a stretched elbow (the boundary of the reach) they only creep, and the branch is left to
+#: the vectorised path.
+SETTLE = 1e-14
+
+
+class RealTip:
+    """The real arm's FK (Pinocchio) as lists, and its compiled Newton steps.
+
+    The FK runs on a Pinocchio Data of its own (no input checks); the Newton steps are
+    :class:`~planner.ik.analytic.yaw_planar.newton.NewtonKernel`, built on first use. Not
+    thread-safe (its buffers serve one call at a time).
+    """
+
+    __slots__ = ("_fk", "_rows", "_kernel")
+
+    def __init__(self, robot: Robot) -> None:
+        model, fid = robot.model, robot.tip_frame_id
+        self._kernel: NewtonKernel | None = None
+        if model.nq != robot.dof:  # continuous joints: Pinocchio's (cos, sin) coordinates
+
+            def converted(q: list[float]):
+                p, r = robot.tip_pose(np.array(q))
+                return p.tolist(), r.tolist()
+
+            def converted_rows(q: list[float]):
+                p, r = converted(q)
+                return [r[0] + [p[0]], r[1] + [p[1]], r[2] + [p[2]], [0.0, 0.0, 0.0, 1.0]]
+
+            self._fk, self._rows = converted, converted_rows
+            return
+        data = model.createData()
+        forward, update, array = pin.forwardKinematics, pin.updateFramePlacement, np.array
+
+        def direct(q: list[float]):
+            forward(model, data, array(q))
+            placement = update(model, data, fid)
+            return placement.translation.tolist(), placement.rotation.tolist()
+
+        def rows(q: list[float]):
+            forward(model, data, array(q))
+            return update(model, data, fid).homogeneous.tolist()
+
+        self._fk, self._rows = direct, rows
+
+    def __call__(self, q: list[float]) -> tuple[list[float], list[list[float]]]:
+        """Tip position (list, 3) [m] and rotation rows (3 lists of 3) at q (list, dof) [rad]."""
+        return self._fk(q)
+
+    def rows(self, q: list[float]) -> list[list[float]]:
+        """The tip's homogeneous transform at q as 4 rows (one conversion: the cheapest)."""
+        return self._rows(q)
+
+    def kernel(self, arm: ArmGeometry) -> NewtonKernel:
+        """The arm's compiled Newton steps."""
+        kernel = self._kernel
+        if kernel is None or kernel.arm is not arm:
+            kernel = self._kernel = NewtonKernel(arm)
+        return kernel
+
 
 #: The real arm's FK for one configuration (a list [rad]): tip position, rotation rows (lists).
-TipPose = Callable[[list[float]], tuple[list[float], list[list[float]]]]
+TipPose = RealTip
 
 
-def real_tip_pose(robot: Robot) -> TipPose:
-    """The robot's FK (Pinocchio) as lists, on a Pinocchio Data of its own (no input checks).
+def real_tip_pose(robot: Robot) -> RealTip:
+    """The robot's FK (Pinocchio) as lists, with the compiled Newton steps (:class:`RealTip`).
 
     Args:
         robot: The robot.
@@ -57,29 +128,13 @@ def real_tip_pose(robot: Robot) -> TipPose:
     Returns:
         q (list, dof) -> tip position (list, 3) [m], rotation rows (3 lists of 3).
     """
-    model, fid = robot.model, robot.tip_frame_id
-    if model.nq != robot.dof:  # continuous joints: Pinocchio's (cos, sin) coordinates
-
-        def converted(q: list[float]):
-            p, r = robot.tip_pose(np.array(q))
-            return p.tolist(), r.tolist()
-
-        return converted
-    data = model.createData()
-    forward, update, array = pin.forwardKinematics, pin.updateFramePlacement, np.array
-
-    def direct(q: list[float]):
-        forward(model, data, array(q))
-        placement = update(model, data, fid)
-        return placement.translation.tolist(), placement.rotation.tolist()
-
-    return direct
+    return RealTip(robot)
 
 
 def _approach(rot, local) -> tuple[float, float, float]:
-    """The approach axis ``rot @ local`` (rotation rows, local axis as lists)."""
+    """The approach axis ``rot @ local`` (rotation rows, or a transform's, local axis as lists)."""
     ax_l, ay_l, az_l = local
-    (r00, r01, r02), (r10, r11, r12), (r20, r21, r22) = rot
+    (r00, r01, r02, *_), (r10, r11, r12, *_), (r20, r21, r22, *_) = rot[:3]
     return (
         r00 * ax_l + r01 * ay_l + r02 * az_l,
         r10 * ax_l + r11 * ay_l + r12 * az_l,
@@ -111,57 +166,74 @@ def _end_vector(arm: ArmGeometry, roll: float) -> tuple[float, float, float]:
 
 
 def _yaws(arm: ArmGeometry, px: float, py: float, d: float):
-    """(psi front, psi back, u) of an end point on the ideal geometry, or None next to the yaw axis."""
+    """The yaws of an end point on the ideal geometry, or None on the yaw axis.
+
+    Returns:
+        (psi front, psi back, u, seeded, psi front, psi back, u): the yaws and in-plane
+        distance ``solve_core`` starts the branches at (next to the yaw axis, where the yaw
+        is ill-conditioned, apart: `seeded`; the vectorised path flags such branches singular,
+        so does this one), then the end point's own.
+    """
     hx, hy = px - arm.bx, py - arm.by
     under = hx * hx + hy * hy - d * d
     u = math.sqrt(under) if under > 0.0 else 0.0
-    # solve_core's start separation next to the yaw axis (and the cylinder, the axis itself).
-    if u <= math.sqrt(2.0 * abs(d) * arm.core_len_tol) or u <= arm.len_tol:
+    if u <= arm.len_tol:
         return None
     ang = math.atan2(hy, hx) - arm.mu
-    return ang - math.atan2(-d, u), ang - math.atan2(-d, -u), u
+    own = ang - math.atan2(-d, u), ang - math.atan2(-d, -u), u
+    u_seed = math.sqrt(2.0 * abs(d) * arm.core_len_tol)
+    if u >= u_seed:
+        return (*own, False, *own)
+    return ang - math.atan2(-d, u_seed), ang - math.atan2(-d, -u_seed), u_seed, True, *own
 
 
-def _branch(arm: ArmGeometry, psi: float, ue: float, pz: float, alpha: float, tu, tz, roll, slot: int):
-    """One branch of the ideal closed form: (q, category, wrist distance); q None unless VALID.
+def _side(arm: ArmGeometry, psi: float, ue: float, pz: float, alpha: float, tu, tz, roll, front: bool):
+    """A side's two branches of the ideal closed form: (q elbow-up, q elbow-down, category, wrist distance).
 
-    `alpha` is the in-plane approach angle of the branch's side.
+    The q are None unless the category is VALID; `alpha` is the side's in-plane approach angle.
+    Elbow-up is e <= 0 in front, e >= 0 at the back (solve_core's slots 0 and 3).
     """
     cos, sin, atan2 = math.cos, math.sin, math.atan2
-    l1, l2, g1, g2, su, sz = arm.l1, arm.l2, arm.g1, arm.g2, arm.su, arm.sz
+    l1, l2, g1, g2 = arm.l1, arm.l2, arm.g1, arm.g2
     phi = alpha - arm.beta
     cp, sp = cos(phi), sin(phi)
-    vx = ue - (cp * tu - sp * tz) - su
-    vz = pz - (sp * tu + cp * tz) - sz
+    vx = ue - (cp * tu - sp * tz) - arm.su
+    vz = pz - (sp * tu + cp * tz) - arm.sz
     dd = math.hypot(vx, vz)
     len_tol = arm.core_len_tol
     if dd > l1 + l2 + len_tol:
-        return None, BEYOND, dd
+        return None, None, BEYOND, dd
     if dd < abs(l1 - l2) - len_tol:
-        return None, INSIDE, dd
+        return None, None, INSIDE, dd
     c = (dd * dd - l1 * l1 - l2 * l2) / (2.0 * l1 * l2)
     c = 1.0 if c > 1.0 else (-1.0 if c < -1.0 else c)
     s = math.sqrt(1.0 - c * c)
-    if s < math.sin(arm.elbow_seed) or s < SINGULAR_TOL:
-        return None, -1, dd  # next to a stretched or folded elbow: the vectorised path
+    near = math.sin(arm.elbow_seed)
+    if s < near:
+        # Next to a stretched or folded elbow the real arm's two elbow solutions lie about
+        # sqrt(deviation) apart where the ideal model sees one: start them apart (solve_core's seeds).
+        s = near
+        c = math.cos(arm.elbow_seed) if c > 0.0 else -math.cos(arm.elbow_seed)
     e_abs = atan2(s, c)
     base = atan2(vz, vx)
     half = atan2(l2 * s, l1 + l2 * c)
-    # Slots: front-up (e <= 0), front-down, back-up (e >= 0), back-down (solve_core's order).
-    up = slot in (0, 3)
-    a1 = base + half if up else base - half
-    e = -e_abs if up else e_abs
-    phi2 = a1 - g1
-    phi3 = a1 + e - g2
-    signs, idx = arm.signs, arm.pitch_idx
-    q = [0.0] * arm.dof
-    q[0] = arm.sigma * psi
-    q[idx[0]] = signs[0] * phi2
-    q[idx[1]] = signs[1] * (phi3 - phi2)
-    q[idx[2]] = signs[2] * (phi - phi3)
-    if arm.roll_idx is not None:
-        q[arm.roll_idx] = roll
-    return q, VALID, dd
+    signs, idx, roll_idx = arm.signs, arm.pitch_idx, arm.roll_idx
+    q0 = arm.sigma * psi
+    out = []
+    for a1, e in (
+        ((base + half, -e_abs), (base - half, e_abs)) if ue >= 0.0 else ((base - half, e_abs), (base + half, -e_abs))
+    ):
+        phi2 = a1 - g1
+        phi3 = a1 + e - g2
+        q = [0.0] * arm.dof
+        q[0] = q0
+        q[idx[0]] = signs[0] * phi2
+        q[idx[1]] = signs[1] * (phi3 - phi2)
+        q[idx[2]] = signs[2] * (phi - phi3)
+        if roll_idx is not None:
+            q[roll_idx] = roll
+        out.append(q)
+    return out[0], out[1], VALID, dd
 
 
 def solve_corrected_scalar(
@@ -192,12 +264,14 @@ def solve_corrected_scalar(
     yaws = _yaws(arm, px, py, d)
     if yaws is None:
         return None
-    psi_f, psi_b, u = yaws
+    psi_f, psi_b, u, seeded, end_f, end_b, u_end = yaws
     # The branch pitch goal per side (core: world_pitch; front alpha, back pi - alpha).
     goals = []
     unreached = [None, None]  # per side, the category where no pitch reaches
     if pitch is not None:
-        for psi in (psi_f, psi_b):
+        # The side from the yaws the end point itself gives (solve_core: not the seeded ones,
+        # which next to the yaw axis turn the plane enough to flip it).
+        for psi in (end_f, end_b):
             yaw = psi + arm.mu
             outward = math.cos(yaw) * px + math.sin(yaw) * py >= 0.0
             alpha = pitch if outward else PI - pitch
@@ -205,8 +279,7 @@ def solve_corrected_scalar(
         goals[1] = PI - goals[1]
     else:
         # q_current's approach, measured on the real arm as a front branch (free_pitch.current_alpha).
-        _, rot_c = tip_pose(qc)
-        alpha_c = _branch_pitch(arm, qc, _approach(rot_c, local), True)
+        alpha_c = _branch_pitch(arm, qc, _approach(tip_pose.rows(qc), local), True)
         rmin = max(abs(arm.l1 - arm.l2), arm.rmin_lim) - arm.core_len_tol
         rmax = min(arm.l1 + arm.l2, arm.rmax_lim) + arm.core_len_tol
         for side, (psi, ue) in enumerate(((psi_f, u), (psi_b, -u))):
@@ -223,56 +296,47 @@ def solve_corrected_scalar(
                     phi = 0.0
                 alpha = arm.beta + phi
             goals.append(alpha if side == 0 else PI - alpha)
-    if pitch is not None:
-        cos_p, sin_p = math.cos(pitch), math.sin(pitch)
-        elevation = math.atan2(sin_p, abs(cos_p))
-    settle = 1e-14 * max(1.0, arm.scale)
-    pos_tol = 1e-12 * max(1.0, arm.scale)
-    axis_tol = SINGULAR_TOL * arm.scale
     cats = [VALID] * 4
     dist = [math.nan] * 4
+    slots, starts, aims = [], [], []
+    for side in (0, 1):
+        if unreached[side] is not None:
+            cats[2 * side] = cats[2 * side + 1] = unreached[side]
+            continue
+        alpha = goals[0] if side == 0 else PI - goals[1]
+        up, down, cat, dd = _side(
+            arm, psi_f if side == 0 else psi_b, u if side == 0 else -u, pz, alpha, tu, tz, roll, side == 0
+        )
+        if up is None and seeded:
+            # The seeds moved the wrist out of reach (the vectorised path stops there): start
+            # at the end point's own yaw instead.
+            up, down, cat, dd = _side(
+                arm, end_f if side == 0 else end_b, u_end if side == 0 else -u_end, pz, alpha, tu, tz, roll, side == 0
+            )
+        # Slots: front-up, front-down, back-up, back-down.
+        dist[2 * side] = dist[2 * side + 1] = dd
+        if up is None:
+            cats[2 * side] = cats[2 * side + 1] = cat
+            continue
+        slots += [2 * side, 2 * side + 1]
+        starts += [up, down]
+        aims += [alpha, alpha]
     sols = []
-    for slot in range(4):
-        front = slot < 2
-        goal = goals[0 if front else 1]
-        if unreached[0 if front else 1] is not None:
-            cats[slot] = unreached[0 if front else 1]
-            continue
-        psi, ue = (psi_f, u) if front else (psi_b, -u)
-        q, cat, dd = _branch(arm, psi, ue, pz, goal if front else PI - goal, tu, tz, roll, slot)
-        if cat == -1:
+    if slots:
+        settled = _settle_pitch(arm, tip_pose, px, py, pz, slots, starts, aims, local)
+        if settled is None:
             return None
-        dist[slot] = dd
-        if q is None:
-            cats[slot] = cat
-            continue
-        ex, ey, ez, pitch_eff = px, py, pz, goal
-        for round_ in range(ROUNDS + 1):
-            p, rot = tip_pose(q)
-            dx, dy, dz = px - p[0], py - p[1], pz - p[2]
-            perr = math.sqrt(dx * dx + dy * dy + dz * dz)
-            a = _approach(rot, local)
-            miss = wrap_pi(goal - _branch_pitch(arm, q, a, front))
-            if (perr <= settle and abs(miss) <= 1e-13) or round_ == ROUNDS:
-                break
-            ex, ey, ez, pitch_eff = ex + dx, ey + dy, ez + dz, pitch_eff + miss
-            moved = _yaws(arm, ex, ey, d)
-            if moved is None:
-                return None
-            psi = moved[0] if front else moved[1]
-            ue = moved[2] if front else -moved[2]
-            q_new, cat, dd = _branch(arm, psi, ue, ez, pitch_eff if front else PI - pitch_eff, tu, tz, roll, slot)
-            if q_new is None:
-                return None
-            q, dist[slot] = q_new, dd
-        oerr = None
         if pitch is not None:
-            oerr = pitch_error_scalar(a[0], a[1], a[2], px, py, cos_p, sin_p, elevation)
-            if oerr > 1e-9:
-                return None
-        if perr > pos_tol or abs(miss) > 1e-9:
-            return None
-        sols.append((slot, q, abs(ue) < axis_tol, perr, oerr))
+            cos_p, sin_p = math.cos(pitch), math.sin(pitch)
+            elevation = math.atan2(sin_p, abs(cos_p))
+        axis_tol = SINGULAR_TOL * arm.scale
+        for slot, (q, perr, a) in zip(slots, settled):
+            oerr = None
+            if pitch is not None:
+                oerr = pitch_error_scalar(a[0], a[1], a[2], px, py, cos_p, sin_p, elevation)
+                if oerr > 1e-9:
+                    return None
+            sols.append((slot, q, seeded or u_end < axis_tol, perr, oerr))
     # Branches that converged onto one solution (refine's twins): the vectorised path.
     if _twins(arm, sols):
         return None
@@ -280,12 +344,61 @@ def solve_corrected_scalar(
     return result if result.status == STATUS_SOLVED else None
 
 
-def _angle(rot_a: list[list[float]], rot_b: np.ndarray) -> float:
-    """Angle [rad] of the rotation between two orientations (``rotation_error``), one as rows."""
-    rel = np.array(rot_a).T @ rot_b
-    (r00, r01, r02), (r10, r11, r12), (r20, r21, r22) = rel.tolist()
-    cos_a = 0.5 * (r00 + r11 + r22 - 1.0)
-    sin_a = 0.5 * math.sqrt((r21 - r12) ** 2 + (r02 - r20) ** 2 + (r10 - r01) ** 2)
+def _settle_pitch(arm: ArmGeometry, tip_pose: RealTip, px, py, pz, slots, starts, aims, local):
+    """The branches' Newton steps on the real model, each verified by its FK (Pinocchio).
+
+    Returns:
+        Per branch (q, position error [m], approach axis), or None when a branch did not settle
+        to round-off (:data:`SETTLE`) within :data:`CALLS` calls (the ideal closed form's
+        branches exist on the real arm but next to the boundary of the reach or the yaw axis,
+        where the steps need not converge: the vectorised path decides).
+    """
+    dof = arm.dof
+    kernel = tip_pose.kernel(arm)
+    pos_tol = SETTLE * max(1.0, arm.scale)
+    k = len(slots)
+    flat = [v for i in range(4) for v in starts[i if i < k else 0]]
+    aim4 = [aims[i if i < k else 0] for i in range(4)]
+    target = [px, py, pz]
+    lx, ly, lz = local
+    rows = tip_pose.rows
+    out = [None] * k
+    pending = range(k)
+    for _ in range(CALLS):
+        flat, misses = kernel.pitch(flat, target, aim4)
+        left = []
+        for i in pending:
+            q = flat[i * dof : (i + 1) * dof]
+            (r00, r01, r02, x), (r10, r11, r12, y), (r20, r21, r22, z), _ = rows(q)
+            dx, dy, dz = px - x, py - y, pz - z
+            perr = math.sqrt(dx * dx + dy * dy + dz * dz)
+            # The position by Pinocchio's FK; the branch's elevation (not the target's, for a
+            # position target) by the compiled model's.
+            if perr <= pos_tol and abs(misses[i]) <= 1e-13:
+                a = (r00 * lx + r01 * ly + r02 * lz, r10 * lx + r11 * ly + r12 * lz, r20 * lx + r21 * ly + r22 * lz)
+                out[i] = (q, perr, a)
+            else:
+                left.append(i)
+        if not left:
+            return out
+        pending = left
+    return None
+
+
+def _angle(rot_a: list[list[float]], rot_b: list[list[float]]) -> float:
+    """Angle [rad] of the rotation between two orientations (``rotation_error``), given by rows.
+
+    The first may have 4 columns (a homogeneous transform's rows); the fourth is ignored.
+    """
+    (a00, a01, a02, *_), (a10, a11, a12, *_), (a20, a21, a22, *_) = rot_a[:3]
+    (b00, b01, b02), (b10, b11, b12), (b20, b21, b22) = rot_b
+    # rel = A^T B: its trace and the differences of its off-diagonal pairs.
+    trace = a00 * b00 + a10 * b10 + a20 * b20 + a01 * b01 + a11 * b11 + a21 * b21 + a02 * b02 + a12 * b12 + a22 * b22
+    s0 = (a01 * b02 + a11 * b12 + a21 * b22) - (a02 * b01 + a12 * b11 + a22 * b21)
+    s1 = (a02 * b00 + a12 * b10 + a22 * b20) - (a00 * b02 + a10 * b12 + a20 * b22)
+    s2 = (a00 * b01 + a10 * b11 + a20 * b21) - (a01 * b00 + a11 * b10 + a21 * b20)
+    cos_a = 0.5 * (trace - 1.0)
+    sin_a = 0.5 * math.sqrt(s0 * s0 + s1 * s1 + s2 * s2)
     return math.atan2(sin_a, min(1.0, max(-1.0, cos_a)))
 
 
@@ -295,8 +408,10 @@ def solve_corrected_pose(
     """Every branch of a full-pose target on an inexact chain, or None (see the module).
 
     Each branch of the ideal closed form (:func:`~planner.ik.analytic.yaw_planar.scalar_pose.pose_branches`)
-    is re-solved for the pose composed with the inverse of the error it left, as
-    :func:`~planner.ik.analytic.yaw_planar.refine.refine` does, :data:`ROUNDS` times.
+    is taken to the real model's solution by Gauss-Newton steps on it (compiled,
+    :mod:`~planner.ik.analytic.yaw_planar.newton`). Branches whose steps stall far from the
+    target are not solutions on the real arm (the ideal model accepts an orientation residual
+    up to about the chain's deviation): categorised ORIENT, as the vectorised path does.
 
     Args:
         arm: The geometry (inexact).
@@ -310,53 +425,93 @@ def solve_corrected_pose(
     """
     pos = target.position
     rot = target.rotation
-    sols, cats, dist = pose_branches(arm, frame, pos.tolist(), rot, qc)
-    # Next to a stretched or folded elbow or the yaw axis the vectorised path starts the branches
-    # apart (solve_core's seeds): take it there.
+    position = pos.tolist()
+    sols, cats, dist = pose_branches(arm, frame, position, rot, qc)
+    # Next to a stretched or folded elbow the vectorised path starts the elbow branches apart
+    # (solve_core's seeds): take it there.
     near_elbow = math.sin(arm.elbow_seed)
-    reach = math.hypot(pos[0] - arm.bx, pos[1] - arm.by)
-    if reach <= abs(arm.lateral_offset) + arm.scale * 1e-3 + math.sqrt(2.0 * arm.scale * arm.core_len_tol):
-        return None
     for _, q, singular, _, _ in sols:
         e = arm.signs[1] * q[arm.pitch_idx[1]] + (arm.g2 if arm.n_pitch == 3 else 0.0) - arm.g1
         if singular or (arm.n_pitch == 3 and abs(math.sin(e)) < 2.0 * near_elbow):
             return None
-    settle = 1e-14 * max(1.0, arm.scale)
-    pos_tol = 1e-12 * max(1.0, arm.scale)
-    out = []
-    for slot, q, singular, _, _ in sols:
-        p_eff, r_eff = pos, rot
-        for round_ in range(ROUNDS + 1):
-            p, r = tip_pose(q)
-            dp = pos - np.array(p)
-            perr = math.sqrt(float(dp @ dp))
-            oerr = _angle(r, rot)
-            if (perr <= settle and oerr <= 1e-13) or round_ == ROUNDS:
-                break
-            # T_eff <- T_eff FK(q)^-1 T: the pose error, expressed at the tip, undone.
-            r_t = np.array(r).T
-            p_eff = p_eff + r_eff @ (r_t @ dp)
-            r_eff = r_eff @ r_t @ rot
-            moved, _, _ = pose_branches(arm, frame, p_eff.tolist(), r_eff, qc)
-            q = next((m[1] for m in moved if m[0] == slot), None)
-            if q is None:
-                return None
-        if perr > pos_tol or oerr > 1e-9:
-            return None
-        out.append((slot, q, singular, perr, oerr))
+    if not sols:
+        result = finish_scalar(arm, sols, cats, dist, qc, target)
+        return result if result.status == STATUS_SOLVED else None
+    seeded = _seeded_pose(arm, position, rot)
+    dof = arm.dof
+    kernel = tip_pose.kernel(arm)
+    pos_tol = SETTLE * max(1.0, arm.scale)
+    k = len(sols)
+    flat = [v for i in range(4) for v in sols[i if i < k else 0][1]]
+    px, py, pz = position
+    rot_rows = rot.tolist()
+    rot_columns = rot.T.reshape(9).tolist()
+    rows = tip_pose.rows
+    found = [None] * k
+    last = [math.inf] * k
+    pending = range(k)
+    for _ in range(CALLS):
+        flat = kernel.pose(flat, position, rot_columns)
+        left = []
+        for i in pending:
+            slot, _, singular, _, _ = sols[i]
+            q = flat[i * dof : (i + 1) * dof]
+            r = rows(q)
+            dx, dy, dz = px - r[0][3], py - r[1][3], pz - r[2][3]
+            perr = math.sqrt(dx * dx + dy * dy + dz * dz)
+            oerr = _angle(r, rot_rows)
+            error = perr / arm.scale + oerr
+            if perr <= pos_tol and oerr <= 1e-13:
+                found[i] = (slot, q, singular or seeded, perr, oerr)
+            elif error > 1e-9 and error >= 0.5 * last[i]:
+                # The steps stalled far from the target: no solution next to the ideal one
+                # (its orientation residual, accepted up to the chain's deviation, is real).
+                cats[slot] = ORIENT
+            else:
+                last[i] = error
+                left.append(i)
+        if not left:
+            break
+        pending = left
+    else:
+        return None
+    out = [f for f in found if f is not None]
     if _twins(arm, out):
         return None
     result = finish_scalar(arm, out, cats, dist, qc, target)
     return result if result.status == STATUS_SOLVED else None
 
 
+def _seeded_pose(arm: ArmGeometry, position: list[float], rot: np.ndarray) -> bool:
+    """Whether ``solve_core`` starts this pose's yaws apart next to the yaw axis (and flags them singular)."""
+    ex, ey = position[0], position[1]
+    if arm.has_roll:
+        shift = rot @ arm.centre_to_tip_local
+        ex, ey = ex - float(shift[0]), ey - float(shift[1])
+        d = arm.centre[2]
+    else:
+        d = arm.tip_fixed[2]
+    hx, hy = ex - arm.bx, ey - arm.by
+    rho2 = hx * hx + hy * hy
+    if rho2 <= arm.len_tol * arm.len_tol and abs(d) <= arm.len_tol:
+        return False  # free: flagged singular by the closed form itself
+    under = rho2 - d * d
+    if under < -2.0 * abs(d) * arm.core_len_tol:
+        return False  # the cylinder
+    return math.sqrt(max(under, 0.0)) < math.sqrt(2.0 * abs(d) * arm.core_len_tol)
+
+
 def _twins(arm: ArmGeometry, sols) -> bool:
-    """Whether two branches converged onto one solution (refine's twins)."""
+    """Whether two branches converged onto one solution (refine's twins: 1e-7 rad on every joint)."""
     shoulder = arm.pitch_idx[0]
-    for i in range(len(sols)):
-        for j in range(i + 1, len(sols)):
-            qi, qj = sols[i][1], sols[j][1]
-            if abs(wrap_pi(qi[0] - qj[0])) < 1e-7 and abs(wrap_pi(qi[shoulder] - qj[shoulder])) < 1e-7:
-                if max(abs(wrap_pi(a - b)) for a, b in zip(qi, qj)) < 1e-7:
-                    return True
+    near = TWO_PI - 1e-7
+    n = len(sols)
+    for i in range(n):
+        qi = sols[i][1]
+        for j in range(i + 1, n):
+            qj = sols[j][1]
+            if 1e-7 <= (qi[shoulder] - qj[shoulder]) % TWO_PI <= near:
+                continue  # the usual case: the shoulders differ
+            if all(not 1e-7 <= (a - b) % TWO_PI <= near for a, b in zip(qi, qj)):
+                return True
     return False

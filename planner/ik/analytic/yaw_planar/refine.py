@@ -3,10 +3,12 @@
 Chains whose axes deviate from the ideal directions by round-off (up to
 :data:`~planner.ik.analytic.base.FAMILY_ANGLE_TOL`, e.g. SO-101's URDF, a few micro-radians) are
 solved on the ideal geometry and then corrected on the real one (product of exponentials):
-each branch is re-solved for the target shifted by the error it left, which converges by about
-the deviation per round, and branches that do not settle (next to a stretched elbow) are
-finished by damped Gauss-Newton steps. Only branches that then reproduce the target (1e-10 m,
-1e-9 rad) are kept. On exact chains this only measures the errors.
+each branch by Newton's steps on it (compiled: :func:`newton`), which square the error per
+step; branches they do not settle (next to the boundary of the real reach) are finished by
+damped Gauss-Newton steps (:func:`polish`). Without those Newton steps (two pitch joints and
+no rotation) each branch is re-solved for the target shifted by the error it left, which
+converges by about the deviation per round. Only branches that then reproduce the target
+(1e-10 m, 1e-9 rad) are kept. On exact chains this only measures the errors.
 """
 
 from __future__ import annotations
@@ -15,13 +17,15 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from planner.core.rotations import rotation_error
 from planner.ik.analytic.geometry import wrap_pi
 from planner.ik.analytic.yaw_planar.arm import ArmGeometry
 from planner.ik.analytic.yaw_planar.branches import BEYOND, DUPLICATE, INSIDE, ORIENT, VALID
 from planner.ik.analytic.yaw_planar.core import CoreBranches, solve_core
+from planner.ik.analytic.yaw_planar.newton import newton_kernel
 from planner.ik.analytic.yaw_planar.real_model import orientation_errors, true_fk, true_pitch
 
-__all__ = ["Refined", "refine", "polish", "orthonormalize"]
+__all__ = ["Refined", "refine", "newton", "polish", "orthonormalize"]
 
 
 @dataclass(frozen=True)
@@ -94,11 +98,15 @@ def refine(arm: ArmGeometry, core: CoreBranches, pos, pit, rot, qc, roll_free=No
     rot_t = None if rot is None else np.broadcast_to(rot[:, None], (n, 4, 3, 3))
     rot_eff = None if rot is None else rot_t.copy()
     qc4 = None if qc is None else np.broadcast_to(qc[:, None, :], (n, 4, arm.dof))
-    rows = np.arange(4 * n)
     slot = np.tile(np.arange(4), n)
     settle_tol = 1e-14 * max(1.0, arm.scale)
     pos_tol = 1e-10 * max(1.0, arm.scale)
     valid = cat == VALID
+    if not arm.exact and (rot is not None or arm.n_pitch == 3):
+        # Newton's steps settle every branch that has a solution next to the ideal one; the
+        # others (next to the boundary of the reach) go to the damped steps of `polish`.
+        q = newton(arm, q, valid, pos, pitch_goal, rot)
+        max_rounds = 0
     for round_ in range(max_rounds + 1):
         fk_p, fk_r = true_fk(arm, q)
         perr = np.linalg.norm(fk_p - pos[:, None, :], axis=-1)
@@ -120,20 +128,24 @@ def refine(arm: ArmGeometry, core: CoreBranches, pos, pit, rot, qc, roll_free=No
             p_eff = p_eff + (pos[:, None, :] - fk_p)
         if pitch_goal is not None:
             pitch_eff = pitch_eff + wrap_pi(pitch_goal - pitch_now)
+        # Only the branches still unsettled move (those Newton's steps settled stay).
+        sel = np.nonzero((valid & ~settled).reshape(-1))[0]
         sub = solve_core(
             arm,
-            p_eff.reshape(-1, 3),
-            None if pitch_eff is None else pitch_eff.reshape(-1),
-            None if rot_eff is None else rot_eff.reshape(-1, 3, 3),
-            None if qc4 is None else qc4.reshape(-1, arm.dof),
+            p_eff.reshape(-1, 3)[sel],
+            None if pitch_eff is None else pitch_eff.reshape(-1)[sel],
+            None if rot_eff is None else rot_eff.reshape(-1, 3, 3)[sel],
+            None if qc4 is None else qc4.reshape(-1, arm.dof)[sel],
             arm.orient_tol,
             internal_pitch=True,
-            roll_free=None if roll_free is None else np.repeat(roll_free, 4),
+            roll_free=None if roll_free is None else np.repeat(roll_free, 4)[sel],
         )
-        q_new = sub.q[rows, slot].reshape(n, 4, arm.dof)
-        took = valid & (sub.cat[rows, slot].reshape(n, 4) == VALID)
-        q = np.where(took[..., None], q_new, q)
-        dist = np.where(took, sub.dist[rows, slot].reshape(n, 4), dist)
+        picked = np.arange(sel.size)
+        took = sub.cat[picked, slot[sel]] == VALID
+        q = q.copy()
+        q.reshape(-1, arm.dof)[sel[took]] = sub.q[picked, slot[sel]][took]
+        dist = dist.copy()
+        dist.reshape(-1)[sel[took]] = sub.dist[picked, slot[sel]][took]
     if not arm.exact:
         todo = valid & ~settled
         if todo.any():
@@ -169,6 +181,51 @@ def refine(arm: ArmGeometry, core: CoreBranches, pos, pit, rot, qc, roll_free=No
     return Refined(q, cat, perr, oerr, dist, singular)
 
 
+def newton(arm: ArmGeometry, q, valid, pos, pitch_goal, rot, calls: int = 3):
+    """The valid branches after Newton steps on the real model (:mod:`~planner.ik.analytic.yaw_planar.newton`).
+
+    Position and pitch targets (three pitch joints) keep their branch pitch `pitch_goal`
+    (N, 4) and their roll; rotation targets move every joint. Up to `calls` calls (2 steps
+    each) for the branches not yet at round-off by the real model; branches the steps do not
+    settle are left to the re-solving rounds and :func:`polish` (which start from them).
+
+    Returns:
+        q (N, 4, dof).
+    """
+    rows = np.nonzero(valid.reshape(-1))[0]
+    if rows.size == 0:
+        return q
+    n = pos.shape[0]
+    dof = arm.dof
+    kernel = newton_kernel(arm)
+    flat = q.reshape(-1, dof).copy()
+    target = np.repeat(pos, 4, axis=0)
+    if rot is not None:
+        kind, other = "pose", np.repeat(rot, 4, axis=0)
+    else:
+        # true_pitch's front value: the goal itself in front, pi minus the back branches' goal.
+        kind = "pitch"
+        other = np.where(np.array([True, True, False, False]), pitch_goal, np.pi - pitch_goal).reshape(-1)
+    settle = 1e-14 * max(1.0, arm.scale)
+    for _ in range(calls):
+        flat[rows] = kernel.many(flat[rows], target[rows], other[rows], kind)
+        fk_p, fk_r = true_fk(arm, flat[rows])
+        done = np.linalg.norm(fk_p - target[rows], axis=-1) <= settle
+        if rot is not None:
+            done &= np.asarray(rotation_error(fk_r, other[rows])) <= 1e-13
+        else:
+            a = fk_r @ arm.approach_local
+            yaw = arm.mu + arm.sigma * flat[rows, 0]
+            along = np.cos(yaw) * a[:, 0] + np.sin(yaw) * a[:, 1]
+            horiz = np.hypot(a[:, 0], a[:, 1])
+            alpha = np.arctan2(a[:, 2], np.where(along >= 0.0, horiz, -horiz))
+            done &= np.abs(wrap_pi(alpha - other[rows])) <= 1e-13
+        rows = rows[~done]
+        if rows.size == 0:
+            break
+    return flat.reshape(n, 4, dof)
+
+
 def polish(arm: ArmGeometry, q, pos, pit, rot, front, iterations: int = 40):
     """Damped Gauss-Newton on the real model for K rows; returns the new q (K, dof).
 
@@ -199,9 +256,16 @@ def polish(arm: ArmGeometry, q, pos, pit, rot, front, iterations: int = 40):
         return np.concatenate(parts, axis=-1)
 
     step = 1e-7
+    history = []
     for _ in range(iterations):
         r = residual(q)
-        if np.max(np.abs(r)) <= 1e-15:
+        size = np.max(np.abs(r), axis=-1)
+        if np.max(size) <= 1e-15:
+            break
+        # Stop once no row is still improving (by 1 % over the last 3 steps): the rows left
+        # stalled at a residual that is not a solution (e.g. just beyond the real reach).
+        history.append(size)
+        if len(history) > 3 and np.all((size <= 1e-15) | (size > 0.99 * history[-4])):
             break
         jac = np.empty(r.shape + (len(active),))
         for k, j in enumerate(active):
