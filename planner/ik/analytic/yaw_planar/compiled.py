@@ -48,6 +48,10 @@ BLOCK = 4096
 #: Targets per call for the rest.
 SMALL_BLOCK = 64
 REP = (0, 0, 1, 1)
+#: 1.5 * 2**52: x + MAGIC - MAGIC rounds x to an integer, halves to even.
+MAGIC = 6755399441055744.0
+#: How far beyond pi [rad] a wrapped value may lie (round-off; far less than this).
+REACHED = 1e-6
 
 
 def compiled_supported(arm: ArmGeometry, pit, rot, qc) -> bool:
@@ -68,11 +72,13 @@ def _where(cond, a, b):
 
 
 def _rint(y):
-    """``numpy.round``: to the nearest integer, halves to even (exact, unlike floor(y + 0.5))."""
-    r = ca.floor(y)
-    frac = y - r
-    odd = r - 2.0 * ca.floor(0.5 * r) != 0.0
-    return r + ca.logic_or(frac > 0.5, ca.logic_and(frac == 0.5, odd))
+    """``numpy.round``: to the nearest integer, halves to even, for ``|y| < 2**51``.
+
+    Adding and subtracting 1.5 * 2**52 leaves the integer that the addition rounds to (round
+    to nearest, ties to even). ``fmax`` keeps CasADi from folding the pair away (the sum is
+    positive; a NaN `y` gives a NaN value through the ``x - 2 pi r`` of :func:`_wrap`).
+    """
+    return ca.fmax(y + MAGIC, 0.0) - MAGIC
 
 
 def _wrap_pi(x):
@@ -82,16 +88,25 @@ def _wrap_pi(x):
 
 
 def _wrap(x, lower: float, upper: float):
-    """:func:`~planner.geometry.chain.wrap_array` with ref 0, one value."""
+    """:func:`~planner.geometry.chain.wrap_array` with ref 0, one value.
+
+    After the turn to the nearest 2 pi multiple, |x| <= pi (to round-off): a limit beyond
+    pi + 1e-6 is never exceeded there, and its step is left out (the other step may still
+    turn x past it: the snaps onto the limits stay).
+    """
     x = x - TWO_PI * _rint(x / TWO_PI)
     if not (math.isfinite(lower) or math.isfinite(upper)):
         return x
-    down = x - TWO_PI
-    x = _where(x > upper, _where(ca.logic_or(down >= lower - LIMIT_SNAP, (x - upper) > (lower - down)), down, x), x)
-    up = x + TWO_PI
-    x = _where(x < lower, _where(ca.logic_or(up <= upper + LIMIT_SNAP, (lower - x) > (up - upper)), up, x), x)
+    over = upper < PI + REACHED
+    if over:
+        down = x - TWO_PI
+        x = _where(x > upper, _where(ca.logic_or(down >= lower - LIMIT_SNAP, (x - upper) > (lower - down)), down, x), x)
+    if over or lower > -PI - REACHED:
+        up = x + TWO_PI
+        x = _where(x < lower, _where(ca.logic_or(up <= upper + LIMIT_SNAP, (lower - x) > (up - upper)), up, x), x)
     x = _where(ca.logic_and(x > upper, x <= upper + LIMIT_SNAP), upper, x)
-    return _where(ca.logic_and(x < lower, x >= lower - LIMIT_SNAP), lower, x)
+    x = _where(ca.logic_and(x < lower, x >= lower - LIMIT_SNAP), lower, x)
+    return x
 
 
 def _one_target(arm: ArmGeometry, pitch: bool) -> ca.Function:
