@@ -4,7 +4,9 @@ On dh3, three_joint and al5c (exact yaw + 2 or 3 pitch arms) and on random exact
 family: the same branches, masks, statuses and best branch as
 :func:`~planner.ik.analytic.yaw_planar.batch.solve_arrays_within`, joint values and position
 errors equal to round-off, for targets by FK of random configurations (some on the joint range
-ends), targets moved off the reachable set and random points; compiled to C and on CasADi's
+ends), targets moved off the reachable set and random points, with and without q_current (the
+generating configuration or another), position targets with a free end angle included (the
+targets the compiled function hands over to NumPy included); compiled to C and on CasADi's
 virtual machine. Solved answers reproduce the target by Pinocchio FK.
 """
 
@@ -22,10 +24,22 @@ from test_analytic_fast_paths import yaw_planar_arms
 from planner import load_robot
 from planner.geometry.target import approach_pitch
 from planner.ik.analytic import closed_form_solver
-from planner.ik.analytic.yaw_planar.batch import solve_arrays_within
+from planner.ik.analytic.yaw_planar.batch import solve_arrays_within, solve_compiled_within
 from planner.ik.analytic.yaw_planar.compiled import SMALL_BLOCK, CompiledKernels, compiled_supported, solve_compiled
 
-KINDS = [("dh3", False), ("dh3", True), ("three_joint", True), ("al5c", True)]
+# (robot, pitch targets, q_current)
+KINDS = [
+    ("dh3", False, False),
+    ("dh3", True, False),
+    ("dh3", False, True),
+    ("three_joint", True, False),
+    ("three_joint", False, False),
+    ("three_joint", False, True),
+    ("al5c", True, False),
+    ("al5c", True, True),
+    ("al5c", False, False),
+    ("al5c", False, True),
+]
 TOL_POS = 1e-9
 
 
@@ -35,8 +49,9 @@ def solver(name):
 
 
 def targets(robot, rng, n):
-    """Positions and pitches: FK of random configurations (a quarter with joints on their range
-    ends), a quarter of them moved by up to 20 % of the reach, and random points."""
+    """Positions, pitches and q_current: FK of random configurations (a quarter with joints on
+    their range ends), a quarter of them moved by up to 20 % of the reach, and random points;
+    q_current the generating configuration for half the targets, another for the rest."""
     lo, hi = np.asarray(robot.lower), np.asarray(robot.upper)
     q = rng.uniform(lo, hi, (n, len(lo)))
     ends = rng.random((n, len(lo))) < 0.25
@@ -51,7 +66,9 @@ def targets(robot, rng, n):
     pit[loose] = rng.uniform(-np.pi, np.pi, int(loose.sum()))
     # Exactly on the x axis, where the back branch's yaw is pi, on a range end.
     pos[:4, 1] = 0.0
-    return pos, pit
+    other = rng.random(n) < 0.5
+    qc = np.where(other[:, None], rng.uniform(lo, hi, (n, len(lo))), q)
+    return pos, pit, qc
 
 
 def assert_same(got, want):
@@ -63,17 +80,24 @@ def assert_same(got, want):
 
 
 @pytest.mark.parametrize("compiled", [True, False], ids=["C", "vm"])
-@pytest.mark.parametrize(("name", "pitch"), KINDS)
-def test_compiled_equals_numpy(name, pitch, compiled):
+@pytest.mark.parametrize(("name", "pitch", "current"), KINDS)
+def test_compiled_equals_numpy(name, pitch, current, compiled):
     s = solver(name)
     arm = s.arm
     rng = np.random.default_rng(12)
     n = 4096 + 3 * SMALL_BLOCK + 17  # a full block, small blocks and a padded rest
-    pos, pit = targets(s.robot, rng, n)
+    pos, pit, qc = targets(s.robot, rng, n)
     pit = pit if pitch else None
-    assert compiled_supported(arm, pit, None, None)
-    got = solve_compiled(CompiledKernels(arm), pos, pit, compiled=compiled)
-    want = solve_arrays_within(arm, pos, pit, None, None)
+    qc = qc if current else None
+    assert compiled_supported(arm, pit, None, qc)
+    kernels = CompiledKernels(arm)
+    _, handed = solve_compiled(kernels, pos, pit, qc, compiled=compiled)
+    if arm.n_pitch == 3 and not pitch:
+        assert 0 < handed.size < n  # the search within the limits: NumPy's
+    else:
+        assert handed.size == 0
+    got = solve_compiled_within(kernels, pos, pit, qc, compiled=compiled)
+    want = solve_arrays_within(arm, pos, pit, None, qc)
     assert_same(got, want)
     statuses = set(np.unique(got.status).tolist())
     assert 0 in statuses and len(statuses) >= 2  # solved and failing targets both met
@@ -87,15 +111,16 @@ def test_compiled_equals_numpy(name, pitch, compiled):
     assert np.all(s.robot.within_limits(q))
 
 
-@pytest.mark.parametrize(("name", "pitch"), KINDS)
-def test_solve_batch_uses_the_same_answers(name, pitch):
+@pytest.mark.parametrize(("name", "pitch", "current"), KINDS)
+def test_solve_batch_uses_the_same_answers(name, pitch, current):
     """The public solve_batch (the compiled path here) equals the NumPy arrays."""
     s = solver(name)
     rng = np.random.default_rng(3)
-    pos, pit = targets(s.robot, rng, 1500)
+    pos, pit, qc = targets(s.robot, rng, 1500)
     pit = pit if pitch else None
-    batch = s.solve_batch(pos, pitch=pit)
-    want = solve_arrays_within(s.arm, pos, pit, None, None)
+    qc = qc if current else None
+    batch = s.solve_batch(pos, pitch=pit, q_current=qc)
+    want = solve_arrays_within(s.arm, pos, pit, None, qc)
     np.testing.assert_array_equal(batch.status, want.status)
     np.testing.assert_array_equal(batch.best, want.best)
     np.testing.assert_array_equal(batch.valid, want.valid)
@@ -103,20 +128,21 @@ def test_solve_batch_uses_the_same_answers(name, pitch):
     np.testing.assert_allclose(batch.q, want.q, rtol=0.0, atol=1e-9)
 
 
-def test_not_supported_where_numpy_must_search():
+def test_not_supported_for_rotations():
     three = solver("three_joint").arm
-    assert not compiled_supported(three, None, None, None)  # free end angle
-    assert not compiled_supported(three, np.zeros(1), None, np.zeros((1, 4)))  # q_current
-    assert not compiled_supported(three, None, np.eye(3)[None], None)  # rotations
+    assert compiled_supported(three, None, None, None)  # free end angle (searched by NumPy)
+    assert compiled_supported(three, np.zeros(1), None, np.zeros((1, 4)))
+    assert not compiled_supported(three, None, np.eye(3)[None], None)
 
 
 @property_settings(25)
-@given(robot=yaw_planar_arms(), seed=st.integers(0, 2**32 - 1), pitch=st.booleans())
-def test_random_exact_arms_vm(robot, seed, pitch):
+@given(robot=yaw_planar_arms(), seed=st.integers(0, 2**32 - 1), pitch=st.booleans(), current=st.booleans())
+def test_random_exact_arms_vm(robot, seed, pitch, current):
     s = closed_form_solver(robot)
     rng = np.random.default_rng(seed)
-    pos, pit = targets(robot, rng, 40)
+    pos, pit, qc = targets(robot, rng, 40)
     pit = pit if pitch else None
-    assume(s.arm.exact and (not pitch or s.arm.pitch_supported) and compiled_supported(s.arm, pit, None, None))
-    got = solve_compiled(CompiledKernels(s.arm), pos, pit, compiled=False)
-    assert_same(got, solve_arrays_within(s.arm, pos, pit, None, None))
+    qc = qc if current else None
+    assume(s.arm.exact and (not pitch or s.arm.pitch_supported) and compiled_supported(s.arm, pit, None, qc))
+    got = solve_compiled_within(CompiledKernels(s.arm), pos, pit, qc, compiled=False)
+    assert_same(got, solve_arrays_within(s.arm, pos, pit, None, qc))

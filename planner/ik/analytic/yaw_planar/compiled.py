@@ -56,15 +56,10 @@ REACHED = 1e-6
 
 def compiled_supported(arm: ArmGeometry, pit, rot, qc) -> bool:
     """Whether :func:`solve_compiled` gives the NumPy path's answers for these inputs."""
-    if not arm.exact or rot is not None or qc is not None or not arm.tip_on_roll_axis:
+    if not arm.exact or rot is not None or not arm.tip_on_roll_axis or arm.elbow_seed > 0.0:
         return False
-    if arm.elbow_seed > 0.0:
-        return False
-    if arm.n_pitch == 3 and pit is None:
-        return False  # the free end angle and its search stay in NumPy
-    if arm.has_roll and not arm.lower[arm.roll_idx] <= 0.0 <= arm.upper[arm.roll_idx]:
-        return False
-    return True
+    # Without q_current the roll is 0, which must lie within its range (else NumPy wraps it).
+    return not (qc is None and arm.has_roll and not arm.lower[arm.roll_idx] <= 0.0 <= arm.upper[arm.roll_idx])
 
 
 def _where(cond, a, b):
@@ -87,21 +82,22 @@ def _wrap_pi(x):
     return _where(m < 0.0, m + TWO_PI, m) - PI
 
 
-def _wrap(x, lower: float, upper: float):
-    """:func:`~planner.geometry.chain.wrap_array` with ref 0, one value.
+def _wrap(x, lower: float, upper: float, ref=0.0):
+    """:func:`~planner.geometry.chain.wrap_array`, one value.
 
-    After the turn to the nearest 2 pi multiple, |x| <= pi (to round-off): a limit beyond
-    pi + 1e-6 is never exceeded there, and its step is left out (the other step may still
-    turn x past it: the snaps onto the limits stay).
+    With `ref` 0, after the turn to the nearest 2 pi multiple |x| <= pi (to round-off): a
+    limit beyond pi + 1e-6 is never exceeded there, and its step is left out (the other step
+    may still turn x past it: the snaps onto the limits stay).
     """
-    x = x - TWO_PI * _rint(x / TWO_PI)
+    x = x - TWO_PI * _rint((x - ref) / TWO_PI)
     if not (math.isfinite(lower) or math.isfinite(upper)):
         return x
-    over = upper < PI + REACHED
+    centred = isinstance(ref, float) and ref == 0.0
+    over = upper < PI + REACHED or not centred
     if over:
         down = x - TWO_PI
         x = _where(x > upper, _where(ca.logic_or(down >= lower - LIMIT_SNAP, (x - upper) > (lower - down)), down, x), x)
-    if over or lower > -PI - REACHED:
+    if over or lower > -PI - REACHED:  # (over includes not centred)
         up = x + TWO_PI
         x = _where(x < lower, _where(ca.logic_or(up <= upper + LIMIT_SNAP, (lower - x) > (up - upper)), up, x), x)
     x = _where(ca.logic_and(x > upper, x <= upper + LIMIT_SNAP), upper, x)
@@ -109,10 +105,16 @@ def _wrap(x, lower: float, upper: float):
     return x
 
 
-def _one_target(arm: ArmGeometry, pitch: bool) -> ca.Function:
-    """The closed form of one target as an SX function: (position, pitch) -> the per-target arrays."""
+def _one_target(arm: ArmGeometry, pitch: bool, current: bool) -> ca.Function:
+    """The closed form of one target as an SX function: (position, pitch, q_current) -> the per-target arrays.
+
+    Where the end angle is free (three pitch joints, no pitch), the last output is 1 where
+    :func:`solve_compiled` must hand the target to NumPy: not solved (the search within the
+    limits), or q_current's end angle out of a side's reach (the default choice).
+    """
     p = ca.SX.sym("p", 3)
     pit = ca.SX.sym("pit") if pitch else None
+    qc = ca.SX.sym("qc", arm.dof) if current else None
     dof = arm.dof
     tu, tz, d = arm.tip_fixed
     hx = p[0] - arm.bx
@@ -134,7 +136,7 @@ def _one_target(arm: ArmGeometry, pitch: bool) -> ca.Function:
         psi_f = ang - arm.mu - ca.atan2(-d, u)
         psi_b = ang - arm.mu - ca.atan2(-d, -u)
     back_dup = ca.logic_or(free, u == 0.0)
-    psi_f = _where(free, 0.0, psi_f)
+    psi_f = _where(free, arm.sigma * qc[0] if current else 0.0, psi_f)
     u = _where(free, 0.0, u)
     psi = [psi_f, psi_b]
     ue = [u, -u]
@@ -148,6 +150,13 @@ def _one_target(arm: ArmGeometry, pitch: bool) -> ca.Function:
     sg, idx = arm.signs, arm.pitch_idx
     q = [[None] * dof for _ in range(4)]
     cat4 = [None] * 4
+    free_end = arm.n_pitch == 3 and not pitch
+    handover = None
+    if free_end and current:
+        phi_end, handover = _current_end_angle(arm, qc, psi, ue, ze)
+    elif free_end:
+        phi_end, fail = _default_end_angle(arm, ue, ze)
+        cat = [_where(ca.logic_and(cat[k] == VALID, fail[k] != VALID), fail[k], cat[k]) for k in range(2)]
     if arm.n_pitch == 2 and pitch:
         l2 = math.hypot(tu, tz)
         g2 = math.atan2(tz, tu)
@@ -182,7 +191,7 @@ def _one_target(arm: ArmGeometry, pitch: bool) -> ca.Function:
     else:
         if arm.n_pitch == 3:
             l2, g2 = arm.l2, arm.g2
-            phi = [alpha_t[k] - arm.beta for k in range(2)]
+            phi = phi_end if free_end else [alpha_t[k] - arm.beta for k in range(2)]
             cp = [ca.cos(phi[k]) for k in range(2)]
             sp = [ca.sin(phi[k]) for k in range(2)]
             wu = [ue[k] - (cp[k] * tu - sp[k] * tz) for k in range(2)]
@@ -221,7 +230,7 @@ def _one_target(arm: ArmGeometry, pitch: bool) -> ca.Function:
             if arm.n_pitch == 3:
                 q[m][idx[2]] = sg[2] * (phi[k] - phi3)
             if arm.has_roll:
-                q[m][arm.roll_idx] = ca.SX(0.0)
+                q[m][arm.roll_idx] = qc[arm.roll_idx] if current else ca.SX(0.0)
             c = cat[k]
             if m in (1, 3):
                 c = _where(ca.logic_and(c == VALID, sing2[k]), DUPLICATE, c)
@@ -260,7 +269,10 @@ def _one_target(arm: ArmGeometry, pitch: bool) -> ca.Function:
     nan = ca.SX(float("nan"))
     for m in range(4):
         for j in range(dof):
-            if not (arm.has_roll and j == arm.roll_idx):
+            if current:
+                # A roll copied from q_current: unchanged within its range (see solve_arrays).
+                q[m][j] = _wrap(q[m][j], arm.lower[j], arm.upper[j], qc[j])
+            elif not (arm.has_roll and j == arm.roll_idx):
                 q[m][j] = _wrap(q[m][j], arm.lower[j], arm.upper[j])
             within[m] = ca.logic_and(within[m], ca.logic_and(q[m][j] >= arm.lower[j], q[m][j] <= arm.upper[j]))
         q[m] = [_where(valid[m], x, nan) for x in q[m]]
@@ -292,10 +304,81 @@ def _one_target(arm: ArmGeometry, pitch: bool) -> ca.Function:
     )
     status = _where(any_valid, status, none)
     status = _where(any_within, code[STATUS_SOLVED], status)
-    best = _where(within[0], 0, _where(within[1], 1, _where(within[2], 2, _where(within[3], 3, -1))))
-    out = ca.vertcat(*[x for m in range(4) for x in q[m]], *valid, *within, *singular, *perr, status, best)
-    inputs = [p, pit] if pitch else [p]
+    if current:
+        # The within-limits branch nearest q_current (the first of equals, as numpy.argmin).
+        best, nearest = ca.SX(-1), ca.SX(math.inf)
+        for m in range(4):
+            dist_m = sum((q[m][j] - qc[j]) ** 2 for j in range(dof))
+            take = ca.logic_and(within[m], dist_m < nearest)
+            best = _where(take, m, best)
+            nearest = _where(take, dist_m, nearest)
+    else:
+        best = _where(within[0], 0, _where(within[1], 1, _where(within[2], 2, _where(within[3], 3, -1))))
+    extra = []
+    if free_end:
+        unsolved = status != code[STATUS_SOLVED]
+        extra = [unsolved if handover is None else ca.logic_or(unsolved, handover)]
+    out = ca.vertcat(*[x for m in range(4) for x in q[m]], *valid, *within, *singular, *perr, status, best, *extra)
+    inputs = [p] + ([pit] if pitch else []) + ([qc] if current else [])
     return ca.Function("yaw_planar_closed_form", inputs, [ca.cse(out)])
+
+
+def _current_end_angle(arm: ArmGeometry, qc, psi, ue, ze):
+    """q_current's in-plane end angle per side, and whether a side cannot take it.
+
+    As :func:`~planner.ik.analytic.yaw_planar.free_pitch.free_pitch_array`; where a side
+    cannot, NumPy's default choice applies: the target is handed over.
+    """
+    tu, tz, _ = arm.tip_fixed
+    rmin = max(abs(arm.l1 - arm.l2), arm.rmin_lim)
+    rmax = min(arm.l1 + arm.l2, arm.rmax_lim)
+    alpha = arm.beta + sum(s * qc[i] for s, i in zip(arm.signs, arm.pitch_idx))
+    phi, handover = [], ca.SX(0)
+    for k in range(2):
+        facing = ca.cos(psi[k] - arm.sigma * qc[0]) >= 0.0
+        phi_k = _where(facing, alpha, PI - alpha) - arm.beta
+        cp, sp = ca.cos(phi_k), ca.sin(phi_k)
+        du = ue[k] - (cp * tu - sp * tz) - arm.su
+        dz = ze - (sp * tu + cp * tz) - arm.sz
+        dd = ca.sqrt(du * du + dz * dz)
+        ok = ca.logic_and(dd >= rmin - arm.core_len_tol, dd <= rmax + arm.core_len_tol)
+        handover = ca.logic_or(handover, ca.logic_not(ok))
+        phi.append(phi_k)
+    return phi, handover
+
+
+def _default_end_angle(arm: ArmGeometry, ue, ze):
+    """The default in-plane end angle per side and its failure category.
+
+    As :func:`~planner.ik.analytic.yaw_planar.free_pitch.free_pitch_array` without q_current.
+    """
+    tu, tz, _ = arm.tip_fixed
+    su, sz = arm.su, arm.sz
+    rmin = max(abs(arm.l1 - arm.l2), arm.rmin_lim)
+    rmax = min(arm.l1 + arm.l2, arm.rmax_lim)
+    lt = float(np.hypot(tu, tz))
+    gt = float(np.arctan2(tz, tu))
+    phi, fail = [], []
+    for k in range(2):
+        ex, ez = ue[k] - su, ze - sz
+        de = ca.sqrt(ex * ex + ez * ez)
+        lo = ca.fmax(abs(de - lt), rmin)
+        hi = ca.fmin(de + lt, rmax)
+        bad = ca.logic_or(lo > hi + arm.core_len_tol, de == 0.0)
+        fail.append(_where(bad, _where(de - lt > rmax, BEYOND, INSIDE), VALID))
+        safe = _where(de == 0.0, 1.0, de)
+        a = (lo * lo - lt * lt + safe * safe) / (2.0 * safe)
+        h = _where(abs(de - lt) >= rmin, 0.0, ca.sqrt(ca.fmax(lo * lo - a * a, 0.0)))
+        ux, uz = ex / safe, ez / safe
+        options = []
+        for sgn in (1.0, -1.0):
+            wx = su + a * ux - sgn * h * uz
+            wz = sz + a * uz + sgn * h * ux
+            phi_s = ca.atan2(ze - wz, ue[k] - wx) - gt
+            options.append((phi_s, ca.sin(arm.beta + phi_s)))
+        (phi1, lift1), (phi2, lift2) = options
+        phi.append(_where(lift2 < lift1 - 1e-15, phi2, phi1))
+    return phi, fail
 
 
 class CompiledKernels:
@@ -307,71 +390,82 @@ class CompiledKernels:
 
     def __init__(self, arm: ArmGeometry) -> None:
         self.arm = arm
-        self._functions: dict[tuple[bool, int, bool], ca.Function] = {}
+        self._functions: dict[tuple[bool, bool, int, bool], ca.Function] = {}
 
-    def function(self, pitch: bool, block: int = BLOCK, compiled: bool = True) -> ca.Function:
-        """The closed form of pitch or position targets mapped over `block` targets.
+    def function(self, pitch: bool, current: bool = False, block: int = BLOCK, compiled: bool = True) -> ca.Function:
+        """The closed form of pitch or position targets (with q_current or not) mapped over `block` targets.
 
         With `compiled`, built to C by :func:`~planner.ik.numeric.codegen.compile_function`
         (which falls back to CasADi's virtual machine without a compiler or with
         ``PLANNER_JIT=0``); without, the virtual machine's.
         """
-        key = (pitch, block, compiled)
+        key = (pitch, current, block, compiled)
         fn = self._functions.get(key)
         if fn is None:
-            fn = _one_target(self.arm, pitch).map(block, "serial")
+            fn = _one_target(self.arm, pitch, current).map(block, "serial")
             if compiled:
                 fn = compile_function(fn, flags=FLAGS)
             self._functions[key] = fn
         return fn
 
-    def available(self, pitch: bool) -> bool:
+    def available(self, pitch: bool, current: bool = False) -> bool:
         """Whether :meth:`function` is compiled C (without a compiler NumPy is faster)."""
-        return self.function(pitch).class_name() == "External"
+        return self.function(pitch, current).class_name() == "External"
 
 
 def solve_compiled(
-    kernels: CompiledKernels, pos: np.ndarray, pit: np.ndarray | None, block: int = BLOCK, *, compiled: bool = True
-) -> BranchArrays:
+    kernels: CompiledKernels,
+    pos: np.ndarray,
+    pit: np.ndarray | None,
+    qc: np.ndarray | None = None,
+    block: int = BLOCK,
+    *,
+    compiled: bool = True,
+) -> tuple[BranchArrays, np.ndarray]:
     """The batch closed form of N targets by the compiled function (see the module docstring).
 
     Only where :func:`compiled_supported` holds; `compiled` as :meth:`CompiledKernels.function`'s.
 
     Returns:
         The arrays of :func:`~planner.ik.analytic.yaw_planar.batch.solve_chunked` (``cat``,
-        ``oerr``, ``dist`` None).
+        ``oerr``, ``dist`` None), and the indices of the targets the function hands over to
+        NumPy (a free end angle: see :func:`_one_target`), whose rows hold no answer.
     """
     n = pos.shape[0]
-    dof = kernels.arm.dof
-    out = BranchArrays.empty(n, dof)
-    pos = np.ascontiguousarray(pos, dtype=float)
-    pit = None if pit is None else np.ascontiguousarray(pit, dtype=float)
+    arm = kernels.arm
+    out = BranchArrays.empty(n, arm.dof)
+    args = [np.ascontiguousarray(pos, dtype=float)]
+    if pit is not None:
+        args.append(np.ascontiguousarray(pit, dtype=float))
+    if qc is not None:
+        args.append(np.ascontiguousarray(qc, dtype=float))
+    free_end = arm.n_pitch == 3 and pit is None
+    handover = np.zeros(n, dtype=bool) if free_end else None
     # Full blocks, then the rest in small ones (two compiled functions per arm and kind).
     full = n // block * block
-    pitch = pit is not None
-    _run(kernels.function(pitch, block, compiled), pos, pit, out, 0, full, block)
-    _run(kernels.function(pitch, SMALL_BLOCK, compiled), pos, pit, out, full, n, SMALL_BLOCK)
-    return out
+    key = (pit is not None, qc is not None)
+    _run(kernels.function(*key, block, compiled), args, out, handover, 0, full, block)
+    _run(kernels.function(*key, SMALL_BLOCK, compiled), args, out, handover, full, n, SMALL_BLOCK)
+    return out, np.flatnonzero(handover) if handover is not None else np.zeros(0, dtype=np.intp)
 
 
-def _run(fn: ca.Function, pos, pit, out: BranchArrays, start: int, stop: int, b: int) -> None:
-    """Rows `start` to `stop` of `out` by `fn` (mapped over `b` targets), block by block."""
+def _run(fn: ca.Function, args, out: BranchArrays, handover, start: int, stop: int, b: int) -> None:
+    """Rows `start` to `stop` of `out` (and `handover`) by `fn` (mapped over `b` targets), block by block."""
     if start >= stop:
         return
     buffer, evaluate = fn.buffer()
     dof = out.q.shape[2]
     o = 4 * dof
     # One block's results, reused (in cache): (b, width) in C order is CasADi's (width, b).
-    res = np.empty((b, o + 4 * 4 + 2))
+    res = np.empty((b, o + 4 * 4 + 2 + (handover is not None)))
     buffer.set_res(0, memoryview(res))
     for first in range(start, stop, b):
         last = min(first + b, stop)
         k = last - first
-        # (b, 3) rows in C order are CasADi's (3, b) columns: no copies for full blocks.
-        args = [_block(pos[first:last], b)]
-        if pit is not None:
-            args.append(_block(pit[first:last], b))
-        for i, arg in enumerate(args):
+        # (b, m) rows in C order are CasADi's (m, b) columns: no copies for full blocks.
+        # Kept referenced until evaluated (the buffer holds only their addresses).
+        blocks = [_block(arg[first:last], b) for arg in args]
+        for i, arg in enumerate(blocks):
             buffer.set_arg(i, memoryview(arg))
         evaluate()
         rows = slice(first, last)
@@ -382,6 +476,8 @@ def _run(fn: ca.Function, pos, pit, out: BranchArrays, start: int, stop: int, b:
         out.perr[rows] = res[:k, o + 12 : o + 16]
         out.status[rows] = res[:k, o + 16]
         out.best[rows] = res[:k, o + 17]
+        if handover is not None:
+            np.not_equal(res[:k, o + 18], 0.0, out=handover[rows])
 
 
 def _block(x: np.ndarray, b: int) -> np.ndarray:
