@@ -22,23 +22,29 @@ from hypothesis import strategies as st
 from test_analytic_fast_paths import yaw_planar_arms
 
 from planner import load_robot
+from planner.core.rotations import rotation_error
 from planner.geometry.target import approach_pitch
 from planner.ik.analytic import closed_form_solver
 from planner.ik.analytic.yaw_planar.batch import solve_arrays_within, solve_compiled_within
 from planner.ik.analytic.yaw_planar.compiled import SMALL_BLOCK, CompiledKernels, compiled_supported, solve_compiled
 
-# (robot, pitch targets, q_current)
+# (robot, target kind, q_current)
 KINDS = [
-    ("dh3", False, False),
-    ("dh3", True, False),
-    ("dh3", False, True),
-    ("three_joint", True, False),
-    ("three_joint", False, False),
-    ("three_joint", False, True),
-    ("al5c", True, False),
-    ("al5c", True, True),
-    ("al5c", False, False),
-    ("al5c", False, True),
+    ("dh3", "position", False),
+    ("dh3", "pitch", False),
+    ("dh3", "position", True),
+    ("dh3", "pose", False),
+    ("three_joint", "pitch", False),
+    ("three_joint", "position", False),
+    ("three_joint", "position", True),
+    ("three_joint", "pose", False),
+    ("three_joint", "pose", True),
+    ("al5c", "pitch", False),
+    ("al5c", "pitch", True),
+    ("al5c", "position", False),
+    ("al5c", "position", True),
+    ("al5c", "pose", False),
+    ("al5c", "pose", True),
 ]
 TOL_POS = 1e-9
 
@@ -49,14 +55,16 @@ def solver(name):
 
 
 def targets(robot, rng, n):
-    """Positions, pitches and q_current: FK of random configurations (a quarter with joints on
-    their range ends), a quarter of them moved by up to 20 % of the reach, and random points;
-    q_current the generating configuration for half the targets, another for the rest."""
+    """Positions, pitches, rotations and q_current: FK of random configurations (a quarter with
+    joints on their range ends), a quarter of them moved by up to 20 % of the reach, and random
+    points (with random pitches and rotations); q_current the generating configuration for half
+    the targets, another for the rest."""
     lo, hi = np.asarray(robot.lower), np.asarray(robot.upper)
     q = rng.uniform(lo, hi, (n, len(lo)))
     ends = rng.random((n, len(lo))) < 0.25
     q = np.where(ends, np.where(rng.random((n, len(lo))) < 0.5, lo, hi), q)
-    pos = robot.fk(q)[:, :3, 3]
+    pose = robot.fk(q)
+    pos, rot = pose[:, :3, 3], pose[:, :3, :3].copy()
     pit = np.asarray(approach_pitch(robot, q), dtype=float)
     reach = float(np.max(np.linalg.norm(pos, axis=1)))
     moved = rng.random(n) < 0.25
@@ -64,11 +72,19 @@ def targets(robot, rng, n):
     loose = rng.random(n) < 0.1
     pos[loose] = rng.uniform(-1.5 * reach, 1.5 * reach, (int(loose.sum()), 3))
     pit[loose] = rng.uniform(-np.pi, np.pi, int(loose.sum()))
+    rot[loose] = np.linalg.qr(rng.normal(size=(int(loose.sum()), 3, 3)))[0] * rng.choice([-1.0, 1.0], (1, 1, 1))
+    rot[loose] *= np.linalg.det(rot[loose])[:, None, None]  # proper rotations
     # Exactly on the x axis, where the back branch's yaw is pi, on a range end.
     pos[:4, 1] = 0.0
     other = rng.random(n) < 0.5
     qc = np.where(other[:, None], rng.uniform(lo, hi, (n, len(lo))), q)
-    return pos, pit, qc
+    return pos, pit, rot, qc
+
+
+def inputs(s, rng, n, kind, current):
+    """(positions, pitches or None, rotations or None, q_current or None) of `kind` targets."""
+    pos, pit, rot, qc = targets(s.robot, rng, n)
+    return pos, pit if kind == "pitch" else None, rot if kind == "pose" else None, qc if current else None
 
 
 def assert_same(got, want):
@@ -80,24 +96,22 @@ def assert_same(got, want):
 
 
 @pytest.mark.parametrize("compiled", [True, False], ids=["C", "vm"])
-@pytest.mark.parametrize(("name", "pitch", "current"), KINDS)
-def test_compiled_equals_numpy(name, pitch, current, compiled):
+@pytest.mark.parametrize(("name", "kind", "current"), KINDS)
+def test_compiled_equals_numpy(name, kind, current, compiled):
     s = solver(name)
     arm = s.arm
     rng = np.random.default_rng(12)
     n = 4096 + 3 * SMALL_BLOCK + 17  # a full block, small blocks and a padded rest
-    pos, pit, qc = targets(s.robot, rng, n)
-    pit = pit if pitch else None
-    qc = qc if current else None
-    assert compiled_supported(arm, pit, None, qc)
+    pos, pit, rot, qc = inputs(s, rng, n, kind, current)
+    assert compiled_supported(arm, pit, rot, qc)
     kernels = CompiledKernels(arm)
-    _, handed = solve_compiled(kernels, pos, pit, qc, compiled=compiled)
-    if arm.n_pitch == 3 and not pitch:
+    _, handed = solve_compiled(kernels, pos, pit, rot, qc, compiled=compiled)
+    if arm.n_pitch == 3 and kind == "position":
         assert 0 < handed.size < n  # the search within the limits: NumPy's
     else:
         assert handed.size == 0
-    got = solve_compiled_within(kernels, pos, pit, qc, compiled=compiled)
-    want = solve_arrays_within(arm, pos, pit, None, qc)
+    got = solve_compiled_within(kernels, pos, pit, rot, qc, compiled=compiled)
+    want = solve_arrays_within(arm, pos, pit, rot, qc)
     assert_same(got, want)
     statuses = set(np.unique(got.status).tolist())
     assert 0 in statuses and len(statuses) >= 2  # solved and failing targets both met
@@ -105,22 +119,22 @@ def test_compiled_equals_numpy(name, pitch, current, compiled):
     q = got.q[np.flatnonzero(solved), got.best[solved]]
     pose = s.robot.fk(q)
     assert np.max(np.linalg.norm(pose[:, :3, 3] - pos[solved], axis=1)) < TOL_POS
-    if pitch:
+    if pit is not None:
         err = np.abs(np.asarray(approach_pitch(s.robot, q)) - pit[solved])
         assert np.max(np.minimum(err, 2 * np.pi - err)) < 1e-9
+    if rot is not None:
+        assert np.max(rotation_error(pose[:, :3, :3], rot[solved])) < 1e-9
     assert np.all(s.robot.within_limits(q))
 
 
-@pytest.mark.parametrize(("name", "pitch", "current"), KINDS)
-def test_solve_batch_uses_the_same_answers(name, pitch, current):
+@pytest.mark.parametrize(("name", "kind", "current"), KINDS)
+def test_solve_batch_uses_the_same_answers(name, kind, current):
     """The public solve_batch (the compiled path here) equals the NumPy arrays."""
     s = solver(name)
     rng = np.random.default_rng(3)
-    pos, pit, qc = targets(s.robot, rng, 1500)
-    pit = pit if pitch else None
-    qc = qc if current else None
-    batch = s.solve_batch(pos, pitch=pit, q_current=qc)
-    want = solve_arrays_within(s.arm, pos, pit, None, qc)
+    pos, pit, rot, qc = inputs(s, rng, 1500, kind, current)
+    batch = s.solve_batch(pos, pitch=pit, rotations=rot, q_current=qc)
+    want = solve_arrays_within(s.arm, pos, pit, rot, qc)
     np.testing.assert_array_equal(batch.status, want.status)
     np.testing.assert_array_equal(batch.best, want.best)
     np.testing.assert_array_equal(batch.valid, want.valid)
@@ -128,21 +142,24 @@ def test_solve_batch_uses_the_same_answers(name, pitch, current):
     np.testing.assert_allclose(batch.q, want.q, rtol=0.0, atol=1e-9)
 
 
-def test_not_supported_for_rotations():
+def test_supported_kinds():
     three = solver("three_joint").arm
     assert compiled_supported(three, None, None, None)  # free end angle (searched by NumPy)
     assert compiled_supported(three, np.zeros(1), None, np.zeros((1, 4)))
-    assert not compiled_supported(three, None, np.eye(3)[None], None)
+    assert compiled_supported(three, None, np.eye(3)[None], None)
 
 
 @property_settings(25)
-@given(robot=yaw_planar_arms(), seed=st.integers(0, 2**32 - 1), pitch=st.booleans(), current=st.booleans())
-def test_random_exact_arms_vm(robot, seed, pitch, current):
+@given(
+    robot=yaw_planar_arms(),
+    seed=st.integers(0, 2**32 - 1),
+    kind=st.sampled_from(["position", "pitch", "pose"]),
+    current=st.booleans(),
+)
+def test_random_exact_arms_vm(robot, seed, kind, current):
     s = closed_form_solver(robot)
     rng = np.random.default_rng(seed)
-    pos, pit, qc = targets(robot, rng, 40)
-    pit = pit if pitch else None
-    qc = qc if current else None
-    assume(s.arm.exact and (not pitch or s.arm.pitch_supported) and compiled_supported(s.arm, pit, None, qc))
-    got = solve_compiled_within(CompiledKernels(s.arm), pos, pit, qc, compiled=False)
-    assert_same(got, solve_arrays_within(s.arm, pos, pit, None, qc))
+    pos, pit, rot, qc = inputs(s, rng, 40, kind, current)
+    assume(s.arm.exact and (pit is None or s.arm.pitch_supported) and compiled_supported(s.arm, pit, rot, qc))
+    got = solve_compiled_within(CompiledKernels(s.arm), pos, pit, rot, qc, compiled=False)
+    assert_same(got, solve_arrays_within(s.arm, pos, pit, rot, qc))

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from planner.ik.analytic.yaw_planar.arm import ArmGeometry
 from planner.ik.analytic.yaw_planar.arrays import BranchArrays, solve_arrays
-from planner.ik.analytic.yaw_planar.compiled import CompiledKernels, compiled_supported, solve_compiled
+from planner.ik.analytic.yaw_planar.compiled import CompiledKernels, compiled_supported, kind_of, solve_compiled
 from planner.ik.analytic.yaw_planar.search import free_joints, solve_searched
 
 __all__ = ["solve_chunked", "solve_arrays_within", "solve_compiled_within"]
@@ -44,9 +44,9 @@ def solve_chunked(
         n >= COMPILED_MIN
         and kernels is not None
         and compiled_supported(arm, pit, rot, qc)
-        and kernels.available(pit is not None, qc is not None)
+        and kernels.available(kind_of(pit, rot), qc is not None)
     ):
-        return solve_compiled_within(kernels, pos, pit, qc)
+        return solve_compiled_within(kernels, pos, pit, rot, qc)
     if n <= chunk:
         return solve_arrays_within(arm, pos, pit, rot, qc)
     out = BranchArrays.empty(n, arm.dof)
@@ -64,17 +64,21 @@ def solve_chunked(
     return out
 
 
-def solve_compiled_within(kernels: CompiledKernels, pos, pit, qc, *, compiled: bool = True) -> BranchArrays:
+def solve_compiled_within(kernels: CompiledKernels, pos, pit, rot, qc, *, compiled: bool = True) -> BranchArrays:
     """The compiled closed form; the targets it hands over by :func:`solve_arrays_within`.
 
     :func:`~planner.ik.analytic.yaw_planar.compiled.solve_compiled`'s arrays, the same as
     :func:`solve_arrays_within`'s (to round-off) where
     :func:`~planner.ik.analytic.yaw_planar.compiled.compiled_supported` holds.
     """
-    out, rows = solve_compiled(kernels, pos, pit, qc, compiled=compiled)
+    out, rows = solve_compiled(kernels, pos, pit, rot, qc, compiled=compiled)
     if rows.size:
         part = solve_arrays_within(
-            kernels.arm, pos[rows], None if pit is None else pit[rows], None, None if qc is None else qc[rows]
+            kernels.arm,
+            pos[rows],
+            None if pit is None else pit[rows],
+            None if rot is None else rot[rows],
+            None if qc is None else qc[rows],
         )
         for name in NAMES:
             getattr(out, name)[rows] = getattr(part, name)

@@ -36,7 +36,7 @@ from planner.ik.analytic.yaw_planar.arrays import BranchArrays
 from planner.ik.analytic.yaw_planar.branches import BEYOND, CYLINDER, DUPLICATE, INSIDE, ORIENT, VALID
 from planner.ik.numeric.codegen import compile_function
 
-__all__ = ["BLOCK", "SMALL_BLOCK", "CompiledKernels", "compiled_supported", "solve_compiled"]
+__all__ = ["BLOCK", "SMALL_BLOCK", "CompiledKernels", "compiled_supported", "kind_of", "solve_compiled"]
 
 PI = math.pi
 TWO_PI = 2.0 * math.pi
@@ -56,7 +56,11 @@ REACHED = 1e-6
 
 def compiled_supported(arm: ArmGeometry, pit, rot, qc) -> bool:
     """Whether :func:`solve_compiled` gives the NumPy path's answers for these inputs."""
-    if not arm.exact or rot is not None or not arm.tip_on_roll_axis or arm.elbow_seed > 0.0:
+    if not arm.exact or arm.elbow_seed > 0.0:
+        return False
+    if rot is not None:
+        return pit is None
+    if not arm.tip_on_roll_axis:
         return False
     # Without q_current the roll is 0, which must lie within its range (else NumPy wraps it).
     return not (qc is None and arm.has_roll and not arm.lower[arm.roll_idx] <= 0.0 <= arm.upper[arm.roll_idx])
@@ -105,21 +109,35 @@ def _wrap(x, lower: float, upper: float, ref=0.0):
     return x
 
 
-def _one_target(arm: ArmGeometry, pitch: bool, current: bool) -> ca.Function:
-    """The closed form of one target as an SX function: (position, pitch, q_current) -> the per-target arrays.
+def _one_target(arm: ArmGeometry, kind: str, current: bool) -> ca.Function:
+    """The closed form of one target as an SX function of (position, pitch or rotation, q_current).
 
-    Where the end angle is free (three pitch joints, no pitch), the last output is 1 where
-    :func:`solve_compiled` must hand the target to NumPy: not solved (the search within the
-    limits), or q_current's end angle out of a side's reach (the default choice).
+    `kind` is "position", "pitch" or "pose" (the rotation's nine entries row by row). The
+    outputs are the per-target arrays; where the end angle is free (three pitch joints,
+    position targets), a last one is 1 where :func:`solve_compiled` must hand the target to
+    NumPy: not solved (the search within the limits), or q_current's end angle out of a
+    side's reach (the default choice).
     """
+    pitch, pose = kind == "pitch", kind == "pose"
     p = ca.SX.sym("p", 3)
     pit = ca.SX.sym("pit") if pitch else None
+    rflat = ca.SX.sym("rot", 9) if pose else None
     qc = ca.SX.sym("qc", arm.dof) if current else None
     dof = arm.dof
-    tu, tz, d = arm.tip_fixed
-    hx = p[0] - arm.bx
-    hy = p[1] - arm.by
-    ze = p[2]
+    rot = m_rot = None
+    end = p
+    if pose:
+        rot = [[rflat[3 * i + j] for j in range(3)] for i in range(3)]
+        m_rot = _matmul(rot, np.asarray(arm.rot0).T.tolist())
+    if pose and arm.has_roll:
+        tu, tz, d = arm.centre
+        c = [float(v) for v in arm.centre_to_tip_local]
+        end = [p[i] - (rot[i][0] * c[0] + rot[i][1] * c[1] + rot[i][2] * c[2]) for i in range(3)]
+    else:
+        tu, tz, d = arm.tip_fixed
+    hx = end[0] - arm.bx
+    hy = end[1] - arm.by
+    ze = end[2]
     rho2 = hx * hx + hy * hy
     axis_tol = arm.len_tol
     free = ca.logic_and(rho2 <= axis_tol * axis_tol, abs(d) <= axis_tol)
@@ -141,6 +159,16 @@ def _one_target(arm: ArmGeometry, pitch: bool, current: bool) -> ca.Function:
     psi = [psi_f, psi_b]
     ue = [u, -u]
     cat = [_where(cylinder, CYLINDER, VALID), _where(cylinder, CYLINDER, _where(back_dup, DUPLICATE, VALID))]
+    phi_rot = roll_side = None
+    if pose:
+        psi, ue, cat = _yaw_for_rotation(arm, m_rot, hx, hy, d, u, psi, ue, cat)
+        phi_rot, residual = _pitch_from_rotation(arm, m_rot, psi)
+        if arm.has_roll:
+            roll_side = _roll_from_rotation(arm, m_rot, psi, phi_rot)
+        if arm.n_pitch == 3:
+            cat = [
+                _where(ca.logic_and(cat[k] == VALID, residual[k] > arm.orient_tol), ORIENT, cat[k]) for k in range(2)
+            ]
     cy = [ca.cos(psi[k] + arm.mu) for k in range(2)]
     sy = [ca.sin(psi[k] + arm.mu) for k in range(2)]
     alpha_t = None
@@ -150,14 +178,14 @@ def _one_target(arm: ArmGeometry, pitch: bool, current: bool) -> ca.Function:
     sg, idx = arm.signs, arm.pitch_idx
     q = [[None] * dof for _ in range(4)]
     cat4 = [None] * 4
-    free_end = arm.n_pitch == 3 and not pitch
+    free_end = arm.n_pitch == 3 and kind == "position"
     handover = None
     if free_end and current:
         phi_end, handover = _current_end_angle(arm, qc, psi, ue, ze)
     elif free_end:
         phi_end, fail = _default_end_angle(arm, ue, ze)
         cat = [_where(ca.logic_and(cat[k] == VALID, fail[k] != VALID), fail[k], cat[k]) for k in range(2)]
-    if arm.n_pitch == 2 and pitch:
+    if arm.n_pitch == 2 and (pitch or pose):
         l2 = math.hypot(tu, tz)
         g2 = math.atan2(tz, tu)
         dist2 = []
@@ -167,7 +195,11 @@ def _one_target(arm: ArmGeometry, pitch: bool, current: bool) -> ca.Function:
             c = cat[k]
             c = _where(ca.logic_and(c == VALID, de > l1 + l2 + len_tol), BEYOND, c)
             c = _where(ca.logic_and(c == VALID, de < abs(l1 - l2) - len_tol), INSIDE, c)
-            phi = alpha_t[k] - arm.beta
+            if pose:
+                phi = phi_rot[k]
+                c = _where(ca.logic_and(c == VALID, residual[k] > arm.orient_tol), ORIENT, c)
+            else:
+                phi = alpha_t[k] - arm.beta
             cp, sp = ca.cos(phi), ca.sin(phi)
             ex = ue[k] - (cp * tu - sp * tz) - su
             ez = ze - (sp * tu + cp * tz) - sz
@@ -181,6 +213,8 @@ def _one_target(arm: ArmGeometry, pitch: bool, current: bool) -> ca.Function:
                 q[m][0] = arm.sigma * psi[k]
                 q[m][idx[0]] = sg[0] * phi2
                 q[m][idx[1]] = sg[1] * (phi - phi2)
+                if arm.has_roll:
+                    q[m][arm.roll_idx] = roll_side[k] if pose else qc[arm.roll_idx] if current else ca.SX(0.0)
                 cat4[m] = _where(ca.logic_and(c == VALID, ca.logic_not(chosen)), DUPLICATE, c)
             dist2.append(de)
             sing2.append(
@@ -191,7 +225,7 @@ def _one_target(arm: ArmGeometry, pitch: bool, current: bool) -> ca.Function:
     else:
         if arm.n_pitch == 3:
             l2, g2 = arm.l2, arm.g2
-            phi = phi_end if free_end else [alpha_t[k] - arm.beta for k in range(2)]
+            phi = phi_end if free_end else phi_rot if pose else [alpha_t[k] - arm.beta for k in range(2)]
             cp = [ca.cos(phi[k]) for k in range(2)]
             sp = [ca.sin(phi[k]) for k in range(2)]
             wu = [ue[k] - (cp[k] * tu - sp[k] * tz) for k in range(2)]
@@ -230,7 +264,7 @@ def _one_target(arm: ArmGeometry, pitch: bool, current: bool) -> ca.Function:
             if arm.n_pitch == 3:
                 q[m][idx[2]] = sg[2] * (phi[k] - phi3)
             if arm.has_roll:
-                q[m][arm.roll_idx] = qc[arm.roll_idx] if current else ca.SX(0.0)
+                q[m][arm.roll_idx] = roll_side[k] if pose else qc[arm.roll_idx] if current else ca.SX(0.0)
             c = cat[k]
             if m in (1, 3):
                 c = _where(ca.logic_and(c == VALID, sing2[k]), DUPLICATE, c)
@@ -239,31 +273,17 @@ def _one_target(arm: ArmGeometry, pitch: bool, current: bool) -> ca.Function:
         singular = [
             ca.logic_or(ca.logic_or(sing2[REP[m]], free), abs(ue[REP[m]]) < SINGULAR_TOL * arm.scale) for m in range(4)
         ]
-    # The ideal forward model's position error (before wrapping: 2 pi turns change nothing).
-    perr = []
-    for m in range(4):
-        k = REP[m]
-        phi2 = sg[0] * q[m][idx[0]]
-        phi3 = phi2 + sg[1] * q[m][idx[1]]
-        a = phi2 + arm.g1
-        fu = arm.su + arm.l1 * ca.cos(a)
-        fz = arm.sz + arm.l1 * ca.sin(a)
-        if arm.n_pitch == 3:
-            phi4 = phi3 + sg[2] * q[m][idx[2]]
-            a = phi3 + arm.g2
-            fu += arm.l2 * ca.cos(a)
-            fz += arm.l2 * ca.sin(a)
-        else:
-            phi4 = phi3
-        c4, s4 = ca.cos(phi4), ca.sin(phi4)
-        fu += c4 * tu - s4 * tz
-        fz += s4 * tu + c4 * tz
-        # The yaw mu + sigma q0 is psi + mu (sigma is +-1): the same value as cy, sy's.
-        cyk, syk = cy[k], sy[k]
-        dx = arm.bx + cyk * fu + syk * d - p[0]
-        dy = arm.by + syk * fu - cyk * d - p[1]
-        dz = fz - p[2]
-        perr.append(ca.sqrt(dx * dx + dy * dy + dz * dz))
+    if pose:
+        # Errors by the real model (product of exponentials; refine's on exact chains), before wrapping.
+        pos_tol = 1e-10 * max(1.0, arm.scale)
+        perr = []
+        for m in range(4):
+            fk_p, fk_r = _poe_fk(arm, q[m])
+            perr.append(ca.sqrt(sum((fk_p[i] - p[i]) ** 2 for i in range(3))))
+            ok = ca.logic_and(perr[m] <= pos_tol, _rotation_error(fk_r, rot) <= arm.orient_tol)
+            cat4[m] = _where(ca.logic_and(cat4[m] == VALID, ca.logic_not(ok)), ORIENT, cat4[m])
+    else:
+        perr = _ideal_position_error(arm, q, cy, sy, p)
     valid = [cat4[m] == VALID for m in range(4)]
     within = list(valid)
     nan = ca.SX(float("nan"))
@@ -272,7 +292,7 @@ def _one_target(arm: ArmGeometry, pitch: bool, current: bool) -> ca.Function:
             if current:
                 # A roll copied from q_current: unchanged within its range (see solve_arrays).
                 q[m][j] = _wrap(q[m][j], arm.lower[j], arm.upper[j], qc[j])
-            elif not (arm.has_roll and j == arm.roll_idx):
+            elif pose or not (arm.has_roll and j == arm.roll_idx):
                 q[m][j] = _wrap(q[m][j], arm.lower[j], arm.upper[j])
             within[m] = ca.logic_and(within[m], ca.logic_and(q[m][j] >= arm.lower[j], q[m][j] <= arm.upper[j]))
         q[m] = [_where(valid[m], x, nan) for x in q[m]]
@@ -319,7 +339,7 @@ def _one_target(arm: ArmGeometry, pitch: bool, current: bool) -> ca.Function:
         unsolved = status != code[STATUS_SOLVED]
         extra = [unsolved if handover is None else ca.logic_or(unsolved, handover)]
     out = ca.vertcat(*[x for m in range(4) for x in q[m]], *valid, *within, *singular, *perr, status, best, *extra)
-    inputs = [p] + ([pit] if pitch else []) + ([qc] if current else [])
+    inputs = [p] + ([pit] if pitch else []) + ([rflat] if pose else []) + ([qc] if current else [])
     return ca.Function("yaw_planar_closed_form", inputs, [ca.cse(out)])
 
 
@@ -381,6 +401,170 @@ def _default_end_angle(arm: ArmGeometry, ue, ze):
     return phi, fail
 
 
+def _ideal_position_error(arm: ArmGeometry, q, cy, sy, p):
+    """:func:`~planner.ik.analytic.yaw_planar.core.ideal_position_error` of the 4 branches (before wrapping).
+
+    `cy`, `sy`: the cosine and sine of each side's yaw mu + sigma q0 (sigma is +-1: psi + mu).
+    """
+    tu, tz, d = arm.tip_fixed
+    sg, idx = arm.signs, arm.pitch_idx
+    perr = []
+    for m in range(4):
+        k = REP[m]
+        phi2 = sg[0] * q[m][idx[0]]
+        phi3 = phi2 + sg[1] * q[m][idx[1]]
+        a = phi2 + arm.g1
+        fu = arm.su + arm.l1 * ca.cos(a)
+        fz = arm.sz + arm.l1 * ca.sin(a)
+        if arm.n_pitch == 3:
+            phi4 = phi3 + sg[2] * q[m][idx[2]]
+            a = phi3 + arm.g2
+            fu += arm.l2 * ca.cos(a)
+            fz += arm.l2 * ca.sin(a)
+        else:
+            phi4 = phi3
+        c4, s4 = ca.cos(phi4), ca.sin(phi4)
+        fu += c4 * tu - s4 * tz
+        fz += s4 * tu + c4 * tz
+        dx = arm.bx + cy[k] * fu + sy[k] * d - p[0]
+        dy = arm.by + sy[k] * fu - cy[k] * d - p[1]
+        dz = fz - p[2]
+        perr.append(ca.sqrt(dx * dx + dy * dy + dz * dz))
+    return perr
+
+
+def _matmul(a, b):
+    """The product of two 3 x 3 matrices given as nested lists (NumPy's order of the sums)."""
+    return [[a[i][0] * b[0][j] + a[i][1] * b[1][j] + a[i][2] * b[2][j] for j in range(3)] for i in range(3)]
+
+
+def _matvec(a, v):
+    """A 3 x 3 matrix (nested lists) times a vector."""
+    v = [x if isinstance(x, ca.SX) else float(x) for x in v]
+    return [a[i][0] * v[0] + a[i][1] * v[1] + a[i][2] * v[2] for i in range(3)]
+
+
+def _rodrigues(axis, s, c):
+    """The rows of ``c I + s [axis]x + (1 - c) axis axis^T`` (:func:`~planner.geometry.chain.rotation_about`'s)."""
+    x, y, z = (float(v) for v in axis)
+    v = 1.0 - c
+    vx, vy, vz = v * x, v * y, v * z
+    sx, sy, sz = s * x, s * y, s * z
+    return [
+        [c + vx * x, vx * y - sz, vx * z + sy],
+        [vy * x + sz, c + vy * y, vy * z - sx],
+        [vz * x - sy, vz * y + sx, c + vz * z],
+    ]
+
+
+def _poe_fk(arm: ArmGeometry, q):
+    """The real arm's tip position and rotation at `q` (:func:`~planner.geometry.chain.poe_fk`'s sums)."""
+    rot = trans = None
+    for k in range(arm.dof):
+        r_k = _rodrigues(arm.axes[k], ca.sin(q[k]), ca.cos(q[k]))
+        pt = [float(v) for v in arm.points[k]]
+        t_k = [pt[i] - (r[0] * pt[0] + r[1] * pt[1] + r[2] * pt[2]) for i, r in enumerate(r_k)]
+        if rot is None:
+            rot, trans = r_k, t_k
+            continue
+        trans = [trans[i] + rot[i][0] * t_k[0] + rot[i][1] * t_k[1] + rot[i][2] * t_k[2] for i in range(3)]
+        rot = _matmul(rot, r_k)
+    tp = [float(v) for v in arm.tip_position]
+    pos = [rot[i][0] * tp[0] + rot[i][1] * tp[1] + rot[i][2] * tp[2] + trans[i] for i in range(3)]
+    return pos, _matmul(rot, np.asarray(arm.rot0).tolist())
+
+
+def _rotation_error(a, b):
+    """:func:`~planner.core.rotations.rotation_error` (the batch formula) of two rotations (nested lists)."""
+    rel = _matmul([[a[j][i] for j in range(3)] for i in range(3)], b)
+    cos = (rel[0][0] + rel[1][1] + rel[2][2] - 1.0) / 2.0
+    k = [rel[2][1] - rel[1][2], rel[0][2] - rel[2][0], rel[1][0] - rel[0][1]]
+    sin = ca.sqrt(k[0] * k[0] + k[1] * k[1] + k[2] * k[2]) / 2.0
+    return ca.atan2(sin, ca.fmin(ca.fmax(cos, -1.0), 1.0))
+
+
+def _yaw_for_rotation(arm: ArmGeometry, m_rot, hx, hy, d, u, psi, ue, cat):
+    """:func:`~planner.ik.analytic.yaw_planar.orientation.yaw_for_rotation` for one target."""
+    if arm.has_roll:
+        w = _matvec(m_rot, arm.r0)
+        horiz = ca.sqrt(w[0] * w[0] + w[1] * w[1])
+        psi_a = ca.atan2(w[1], w[0]) - arm.mu
+        use = ca.logic_and(horiz > 1e-9, horiz * arm.scale >= u)
+    else:
+        w = _matvec(m_rot, arm.n)
+        psi_a = ca.atan2(w[1], w[0]) - math.atan2(float(arm.n[1]), float(arm.n[0]))
+        use = None
+    cy, sy = ca.cos(arm.mu + psi_a), ca.sin(arm.mu + psi_a)
+    ue_a = hx * cy + hy * sy
+    lat_a = hx * sy - hy * cy
+    forward = ue_a >= 0.0
+    tol = max(arm.consistency_tol, arm.core_len_tol)
+    off_plane = abs(lat_a - d) > tol
+    if arm.has_roll:
+        psi_front = _where(forward, psi_a, psi_a + PI)
+        psi_rot = [psi_front, psi_front + PI]
+        off_back = abs(-lat_a - d) > tol
+        cat_rot = [
+            _where(_where(forward, off_plane, off_back), ORIENT, VALID),
+            _where(_where(forward, off_back, off_plane), ORIENT, VALID),
+        ]
+    else:
+        psi_rot = [psi_a, psi_a]
+        bad = _where(off_plane, ORIENT, VALID)
+        cat_rot = [_where(forward, bad, DUPLICATE), _where(forward, DUPLICATE, bad)]
+    ue_rot = [abs(ue_a), -abs(ue_a)]
+    cat_rot = [_where(cat[k] == CYLINDER, cat[k], cat_rot[k]) for k in range(2)]
+    if use is None:
+        return psi_rot, ue_rot, cat_rot
+    return tuple(
+        [_where(use, new[k], old[k]) for k in range(2)] for new, old in ((psi_rot, psi), (ue_rot, ue), (cat_rot, cat))
+    )
+
+
+def _unyaw(v, cz, sz):
+    """Rz(-psi) v."""
+    return [cz * v[0] + sz * v[1], -sz * v[0] + cz * v[1], v[2]]
+
+
+def _pitch_from_rotation(arm: ArmGeometry, m_rot, psi):
+    """:func:`~planner.ik.analytic.yaw_planar.orientation.pitch_from_rotation` per side: phi and the residual [rad]."""
+    e_u = [float(v) for v in arm.e_u]
+    n = [float(v) for v in arm.n]
+    phi, residual = [], []
+    for k in range(2):
+        cz, sz = ca.cos(psi[k]), ca.sin(psi[k])
+        if arm.has_roll:
+            x = _unyaw(_matvec(m_rot, arm.r0), cz, sz)
+            phi.append(ca.atan2(x[2], x[0] * e_u[0] + x[1] * e_u[1] + x[2] * e_u[2]) - arm.kappa)
+            xn = x[0] * n[0] + x[1] * n[1] + x[2] * n[2]
+            residual.append(ca.asin(ca.fmin(ca.fmax(abs(xn), 0.0), 1.0)))
+        else:
+            x = _unyaw(_matvec(m_rot, e_u), cz, sz)
+            phi_k = ca.atan2(x[2], x[0] * e_u[0] + x[1] * e_u[1] + x[2] * e_u[2])
+            rz = [[cz, -sz, 0.0], [sz, cz, 0.0], [0.0, 0.0, 1.0]]
+            ideal = _matmul(rz, _rodrigues(n, ca.sin(phi_k), ca.cos(phi_k)))
+            phi.append(phi_k)
+            residual.append(_rotation_error(ideal, m_rot))
+    return phi, residual
+
+
+def _roll_from_rotation(arm: ArmGeometry, m_rot, psi, phi):
+    """:func:`~planner.ik.analytic.yaw_planar.orientation.roll_from_rotation` per side."""
+    n = [float(v) for v in arm.n]
+    rxn = np.cross(arm.r0, arm.n).tolist()
+    mn = _matvec(m_rot, n)
+    roll = []
+    for k in range(2):
+        un = _unyaw(mn, ca.cos(psi[k]), ca.sin(psi[k]))
+        back = _matvec(_rodrigues(n, ca.sin(-phi[k]), ca.cos(-phi[k])), un)
+        roll.append(
+            ca.atan2(
+                back[0] * rxn[0] + back[1] * rxn[1] + back[2] * rxn[2], back[0] * n[0] + back[1] * n[1] + back[2] * n[2]
+            )
+        )
+    return roll
+
+
 class CompiledKernels:
     """The compiled closed-form functions of one arm, built on first use (owned by its solver).
 
@@ -390,33 +574,41 @@ class CompiledKernels:
 
     def __init__(self, arm: ArmGeometry) -> None:
         self.arm = arm
-        self._functions: dict[tuple[bool, bool, int, bool], ca.Function] = {}
+        self._functions: dict[tuple[str, bool, int, bool], ca.Function] = {}
 
-    def function(self, pitch: bool, current: bool = False, block: int = BLOCK, compiled: bool = True) -> ca.Function:
-        """The closed form of pitch or position targets (with q_current or not) mapped over `block` targets.
+    def function(self, kind: str, current: bool = False, block: int = BLOCK, compiled: bool = True) -> ca.Function:
+        """The closed form of `kind` targets (with q_current or not) mapped over `block` targets.
+
+        `kind`: "position", "pitch" or "pose" (:func:`kind_of`).
 
         With `compiled`, built to C by :func:`~planner.ik.numeric.codegen.compile_function`
         (which falls back to CasADi's virtual machine without a compiler or with
         ``PLANNER_JIT=0``); without, the virtual machine's.
         """
-        key = (pitch, current, block, compiled)
+        key = (kind, current, block, compiled)
         fn = self._functions.get(key)
         if fn is None:
-            fn = _one_target(self.arm, pitch, current).map(block, "serial")
+            fn = _one_target(self.arm, kind, current).map(block, "serial")
             if compiled:
                 fn = compile_function(fn, flags=FLAGS)
             self._functions[key] = fn
         return fn
 
-    def available(self, pitch: bool, current: bool = False) -> bool:
+    def available(self, kind: str, current: bool = False) -> bool:
         """Whether :meth:`function` is compiled C (without a compiler NumPy is faster)."""
-        return self.function(pitch, current).class_name() == "External"
+        return self.function(kind, current).class_name() == "External"
+
+
+def kind_of(pit, rot) -> str:
+    """The target kind of :meth:`CompiledKernels.function` for these inputs."""
+    return "pose" if rot is not None else "pitch" if pit is not None else "position"
 
 
 def solve_compiled(
     kernels: CompiledKernels,
     pos: np.ndarray,
     pit: np.ndarray | None,
+    rot: np.ndarray | None = None,
     qc: np.ndarray | None = None,
     block: int = BLOCK,
     *,
@@ -437,13 +629,15 @@ def solve_compiled(
     args = [np.ascontiguousarray(pos, dtype=float)]
     if pit is not None:
         args.append(np.ascontiguousarray(pit, dtype=float))
+    if rot is not None:
+        args.append(np.ascontiguousarray(rot, dtype=float).reshape(n, 9))
     if qc is not None:
         args.append(np.ascontiguousarray(qc, dtype=float))
-    free_end = arm.n_pitch == 3 and pit is None
+    free_end = arm.n_pitch == 3 and pit is None and rot is None
     handover = np.zeros(n, dtype=bool) if free_end else None
     # Full blocks, then the rest in small ones (two compiled functions per arm and kind).
     full = n // block * block
-    key = (pit is not None, qc is not None)
+    key = (kind_of(pit, rot), qc is not None)
     _run(kernels.function(*key, block, compiled), args, out, handover, 0, full, block)
     _run(kernels.function(*key, SMALL_BLOCK, compiled), args, out, handover, full, n, SMALL_BLOCK)
     return out, np.flatnonzero(handover) if handover is not None else np.zeros(0, dtype=np.intp)
