@@ -338,9 +338,13 @@ def _one_target(arm: ArmGeometry, kind: str, current: bool) -> ca.Function:
     if free_end:
         unsolved = status != code[STATUS_SOLVED]
         extra = [unsolved if handover is None else ca.logic_or(unsolved, handover)]
-    out = ca.vertcat(*[x for m in range(4) for x in q[m]], *valid, *within, *singular, *perr, status, best, *extra)
+    outputs = [
+        ca.vertcat(*[x for m in range(4) for x in q[m]]),
+        ca.vertcat(*perr),
+        ca.vertcat(*valid, *within, *singular, status, best, *extra),
+    ]
     inputs = [p] + ([pit] if pitch else []) + ([rflat] if pose else []) + ([qc] if current else [])
-    return ca.Function("yaw_planar_closed_form", inputs, [ca.cse(out)])
+    return ca.Function("yaw_planar_closed_form", inputs, ca.cse(outputs))
 
 
 def _current_end_angle(arm: ArmGeometry, qc, psi, ue, ze):
@@ -644,34 +648,44 @@ def solve_compiled(
 
 
 def _run(fn: ca.Function, args, out: BranchArrays, handover, start: int, stop: int, b: int) -> None:
-    """Rows `start` to `stop` of `out` (and `handover`) by `fn` (mapped over `b` targets), block by block."""
+    """Rows `start` to `stop` of `out` (and `handover`) by `fn` (mapped over `b` targets), block by block.
+
+    (b, m) rows in C order are CasADi's (m, b) columns: full blocks read the inputs and write
+    the joint values and errors in place; the masks and codes go through one reused buffer.
+    """
     if start >= stop:
         return
     buffer, evaluate = fn.buffer()
     dof = out.q.shape[2]
-    o = 4 * dof
-    # One block's results, reused (in cache): (b, width) in C order is CasADi's (width, b).
-    res = np.empty((b, o + 4 * 4 + 2 + (handover is not None)))
-    buffer.set_res(0, memoryview(res))
+    codes = np.empty((b, 4 * 3 + 2 + (handover is not None)))
+    buffer.set_res(2, memoryview(codes))
+    q_part = perr_part = None
     for first in range(start, stop, b):
         last = min(first + b, stop)
         k = last - first
-        # (b, m) rows in C order are CasADi's (m, b) columns: no copies for full blocks.
+        rows = slice(first, last)
         # Kept referenced until evaluated (the buffer holds only their addresses).
-        blocks = [_block(arg[first:last], b) for arg in args]
+        blocks = [_block(arg[rows], b) for arg in args]
         for i, arg in enumerate(blocks):
             buffer.set_arg(i, memoryview(arg))
+        if k == b:
+            buffer.set_res(0, memoryview(out.q[rows]))
+            buffer.set_res(1, memoryview(out.perr[rows]))
+        else:
+            q_part, perr_part = np.empty((b, 4, dof)), np.empty((b, 4))
+            buffer.set_res(0, memoryview(q_part))
+            buffer.set_res(1, memoryview(perr_part))
         evaluate()
-        rows = slice(first, last)
-        out.q[rows] = res[:k, :o].reshape(k, 4, dof)
-        np.not_equal(res[:k, o : o + 4], 0.0, out=out.valid[rows])
-        np.not_equal(res[:k, o + 4 : o + 8], 0.0, out=out.within[rows])
-        np.not_equal(res[:k, o + 8 : o + 12], 0.0, out=out.singular[rows])
-        out.perr[rows] = res[:k, o + 12 : o + 16]
-        out.status[rows] = res[:k, o + 16]
-        out.best[rows] = res[:k, o + 17]
+        if k < b:
+            out.q[rows] = q_part[:k]
+            out.perr[rows] = perr_part[:k]
+        np.not_equal(codes[:k, 0:4], 0.0, out=out.valid[rows])
+        np.not_equal(codes[:k, 4:8], 0.0, out=out.within[rows])
+        np.not_equal(codes[:k, 8:12], 0.0, out=out.singular[rows])
+        out.status[rows] = codes[:k, 12]
+        out.best[rows] = codes[:k, 13]
         if handover is not None:
-            np.not_equal(res[:k, o + 18], 0.0, out=handover[rows])
+            np.not_equal(codes[:k, 14], 0.0, out=handover[rows])
 
 
 def _block(x: np.ndarray, b: int) -> np.ndarray:
