@@ -169,8 +169,15 @@ def _one_target(arm: ArmGeometry, kind: str, current: bool) -> ca.Function:
             cat = [
                 _where(ca.logic_and(cat[k] == VALID, residual[k] > arm.orient_tol), ORIENT, cat[k]) for k in range(2)
             ]
-    cy = [ca.cos(psi[k] + arm.mu) for k in range(2)]
-    sy = [ca.sin(psi[k] + arm.mu) for k in range(2)]
+    if d == 0.0 and not (pose or current):
+        # The yaws psi + mu: ang on the front (or mu on the axis), ang + pi on the back
+        # (one sine and cosine; the same values to round-off).
+        c_ang, s_ang = ca.cos(ang), ca.sin(ang)
+        cy = [_where(free, math.cos(arm.mu), c_ang), -c_ang]
+        sy = [_where(free, math.sin(arm.mu), s_ang), -s_ang]
+    else:
+        cy = [ca.cos(psi[k] + arm.mu) for k in range(2)]
+        sy = [ca.sin(psi[k] + arm.mu) for k in range(2)]
     alpha_t = None
     if pitch:
         alpha_t = [_where(cy[k] * p[0] + sy[k] * p[1] >= 0.0, pit, PI - pit) for k in range(2)]
