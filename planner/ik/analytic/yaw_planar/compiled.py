@@ -1,17 +1,28 @@
-"""The batch closed form as one compiled function over targets (exact chains, position or pitch).
+"""The batch closed form as one compiled function over targets (exact chains).
 
-On exact chains (no correction on the real geometry) whose tip lies on the roll axis (or
-that have no roll), position targets without a free end angle (two pitch joints) and
-approach-pitch targets need no search: each target's four branches follow from a fixed
-sequence of square roots and arc tangents. :class:`CompiledKernels` writes that sequence, the
-same as :func:`~planner.ik.analytic.yaw_planar.core.solve_core`,
-:func:`~planner.ik.analytic.yaw_planar.core.ideal_position_error`, the wrapping into the
-joint ranges (:func:`~planner.geometry.chain.wrap_array`) and
-:func:`~planner.ik.analytic.yaw_planar.status.status_codes`, as one CasADi SX function of
-one target, maps it over a block of targets and compiles it to C
+On exact chains (no correction on the real geometry), each target's four branches follow
+from a fixed sequence of square roots, arc tangents, sines and cosines: position targets
+(the tip on the roll axis, or no roll), approach-pitch targets and full poses, with or
+without q_current. :class:`CompiledKernels` writes that sequence, the same as
+:func:`~planner.ik.analytic.yaw_planar.core.solve_core` (with
+:mod:`~planner.ik.analytic.yaw_planar.orientation` for poses and
+:func:`~planner.ik.analytic.yaw_planar.free_pitch.free_pitch_array` for the free end angle of
+three pitch joints), the errors (:func:`~planner.ik.analytic.yaw_planar.core.ideal_position_error`,
+or for poses :func:`~planner.ik.analytic.yaw_planar.refine.refine`'s check by the product of
+exponentials), the wrapping into the joint ranges nearest q_current
+(:func:`~planner.geometry.chain.wrap_array`),
+:func:`~planner.ik.analytic.yaw_planar.status.status_codes` and the branch nearest q_current,
+as one CasADi SX function of one target, maps it over a block of targets and compiles it to C
 (:func:`~planner.ik.numeric.codegen.compile_function`; CasADi's virtual machine without a
-compiler; :class:`CompiledKernels`). :func:`solve_compiled` runs it block by block. Branches, categories, statuses and
-masks are the NumPy path's; joint values and errors agree to round-off.
+compiler). :func:`solve_compiled` runs it block by block. Targets that need the search within
+the limits (a free end angle, not solved at the chosen one) or q_current's end angle out of
+reach are handed back to NumPy (see :func:`~planner.ik.analytic.yaw_planar.batch.solve_compiled_within`).
+Branches, categories, statuses and masks are the NumPy path's; joint values and errors agree
+to round-off.
+
+Compiler flags: ``-O3`` without ``-march``: the shared library is cached on disk by a hash of
+the code and flags, not of the CPU, so it must run on any x86-64 (and FMA contraction would
+change round-off against the NumPy path).
 """
 
 from __future__ import annotations
