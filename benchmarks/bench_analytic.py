@@ -14,7 +14,9 @@ Single calls: ``solver.solve(target, q_current)`` is timed per target, each call
 with one ``robot.fk(q)`` call timed the same way (so both see the same machine state); the
 table gives the median and the 99th percentile of the solve time divided by the median fk
 time. Batches: ``solver.solve_batch`` over ``--batch`` targets (best of 3; SO-101 at most
-20,000; poses at most 200,000), with fk timed between the repetitions; the rate is given in
+20,000; poses at most 200,000), with fk timed between the repetitions; the batch time is
+the process's CPU time (a run of 0.1-1 s loses time slices to other processes on a busy
+machine, which a 3 us fk call rarely does; on a quiet one it equals the wall time); the rate is given in
 targets per second and per fk-call time (how many targets one fk call's time solves). The
 batch path column says which code answered: the closed form compiled to C (exact yaw-planar
 chains, :mod:`planner.ik.analytic.yaw_planar.compiled`; with the share of targets it hands to
@@ -221,9 +223,9 @@ def bench_kind(robot, solver, kind, n_single, n_batch, seed):
             t0 = clock()
             fk(q)
             batch_fk.append(clock() - t0)
-        t0 = time.perf_counter()
+        t0 = time.process_time()
         batch = solver.solve_batch(pos2, **kwargs)
-        best = min(best, time.perf_counter() - t0)
+        best = min(best, time.process_time() - t0)
     batch_fk_s = float(np.median(batch_fk)) * 1e-9
     found = np.any(np.where(batch.valid, same(batch.q, q2[:, None, :], free), False), axis=1)
     batch_ok = (batch.status == 0) & found
