@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import functools
 
+import casadi as ca
 import numpy as np
 import pytest
 from dh_arms import property_settings
@@ -23,10 +24,17 @@ from test_analytic_fast_paths import yaw_planar_arms
 
 from planner import load_robot
 from planner.core.rotations import rotation_error
+from planner.geometry.chain import LIMIT_SNAP, wrap_array
 from planner.geometry.target import approach_pitch
 from planner.ik.analytic import closed_form_solver
 from planner.ik.analytic.yaw_planar.batch import solve_arrays_within, solve_compiled_within
-from planner.ik.analytic.yaw_planar.compiled import SMALL_BLOCK, CompiledKernels, compiled_supported, solve_compiled
+from planner.ik.analytic.yaw_planar.compiled import (
+    SMALL_BLOCK,
+    CompiledKernels,
+    compiled_supported,
+    solve_compiled,
+    wrap_sx,
+)
 
 # (robot, target kind, q_current); compiling takes 1-4 s each: the rest in the slow suite.
 FAST_KINDS = [
@@ -166,3 +174,32 @@ def test_random_exact_arms_vm(robot, seed, kind, current):
     assume(s.arm.exact and (pit is None or s.arm.pitch_supported) and compiled_supported(s.arm, pit, rot, qc))
     got = solve_compiled_within(CompiledKernels(s.arm), pos, pit, rot, qc, compiled=False)
     assert_same(got, solve_arrays_within(s.arm, pos, pit, rot, qc))
+
+
+LIMITS = [
+    (-2.356, 2.356),  # both inside (-pi, pi)
+    (-0.17, 3.316),  # the upper beyond pi
+    (-np.pi, np.pi),
+    (0.0873, 2.443),
+    (-2.88, -0.436),
+    (-4.0, 1.0),  # the lower beyond -pi
+    (-1e9, 1e9),
+]
+
+
+@pytest.mark.parametrize(("lower", "upper"), LIMITS)
+@pytest.mark.parametrize("centred", [True, False], ids=["ref0", "ref"])
+def test_wrap_sx_equals_wrap_array(lower, upper, centred):
+    """The compiled wrapping into a joint range (its steps left out where they cannot apply)
+    equals wrap_array on values around the limits, their 2 pi shifts and the half turns."""
+    rng = np.random.default_rng(5)
+    edges = np.array([lower, upper, np.pi, -np.pi, 0.0])
+    offsets = np.array([0.0, 0.5, 1.0, 1.5, 2.0, -0.5, -1.0, -1.5, -2.0]) * LIMIT_SNAP
+    near = (edges[:, None, None] + offsets[None, :, None] + 2 * np.pi * np.arange(-2, 3)[None, None, :]).ravel()
+    x = np.concatenate([near, rng.uniform(-4 * np.pi, 4 * np.pi, 4000), [np.nan]])
+    ref = rng.uniform(-2 * np.pi, 2 * np.pi, x.size) if not centred else np.zeros(x.size)
+    sx, sref = ca.SX.sym("x"), ca.SX.sym("ref")
+    f = ca.Function("wrap", [sx, sref], [wrap_sx(sx, lower, upper, sref if not centred else 0.0)]).map(x.size)
+    got = np.asarray(f(x, ref)).ravel()
+    want = wrap_array(x.copy(), lower, upper, ref)
+    np.testing.assert_array_equal(got, want)

@@ -47,7 +47,7 @@ from planner.ik.analytic.yaw_planar.arrays import BranchArrays
 from planner.ik.analytic.yaw_planar.branches import BEYOND, CYLINDER, DUPLICATE, INSIDE, ORIENT, VALID
 from planner.ik.numeric.codegen import compile_function
 
-__all__ = ["BLOCK", "SMALL_BLOCK", "CompiledKernels", "compiled_supported", "kind_of", "solve_compiled"]
+__all__ = ["BLOCK", "SMALL_BLOCK", "CompiledKernels", "compiled_supported", "kind_of", "solve_compiled", "wrap_sx"]
 
 PI = math.pi
 TWO_PI = 2.0 * math.pi
@@ -86,7 +86,7 @@ def _rint(y):
 
     Adding and subtracting 1.5 * 2**52 leaves the integer that the addition rounds to (round
     to nearest, ties to even). ``fmax`` keeps CasADi from folding the pair away (the sum is
-    positive; a NaN `y` gives a NaN value through the ``x - 2 pi r`` of :func:`_wrap`).
+    positive; a NaN `y` gives a NaN value through the ``x - 2 pi r`` of :func:`wrap_sx`).
     """
     return ca.fmax(y + MAGIC, 0.0) - MAGIC
 
@@ -97,27 +97,36 @@ def _wrap_pi(x):
     return _where(m < 0.0, m + TWO_PI, m) - PI
 
 
-def _wrap(x, lower: float, upper: float, ref=0.0):
+def wrap_sx(x, lower: float, upper: float, ref=0.0):
     """:func:`~planner.geometry.chain.wrap_array`, one value.
 
-    With `ref` 0, after the turn to the nearest 2 pi multiple |x| <= pi (to round-off): a
-    limit beyond pi + 1e-6 is never exceeded there, and its step is left out (the other step
-    may still turn x past it: the snaps onto the limits stay).
+    With `ref` 0, after the turn to the nearest 2 pi multiple |x| <= pi (to round-off), which
+    leaves out what cannot happen: a limit beyond pi + 1e-6 is never exceeded (its step is
+    left out; the other step may still turn x past it: the snaps onto the limits stay); with
+    both limits inside (-pi, pi) by 1e-6, x - 2 pi lies below the lower one and x + 2 pi above
+    the upper one by far more than the snap (those tests are left out).
     """
     x = x - TWO_PI * _rint((x - ref) / TWO_PI)
     if not (math.isfinite(lower) or math.isfinite(upper)):
         return x
     centred = isinstance(ref, float) and ref == 0.0
+    lower_inside = centred and lower > -PI + REACHED
+    both_inside = lower_inside and upper < PI - REACHED
     over = upper < PI + REACHED or not centred
     if over:
         down = x - TWO_PI
-        x = _where(x > upper, _where(ca.logic_or(down >= lower - LIMIT_SNAP, (x - upper) > (lower - down)), down, x), x)
-    if over or lower > -PI - REACHED:  # (over includes not centred)
+        turn = (x - upper) > (lower - down)
+        if not lower_inside:
+            turn = ca.logic_or(down >= lower - LIMIT_SNAP, turn)
+        x = _where(ca.logic_and(x > upper, turn), down, x)
+    if over or lower > -PI - REACHED:
         up = x + TWO_PI
-        x = _where(x < lower, _where(ca.logic_or(up <= upper + LIMIT_SNAP, (lower - x) > (up - upper)), up, x), x)
+        turn = (lower - x) > (up - upper)
+        if not both_inside:
+            turn = ca.logic_or(up <= upper + LIMIT_SNAP, turn)
+        x = _where(ca.logic_and(x < lower, turn), up, x)
     x = _where(ca.logic_and(x > upper, x <= upper + LIMIT_SNAP), upper, x)
-    x = _where(ca.logic_and(x < lower, x >= lower - LIMIT_SNAP), lower, x)
-    return x
+    return _where(ca.logic_and(x < lower, x >= lower - LIMIT_SNAP), lower, x)
 
 
 def _one_target(arm: ArmGeometry, kind: str, current: bool) -> ca.Function:
@@ -309,9 +318,9 @@ def _one_target(arm: ArmGeometry, kind: str, current: bool) -> ca.Function:
         for j in range(dof):
             if current:
                 # A roll copied from q_current: unchanged within its range (see solve_arrays).
-                q[m][j] = _wrap(q[m][j], arm.lower[j], arm.upper[j], qc[j])
+                q[m][j] = wrap_sx(q[m][j], arm.lower[j], arm.upper[j], qc[j])
             elif pose or not (arm.has_roll and j == arm.roll_idx):
-                q[m][j] = _wrap(q[m][j], arm.lower[j], arm.upper[j])
+                q[m][j] = wrap_sx(q[m][j], arm.lower[j], arm.upper[j])
             within[m] = ca.logic_and(within[m], ca.logic_and(q[m][j] >= arm.lower[j], q[m][j] <= arm.upper[j]))
         q[m] = [_where(valid[m], x, nan) for x in q[m]]
         perr[m] = _where(valid[m], perr[m], nan)
