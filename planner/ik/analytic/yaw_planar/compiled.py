@@ -489,20 +489,30 @@ def _rodrigues(axis, s, c):
 
 
 def _poe_fk(arm: ArmGeometry, q):
-    """The real arm's tip position and rotation at `q` (:func:`~planner.geometry.chain.poe_fk`'s sums)."""
+    """The real arm's tip position and rotation at `q` (:func:`~planner.geometry.chain.poe_fk`'s sums).
+
+    Entries of the model within 1e-15 (times the arm's size for points) of zero are taken as
+    zero (round-off of the URDF's angles; the products then skip them): the tip moves by
+    less than 1e-14 x the arm's size.
+    """
     rot = trans = None
     for k in range(arm.dof):
-        r_k = _rodrigues(arm.axes[k], ca.sin(q[k]), ca.cos(q[k]))
-        pt = [float(v) for v in arm.points[k]]
+        r_k = _rodrigues(_tidy(arm.axes[k], 1.0), ca.sin(q[k]), ca.cos(q[k]))
+        pt = _tidy(arm.points[k], arm.scale)
         t_k = [pt[i] - (r[0] * pt[0] + r[1] * pt[1] + r[2] * pt[2]) for i, r in enumerate(r_k)]
         if rot is None:
             rot, trans = r_k, t_k
             continue
         trans = [trans[i] + rot[i][0] * t_k[0] + rot[i][1] * t_k[1] + rot[i][2] * t_k[2] for i in range(3)]
         rot = _matmul(rot, r_k)
-    tp = [float(v) for v in arm.tip_position]
+    tp = _tidy(arm.tip_position, arm.scale)
     pos = [rot[i][0] * tp[0] + rot[i][1] * tp[1] + rot[i][2] * tp[2] + trans[i] for i in range(3)]
-    return pos, _matmul(rot, np.asarray(arm.rot0).tolist())
+    return pos, _matmul(rot, [_tidy(row, 1.0) for row in np.asarray(arm.rot0)])
+
+
+def _tidy(v, scale: float) -> list[float]:
+    """`v`'s entries, those within 1e-15 x `scale` of zero set to zero."""
+    return [0.0 if abs(float(x)) <= 1e-15 * scale else float(x) for x in v]
 
 
 def _rotation_error(a, b):
