@@ -22,12 +22,12 @@ from hypothesis import assume, given
 from hypothesis import strategies as st
 from test_analytic_fast_paths import yaw_planar_arms
 
-from planner import load_robot
+from planner import Target, load_robot
 from planner.core.rotations import rotation_error
 from planner.geometry.chain import LIMIT_SNAP, wrap_array
 from planner.geometry.target import approach_pitch
-from planner.ik.analytic import closed_form_solver
-from planner.ik.analytic.yaw_planar.batch import solve_arrays_within, solve_compiled_within
+from planner.ik.analytic import STATUS_NAMES, closed_form_solver
+from planner.ik.analytic.yaw_planar.batch import COMPILED_MIN, solve_arrays_within, solve_compiled_within
 from planner.ik.analytic.yaw_planar.compiled import (
     SMALL_BLOCK,
     CompiledKernels,
@@ -151,6 +151,41 @@ def test_solve_batch_uses_the_same_answers(name, kind, current):
     np.testing.assert_array_equal(batch.valid, want.valid)
     np.testing.assert_array_equal(batch.within_limits, want.within)
     np.testing.assert_allclose(batch.q, want.q, rtol=0.0, atol=1e-9)
+
+
+@pytest.mark.parametrize(("name", "kind", "current"), KINDS)
+def test_compiled_batch_agrees_with_single_solves(name, kind, current):
+    """solve_batch over enough targets for the compiled path gives each target's single-call answer.
+
+    Joint values compared modulo 2 pi: at a yaw range end of +-pi (three_joint, targets from
+    configurations on their range ends) the single pose call returns -pi where the batch
+    paths (NumPy and compiled alike) return pi.
+    """
+    s = solver(name)
+    rng = np.random.default_rng(8)
+    n = 1100
+    pos, pit, rot, qc = inputs(s, rng, n, kind, current)
+    assert n >= COMPILED_MIN and compiled_supported(s.arm, pit, rot, qc)
+    batch = s.solve_batch(pos, pitch=pit, rotations=rot, q_current=qc)
+    for i in rng.choice(n, 60, replace=False):
+        target = Target(pos[i], pitch=None if pit is None else float(pit[i]), rotation=None if rot is None else rot[i])
+        single = s.solve(target, q_current=None if qc is None else qc[i])
+        assert STATUS_NAMES[batch.status[i]] == single.status
+        assert int(batch.valid[i].sum()) == len(single.solutions)
+        for sol in single.solutions:
+            k = s.branches.index(sol.branch)
+            assert np.max(turns(batch.q[i, k] - sol.q)) < 1e-9
+            assert batch.within_limits[i, k] == sol.within_limits
+            assert batch.singular[i, k] == sol.singular
+        if single.best is None:
+            assert batch.best[i] == -1
+        else:
+            assert np.max(turns(batch.best_q[i] - single.best.q)) < 1e-9
+
+
+def turns(d):
+    """|d| modulo 2 pi [rad]."""
+    return np.abs((d + np.pi) % (2 * np.pi) - np.pi)
 
 
 def test_supported_kinds():
