@@ -4,7 +4,9 @@ On dh3, three_joint and al5c (exact yaw + 2 or 3 pitch arms) and on random exact
 family: the same branches, masks, statuses and best branch as
 :func:`~planner.ik.analytic.yaw_planar.batch.solve_arrays_within`, joint values and position
 errors equal to round-off, for targets by FK of random configurations (some on the joint range
-ends), targets moved off the reachable set and random points; compiled to C and on CasADi's
+ends), targets moved off the reachable set and random points, with and without q_current (the
+generating configuration or another), position targets with a free end angle included (the
+targets the compiled function hands over to NumPy included); compiled to C and on CasADi's
 virtual machine. Solved answers reproduce the target by Pinocchio FK.
 """
 
@@ -12,6 +14,7 @@ from __future__ import annotations
 
 import functools
 
+import casadi as ca
 import numpy as np
 import pytest
 from dh_arms import property_settings
@@ -19,13 +22,41 @@ from hypothesis import assume, given
 from hypothesis import strategies as st
 from test_analytic_fast_paths import yaw_planar_arms
 
-from planner import load_robot
+from planner import Target, load_robot
+from planner.core.rotations import rotation_error
+from planner.geometry.chain import LIMIT_SNAP, wrap_array
 from planner.geometry.target import approach_pitch
-from planner.ik.analytic import closed_form_solver
-from planner.ik.analytic.yaw_planar.batch import solve_arrays_within
-from planner.ik.analytic.yaw_planar.compiled import SMALL_BLOCK, CompiledKernels, compiled_supported, solve_compiled
+from planner.ik.analytic import STATUS_NAMES, closed_form_solver
+from planner.ik.analytic.yaw_planar.batch import COMPILED_MIN, solve_arrays_within, solve_compiled_within
+from planner.ik.analytic.yaw_planar.compiled import (
+    SMALL_BLOCK,
+    CompiledKernels,
+    compiled_supported,
+    solve_compiled,
+    wrap_sx,
+)
 
-KINDS = [("dh3", False), ("dh3", True), ("three_joint", True), ("al5c", True)]
+# (robot, target kind, q_current); compiling takes 1-4 s each: the rest in the slow suite.
+FAST_KINDS = [
+    ("dh3", "position", False),
+    ("dh3", "pitch", False),
+    ("dh3", "pose", False),
+    ("three_joint", "pitch", False),
+    ("three_joint", "position", True),
+    ("al5c", "position", False),
+    ("al5c", "pose", True),
+]
+SLOW_KINDS = [
+    ("dh3", "position", True),
+    ("three_joint", "position", False),
+    ("three_joint", "pose", False),
+    ("three_joint", "pose", True),
+    ("al5c", "pitch", False),
+    ("al5c", "pitch", True),
+    ("al5c", "position", True),
+    ("al5c", "pose", False),
+]
+KINDS = FAST_KINDS + [pytest.param(*k, marks=pytest.mark.slow) for k in SLOW_KINDS]
 TOL_POS = 1e-9
 
 
@@ -35,13 +66,16 @@ def solver(name):
 
 
 def targets(robot, rng, n):
-    """Positions and pitches: FK of random configurations (a quarter with joints on their range
-    ends), a quarter of them moved by up to 20 % of the reach, and random points."""
+    """Positions, pitches, rotations and q_current: FK of random configurations (a quarter with
+    joints on their range ends), a quarter of them moved by up to 20 % of the reach, and random
+    points (with random pitches and rotations); q_current the generating configuration for half
+    the targets, another for the rest."""
     lo, hi = np.asarray(robot.lower), np.asarray(robot.upper)
     q = rng.uniform(lo, hi, (n, len(lo)))
     ends = rng.random((n, len(lo))) < 0.25
     q = np.where(ends, np.where(rng.random((n, len(lo))) < 0.5, lo, hi), q)
-    pos = robot.fk(q)[:, :3, 3]
+    pose = robot.fk(q)
+    pos, rot = pose[:, :3, 3], pose[:, :3, :3].copy()
     pit = np.asarray(approach_pitch(robot, q), dtype=float)
     reach = float(np.max(np.linalg.norm(pos, axis=1)))
     moved = rng.random(n) < 0.25
@@ -49,9 +83,19 @@ def targets(robot, rng, n):
     loose = rng.random(n) < 0.1
     pos[loose] = rng.uniform(-1.5 * reach, 1.5 * reach, (int(loose.sum()), 3))
     pit[loose] = rng.uniform(-np.pi, np.pi, int(loose.sum()))
+    rot[loose] = np.linalg.qr(rng.normal(size=(int(loose.sum()), 3, 3)))[0] * rng.choice([-1.0, 1.0], (1, 1, 1))
+    rot[loose] *= np.linalg.det(rot[loose])[:, None, None]  # proper rotations
     # Exactly on the x axis, where the back branch's yaw is pi, on a range end.
     pos[:4, 1] = 0.0
-    return pos, pit
+    other = rng.random(n) < 0.5
+    qc = np.where(other[:, None], rng.uniform(lo, hi, (n, len(lo))), q)
+    return pos, pit, rot, qc
+
+
+def inputs(s, rng, n, kind, current):
+    """(positions, pitches or None, rotations or None, q_current or None) of `kind` targets."""
+    pos, pit, rot, qc = targets(s.robot, rng, n)
+    return pos, pit if kind == "pitch" else None, rot if kind == "pose" else None, qc if current else None
 
 
 def assert_same(got, want):
@@ -63,17 +107,22 @@ def assert_same(got, want):
 
 
 @pytest.mark.parametrize("compiled", [True, False], ids=["C", "vm"])
-@pytest.mark.parametrize(("name", "pitch"), KINDS)
-def test_compiled_equals_numpy(name, pitch, compiled):
+@pytest.mark.parametrize(("name", "kind", "current"), KINDS)
+def test_compiled_equals_numpy(name, kind, current, compiled):
     s = solver(name)
     arm = s.arm
     rng = np.random.default_rng(12)
     n = 4096 + 3 * SMALL_BLOCK + 17  # a full block, small blocks and a padded rest
-    pos, pit = targets(s.robot, rng, n)
-    pit = pit if pitch else None
-    assert compiled_supported(arm, pit, None, None)
-    got = solve_compiled(CompiledKernels(arm), pos, pit, compiled=compiled)
-    want = solve_arrays_within(arm, pos, pit, None, None)
+    pos, pit, rot, qc = inputs(s, rng, n, kind, current)
+    assert compiled_supported(arm, pit, rot, qc)
+    kernels = CompiledKernels(arm)
+    _, handed = solve_compiled(kernels, pos, pit, rot, qc, compiled=compiled)
+    if arm.n_pitch == 3 and kind == "position":
+        assert 0 < handed.size < n  # the search within the limits: NumPy's
+    else:
+        assert handed.size == 0
+    got = solve_compiled_within(kernels, pos, pit, rot, qc, compiled=compiled)
+    want = solve_arrays_within(arm, pos, pit, rot, qc)
     assert_same(got, want)
     statuses = set(np.unique(got.status).tolist())
     assert 0 in statuses and len(statuses) >= 2  # solved and failing targets both met
@@ -81,21 +130,22 @@ def test_compiled_equals_numpy(name, pitch, compiled):
     q = got.q[np.flatnonzero(solved), got.best[solved]]
     pose = s.robot.fk(q)
     assert np.max(np.linalg.norm(pose[:, :3, 3] - pos[solved], axis=1)) < TOL_POS
-    if pitch:
+    if pit is not None:
         err = np.abs(np.asarray(approach_pitch(s.robot, q)) - pit[solved])
         assert np.max(np.minimum(err, 2 * np.pi - err)) < 1e-9
+    if rot is not None:
+        assert np.max(rotation_error(pose[:, :3, :3], rot[solved])) < 1e-9
     assert np.all(s.robot.within_limits(q))
 
 
-@pytest.mark.parametrize(("name", "pitch"), KINDS)
-def test_solve_batch_uses_the_same_answers(name, pitch):
+@pytest.mark.parametrize(("name", "kind", "current"), KINDS)
+def test_solve_batch_uses_the_same_answers(name, kind, current):
     """The public solve_batch (the compiled path here) equals the NumPy arrays."""
     s = solver(name)
     rng = np.random.default_rng(3)
-    pos, pit = targets(s.robot, rng, 1500)
-    pit = pit if pitch else None
-    batch = s.solve_batch(pos, pitch=pit)
-    want = solve_arrays_within(s.arm, pos, pit, None, None)
+    pos, pit, rot, qc = inputs(s, rng, 1500, kind, current)
+    batch = s.solve_batch(pos, pitch=pit, rotations=rot, q_current=qc)
+    want = solve_arrays_within(s.arm, pos, pit, rot, qc)
     np.testing.assert_array_equal(batch.status, want.status)
     np.testing.assert_array_equal(batch.best, want.best)
     np.testing.assert_array_equal(batch.valid, want.valid)
@@ -103,20 +153,88 @@ def test_solve_batch_uses_the_same_answers(name, pitch):
     np.testing.assert_allclose(batch.q, want.q, rtol=0.0, atol=1e-9)
 
 
-def test_not_supported_where_numpy_must_search():
+@pytest.mark.parametrize(("name", "kind", "current"), KINDS)
+def test_compiled_batch_agrees_with_single_solves(name, kind, current):
+    """solve_batch over enough targets for the compiled path gives each target's single-call answer.
+
+    Joint values compared modulo 2 pi: at a yaw range end of +-pi (three_joint, targets from
+    configurations on their range ends) the single pose call returns -pi where the batch
+    paths (NumPy and compiled alike) return pi.
+    """
+    s = solver(name)
+    rng = np.random.default_rng(8)
+    n = 1100
+    pos, pit, rot, qc = inputs(s, rng, n, kind, current)
+    assert n >= COMPILED_MIN and compiled_supported(s.arm, pit, rot, qc)
+    batch = s.solve_batch(pos, pitch=pit, rotations=rot, q_current=qc)
+    for i in rng.choice(n, 60, replace=False):
+        target = Target(pos[i], pitch=None if pit is None else float(pit[i]), rotation=None if rot is None else rot[i])
+        single = s.solve(target, q_current=None if qc is None else qc[i])
+        assert STATUS_NAMES[batch.status[i]] == single.status
+        assert int(batch.valid[i].sum()) == len(single.solutions)
+        for sol in single.solutions:
+            k = s.branches.index(sol.branch)
+            assert np.max(turns(batch.q[i, k] - sol.q)) < 1e-9
+            assert batch.within_limits[i, k] == sol.within_limits
+            assert batch.singular[i, k] == sol.singular
+        if single.best is None:
+            assert batch.best[i] == -1
+        else:
+            assert np.max(turns(batch.best_q[i] - single.best.q)) < 1e-9
+
+
+def turns(d):
+    """|d| modulo 2 pi [rad]."""
+    return np.abs((d + np.pi) % (2 * np.pi) - np.pi)
+
+
+def test_supported_kinds():
     three = solver("three_joint").arm
-    assert not compiled_supported(three, None, None, None)  # free end angle
-    assert not compiled_supported(three, np.zeros(1), None, np.zeros((1, 4)))  # q_current
-    assert not compiled_supported(three, None, np.eye(3)[None], None)  # rotations
+    assert compiled_supported(three, None, None, None)  # free end angle (searched by NumPy)
+    assert compiled_supported(three, np.zeros(1), None, np.zeros((1, 4)))
+    assert compiled_supported(three, None, np.eye(3)[None], None)
 
 
 @property_settings(25)
-@given(robot=yaw_planar_arms(), seed=st.integers(0, 2**32 - 1), pitch=st.booleans())
-def test_random_exact_arms_vm(robot, seed, pitch):
+@given(
+    robot=yaw_planar_arms(),
+    seed=st.integers(0, 2**32 - 1),
+    kind=st.sampled_from(["position", "pitch", "pose"]),
+    current=st.booleans(),
+)
+def test_random_exact_arms_vm(robot, seed, kind, current):
     s = closed_form_solver(robot)
     rng = np.random.default_rng(seed)
-    pos, pit = targets(robot, rng, 40)
-    pit = pit if pitch else None
-    assume(s.arm.exact and (not pitch or s.arm.pitch_supported) and compiled_supported(s.arm, pit, None, None))
-    got = solve_compiled(CompiledKernels(s.arm), pos, pit, compiled=False)
-    assert_same(got, solve_arrays_within(s.arm, pos, pit, None, None))
+    pos, pit, rot, qc = inputs(s, rng, 40, kind, current)
+    assume(s.arm.exact and (pit is None or s.arm.pitch_supported) and compiled_supported(s.arm, pit, rot, qc))
+    got = solve_compiled_within(CompiledKernels(s.arm), pos, pit, rot, qc, compiled=False)
+    assert_same(got, solve_arrays_within(s.arm, pos, pit, rot, qc))
+
+
+LIMITS = [
+    (-2.356, 2.356),  # both inside (-pi, pi)
+    (-0.17, 3.316),  # the upper beyond pi
+    (-np.pi, np.pi),
+    (0.0873, 2.443),
+    (-2.88, -0.436),
+    (-4.0, 1.0),  # the lower beyond -pi
+    (-1e9, 1e9),
+]
+
+
+@pytest.mark.parametrize(("lower", "upper"), LIMITS)
+@pytest.mark.parametrize("centred", [True, False], ids=["ref0", "ref"])
+def test_wrap_sx_equals_wrap_array(lower, upper, centred):
+    """The compiled wrapping into a joint range (its steps left out where they cannot apply)
+    equals wrap_array on values around the limits, their 2 pi shifts and the half turns."""
+    rng = np.random.default_rng(5)
+    edges = np.array([lower, upper, np.pi, -np.pi, 0.0])
+    offsets = np.array([0.0, 0.5, 1.0, 1.5, 2.0, -0.5, -1.0, -1.5, -2.0]) * LIMIT_SNAP
+    near = (edges[:, None, None] + offsets[None, :, None] + 2 * np.pi * np.arange(-2, 3)[None, None, :]).ravel()
+    x = np.concatenate([near, rng.uniform(-4 * np.pi, 4 * np.pi, 4000), [np.nan]])
+    ref = rng.uniform(-2 * np.pi, 2 * np.pi, x.size) if not centred else np.zeros(x.size)
+    sx, sref = ca.SX.sym("x"), ca.SX.sym("ref")
+    f = ca.Function("wrap", [sx, sref], [wrap_sx(sx, lower, upper, sref if not centred else 0.0)]).map(x.size)
+    got = np.asarray(f(x, ref)).ravel()
+    want = wrap_array(x.copy(), lower, upper, ref)
+    np.testing.assert_array_equal(got, want)

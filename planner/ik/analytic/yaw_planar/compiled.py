@@ -1,17 +1,28 @@
-"""The batch closed form as one compiled function over targets (exact chains, position or pitch).
+"""The batch closed form as one compiled function over targets (exact chains).
 
-On exact chains (no correction on the real geometry) whose tip lies on the roll axis (or
-that have no roll), position targets without a free end angle (two pitch joints) and
-approach-pitch targets need no search: each target's four branches follow from a fixed
-sequence of square roots and arc tangents. :class:`CompiledKernels` writes that sequence, the
-same as :func:`~planner.ik.analytic.yaw_planar.core.solve_core`,
-:func:`~planner.ik.analytic.yaw_planar.core.ideal_position_error`, the wrapping into the
-joint ranges (:func:`~planner.geometry.chain.wrap_array`) and
-:func:`~planner.ik.analytic.yaw_planar.status.status_codes`, as one CasADi SX function of
-one target, maps it over a block of targets and compiles it to C
+On exact chains (no correction on the real geometry), each target's four branches follow
+from a fixed sequence of square roots, arc tangents, sines and cosines: position targets
+(the tip on the roll axis, or no roll), approach-pitch targets and full poses, with or
+without q_current. :class:`CompiledKernels` writes that sequence, the same as
+:func:`~planner.ik.analytic.yaw_planar.core.solve_core` (with
+:mod:`~planner.ik.analytic.yaw_planar.orientation` for poses and
+:func:`~planner.ik.analytic.yaw_planar.free_pitch.free_pitch_array` for the free end angle of
+three pitch joints), the errors (:func:`~planner.ik.analytic.yaw_planar.core.ideal_position_error`,
+or for poses :func:`~planner.ik.analytic.yaw_planar.refine.refine`'s check by the product of
+exponentials), the wrapping into the joint ranges nearest q_current
+(:func:`~planner.geometry.chain.wrap_array`),
+:func:`~planner.ik.analytic.yaw_planar.status.status_codes` and the branch nearest q_current,
+as one CasADi SX function of one target, maps it over a block of targets and compiles it to C
 (:func:`~planner.ik.numeric.codegen.compile_function`; CasADi's virtual machine without a
-compiler; :class:`CompiledKernels`). :func:`solve_compiled` runs it block by block. Branches, categories, statuses and
-masks are the NumPy path's; joint values and errors agree to round-off.
+compiler). :func:`solve_compiled` runs it block by block. Targets that need the search within
+the limits (a free end angle, not solved at the chosen one) or q_current's end angle out of
+reach are handed back to NumPy (see :func:`~planner.ik.analytic.yaw_planar.batch.solve_compiled_within`).
+Branches, categories, statuses and masks are the NumPy path's; joint values and errors agree
+to round-off.
+
+Compiler flags: ``-O3`` without ``-march``: the shared library is cached on disk by a hash of
+the code and flags, not of the CPU, so it must run on any x86-64 (and FMA contraction would
+change round-off against the NumPy path).
 """
 
 from __future__ import annotations
@@ -36,7 +47,7 @@ from planner.ik.analytic.yaw_planar.arrays import BranchArrays
 from planner.ik.analytic.yaw_planar.branches import BEYOND, CYLINDER, DUPLICATE, INSIDE, ORIENT, VALID
 from planner.ik.numeric.codegen import compile_function
 
-__all__ = ["BLOCK", "SMALL_BLOCK", "CompiledKernels", "compiled_supported", "solve_compiled"]
+__all__ = ["BLOCK", "SMALL_BLOCK", "CompiledKernels", "compiled_supported", "kind_of", "solve_compiled", "wrap_sx"]
 
 PI = math.pi
 TWO_PI = 2.0 * math.pi
@@ -48,19 +59,22 @@ BLOCK = 4096
 #: Targets per call for the rest.
 SMALL_BLOCK = 64
 REP = (0, 0, 1, 1)
+#: 1.5 * 2**52: x + MAGIC - MAGIC rounds x to an integer, halves to even.
+MAGIC = 6755399441055744.0
+#: How far beyond pi [rad] a wrapped value may lie (round-off; far less than this).
+REACHED = 1e-6
 
 
 def compiled_supported(arm: ArmGeometry, pit, rot, qc) -> bool:
     """Whether :func:`solve_compiled` gives the NumPy path's answers for these inputs."""
-    if not arm.exact or rot is not None or qc is not None or not arm.tip_on_roll_axis:
+    if not arm.exact or arm.elbow_seed > 0.0:
         return False
-    if arm.elbow_seed > 0.0:
+    if rot is not None:
+        return pit is None
+    if not arm.tip_on_roll_axis:
         return False
-    if arm.n_pitch == 3 and pit is None:
-        return False  # the free end angle and its search stay in NumPy
-    if arm.has_roll and not arm.lower[arm.roll_idx] <= 0.0 <= arm.upper[arm.roll_idx]:
-        return False
-    return True
+    # Without q_current the roll is 0, which must lie within its range (else NumPy wraps it).
+    return not (qc is None and arm.has_roll and not arm.lower[arm.roll_idx] <= 0.0 <= arm.upper[arm.roll_idx])
 
 
 def _where(cond, a, b):
@@ -68,11 +82,13 @@ def _where(cond, a, b):
 
 
 def _rint(y):
-    """``numpy.round``: to the nearest integer, halves to even (exact, unlike floor(y + 0.5))."""
-    r = ca.floor(y)
-    frac = y - r
-    odd = r - 2.0 * ca.floor(0.5 * r) != 0.0
-    return r + ca.logic_or(frac > 0.5, ca.logic_and(frac == 0.5, odd))
+    """``numpy.round``: to the nearest integer, halves to even, for ``|y| < 2**51``.
+
+    Adding and subtracting 1.5 * 2**52 leaves the integer that the addition rounds to (round
+    to nearest, ties to even). ``fabs`` of the (positive) sum keeps CasADi from folding the
+    pair away; it compiles to one instruction (``fmax`` would be a call).
+    """
+    return ca.fabs(y + MAGIC) - MAGIC
 
 
 def _wrap_pi(x):
@@ -81,28 +97,67 @@ def _wrap_pi(x):
     return _where(m < 0.0, m + TWO_PI, m) - PI
 
 
-def _wrap(x, lower: float, upper: float):
-    """:func:`~planner.geometry.chain.wrap_array` with ref 0, one value."""
-    x = x - TWO_PI * _rint(x / TWO_PI)
+def wrap_sx(x, lower: float, upper: float, ref=0.0):
+    """:func:`~planner.geometry.chain.wrap_array`, one value.
+
+    With `ref` 0, after the turn to the nearest 2 pi multiple |x| <= pi (to round-off), which
+    leaves out what cannot happen: a limit beyond pi + 1e-6 is never exceeded (its step is
+    left out; the other step may still turn x past it: the snaps onto the limits stay); with
+    both limits inside (-pi, pi) by 1e-6, x - 2 pi lies below the lower one and x + 2 pi above
+    the upper one by far more than the snap (those tests are left out).
+    """
+    x = x - TWO_PI * _rint((x - ref) / TWO_PI)
     if not (math.isfinite(lower) or math.isfinite(upper)):
         return x
-    down = x - TWO_PI
-    x = _where(x > upper, _where(ca.logic_or(down >= lower - LIMIT_SNAP, (x - upper) > (lower - down)), down, x), x)
-    up = x + TWO_PI
-    x = _where(x < lower, _where(ca.logic_or(up <= upper + LIMIT_SNAP, (lower - x) > (up - upper)), up, x), x)
+    centred = isinstance(ref, float) and ref == 0.0
+    lower_inside = centred and lower > -PI + REACHED
+    both_inside = lower_inside and upper < PI - REACHED
+    over = upper < PI + REACHED or not centred
+    if over:
+        down = x - TWO_PI
+        turn = (x - upper) > (lower - down)
+        if not lower_inside:
+            turn = ca.logic_or(down >= lower - LIMIT_SNAP, turn)
+        x = _where(ca.logic_and(x > upper, turn), down, x)
+    if over or lower > -PI - REACHED:
+        up = x + TWO_PI
+        turn = (lower - x) > (up - upper)
+        if not both_inside:
+            turn = ca.logic_or(up <= upper + LIMIT_SNAP, turn)
+        x = _where(ca.logic_and(x < lower, turn), up, x)
     x = _where(ca.logic_and(x > upper, x <= upper + LIMIT_SNAP), upper, x)
     return _where(ca.logic_and(x < lower, x >= lower - LIMIT_SNAP), lower, x)
 
 
-def _one_target(arm: ArmGeometry, pitch: bool) -> ca.Function:
-    """The closed form of one target as an SX function: (position, pitch) -> the per-target arrays."""
+def _one_target(arm: ArmGeometry, kind: str, current: bool) -> ca.Function:
+    """The closed form of one target as an SX function of (position, pitch or rotation, q_current).
+
+    `kind` is "position", "pitch" or "pose" (the rotation's nine entries row by row). The
+    outputs are the per-target arrays; where the end angle is free (three pitch joints,
+    position targets), a last one is 1 where :func:`solve_compiled` must hand the target to
+    NumPy: not solved (the search within the limits), or q_current's end angle out of a
+    side's reach (the default choice).
+    """
+    pitch, pose = kind == "pitch", kind == "pose"
     p = ca.SX.sym("p", 3)
     pit = ca.SX.sym("pit") if pitch else None
+    rflat = ca.SX.sym("rot", 9) if pose else None
+    qc = ca.SX.sym("qc", arm.dof) if current else None
     dof = arm.dof
-    tu, tz, d = arm.tip_fixed
-    hx = p[0] - arm.bx
-    hy = p[1] - arm.by
-    ze = p[2]
+    rot = m_rot = None
+    end = p
+    if pose:
+        rot = [[rflat[3 * i + j] for j in range(3)] for i in range(3)]
+        m_rot = _matmul(rot, np.asarray(arm.rot0).T.tolist())
+    if pose and arm.has_roll:
+        tu, tz, d = arm.centre
+        c = [float(v) for v in arm.centre_to_tip_local]
+        end = [p[i] - (rot[i][0] * c[0] + rot[i][1] * c[1] + rot[i][2] * c[2]) for i in range(3)]
+    else:
+        tu, tz, d = arm.tip_fixed
+    hx = end[0] - arm.bx
+    hy = end[1] - arm.by
+    ze = end[2]
     rho2 = hx * hx + hy * hy
     axis_tol = arm.len_tol
     free = ca.logic_and(rho2 <= axis_tol * axis_tol, abs(d) <= axis_tol)
@@ -119,13 +174,30 @@ def _one_target(arm: ArmGeometry, pitch: bool) -> ca.Function:
         psi_f = ang - arm.mu - ca.atan2(-d, u)
         psi_b = ang - arm.mu - ca.atan2(-d, -u)
     back_dup = ca.logic_or(free, u == 0.0)
-    psi_f = _where(free, 0.0, psi_f)
+    psi_f = _where(free, arm.sigma * qc[0] if current else 0.0, psi_f)
     u = _where(free, 0.0, u)
     psi = [psi_f, psi_b]
     ue = [u, -u]
     cat = [_where(cylinder, CYLINDER, VALID), _where(cylinder, CYLINDER, _where(back_dup, DUPLICATE, VALID))]
-    cy = [ca.cos(psi[k] + arm.mu) for k in range(2)]
-    sy = [ca.sin(psi[k] + arm.mu) for k in range(2)]
+    phi_rot = roll_side = None
+    if pose:
+        psi, ue, cat = _yaw_for_rotation(arm, m_rot, hx, hy, d, u, psi, ue, cat)
+        phi_rot, residual = _pitch_from_rotation(arm, m_rot, psi)
+        if arm.has_roll:
+            roll_side = _roll_from_rotation(arm, m_rot, psi, phi_rot)
+        if arm.n_pitch == 3:
+            cat = [
+                _where(ca.logic_and(cat[k] == VALID, residual[k] > arm.orient_tol), ORIENT, cat[k]) for k in range(2)
+            ]
+    if d == 0.0 and not (pose or current):
+        # The yaws psi + mu: ang on the front (or mu on the axis), ang + pi on the back
+        # (one sine and cosine; the same values to round-off).
+        c_ang, s_ang = ca.cos(ang), ca.sin(ang)
+        cy = [_where(free, math.cos(arm.mu), c_ang), -c_ang]
+        sy = [_where(free, math.sin(arm.mu), s_ang), -s_ang]
+    else:
+        cy = [ca.cos(psi[k] + arm.mu) for k in range(2)]
+        sy = [ca.sin(psi[k] + arm.mu) for k in range(2)]
     alpha_t = None
     if pitch:
         alpha_t = [_where(cy[k] * p[0] + sy[k] * p[1] >= 0.0, pit, PI - pit) for k in range(2)]
@@ -133,7 +205,14 @@ def _one_target(arm: ArmGeometry, pitch: bool) -> ca.Function:
     sg, idx = arm.signs, arm.pitch_idx
     q = [[None] * dof for _ in range(4)]
     cat4 = [None] * 4
-    if arm.n_pitch == 2 and pitch:
+    free_end = arm.n_pitch == 3 and kind == "position"
+    handover = None
+    if free_end and current:
+        phi_end, handover = _current_end_angle(arm, qc, psi, ue, ze)
+    elif free_end:
+        phi_end, fail = _default_end_angle(arm, ue, ze)
+        cat = [_where(ca.logic_and(cat[k] == VALID, fail[k] != VALID), fail[k], cat[k]) for k in range(2)]
+    if arm.n_pitch == 2 and (pitch or pose):
         l2 = math.hypot(tu, tz)
         g2 = math.atan2(tz, tu)
         dist2 = []
@@ -143,7 +222,11 @@ def _one_target(arm: ArmGeometry, pitch: bool) -> ca.Function:
             c = cat[k]
             c = _where(ca.logic_and(c == VALID, de > l1 + l2 + len_tol), BEYOND, c)
             c = _where(ca.logic_and(c == VALID, de < abs(l1 - l2) - len_tol), INSIDE, c)
-            phi = alpha_t[k] - arm.beta
+            if pose:
+                phi = phi_rot[k]
+                c = _where(ca.logic_and(c == VALID, residual[k] > arm.orient_tol), ORIENT, c)
+            else:
+                phi = alpha_t[k] - arm.beta
             cp, sp = ca.cos(phi), ca.sin(phi)
             ex = ue[k] - (cp * tu - sp * tz) - su
             ez = ze - (sp * tu + cp * tz) - sz
@@ -157,6 +240,8 @@ def _one_target(arm: ArmGeometry, pitch: bool) -> ca.Function:
                 q[m][0] = arm.sigma * psi[k]
                 q[m][idx[0]] = sg[0] * phi2
                 q[m][idx[1]] = sg[1] * (phi - phi2)
+                if arm.has_roll:
+                    q[m][arm.roll_idx] = roll_side[k] if pose else qc[arm.roll_idx] if current else ca.SX(0.0)
                 cat4[m] = _where(ca.logic_and(c == VALID, ca.logic_not(chosen)), DUPLICATE, c)
             dist2.append(de)
             sing2.append(
@@ -167,7 +252,7 @@ def _one_target(arm: ArmGeometry, pitch: bool) -> ca.Function:
     else:
         if arm.n_pitch == 3:
             l2, g2 = arm.l2, arm.g2
-            phi = [alpha_t[k] - arm.beta for k in range(2)]
+            phi = phi_end if free_end else phi_rot if pose else [alpha_t[k] - arm.beta for k in range(2)]
             cp = [ca.cos(phi[k]) for k in range(2)]
             sp = [ca.sin(phi[k]) for k in range(2)]
             wu = [ue[k] - (cp[k] * tu - sp[k] * tz) for k in range(2)]
@@ -206,7 +291,7 @@ def _one_target(arm: ArmGeometry, pitch: bool) -> ca.Function:
             if arm.n_pitch == 3:
                 q[m][idx[2]] = sg[2] * (phi[k] - phi3)
             if arm.has_roll:
-                q[m][arm.roll_idx] = ca.SX(0.0)
+                q[m][arm.roll_idx] = roll_side[k] if pose else qc[arm.roll_idx] if current else ca.SX(0.0)
             c = cat[k]
             if m in (1, 3):
                 c = _where(ca.logic_and(c == VALID, sing2[k]), DUPLICATE, c)
@@ -215,38 +300,27 @@ def _one_target(arm: ArmGeometry, pitch: bool) -> ca.Function:
         singular = [
             ca.logic_or(ca.logic_or(sing2[REP[m]], free), abs(ue[REP[m]]) < SINGULAR_TOL * arm.scale) for m in range(4)
         ]
-    # The ideal forward model's position error (before wrapping: 2 pi turns change nothing).
-    perr = []
-    for m in range(4):
-        k = REP[m]
-        phi2 = sg[0] * q[m][idx[0]]
-        phi3 = phi2 + sg[1] * q[m][idx[1]]
-        a = phi2 + arm.g1
-        fu = arm.su + arm.l1 * ca.cos(a)
-        fz = arm.sz + arm.l1 * ca.sin(a)
-        if arm.n_pitch == 3:
-            phi4 = phi3 + sg[2] * q[m][idx[2]]
-            a = phi3 + arm.g2
-            fu += arm.l2 * ca.cos(a)
-            fz += arm.l2 * ca.sin(a)
-        else:
-            phi4 = phi3
-        c4, s4 = ca.cos(phi4), ca.sin(phi4)
-        fu += c4 * tu - s4 * tz
-        fz += s4 * tu + c4 * tz
-        # The yaw mu + sigma q0 is psi + mu (sigma is +-1): the same value as cy, sy's.
-        cyk, syk = cy[k], sy[k]
-        dx = arm.bx + cyk * fu + syk * d - p[0]
-        dy = arm.by + syk * fu - cyk * d - p[1]
-        dz = fz - p[2]
-        perr.append(ca.sqrt(dx * dx + dy * dy + dz * dz))
+    if pose:
+        # Errors by the real model (product of exponentials; refine's on exact chains), before wrapping.
+        pos_tol = 1e-10 * max(1.0, arm.scale)
+        perr = []
+        for m in range(4):
+            fk_p, fk_r = _poe_fk(arm, q[m])
+            perr.append(ca.sqrt(sum((fk_p[i] - p[i]) ** 2 for i in range(3))))
+            ok = ca.logic_and(perr[m] <= pos_tol, _rotation_error(fk_r, rot) <= arm.orient_tol)
+            cat4[m] = _where(ca.logic_and(cat4[m] == VALID, ca.logic_not(ok)), ORIENT, cat4[m])
+    else:
+        perr = _ideal_position_error(arm, q, cy, sy, p)
     valid = [cat4[m] == VALID for m in range(4)]
     within = list(valid)
     nan = ca.SX(float("nan"))
     for m in range(4):
         for j in range(dof):
-            if not (arm.has_roll and j == arm.roll_idx):
-                q[m][j] = _wrap(q[m][j], arm.lower[j], arm.upper[j])
+            if current:
+                # A roll copied from q_current: unchanged within its range (see solve_arrays).
+                q[m][j] = wrap_sx(q[m][j], arm.lower[j], arm.upper[j], qc[j])
+            elif pose or not (arm.has_roll and j == arm.roll_idx):
+                q[m][j] = wrap_sx(q[m][j], arm.lower[j], arm.upper[j])
             within[m] = ca.logic_and(within[m], ca.logic_and(q[m][j] >= arm.lower[j], q[m][j] <= arm.upper[j]))
         q[m] = [_where(valid[m], x, nan) for x in q[m]]
         perr[m] = _where(valid[m], perr[m], nan)
@@ -277,10 +351,259 @@ def _one_target(arm: ArmGeometry, pitch: bool) -> ca.Function:
     )
     status = _where(any_valid, status, none)
     status = _where(any_within, code[STATUS_SOLVED], status)
-    best = _where(within[0], 0, _where(within[1], 1, _where(within[2], 2, _where(within[3], 3, -1))))
-    out = ca.vertcat(*[x for m in range(4) for x in q[m]], *valid, *within, *singular, *perr, status, best)
-    inputs = [p, pit] if pitch else [p]
-    return ca.Function("yaw_planar_closed_form", inputs, [ca.cse(out)])
+    if current:
+        # The within-limits branch nearest q_current (the first of equals, as numpy.argmin).
+        best, nearest = ca.SX(-1), ca.SX(math.inf)
+        for m in range(4):
+            dist_m = sum((q[m][j] - qc[j]) ** 2 for j in range(dof))
+            take = ca.logic_and(within[m], dist_m < nearest)
+            best = _where(take, m, best)
+            nearest = _where(take, dist_m, nearest)
+    else:
+        best = _where(within[0], 0, _where(within[1], 1, _where(within[2], 2, _where(within[3], 3, -1))))
+    extra = []
+    if free_end:
+        unsolved = status != code[STATUS_SOLVED]
+        extra = [unsolved if handover is None else ca.logic_or(unsolved, handover)]
+    outputs = [
+        ca.vertcat(*[x for m in range(4) for x in q[m]]),
+        ca.vertcat(*perr),
+        ca.vertcat(*valid, *within, *singular, status, best, *extra),
+    ]
+    inputs = [p] + ([pit] if pitch else []) + ([rflat] if pose else []) + ([qc] if current else [])
+    return ca.Function("yaw_planar_closed_form", inputs, ca.cse(outputs))
+
+
+def _current_end_angle(arm: ArmGeometry, qc, psi, ue, ze):
+    """q_current's in-plane end angle per side, and whether a side cannot take it.
+
+    As :func:`~planner.ik.analytic.yaw_planar.free_pitch.free_pitch_array`; where a side
+    cannot, NumPy's default choice applies: the target is handed over.
+    """
+    tu, tz, _ = arm.tip_fixed
+    rmin = max(abs(arm.l1 - arm.l2), arm.rmin_lim)
+    rmax = min(arm.l1 + arm.l2, arm.rmax_lim)
+    alpha = arm.beta + sum(s * qc[i] for s, i in zip(arm.signs, arm.pitch_idx))
+    phi, handover = [], ca.SX(0)
+    for k in range(2):
+        facing = ca.cos(psi[k] - arm.sigma * qc[0]) >= 0.0
+        phi_k = _where(facing, alpha, PI - alpha) - arm.beta
+        cp, sp = ca.cos(phi_k), ca.sin(phi_k)
+        du = ue[k] - (cp * tu - sp * tz) - arm.su
+        dz = ze - (sp * tu + cp * tz) - arm.sz
+        dd = ca.sqrt(du * du + dz * dz)
+        ok = ca.logic_and(dd >= rmin - arm.core_len_tol, dd <= rmax + arm.core_len_tol)
+        handover = ca.logic_or(handover, ca.logic_not(ok))
+        phi.append(phi_k)
+    return phi, handover
+
+
+def _default_end_angle(arm: ArmGeometry, ue, ze):
+    """The default in-plane end angle per side and its failure category.
+
+    As :func:`~planner.ik.analytic.yaw_planar.free_pitch.free_pitch_array` without q_current.
+    """
+    tu, tz, _ = arm.tip_fixed
+    su, sz = arm.su, arm.sz
+    rmin = max(abs(arm.l1 - arm.l2), arm.rmin_lim)
+    rmax = min(arm.l1 + arm.l2, arm.rmax_lim)
+    lt = float(np.hypot(tu, tz))
+    gt = float(np.arctan2(tz, tu))
+    phi, fail = [], []
+    for k in range(2):
+        ex, ez = ue[k] - su, ze - sz
+        de = ca.sqrt(ex * ex + ez * ez)
+        lo = ca.fmax(abs(de - lt), rmin)
+        hi = ca.fmin(de + lt, rmax)
+        bad = ca.logic_or(lo > hi + arm.core_len_tol, de == 0.0)
+        fail.append(_where(bad, _where(de - lt > rmax, BEYOND, INSIDE), VALID))
+        safe = _where(de == 0.0, 1.0, de)
+        a = (lo * lo - lt * lt + safe * safe) / (2.0 * safe)
+        h = _where(abs(de - lt) >= rmin, 0.0, ca.sqrt(ca.fmax(lo * lo - a * a, 0.0)))
+        ux, uz = ex / safe, ez / safe
+        options = []
+        for sgn in (1.0, -1.0):
+            wx = su + a * ux - sgn * h * uz
+            wz = sz + a * uz + sgn * h * ux
+            phi_s = ca.atan2(ze - wz, ue[k] - wx) - gt
+            options.append((phi_s, ca.sin(arm.beta + phi_s)))
+        (phi1, lift1), (phi2, lift2) = options
+        phi.append(_where(lift2 < lift1 - 1e-15, phi2, phi1))
+    return phi, fail
+
+
+def _ideal_position_error(arm: ArmGeometry, q, cy, sy, p):
+    """:func:`~planner.ik.analytic.yaw_planar.core.ideal_position_error` of the 4 branches (before wrapping).
+
+    `cy`, `sy`: the cosine and sine of each side's yaw mu + sigma q0 (sigma is +-1: psi + mu).
+    """
+    tu, tz, d = arm.tip_fixed
+    sg, idx = arm.signs, arm.pitch_idx
+    perr = []
+    for m in range(4):
+        k = REP[m]
+        phi2 = sg[0] * q[m][idx[0]]
+        phi3 = phi2 + sg[1] * q[m][idx[1]]
+        a = phi2 + arm.g1
+        fu = arm.su + arm.l1 * ca.cos(a)
+        fz = arm.sz + arm.l1 * ca.sin(a)
+        if arm.n_pitch == 3:
+            phi4 = phi3 + sg[2] * q[m][idx[2]]
+            a = phi3 + arm.g2
+            fu += arm.l2 * ca.cos(a)
+            fz += arm.l2 * ca.sin(a)
+        else:
+            phi4 = phi3
+        c4, s4 = ca.cos(phi4), ca.sin(phi4)
+        fu += c4 * tu - s4 * tz
+        fz += s4 * tu + c4 * tz
+        dx = arm.bx + cy[k] * fu + sy[k] * d - p[0]
+        dy = arm.by + sy[k] * fu - cy[k] * d - p[1]
+        dz = fz - p[2]
+        perr.append(ca.sqrt(dx * dx + dy * dy + dz * dz))
+    return perr
+
+
+def _matmul(a, b):
+    """The product of two 3 x 3 matrices given as nested lists (NumPy's order of the sums)."""
+    return [[a[i][0] * b[0][j] + a[i][1] * b[1][j] + a[i][2] * b[2][j] for j in range(3)] for i in range(3)]
+
+
+def _matvec(a, v):
+    """A 3 x 3 matrix (nested lists) times a vector."""
+    v = [x if isinstance(x, ca.SX) else float(x) for x in v]
+    return [a[i][0] * v[0] + a[i][1] * v[1] + a[i][2] * v[2] for i in range(3)]
+
+
+def _rodrigues(axis, s, c):
+    """The rows of ``c I + s [axis]x + (1 - c) axis axis^T`` (:func:`~planner.geometry.chain.rotation_about`'s)."""
+    x, y, z = (float(v) for v in axis)
+    v = 1.0 - c
+    vx, vy, vz = v * x, v * y, v * z
+    sx, sy, sz = s * x, s * y, s * z
+    return [
+        [c + vx * x, vx * y - sz, vx * z + sy],
+        [vy * x + sz, c + vy * y, vy * z - sx],
+        [vz * x - sy, vz * y + sx, c + vz * z],
+    ]
+
+
+def _poe_fk(arm: ArmGeometry, q):
+    """The real arm's tip position and rotation at `q` (:func:`~planner.geometry.chain.poe_fk`'s sums).
+
+    Entries of the model within 1e-15 (times the arm's size for points) of zero are taken as
+    zero (round-off of the URDF's angles; the products then skip them): the tip moves by
+    less than 1e-14 x the arm's size.
+    """
+    rot = trans = None
+    for k in range(arm.dof):
+        r_k = _rodrigues(_tidy(arm.axes[k], 1.0), ca.sin(q[k]), ca.cos(q[k]))
+        pt = _tidy(arm.points[k], arm.scale)
+        t_k = [pt[i] - (r[0] * pt[0] + r[1] * pt[1] + r[2] * pt[2]) for i, r in enumerate(r_k)]
+        if rot is None:
+            rot, trans = r_k, t_k
+            continue
+        trans = [trans[i] + rot[i][0] * t_k[0] + rot[i][1] * t_k[1] + rot[i][2] * t_k[2] for i in range(3)]
+        rot = _matmul(rot, r_k)
+    tp = _tidy(arm.tip_position, arm.scale)
+    pos = [rot[i][0] * tp[0] + rot[i][1] * tp[1] + rot[i][2] * tp[2] + trans[i] for i in range(3)]
+    return pos, _matmul(rot, [_tidy(row, 1.0) for row in np.asarray(arm.rot0)])
+
+
+def _tidy(v, scale: float) -> list[float]:
+    """`v`'s entries, those within 1e-15 x `scale` of zero set to zero."""
+    return [0.0 if abs(float(x)) <= 1e-15 * scale else float(x) for x in v]
+
+
+def _rotation_error(a, b):
+    """:func:`~planner.core.rotations.rotation_error` (the batch formula) of two rotations (nested lists)."""
+    rel = _matmul([[a[j][i] for j in range(3)] for i in range(3)], b)
+    cos = (rel[0][0] + rel[1][1] + rel[2][2] - 1.0) / 2.0
+    k = [rel[2][1] - rel[1][2], rel[0][2] - rel[2][0], rel[1][0] - rel[0][1]]
+    sin = ca.sqrt(k[0] * k[0] + k[1] * k[1] + k[2] * k[2]) / 2.0
+    return ca.atan2(sin, ca.fmin(ca.fmax(cos, -1.0), 1.0))
+
+
+def _yaw_for_rotation(arm: ArmGeometry, m_rot, hx, hy, d, u, psi, ue, cat):
+    """:func:`~planner.ik.analytic.yaw_planar.orientation.yaw_for_rotation` for one target."""
+    if arm.has_roll:
+        w = _matvec(m_rot, arm.r0)
+        horiz = ca.sqrt(w[0] * w[0] + w[1] * w[1])
+        psi_a = ca.atan2(w[1], w[0]) - arm.mu
+        use = ca.logic_and(horiz > 1e-9, horiz * arm.scale >= u)
+    else:
+        w = _matvec(m_rot, arm.n)
+        psi_a = ca.atan2(w[1], w[0]) - math.atan2(float(arm.n[1]), float(arm.n[0]))
+        use = None
+    cy, sy = ca.cos(arm.mu + psi_a), ca.sin(arm.mu + psi_a)
+    ue_a = hx * cy + hy * sy
+    lat_a = hx * sy - hy * cy
+    forward = ue_a >= 0.0
+    tol = max(arm.consistency_tol, arm.core_len_tol)
+    off_plane = abs(lat_a - d) > tol
+    if arm.has_roll:
+        psi_front = _where(forward, psi_a, psi_a + PI)
+        psi_rot = [psi_front, psi_front + PI]
+        off_back = abs(-lat_a - d) > tol
+        cat_rot = [
+            _where(_where(forward, off_plane, off_back), ORIENT, VALID),
+            _where(_where(forward, off_back, off_plane), ORIENT, VALID),
+        ]
+    else:
+        psi_rot = [psi_a, psi_a]
+        bad = _where(off_plane, ORIENT, VALID)
+        cat_rot = [_where(forward, bad, DUPLICATE), _where(forward, DUPLICATE, bad)]
+    ue_rot = [abs(ue_a), -abs(ue_a)]
+    cat_rot = [_where(cat[k] == CYLINDER, cat[k], cat_rot[k]) for k in range(2)]
+    if use is None:
+        return psi_rot, ue_rot, cat_rot
+    return tuple(
+        [_where(use, new[k], old[k]) for k in range(2)] for new, old in ((psi_rot, psi), (ue_rot, ue), (cat_rot, cat))
+    )
+
+
+def _unyaw(v, cz, sz):
+    """Rz(-psi) v."""
+    return [cz * v[0] + sz * v[1], -sz * v[0] + cz * v[1], v[2]]
+
+
+def _pitch_from_rotation(arm: ArmGeometry, m_rot, psi):
+    """:func:`~planner.ik.analytic.yaw_planar.orientation.pitch_from_rotation` per side: phi and the residual [rad]."""
+    e_u = [float(v) for v in arm.e_u]
+    n = [float(v) for v in arm.n]
+    phi, residual = [], []
+    for k in range(2):
+        cz, sz = ca.cos(psi[k]), ca.sin(psi[k])
+        if arm.has_roll:
+            x = _unyaw(_matvec(m_rot, arm.r0), cz, sz)
+            phi.append(ca.atan2(x[2], x[0] * e_u[0] + x[1] * e_u[1] + x[2] * e_u[2]) - arm.kappa)
+            xn = x[0] * n[0] + x[1] * n[1] + x[2] * n[2]
+            residual.append(ca.asin(ca.fmin(ca.fmax(abs(xn), 0.0), 1.0)))
+        else:
+            x = _unyaw(_matvec(m_rot, e_u), cz, sz)
+            phi_k = ca.atan2(x[2], x[0] * e_u[0] + x[1] * e_u[1] + x[2] * e_u[2])
+            rz = [[cz, -sz, 0.0], [sz, cz, 0.0], [0.0, 0.0, 1.0]]
+            ideal = _matmul(rz, _rodrigues(n, ca.sin(phi_k), ca.cos(phi_k)))
+            phi.append(phi_k)
+            residual.append(_rotation_error(ideal, m_rot))
+    return phi, residual
+
+
+def _roll_from_rotation(arm: ArmGeometry, m_rot, psi, phi):
+    """:func:`~planner.ik.analytic.yaw_planar.orientation.roll_from_rotation` per side."""
+    n = [float(v) for v in arm.n]
+    rxn = np.cross(arm.r0, arm.n).tolist()
+    mn = _matvec(m_rot, n)
+    roll = []
+    for k in range(2):
+        un = _unyaw(mn, ca.cos(psi[k]), ca.sin(psi[k]))
+        back = _matvec(_rodrigues(n, ca.sin(-phi[k]), ca.cos(-phi[k])), un)
+        roll.append(
+            ca.atan2(
+                back[0] * rxn[0] + back[1] * rxn[1] + back[2] * rxn[2], back[0] * n[0] + back[1] * n[1] + back[2] * n[2]
+            )
+        )
+    return roll
 
 
 class CompiledKernels:
@@ -292,81 +615,114 @@ class CompiledKernels:
 
     def __init__(self, arm: ArmGeometry) -> None:
         self.arm = arm
-        self._functions: dict[tuple[bool, int, bool], ca.Function] = {}
+        self._functions: dict[tuple[str, bool, int, bool], ca.Function] = {}
 
-    def function(self, pitch: bool, block: int = BLOCK, compiled: bool = True) -> ca.Function:
-        """The closed form of pitch or position targets mapped over `block` targets.
+    def function(self, kind: str, current: bool = False, block: int = BLOCK, compiled: bool = True) -> ca.Function:
+        """The closed form of `kind` targets (with q_current or not) mapped over `block` targets.
+
+        `kind`: "position", "pitch" or "pose" (:func:`kind_of`).
 
         With `compiled`, built to C by :func:`~planner.ik.numeric.codegen.compile_function`
         (which falls back to CasADi's virtual machine without a compiler or with
         ``PLANNER_JIT=0``); without, the virtual machine's.
         """
-        key = (pitch, block, compiled)
+        key = (kind, current, block, compiled)
         fn = self._functions.get(key)
         if fn is None:
-            fn = _one_target(self.arm, pitch).map(block, "serial")
+            fn = _one_target(self.arm, kind, current).map(block, "serial")
             if compiled:
                 fn = compile_function(fn, flags=FLAGS)
             self._functions[key] = fn
         return fn
 
-    def available(self, pitch: bool) -> bool:
+    def available(self, kind: str, current: bool = False) -> bool:
         """Whether :meth:`function` is compiled C (without a compiler NumPy is faster)."""
-        return self.function(pitch).class_name() == "External"
+        return self.function(kind, current).class_name() == "External"
+
+
+def kind_of(pit, rot) -> str:
+    """The target kind of :meth:`CompiledKernels.function` for these inputs."""
+    return "pose" if rot is not None else "pitch" if pit is not None else "position"
 
 
 def solve_compiled(
-    kernels: CompiledKernels, pos: np.ndarray, pit: np.ndarray | None, block: int = BLOCK, *, compiled: bool = True
-) -> BranchArrays:
+    kernels: CompiledKernels,
+    pos: np.ndarray,
+    pit: np.ndarray | None,
+    rot: np.ndarray | None = None,
+    qc: np.ndarray | None = None,
+    block: int = BLOCK,
+    *,
+    compiled: bool = True,
+) -> tuple[BranchArrays, np.ndarray]:
     """The batch closed form of N targets by the compiled function (see the module docstring).
 
     Only where :func:`compiled_supported` holds; `compiled` as :meth:`CompiledKernels.function`'s.
 
     Returns:
         The arrays of :func:`~planner.ik.analytic.yaw_planar.batch.solve_chunked` (``cat``,
-        ``oerr``, ``dist`` None).
+        ``oerr``, ``dist`` None), and the indices of the targets the function hands over to
+        NumPy (a free end angle: see :func:`_one_target`), whose rows hold no answer.
     """
     n = pos.shape[0]
-    dof = kernels.arm.dof
-    out = BranchArrays.empty(n, dof)
-    pos = np.ascontiguousarray(pos, dtype=float)
-    pit = None if pit is None else np.ascontiguousarray(pit, dtype=float)
+    arm = kernels.arm
+    out = BranchArrays.empty(n, arm.dof)
+    args = [np.ascontiguousarray(pos, dtype=float)]
+    if pit is not None:
+        args.append(np.ascontiguousarray(pit, dtype=float))
+    if rot is not None:
+        args.append(np.ascontiguousarray(rot, dtype=float).reshape(n, 9))
+    if qc is not None:
+        args.append(np.ascontiguousarray(qc, dtype=float))
+    free_end = arm.n_pitch == 3 and pit is None and rot is None
+    handover = np.zeros(n, dtype=bool) if free_end else None
     # Full blocks, then the rest in small ones (two compiled functions per arm and kind).
     full = n // block * block
-    pitch = pit is not None
-    _run(kernels.function(pitch, block, compiled), pos, pit, out, 0, full, block)
-    _run(kernels.function(pitch, SMALL_BLOCK, compiled), pos, pit, out, full, n, SMALL_BLOCK)
-    return out
+    key = (kind_of(pit, rot), qc is not None)
+    _run(kernels.function(*key, block, compiled), args, out, handover, 0, full, block)
+    _run(kernels.function(*key, SMALL_BLOCK, compiled), args, out, handover, full, n, SMALL_BLOCK)
+    return out, np.flatnonzero(handover) if handover is not None else np.zeros(0, dtype=np.intp)
 
 
-def _run(fn: ca.Function, pos, pit, out: BranchArrays, start: int, stop: int, b: int) -> None:
-    """Rows `start` to `stop` of `out` by `fn` (mapped over `b` targets), block by block."""
+def _run(fn: ca.Function, args, out: BranchArrays, handover, start: int, stop: int, b: int) -> None:
+    """Rows `start` to `stop` of `out` (and `handover`) by `fn` (mapped over `b` targets), block by block.
+
+    (b, m) rows in C order are CasADi's (m, b) columns: full blocks read the inputs and write
+    the joint values and errors in place; the masks and codes go through one reused buffer.
+    """
     if start >= stop:
         return
     buffer, evaluate = fn.buffer()
     dof = out.q.shape[2]
-    o = 4 * dof
-    # One block's results, reused (in cache): (b, width) in C order is CasADi's (width, b).
-    res = np.empty((b, o + 4 * 4 + 2))
-    buffer.set_res(0, memoryview(res))
+    codes = np.empty((b, 4 * 3 + 2 + (handover is not None)))
+    buffer.set_res(2, memoryview(codes))
+    q_part = perr_part = None
     for first in range(start, stop, b):
         last = min(first + b, stop)
         k = last - first
-        # (b, 3) rows in C order are CasADi's (3, b) columns: no copies for full blocks.
-        args = [_block(pos[first:last], b)]
-        if pit is not None:
-            args.append(_block(pit[first:last], b))
-        for i, arg in enumerate(args):
-            buffer.set_arg(i, memoryview(arg))
-        evaluate()
         rows = slice(first, last)
-        out.q[rows] = res[:k, :o].reshape(k, 4, dof)
-        np.not_equal(res[:k, o : o + 4], 0.0, out=out.valid[rows])
-        np.not_equal(res[:k, o + 4 : o + 8], 0.0, out=out.within[rows])
-        np.not_equal(res[:k, o + 8 : o + 12], 0.0, out=out.singular[rows])
-        out.perr[rows] = res[:k, o + 12 : o + 16]
-        out.status[rows] = res[:k, o + 16]
-        out.best[rows] = res[:k, o + 17]
+        # Kept referenced until evaluated (the buffer holds only their addresses).
+        blocks = [_block(arg[rows], b) for arg in args]
+        for i, arg in enumerate(blocks):
+            buffer.set_arg(i, memoryview(arg))
+        if k == b:
+            buffer.set_res(0, memoryview(out.q[rows]))
+            buffer.set_res(1, memoryview(out.perr[rows]))
+        else:
+            q_part, perr_part = np.empty((b, 4, dof)), np.empty((b, 4))
+            buffer.set_res(0, memoryview(q_part))
+            buffer.set_res(1, memoryview(perr_part))
+        evaluate()
+        if k < b:
+            out.q[rows] = q_part[:k]
+            out.perr[rows] = perr_part[:k]
+        np.not_equal(codes[:k, 0:4], 0.0, out=out.valid[rows])
+        np.not_equal(codes[:k, 4:8], 0.0, out=out.within[rows])
+        np.not_equal(codes[:k, 8:12], 0.0, out=out.singular[rows])
+        out.status[rows] = codes[:k, 12]
+        out.best[rows] = codes[:k, 13]
+        if handover is not None:
+            np.not_equal(codes[:k, 14], 0.0, out=handover[rows])
 
 
 def _block(x: np.ndarray, b: int) -> np.ndarray:
