@@ -16,10 +16,25 @@ least ``clearance - tolerance`` from everything checked, at every instant.
 Bounding each pair by its own joints (rather than the whole arm's speed) matters most for
 links that stay close in every configuration (a compact wrist): their distance changes only
 with the few joints between them.
+
+Each pair is advanced on its own: it is certified up to its own next x, and a check computes
+only the pairs due then (and those due within half their last step), so a pair far from
+everything is computed rarely however often a close one needs it.
+
+A second bound (the *near-body* bound) serves a small body ``A`` close to the joints that
+move a long body ``B`` below it (a base beside a long upper arm): the first bound must let
+the far end of ``B`` swing, the second only the points near ``A``. With ``A`` in a ball of
+radius ``R`` around ``c`` and ``D_j`` a bound on the distance from ``c`` to joint ``j``'s
+axis, a point of ``B`` at ``s`` from ``c`` moves at most ``|qd_j| (s + D_j)`` per joint; it
+can only reach ``A`` if it moves more than ``max(d, s - R)``, so the pair keeps ``d - m``
+while ``e^T ((R + d) T + sum_j D_j Q_j) <= m``, ``T = sum_j Q_j`` the joints' total turn
+(``Q_j`` of joint ``j``, at most :data:`NEAR_TURN`) and ``e^T`` covering the points' own
+drift (Gronwall). A pair takes the longer of the two steps.
 """
 
 from __future__ import annotations
 
+import bisect
 import weakref
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
@@ -28,6 +43,7 @@ import numpy as np
 
 from planner.collision.arm import bounding_radius, box_corners
 from planner.collision.checker import Clearance, CollisionChecker
+from planner.core.arrays import read_only
 from planner.exceptions import InvalidArgumentError
 
 __all__ = [
@@ -88,6 +104,15 @@ class _ArmReach:
         self.arm: object | None = None
         self.table: dict[int, np.ndarray] = {}
         self.chains: list[list[int]] = []
+
+
+def _joint_axis(model, jid: int) -> np.ndarray:
+    """The unit axis of revolute joint `jid` in its own frame."""
+    joint = model.joints[jid]
+    jdata = joint.createData()
+    joint.calc(jdata, np.zeros(model.nq))
+    motion = np.asarray(jdata.S, dtype=float).reshape(6, -1)
+    return motion[3:, 0] / np.linalg.norm(motion[3:, 0])
 
 
 def _axis_reach(model, obj) -> float:
@@ -164,6 +189,122 @@ def pair_weights(checker: CollisionChecker) -> np.ndarray:
     return weights
 
 
+#: Largest total joint rotation between two checks of a pair under the near-body bound [rad].
+NEAR_TURN = 0.1
+_NEAR_GROWTH = float(np.exp(NEAR_TURN))
+
+_NEAR: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
+
+
+@dataclass(frozen=True)
+class NearBounds:
+    """Per pair, the near-body bound of the module docstring (from :func:`near_bounds`).
+
+    Attributes:
+        radius: ``R``, the radius of a ball around the pair's upper body ``A`` (the one the
+            other hangs below, or a scene body) [m]; inf where the bound does not apply.
+        offsets: ``D_j``, per pair and joint between the two, a bound on the distance from the
+            ball's centre to joint ``j``'s axis [m]; 0 for the other joints.
+        joints: Per pair and joint, whether the joint moves one body relative to the other.
+    """
+
+    radius: np.ndarray
+    offsets: np.ndarray
+    joints: np.ndarray
+
+
+def near_bounds(checker: CollisionChecker) -> NearBounds:
+    """The near-body bound's constants per checked pair (computed once per checker).
+
+    It applies to a pair whose upper body ``A`` (a scene body, or a link the other hangs
+    below) has a finite extent and whose joints in between all turn.
+    """
+    cached = _NEAR.get(checker)
+    if cached is not None:
+        return cached
+    robot, model, geom = checker.robot, checker.robot.model, checker.geometry
+    n = len(geom.collisionPairs)
+    radius = np.full(n, np.inf)
+    offsets, joints = np.zeros((n, robot.dof)), np.zeros((n, robot.dof), dtype=bool)
+    revolute = np.array(robot.joint_kinds) != "prismatic"
+    for k, pair in enumerate(geom.collisionPairs):
+        objs = [geom.geometryObjects[i] for i in (pair.first, pair.second)]
+        chains = [list(model.supports[o.parentJoint]) for o in objs]
+        if set(chains[1]) <= set(chains[0]):
+            objs, chains = objs[::-1], chains[::-1]
+        upper, lower = objs
+        if not set(chains[0]) <= set(chains[1]):
+            continue  # on different branches
+        between = [j for j in chains[1] if j not in chains[0]]
+        joints[k, [j - 1 for j in between]] = True
+        if not between or not all(revolute[j - 1] for j in between):
+            continue
+        if model.parents[between[0]] != upper.parentJoint:
+            continue
+        corners = box_corners(upper)
+        if not np.all(np.abs(corners) < 1e6):
+            continue  # a half-space
+        centre_local = (corners.min(axis=0) + corners.max(axis=0)) / 2.0
+        centre = upper.placement.rotation @ centre_local + upper.placement.translation
+        # The first joint's axis is fixed to A: what counts is the centre's distance from it.
+        first = model.jointPlacements[between[0]]
+        axis = first.rotation @ _joint_axis(model, between[0])
+        # The point of the axis nearest the centre, c': the next joint turns about the axis,
+        # so its distance from c' never changes; farther joints add their offsets.
+        arm = centre - first.translation
+        foot = first.translation + (arm @ axis) * axis
+        reach = float(np.linalg.norm(centre - foot))
+        offsets[k, between[0] - 1] = reach
+        if len(between) > 1:
+            # Or from the first joint's origin (whichever is shorter).
+            second = first.translation + first.rotation @ model.jointPlacements[between[1]].translation
+            reach = min(
+                reach + float(np.linalg.norm(second - foot)),
+                float(np.linalg.norm(arm)) + float(np.linalg.norm(second - first.translation)),
+            )
+            for j in between[1:]:
+                if j != between[1]:
+                    reach += float(np.linalg.norm(model.jointPlacements[j].translation))
+                offsets[k, j - 1] = reach
+        radius[k] = float(np.max(np.linalg.norm(corners - centre_local, axis=1)))
+    out = NearBounds(read_only(radius), read_only(offsets), read_only(joints))
+    _NEAR[checker] = out
+    return out
+
+
+def _near_steps(
+    near: NearBounds, due: np.ndarray, d: np.ndarray, room: np.ndarray, speed: np.ndarray, acceleration: np.ndarray
+) -> np.ndarray:
+    """Per due pair, how far the near-body bound lets it go (0 where it does not apply).
+
+    Args:
+        near: The bounds.
+        due: The pairs.
+        d: Their distances [m].
+        room: ``d - clearance + tolerance`` [m].
+        speed: Joint speeds now, shape (dof,) [rad per unit x].
+        acceleration: Bound on how fast they grow, shape (dof,).
+    """
+    radius = near.radius[due]
+    ok = np.isfinite(radius)
+    out = np.zeros(len(due))
+    if not ok.any():
+        return out
+    rows = due[ok]
+    lever = near.offsets[rows]
+    joints = near.joints[rows]
+    turn = joints @ speed
+    turn_acc = joints @ acceleration
+    ball = radius[ok] + d[ok]
+    v = _NEAR_GROWTH * (ball * turn + lever @ speed)
+    a = _NEAR_GROWTH * (ball * turn_acc + lever @ acceleration)
+    r = room[ok]
+    step = 2.0 * r / (v + np.sqrt(v * v + 2.0 * a * r) + 1e-300)
+    cap = 2.0 * NEAR_TURN / (turn + np.sqrt(turn * turn + 2.0 * turn_acc * NEAR_TURN) + 1e-300)
+    out[ok] = np.minimum(step, cap)
+    return out
+
+
 def check_motion(
     checker: CollisionChecker,
     sample: Callable[[float], tuple[np.ndarray, float]],
@@ -176,6 +317,9 @@ def check_motion(
     clearance: float | None = None,
 ) -> MotionClearance:
     """Check a motion ``q(x)``, x from 0 to `end`, with a bound on how fast the arm's surface moves.
+
+    Each pair is advanced on its own (see the module docstring): at a check only the pairs
+    whose certified stretch ends there (or soon) are computed.
 
     Args:
         checker: The collision checker.
@@ -192,55 +336,113 @@ def check_motion(
         clearance: The distance to keep [m]; None is the scene's.
 
     Returns:
-        The :class:`MotionClearance`.
+        The :class:`MotionClearance`; :attr:`MotionClearance.checks` counts the configurations
+        at which distances were computed.
     """
+    n_pairs = checker.pair_count
+    # A scalar bound is the whole arm's: two links approach each other at most twice as fast.
+    double = np.where(checker.self_pairs, 2.0, 1.0)
+    acc = np.maximum(np.asarray(acceleration, dtype=float), 0.0)
+    acc = np.broadcast_to(acc * double if acc.ndim == 0 else acc, (n_pairs,))
+
+    def steps(speed, due: np.ndarray, d: np.ndarray, room: np.ndarray) -> np.ndarray:
+        speed = np.asarray(speed, dtype=float)
+        v = np.maximum(speed * double[due] if speed.ndim == 0 else speed[due], 1e-12)
+        a = acc[due]
+        return 2.0 * room / (v + np.sqrt(v * v + 2.0 * a * room))
+
+    return _advance(checker, sample, steps, end, masks, tolerance, stop_at_first, clearance)
+
+
+def _joint_steps(checker: CollisionChecker, acceleration: np.ndarray) -> Callable:
+    """The step rule of a motion sampled with its joint speeds (an upper bound on each |qd_j|).
+
+    Per pair, the larger of the steps the two bounds of the module docstring allow.
+    """
+    weights = pair_weights(checker)
+    near = near_bounds(checker)
+    acc_pairs = weights @ acceleration
+
+    def steps(speed: np.ndarray, due: np.ndarray, d: np.ndarray, room: np.ndarray) -> np.ndarray:
+        v = np.maximum(weights[due] @ speed, 1e-12)
+        a = acc_pairs[due]
+        step = 2.0 * room / (v + np.sqrt(v * v + 2.0 * a * room))
+        return np.maximum(step, _near_steps(near, due, d, room, speed, acceleration))
+
+    return steps
+
+
+def _advance(
+    checker: CollisionChecker,
+    sample: Callable[[float], tuple[np.ndarray, object]],
+    steps: Callable[[object, np.ndarray, np.ndarray, np.ndarray], np.ndarray],
+    end: float,
+    masks: Sequence[tuple[float, np.ndarray]] | None,
+    tolerance: float,
+    stop_at_first: bool,
+    clearance: float | None,
+) -> MotionClearance:
+    """Conservative advancement pair by pair: `sample` gives q and a speed state, `steps` each due pair's step."""
     if not (tolerance > 0 and np.isfinite(tolerance)):
         raise InvalidArgumentError(f"tolerance must be a positive distance [m], got {tolerance!r}")
     c = checker.scene.clearance if clearance is None else float(clearance)
     masks = list(masks) if masks else [(0.0, checker.pair_mask())]
-    # A scalar bound is the whole arm's: two links approach each other at most twice as fast.
-    double = np.where(checker.self_pairs, 2.0, 1.0)
-    acc = np.maximum(np.asarray(acceleration, dtype=float), 0.0)
-    acc = acc * double if acc.ndim == 0 else acc
-    x, checks, k_mask = 0.0, 0, 0
-    best: tuple[float, float, np.ndarray] | None = None
+    n_pairs = checker.pair_count
+    # Per pair, the x up to which it is certified (-inf: due now, as after it is switched on).
+    until = np.full(n_pairs, -np.inf)
+    last = np.zeros(n_pairs)  # the step each pair last took
+    x, checks, k_mask = 0.0, 0, -1
+    mask = masks[0][1]
+    best: tuple[float, float, Clearance | None] = (np.inf, 0.0, None)
+    best_pair = -1
     first_hit: float | None = None
-    hit_d: np.ndarray | None = None
+    hit: Clearance | None = None
+    coarse = end / 2000.0  # past a hit: coarse steps, only to find the worst
     while True:
         while k_mask + 1 < len(masks) and masks[k_mask + 1][0] <= x:
             k_mask += 1
-        q, speed = sample(x)
-        speed = np.asarray(speed, dtype=float)
-        speed = np.maximum(speed * double if speed.ndim == 0 else speed, 1e-12)
-        d = checker.pair_distances(q, masks[k_mask][1])
-        checks += 1
-        dmin = float(d.min()) if d.size else np.inf
-        if best is None or dmin < best[0]:
-            best = (dmin, x, d)
-        if dmin < c and first_hit is None:
-            first_hit, hit_d = x, d
-            if stop_at_first:
-                break
+            mask = masks[k_mask][1]
+            until[~mask] = -np.inf
+        # Pairs due within half their last step are computed now too: one more pair costs far
+        # less than one more configuration.
+        due = np.flatnonzero(mask & (until - 0.5 * last <= x))
+        if due.size:
+            q, speed = sample(x)
+            if checks == 0 or due.size == np.count_nonzero(mask):
+                d = checker.pair_distances(q, mask)[due]
+            else:
+                d = checker.distances_of(q, due)
+            checks += 1
+            i = int(np.argmin(d))
+            dmin = float(d[i])
+            if dmin < best[0]:
+                best = (dmin, x, checker.pair_clearance(int(due[i]), dmin) if dmin <= 0.0 else None)
+                best_pair = int(due[i])
+            if dmin < c and first_hit is None:
+                first_hit = x
+                # The closest pair of all at this instant (not only of those due).
+                hit = checker.clearance_of(checker.pair_distances(q, mask))
+                if stop_at_first:
+                    break
+            room = np.maximum(d - c + tolerance, tolerance / 2.0)
+            step = steps(speed, due, d, room)
+            if first_hit is not None:
+                step = np.maximum(step, coarse)
+            until[due] = x + step
+            last[due] = step
         if x >= end:
             break
-        live = np.isfinite(d)
-        if not live.any():
-            step = end - x  # nothing checked here: nothing to step around
-        else:
-            # Per pair, the time h at which V h + A h^2 / 2 reaches the room left.
-            room = np.maximum(d[live] - c + tolerance, tolerance / 2.0)
-            v = speed[live] if speed.ndim else speed
-            a = acc[live] if acc.ndim else acc
-            step = float(np.min(2.0 * room / (v + np.sqrt(v * v + 2.0 * a * room))))
-        if first_hit is not None:
-            step = max(step, end / 2000.0)  # past a hit: coarse steps, only to find the worst
-        # Change of mask: check at the boundary too.
+        live = until[mask]
+        x_next = float(live.min()) if live.size else end
         if k_mask + 1 < len(masks):
-            step = min(step, masks[k_mask + 1][0] - x)
-        x = min(x + step, end)
-    assert best is not None
-    closest = checker.clearance_of(best[2])
-    hit = checker.clearance_of(hit_d) if hit_d is not None else None
+            x_next = min(x_next, masks[k_mask + 1][0])  # a change of mask: check at the boundary
+        x = min(x_next if x_next > x else float(np.nextafter(x, np.inf)), end)
+    if best[2] is not None:
+        closest = best[2]
+    elif np.isfinite(best[0]):
+        closest = checker.pair_clearance(best_pair, best[0])
+    else:
+        closest = checker.clearance_of(np.zeros(0))
     return MotionClearance(first_hit is None, closest, best[1], first_hit, hit, checks)
 
 
@@ -260,15 +462,16 @@ def check_segment(
     """
     q0, q1 = np.asarray(q_start, dtype=float), np.asarray(q_end, dtype=float)
     dq = q1 - q0
-    speed = pair_weights(checker) @ np.abs(dq)
-    return check_motion(
+    speed = np.abs(dq)
+    return _advance(
         checker,
         lambda s: (q0 + s * dq, speed),
+        _joint_steps(checker, np.zeros(len(dq))),
         1.0,
-        masks=[(0.0, checker.pair_mask(allow))],
-        tolerance=tolerance,
-        stop_at_first=stop_at_first,
-        clearance=clearance,
+        [(0.0, checker.pair_mask(allow))],
+        tolerance,
+        stop_at_first,
+        clearance,
     )
 
 
@@ -297,23 +500,35 @@ def check_trajectory(
         tolerance: See the module docstring [m].
         stop_at_first: Return at the first check below the clearance.
     """
-    weights = pair_weights(checker)
     # The limits hold to LIMIT_TOLERANCE; the bound takes a little more.
-    acceleration = weights @ np.asarray(trajectory.limits.acceleration) * (1.0 + 1e-6)
+    acceleration = np.asarray(trajectory.limits.acceleration, dtype=float) * (1.0 + 1e-6)
     vmax = np.asarray(trajectory.limits.velocity) * (1.0 + 1e-6)
+    # The trajectory's pieces, evaluated here one time at a time (JointTrajectory.sample's
+    # polynomial without its checks and array bookkeeping).
+    knots = np.asarray(trajectory.knots, dtype=float).tolist()
+    p, v, a, j = trajectory.p, trajectory.v, trajectory.a, trajectory.j
+    half_a, sixth_j, half_j = a / 2.0, j / 6.0, j / 2.0
+    duration, last = float(trajectory.duration), np.asarray(trajectory.waypoints[-1], dtype=float)
+    rest = np.full(len(last), 1e-12)
 
     def sample(t: float) -> tuple[np.ndarray, np.ndarray]:
-        state = trajectory.sample(t)
-        return state.q, weights @ np.minimum(np.abs(state.qd) + 1e-12, vmax)
+        if t >= duration:
+            return last, rest
+        i = max(bisect.bisect_right(knots, t) - 1, 0)
+        dt = t - knots[i]
+        q = p[i] + dt * (v[i] + dt * (half_a[i] + dt * sixth_j[i]))
+        qd = v[i] + dt * (a[i] + dt * half_j[i])
+        return q, np.minimum(np.abs(qd) + 1e-12, vmax)
 
     masks = [(0.0, checker.pair_mask())] + [(float(t), checker.pair_mask(names)) for t, names in allow]
     masks.sort(key=lambda m: m[0])
-    return check_motion(
+    return _advance(
         checker,
         sample,
-        trajectory.duration,
-        acceleration,
-        masks=masks,
-        tolerance=tolerance,
-        stop_at_first=stop_at_first,
+        _joint_steps(checker, acceleration),
+        duration,
+        masks,
+        tolerance,
+        stop_at_first,
+        None,
     )
