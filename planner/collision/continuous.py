@@ -97,6 +97,46 @@ class MotionClearance:
 _WEIGHTS: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
 
 
+class _ArmTables:
+    """Per arm, the tables of checkers seen before, by what they check (kept in ``robot.derived``).
+
+    Planning makes a checker per request; the same arm and scene give the same tables.
+    """
+
+    def __init__(self) -> None:
+        self.arm: object | None = None
+        self.tables: dict[tuple, object] = {}
+
+
+def _checker_key(checker: CollisionChecker, what: str) -> tuple:
+    """What a checker's tables depend on: its pairs and its scene's bodies (shapes and poses)."""
+    scene = checker.scene
+    bodies = tuple(
+        (
+            o.name,
+            repr(o.shape),
+            np.asarray(o.position, dtype=float).tobytes(),
+            np.asarray(o.rotation, dtype=float).tobytes(),
+        )
+        for o in scene.obstacles
+    )
+    pairs = tuple((int(p.first), int(p.second)) for p in checker.geometry.collisionPairs)
+    return (what, scene.floor, bodies, pairs)
+
+
+def _arm_table(checker: CollisionChecker, what: str, make: Callable[[], object]) -> object:
+    held = checker.robot.derived.get(_ArmTables, _ArmTables)
+    if held.arm is not checker.arm:
+        held.arm, held.tables = checker.arm, {}
+    key = _checker_key(checker, what)
+    table = held.tables.get(key)
+    if table is None:
+        if len(held.tables) >= 64:
+            held.tables.clear()
+        table = held.tables[key] = make()
+    return table
+
+
 class _ArmReach:
     """Per object of an arm's collision model, its reach from every joint (kept in ``robot.derived``)."""
 
@@ -139,8 +179,12 @@ def pair_weights(checker: CollisionChecker) -> np.ndarray:
     (see the module docstring), zero elsewhere; shape (pairs, dof). Computed once per checker.
     """
     cached = _WEIGHTS.get(checker)
-    if cached is not None:
-        return cached
+    if cached is None:
+        cached = _WEIGHTS[checker] = _arm_table(checker, "weights", lambda: _pair_weights(checker))
+    return cached
+
+
+def _pair_weights(checker: CollisionChecker) -> np.ndarray:
     robot = checker.robot
     model = robot.model
     geom = checker.geometry
@@ -185,7 +229,6 @@ def pair_weights(checker: CollisionChecker) -> np.ndarray:
             if only:
                 weights[k, only] += reach_of(i)[only]
     weights.setflags(write=False)
-    _WEIGHTS[checker] = weights
     return weights
 
 
@@ -213,96 +256,72 @@ class NearBounds:
     joints: np.ndarray
 
 
+def _near_row(robot, objects: list, ids: tuple[int, int]) -> tuple[float, np.ndarray, np.ndarray]:
+    """``(R, D, joints)`` of one pair of geometry objects (R inf where the bound does not apply)."""
+    model = robot.model
+    offsets, joints = np.zeros(robot.dof), np.zeros(robot.dof, dtype=bool)
+    objs = [objects[i] for i in ids]
+    chains = [list(model.supports[o.parentJoint]) for o in objs]
+    if set(chains[1]) <= set(chains[0]):
+        objs, chains = objs[::-1], chains[::-1]
+    upper = objs[0]
+    if not set(chains[0]) <= set(chains[1]):
+        return np.inf, offsets, joints  # on different branches
+    between = [j for j in chains[1] if j not in chains[0]]
+    joints[[j - 1 for j in between]] = True
+    if not between or any(robot.joint_kinds[j - 1] == "prismatic" for j in between):
+        return np.inf, offsets, joints
+    if model.parents[between[0]] != upper.parentJoint:
+        return np.inf, offsets, joints
+    corners = box_corners(upper)
+    if not np.all(np.abs(corners) < 1e6):
+        return np.inf, offsets, joints  # a half-space
+    centre_local = (corners.min(axis=0) + corners.max(axis=0)) / 2.0
+    centre = upper.placement.rotation @ centre_local + upper.placement.translation
+    # The first joint's axis is fixed to A: what counts is the centre's distance from it.
+    first = model.jointPlacements[between[0]]
+    axis = first.rotation @ _joint_axis(model, between[0])
+    # The point of the axis nearest the centre, c': the next joint turns about the axis, so
+    # its distance from c' never changes; farther joints add their offsets.
+    arm = centre - first.translation
+    foot = first.translation + (arm @ axis) * axis
+    reach = float(np.linalg.norm(centre - foot))
+    offsets[between[0] - 1] = reach
+    if len(between) > 1:
+        # Or from the first joint's origin (whichever is shorter).
+        second = first.translation + first.rotation @ model.jointPlacements[between[1]].translation
+        reach = min(
+            reach + float(np.linalg.norm(second - foot)),
+            float(np.linalg.norm(arm)) + float(np.linalg.norm(second - first.translation)),
+        )
+        for j in between[1:]:
+            if j != between[1]:
+                reach += float(np.linalg.norm(model.jointPlacements[j].translation))
+            offsets[j - 1] = reach
+    return float(np.max(np.linalg.norm(corners - centre_local, axis=1))), offsets, joints
+
+
 def near_bounds(checker: CollisionChecker) -> NearBounds:
-    """The near-body bound's constants per checked pair (computed once per checker).
+    """The near-body bound's constants per checked pair (computed once per checker and arm).
 
     It applies to a pair whose upper body ``A`` (a scene body, or a link the other hangs
     below) has a finite extent and whose joints in between all turn.
     """
     cached = _NEAR.get(checker)
-    if cached is not None:
-        return cached
-    robot, model, geom = checker.robot, checker.robot.model, checker.geometry
-    n = len(geom.collisionPairs)
-    radius = np.full(n, np.inf)
-    offsets, joints = np.zeros((n, robot.dof)), np.zeros((n, robot.dof), dtype=bool)
-    revolute = np.array(robot.joint_kinds) != "prismatic"
-    for k, pair in enumerate(geom.collisionPairs):
-        objs = [geom.geometryObjects[i] for i in (pair.first, pair.second)]
-        chains = [list(model.supports[o.parentJoint]) for o in objs]
-        if set(chains[1]) <= set(chains[0]):
-            objs, chains = objs[::-1], chains[::-1]
-        upper, lower = objs
-        if not set(chains[0]) <= set(chains[1]):
-            continue  # on different branches
-        between = [j for j in chains[1] if j not in chains[0]]
-        joints[k, [j - 1 for j in between]] = True
-        if not between or not all(revolute[j - 1] for j in between):
-            continue
-        if model.parents[between[0]] != upper.parentJoint:
-            continue
-        corners = box_corners(upper)
-        if not np.all(np.abs(corners) < 1e6):
-            continue  # a half-space
-        centre_local = (corners.min(axis=0) + corners.max(axis=0)) / 2.0
-        centre = upper.placement.rotation @ centre_local + upper.placement.translation
-        # The first joint's axis is fixed to A: what counts is the centre's distance from it.
-        first = model.jointPlacements[between[0]]
-        axis = first.rotation @ _joint_axis(model, between[0])
-        # The point of the axis nearest the centre, c': the next joint turns about the axis,
-        # so its distance from c' never changes; farther joints add their offsets.
-        arm = centre - first.translation
-        foot = first.translation + (arm @ axis) * axis
-        reach = float(np.linalg.norm(centre - foot))
-        offsets[k, between[0] - 1] = reach
-        if len(between) > 1:
-            # Or from the first joint's origin (whichever is shorter).
-            second = first.translation + first.rotation @ model.jointPlacements[between[1]].translation
-            reach = min(
-                reach + float(np.linalg.norm(second - foot)),
-                float(np.linalg.norm(arm)) + float(np.linalg.norm(second - first.translation)),
-            )
-            for j in between[1:]:
-                if j != between[1]:
-                    reach += float(np.linalg.norm(model.jointPlacements[j].translation))
-                offsets[k, j - 1] = reach
-        radius[k] = float(np.max(np.linalg.norm(corners - centre_local, axis=1)))
-    out = NearBounds(read_only(radius), read_only(offsets), read_only(joints))
-    _NEAR[checker] = out
-    return out
+    if cached is None:
+        cached = _NEAR[checker] = _arm_table(checker, "near", lambda: _near_bounds(checker))
+    return cached
 
 
-def _near_steps(
-    near: NearBounds, due: np.ndarray, d: np.ndarray, room: np.ndarray, speed: np.ndarray, acceleration: np.ndarray
-) -> np.ndarray:
-    """Per due pair, how far the near-body bound lets it go (0 where it does not apply).
-
-    Args:
-        near: The bounds.
-        due: The pairs.
-        d: Their distances [m].
-        room: ``d - clearance + tolerance`` [m].
-        speed: Joint speeds now, shape (dof,) [rad per unit x].
-        acceleration: Bound on how fast they grow, shape (dof,).
-    """
-    radius = near.radius[due]
-    ok = np.isfinite(radius)
-    out = np.zeros(len(due))
-    if not ok.any():
-        return out
-    rows = due[ok]
-    lever = near.offsets[rows]
-    joints = near.joints[rows]
-    turn = joints @ speed
-    turn_acc = joints @ acceleration
-    ball = radius[ok] + d[ok]
-    v = _NEAR_GROWTH * (ball * turn + lever @ speed)
-    a = _NEAR_GROWTH * (ball * turn_acc + lever @ acceleration)
-    r = room[ok]
-    step = 2.0 * r / (v + np.sqrt(v * v + 2.0 * a * r) + 1e-300)
-    cap = 2.0 * NEAR_TURN / (turn + np.sqrt(turn * turn + 2.0 * turn_acc * NEAR_TURN) + 1e-300)
-    out[ok] = np.minimum(step, cap)
-    return out
+def _near_bounds(checker: CollisionChecker) -> NearBounds:
+    robot, geom = checker.robot, checker.geometry
+    objects = list(geom.geometryObjects)
+    rows = [_near_row(robot, objects, (int(p.first), int(p.second))) for p in geom.collisionPairs]
+    n = len(rows)
+    radius = np.array([r[0] for r in rows], dtype=float).reshape(n)
+    offsets = np.array([r[1] for r in rows], dtype=float).reshape(n, robot.dof)
+    joints = np.array([r[2] for r in rows], dtype=bool).reshape(n, robot.dof)
+    return NearBounds(read_only(radius), read_only(offsets), read_only(joints, dtype=bool))
 
 
 def check_motion(
@@ -357,17 +376,52 @@ def check_motion(
 def _joint_steps(checker: CollisionChecker, acceleration: np.ndarray) -> Callable:
     """The step rule of a motion sampled with its joint speeds (an upper bound on each |qd_j|).
 
-    Per pair, the larger of the steps the two bounds of the module docstring allow.
+    Per pair, the longer of the steps the two bounds of the module docstring allow (the
+    near-body bound only for the pairs where it can be the longer one).
     """
     weights = pair_weights(checker)
     near = near_bounds(checker)
-    acc_pairs = weights @ acceleration
+    n = len(weights)
+    # The near-body bound is never the longer where (R + D_j) e^T >= r_j for every joint.
+    useful = np.isfinite(near.radius) & np.any(
+        near.joints
+        & (_NEAR_GROWTH * (np.where(np.isfinite(near.radius), near.radius, 0.0)[:, None] + near.offsets) < weights),
+        axis=1,
+    )
+    rows = np.flatnonzero(useful)
+    # One product per speed state: the first bound's V, and per useful pair T and sum_j D_j Q_j.
+    stacked = np.vstack([weights, near.joints[rows].astype(float), near.offsets[rows]])
+    per_acc = stacked @ acceleration
+    radius = near.radius[rows]
+    slot = np.full(n, -1)
+    slot[rows] = np.arange(len(rows))
+    state: dict[str, object] = {"speed": None}
 
     def steps(speed: np.ndarray, due: np.ndarray, d: np.ndarray, room: np.ndarray) -> np.ndarray:
-        v = np.maximum(weights[due] @ speed, 1e-12)
-        a = acc_pairs[due]
+        if state["speed"] is not speed:
+            state["speed"], state["product"] = speed, stacked @ speed
+        product = state["product"]
+        v = np.maximum(product[due], 1e-12)
+        a = per_acc[due]
         step = 2.0 * room / (v + np.sqrt(v * v + 2.0 * a * room))
-        return np.maximum(step, _near_steps(near, due, d, room, speed, acceleration))
+        if not len(rows):
+            return step
+        where = slot[due]
+        hit = where >= 0
+        if not hit.any():
+            return step
+        k = where[hit]
+        m = len(rows)
+        turn, lever = product[n + k], product[n + m + k]
+        turn_acc, lever_acc = per_acc[n + k], per_acc[n + m + k]
+        ball = radius[k] + d[hit]
+        r = room[hit]
+        v = _NEAR_GROWTH * (ball * turn + lever)
+        a = _NEAR_GROWTH * (ball * turn_acc + lever_acc)
+        near_step = 2.0 * r / (v + np.sqrt(v * v + 2.0 * a * r) + 1e-300)
+        cap = 2.0 * NEAR_TURN / (turn + np.sqrt(turn * turn + 2.0 * turn_acc * NEAR_TURN) + 1e-300)
+        step[hit] = np.maximum(step[hit], np.minimum(near_step, cap))
+        return step
 
     return steps
 
