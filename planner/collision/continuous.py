@@ -398,6 +398,26 @@ def _joint_steps(checker: CollisionChecker, acceleration: np.ndarray) -> Callabl
     slot[rows] = np.arange(len(rows))
     state: dict[str, object] = {"speed": None}
 
+    if not np.any(acceleration):
+        # Constant speeds (a straight segment): the steps are room / V.
+        def constant(speed: np.ndarray, due: np.ndarray, d: np.ndarray, room: np.ndarray) -> np.ndarray:
+            if state["speed"] is not speed:
+                product = stacked @ speed
+                state["speed"], state["v"] = speed, np.maximum(product[:n], 1e-12)
+                turn, lever = product[n : n + len(rows)], product[n + len(rows) :]
+                state["turn"], state["lever"] = turn, lever
+                state["cap"] = NEAR_TURN / np.maximum(turn, 1e-300)
+            step = room / state["v"][due]
+            where = slot[due]
+            hit = where >= 0
+            if hit.any():
+                k = where[hit]
+                v = _NEAR_GROWTH * ((radius[k] + d[hit]) * state["turn"][k] + state["lever"][k])
+                step[hit] = np.maximum(step[hit], np.minimum(room[hit] / np.maximum(v, 1e-300), state["cap"][k]))
+            return step
+
+        return constant
+
     def steps(speed: np.ndarray, due: np.ndarray, d: np.ndarray, room: np.ndarray) -> np.ndarray:
         if state["speed"] is not speed:
             state["speed"], state["product"] = speed, stacked @ speed
@@ -443,9 +463,11 @@ def _advance(
     c = checker.scene.clearance if clearance is None else float(clearance)
     masks = list(masks) if masks else [(0.0, checker.pair_mask())]
     n_pairs = checker.pair_count
-    # Per pair, the x up to which it is certified (-inf: due now, as after it is switched on).
+    # Per pair, the x up to which it is certified, and from which it is computed with the
+    # pairs due then (halfway through its last step: one more pair costs far less than one
+    # more configuration); -inf: due now (as after it is switched on), inf: off the mask.
     until = np.full(n_pairs, -np.inf)
-    last = np.zeros(n_pairs)  # the step each pair last took
+    early = np.full(n_pairs, -np.inf)
     x, checks, k_mask = 0.0, 0, -1
     mask = masks[0][1]
     best: tuple[float, float, Clearance | None] = (np.inf, 0.0, None)
@@ -456,14 +478,14 @@ def _advance(
     while True:
         while k_mask + 1 < len(masks) and masks[k_mask + 1][0] <= x:
             k_mask += 1
-            mask = masks[k_mask][1]
-            until[~mask] = -np.inf
-        # Pairs due within half their last step are computed now too: one more pair costs far
-        # less than one more configuration.
-        due = np.flatnonzero(mask & (until - 0.5 * last <= x))
+            was, mask = (None if k_mask == 0 else masks[k_mask - 1][1]), masks[k_mask][1]
+            on = mask if was is None else mask & ~was
+            until[on], early[on] = -np.inf, -np.inf
+            until[~mask], early[~mask] = np.inf, np.inf
+        due = np.flatnonzero(early <= x)
         if due.size:
             q, speed = sample(x)
-            if checks == 0 or due.size == np.count_nonzero(mask):
+            if checks == 0 or due.size == n_pairs:
                 d = checker.pair_distances(q, mask)[due]
             else:
                 d = checker.distances_of(q, due)
@@ -484,11 +506,10 @@ def _advance(
             if first_hit is not None:
                 step = np.maximum(step, coarse)
             until[due] = x + step
-            last[due] = step
+            early[due] = x + 0.5 * step
         if x >= end:
             break
-        live = until[mask]
-        x_next = float(live.min()) if live.size else end
+        x_next = float(until.min()) if n_pairs else end
         if k_mask + 1 < len(masks):
             x_next = min(x_next, masks[k_mask + 1][0])  # a change of mask: check at the boundary
         x = min(x_next if x_next > x else float(np.nextafter(x, np.inf)), end)
