@@ -128,22 +128,16 @@ def _sample_times(trajectory: JointTrajectory, rate: float) -> np.ndarray:
 
 
 def _intervals(t: np.ndarray, low: np.ndarray) -> tuple[tuple[float, float], ...]:
-    out = []
-    k = 0
-    while k < len(t):
-        if low[k]:
-            m = k
-            while m + 1 < len(t) and low[m + 1]:
-                m += 1
-            out.append((float(t[k]), float(t[m])))
-            k = m + 1
-        else:
-            k += 1
-    return tuple(out)
+    """The runs of `low` as (first, last) times."""
+    if not low.any():
+        return ()
+    edges = np.diff(np.concatenate([[False], low, [False]]).astype(np.int8))
+    starts, ends = np.flatnonzero(edges == 1), np.flatnonzero(edges == -1) - 1
+    return tuple((float(t[a]), float(t[b])) for a, b in zip(starts, ends))
 
 
 #: Samples between the first rows :func:`bounded_conditioning` measures exactly.
-ANCHOR_SPACING = 16
+ANCHOR_SPACING = 8
 
 
 def jacobian_change_bounds(robot: Robot, task: Task) -> tuple[np.ndarray, np.ndarray, float] | None:
