@@ -646,3 +646,29 @@ def test_a_clear_certificate_holds_between_checks_on_the_table_and_box_scene(nam
         if clear == 4:
             break
     assert clear == 4
+
+
+@pytest.mark.parametrize(
+    "name",
+    [
+        "al5c",
+        "dh3",
+        pytest.param("ur5", marks=needs_example_robot_data),
+        pytest.param("panda", marks=needs_example_robot_data),
+    ],
+)
+def test_closer_than_agrees_with_the_distances(name):
+    """The broad-phase proximity test says "closer" exactly where some checked pair's distance is below it."""
+    robot = get_robot(name)
+    scene = parse_scene({**_TABLE_AND_BOX, "floor": -0.02})
+    checker = CollisionChecker(robot, scene)
+    qs = robot.random_configurations(np.random.default_rng(19), 400)
+    for allow in ((), ("box",)):
+        mask = checker.pair_mask(allow)
+        nearest = np.array([checker.pair_distances(q, mask).min() for q in qs])
+        for distance in (0.0, 0.005, 0.02, 0.1):
+            near = checker.closer_than(distance, allow)
+            verdicts = np.array([near(q) for q in qs])
+            # GJK stops within coal's tolerance: pairs within a micrometre of the margin may go either way.
+            sure = np.abs(nearest - distance) > 1e-6
+            np.testing.assert_array_equal(verdicts[sure], (nearest < distance)[sure])

@@ -315,20 +315,26 @@ class CollisionChecker:
 
 
 class _CloserThan:
-    """:meth:`CollisionChecker.closer_than`'s test: its own geometry data with the margin set."""
+    """:meth:`CollisionChecker.closer_than`'s test: its own geometry data with the margin set.
+
+    Through a broad phase like :meth:`CollisionChecker.in_collision`: Pinocchio grows each
+    object's bounding box by half the largest security margin of its pairs, so every pair
+    closer than the margin still reaches the exact test.
+    """
 
     def __init__(self, checker: CollisionChecker, mask: np.ndarray, distance: float) -> None:
         robot = checker.robot
-        self.model, self.data, self.geometry = robot.model, robot.model.createData(), checker.geometry
+        self.model, self.data = robot.model, robot.model.createData()
         self.gdata = pin.GeometryData(checker.geometry)
         for k, on in enumerate(mask):
             self.gdata.activeCollisionPairs[k] = bool(on)
         for request in self.gdata.collisionRequests:
             request.security_margin = distance
+        self.broadphase = pin.BroadPhaseManager_NaiveCollisionManager(robot.model, checker.geometry, self.gdata)
         self.to_pinocchio = robot.pinocchio_configuration
         self.any = bool(np.any(mask))
 
     def __call__(self, q: np.ndarray) -> bool:
         if not self.any:
             return False
-        return bool(pin.computeCollisions(self.model, self.data, self.geometry, self.gdata, self.to_pinocchio(q), True))
+        return bool(pin.computeCollisions(self.model, self.data, self.broadphase, self.to_pinocchio(q), True))
