@@ -566,7 +566,7 @@ def test_pair_bounds_never_underestimate_the_relative_motion_of_two_bodies(name)
     assert pairs
     rng = np.random.default_rng(11)
     for q0, q1 in zip(*(robot.random_configurations(rng, 6) for _ in range(2))):
-        s = np.linspace(0.0, 1.0, 120)
+        s = np.linspace(0.0, 1.0, 50)
         start = _placements(checker, q0)
         for si in s[1:]:
             now = _placements(checker, q0 + si * (q1 - q0))
