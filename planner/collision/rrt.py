@@ -22,7 +22,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from planner.collision.checker import CollisionChecker
-from planner.collision.continuous import segment_is_clear, sweep_order
+from planner.collision.continuous import check_segment, segment_is_clear, sweep_order
 from planner.core.arrays import read_only
 from planner.exceptions import InvalidArgumentError
 
@@ -195,6 +195,10 @@ def find_clear_path(
     def clear(a: np.ndarray, b: np.ndarray) -> bool:
         return segment_is_clear(checker, a, b, allow=allow, margin=margin)
 
+    def certify(a: np.ndarray, b: np.ndarray) -> bool:
+        """The certificate of an edge `quick` has passed (its sweep would repeat quick's tests)."""
+        return check_segment(checker, a, b, allow=allow, clearance=need).clear
+
     near = checker.closer_than(need, allow)
 
     def quick(a: np.ndarray, b: np.ndarray) -> bool:
@@ -223,10 +227,10 @@ def find_clear_path(
             break
         path = _merge_collinear(path)
         short = _shortcut(path, quick, rng, options.shortcuts)
-        if all(clear(a, b) for a, b in zip(short, short[1:])):
+        if all(certify(a, b) for a, b in zip(short, short[1:])):
             return PathResult(PathStatus.FOUND, read_only(np.array(short)), "", iterations)
-        if all(clear(a, b) for a, b in zip(path, path[1:])):
-            path = _prune(path, lambda a, b: quick(a, b) and clear(a, b))
+        if all(certify(a, b) for a, b in zip(path, path[1:])):
+            path = _prune(path, lambda a, b: quick(a, b) and certify(a, b))
             return PathResult(PathStatus.FOUND, read_only(np.array(path)), "", iterations)
     if time.perf_counter() > deadline:
         return PathResult(PathStatus.NOT_FOUND, empty, f"no clear path within {options.time_budget:g} s", iterations)
