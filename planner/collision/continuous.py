@@ -48,10 +48,14 @@ from planner.exceptions import InvalidArgumentError
 
 __all__ = [
     "DEFAULT_TOLERANCE",
+    "NEAR_TURN",
+    "SWEEP_RESOLUTION",
     "MotionClearance",
+    "NearBounds",
     "check_motion",
     "check_segment",
     "check_trajectory",
+    "near_bounds",
     "pair_weights",
     "segment_is_clear",
     "sweep_order",
