@@ -672,3 +672,28 @@ def test_closer_than_agrees_with_the_distances(name):
             # GJK stops within coal's tolerance: pairs within a micrometre of the margin may go either way.
             sure = np.abs(nearest - distance) > 1e-6
             np.testing.assert_array_equal(verdicts[sure], (nearest < distance)[sure])
+
+
+def test_check_motion_with_per_pair_speeds_agrees_with_check_segment():
+    """The public check_motion (speeds per pair, or one number for the whole arm) on straight segments."""
+    from planner.collision.continuous import check_motion, pair_weights
+
+    robot = get_robot("al5c")
+    checker = CollisionChecker(robot, _al5c_block_scene())
+    weights = pair_weights(checker)
+    rng = np.random.default_rng(23)
+    seen = set()
+    for _ in range(30):
+        qa, qb = robot.random_configurations(rng, 2)
+        if not (checker.clearance(qa).clear and checker.clearance(qb).clear):
+            continue
+        dq = qb - qa
+        reference = check_segment(checker, qa, qb, stop_at_first=False)
+        per_pair = check_motion(checker, lambda s, dq=dq, qa=qa: (qa + s * dq, weights @ np.abs(dq)), 1.0)
+        whole = check_motion(checker, lambda s, dq=dq, qa=qa: (qa + s * dq, float(np.max(weights @ np.abs(dq)))), 1.0)
+        assert per_pair.clear == reference.clear and whole.clear == reference.clear
+        if reference.clear:
+            dense = [checker.clearance(qa + s * dq).distance for s in np.linspace(0.0, 1.0, 401)]
+            assert min(dense) >= checker.scene.clearance - 1e-4
+        seen.add(reference.clear)
+    assert seen == {True, False}
