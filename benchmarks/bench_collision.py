@@ -21,7 +21,8 @@ for both: a table (a 1.6 x 1.6 x 0.05 m box whose top is 5 mm below the arm's ba
    nodes), its ``PathShortcutter``, then its TOPP-RA in its default ``Hermite`` mode (rest at
    every waypoint of the path) and in ``Cubic`` mode (a spline through them). Same limits for
    all: v from the URDF, a = 2 v, j = 10 a (roboplan takes v and a; TOPP-RA ignores jerk).
-   Planning time = wall time of the whole call (roboplan: RRT + shortcut + TOPP-RA at its
+   Planning time = wall time of the whole call, and beside it the process's CPU time (on a shared
+   machine the wall time swings with the load; roboplan: RRT + shortcut + TOPP-RA at its
    default 10 ms output step). Each trajectory is then sampled at 1 kHz (roboplan's generated
    again with a 1 ms step; its velocities and accelerations as it reports them, jerk by
    differences) for the worst velocity, acceleration and jerk ratios to the limits, and
@@ -129,7 +130,7 @@ class Roboplan:
         """RRT-Connect + shortcut; then TOPP-RA per mode. Times and 1 ms trajectories."""
         rc, rt = self.rc, self.rt
         self.rrt.setRngSeed(seed)
-        t0 = time.perf_counter()
+        t0, c0 = time.perf_counter(), time.process_time()
         try:
             path = self.rrt.plan(rc.JointConfiguration(self.arm_joints, qa), rc.JointConfiguration(self.arm_joints, qb))
         except RuntimeError as exc:  # it raises when it gives up
@@ -137,7 +138,7 @@ class Roboplan:
         if path is None:
             return {"found": False, "path_time": time.perf_counter() - t0, "reason": "no path"}
         path = self.shortcutter.shortcut(path)
-        path_time = time.perf_counter() - t0
+        path_time, path_cpu = time.perf_counter() - t0, time.process_time() - c0
         points = np.array(path.positions)
         out: dict = {
             "found": True,
@@ -147,9 +148,13 @@ class Roboplan:
         }
         for mode in ("Hermite", "Cubic"):
             m = getattr(rt.SplineFittingMode, mode)
-            t1 = time.perf_counter()
+            t1, c1 = time.perf_counter(), time.process_time()
             traj = self.toppra.generate(path, rt.TOPPRAOptions(dt=0.01, mode=m))
-            out[mode] = {"plan_time": path_time + time.perf_counter() - t1, "duration": float(traj.times[-1])}
+            out[mode] = {
+                "plan_time": path_time + time.perf_counter() - t1,
+                "plan_cpu": path_cpu + time.process_time() - c1,
+                "duration": float(traj.times[-1]),
+            }
             fine = self.toppra.generate(path, rt.TOPPRAOptions(dt=1.0 / RATE, mode=m))
             out[mode]["samples"] = (
                 np.array(fine.times),
@@ -334,20 +339,21 @@ def bench_plans(name: str, robot, limits, paths: int, seed: int, have_roboplan: 
                 "avoidance": {"seed": seed + i, "time_budget": BUDGET},
             }
         )
-        t0 = time.perf_counter()
+        t0, c0 = time.perf_counter(), time.process_time()
         try:
             plan = plan_motion(robot, request)
         except PlannerError as exc:
             row["ours"] = {"found": False, "plan_time": time.perf_counter() - t0, "reason": str(exc)}
         else:
             traj = plan.trajectory
-            elapsed = time.perf_counter() - t0
+            elapsed, cpu = time.perf_counter() - t0, time.process_time() - c0
             peaks = traj.peak_ratios(RATE)
             exact = traj.peak_ratios(None)
             t = np.append(np.arange(0.0, traj.duration, 1.0 / RATE), traj.duration)
             ours = {
                 "found": True,
                 "plan_time": elapsed,
+                "plan_cpu": cpu,
                 "duration": traj.duration,
                 "routed": bool(plan.routes),
                 "waypoints": len(traj.waypoints),
@@ -409,6 +415,11 @@ def summarise(name: str, dof: int, checks: dict, rows: list[dict]) -> dict:
             "routed": len(routed),
             "ours_plan_ms_median": _p([r["ours"]["plan_time"] * 1e3 for r in solved], 50),
             "roboplan_plan_ms_median": _p([r["roboplan"]["Hermite"]["plan_time"] * 1e3 for r in solved], 50),
+            "ours_plan_cpu_ms_median": _p([r["ours"]["plan_cpu"] * 1e3 for r in solved], 50),
+            "roboplan_plan_cpu_ms_median": _p([r["roboplan"]["Hermite"]["plan_cpu"] * 1e3 for r in solved], 50),
+            "plan_cpu_ratio_median": _p(
+                [r["ours"]["plan_cpu"] / r["roboplan"]["Hermite"]["plan_cpu"] for r in solved], 50
+            ),
             "path_length_ratio_median": _p(
                 [r["ours"]["path_length"] / r["roboplan"]["path_length"] for r in solved], 50
             ),
@@ -555,7 +566,10 @@ def goals(summaries: list[dict]) -> list[str]:
         ours_ms, their_ms = _f(b["ours_plan_ms_median"], ".1f"), _f(b["roboplan_plan_ms_median"], ".1f")
         out.append(
             f"{s['robot']}: on the {b['count']} pairs both solved: median plan time ours {ours_ms} ms vs roboplan "
-            f"{their_ms} ms; joint path length ours / roboplan median {_f(b['path_length_ratio_median'])}; on the "
+            f"{their_ms} ms (CPU time: {_f(b['ours_plan_cpu_ms_median'], '.1f')} ms vs "
+            f"{_f(b['roboplan_plan_cpu_ms_median'], '.1f')} ms, median per-pair ratio "
+            f"{_f(b['plan_cpu_ratio_median'], '.2f')}); joint path length ours / roboplan median "
+            f"{_f(b['path_length_ratio_median'])}; on the "
             f"{b['routed']} we routed: path length ratio {_f(b['routed_path_length_ratio_median'])}, duration ratio "
             f"(Hermite) {_f(s['roboplan_Hermite']['median_ratio_routed'])}, median trajectory waypoints ours "
             f"{_f(b['routed_waypoints_median'], '.0f')} vs roboplan path points "

@@ -508,3 +508,192 @@ def test_a_segment_the_cheap_check_finds_blocked_is_blocked():
         assert looks or not certified  # blocked at a sample point: no certificate either
         seen.add((looks, certified))
     assert (False, False) in seen and (True, True) in seen
+
+
+# ---------------------------------------------------------------------------- bounds of the continuous check
+
+
+_TABLE_AND_BOX = {
+    "obstacles": [
+        {"name": "table", "box": [1.6, 1.6, 0.05], "position": [0.0, 0.0, -0.03]},
+        {"name": "box", "box": [0.25, 0.25, 0.5], "position": [0.45, 0.0, 0.25]},
+    ]
+}
+
+
+def _placements(checker, q):
+    import pinocchio as pin
+
+    robot = checker.robot
+    gdata = pin.GeometryData(checker.geometry)
+    pin.updateGeometryPlacements(
+        robot.model, robot.model.createData(), checker.geometry, gdata, robot.pinocchio_configuration(q)
+    )
+    return [pin.SE3(m) for m in gdata.oMg]
+
+
+@pytest.mark.parametrize(
+    "name",
+    [
+        "al5c",
+        "dh3",
+        pytest.param("ur5", marks=needs_example_robot_data),
+        pytest.param("panda", marks=needs_example_robot_data),
+    ],
+)
+def test_pair_bounds_never_underestimate_the_relative_motion_of_two_bodies(name):
+    """Along random joint segments, densely sampled by FK: every corner of one body's bounding box,
+    seen from the other body, moves no farther than pair_weights allows."""
+    from planner.collision.arm import box_corners
+    from planner.collision.continuous import pair_weights
+
+    robot = get_robot(name)
+    checker = CollisionChecker(robot, parse_scene(_TABLE_AND_BOX))
+    weights = pair_weights(checker)
+    geom = checker.geometry
+    model = robot.model
+    # Pairs of a body and one it hangs below (or a scene body): the lower one's corners, seen
+    # from the upper one (bodies on two branches move apart by the sum of two such motions).
+    pairs, corners = [], {}
+    for k, p in enumerate(geom.collisionPairs):
+        upper, lower = p.first, p.second
+        chain = [set(model.supports[geom.geometryObjects[i].parentJoint]) for i in (upper, lower)]
+        if chain[1] <= chain[0]:
+            upper, lower, chain = lower, upper, chain[::-1]
+        if chain[0] <= chain[1]:
+            pairs.append((k, upper, lower))
+            corners[lower] = box_corners(geom.geometryObjects[lower])
+    assert pairs
+    rng = np.random.default_rng(11)
+    for q0, q1 in zip(*(robot.random_configurations(rng, 6) for _ in range(2))):
+        s = np.linspace(0.0, 1.0, 50)
+        start = _placements(checker, q0)
+        for si in s[1:]:
+            now = _placements(checker, q0 + si * (q1 - q0))
+            bound = weights @ np.abs(si * (q1 - q0))
+            for k, upper, lower in pairs:
+                then = start[upper].actInv(start[lower]).act
+                later = now[upper].actInv(now[lower]).act
+                moved = max(float(np.linalg.norm(later(p) - then(p))) for p in corners[lower])
+                assert moved <= bound[k] + 1e-9, (name, k, si, moved, bound[k])
+
+
+@pytest.mark.parametrize(
+    "name",
+    [
+        "al5c",
+        pytest.param("ur5", marks=needs_example_robot_data),
+        pytest.param("panda", marks=needs_example_robot_data),
+    ],
+)
+def test_the_near_body_bound_never_overstates_a_distance(name):
+    """d(s) >= d(0) - e^T ((R + d(0)) turn(s) + sum_j D_j |dq_j| s) along random segments while the
+    pair's joints turn at most NEAR_TURN in all (distances by coal, densely sampled)."""
+    from planner.collision.continuous import NEAR_TURN, near_bounds
+
+    robot = get_robot(name)
+    checker = CollisionChecker(robot, parse_scene(_TABLE_AND_BOX))
+    near = near_bounds(checker)
+    rows = np.flatnonzero(np.isfinite(near.radius))
+    assert rows.size  # the base and the scene's boxes at least
+    mask = checker.pair_mask()
+    rng = np.random.default_rng(12)
+    tested = 0
+    for q0 in robot.random_configurations(rng, 12):
+        dq = rng.uniform(-1.0, 1.0, robot.dof)
+        dq *= NEAR_TURN / np.sum(np.abs(dq))  # every pair turns at most NEAR_TURN over the segment
+        q1 = np.clip(q0 + dq, robot.lower, robot.upper)
+        d0 = checker.pair_distances(q0, mask)
+        for si in np.linspace(0.0, 1.0, 60)[1:]:
+            d = checker.pair_distances(q0 + si * (q1 - q0), mask)
+            step = np.abs(si * (q1 - q0))
+            turn = near.joints @ step
+            lower = d0 - np.exp(NEAR_TURN) * ((near.radius + d0) * turn + near.offsets @ step)
+            ok = rows[d0[rows] > 0]
+            # Coal's distance of overlapping bodies is no distance: there the bound must allow contact.
+            assert np.all(np.where(d[ok] > 0, d[ok] >= lower[ok] - 1e-6, lower[ok] <= 1e-6)), (name, si)
+            tested += ok.size
+    assert tested > 0
+
+
+@pytest.mark.parametrize(
+    "name", [pytest.param("ur5", marks=needs_example_robot_data), pytest.param("panda", marks=needs_example_robot_data)]
+)
+def test_a_clear_certificate_holds_between_checks_on_the_table_and_box_scene(name):
+    """Segments and trajectories the pair-by-pair check finds clear keep the clearance at 2 kHz samples."""
+    robot = get_robot(name)
+    scene = parse_scene({**_TABLE_AND_BOX, "clearance": 0.002})
+    checker = CollisionChecker(robot, scene)
+    limits = JointLimits.from_robot(robot)
+    rng = np.random.default_rng(13)
+    clear = 0
+    for _ in range(200):
+        qa, qb = robot.random_configurations(rng, 2)
+        qb = qa + 0.3 * (qb - qa)
+        if not (checker.clearance(qa).clear and checker.clearance(qb).clear):
+            continue
+        segment = check_segment(checker, qa, qb)
+        if not segment.clear:
+            continue
+        clear += 1
+        dense = [checker.clearance(qa + s * (qb - qa)).distance for s in np.linspace(0, 1, 1001)]
+        assert min(dense) >= scene.clearance - 1e-4
+        traj = plan_trajectory([qa, qb], limits)
+        result = check_trajectory(checker, traj)
+        if result.clear:
+            dense = [checker.clearance(q).distance for q in traj.sample(traj.times(2000.0)).q]
+            assert min(dense) >= scene.clearance - 1e-4
+        if clear == 4:
+            break
+    assert clear == 4
+
+
+@pytest.mark.parametrize(
+    "name",
+    [
+        "al5c",
+        "dh3",
+        pytest.param("ur5", marks=needs_example_robot_data),
+        pytest.param("panda", marks=needs_example_robot_data),
+    ],
+)
+def test_closer_than_agrees_with_the_distances(name):
+    """The broad-phase proximity test says "closer" exactly where some checked pair's distance is below it."""
+    robot = get_robot(name)
+    scene = parse_scene({**_TABLE_AND_BOX, "floor": -0.02})
+    checker = CollisionChecker(robot, scene)
+    qs = robot.random_configurations(np.random.default_rng(19), 400)
+    for allow in ((), ("box",)):
+        mask = checker.pair_mask(allow)
+        nearest = np.array([checker.pair_distances(q, mask).min() for q in qs])
+        for distance in (0.0, 0.005, 0.02, 0.1):
+            near = checker.closer_than(distance, allow)
+            verdicts = np.array([near(q) for q in qs])
+            # GJK stops within coal's tolerance: pairs within a micrometre of the margin may go either way.
+            sure = np.abs(nearest - distance) > 1e-6
+            np.testing.assert_array_equal(verdicts[sure], (nearest < distance)[sure])
+
+
+def test_check_motion_with_per_pair_speeds_agrees_with_check_segment():
+    """The public check_motion (speeds per pair, or one number for the whole arm) on straight segments."""
+    from planner.collision.continuous import check_motion, pair_weights
+
+    robot = get_robot("al5c")
+    checker = CollisionChecker(robot, _al5c_block_scene())
+    weights = pair_weights(checker)
+    rng = np.random.default_rng(23)
+    seen = set()
+    for _ in range(30):
+        qa, qb = robot.random_configurations(rng, 2)
+        if not (checker.clearance(qa).clear and checker.clearance(qb).clear):
+            continue
+        dq = qb - qa
+        reference = check_segment(checker, qa, qb, stop_at_first=False)
+        per_pair = check_motion(checker, lambda s, dq=dq, qa=qa: (qa + s * dq, weights @ np.abs(dq)), 1.0)
+        whole = check_motion(checker, lambda s, dq=dq, qa=qa: (qa + s * dq, float(np.max(weights @ np.abs(dq)))), 1.0)
+        assert per_pair.clear == reference.clear and whole.clear == reference.clear
+        if reference.clear:
+            dense = [checker.clearance(qa + s * dq).distance for s in np.linspace(0.0, 1.0, 401)]
+            assert min(dense) >= checker.scene.clearance - 1e-4
+        seen.add(reference.clear)
+    assert seen == {True, False}

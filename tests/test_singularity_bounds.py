@@ -135,3 +135,26 @@ def test_conditioning_equals_the_direct_formula(name, task):
         manipulability = np.prod(np.linalg.svd(jacs, compute_uv=False)[:, :k], axis=1)
     inv, man = robot.conditioning(q, task)
     assert np.array_equal(inv, inverse) and np.array_equal(man, manipulability)
+
+
+@pytest.mark.parametrize("name", ARMS)
+@pytest.mark.parametrize("task", ["position", "pose"])
+def test_the_jacobian_moves_no_farther_than_its_bound(name, task):
+    """||J(q1) - J(q0)||_F (scaled and raw, by Pinocchio) <= the bound from the joint change alone."""
+    from planner.motion.singularity import jacobian_change_bound, jacobian_change_bounds
+
+    robot = get_robot(name)
+    change = jacobian_change_bounds(robot, task)
+    if change is None:
+        pytest.skip(f"{name}: no joint-change bound (sliding joints or a branched chain)")
+    rho, angular, raw_angular = change
+    rng = np.random.default_rng(17)
+    q0 = robot.random_configurations(rng, 300)
+    for size in (1e-3, 3e-2, 0.3, 3.0):
+        q1 = q0 + rng.normal(0.0, size, q0.shape)
+        raw0, scaled0 = robot.task_jacobians(q0, task)
+        raw1, scaled1 = robot.task_jacobians(q1, task)
+        moved = np.linalg.norm(scaled1 - scaled0, axis=(1, 2))
+        assert np.all(moved <= jacobian_change_bound(q1 - q0, rho, angular) * (1 + 1e-12) + 1e-15), (name, size)
+        moved_raw = np.linalg.norm(raw1 - raw0, axis=(1, 2))
+        assert np.all(moved_raw <= jacobian_change_bound(q1 - q0, rho, raw_angular) * (1 + 1e-12) + 1e-15), (name, size)

@@ -11,7 +11,7 @@ against it.
 from __future__ import annotations
 
 import math
-from collections.abc import Iterable, Sequence
+from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass
 
 import coal
@@ -141,6 +141,7 @@ class CollisionChecker:
         self._active: dict[tuple[str, ...], np.ndarray] = {}
         self._active_now: np.ndarray | None = None
         self._everything = self._mask(())
+        self._near: dict[tuple, _CloserThan] = {}
 
     def __repr__(self) -> str:
         return (
@@ -199,6 +200,27 @@ class CollisionChecker:
         )
         d = np.fromiter((r.min_distance for r in self._gdata.distanceResults), float, len(self._pairs))
         return np.where(mask, d, np.inf)
+
+    def distances_of(self, q: np.ndarray, pairs: np.ndarray) -> np.ndarray:
+        """Distance [m] of the pairs with indices `pairs` at `q` (unchecked; masks do not apply).
+
+        Only those pairs are computed (after the arm's placements at `q`): cheaper than
+        :meth:`pair_distances` when few pairs are wanted.
+        """
+        geom, gdata = self.geometry, self._gdata
+        pin.updateGeometryPlacements(self.robot.model, self._data, geom, gdata, self.robot.pinocchio_configuration(q))
+        distance = pin.computeDistance
+        return np.fromiter((distance(geom, gdata, k).min_distance for k in pairs.tolist()), float, len(pairs))
+
+    def pair_clearance(self, k: int, distance: float) -> Clearance:
+        """The :class:`Clearance` of pair `k` at `distance` [m] found at the last configuration computed.
+
+        An overlap gets its penetration depth (from the placements of that configuration).
+        """
+        if distance <= 0.0:
+            distance = self._depth(k, distance)
+        a, b = (int(i) for i in self._pairs[k])
+        return Clearance(float(distance), (self.names[a], self.names[b]), self.scene.clearance)
 
     @property
     def self_pairs(self) -> np.ndarray:
@@ -271,6 +293,48 @@ class CollisionChecker:
         """:meth:`clearance` without checking `q` (for inner loops); `mask` from :meth:`pair_mask`."""
         return self._clearance(q, self._everything if mask is None else mask)
 
+    def closer_than(self, distance: float, allow: Iterable[str] = ()) -> Callable[[np.ndarray], bool]:
+        """A test of configurations: whether any pair checked (`allow` allowed) is closer than `distance` [m].
+
+        Coal's collision test with `distance` as its security margin: several times faster
+        than computing the distances, with the same verdict. The test takes `q` unchecked (for
+        inner loops); one is kept per distance and allow set.
+        """
+        mask = self._mask(tuple(allow))
+        key = (float(distance), tuple(sorted(set(allow))))
+        test = self._near.get(key)
+        if test is None:
+            if len(self._near) >= 32:
+                self._near.clear()
+            test = self._near[key] = _CloserThan(self, mask, float(distance))
+        return test
+
     def pair_mask(self, allow: Iterable[str] = ()) -> np.ndarray:
         """The pairs checked when `allow` is allowed, for :meth:`distance_at`."""
         return self._mask(tuple(allow))
+
+
+class _CloserThan:
+    """:meth:`CollisionChecker.closer_than`'s test: its own geometry data with the margin set.
+
+    Through a broad phase like :meth:`CollisionChecker.in_collision`: Pinocchio grows each
+    object's bounding box by half the largest security margin of its pairs, so every pair
+    closer than the margin still reaches the exact test.
+    """
+
+    def __init__(self, checker: CollisionChecker, mask: np.ndarray, distance: float) -> None:
+        robot = checker.robot
+        self.model, self.data = robot.model, robot.model.createData()
+        self.gdata = pin.GeometryData(checker.geometry)
+        for k, on in enumerate(mask):
+            self.gdata.activeCollisionPairs[k] = bool(on)
+        for request in self.gdata.collisionRequests:
+            request.security_margin = distance
+        self.broadphase = pin.BroadPhaseManager_NaiveCollisionManager(robot.model, checker.geometry, self.gdata)
+        self.to_pinocchio = robot.pinocchio_configuration
+        self.any = bool(np.any(mask))
+
+    def __call__(self, q: np.ndarray) -> bool:
+        if not self.any:
+            return False
+        return bool(pin.computeCollisions(self.model, self.data, self.broadphase, self.to_pinocchio(q), True))

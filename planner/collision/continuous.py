@@ -16,10 +16,25 @@ least ``clearance - tolerance`` from everything checked, at every instant.
 Bounding each pair by its own joints (rather than the whole arm's speed) matters most for
 links that stay close in every configuration (a compact wrist): their distance changes only
 with the few joints between them.
+
+Each pair is advanced on its own: it is certified up to its own next x, and a check computes
+only the pairs due then (and those due within half their last step), so a pair far from
+everything is computed rarely however often a close one needs it.
+
+A second bound (the *near-body* bound) serves a small body ``A`` close to the joints that
+move a long body ``B`` below it (a base beside a long upper arm): the first bound must let
+the far end of ``B`` swing, the second only the points near ``A``. With ``A`` in a ball of
+radius ``R`` around ``c`` and ``D_j`` a bound on the distance from ``c`` to joint ``j``'s
+axis, a point of ``B`` at ``s`` from ``c`` moves at most ``|qd_j| (s + D_j)`` per joint; it
+can only reach ``A`` if it moves more than ``max(d, s - R)``, so the pair keeps ``d - m``
+while ``e^T ((R + d) T + sum_j D_j Q_j) <= m``, ``T = sum_j Q_j`` the joints' total turn
+(``Q_j`` of joint ``j``, at most :data:`NEAR_TURN`) and ``e^T`` covering the points' own
+drift (Gronwall). A pair takes the longer of the two steps.
 """
 
 from __future__ import annotations
 
+import bisect
 import weakref
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
@@ -28,16 +43,22 @@ import numpy as np
 
 from planner.collision.arm import bounding_radius, box_corners
 from planner.collision.checker import Clearance, CollisionChecker
+from planner.core.arrays import read_only
 from planner.exceptions import InvalidArgumentError
 
 __all__ = [
     "DEFAULT_TOLERANCE",
+    "NEAR_TURN",
+    "SWEEP_RESOLUTION",
     "MotionClearance",
+    "NearBounds",
     "check_motion",
     "check_segment",
     "check_trajectory",
+    "near_bounds",
     "pair_weights",
     "segment_is_clear",
+    "sweep_order",
 ]
 
 #: How far below the clearance a certified motion may come [m] (sets the smallest step).
@@ -81,6 +102,46 @@ class MotionClearance:
 _WEIGHTS: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
 
 
+class _ArmTables:
+    """Per arm, the tables of checkers seen before, by what they check (kept in ``robot.derived``).
+
+    Planning makes a checker per request; the same arm and scene give the same tables.
+    """
+
+    def __init__(self) -> None:
+        self.arm: object | None = None
+        self.tables: dict[tuple, object] = {}
+
+
+def _checker_key(checker: CollisionChecker, what: str) -> tuple:
+    """What a checker's tables depend on: its pairs and its scene's bodies (shapes and poses)."""
+    scene = checker.scene
+    bodies = tuple(
+        (
+            o.name,
+            repr(o.shape),
+            np.asarray(o.position, dtype=float).tobytes(),
+            np.asarray(o.rotation, dtype=float).tobytes(),
+        )
+        for o in scene.obstacles
+    )
+    pairs = tuple((int(p.first), int(p.second)) for p in checker.geometry.collisionPairs)
+    return (what, scene.floor, bodies, pairs)
+
+
+def _arm_table(checker: CollisionChecker, what: str, make: Callable[[], object]) -> object:
+    held = checker.robot.derived.get(_ArmTables, _ArmTables)
+    if held.arm is not checker.arm:
+        held.arm, held.tables = checker.arm, {}
+    key = _checker_key(checker, what)
+    table = held.tables.get(key)
+    if table is None:
+        if len(held.tables) >= 64:
+            held.tables.clear()
+        table = held.tables[key] = make()
+    return table
+
+
 class _ArmReach:
     """Per object of an arm's collision model, its reach from every joint (kept in ``robot.derived``)."""
 
@@ -88,6 +149,15 @@ class _ArmReach:
         self.arm: object | None = None
         self.table: dict[int, np.ndarray] = {}
         self.chains: list[list[int]] = []
+
+
+def _joint_axis(model, jid: int) -> np.ndarray:
+    """The unit axis of revolute joint `jid` in its own frame."""
+    joint = model.joints[jid]
+    jdata = joint.createData()
+    joint.calc(jdata, np.zeros(model.nq))
+    motion = np.asarray(jdata.S, dtype=float).reshape(6, -1)
+    return motion[3:, 0] / np.linalg.norm(motion[3:, 0])
 
 
 def _axis_reach(model, obj) -> float:
@@ -114,8 +184,12 @@ def pair_weights(checker: CollisionChecker) -> np.ndarray:
     (see the module docstring), zero elsewhere; shape (pairs, dof). Computed once per checker.
     """
     cached = _WEIGHTS.get(checker)
-    if cached is not None:
-        return cached
+    if cached is None:
+        cached = _WEIGHTS[checker] = _arm_table(checker, "weights", lambda: _pair_weights(checker))
+    return cached
+
+
+def _pair_weights(checker: CollisionChecker) -> np.ndarray:
     robot = checker.robot
     model = robot.model
     geom = checker.geometry
@@ -160,8 +234,99 @@ def pair_weights(checker: CollisionChecker) -> np.ndarray:
             if only:
                 weights[k, only] += reach_of(i)[only]
     weights.setflags(write=False)
-    _WEIGHTS[checker] = weights
     return weights
+
+
+#: Largest total joint rotation between two checks of a pair under the near-body bound [rad].
+NEAR_TURN = 0.1
+_NEAR_GROWTH = float(np.exp(NEAR_TURN))
+
+_NEAR: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
+
+
+@dataclass(frozen=True)
+class NearBounds:
+    """Per pair, the near-body bound of the module docstring (from :func:`near_bounds`).
+
+    Attributes:
+        radius: ``R``, the radius of a ball around the pair's upper body ``A`` (the one the
+            other hangs below, or a scene body) [m]; inf where the bound does not apply.
+        offsets: ``D_j``, per pair and joint between the two, a bound on the distance from the
+            ball's centre to joint ``j``'s axis [m]; 0 for the other joints.
+        joints: Per pair and joint, whether the joint moves one body relative to the other.
+    """
+
+    radius: np.ndarray
+    offsets: np.ndarray
+    joints: np.ndarray
+
+
+def _near_row(robot, objects: list, ids: tuple[int, int]) -> tuple[float, np.ndarray, np.ndarray]:
+    """``(R, D, joints)`` of one pair of geometry objects (R inf where the bound does not apply)."""
+    model = robot.model
+    offsets, joints = np.zeros(robot.dof), np.zeros(robot.dof, dtype=bool)
+    objs = [objects[i] for i in ids]
+    chains = [list(model.supports[o.parentJoint]) for o in objs]
+    if set(chains[1]) <= set(chains[0]):
+        objs, chains = objs[::-1], chains[::-1]
+    upper = objs[0]
+    if not set(chains[0]) <= set(chains[1]):
+        return np.inf, offsets, joints  # on different branches
+    between = [j for j in chains[1] if j not in chains[0]]
+    joints[[j - 1 for j in between]] = True
+    if not between or any(robot.joint_kinds[j - 1] == "prismatic" for j in between):
+        return np.inf, offsets, joints
+    if model.parents[between[0]] != upper.parentJoint:
+        return np.inf, offsets, joints
+    corners = box_corners(upper)
+    if not np.all(np.abs(corners) < 1e6):
+        return np.inf, offsets, joints  # a half-space
+    centre_local = (corners.min(axis=0) + corners.max(axis=0)) / 2.0
+    centre = upper.placement.rotation @ centre_local + upper.placement.translation
+    # The first joint's axis is fixed to A: what counts is the centre's distance from it.
+    first = model.jointPlacements[between[0]]
+    axis = first.rotation @ _joint_axis(model, between[0])
+    # The point of the axis nearest the centre, c': the next joint turns about the axis, so
+    # its distance from c' never changes; farther joints add their offsets.
+    arm = centre - first.translation
+    foot = first.translation + (arm @ axis) * axis
+    reach = float(np.linalg.norm(centre - foot))
+    offsets[between[0] - 1] = reach
+    if len(between) > 1:
+        # Or from the first joint's origin (whichever is shorter).
+        second = first.translation + first.rotation @ model.jointPlacements[between[1]].translation
+        reach = min(
+            reach + float(np.linalg.norm(second - foot)),
+            float(np.linalg.norm(arm)) + float(np.linalg.norm(second - first.translation)),
+        )
+        for j in between[1:]:
+            if j != between[1]:
+                reach += float(np.linalg.norm(model.jointPlacements[j].translation))
+            offsets[j - 1] = reach
+    return float(np.max(np.linalg.norm(corners - centre_local, axis=1))), offsets, joints
+
+
+def near_bounds(checker: CollisionChecker) -> NearBounds:
+    """The near-body bound's constants per checked pair (computed once per checker and arm).
+
+    It applies to a pair whose upper body ``A`` (a scene body, or a link the other hangs
+    below) has a finite extent and whose joints in between all turn.
+    """
+    cached = _NEAR.get(checker)
+    if cached is None:
+        cached = _NEAR[checker] = _arm_table(checker, "near", lambda: _near_bounds(checker))
+    return cached
+
+
+def _near_bounds(checker: CollisionChecker) -> NearBounds:
+    robot, geom = checker.robot, checker.geometry
+    objects = list(geom.geometryObjects)
+    rows = [_near_row(robot, objects, (int(p.first), int(p.second))) for p in geom.collisionPairs]
+    n = len(rows)
+    radius = np.array([r[0] for r in rows], dtype=float).reshape(n)
+    offsets = np.array([r[1] for r in rows], dtype=float).reshape(n, robot.dof)
+    joints = np.array([r[2] for r in rows], dtype=bool).reshape(n, robot.dof)
+    return NearBounds(read_only(radius), read_only(offsets), read_only(joints, dtype=bool))
 
 
 def check_motion(
@@ -176,6 +341,9 @@ def check_motion(
     clearance: float | None = None,
 ) -> MotionClearance:
     """Check a motion ``q(x)``, x from 0 to `end`, with a bound on how fast the arm's surface moves.
+
+    Each pair is advanced on its own (see the module docstring): at a check only the pairs
+    whose certified stretch ends there (or soon) are computed.
 
     Args:
         checker: The collision checker.
@@ -192,55 +360,169 @@ def check_motion(
         clearance: The distance to keep [m]; None is the scene's.
 
     Returns:
-        The :class:`MotionClearance`.
+        The :class:`MotionClearance`; :attr:`MotionClearance.checks` counts the configurations
+        at which distances were computed.
     """
+    n_pairs = checker.pair_count
+    # A scalar bound is the whole arm's: two links approach each other at most twice as fast.
+    double = np.where(checker.self_pairs, 2.0, 1.0)
+    acc = np.maximum(np.asarray(acceleration, dtype=float), 0.0)
+    acc = np.broadcast_to(acc * double if acc.ndim == 0 else acc, (n_pairs,))
+
+    def steps(speed, due: np.ndarray, d: np.ndarray, room: np.ndarray) -> np.ndarray:
+        speed = np.asarray(speed, dtype=float)
+        v = np.maximum(speed * double[due] if speed.ndim == 0 else speed[due], 1e-12)
+        a = acc[due]
+        return 2.0 * room / (v + np.sqrt(v * v + 2.0 * a * room))
+
+    return _advance(checker, sample, steps, end, masks, tolerance, stop_at_first, clearance)
+
+
+def _joint_steps(checker: CollisionChecker, acceleration: np.ndarray) -> Callable:
+    """The step rule of a motion sampled with its joint speeds (an upper bound on each |qd_j|).
+
+    Per pair, the longer of the steps the two bounds of the module docstring allow (the
+    near-body bound only for the pairs where it can be the longer one).
+    """
+    weights = pair_weights(checker)
+    near = near_bounds(checker)
+    n = len(weights)
+    # The near-body bound is never the longer where (R + D_j) e^T >= r_j for every joint.
+    useful = np.isfinite(near.radius) & np.any(
+        near.joints
+        & (_NEAR_GROWTH * (np.where(np.isfinite(near.radius), near.radius, 0.0)[:, None] + near.offsets) < weights),
+        axis=1,
+    )
+    rows = np.flatnonzero(useful)
+    # One product per speed state: the first bound's V, and per useful pair T and sum_j D_j Q_j.
+    stacked = np.vstack([weights, near.joints[rows].astype(float), near.offsets[rows]])
+    per_acc = stacked @ acceleration
+    radius = near.radius[rows]
+    slot = np.full(n, -1)
+    slot[rows] = np.arange(len(rows))
+    state: dict[str, object] = {"speed": None}
+
+    if not np.any(acceleration):
+        # Constant speeds (a straight segment): the steps are room / V.
+        def constant(speed: np.ndarray, due: np.ndarray, d: np.ndarray, room: np.ndarray) -> np.ndarray:
+            if state["speed"] is not speed:
+                product = stacked @ speed
+                state["speed"], state["v"] = speed, np.maximum(product[:n], 1e-12)
+                turn, lever = product[n : n + len(rows)], product[n + len(rows) :]
+                state["turn"], state["lever"] = turn, lever
+                state["cap"] = NEAR_TURN / np.maximum(turn, 1e-300)
+            step = room / state["v"][due]
+            where = slot[due]
+            hit = where >= 0
+            if hit.any():
+                k = where[hit]
+                v = _NEAR_GROWTH * ((radius[k] + d[hit]) * state["turn"][k] + state["lever"][k])
+                step[hit] = np.maximum(step[hit], np.minimum(room[hit] / np.maximum(v, 1e-300), state["cap"][k]))
+            return step
+
+        return constant
+
+    def steps(speed: np.ndarray, due: np.ndarray, d: np.ndarray, room: np.ndarray) -> np.ndarray:
+        if state["speed"] is not speed:
+            state["speed"], state["product"] = speed, stacked @ speed
+        product = state["product"]
+        v = np.maximum(product[due], 1e-12)
+        a = per_acc[due]
+        step = 2.0 * room / (v + np.sqrt(v * v + 2.0 * a * room))
+        if not len(rows):
+            return step
+        where = slot[due]
+        hit = where >= 0
+        if not hit.any():
+            return step
+        k = where[hit]
+        m = len(rows)
+        turn, lever = product[n + k], product[n + m + k]
+        turn_acc, lever_acc = per_acc[n + k], per_acc[n + m + k]
+        ball = radius[k] + d[hit]
+        r = room[hit]
+        v = _NEAR_GROWTH * (ball * turn + lever)
+        a = _NEAR_GROWTH * (ball * turn_acc + lever_acc)
+        near_step = 2.0 * r / (v + np.sqrt(v * v + 2.0 * a * r) + 1e-300)
+        cap = 2.0 * NEAR_TURN / (turn + np.sqrt(turn * turn + 2.0 * turn_acc * NEAR_TURN) + 1e-300)
+        step[hit] = np.maximum(step[hit], np.minimum(near_step, cap))
+        return step
+
+    return steps
+
+
+def _advance(
+    checker: CollisionChecker,
+    sample: Callable[[float], tuple[np.ndarray, object]],
+    steps: Callable[[object, np.ndarray, np.ndarray, np.ndarray], np.ndarray],
+    end: float,
+    masks: Sequence[tuple[float, np.ndarray]] | None,
+    tolerance: float,
+    stop_at_first: bool,
+    clearance: float | None,
+) -> MotionClearance:
+    """Conservative advancement pair by pair: `sample` gives q and a speed state, `steps` each due pair's step."""
     if not (tolerance > 0 and np.isfinite(tolerance)):
         raise InvalidArgumentError(f"tolerance must be a positive distance [m], got {tolerance!r}")
     c = checker.scene.clearance if clearance is None else float(clearance)
     masks = list(masks) if masks else [(0.0, checker.pair_mask())]
-    # A scalar bound is the whole arm's: two links approach each other at most twice as fast.
-    double = np.where(checker.self_pairs, 2.0, 1.0)
-    acc = np.maximum(np.asarray(acceleration, dtype=float), 0.0)
-    acc = acc * double if acc.ndim == 0 else acc
-    x, checks, k_mask = 0.0, 0, 0
-    best: tuple[float, float, np.ndarray] | None = None
+    n_pairs = checker.pair_count
+    # Per pair, the x up to which it is certified, and from which it is computed with the
+    # pairs due then (halfway through its last step: one more pair costs far less than one
+    # more configuration); -inf: due now (as after it is switched on), inf: off the mask.
+    until = np.full(n_pairs, -np.inf)
+    early = np.full(n_pairs, -np.inf)
+    x, checks, k_mask = 0.0, 0, -1
+    mask = masks[0][1]
+    best: tuple[float, float, Clearance | None] = (np.inf, 0.0, None)
+    best_pair = -1
     first_hit: float | None = None
-    hit_d: np.ndarray | None = None
+    hit: Clearance | None = None
+    coarse = end / 2000.0  # past a hit: coarse steps, only to find the worst
     while True:
         while k_mask + 1 < len(masks) and masks[k_mask + 1][0] <= x:
             k_mask += 1
-        q, speed = sample(x)
-        speed = np.asarray(speed, dtype=float)
-        speed = np.maximum(speed * double if speed.ndim == 0 else speed, 1e-12)
-        d = checker.pair_distances(q, masks[k_mask][1])
-        checks += 1
-        dmin = float(d.min()) if d.size else np.inf
-        if best is None or dmin < best[0]:
-            best = (dmin, x, d)
-        if dmin < c and first_hit is None:
-            first_hit, hit_d = x, d
-            if stop_at_first:
-                break
+            was, mask = (None if k_mask == 0 else masks[k_mask - 1][1]), masks[k_mask][1]
+            on = mask if was is None else mask & ~was
+            until[on], early[on] = -np.inf, -np.inf
+            until[~mask], early[~mask] = np.inf, np.inf
+        due = np.flatnonzero(early <= x)
+        if due.size:
+            q, speed = sample(x)
+            if checks == 0 or due.size == n_pairs:
+                d = checker.pair_distances(q, mask)[due]
+            else:
+                d = checker.distances_of(q, due)
+            checks += 1
+            i = int(np.argmin(d))
+            dmin = float(d[i])
+            if dmin < best[0]:
+                best = (dmin, x, checker.pair_clearance(int(due[i]), dmin) if dmin <= 0.0 else None)
+                best_pair = int(due[i])
+            if dmin < c and first_hit is None:
+                first_hit = x
+                # The closest pair of all at this instant (not only of those due).
+                hit = checker.clearance_of(checker.pair_distances(q, mask))
+                if stop_at_first:
+                    break
+            room = np.maximum(d - c + tolerance, tolerance / 2.0)
+            step = steps(speed, due, d, room)
+            if first_hit is not None:
+                step = np.maximum(step, coarse)
+            until[due] = x + step
+            early[due] = x + 0.5 * step
         if x >= end:
             break
-        live = np.isfinite(d)
-        if not live.any():
-            step = end - x  # nothing checked here: nothing to step around
-        else:
-            # Per pair, the time h at which V h + A h^2 / 2 reaches the room left.
-            room = np.maximum(d[live] - c + tolerance, tolerance / 2.0)
-            v = speed[live] if speed.ndim else speed
-            a = acc[live] if acc.ndim else acc
-            step = float(np.min(2.0 * room / (v + np.sqrt(v * v + 2.0 * a * room))))
-        if first_hit is not None:
-            step = max(step, end / 2000.0)  # past a hit: coarse steps, only to find the worst
-        # Change of mask: check at the boundary too.
+        x_next = float(until.min()) if n_pairs else end
         if k_mask + 1 < len(masks):
-            step = min(step, masks[k_mask + 1][0] - x)
-        x = min(x + step, end)
-    assert best is not None
-    closest = checker.clearance_of(best[2])
-    hit = checker.clearance_of(hit_d) if hit_d is not None else None
+            x_next = min(x_next, masks[k_mask + 1][0])  # a change of mask: check at the boundary
+        x = min(x_next if x_next > x else float(np.nextafter(x, np.inf)), end)
+    if best[2] is not None:
+        closest = best[2]
+    elif np.isfinite(best[0]):
+        closest = checker.pair_clearance(best_pair, best[0])
+    else:
+        closest = checker.clearance_of(np.zeros(0))
     return MotionClearance(first_hit is None, closest, best[1], first_hit, hit, checks)
 
 
@@ -260,23 +542,62 @@ def check_segment(
     """
     q0, q1 = np.asarray(q_start, dtype=float), np.asarray(q_end, dtype=float)
     dq = q1 - q0
-    speed = pair_weights(checker) @ np.abs(dq)
-    return check_motion(
+    speed = np.abs(dq)
+    return _advance(
         checker,
         lambda s: (q0 + s * dq, speed),
+        _joint_steps(checker, np.zeros(len(dq))),
         1.0,
-        masks=[(0.0, checker.pair_mask(allow))],
-        tolerance=tolerance,
-        stop_at_first=stop_at_first,
-        clearance=clearance,
+        [(0.0, checker.pair_mask(allow))],
+        tolerance,
+        stop_at_first,
+        clearance,
     )
 
 
 def segment_is_clear(
     checker: CollisionChecker, q_start: np.ndarray, q_end: np.ndarray, *, allow: Sequence[str] = (), margin: float = 0.0
 ) -> bool:
-    """Whether the straight joint segment keeps the scene's clearance plus `margin` throughout."""
-    return check_segment(checker, q_start, q_end, allow=allow, clearance=checker.scene.clearance + margin).clear
+    """Whether the straight joint segment keeps the scene's clearance plus `margin` throughout.
+
+    Points every :data:`SWEEP_RESOLUTION` are tested first (cheap collision tests with that
+    distance as security margin, in bisection order): a point closer than that decides at once;
+    else :func:`check_segment` certifies the whole segment.
+    """
+    a, b = np.asarray(q_start, dtype=float), np.asarray(q_end, dtype=float)
+    need = checker.scene.clearance + margin
+    near = checker.closer_than(need, allow)
+    n = max(1, int(np.ceil(float(np.max(np.abs(b - a), initial=0.0)) / SWEEP_RESOLUTION)))
+    if near(a) or any(near(a + s * (b - a)) for s in sweep_order(n)):
+        return False
+    return check_segment(checker, a, b, allow=allow, clearance=need).clear
+
+
+#: Largest joint change between the points :func:`segment_is_clear` tests first [rad or m].
+SWEEP_RESOLUTION = 0.05
+
+_ORDERS: dict[int, np.ndarray] = {}
+
+
+def sweep_order(n: int) -> np.ndarray:
+    """The points k / n, k = 1..n, the end first, then by bisection (halves, quarters, ...).
+
+    A blocked edge is usually blocked over a stretch: bisection meets it after few checks.
+    """
+    out = _ORDERS.get(n)
+    if out is None:
+        seen, order, step = {n}, [n], n
+        while step > 1:
+            step = (step + 1) // 2
+            for k in range(step, n, step):
+                if k not in seen:
+                    seen.add(k)
+                    order.append(k)
+        order += [k for k in range(1, n) if k not in seen]
+        out = np.array(order, dtype=float) / n
+        if len(_ORDERS) < 4096:
+            _ORDERS[n] = out
+    return out
 
 
 def check_trajectory(
@@ -297,23 +618,35 @@ def check_trajectory(
         tolerance: See the module docstring [m].
         stop_at_first: Return at the first check below the clearance.
     """
-    weights = pair_weights(checker)
     # The limits hold to LIMIT_TOLERANCE; the bound takes a little more.
-    acceleration = weights @ np.asarray(trajectory.limits.acceleration) * (1.0 + 1e-6)
+    acceleration = np.asarray(trajectory.limits.acceleration, dtype=float) * (1.0 + 1e-6)
     vmax = np.asarray(trajectory.limits.velocity) * (1.0 + 1e-6)
+    # The trajectory's pieces, evaluated here one time at a time (JointTrajectory.sample's
+    # polynomial without its checks and array bookkeeping).
+    knots = np.asarray(trajectory.knots, dtype=float).tolist()
+    p, v, a, j = trajectory.p, trajectory.v, trajectory.a, trajectory.j
+    half_a, sixth_j, half_j = a / 2.0, j / 6.0, j / 2.0
+    duration, last = float(trajectory.duration), np.asarray(trajectory.waypoints[-1], dtype=float)
+    rest = np.full(len(last), 1e-12)
 
     def sample(t: float) -> tuple[np.ndarray, np.ndarray]:
-        state = trajectory.sample(t)
-        return state.q, weights @ np.minimum(np.abs(state.qd) + 1e-12, vmax)
+        if t >= duration:
+            return last, rest
+        i = max(bisect.bisect_right(knots, t) - 1, 0)
+        dt = t - knots[i]
+        q = p[i] + dt * (v[i] + dt * (half_a[i] + dt * sixth_j[i]))
+        qd = v[i] + dt * (a[i] + dt * half_j[i])
+        return q, np.minimum(np.abs(qd) + 1e-12, vmax)
 
     masks = [(0.0, checker.pair_mask())] + [(float(t), checker.pair_mask(names)) for t, names in allow]
     masks.sort(key=lambda m: m[0])
-    return check_motion(
+    return _advance(
         checker,
         sample,
-        trajectory.duration,
-        acceleration,
-        masks=masks,
-        tolerance=tolerance,
-        stop_at_first=stop_at_first,
+        _joint_steps(checker, acceleration),
+        duration,
+        masks,
+        tolerance,
+        stop_at_first,
+        None,
     )

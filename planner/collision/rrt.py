@@ -20,10 +20,9 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
-import pinocchio as pin
 
 from planner.collision.checker import CollisionChecker
-from planner.collision.continuous import segment_is_clear
+from planner.collision.continuous import check_segment, segment_is_clear, sweep_order
 from planner.core.arrays import read_only
 from planner.exceptions import InvalidArgumentError
 
@@ -142,9 +141,9 @@ def segment_looks_clear(
     the certificate). A segment this finds blocked is blocked.
     """
     a, b = np.asarray(q_start, dtype=float), np.asarray(q_end, dtype=float)
-    near = _Proximity(checker, checker.pair_mask(allow), checker.scene.clearance)
+    near = checker.closer_than(checker.scene.clearance, allow)
     n = max(1, int(np.ceil(float(np.max(np.abs(b - a))) / resolution)))
-    return not near(a) and not any(near(a + s * (b - a)) for s in _order(n))
+    return not near(a) and not any(near(a + s * (b - a)) for s in sweep_order(n))
 
 
 def path_margin(clearance: float, end_distance: float, margin: float) -> float:
@@ -196,12 +195,16 @@ def find_clear_path(
     def clear(a: np.ndarray, b: np.ndarray) -> bool:
         return segment_is_clear(checker, a, b, allow=allow, margin=margin)
 
-    near = _Proximity(checker, mask, need)
+    def certify(a: np.ndarray, b: np.ndarray) -> bool:
+        """The certificate of an edge `quick` has passed (its sweep would repeat quick's tests)."""
+        return check_segment(checker, a, b, allow=allow, clearance=need).clear
+
+    near = checker.closer_than(need, allow)
 
     def quick(a: np.ndarray, b: np.ndarray) -> bool:
         """Proximity checks every `resolution` along the edge, its end first: cheap, not a certificate."""
         n = max(1, int(np.ceil(float(np.max(np.abs(b - a))) / options.resolution)))
-        return not any(near(a + s * (b - a)) for s in _order(n))
+        return not any(near(a + s * (b - a)) for s in sweep_order(n))
 
     if clear(q0, q1):
         return PathResult(PathStatus.FOUND, read_only(np.array([q0, q1])), "", 0)
@@ -224,10 +227,10 @@ def find_clear_path(
             break
         path = _merge_collinear(path)
         short = _shortcut(path, quick, rng, options.shortcuts)
-        if all(clear(a, b) for a, b in zip(short, short[1:])):
+        if all(certify(a, b) for a, b in zip(short, short[1:])):
             return PathResult(PathStatus.FOUND, read_only(np.array(short)), "", iterations)
-        if all(clear(a, b) for a, b in zip(path, path[1:])):
-            path = _prune(path, lambda a, b: quick(a, b) and clear(a, b))
+        if all(certify(a, b) for a, b in zip(path, path[1:])):
+            path = _prune(path, lambda a, b: quick(a, b) and certify(a, b))
             return PathResult(PathStatus.FOUND, read_only(np.array(path)), "", iterations)
     if time.perf_counter() > deadline:
         return PathResult(PathStatus.NOT_FOUND, empty, f"no clear path within {options.time_budget:g} s", iterations)
@@ -289,54 +292,6 @@ def _extend(tree: _Tree, target: np.ndarray, step: float, edge_ok) -> int | None
     if not edge_ok(q_near, q_new):
         return None
     return tree.add(q_new, k)
-
-
-_ORDERS: dict[int, np.ndarray] = {}
-
-
-def _order(n: int) -> np.ndarray:
-    """The points k / n, k = 1..n, the end first, then by bisection (halves, quarters, ...).
-
-    A blocked edge is usually blocked over a stretch: bisection meets it after few checks.
-    """
-    out = _ORDERS.get(n)
-    if out is None:
-        seen, order, step = {n}, [n], n
-        while step > 1:
-            step = (step + 1) // 2
-            for k in range(step, n, step):
-                if k not in seen:
-                    seen.add(k)
-                    order.append(k)
-        order += [k for k in range(1, n) if k not in seen]
-        out = np.array(order, dtype=float) / n
-        if len(_ORDERS) < 4096:
-            _ORDERS[n] = out
-    return out
-
-
-class _Proximity:
-    """Whether any checked pair at q is closer than a distance.
-
-    Coal's collision test with that distance as its security margin: several times faster than
-    computing the distances, with the same verdict.
-    """
-
-    def __init__(self, checker: CollisionChecker, mask: np.ndarray, distance: float) -> None:
-        robot = checker.robot
-        self.model, self.data, self.geometry = robot.model, robot.model.createData(), checker.geometry
-        self.gdata = pin.GeometryData(checker.geometry)
-        for k, on in enumerate(mask):
-            self.gdata.activeCollisionPairs[k] = bool(on)
-        for request in self.gdata.collisionRequests:
-            request.security_margin = float(distance)
-        self.to_pinocchio = robot.pinocchio_configuration
-        self.any = bool(np.any(mask))
-
-    def __call__(self, q: np.ndarray) -> bool:
-        if not self.any:
-            return False
-        return bool(pin.computeCollisions(self.model, self.data, self.geometry, self.gdata, self.to_pinocchio(q), True))
 
 
 def _join(a: _Tree, ka: int, b: _Tree, kb: int, a_is_start: bool) -> list[np.ndarray]:

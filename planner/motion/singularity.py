@@ -49,6 +49,8 @@ __all__ = [
     "SingularityReport",
     "bounded_conditioning",
     "check_singularities",
+    "jacobian_change_bound",
+    "jacobian_change_bounds",
     "inverse_condition_threshold",
     "measure_singularities",
 ]
@@ -126,22 +128,62 @@ def _sample_times(trajectory: JointTrajectory, rate: float) -> np.ndarray:
 
 
 def _intervals(t: np.ndarray, low: np.ndarray) -> tuple[tuple[float, float], ...]:
-    out = []
-    k = 0
-    while k < len(t):
-        if low[k]:
-            m = k
-            while m + 1 < len(t) and low[m + 1]:
-                m += 1
-            out.append((float(t[k]), float(t[m])))
-            k = m + 1
-        else:
-            k += 1
-    return tuple(out)
+    """The runs of `low` as (first, last) times."""
+    if not low.any():
+        return ()
+    edges = np.diff(np.concatenate([[False], low, [False]]).astype(np.int8))
+    starts, ends = np.flatnonzero(edges == 1), np.flatnonzero(edges == -1) - 1
+    return tuple((float(t[a]), float(t[b])) for a, b in zip(starts, ends))
 
 
 #: Samples between the first rows :func:`bounded_conditioning` measures exactly.
-ANCHOR_SPACING = 16
+ANCHOR_SPACING = 8
+
+
+def jacobian_change_bounds(robot: Robot, task: Task) -> tuple[np.ndarray, np.ndarray, float] | None:
+    """Constants of a bound on how far the task Jacobian moves with the joints, or None.
+
+    For an arm of turning joints in one chain to the tip, column ``i`` of the Jacobian (in the
+    world-aligned tip frame) is ``[z_i x (p - o_i); z_i]``. Along a straight joint-space move
+    by ``u`` its derivative is at most ``a_i = 2 rho_i U_i + sum_{k >= i} rho_k |u_k|`` (linear
+    part) and ``b_i = U_i`` (angular part), with ``U_i = sum_{k < i} |u_k|`` and ``rho_i`` the
+    chain's length from joint ``i`` to the tip (a bound on ``|p - o_i|``). So the change of the
+    scaled Jacobian is at most ``sqrt(sum_i a_i^2 + L^2 b_i^2)`` in the Frobenius norm (the
+    angular rows only for ``"pose"``; ``L`` the characteristic length) and of the raw one
+    ``sqrt(sum_i a_i^2 + b_i^2)``.
+
+    Returns:
+        ``(rho, angular_scale, raw_angular)``: ``rho`` per joint [m], the angular rows' weights
+        in the scaled and raw bounds (0 for ``"position"``); None for arms with sliding
+        joints or joints off the tip's chain (their bounds use the Jacobians themselves).
+    """
+    model = robot.model
+    if any(kind == "prismatic" for kind in robot.joint_kinds) or model.nv != robot.dof:
+        return None
+    frame = model.frames[robot.tip_frame_id]
+    chain = [j for j in model.supports[frame.parentJoint] if j > 0]
+    if chain != list(range(1, robot.dof + 1)) or any(model.joints[j].nv != 1 for j in chain):
+        return None
+    offsets = [float(np.linalg.norm(model.jointPlacements[j].translation)) for j in chain]
+    tip = float(np.linalg.norm(frame.placement.translation))
+    # rho_i: the offsets of the joints after i, then the tip's.
+    rho = np.array([sum(offsets[i + 1 :]) + tip for i in range(robot.dof)]) * (1.0 + 1e-9)
+    if task == "position":
+        return rho, 0.0, 0.0
+    return rho, robot.characteristic_length, 1.0
+
+
+def jacobian_change_bound(u: np.ndarray, rho: np.ndarray, angular: float) -> np.ndarray:
+    """Per row of joint changes `u` (rows, dof) [rad], the bound of :func:`jacobian_change_bounds` [m/rad].
+
+    `rho` and `angular` as :func:`jacobian_change_bounds` returns them (its second value for
+    the scaled Jacobian, its third for the raw one).
+    """
+    u = np.abs(u)
+    before = np.cumsum(u, axis=1) - u
+    after = np.cumsum((rho * u)[:, ::-1], axis=1)[:, ::-1]
+    a = 2.0 * rho * before + after
+    return np.sqrt(np.sum(a * a, axis=1) + angular * angular * np.sum(before * before, axis=1))
 
 
 def bounded_conditioning(
@@ -152,13 +194,16 @@ def bounded_conditioning(
     Every :data:`ANCHOR_SPACING`-th row, the last and the rows `keep` are measured exactly; every
     row between two exact ones gets lower bounds from both by Weyl's inequality: a singular value
     moves by at most the spectral norm (below the Frobenius norm) of the change of the matrix, so
-    with ``e = ||J - J_a||_F`` the inverse condition number is at least
+    with ``e`` a bound on ``||J - J_a||_F`` the inverse condition number is at least
     ``(s_min(J_a) - e) / (s_max(J_a) + e)`` and the manipulability (a fixed factor times the
     product of the singular values of the matrix it is computed from) at least that factor times
-    the product of ``max(s_i - e, 0)``. Where a bound between two exact rows could be below the
-    threshold or below the smallest exact value so far, the row halfway is measured too, and so
-    on: in the end every row below the threshold and the row of each minimum hold the exact
-    value, and the others a lower bound above the threshold and above both minima.
+    the product of ``max(s_i - e, 0)``. ``e`` is first the bound of
+    :func:`jacobian_change_bounds` from the joint changes alone (no Jacobian needed); rows it
+    leaves undecided get their Jacobian and ``e = ||J - J_a||_F`` itself. Where a bound between
+    two exact rows could be below the threshold or below the smallest exact value so far, the
+    row halfway is measured too, and so on: in the end every row below the threshold and the
+    row of each minimum hold the exact value, and the others a lower bound above the threshold
+    and above both minima.
 
     Args:
         robot: The robot.
@@ -171,16 +216,27 @@ def bounded_conditioning(
         ``(inverse_condition_number, manipulability)``, each of shape (n,).
     """
     n = len(q)
-    raw, scaled = robot.task_jacobians(q, task)
-    k = min(raw.shape[1:])
+    dof = q.shape[1]
+    m_rows = 3 if task == "position" else 6
+    k = min(m_rows, dof)
     # The manipulability is a fixed factor times the product of the scaled Jacobian's singular
     # values, or of the raw Jacobian's: its bound is on the matrix it is computed from.
     divisor = robot.manipulability_divisor(task)
+    raw, scaled = np.empty((n, m_rows, dof)), np.empty((n, m_rows, dof))
+    have = np.zeros(n, dtype=bool)  # rows whose Jacobians are computed
+
+    def jacobians(idx: np.ndarray) -> None:
+        idx = idx[~have[idx]]
+        if len(idx):
+            raw[idx], scaled[idx] = robot.task_jacobians(q[idx], task)
+            have[idx] = True
+
     inv, man = np.empty(n), np.empty(n)
     s_inv, s_man = np.zeros((n, k)), np.zeros((n, k))  # singular values at the exact rows
     exact = np.zeros(n, dtype=bool)
 
     def measure(idx: np.ndarray) -> None:
+        jacobians(idx)
         s_inv[idx], s_man[idx] = robot.task_singular_values(raw[idx], scaled[idx], task)
         inv[idx], man[idx] = robot.conditioning_from(s_inv[idx], s_man[idx], task)
         exact[idx] = True
@@ -190,11 +246,37 @@ def bounded_conditioning(
     scale = 1.0 if divisor is None else 1.0 / divisor
     lo_inv, lo_man = np.zeros(n), np.zeros(n)
     rows = np.nonzero(~exact)[0]  # rows whose bounds are (re)computed
+    change = jacobian_change_bounds(robot, task)
+    if change is not None and len(rows):
+        rho, angular, raw_angular = change
+        ends = np.nonzero(exact)[0]
+        right = np.searchsorted(ends, rows)
+        for a in (ends[right - 1], ends[right]):
+            du = q[rows] - q[a]
+            e = jacobian_change_bound(du, rho, angular) + 1e-9 * (s_inv[a, 0] + 1.0)
+            e_man = (
+                e if divisor is not None else jacobian_change_bound(du, rho, raw_angular) + 1e-9 * (s_man[a, 0] + 1.0)
+            )
+            lo_inv[rows] = np.maximum(lo_inv[rows], np.maximum(s_inv[a, -1] - e, 0.0) / (s_inv[a, 0] + e))
+            lo_man[rows] = np.maximum(lo_man[rows], np.prod(np.maximum(s_man[a] - e_man[:, None], 0.0), axis=1))
+        lo_man[rows] *= scale * (1.0 - 1e-9)
+        # Rows these bounds settle keep them (the smallest exact values only fall as rows are
+        # added); the others go on with their Jacobians.
+        settled = (lo_inv[rows] > max(threshold, float(np.min(inv[exact])))) & (
+            lo_man[rows] > float(np.min(man[exact]))
+        )
+        done = np.zeros(n, dtype=bool)
+        done[rows[settled]] = True
+        rows = rows[~settled]
+    else:
+        done = np.zeros(n, dtype=bool)
     while len(rows):
+        jacobians(rows)
         ends = np.nonzero(exact)[0]
         right = np.searchsorted(ends, rows)
         lo_inv[rows], lo_man[rows] = 0.0, 0.0
         for a in (ends[right - 1], ends[right]):
+            jacobians(np.unique(a))
             # Rounding of the SVDs and norms: a margin far above it.
             e = np.linalg.norm(scaled[rows] - scaled[a], axis=(1, 2)) + 1e-9 * (s_inv[a, 0] + 1.0)
             if divisor is None:
@@ -205,7 +287,7 @@ def bounded_conditioning(
             lo_man[rows] = np.maximum(lo_man[rows], np.prod(np.maximum(s_man[a] - e_man[:, None], 0.0), axis=1))
         lo_man[rows] *= scale * (1.0 - 1e-9)
         # The smallest exact values only fall as rows are added: a row certified stays certified.
-        open_rows = np.nonzero(~exact)[0]
+        open_rows = np.nonzero(~exact & ~done)[0]
         near = (lo_inv[open_rows] <= max(threshold, float(np.min(inv[exact])))) | (
             lo_man[open_rows] <= float(np.min(man[exact]))
         )
@@ -223,7 +305,7 @@ def bounded_conditioning(
         split = np.zeros(n, dtype=bool)
         for x, y in zip(lo_end[~short], hi_end[~short]):
             split[x + 1 : y] = True
-        rows = np.nonzero(split & ~exact)[0]
+        rows = np.nonzero(split & ~exact & ~done)[0]
     free = ~exact
     inv[free], man[free] = lo_inv[free], lo_man[free]
     return inv, man
