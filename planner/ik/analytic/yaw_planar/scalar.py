@@ -13,6 +13,7 @@ from __future__ import annotations
 import math
 import struct
 from operator import itemgetter
+from typing import NamedTuple
 
 import numpy as np
 
@@ -25,7 +26,7 @@ from planner.ik.analytic.yaw_planar.branches import BEYOND, BRANCHES, CYLINDER, 
 from planner.ik.analytic.yaw_planar.free_pitch import free_pitch_failure, free_pitch_scalar
 from planner.ik.analytic.yaw_planar.status import status_and_reason
 
-__all__ = ["solve_scalar", "finish_scalar"]
+__all__ = ["ScalarPlan", "EndPlan", "scalar_plan", "end_plan", "solve_scalar", "finish_scalar", "solutions_result"]
 
 PI = math.pi
 TWO_PI = 2.0 * math.pi
@@ -37,44 +38,168 @@ _PACKERS = tuple(struct.Struct(f"{k}d").pack for k in range(33))
 _new = tuple.__new__
 
 
-def solve_scalar(arm: ArmGeometry, target: Target, qc: list[float] | None) -> AnalyticResult:
+class ScalarPlan(NamedTuple):
+    """An arm's constants of :func:`solve_scalar`, computed once per solver (see its fields' code)."""
+
+    three: bool
+    has_roll: bool
+    roll_idx: int | None
+    dof: int
+    bx: float
+    by: float
+    mu: float
+    sigma: float
+    beta: float
+    len_tol: float
+    len_tol_sq: float
+    axis_tol: float
+    l1: float
+    g1: float
+    su: float
+    sz: float
+    s0: float
+    s1: float
+    s2: float
+    limits: tuple[float, ...]
+    zeros: tuple[float, ...]
+    end: EndPlan | None
+
+
+class EndPlan(NamedTuple):
+    """The constants that depend on the end point (tu, tz, d): fixed unless the roll moves the tip."""
+
+    tu: float
+    tz: float
+    d: float
+    d_small: bool
+    cylinder_tol: float
+    l2: float
+    g2: float
+    reach_hi: float
+    reach_lo: float
+    l1_sq: float
+    l2_sq: float
+    l1_l2: float
+    has_lengths: bool
+    lt: float
+    gt: float
+    fits_lo: float
+    fits_hi: float
+
+
+def scalar_plan(arm: ArmGeometry) -> ScalarPlan:
+    """The constants of :func:`solve_scalar` for an arm."""
+    three = arm.n_pitch == 3
+    limits = []
+    for j in range(4):
+        limits += (arm.lower[j], arm.upper[j]) if j < arm.dof and j <= arm.n_pitch else (0.0, 0.0)
+    limits += (arm.lower[arm.roll_idx], arm.upper[arm.roll_idx]) if arm.has_roll else (0.0, 0.0)
+    return ScalarPlan(
+        three=three,
+        has_roll=arm.has_roll,
+        roll_idx=arm.roll_idx,
+        dof=arm.dof,
+        bx=arm.bx,
+        by=arm.by,
+        mu=arm.mu,
+        sigma=arm.sigma,
+        beta=arm.beta,
+        len_tol=arm.len_tol,
+        len_tol_sq=arm.len_tol * arm.len_tol,
+        axis_tol=SINGULAR_TOL * arm.scale,
+        l1=arm.l1,
+        g1=arm.g1,
+        su=arm.su,
+        sz=arm.sz,
+        s0=arm.signs[0],
+        s1=arm.signs[1],
+        s2=arm.signs[2] if three else 0.0,
+        limits=tuple(limits),
+        zeros=(0.0,) * arm.dof,
+        end=end_plan(arm, *arm.tip_fixed) if arm.tip_on_roll_axis else None,
+    )
+
+
+def end_plan(arm: ArmGeometry, tu: float, tz: float, d: float) -> EndPlan:
+    """The end-point constants of :func:`solve_scalar` for the end point (tu, tz, d)."""
+    len_tol, l1 = arm.len_tol, arm.l1
+    if arm.n_pitch == 3:
+        l2, g2 = arm.l2, arm.g2
+        lt, gt = math.hypot(tu, tz), math.atan2(tz, tu)
+        # free_pitch_scalar's reach test of the wrist centre.
+        fits_lo = max(abs(l1 - l2), arm.rmin_lim) - len_tol
+        fits_hi = min(l1 + l2, arm.rmax_lim) + len_tol
+    else:
+        l2, g2 = math.hypot(tu, tz), math.atan2(tz, tu)
+        lt = gt = fits_lo = fits_hi = math.nan
+    return EndPlan(
+        tu=tu,
+        tz=tz,
+        d=d,
+        d_small=abs(d) <= len_tol,
+        cylinder_tol=-2.0 * abs(d) * len_tol,
+        l2=l2,
+        g2=g2,
+        reach_hi=l1 + l2 + len_tol,
+        reach_lo=abs(l1 - l2) - len_tol,
+        l1_sq=l1 * l1,
+        l2_sq=l2 * l2,
+        l1_l2=2.0 * l1 * l2,
+        has_lengths=l1 > 0.0 and l2 > 0.0,
+        lt=lt,
+        gt=gt,
+        fits_lo=fits_lo,
+        fits_hi=fits_hi,
+    )
+
+
+def solve_scalar(
+    arm: ArmGeometry, target: Target, qc: list[float] | None, plan: ScalarPlan | None = None
+) -> AnalyticResult:
     """Position or pitch targets on an exact chain, in scalar arithmetic (no NumPy per step).
 
     The joints are ``q = (yaw, pitch joints..., roll)`` in this order (the family's layout).
+    `plan` is :func:`scalar_plan` of the arm (computed here when None).
     """
     cos, sin, atan2, sqrt, hypot = math.cos, math.sin, math.atan2, math.sqrt, math.hypot
+    if plan is None:
+        plan = scalar_plan(arm)
+    (
+        three, has_roll, roll_idx, dof, bx, by, mu, sigma, beta, len_tol, len_tol_sq, axis_tol,
+        l1, g1, su, sz, s0, s1, s2, limits, zeros, end,
+    ) = plan  # fmt: skip
     px, py, pz = target.position.tolist()
     pitch = target.pitch
-    three = arm.n_pitch == 3
+    sort = qc is not None
+    ref = qc if sort else zeros
     # End point: the tip, moved by the roll when it sits off the roll axis.
-    roll_value = 0.0
-    has_roll = arm.has_roll
-    if has_roll and qc is not None:
-        roll_value = qc[arm.roll_idx]
-    if arm.tip_on_roll_axis:
-        tu, tz, d = arm.tip_fixed
-    else:
+    roll_value = qc[roll_idx] if has_roll and sort else 0.0
+    if end is None:
         cr, sr = cos(roll_value), sin(roll_value)
         tip0, tipc, tips = arm.tip0, arm.tipc, arm.tips
-        tu = tip0[0] + tipc[0] * cr + tips[0] * sr
-        tz = tip0[1] + tipc[1] * cr + tips[1] * sr
-        d = tip0[2] + tipc[2] * cr + tips[2] * sr
-    bx, by = arm.bx, arm.by
+        end = end_plan(
+            arm,
+            tip0[0] + tipc[0] * cr + tips[0] * sr,
+            tip0[1] + tipc[1] * cr + tips[1] * sr,
+            tip0[2] + tipc[2] * cr + tips[2] * sr,
+        )
+    (
+        tu, tz, d, d_small, cylinder_tol, l2, g2, reach_hi, reach_lo, l1_sq, l2_sq, l1_l2, has_lengths,
+        lt, gt, fits_lo, fits_hi,
+    ) = end  # fmt: skip
     hx, hy = px - bx, py - by
     rho2 = hx * hx + hy * hy
-    len_tol = arm.len_tol
-    free = rho2 <= len_tol * len_tol and abs(d) <= len_tol
-    mu = arm.mu
+    free = rho2 <= len_tol_sq and d_small
     cats = [VALID, VALID, VALID, VALID]
     dist = [math.nan, math.nan, math.nan, math.nan]
     # (side 0 front / 1 back, psi, u)
     if free:
-        yaws: tuple = ((0, arm.sigma * qc[0] if qc is not None else 0.0, 0.0),)
+        yaws: tuple = ((0, sigma * qc[0] if sort else 0.0, 0.0),)
         cats[2] = cats[3] = DUPLICATE
     else:
         ang = atan2(hy, hx)
         under = rho2 - d * d
-        if under < -2.0 * abs(d) * len_tol:
+        if under < cylinder_tol:
             yaws = ()
             cats = [CYLINDER, CYLINDER, CYLINDER, CYLINDER]
         elif under > 0.0:
@@ -83,42 +208,25 @@ def solve_scalar(arm: ArmGeometry, target: Target, qc: list[float] | None) -> An
         else:
             yaws = ((0, ang - mu - atan2(-d, 0.0), 0.0),)
             cats[2] = cats[3] = DUPLICATE
-    l1, g1, su, sz = arm.l1, arm.g1, arm.su, arm.sz
-    beta, sigma = arm.beta, arm.sigma
-    s0, s1 = arm.signs[0], arm.signs[1]
-    if three:
-        l2, g2, s2 = arm.l2, arm.g2, arm.signs[2]
-    else:
-        l2, g2 = hypot(tu, tz), atan2(tz, tu)
-    axis_tol = SINGULAR_TOL * arm.scale
     if pitch is not None:
         cos_p, sin_p = cos(pitch), sin(pitch)
         elevation_p = atan2(sin_p, abs(cos_p))
-    elif three:
-        lt, gt = hypot(tu, tz), atan2(tz, tu)
-        if qc is not None:
-            # q_current's in-plane approach angle (free_pitch_scalar's first choice).
-            alpha_c = beta + (0.0 + s0 * qc[1] + s1 * qc[2] + s2 * qc[3])
-            yaw_c = sigma * qc[0]
-            rmin = max(abs(l1 - l2), arm.rmin_lim)
-            rmax = min(l1 + l2, arm.rmax_lim)
+    elif three and sort:
+        # q_current's in-plane approach angle (free_pitch_scalar's first choice).
+        alpha_c = beta + (0.0 + s0 * qc[1] + s1 * qc[2] + s2 * qc[3])
+        yaw_c = sigma * qc[0]
     # Each joint wrapped into its limits nearest ref (finish_scalar's rule), inline: the yaw
     # once per side, the roll once; keys: squared distances to q_current, summed in joint order.
-    lower, upper = arm.lower, arm.upper
-    sort = qc is not None
-    ref = qc if sort else [0.0] * arm.dof
-    lo0, hi0, r0 = lower[0], upper[0], ref[0]
-    lo1, hi1, r1 = lower[1], upper[1], ref[1]
-    lo2, hi2, r2 = lower[2], upper[2], ref[2]
+    lo0, hi0, lo1, hi1, lo2, hi2, lo3, hi3, lo4, hi4 = limits
+    r0, r1, r2 = ref[0], ref[1], ref[2]
     if three:
-        lo3, hi3, r3 = lower[3], upper[3], ref[3]
+        r3 = ref[3]
     roll_ok, roll_key = True, 0.0
     if has_roll:
-        j = arm.roll_idx
-        lo, hi, r = lower[j], upper[j], ref[j]
-        if not (lo <= roll_value <= hi and NEG_PI <= roll_value - r <= PI):
-            roll_value = _wrap(roll_value, lo, hi, r)
-            roll_ok = lo <= roll_value <= hi
+        r = ref[roll_idx]
+        if not (lo4 <= roll_value <= hi4 and NEG_PI <= roll_value - r <= PI):
+            roll_value = wrap_scalar(roll_value, lo4, hi4, r)
+            roll_ok = lo4 <= roll_value <= hi4
         roll_key = (roll_value - r) * (roll_value - r)
     # (key, slot, q, within limits, singular, position error, orientation error)
     sols: list[tuple] = []
@@ -136,8 +244,10 @@ def solve_scalar(arm: ArmGeometry, target: Target, qc: list[float] | None) -> An
                 # q_current's approach, kept in the world: mirrored when this branch faces the other way.
                 phi = (PI - alpha_c if cos(psi - yaw_c) < 0.0 else alpha_c) - beta
                 cp, sp = cos(phi), sin(phi)
-                dc = hypot(ue - (cp * tu - sp * tz) - su, pz - (sp * tu + cp * tz) - sz)
-                if not rmin - len_tol <= dc <= rmax + len_tol:
+                vx = ue - (cp * tu - sp * tz) - su
+                vz = pz - (sp * tu + cp * tz) - sz
+                dd = hypot(vx, vz)
+                if not fits_lo <= dd <= fits_hi:
                     phi = None
             if phi is None:
                 phi = free_pitch_scalar(arm, psi, ue, pz, tu, tz, lt, gt, None)
@@ -145,17 +255,24 @@ def solve_scalar(arm: ArmGeometry, target: Target, qc: list[float] | None) -> An
                     cats[2 * side] = cats[2 * side + 1] = free_pitch_failure(arm, ue, pz, lt)
                     continue
                 cp, sp = cos(phi), sin(phi)
-        if three:
-            vx = ue - (cp * tu - sp * tz) - su
-            vz = pz - (sp * tu + cp * tz) - sz
-        else:
+                vx = ue - (cp * tu - sp * tz) - su
+                vz = pz - (sp * tu + cp * tz) - sz
+                dd = hypot(vx, vz)
+        if pitch is not None:
+            if three:
+                vx = ue - (cp * tu - sp * tz) - su
+                vz = pz - (sp * tu + cp * tz) - sz
+            else:
+                vx, vz = ue - su, pz - sz
+            dd = hypot(vx, vz)
+        elif not three:
             vx, vz = ue - su, pz - sz
-        dd = hypot(vx, vz)
+            dd = hypot(vx, vz)
         dist[2 * side] = dist[2 * side + 1] = dd
-        if dd > l1 + l2 + len_tol:
+        if dd > reach_hi:
             cats[2 * side] = cats[2 * side + 1] = BEYOND
             continue
-        if dd < abs(l1 - l2) - len_tol:
+        if dd < reach_lo:
             cats[2 * side] = cats[2 * side + 1] = INSIDE
             continue
         # Candidates (slot, shoulder link angle a1, relative elbow angle e, elbow singular).
@@ -174,7 +291,7 @@ def solve_scalar(arm: ArmGeometry, target: Target, qc: list[float] | None) -> An
             cats[slot ^ 1] = DUPLICATE
             cands: tuple = ((slot, a1, e, abs(sin(e)) < SINGULAR_TOL),)
         else:
-            c = (dd * dd - l1 * l1 - l2 * l2) / (2.0 * l1 * l2) if l1 > 0.0 and l2 > 0.0 else 1.0
+            c = (dd * dd - l1_sq - l2_sq) / l1_l2 if has_lengths else 1.0
             c = 1.0 if c > 1.0 else (-1.0 if c < -1.0 else c)
             s = sqrt(1.0 - c * c)
             base = atan2(vz, vx)
@@ -199,19 +316,22 @@ def solve_scalar(arm: ArmGeometry, target: Target, qc: list[float] | None) -> An
         v0 = sigma * psi
         side_ok = roll_ok
         if not (lo0 <= v0 <= hi0 and NEG_PI <= v0 - r0 <= PI):
-            v0 = _wrap(v0, lo0, hi0, r0)
+            v0 = wrap_scalar(v0, lo0, hi0, r0)
             side_ok = side_ok and lo0 <= v0 <= hi0
         side_key = 0.0 + (v0 - r0) * (v0 - r0) if sort else 0.0
         for slot, a1, e, elbow_singular in cands:
             phi2 = a1 - g1
             phi3 = a1 + e - g2
+            d32 = phi3 - phi2
             # Forward check: the closed-form forward model at the assembled q; its pitch sums
             # (f2, f3, f4) are sign * q of the joints below, i.e. these (the signs are +-1).
-            f3 = phi2 + (phi3 - phi2)
-            fu = su + l1 * cos(phi2 + g1) + l2 * cos(f3 + g2)
-            fz = sz + l1 * sin(phi2 + g1) + l2 * sin(f3 + g2)
+            f3 = phi2 + d32
+            a2, a3 = phi2 + g1, f3 + g2
+            fu = su + l1 * cos(a2) + l2 * cos(a3)
+            fz = sz + l1 * sin(a2) + l2 * sin(a3)
             if three:
-                f4 = f3 + (phi - phi3)
+                d43 = phi - phi3
+                f4 = f3 + d43
                 ct, st = cos(f4), sin(f4)
                 fu += ct * tu - st * tz
                 fz += st * tu + ct * tz
@@ -224,20 +344,24 @@ def solve_scalar(arm: ArmGeometry, target: Target, qc: list[float] | None) -> An
             oerr = None
             if pitch is not None:
                 c_alpha, s_alpha = cos(beta + f4), sin(beta + f4)
-                oerr = pitch_error_scalar(c_alpha * cy, c_alpha * sy, s_alpha, px, py, cos_p, sin_p, elevation_p)
+                ax, ay = c_alpha * cy, c_alpha * sy
+                # pitch_error_scalar, its first line inline; the rest where it applies.
+                oerr = abs(atan2(s_alpha, hypot(ax, ay)) - elevation_p)
+                if cos_p * (ax * px + ay * py) < 0.0:
+                    oerr = pitch_error_scalar(ax, ay, s_alpha, px, py, cos_p, sin_p, elevation_p)
             within = side_ok
             v1 = s0 * phi2
             if not (lo1 <= v1 <= hi1 and NEG_PI <= v1 - r1 <= PI):
-                v1 = _wrap(v1, lo1, hi1, r1)
+                v1 = wrap_scalar(v1, lo1, hi1, r1)
                 within = within and lo1 <= v1 <= hi1
-            v2 = s1 * (phi3 - phi2)
+            v2 = s1 * d32
             if not (lo2 <= v2 <= hi2 and NEG_PI <= v2 - r2 <= PI):
-                v2 = _wrap(v2, lo2, hi2, r2)
+                v2 = wrap_scalar(v2, lo2, hi2, r2)
                 within = within and lo2 <= v2 <= hi2
             if three:
-                v3 = s2 * (phi - phi3)
+                v3 = s2 * d43
                 if not (lo3 <= v3 <= hi3 and NEG_PI <= v3 - r3 <= PI):
-                    v3 = _wrap(v3, lo3, hi3, r3)
+                    v3 = wrap_scalar(v3, lo3, hi3, r3)
                     within = within and lo3 <= v3 <= hi3
                 q = (v0, v1, v2, v3, roll_value) if has_roll else (v0, v1, v2, v3)
                 key = side_key + (v1 - r1) * (v1 - r1) + (v2 - r2) * (v2 - r2) + (v3 - r3) * (v3 - r3) if sort else 0.0
@@ -251,12 +375,6 @@ def solve_scalar(arm: ArmGeometry, target: Target, qc: list[float] | None) -> An
             any_within = any_within or within
             singular = singular or sing
     return solutions_result(arm, sols, sort, any_within, singular, cats, dist, target)
-
-
-def _wrap(v: float, lo: float, hi: float, ref: float) -> float:
-    """``wrap_scalar(v, lo, hi, ref)``, its first step tried first (in range, its answer)."""
-    w = v + TWO_PI * round((ref - v) / TWO_PI)
-    return w if lo <= w <= hi else wrap_scalar(v, lo, hi, ref)
 
 
 def finish_scalar(arm: ArmGeometry, sols, cats, dist, qc, target) -> AnalyticResult:
@@ -285,7 +403,7 @@ def finish_scalar(arm: ArmGeometry, sols, cats, dist, qc, target) -> AnalyticRes
         key = 0.0
         for v, lo, hi, r in zip(q, lower, upper, ref):
             if not (lo <= v <= hi and NEG_PI <= v - r <= PI):
-                v = _wrap(v, lo, hi, r)
+                v = wrap_scalar(v, lo, hi, r)
                 if not lo <= v <= hi:
                     within = False
             row.append(v)
