@@ -19,12 +19,13 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from planner.geometry.chain import wrap_scalar
 from planner.geometry.target import Target
 from planner.ik.analytic.geometry import SINGULAR_TOL, wrap_pi
 from planner.ik.analytic.result import AnalyticResult
 from planner.ik.analytic.yaw_planar.arm import ArmGeometry
 from planner.ik.analytic.yaw_planar.branches import BEYOND, CYLINDER, DUPLICATE, INSIDE, ORIENT, VALID
-from planner.ik.analytic.yaw_planar.scalar import finish_scalar
+from planner.ik.analytic.yaw_planar.scalar import NEG_PI, ScalarPlan, scalar_plan, solutions_result
 
 __all__ = ["PoseFrame", "pose_frame", "pose_branches", "solve_pose_scalar"]
 
@@ -72,10 +73,18 @@ def pose_frame(arm: ArmGeometry) -> PoseFrame:
     return PoseFrame(linear, kappa, tip_offset, shift_local)
 
 
-def solve_pose_scalar(arm: ArmGeometry, frame: PoseFrame, target: Target, qc: list[float] | None) -> AnalyticResult:
-    """Every closed-form solution of a full-pose target on an exact chain (scalar arithmetic)."""
-    sols, cats, dist = _pose(arm, frame, target.position.tolist(), target.rotation, qc, True)
-    return finish_scalar(arm, sols, cats, dist, qc, target)
+def solve_pose_scalar(
+    arm: ArmGeometry, frame: PoseFrame, target: Target, qc: list[float] | None, plan: ScalarPlan | None = None
+) -> AnalyticResult:
+    """Every closed-form solution of a full-pose target on an exact chain (scalar arithmetic).
+
+    `plan` is :func:`~planner.ik.analytic.yaw_planar.scalar.scalar_plan` of the arm (computed
+    here when None): its joint limits.
+    """
+    if plan is None:
+        plan = scalar_plan(arm)
+    entries, cats, dist, any_within, singular = _pose(arm, frame, target.position.tolist(), target.rotation, qc, plan)
+    return solutions_result(arm, entries, qc is not None, any_within, singular, cats, dist, target)
 
 
 def pose_branches(arm: ArmGeometry, frame: PoseFrame, position: list[float], rotation: np.ndarray, qc):
@@ -92,10 +101,15 @@ def pose_branches(arm: ArmGeometry, frame: PoseFrame, position: list[float], rot
         (solutions, categories, distances): solutions as (slot, q, singular, None, None), q a
         list not yet wrapped into the limits; the 4 branch categories; the 4 wrist distances.
     """
-    return _pose(arm, frame, position, rotation, qc, False)
+    return _pose(arm, frame, position, rotation, qc, None)
 
 
-def _pose(arm: ArmGeometry, frame: PoseFrame, position, rotation, qc, verify: bool):
+def _pose(arm: ArmGeometry, frame: PoseFrame, position, rotation, qc, plan: ScalarPlan | None):
+    """The branches of a pose: verified and wrapped with `plan` (as solve_scalar), else raw.
+
+    With a plan: (entries as in solutions_result, categories, distances, any within limits,
+    any singular); without: (solutions as pose_branches returns them, categories, distances).
+    """
     cos, sin, atan2, sqrt, hypot = math.cos, math.sin, math.atan2, math.sqrt, math.hypot
     px, py, pz = position
     flat = (frame.linear @ rotation.reshape(9)).tolist()
@@ -190,48 +204,64 @@ def _pose(arm: ArmGeometry, frame: PoseFrame, position, rotation, qc, verify: bo
         cands, cats, dist = _three_pitch(arm, ue, ez, tu, tz, phis, cat)
     else:
         cands, cats, dist = _two_pitch(arm, ue, ez, tu, tz, phis, cat, twisted)
-    # Assemble and verify each branch by the forward model (tip position and rotation).
-    sols = []
+    # Assemble each branch; with a plan, verify it by the forward model (tip position and
+    # rotation) and wrap its joints into the limits.
     dof = arm.dof
-    sigma, signs, idx, roll_idx = arm.sigma, arm.signs, arm.pitch_idx, arm.roll_idx
+    sigma, signs, roll_idx = arm.sigma, arm.signs, arm.roll_idx
+    s0, s1 = signs[0], signs[1]
     three = arm.n_pitch == 3
+    s2 = signs[2] if three else 0.0
     l1, g1, l2, g2, su, sz = arm.l1, arm.g1, arm.l2, arm.g2, arm.su, arm.sz
-    bx, by = arm.bx, arm.by
     scale_axis = SINGULAR_TOL * arm.scale
+    if plan is None:
+        sols = []
+        for slot, side, a1, phi2_3, elbow_singular in cands:
+            q = [0.0] * dof
+            q[0] = sigma * psi[side]
+            phi2 = a1 - g1
+            q[1] = s0 * phi2
+            q[2] = s1 * (phi2_3 - phi2)
+            if three:
+                q[3] = s2 * (phis[side] - phi2_3)
+            if roll_idx is not None:
+                q[roll_idx] = rolls[side]
+            sols.append((slot, q, elbow_singular or free or abs(ue[side]) < scale_axis, None, None))
+        return sols, cats, dist
+    bx, by = arm.bx, arm.by
     pos_tol = 1e-10 * max(1.0, arm.scale)
     offset = frame.tip_offset
     smu, cmu = math.sin(mu), math.cos(mu)
-    last_key = None
+    lo0, hi0, lo1, hi1, lo2, hi2, lo3, hi3, lo4, hi4 = plan.limits
+    sort = qc is not None
+    ref = qc if sort else plan.zeros
+    r0, r1, r2 = ref[0], ref[1], ref[2]
+    r3 = ref[3] if three else 0.0
+    r4 = ref[roll_idx] if roll_idx is not None else 0.0
+    entries = []
+    any_within = singular = False
+    last_key = last_side = None
     for slot, side, a1, phi2_3, elbow_singular in cands:
-        side_psi, phi = psi[side], phis[side]
-        q = [0.0] * dof
-        q[0] = sigma * side_psi
+        side_psi, phi, theta = psi[side], phis[side], rolls[side]
+        # Forward model at q; its pitch sums (f2, f3, f4) are sign * q of the joints below,
+        # the yaw sigma * q[0] (the signs are +-1).
         phi2 = a1 - g1
-        q[idx[0]] = signs[0] * phi2
-        q[idx[1]] = signs[1] * (phi2_3 - phi2)
+        d32 = phi2_3 - phi2
+        f3 = phi2 + d32
+        a2 = phi2 + g1
+        fu = su + l1 * cos(a2)
+        fz = sz + l1 * sin(a2)
         if three:
-            q[idx[2]] = signs[2] * (phi - phi2_3)
-        if roll_idx is not None:
-            q[roll_idx] = rolls[side]
-        if not verify:
-            sols.append((slot, q, elbow_singular or free or abs(ue[side]) < scale_axis, None, None))
-            continue
-        # Forward model at q.
-        f2 = signs[0] * q[idx[0]]
-        f3 = f2 + signs[1] * q[idx[1]]
-        fu = su + l1 * cos(f2 + g1)
-        fz = sz + l1 * sin(f2 + g1)
-        if three:
-            fu += l2 * cos(f3 + g2)
-            fz += l2 * sin(f3 + g2)
-            f4 = f3 + signs[2] * q[idx[2]]
+            a3 = f3 + g2
+            fu += l2 * cos(a3)
+            fz += l2 * sin(a3)
+            d43 = phi - phi2_3
+            f4 = f3 + d43
         else:
             f4 = f3
         c4, s4 = cos(f4), sin(f4)
         fu += c4 * tu - s4 * tz
         fz += s4 * tu + c4 * tz
-        yaw = sigma * q[0]
-        theta = q[roll_idx] if roll_idx is not None else 0.0
+        yaw = side_psi
         key = (yaw, f4, theta)
         if key != last_key:  # the elbow branches of a side share these (bitwise)
             last_key = key
@@ -245,15 +275,54 @@ def _pose(arm: ArmGeometry, frame: PoseFrame, position, rotation, qc, verify: bo
         fx = bx + cm * fu + sm * d
         fy = by + sm * fu - cm * d
         if offset is not None:
-            perr = sqrt((fx + ox - px) ** 2 + (fy + oy - py) ** 2 + (fz + oz - pz) ** 2)
+            dx, dy, dz = fx + ox - px, fy + oy - py, fz + oz - pz
         else:
-            perr = sqrt((fx - ex) ** 2 + (fy - ey) ** 2 + (fz - ez) ** 2)
+            dx, dy, dz = fx - ex, fy - ey, fz - ez
+        perr = sqrt(dx * dx + dy * dy + dz * dz)
         if perr > pos_tol or oerr > orient_tol:
             cats[slot] = ORIENT
             continue
-        singular = elbow_singular or free or abs(ue[side]) < scale_axis
-        sols.append((slot, q, singular, perr, oerr))
-    return sols, cats, dist
+        sing = elbow_singular or free or abs(ue[side]) < scale_axis
+        # The joints wrapped into their limits nearest ref (finish_scalar's rule): the yaw
+        # and the roll once per side; the key: the squared distance to ref, in joint order.
+        if side != last_side:
+            last_side = side
+            v0 = sigma * side_psi
+            side_ok = True
+            if not (lo0 <= v0 <= hi0 and NEG_PI <= v0 - r0 <= PI):
+                v0 = wrap_scalar(v0, lo0, hi0, r0)
+                side_ok = lo0 <= v0 <= hi0
+            v4 = theta
+            if roll_idx is not None and not (lo4 <= v4 <= hi4 and NEG_PI <= v4 - r4 <= PI):
+                v4 = wrap_scalar(v4, lo4, hi4, r4)
+                side_ok = side_ok and lo4 <= v4 <= hi4
+            side_key = 0.0 + (v0 - r0) * (v0 - r0) if sort else 0.0
+            roll_key = (v4 - r4) * (v4 - r4)
+        within = side_ok
+        v1 = s0 * phi2
+        if not (lo1 <= v1 <= hi1 and NEG_PI <= v1 - r1 <= PI):
+            v1 = wrap_scalar(v1, lo1, hi1, r1)
+            within = within and lo1 <= v1 <= hi1
+        v2 = s1 * d32
+        if not (lo2 <= v2 <= hi2 and NEG_PI <= v2 - r2 <= PI):
+            v2 = wrap_scalar(v2, lo2, hi2, r2)
+            within = within and lo2 <= v2 <= hi2
+        if three:
+            v3 = s2 * d43
+            if not (lo3 <= v3 <= hi3 and NEG_PI <= v3 - r3 <= PI):
+                v3 = wrap_scalar(v3, lo3, hi3, r3)
+                within = within and lo3 <= v3 <= hi3
+            q = (v0, v1, v2, v3, v4) if roll_idx is not None else (v0, v1, v2, v3)
+            key = side_key + (v1 - r1) * (v1 - r1) + (v2 - r2) * (v2 - r2) + (v3 - r3) * (v3 - r3) if sort else 0.0
+        else:
+            q = (v0, v1, v2, v4) if roll_idx is not None else (v0, v1, v2)
+            key = side_key + (v1 - r1) * (v1 - r1) + (v2 - r2) * (v2 - r2) if sort else 0.0
+        if roll_idx is not None and sort:
+            key += roll_key
+        entries.append((key, slot, q, within, sing, perr, oerr))
+        any_within = any_within or within
+        singular = singular or sing
+    return entries, cats, dist, any_within, singular
 
 
 def _three_pitch(arm: ArmGeometry, ue, ze, tu, tz, phis, cat):

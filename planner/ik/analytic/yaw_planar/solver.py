@@ -116,7 +116,7 @@ class YawPlanarIK(AnalyticIK):
             if target.rotation is None:
                 result = solve_scalar(arm, target, qc, self._scalar_plan)
             else:
-                result = solve_pose_scalar(arm, self._pose_frame, target, qc)
+                result = solve_pose_scalar(arm, self._pose_frame, target, qc, self._scalar_plan)
             if result.status is STATUS_SOLVED:
                 return result
         elif target.rotation is None and (result := solve_corrected_scalar(arm, self._real_tip_pose, target, qc)):
