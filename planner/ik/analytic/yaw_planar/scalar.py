@@ -221,6 +221,7 @@ def solve_scalar(
     r0, r1, r2 = ref[0], ref[1], ref[2]
     if three:
         r3 = ref[3]
+    # The roll's term of the keys: added last (joint order), 0.0 without a roll (adds exactly).
     roll_ok, roll_key = True, 0.0
     if has_roll:
         r = ref[roll_idx]
@@ -351,27 +352,31 @@ def solve_scalar(
                     oerr = pitch_error_scalar(ax, ay, s_alpha, px, py, cos_p, sin_p, elevation_p)
             within = side_ok
             v1 = s0 * phi2
-            if not (lo1 <= v1 <= hi1 and NEG_PI <= v1 - r1 <= PI):
+            t1 = v1 - r1
+            if not (lo1 <= v1 <= hi1 and NEG_PI <= t1 <= PI):
                 v1 = wrap_scalar(v1, lo1, hi1, r1)
+                t1 = v1 - r1
                 within = within and lo1 <= v1 <= hi1
             v2 = s1 * d32
-            if not (lo2 <= v2 <= hi2 and NEG_PI <= v2 - r2 <= PI):
+            t2 = v2 - r2
+            if not (lo2 <= v2 <= hi2 and NEG_PI <= t2 <= PI):
                 v2 = wrap_scalar(v2, lo2, hi2, r2)
+                t2 = v2 - r2
                 within = within and lo2 <= v2 <= hi2
             if three:
                 v3 = s2 * d43
-                if not (lo3 <= v3 <= hi3 and NEG_PI <= v3 - r3 <= PI):
+                t3 = v3 - r3
+                if not (lo3 <= v3 <= hi3 and NEG_PI <= t3 <= PI):
                     v3 = wrap_scalar(v3, lo3, hi3, r3)
+                    t3 = v3 - r3
                     within = within and lo3 <= v3 <= hi3
                 q = (v0, v1, v2, v3, roll_value) if has_roll else (v0, v1, v2, v3)
-                key = side_key + (v1 - r1) * (v1 - r1) + (v2 - r2) * (v2 - r2) + (v3 - r3) * (v3 - r3) if sort else 0.0
+                key = side_key + t1 * t1 + t2 * t2 + t3 * t3 + roll_key if sort else 0.0
             else:
                 q = (v0, v1, v2, roll_value) if has_roll else (v0, v1, v2)
-                key = side_key + (v1 - r1) * (v1 - r1) + (v2 - r2) * (v2 - r2) if sort else 0.0
-            if has_roll and sort:
-                key += roll_key
+                key = side_key + t1 * t1 + t2 * t2 + roll_key if sort else 0.0
             sing = elbow_singular or off_axis
-            sols.append((key, slot, q, within, sing, perr, oerr))
+            sols.append((key, slot, q, (within, BRANCHES[slot], sing, perr, oerr)))
             any_within = any_within or within
             singular = singular or sing
     return solutions_result(arm, sols, sort, any_within, singular, cats, dist, target)
@@ -408,7 +413,7 @@ def finish_scalar(arm: ArmGeometry, sols, cats, dist, qc, target) -> AnalyticRes
                     within = False
             row.append(v)
             key += (v - r) * (v - r)
-        entries.append((key, slot, row, within, sing, perr, oerr))
+        entries.append((key, slot, row, (within, BRANCHES[slot], sing, perr, oerr)))
         any_within = any_within or within
         singular = singular or sing
     return solutions_result(arm, entries, sort, any_within, bool(singular), cats, dist, target)
@@ -419,9 +424,9 @@ def solutions_result(arm: ArmGeometry, entries, sort, any_within, singular, cats
 
     Args:
         arm: The geometry.
-        entries: Per solution (key, slot, q, within limits, singular, position error,
-            orientation error), q wrapped into the limits (a sequence of dof floats), key its
-            squared joint distance to q_current.
+        entries: Per solution (key, slot, q, (within limits, branch name, singular, position
+            error, orientation error)), q wrapped into the limits (a sequence of dof floats),
+            key its squared joint distance to q_current.
         sort: Whether to sort by the keys (stable: branch order among equal keys).
         any_within: Whether a solution lies within the limits.
         singular: Whether a solution is singular.
@@ -436,15 +441,31 @@ def solutions_result(arm: ArmGeometry, entries, sort, any_within, singular, cats
     if sort and n > 1:
         entries.sort(key=_first)
     # One read-only array for all solutions (over immutable bytes); each q is a row of it.
-    flat: list[float] = []
-    for entry in entries:
-        flat += entry[2]
-    k = len(flat)
-    table = np.frombuffer((_PACKERS[k] if k < len(_PACKERS) else struct.Struct(f"{k}d").pack)(*flat))
-    table.shape = (n, arm.dof)
-    solutions = tuple(
-        [_new(AnalyticSolution, (table[i], e[3], BRANCHES[e[1]], e[4], e[5], e[6])) for i, e in enumerate(entries)]
-    )
+    # Unrolled for the common counts (a comprehension is a function call of its own).
+    dof = arm.dof
+    if n == 4:
+        e0, e1, e2, e3 = entries
+        table = np.frombuffer(_PACKERS[4 * dof](*e0[2], *e1[2], *e2[2], *e3[2]))
+        table.shape = (4, dof)
+        solutions = (
+            _new(AnalyticSolution, (table[0],) + e0[3]),
+            _new(AnalyticSolution, (table[1],) + e1[3]),
+            _new(AnalyticSolution, (table[2],) + e2[3]),
+            _new(AnalyticSolution, (table[3],) + e3[3]),
+        )
+    elif n == 2:
+        e0, e1 = entries
+        table = np.frombuffer(_PACKERS[2 * dof](*e0[2], *e1[2]))
+        table.shape = (2, dof)
+        solutions = (_new(AnalyticSolution, (table[0],) + e0[3]), _new(AnalyticSolution, (table[1],) + e1[3]))
+    else:
+        flat: list[float] = []
+        for entry in entries:
+            flat += entry[2]
+        k = len(flat)
+        table = np.frombuffer((_PACKERS[k] if k < len(_PACKERS) else struct.Struct(f"{k}d").pack)(*flat))
+        table.shape = (n, dof)
+        solutions = tuple([_new(AnalyticSolution, (table[i],) + e[3]) for i, e in enumerate(entries)])
     if any_within:
         return _new(AnalyticResult, (STATUS_SOLVED, "", solutions, singular))
     details = sorted(((e[1], sol) for e, sol in zip(entries, solutions)), key=_first)

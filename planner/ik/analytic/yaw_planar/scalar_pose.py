@@ -24,7 +24,7 @@ from planner.geometry.target import Target
 from planner.ik.analytic.geometry import SINGULAR_TOL, wrap_pi
 from planner.ik.analytic.result import AnalyticResult
 from planner.ik.analytic.yaw_planar.arm import ArmGeometry
-from planner.ik.analytic.yaw_planar.branches import BEYOND, CYLINDER, DUPLICATE, INSIDE, ORIENT, VALID
+from planner.ik.analytic.yaw_planar.branches import BEYOND, BRANCHES, CYLINDER, DUPLICATE, INSIDE, ORIENT, VALID
 from planner.ik.analytic.yaw_planar.scalar import NEG_PI, ScalarPlan, scalar_plan, solutions_result
 
 __all__ = ["PoseFrame", "pose_frame", "pose_branches", "solve_pose_scalar"]
@@ -319,7 +319,7 @@ def _pose(arm: ArmGeometry, frame: PoseFrame, position, rotation, qc, plan: Scal
             key = side_key + (v1 - r1) * (v1 - r1) + (v2 - r2) * (v2 - r2) if sort else 0.0
         if roll_idx is not None and sort:
             key += roll_key
-        entries.append((key, slot, q, within, sing, perr, oerr))
+        entries.append((key, slot, q, (within, BRANCHES[slot], sing, perr, oerr)))
         any_within = any_within or within
         singular = singular or sing
     return entries, cats, dist, any_within, singular

@@ -11,7 +11,7 @@ from planner.core.rotations import rotation_error
 from planner.exceptions import UnsupportedChainError
 from planner.geometry.chain import ChainAtZero
 from planner.geometry.target import Target, approach_pitch
-from planner.ik.analytic.base import AnalyticIK, ChainMismatch
+from planner.ik.analytic.base import FLOAT64, AnalyticIK, ChainMismatch
 from planner.ik.analytic.result import (
     STATUS_CODES,
     STATUS_ORIENTATION_NOT_ACHIEVABLE,
@@ -107,7 +107,14 @@ class YawPlanarIK(AnalyticIK):
         """Every closed-form solution for one target (see :meth:`AnalyticIK.solve`)."""
         if not isinstance(target, Target):
             self._check_target(target)
-        qc = None if q_current is None else self._q_current_list(q_current)
+        qc = None
+        if q_current is not None:
+            if type(q_current) is np.ndarray and q_current.dtype is FLOAT64 and q_current.shape == self._q_shape:
+                qc = q_current.tolist()  # the common case, checked inline (see _q_current_list)
+                if not math.isfinite(sum(qc)):
+                    qc = self._q_current_list(q_current)
+            else:
+                qc = self._q_current_list(q_current)
         arm = self.arm
         if target.pitch is not None and not arm.pitch_supported:
             self._raise_pitch_unsupported()
