@@ -225,7 +225,7 @@ def solve_scalar(
     roll_ok, roll_key = True, 0.0
     if has_roll:
         r = ref[roll_idx]
-        if not (lo4 <= roll_value <= hi4 and NEG_PI <= roll_value - r <= PI):
+        if not (lo4 <= roll_value and roll_value <= hi4 and NEG_PI <= roll_value - r <= PI):
             roll_value = wrap_scalar(roll_value, lo4, hi4, r)
             roll_ok = lo4 <= roll_value <= hi4
         roll_key = (roll_value - r) * (roll_value - r)
@@ -316,7 +316,7 @@ def solve_scalar(
         off_axis = free or abs(ue) < axis_tol
         v0 = sigma * psi
         side_ok = roll_ok
-        if not (lo0 <= v0 <= hi0 and NEG_PI <= v0 - r0 <= PI):
+        if not (lo0 <= v0 and v0 <= hi0 and NEG_PI <= v0 - r0 <= PI):
             v0 = wrap_scalar(v0, lo0, hi0, r0)
             side_ok = side_ok and lo0 <= v0 <= hi0
         side_key = 0.0 + (v0 - r0) * (v0 - r0) if sort else 0.0
@@ -353,20 +353,20 @@ def solve_scalar(
             within = side_ok
             v1 = s0 * phi2
             t1 = v1 - r1
-            if not (lo1 <= v1 <= hi1 and NEG_PI <= t1 <= PI):
+            if not (lo1 <= v1 and v1 <= hi1 and NEG_PI <= t1 and t1 <= PI):
                 v1 = wrap_scalar(v1, lo1, hi1, r1)
                 t1 = v1 - r1
                 within = within and lo1 <= v1 <= hi1
             v2 = s1 * d32
             t2 = v2 - r2
-            if not (lo2 <= v2 <= hi2 and NEG_PI <= t2 <= PI):
+            if not (lo2 <= v2 and v2 <= hi2 and NEG_PI <= t2 and t2 <= PI):
                 v2 = wrap_scalar(v2, lo2, hi2, r2)
                 t2 = v2 - r2
                 within = within and lo2 <= v2 <= hi2
             if three:
                 v3 = s2 * d43
                 t3 = v3 - r3
-                if not (lo3 <= v3 <= hi3 and NEG_PI <= t3 <= PI):
+                if not (lo3 <= v3 and v3 <= hi3 and NEG_PI <= t3 and t3 <= PI):
                     v3 = wrap_scalar(v3, lo3, hi3, r3)
                     t3 = v3 - r3
                     within = within and lo3 <= v3 <= hi3
@@ -407,7 +407,7 @@ def finish_scalar(arm: ArmGeometry, sols, cats, dist, qc, target) -> AnalyticRes
         within = True
         key = 0.0
         for v, lo, hi, r in zip(q, lower, upper, ref):
-            if not (lo <= v <= hi and NEG_PI <= v - r <= PI):
+            if not (lo <= v and v <= hi and NEG_PI <= v - r <= PI):
                 v = wrap_scalar(v, lo, hi, r)
                 if not lo <= v <= hi:
                     within = False

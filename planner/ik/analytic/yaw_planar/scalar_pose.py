@@ -289,7 +289,7 @@ def _pose(arm: ArmGeometry, frame: PoseFrame, position, rotation, qc, plan: Scal
             last_side = side
             v0 = sigma * side_psi
             side_ok = True
-            if not (lo0 <= v0 <= hi0 and NEG_PI <= v0 - r0 <= PI):
+            if not (lo0 <= v0 and v0 <= hi0 and NEG_PI <= v0 - r0 <= PI):
                 v0 = wrap_scalar(v0, lo0, hi0, r0)
                 side_ok = lo0 <= v0 <= hi0
             v4 = theta
@@ -300,16 +300,16 @@ def _pose(arm: ArmGeometry, frame: PoseFrame, position, rotation, qc, plan: Scal
             roll_key = (v4 - r4) * (v4 - r4)
         within = side_ok
         v1 = s0 * phi2
-        if not (lo1 <= v1 <= hi1 and NEG_PI <= v1 - r1 <= PI):
+        if not (lo1 <= v1 and v1 <= hi1 and NEG_PI <= v1 - r1 <= PI):
             v1 = wrap_scalar(v1, lo1, hi1, r1)
             within = within and lo1 <= v1 <= hi1
         v2 = s1 * d32
-        if not (lo2 <= v2 <= hi2 and NEG_PI <= v2 - r2 <= PI):
+        if not (lo2 <= v2 and v2 <= hi2 and NEG_PI <= v2 - r2 <= PI):
             v2 = wrap_scalar(v2, lo2, hi2, r2)
             within = within and lo2 <= v2 <= hi2
         if three:
             v3 = s2 * d43
-            if not (lo3 <= v3 <= hi3 and NEG_PI <= v3 - r3 <= PI):
+            if not (lo3 <= v3 and v3 <= hi3 and NEG_PI <= v3 - r3 <= PI):
                 v3 = wrap_scalar(v3, lo3, hi3, r3)
                 within = within and lo3 <= v3 <= hi3
             q = (v0, v1, v2, v3, v4) if roll_idx is not None else (v0, v1, v2, v3)
