@@ -196,7 +196,7 @@ def _pose(arm: ArmGeometry, frame: PoseFrame, position, rotation, qc, plan: Scal
             rolls[side] = atan2(sk * b2 - ck * b3, v1)
         else:
             phi = atan2(x3, x2)
-            residual = _rotation_angle(m, cp_, sp_, phi, 0.0)
+            residual = _rotation_angle_unrolled(m, cp_, sp_, phi)
         phis[side] = phi
         twisted[side] = residual > orient_tol
     if arm.n_pitch == 3:
@@ -267,7 +267,10 @@ def _pose(arm: ArmGeometry, frame: PoseFrame, position, rotation, qc, plan: Scal
             last_key = key
             cyw, syw = cos(yaw), sin(yaw)
             cm, sm = cos(mu + yaw), sin(mu + yaw)
-            oerr = _rotation_angle(m, cyw, syw, f4 + kappa, theta)
+            if roll_idx is None:
+                oerr = _rotation_angle_unrolled(m, cyw, syw, f4 + kappa)
+            else:
+                oerr = _rotation_angle(m, cyw, syw, f4 + kappa, theta)
             if offset is not None:
                 ox, oy, oz = _turn(cyw, syw, f4 + kappa, theta, offset)
                 # In the base frame: B = [n, e_u, z], n = (sin mu, -cos mu, 0), e_u = (cos mu, sin mu, 0).
@@ -435,6 +438,31 @@ def _rotation_angle(m, cyw: float, syw: float, alpha: float, theta: float) -> fl
     r20 = e02 * m00 + e12 * m10 + e22 * m20
     r10 = e01 * m00 + e11 * m10 + e21 * m20
     r01 = e00 * m01 + e10 * m11 + e20 * m21
+    cos_a = 0.5 * (r00 + r11 + r22 - 1.0)
+    sin_a = 0.5 * math.sqrt((r21 - r12) ** 2 + (r02 - r20) ** 2 + (r10 - r01) ** 2)
+    return math.atan2(sin_a, min(1.0, max(-1.0, cos_a)))
+
+
+def _rotation_angle_unrolled(m, cyw: float, syw: float, alpha: float) -> float:
+    """:func:`_rotation_angle` at roll 0: ``E = Rz(yaw) Rx(alpha)``, its terms in cos 0 = 1 and sin 0 = 0 dropped.
+
+    The dropped terms are zeros added to (or multiplied into) finite sums, which changes no
+    result but the sign of an exact zero, which the angle does not see.
+    """
+    ca, sa = math.cos(alpha), math.sin(alpha)
+    e01, e02 = -syw * ca, syw * sa
+    e11, e12 = cyw * ca, -(cyw * sa)
+    (m00, m01, m02), (m10, m11, m12), (m20, m21, m22) = m
+    # rel = E^T m (E's third row: 0, sin, cos)
+    r00 = cyw * m00 + syw * m10
+    r11 = e01 * m01 + e11 * m11 + sa * m21
+    r22 = e02 * m02 + e12 * m12 + ca * m22
+    r21 = e02 * m01 + e12 * m11 + ca * m21
+    r12 = e01 * m02 + e11 * m12 + sa * m22
+    r02 = cyw * m02 + syw * m12
+    r20 = e02 * m00 + e12 * m10 + ca * m20
+    r10 = e01 * m00 + e11 * m10 + sa * m20
+    r01 = cyw * m01 + syw * m11
     cos_a = 0.5 * (r00 + r11 + r22 - 1.0)
     sin_a = 0.5 * math.sqrt((r21 - r12) ** 2 + (r02 - r20) ** 2 + (r10 - r01) ** 2)
     return math.atan2(sin_a, min(1.0, max(-1.0, cos_a)))
