@@ -191,7 +191,7 @@ def solve_scalar(
     rho2 = hx * hx + hy * hy
     free = rho2 <= len_tol_sq and d_small
     cats = [VALID, VALID, VALID, VALID]
-    dist = [math.nan, math.nan, math.nan, math.nan]
+    dists = [math.nan, math.nan]  # per side (the 4 branches' distances, for failures)
     # (side 0 front / 1 back, psi, u)
     if free:
         yaws: tuple = ((0, sigma * qc[0] if sort else 0.0, 0.0),)
@@ -231,6 +231,7 @@ def solve_scalar(
         roll_key = (roll_value - r) * (roll_value - r)
     # (key, slot, q, within limits, singular, position error, orientation error)
     sols: list[tuple] = []
+    append = sols.append
     any_within = singular = False
     for side, psi, ue in yaws:
         cy, sy = cos(psi + mu), sin(psi + mu)
@@ -269,7 +270,7 @@ def solve_scalar(
         elif not three:
             vx, vz = ue - su, pz - sz
             dd = hypot(vx, vz)
-        dist[2 * side] = dist[2 * side + 1] = dd
+        dists[side] = dd
         if dd > reach_hi:
             cats[2 * side] = cats[2 * side + 1] = BEYOND
             continue
@@ -376,10 +377,11 @@ def solve_scalar(
                 q = (v0, v1, v2, roll_value) if has_roll else (v0, v1, v2)
                 key = side_key + t1 * t1 + t2 * t2 + roll_key if sort else 0.0
             sing = elbow_singular or off_axis
-            sols.append((key, slot, q, (within, BRANCHES[slot], sing, perr, oerr)))
+            append((key, slot, q, (within, BRANCHES[slot], sing, perr, oerr)))
             any_within = any_within or within
             singular = singular or sing
-    return solutions_result(arm, sols, sort, any_within, singular, cats, dist, target)
+    d0, d1 = dists
+    return solutions_result(arm, sols, sort, any_within, singular, cats, [d0, d0, d1, d1], target)
 
 
 def finish_scalar(arm: ArmGeometry, sols, cats, dist, qc, target) -> AnalyticResult:
