@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import math
 import struct
+from math import atan2, cos, hypot, sin, sqrt  # module names: one opcode fewer per call than locals
 from operator import itemgetter
 from typing import NamedTuple
 
@@ -161,7 +162,6 @@ def solve_scalar(
     The joints are ``q = (yaw, pitch joints..., roll)`` in this order (the family's layout).
     `plan` is :func:`scalar_plan` of the arm (computed here when None).
     """
-    cos, sin, atan2, sqrt, hypot = math.cos, math.sin, math.atan2, math.sqrt, math.hypot
     if plan is None:
         plan = scalar_plan(arm)
     (
