@@ -345,7 +345,8 @@ def solve_scalar(
             perr = sqrt(dx * dx + dy * dy + dz * dz)
             oerr = None
             if pitch is not None:
-                c_alpha, s_alpha = cos(beta + f4), sin(beta + f4)
+                alpha = beta + f4
+                c_alpha, s_alpha = cos(alpha), sin(alpha)
                 ax, ay = c_alpha * cy, c_alpha * sy
                 # pitch_error_scalar, its first line inline; the rest where it applies.
                 oerr = abs(atan2(s_alpha, hypot(ax, ay)) - elevation_p)
