@@ -30,12 +30,14 @@ from planner.ik.analytic.geometry import angle_to_line
 from planner.ik.analytic.result import AnalyticBatchResult, AnalyticResult
 from planner.model.robot import Robot
 
-__all__ = ["AnalyticIK", "ChainMismatch", "base_yaw_mismatch", "FAMILY_ANGLE_TOL"]
+__all__ = ["AnalyticIK", "ChainMismatch", "base_yaw_mismatch", "FAMILY_ANGLE_TOL", "FLOAT64"]
 
 #: Largest deviation [rad] of an axis from the family's ideal directions (vertical, parallel,
 #: perpendicular) that a solver accepts. Deviations above 1e-12 rad (CAD round-off, as in
 #: SO-101's URDF) are solved on the ideal geometry and then corrected on the real one.
 FAMILY_ANGLE_TOL = 1e-4
+#: The dtype of float arrays (a singleton: compared by identity on hot paths).
+FLOAT64 = np.dtype(np.float64)
 
 
 @dataclass(frozen=True)
@@ -110,6 +112,7 @@ class AnalyticIK(ABC):
         self.upper = robot.upper
         self._lower = [float(v) for v in robot.lower]
         self._upper = [float(v) for v in robot.upper]
+        self._q_shape = (self.dof,)
         self.branches: tuple[str, ...] = ()
         self.deviation = 0.0
 
@@ -179,9 +182,9 @@ class AnalyticIK(ABC):
     def _q_current_list(self, q_current: Sequence[float] | np.ndarray | None) -> list[float] | None:
         if q_current is None:
             return None
-        if isinstance(q_current, np.ndarray) and q_current.shape == (self.dof,) and q_current.dtype == np.float64:
+        if isinstance(q_current, np.ndarray) and q_current.dtype is FLOAT64 and q_current.shape == self._q_shape:
             values = q_current.tolist()  # the common case, checked without a NumPy round trip
-            if all(map(math.isfinite, values)):
+            if math.isfinite(sum(values)):  # a NaN or an infinity makes the sum so
                 return values
         return self.robot.check_configuration(q_current, batch=False).tolist()
 

@@ -229,14 +229,17 @@ class Planar2IK(AnalyticIK):
             oerr = self._orientation_error_scalar(th12, target)
             kept.append([name, q, perr, oerr])
         solutions = []
+        keys = []
         for name, q, perr, oerr in kept:
             within = True
             for j in range(2):
                 q[j] = wrap_scalar(q[j], self._lower[j], self._upper[j], qc[j] if qc is not None else 0.0)
                 within &= self._lower[j] <= q[j] <= self._upper[j]
+            if qc is not None:  # the squared distance to qc, as NumPy sums two squares
+                keys.append((q[0] - qc[0]) * (q[0] - qc[0]) + (q[1] - qc[1]) * (q[1] - qc[1]))
             solutions.append(AnalyticSolution(read_only(q), within, name, singular, perr, oerr))
-        if qc is not None:
-            solutions.sort(key=lambda sol: float(np.sum((sol.q - np.asarray(qc)) ** 2)))
+        if qc is not None and len(solutions) > 1:
+            solutions = [solutions[i] for i in sorted(range(len(solutions)), key=keys.__getitem__)]
         if any(sol.within_limits for sol in solutions):
             return AnalyticResult(STATUS_SOLVED, "", tuple(solutions), singular)
         rmin, rmax = self.reach

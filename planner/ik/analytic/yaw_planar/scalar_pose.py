@@ -16,15 +16,17 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from math import atan2, cos, hypot, sin, sqrt  # module names: one opcode fewer per call than locals
 
 import numpy as np
 
+from planner.geometry.chain import wrap_scalar
 from planner.geometry.target import Target
 from planner.ik.analytic.geometry import SINGULAR_TOL, wrap_pi
 from planner.ik.analytic.result import AnalyticResult
 from planner.ik.analytic.yaw_planar.arm import ArmGeometry
-from planner.ik.analytic.yaw_planar.branches import BEYOND, CYLINDER, DUPLICATE, INSIDE, ORIENT, VALID
-from planner.ik.analytic.yaw_planar.scalar import finish_scalar
+from planner.ik.analytic.yaw_planar.branches import BEYOND, BRANCHES, CYLINDER, DUPLICATE, INSIDE, ORIENT, VALID
+from planner.ik.analytic.yaw_planar.scalar import NEG_PI, ScalarPlan, scalar_plan, solutions_result
 
 __all__ = ["PoseFrame", "pose_frame", "pose_branches", "solve_pose_scalar"]
 
@@ -72,10 +74,18 @@ def pose_frame(arm: ArmGeometry) -> PoseFrame:
     return PoseFrame(linear, kappa, tip_offset, shift_local)
 
 
-def solve_pose_scalar(arm: ArmGeometry, frame: PoseFrame, target: Target, qc: list[float] | None) -> AnalyticResult:
-    """Every closed-form solution of a full-pose target on an exact chain (scalar arithmetic)."""
-    sols, cats, dist = _pose(arm, frame, target.position.tolist(), target.rotation, qc, True)
-    return finish_scalar(arm, sols, cats, dist, qc, target)
+def solve_pose_scalar(
+    arm: ArmGeometry, frame: PoseFrame, target: Target, qc: list[float] | None, plan: ScalarPlan | None = None
+) -> AnalyticResult:
+    """Every closed-form solution of a full-pose target on an exact chain (scalar arithmetic).
+
+    `plan` is :func:`~planner.ik.analytic.yaw_planar.scalar.scalar_plan` of the arm (computed
+    here when None): its joint limits.
+    """
+    if plan is None:
+        plan = scalar_plan(arm)
+    entries, cats, dist, any_within, singular = _pose(arm, frame, target.position.tolist(), target.rotation, qc, plan)
+    return solutions_result(arm, entries, qc is not None, any_within, singular, cats, dist, target)
 
 
 def pose_branches(arm: ArmGeometry, frame: PoseFrame, position: list[float], rotation: np.ndarray, qc):
@@ -92,11 +102,15 @@ def pose_branches(arm: ArmGeometry, frame: PoseFrame, position: list[float], rot
         (solutions, categories, distances): solutions as (slot, q, singular, None, None), q a
         list not yet wrapped into the limits; the 4 branch categories; the 4 wrist distances.
     """
-    return _pose(arm, frame, position, rotation, qc, False)
+    return _pose(arm, frame, position, rotation, qc, None)
 
 
-def _pose(arm: ArmGeometry, frame: PoseFrame, position, rotation, qc, verify: bool):
-    cos, sin, atan2, sqrt, hypot = math.cos, math.sin, math.atan2, math.sqrt, math.hypot
+def _pose(arm: ArmGeometry, frame: PoseFrame, position, rotation, qc, plan: ScalarPlan | None):
+    """The branches of a pose: verified and wrapped with `plan` (as solve_scalar), else raw.
+
+    With a plan: (entries as in solutions_result, categories, distances, any within limits,
+    any singular); without: (solutions as pose_branches returns them, categories, distances).
+    """
     px, py, pz = position
     flat = (frame.linear @ rotation.reshape(9)).tolist()
     m = (flat[0:3], flat[3:6], flat[6:9])
@@ -182,7 +196,7 @@ def _pose(arm: ArmGeometry, frame: PoseFrame, position, rotation, qc, verify: bo
             rolls[side] = atan2(sk * b2 - ck * b3, v1)
         else:
             phi = atan2(x3, x2)
-            residual = _rotation_angle(m, cp_, sp_, phi, 0.0)
+            residual = _rotation_angle_unrolled(m, cp_, sp_, phi)
         phis[side] = phi
         twisted[side] = residual > orient_tol
     if arm.n_pitch == 3:
@@ -190,54 +204,73 @@ def _pose(arm: ArmGeometry, frame: PoseFrame, position, rotation, qc, verify: bo
         cands, cats, dist = _three_pitch(arm, ue, ez, tu, tz, phis, cat)
     else:
         cands, cats, dist = _two_pitch(arm, ue, ez, tu, tz, phis, cat, twisted)
-    # Assemble and verify each branch by the forward model (tip position and rotation).
-    sols = []
+    # Assemble each branch; with a plan, verify it by the forward model (tip position and
+    # rotation) and wrap its joints into the limits.
     dof = arm.dof
-    sigma, signs, idx, roll_idx = arm.sigma, arm.signs, arm.pitch_idx, arm.roll_idx
+    sigma, signs, roll_idx = arm.sigma, arm.signs, arm.roll_idx
+    s0, s1 = signs[0], signs[1]
     three = arm.n_pitch == 3
+    s2 = signs[2] if three else 0.0
     l1, g1, l2, g2, su, sz = arm.l1, arm.g1, arm.l2, arm.g2, arm.su, arm.sz
-    bx, by = arm.bx, arm.by
     scale_axis = SINGULAR_TOL * arm.scale
+    if plan is None:
+        sols = []
+        for slot, side, a1, phi2_3, elbow_singular in cands:
+            q = [0.0] * dof
+            q[0] = sigma * psi[side]
+            phi2 = a1 - g1
+            q[1] = s0 * phi2
+            q[2] = s1 * (phi2_3 - phi2)
+            if three:
+                q[3] = s2 * (phis[side] - phi2_3)
+            if roll_idx is not None:
+                q[roll_idx] = rolls[side]
+            sols.append((slot, q, elbow_singular or free or abs(ue[side]) < scale_axis, None, None))
+        return sols, cats, dist
+    bx, by = arm.bx, arm.by
     pos_tol = 1e-10 * max(1.0, arm.scale)
     offset = frame.tip_offset
     smu, cmu = math.sin(mu), math.cos(mu)
-    last_key = None
+    lo0, hi0, lo1, hi1, lo2, hi2, lo3, hi3, lo4, hi4 = plan.limits
+    sort = qc is not None
+    ref = qc if sort else plan.zeros
+    r0, r1, r2 = ref[0], ref[1], ref[2]
+    r3 = ref[3] if three else 0.0
+    r4 = ref[roll_idx] if roll_idx is not None else 0.0
+    entries = []
+    any_within = singular = False
+    last_key = last_side = None
     for slot, side, a1, phi2_3, elbow_singular in cands:
-        side_psi, phi = psi[side], phis[side]
-        q = [0.0] * dof
-        q[0] = sigma * side_psi
+        side_psi, phi, theta = psi[side], phis[side], rolls[side]
+        # Forward model at q; its pitch sums (f2, f3, f4) are sign * q of the joints below,
+        # the yaw sigma * q[0] (the signs are +-1).
         phi2 = a1 - g1
-        q[idx[0]] = signs[0] * phi2
-        q[idx[1]] = signs[1] * (phi2_3 - phi2)
+        d32 = phi2_3 - phi2
+        f3 = phi2 + d32
+        a2 = phi2 + g1
+        fu = su + l1 * cos(a2)
+        fz = sz + l1 * sin(a2)
         if three:
-            q[idx[2]] = signs[2] * (phi - phi2_3)
-        if roll_idx is not None:
-            q[roll_idx] = rolls[side]
-        if not verify:
-            sols.append((slot, q, elbow_singular or free or abs(ue[side]) < scale_axis, None, None))
-            continue
-        # Forward model at q.
-        f2 = signs[0] * q[idx[0]]
-        f3 = f2 + signs[1] * q[idx[1]]
-        fu = su + l1 * cos(f2 + g1)
-        fz = sz + l1 * sin(f2 + g1)
-        if three:
-            fu += l2 * cos(f3 + g2)
-            fz += l2 * sin(f3 + g2)
-            f4 = f3 + signs[2] * q[idx[2]]
+            a3 = f3 + g2
+            fu += l2 * cos(a3)
+            fz += l2 * sin(a3)
+            d43 = phi - phi2_3
+            f4 = f3 + d43
         else:
             f4 = f3
         c4, s4 = cos(f4), sin(f4)
         fu += c4 * tu - s4 * tz
         fz += s4 * tu + c4 * tz
-        yaw = sigma * q[0]
-        theta = q[roll_idx] if roll_idx is not None else 0.0
+        yaw = side_psi
         key = (yaw, f4, theta)
         if key != last_key:  # the elbow branches of a side share these (bitwise)
             last_key = key
             cyw, syw = cos(yaw), sin(yaw)
             cm, sm = cos(mu + yaw), sin(mu + yaw)
-            oerr = _rotation_angle(m, cyw, syw, f4 + kappa, theta)
+            if roll_idx is None:
+                oerr = _rotation_angle_unrolled(m, cyw, syw, f4 + kappa)
+            else:
+                oerr = _rotation_angle(m, cyw, syw, f4 + kappa, theta)
             if offset is not None:
                 ox, oy, oz = _turn(cyw, syw, f4 + kappa, theta, offset)
                 # In the base frame: B = [n, e_u, z], n = (sin mu, -cos mu, 0), e_u = (cos mu, sin mu, 0).
@@ -245,20 +278,58 @@ def _pose(arm: ArmGeometry, frame: PoseFrame, position, rotation, qc, verify: bo
         fx = bx + cm * fu + sm * d
         fy = by + sm * fu - cm * d
         if offset is not None:
-            perr = sqrt((fx + ox - px) ** 2 + (fy + oy - py) ** 2 + (fz + oz - pz) ** 2)
+            dx, dy, dz = fx + ox - px, fy + oy - py, fz + oz - pz
         else:
-            perr = sqrt((fx - ex) ** 2 + (fy - ey) ** 2 + (fz - ez) ** 2)
+            dx, dy, dz = fx - ex, fy - ey, fz - ez
+        perr = sqrt(dx * dx + dy * dy + dz * dz)
         if perr > pos_tol or oerr > orient_tol:
             cats[slot] = ORIENT
             continue
-        singular = elbow_singular or free or abs(ue[side]) < scale_axis
-        sols.append((slot, q, singular, perr, oerr))
-    return sols, cats, dist
+        sing = elbow_singular or free or abs(ue[side]) < scale_axis
+        # The joints wrapped into their limits nearest ref (finish_scalar's rule): the yaw
+        # and the roll once per side; the key: the squared distance to ref, in joint order.
+        if side != last_side:
+            last_side = side
+            v0 = sigma * side_psi
+            side_ok = True
+            if not (lo0 <= v0 and v0 <= hi0 and NEG_PI <= v0 - r0 <= PI):
+                v0 = wrap_scalar(v0, lo0, hi0, r0)
+                side_ok = lo0 <= v0 <= hi0
+            v4 = theta
+            if roll_idx is not None and not (lo4 <= v4 <= hi4 and NEG_PI <= v4 - r4 <= PI):
+                v4 = wrap_scalar(v4, lo4, hi4, r4)
+                side_ok = side_ok and lo4 <= v4 <= hi4
+            side_key = 0.0 + (v0 - r0) * (v0 - r0) if sort else 0.0
+            roll_key = (v4 - r4) * (v4 - r4)
+        within = side_ok
+        v1 = s0 * phi2
+        if not (lo1 <= v1 and v1 <= hi1 and NEG_PI <= v1 - r1 <= PI):
+            v1 = wrap_scalar(v1, lo1, hi1, r1)
+            within = within and lo1 <= v1 <= hi1
+        v2 = s1 * d32
+        if not (lo2 <= v2 and v2 <= hi2 and NEG_PI <= v2 - r2 <= PI):
+            v2 = wrap_scalar(v2, lo2, hi2, r2)
+            within = within and lo2 <= v2 <= hi2
+        if three:
+            v3 = s2 * d43
+            if not (lo3 <= v3 and v3 <= hi3 and NEG_PI <= v3 - r3 <= PI):
+                v3 = wrap_scalar(v3, lo3, hi3, r3)
+                within = within and lo3 <= v3 <= hi3
+            q = (v0, v1, v2, v3, v4) if roll_idx is not None else (v0, v1, v2, v3)
+            key = side_key + (v1 - r1) * (v1 - r1) + (v2 - r2) * (v2 - r2) + (v3 - r3) * (v3 - r3) if sort else 0.0
+        else:
+            q = (v0, v1, v2, v4) if roll_idx is not None else (v0, v1, v2)
+            key = side_key + (v1 - r1) * (v1 - r1) + (v2 - r2) * (v2 - r2) if sort else 0.0
+        if roll_idx is not None and sort:
+            key += roll_key
+        entries.append((key, slot, q, (within, BRANCHES[slot], sing, perr, oerr)))
+        any_within = any_within or within
+        singular = singular or sing
+    return entries, cats, dist, any_within, singular
 
 
 def _three_pitch(arm: ArmGeometry, ue, ze, tu, tz, phis, cat):
     """Branch candidates (slot, side, a1, e + a1 (link 2's angle), elbow singular) of a 3-pitch arm."""
-    cos, sin, atan2, sqrt, hypot = math.cos, math.sin, math.atan2, math.sqrt, math.hypot
     l1, l2, su, sz, g2 = arm.l1, arm.l2, arm.su, arm.sz, arm.g2
     len_tol = arm.core_len_tol
     cats = [cat[0], cat[0], cat[1], cat[1]]
@@ -366,6 +437,31 @@ def _rotation_angle(m, cyw: float, syw: float, alpha: float, theta: float) -> fl
     r20 = e02 * m00 + e12 * m10 + e22 * m20
     r10 = e01 * m00 + e11 * m10 + e21 * m20
     r01 = e00 * m01 + e10 * m11 + e20 * m21
+    cos_a = 0.5 * (r00 + r11 + r22 - 1.0)
+    sin_a = 0.5 * math.sqrt((r21 - r12) ** 2 + (r02 - r20) ** 2 + (r10 - r01) ** 2)
+    return math.atan2(sin_a, min(1.0, max(-1.0, cos_a)))
+
+
+def _rotation_angle_unrolled(m, cyw: float, syw: float, alpha: float) -> float:
+    """:func:`_rotation_angle` at roll 0: ``E = Rz(yaw) Rx(alpha)``, its terms in cos 0 = 1 and sin 0 = 0 dropped.
+
+    The dropped terms are zeros added to (or multiplied into) finite sums, which changes no
+    result but the sign of an exact zero, which the angle does not see.
+    """
+    ca, sa = math.cos(alpha), math.sin(alpha)
+    e01, e02 = -syw * ca, syw * sa
+    e11, e12 = cyw * ca, -(cyw * sa)
+    (m00, m01, m02), (m10, m11, m12), (m20, m21, m22) = m
+    # rel = E^T m (E's third row: 0, sin, cos)
+    r00 = cyw * m00 + syw * m10
+    r11 = e01 * m01 + e11 * m11 + sa * m21
+    r22 = e02 * m02 + e12 * m12 + ca * m22
+    r21 = e02 * m01 + e12 * m11 + ca * m21
+    r12 = e01 * m02 + e11 * m12 + sa * m22
+    r02 = cyw * m02 + syw * m12
+    r20 = e02 * m00 + e12 * m10 + ca * m20
+    r10 = e01 * m00 + e11 * m10 + sa * m20
+    r01 = cyw * m01 + syw * m11
     cos_a = 0.5 * (r00 + r11 + r22 - 1.0)
     sin_a = 0.5 * math.sqrt((r21 - r12) ** 2 + (r02 - r20) ** 2 + (r10 - r01) ** 2)
     return math.atan2(sin_a, min(1.0, max(-1.0, cos_a)))

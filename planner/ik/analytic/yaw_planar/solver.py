@@ -11,7 +11,7 @@ from planner.core.rotations import rotation_error
 from planner.exceptions import UnsupportedChainError
 from planner.geometry.chain import ChainAtZero
 from planner.geometry.target import Target, approach_pitch
-from planner.ik.analytic.base import AnalyticIK, ChainMismatch
+from planner.ik.analytic.base import FLOAT64, AnalyticIK, ChainMismatch
 from planner.ik.analytic.result import (
     STATUS_CODES,
     STATUS_ORIENTATION_NOT_ACHIEVABLE,
@@ -28,7 +28,7 @@ from planner.ik.analytic.yaw_planar.compiled import CompiledKernels
 from planner.ik.analytic.yaw_planar.corrected import real_tip_pose, solve_corrected_pose, solve_corrected_scalar
 from planner.ik.analytic.yaw_planar.layout import chain_layout
 from planner.ik.analytic.yaw_planar.real_model import true_fk
-from planner.ik.analytic.yaw_planar.scalar import solve_scalar
+from planner.ik.analytic.yaw_planar.scalar import scalar_plan, solve_scalar
 from planner.ik.analytic.yaw_planar.scalar_pose import pose_frame, solve_pose_scalar
 from planner.ik.analytic.yaw_planar.search import free_joints, solve_searched
 from planner.model.robot import Robot
@@ -76,6 +76,7 @@ class YawPlanarIK(AnalyticIK):
         self.link_lengths = arm.link_lengths
         self.lateral_offset = arm.lateral_offset
         self._pose_frame = pose_frame(arm)
+        self._scalar_plan = scalar_plan(arm) if arm.exact else None
         self._real_tip_pose = None if arm.exact else real_tip_pose(robot)
         self._kernels = CompiledKernels(arm)
 
@@ -104,16 +105,27 @@ class YawPlanarIK(AnalyticIK):
     # ------------------------------------------------------------------ one target
     def solve(self, target: Target, q_current: Sequence[float] | np.ndarray | None = None) -> AnalyticResult:
         """Every closed-form solution for one target (see :meth:`AnalyticIK.solve`)."""
-        self._check_target(target)
-        qc = self._q_current_list(q_current)
+        if not isinstance(target, Target):
+            self._check_target(target)
+        qc = None
+        if q_current is not None:
+            if type(q_current) is np.ndarray and q_current.dtype is FLOAT64 and q_current.shape == self._q_shape:
+                qc = q_current.tolist()  # the common case, checked inline (see _q_current_list)
+                if not math.isfinite(sum(qc)):
+                    qc = self._q_current_list(q_current)
+            else:
+                qc = self._q_current_list(q_current)
         arm = self.arm
         if target.pitch is not None and not arm.pitch_supported:
             self._raise_pitch_unsupported()
         arrays = None
-        if arm.exact and target.rotation is None:
-            result = solve_scalar(arm, target, qc)
-        elif arm.exact:
-            result = solve_pose_scalar(arm, self._pose_frame, target, qc)
+        if arm.exact:
+            if target.rotation is None:
+                result = solve_scalar(arm, target, qc, self._scalar_plan)
+            else:
+                result = solve_pose_scalar(arm, self._pose_frame, target, qc, self._scalar_plan)
+            if result.status is STATUS_SOLVED:
+                return result
         elif target.rotation is None and (result := solve_corrected_scalar(arm, self._real_tip_pose, target, qc)):
             return result
         elif target.rotation is not None and (
