@@ -15,7 +15,10 @@ by it buzzes.
    end, while the others take over its share of the line, or a turn by more than
    :data:`CORNER_ANGLE` at one sample: the joint path has a kink there, which no motion with
    bounded acceleration passes without stopping), the path is split and the arm stops at the
-   corner for an instant.
+   corner for an instant. :func:`planner.motion.line.line_waypoints` brackets a range end
+   between two samples a hair apart, so one kink is one stop (neighbouring corner samples
+   merge), and the spline skips samples crowding a neighbour (a step that short points across
+   the kink).
 2. The time-scaling of each piece: ``sigma`` runs at a constant speed between two ramps, each a
    smoothstep ``3x^2 - 2x^3`` in speed (acceleration continuous, one jerk sign change per
    ramp); of a few ramp lengths, the fastest is kept.
@@ -135,8 +138,12 @@ def rest_to_rest_spline(
 KNOT_SPACING = 0.01
 #: Angle between neighbouring sample steps (speed-normalised joint space) that marks a corner [rad].
 CORNER_ANGLE = 0.1
+#: Corners at most this many samples apart are one kink (one stop).
+MERGE_GAP = 1
 #: Ramp lengths tried, as fractions of the time at constant speed (1: the ramps meet).
 _RAMPS = (0.1, 0.2, 0.3, 0.45, 0.65, 1.0)
+#: Shortest step between the samples the path spline passes, over the median step.
+NODE_GAP = 0.2
 #: Largest move of a knot off a joint bound the spline may make [rad or m].
 MAX_NUDGE = 1e-3
 
@@ -212,7 +219,23 @@ def _corners(q: np.ndarray, limits: JointLimits) -> list[int]:
     padded = np.concatenate([[0.0, 0.0], angle, [0.0, 0.0]])
     around = np.maximum(padded[:-4], padded[4:])
     turns = set(np.nonzero((angle > CORNER_ANGLE) & (angle > 3.0 * around))[0] + 1)
-    return sorted(int(k) for k in turns | at_end if 0 < k < len(q) - 1)
+    return _merge(sorted(int(k) for k in turns | at_end if 0 < k < len(q) - 1), on_end)
+
+
+def _merge(corners: list[int], on_end: np.ndarray) -> list[int]:
+    """One corner per kink: neighbouring corner samples become the one where a joint sits at its end.
+
+    A joint reaching a range end between samples k and k + 1 turns the path there, so both
+    samples read as corners (the turn, the arrival); stopping at each would stop twice for one
+    kink, with a short piece between the stops.
+    """
+    out: list[int] = []
+    for group in np.split(np.array(corners, dtype=int), np.nonzero(np.diff(corners) > MERGE_GAP)[0] + 1):
+        if not group.size:
+            continue
+        ends = [int(k) for k in group if np.any(on_end[k])] or [int(k) for k in group]
+        out.append(ends[len(ends) // 2])
+    return out
 
 
 def _natural_spline(x: np.ndarray, y: np.ndarray) -> np.ndarray:
@@ -291,7 +314,9 @@ def _smooth_piece(q: np.ndarray, template: JointTrajectory, bound: float) -> tup
     length = float(sigma[-1])
     if not np.all(steps > 0):
         return None  # a repeated sample: no path parameter through it
-    moments = _natural_spline(sigma, q)
+    nodes = _spline_nodes(sigma)
+    q_nodes, sigma_nodes = q[nodes], sigma[nodes]
+    moments = _natural_spline(sigma_nodes, q_nodes)
     lower = np.where(np.isfinite(lim.lower), lim.lower, -np.inf)
     upper = np.where(np.isfinite(lim.upper), lim.upper, np.inf)
     best = None
@@ -299,7 +324,7 @@ def _smooth_piece(q: np.ndarray, template: JointTrajectory, bound: float) -> tup
         total, ramp = length * (1.0 + fraction), length * fraction
         grid = _time_grid(total, ramp)
         s = np.clip(_ramp_position(grid, total, ramp), 0.0, length)
-        qk = np.clip(_spline_at(sigma, q, moments, s), lower, upper)
+        qk = np.clip(_spline_at(sigma_nodes, q_nodes, moments, s), lower, upper)
         qk[0], qk[-1] = q[0], q[-1]
         scale, ok = 1.0, False
         for _ in range(8):
@@ -327,6 +352,22 @@ def _smooth_piece(q: np.ndarray, template: JointTrajectory, bound: float) -> tup
     if best is not None:
         best[1][0], best[1][-1] = q[0], q[-1]
     return best
+
+
+def _spline_nodes(sigma: np.ndarray) -> np.ndarray:
+    """Indices of the samples the path spline passes: all but those crowding a neighbour.
+
+    A sample closer than :data:`NODE_GAP` times the median step to the node before it (or to
+    the piece's end) is left out: there the line was bisected to bracket a corner, and a step
+    that short points across the corner, which a spline through it would ring around.
+    """
+    gap = NODE_GAP * float(np.median(np.diff(sigma)))
+    keep = [0]
+    for i in range(1, len(sigma) - 1):
+        if sigma[i] - sigma[keep[-1]] >= gap and sigma[-1] - sigma[i] >= gap:
+            keep.append(i)
+    keep.append(len(sigma) - 1)
+    return np.array(keep)
 
 
 def _nudge(q: np.ndarray, spline: JointTrajectory, lower: np.ndarray, upper: np.ndarray) -> bool:
