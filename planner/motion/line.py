@@ -165,8 +165,9 @@ def _bracket_range_ends(solve_at, s_list: list, q_list: list, robot: Robot, ds: 
     """Samples added where a joint reaches or leaves a range end, within `ds` of where it does.
 
     There IK turns the joint path a corner (the joint stays at its end, the others take over):
-    bisection brackets the corner between two samples at most `ds` apart (a fraction of the
-    line), so that the motion can stop at one sample instead of two a whole step apart.
+    bisection finds it within `ds` (a fraction of the line), and the sample at the range end
+    there is added, so that the motion can stop at the corner instead of at two samples a
+    whole step apart.
     """
     ends = on_range_end(robot, np.array(q_list))
     s_out, q_out = [s_list[0]], [q_list[0]]
@@ -183,10 +184,11 @@ def _bracket_range_ends(solve_at, s_list: list, q_list: list, robot: Robot, ds: 
                 lo, q_lo = mid, q_mid
             else:
                 hi, q_hi = mid, q_mid
-        for s_new, q_new in ((lo, q_lo), (hi, q_hi)):
-            if s_new != s_out[-1]:
-                s_out.append(s_new)
-                q_out.append(q_new)
+        # The sample at the range end nearest the corner (the other side is at most `ds` off).
+        s_new, q_new = (hi, q_hi) if np.any(on_range_end(robot, q_hi) & ~ends[k - 1]) else (lo, q_lo)
+        if min(abs(s_new - s_list[k - 1]), abs(s_list[k] - s_new)) > ds:
+            s_out.append(s_new)
+            q_out.append(q_new)
         if s_list[k] != s_out[-1]:
             s_out.append(s_list[k])
             q_out.append(q_list[k])

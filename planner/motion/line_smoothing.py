@@ -47,7 +47,7 @@ from planner.core.arrays import read_only
 from planner.motion.limits import JointLimits
 from planner.motion.trajectory import LIMIT_TOLERANCE, JointTrajectory
 
-__all__ = ["rest_to_rest_spline", "smooth_lines"]
+__all__ = ["path_corners", "rest_to_rest_spline", "smooth_lines"]
 
 
 def _knots(t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -178,7 +178,7 @@ def smooth_lines(
         q = np.array(traj.waypoints[a : b + 1], dtype=float)
         if b - a < 1 or not chain > 0:
             continue
-        cuts = [0, *_corners(q, lim), len(q) - 1]
+        cuts = [0, *path_corners(q, lim), len(q) - 1]
         pieces = [_smooth_piece(q[i : k + 1], traj, bound) for i, k in zip(cuts, cuts[1:])]
         if any(p is None for p in pieces):
             continue
@@ -196,7 +196,7 @@ def smooth_lines(
     return traj, smoothed
 
 
-def _corners(q: np.ndarray, limits: JointLimits) -> list[int]:
+def path_corners(q: np.ndarray, limits: JointLimits) -> list[int]:
     """Inner samples where the path turns a corner.
 
     A joint arriving at or leaving a range end (the sample at the end next to one inside it),
