@@ -14,6 +14,9 @@ line and the trajectory is sampled at 1 kHz from the departure to the arrival:
 - duration over the Ruckig chain the line had before it was smoothed (the line timing's
   segments between the samples, :func:`planner.motion.line_timing.line_trajectory`).
 
+Lines whose joint path turns corners (:func:`planner.motion.line_smoothing.path_corners`: a
+joint reaching or leaving a range end, where the arm must stop) get rows of their own.
+
 Goal (issue 11): single digits of jerk sign changes per joint per line, as a joint-space
 S-curve has. Prints Markdown tables, writes JSON to benchmarks/results/bench_lines.json (and
 the tables to bench_lines.md).
@@ -37,6 +40,7 @@ from planner.app.plan_file import parse_motion_request
 from planner.model.robot import Robot
 from planner.motion.branch_choice import TargetSolver
 from planner.motion.line import line_waypoints
+from planner.motion.line_smoothing import path_corners
 from planner.motion.line_timing import line_trajectory
 
 RESULTS = Path(__file__).resolve().parent / "results"
@@ -98,11 +102,14 @@ def random_lines(robot: Robot, count: int, rng: np.random.Generator) -> tuple[li
         path = line_waypoints(solver, request.targets[0], request.targets[1], start)
         chain = line_trajectory(path, plan.limits)
         fig["chain_ratio"] = fig["duration"] / chain.duration
+        fig["corners"] = len(path_corners(np.asarray(path.q), plan.limits))
         out.append(fig)
     return out, skipped
 
 
-def summary(name: str, lines: list[dict]) -> dict:
+def summary(name: str, lines: list[dict]) -> dict | None:
+    if not lines:
+        return None
     per_joint = [c for f in lines for c in f["sign_changes"]]
     worst = [f["worst_joint"] for f in lines]
     pieces = [f["worst_piece"] for f in lines]
@@ -121,22 +128,28 @@ def summary(name: str, lines: list[dict]) -> dict:
         "position_excess_max": max(f["position_excess"] for f in lines),
         "deviation_max": max(f["deviation"] for f in lines),
         "chain_ratio": [float(np.median(ratios)), min(ratios), max(ratios)] if ratios else None,
+        "duration_median": float(np.median([f["duration"] for f in lines])),
+        "stops_max": max(f["pieces"] for f in lines) - 1,
     }
 
 
 def table(rows: list[dict]) -> str:
     head = (
-        "| lines | count (with corners) | sign changes per joint: median / max | worst joint per line: "
-        "median / max | lines single digit | worst piece | peak limit ratio | tip off line max [m] | "
-        "duration / chain: median (range) |\n|---|---|---|---|---|---|---|---|---|\n"
+        "| lines | count (with corners) | stops inside max | sign changes per joint: median / max | worst joint per "
+        "line: median / max | lines single digit | worst piece | peak limit ratio | tip off line max [m] | "
+        "duration median [s] | duration / chain: median (range) |\n|---|---|---|---|---|---|---|---|---|---|---|\n"
     )
     body = ""
     for r in rows:
+        if r is None:
+            continue
         ratio = "-" if r["chain_ratio"] is None else "{:.2f} ({:.2f}-{:.2f})".format(*r["chain_ratio"])
         body += (
-            f"| {r['robot']} | {r['lines']} ({r['with_corners']}) | {r['per_joint_median']:g} / {r['per_joint_max']} "
+            f"| {r['robot']} | {r['lines']} ({r['with_corners']}) | {r['stops_max']} "
+            f"| {r['per_joint_median']:g} / {r['per_joint_max']} "
             f"| {r['worst_joint_median']:g} / {r['worst_joint_max']} | {r['single_digit_lines']} / {r['lines']} "
-            f"| {r['worst_piece_max']} | {r['limit_ratio_max']:.9f} | {r['deviation_max']:.1e} | {ratio} |\n"
+            f"| {r['worst_piece_max']} | {r['limit_ratio_max']:.9f} | {r['deviation_max']:.1e} "
+            f"| {r['duration_median']:.2f} | {ratio} |\n"
         )
     return head + body
 
@@ -159,6 +172,10 @@ def main(argv=None) -> None:
         lines, skipped = random_lines(robot, args.lines, rng)
         rows.append(summary(name, lines))
         record["robots"][name] = {"summary": rows[-1], "skipped": skipped, "lines": lines}
+        # Lines whose joint path turns corners (a joint reaching or leaving a range end), apart.
+        cornered = [f for f in lines if f["corners"]]
+        rows.append(summary(f"{name}, lines with corners", cornered))
+        record["robots"][f"{name}, lines with corners"] = {"summary": rows[-1]}
         print(f"{name}: {len(lines)} lines, {skipped} skipped (IK cannot follow)", file=sys.stderr)
     text = table(rows)
     print(text)

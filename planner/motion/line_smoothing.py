@@ -138,8 +138,6 @@ def rest_to_rest_spline(
 KNOT_SPACING = 0.01
 #: Angle between neighbouring sample steps (speed-normalised joint space) that marks a corner [rad].
 CORNER_ANGLE = 0.1
-#: Corners at most this many samples apart are one kink (one stop).
-MERGE_GAP = 1
 #: Ramp lengths tried, as fractions of the time at constant speed (1: the ramps meet).
 _RAMPS = (0.1, 0.2, 0.3, 0.45, 0.65, 1.0)
 #: Shortest step between the samples the path spline passes, over the median step.
@@ -219,23 +217,35 @@ def path_corners(q: np.ndarray, limits: JointLimits) -> list[int]:
     padded = np.concatenate([[0.0, 0.0], angle, [0.0, 0.0]])
     around = np.maximum(padded[:-4], padded[4:])
     turns = set(np.nonzero((angle > CORNER_ANGLE) & (angle > 3.0 * around))[0] + 1)
-    return _merge(sorted(int(k) for k in turns | at_end if 0 < k < len(q) - 1), on_end)
+    return _merge(sorted(int(k) for k in turns | at_end if 0 < k < len(q) - 1), on_end, h)
 
 
-def _merge(corners: list[int], on_end: np.ndarray) -> list[int]:
-    """One corner per kink: neighbouring corner samples become the one where a joint sits at its end.
+def _merge(corners: list[int], on_end: np.ndarray, steps: np.ndarray) -> list[int]:
+    """One corner per kink: corner samples a hair apart become the one where a joint sits at its end.
 
-    A joint reaching a range end between samples k and k + 1 turns the path there, so both
-    samples read as corners (the turn, the arrival); stopping at each would stop twice for one
-    kink, with a short piece between the stops.
+    Samples closer than :data:`NODE_GAP` times the median step (speed-normalised joint space)
+    around a kink both read as corners (the turn, the arrival); stopping at each would stop
+    twice for one kink. Corners a real step apart stay apart: IK may jump there (the arm's
+    spare freedom turns while the tip waits), and the straight joint step between two stops
+    keeps the tip nearest the line.
     """
+    gap = NODE_GAP * float(np.median(steps)) if len(steps) else 0.0
     out: list[int] = []
-    for group in np.split(np.array(corners, dtype=int), np.nonzero(np.diff(corners) > MERGE_GAP)[0] + 1):
-        if not group.size:
-            continue
-        ends = [int(k) for k in group if np.any(on_end[k])] or [int(k) for k in group]
-        out.append(ends[len(ends) // 2])
+    group: list[int] = []
+    for k in corners:
+        if group and not float(np.sum(steps[group[-1] : k])) < gap:
+            out.append(_pick(group, on_end))
+            group = []
+        group.append(k)
+    if group:
+        out.append(_pick(group, on_end))
     return out
+
+
+def _pick(group: list[int], on_end: np.ndarray) -> int:
+    """The middle one of a group of corner samples that sits at a range end (else of all)."""
+    ends = [k for k in group if np.any(on_end[k])] or group
+    return ends[len(ends) // 2]
 
 
 def _natural_spline(x: np.ndarray, y: np.ndarray) -> np.ndarray:
