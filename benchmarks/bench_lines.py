@@ -17,11 +17,16 @@ line and the trajectory is sampled at 1 kHz from the departure to the arrival:
 Lines whose joint path turns corners (:func:`planner.motion.line_smoothing.path_corners`: a
 joint reaching or leaving a range end, where the arm must stop) get rows of their own.
 
+Blending: plans of a joint move, a line and a joint move between the tips of four random
+configurations (``--plans`` per arm), planned with the line at rest at both ends
+(``blend_lines: false``) and blended into the moves around it (the default): the duration
+ratio, the line's ends passed moving, every limit and the tip's distance from the line.
+
 Goal (issue 11): single digits of jerk sign changes per joint per line, as a joint-space
 S-curve has. Prints Markdown tables, writes JSON to benchmarks/results/bench_lines.json (and
 the tables to bench_lines.md).
 
-    python benchmarks/bench_lines.py [--lines 40] [--seed 5]
+    python benchmarks/bench_lines.py [--lines 40] [--seed 5] [--plans 20]
 """
 
 from __future__ import annotations
@@ -107,6 +112,57 @@ def random_lines(robot: Robot, count: int, rng: np.random.Generator) -> tuple[li
     return out, skipped
 
 
+def blended_plans(robot: Robot, count: int, rng: np.random.Generator) -> tuple[list[dict], int]:
+    """Joint move, line, joint move between random tips: planned at rest at the line's ends and blended."""
+    out, skipped = [], 0
+    while len(out) < count:
+        q = robot.random_configurations(rng, 4)
+        targets = [{"position": robot.position(x).tolist()} for x in q]
+        targets[2]["line"] = True
+        plans = {}
+        try:
+            for blend in (False, True):
+                plans[blend] = plan_motion(robot, parse_motion_request({"targets": targets, "blend_lines": blend}))
+        except planner.PlannerError:
+            skipped += 1
+            continue
+        rest, blended = plans[False], plans[True]
+        traj = blended.trajectory
+        peaks = [traj.peak_ratios(None), traj.peak_ratios(1000.0)]
+        t0, t1 = float(blended.departure_times[1]), float(blended.waypoint_times[2])
+        ends = np.abs(traj.sample(np.array([t0, t1])).qd) / blended.limits.velocity
+        out.append(
+            {
+                "ratio": traj.duration / rest.trajectory.duration,
+                "moving_ends": int(np.sum(ends.max(axis=1) > 1e-6)),
+                "limit_ratio": max(max(p["velocity"], p["acceleration"], p["jerk"]) for p in peaks),
+                "position_excess": max(p["position"] for p in peaks),
+                "deviation": float(blended.line_deviation[1]),
+                "worst_joint": int(sign_changes(traj, t0, t1, blended.limits.jerk).max()),
+            }
+        )
+    return out, skipped
+
+
+def blend_table(rows: list[tuple[str, list[dict], int]]) -> str:
+    head = (
+        "| plans (joint move, line, joint move) | count (skipped) | line ends moving | duration blended / at rest: "
+        "median (range) | peak limit ratio | tip off line max [m] | line's worst joint sign changes: median / max |\n"
+        "|---|---|---|---|---|---|---|\n"
+    )
+    body = ""
+    for name, plans, skipped in rows:
+        ratios = [f["ratio"] for f in plans]
+        worst = [f["worst_joint"] for f in plans]
+        body += (
+            f"| {name} | {len(plans)} ({skipped}) | {sum(f['moving_ends'] for f in plans)} / {2 * len(plans)} "
+            f"| {np.median(ratios):.3f} ({min(ratios):.3f}-{max(ratios):.3f}) "
+            f"| {max(f['limit_ratio'] for f in plans):.9f} | {max(f['deviation'] for f in plans):.1e} "
+            f"| {np.median(worst):g} / {max(worst)} |\n"
+        )
+    return head + body
+
+
 def summary(name: str, lines: list[dict]) -> dict | None:
     if not lines:
         return None
@@ -158,6 +214,7 @@ def main(argv=None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--lines", type=int, default=40, help="random lines per robot")
     parser.add_argument("--seed", type=int, default=5)
+    parser.add_argument("--plans", type=int, default=20, help="blended plans per robot")
     args = parser.parse_args(argv)
     rng = np.random.default_rng(args.seed)
     rows, record = [], {"seed": args.seed, "lines_per_robot": args.lines, "robots": {}}
@@ -177,7 +234,12 @@ def main(argv=None) -> None:
         rows.append(summary(f"{name}, lines with corners", cornered))
         record["robots"][f"{name}, lines with corners"] = {"summary": rows[-1]}
         print(f"{name}: {len(lines)} lines, {skipped} skipped (IK cannot follow)", file=sys.stderr)
-    text = table(rows)
+    blends = []
+    for name in ("al5c", "three_joint"):
+        plans, skipped = blended_plans(planner.load_robot(name), args.plans, rng)
+        blends.append((name, plans, skipped))
+        record["blending"] = record.get("blending", {}) | {name: {"skipped": skipped, "plans": plans}}
+    text = table(rows) + "\n" + blend_table(blends)
     print(text)
     RESULTS.mkdir(exist_ok=True)
     (RESULTS / "bench_lines.json").write_text(json.dumps(record, indent=2) + "\n")
