@@ -130,3 +130,23 @@ def test_random_blended_lines_keep_every_limit_and_the_line(name, seed):
         np.testing.assert_allclose(blended.trajectory.sample(blended.waypoint_times).q, blended.waypoints, atol=1e-12)
         assert blended.trajectory.duration <= rest.trajectory.duration  # else the plan rests at the line's ends
         return
+
+
+def test_the_spline_meets_given_end_velocities_and_accelerations():
+    from planner.motion.line_smoothing import rest_to_rest_spline
+
+    rng = np.random.default_rng(3)
+    t = np.cumsum(rng.uniform(0.01, 0.05, 12))
+    q = rng.normal(size=(12, 2))
+    v0, v1, a0, a1 = rng.normal(size=(4, 2))
+    knots, p, v, a, j = rest_to_rest_spline(t, q, v0, v1, a0, a1)
+    h = np.diff(np.append(knots, t[-1]))[:, None]
+    end_p = p + v * h + a * h**2 / 2 + j * h**3 / 6
+    end_v = v + a * h + j * h**2 / 2
+    end_a = a + j * h
+    np.testing.assert_allclose(end_p[:-1], p[1:], atol=1e-9)
+    np.testing.assert_allclose(end_v[:-1], v[1:], atol=1e-8)
+    np.testing.assert_allclose(end_a[:-1], a[1:], atol=1e-6)
+    np.testing.assert_allclose([v[0], a[0], end_v[-1], end_a[-1]], [v0, a0, v1, a1], atol=1e-8)
+    np.testing.assert_allclose(p[np.isin(knots, t)], q[:-1], atol=1e-9)
+    np.testing.assert_allclose(end_p[-1], q[-1], atol=1e-9)

@@ -28,6 +28,11 @@ by it buzzes.
    velocity, acceleration or jerk limit (evaluated exactly; ``v ~ 1/k``, ``a ~ 1/k^2``,
    ``j ~ 1/k^3``).
 
+A line may blend into the move before or after it (``moving`` in :func:`smooth_lines`): that
+end has no ramp, the path spline is clamped there to the samples' own tangent (a one-sided fit),
+and the spline in time passes it with the cruise velocity and acceleration along the path
+(:func:`line_end_states`), which the neighbouring move meets as its via state.
+
 Jerk follows the path's own third derivative and the ramps instead of switching: a few sign
 changes per joint and piece. A line running along a joint limit has samples exactly at it, and
 the spline through them may ring slightly beyond: knots there are moved inward by twice the
