@@ -14,11 +14,19 @@ line and the trajectory is sampled at 1 kHz from the departure to the arrival:
 - duration over the Ruckig chain the line had before it was smoothed (the line timing's
   segments between the samples, :func:`planner.motion.line_timing.line_trajectory`).
 
+Lines whose joint path turns corners (:func:`planner.motion.line_smoothing.path_corners`: a
+joint reaching or leaving a range end, where the arm must stop) get rows of their own.
+
+Blending: plans of a joint move, a line and a joint move between the tips of four random
+configurations (``--plans`` per arm), planned with the line at rest at both ends
+(``blend_lines: false``) and blended into the moves around it (the default): the duration
+ratio, the line's ends passed moving, every limit and the tip's distance from the line.
+
 Goal (issue 11): single digits of jerk sign changes per joint per line, as a joint-space
 S-curve has. Prints Markdown tables, writes JSON to benchmarks/results/bench_lines.json (and
 the tables to bench_lines.md).
 
-    python benchmarks/bench_lines.py [--lines 40] [--seed 5]
+    python benchmarks/bench_lines.py [--lines 40] [--seed 5] [--plans 20]
 """
 
 from __future__ import annotations
@@ -37,6 +45,7 @@ from planner.app.plan_file import parse_motion_request
 from planner.model.robot import Robot
 from planner.motion.branch_choice import TargetSolver
 from planner.motion.line import line_waypoints
+from planner.motion.line_smoothing import path_corners
 from planner.motion.line_timing import line_trajectory
 
 RESULTS = Path(__file__).resolve().parent / "results"
@@ -98,11 +107,65 @@ def random_lines(robot: Robot, count: int, rng: np.random.Generator) -> tuple[li
         path = line_waypoints(solver, request.targets[0], request.targets[1], start)
         chain = line_trajectory(path, plan.limits)
         fig["chain_ratio"] = fig["duration"] / chain.duration
+        fig["corners"] = len(path_corners(np.asarray(path.q), plan.limits))
         out.append(fig)
     return out, skipped
 
 
-def summary(name: str, lines: list[dict]) -> dict:
+def blended_plans(robot: Robot, count: int, rng: np.random.Generator) -> tuple[list[dict], int]:
+    """Joint move, line, joint move between random tips: planned at rest at the line's ends and blended."""
+    out, skipped = [], 0
+    while len(out) < count:
+        q = robot.random_configurations(rng, 4)
+        targets = [{"position": robot.position(x).tolist()} for x in q]
+        targets[2]["line"] = True
+        plans = {}
+        try:
+            for blend in (False, True):
+                plans[blend] = plan_motion(robot, parse_motion_request({"targets": targets, "blend_lines": blend}))
+        except planner.PlannerError:
+            skipped += 1
+            continue
+        rest, blended = plans[False], plans[True]
+        traj = blended.trajectory
+        peaks = [traj.peak_ratios(None), traj.peak_ratios(1000.0)]
+        t0, t1 = float(blended.departure_times[1]), float(blended.waypoint_times[2])
+        ends = np.abs(traj.sample(np.array([t0, t1])).qd) / blended.limits.velocity
+        out.append(
+            {
+                "ratio": traj.duration / rest.trajectory.duration,
+                "moving_ends": int(np.sum(ends.max(axis=1) > 1e-6)),
+                "limit_ratio": max(max(p["velocity"], p["acceleration"], p["jerk"]) for p in peaks),
+                "position_excess": max(p["position"] for p in peaks),
+                "deviation": float(blended.line_deviation[1]),
+                "worst_joint": int(sign_changes(traj, t0, t1, blended.limits.jerk).max()),
+            }
+        )
+    return out, skipped
+
+
+def blend_table(rows: list[tuple[str, list[dict], int]]) -> str:
+    head = (
+        "| plans (joint move, line, joint move) | count (skipped) | line ends moving | duration blended / at rest: "
+        "median (range) | peak limit ratio | tip off line max [m] | line's worst joint sign changes: median / max |\n"
+        "|---|---|---|---|---|---|---|\n"
+    )
+    body = ""
+    for name, plans, skipped in rows:
+        ratios = [f["ratio"] for f in plans]
+        worst = [f["worst_joint"] for f in plans]
+        body += (
+            f"| {name} | {len(plans)} ({skipped}) | {sum(f['moving_ends'] for f in plans)} / {2 * len(plans)} "
+            f"| {np.median(ratios):.3f} ({min(ratios):.3f}-{max(ratios):.3f}) "
+            f"| {max(f['limit_ratio'] for f in plans):.9f} | {max(f['deviation'] for f in plans):.1e} "
+            f"| {np.median(worst):g} / {max(worst)} |\n"
+        )
+    return head + body
+
+
+def summary(name: str, lines: list[dict]) -> dict | None:
+    if not lines:
+        return None
     per_joint = [c for f in lines for c in f["sign_changes"]]
     worst = [f["worst_joint"] for f in lines]
     pieces = [f["worst_piece"] for f in lines]
@@ -121,22 +184,28 @@ def summary(name: str, lines: list[dict]) -> dict:
         "position_excess_max": max(f["position_excess"] for f in lines),
         "deviation_max": max(f["deviation"] for f in lines),
         "chain_ratio": [float(np.median(ratios)), min(ratios), max(ratios)] if ratios else None,
+        "duration_median": float(np.median([f["duration"] for f in lines])),
+        "stops_max": max(f["pieces"] for f in lines) - 1,
     }
 
 
 def table(rows: list[dict]) -> str:
     head = (
-        "| lines | count (with corners) | sign changes per joint: median / max | worst joint per line: "
-        "median / max | lines single digit | worst piece | peak limit ratio | tip off line max [m] | "
-        "duration / chain: median (range) |\n|---|---|---|---|---|---|---|---|---|\n"
+        "| lines | count (with corners) | stops inside max | sign changes per joint: median / max | worst joint per "
+        "line: median / max | lines single digit | worst piece | peak limit ratio | tip off line max [m] | "
+        "duration median [s] | duration / chain: median (range) |\n|---|---|---|---|---|---|---|---|---|---|---|\n"
     )
     body = ""
     for r in rows:
+        if r is None:
+            continue
         ratio = "-" if r["chain_ratio"] is None else "{:.2f} ({:.2f}-{:.2f})".format(*r["chain_ratio"])
         body += (
-            f"| {r['robot']} | {r['lines']} ({r['with_corners']}) | {r['per_joint_median']:g} / {r['per_joint_max']} "
+            f"| {r['robot']} | {r['lines']} ({r['with_corners']}) | {r['stops_max']} "
+            f"| {r['per_joint_median']:g} / {r['per_joint_max']} "
             f"| {r['worst_joint_median']:g} / {r['worst_joint_max']} | {r['single_digit_lines']} / {r['lines']} "
-            f"| {r['worst_piece_max']} | {r['limit_ratio_max']:.9f} | {r['deviation_max']:.1e} | {ratio} |\n"
+            f"| {r['worst_piece_max']} | {r['limit_ratio_max']:.9f} | {r['deviation_max']:.1e} "
+            f"| {r['duration_median']:.2f} | {ratio} |\n"
         )
     return head + body
 
@@ -145,6 +214,7 @@ def main(argv=None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--lines", type=int, default=40, help="random lines per robot")
     parser.add_argument("--seed", type=int, default=5)
+    parser.add_argument("--plans", type=int, default=20, help="blended plans per robot")
     args = parser.parse_args(argv)
     rng = np.random.default_rng(args.seed)
     rows, record = [], {"seed": args.seed, "lines_per_robot": args.lines, "robots": {}}
@@ -159,8 +229,17 @@ def main(argv=None) -> None:
         lines, skipped = random_lines(robot, args.lines, rng)
         rows.append(summary(name, lines))
         record["robots"][name] = {"summary": rows[-1], "skipped": skipped, "lines": lines}
+        # Lines whose joint path turns corners (a joint reaching or leaving a range end), apart.
+        cornered = [f for f in lines if f["corners"]]
+        rows.append(summary(f"{name}, lines with corners", cornered))
+        record["robots"][f"{name}, lines with corners"] = {"summary": rows[-1]}
         print(f"{name}: {len(lines)} lines, {skipped} skipped (IK cannot follow)", file=sys.stderr)
-    text = table(rows)
+    blends = []
+    for name in ("al5c", "three_joint"):
+        plans, skipped = blended_plans(planner.load_robot(name), args.plans, rng)
+        blends.append((name, plans, skipped))
+        record["blending"] = record.get("blending", {}) | {name: {"skipped": skipped, "plans": plans}}
+    text = table(rows) + "\n" + blend_table(blends)
     print(text)
     RESULTS.mkdir(exist_ok=True)
     (RESULTS / "bench_lines.json").write_text(json.dumps(record, indent=2) + "\n")

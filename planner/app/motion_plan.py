@@ -34,7 +34,7 @@ from planner.motion.avoid import joint_line, time_joint_line
 from planner.motion.detours import Detour, SingularityOptions, plan_clear_of_singularities
 from planner.motion.limits import JointLimits
 from planner.motion.line import LinePath
-from planner.motion.line_smoothing import smooth_lines
+from planner.motion.line_smoothing import line_end_states, smooth_lines
 from planner.motion.request import TrajectoryRequest
 from planner.motion.singularity import SingularityReport, inverse_condition_threshold, measure_singularities
 from planner.motion.trajectory import JointTrajectory
@@ -287,6 +287,32 @@ def _calibrations(robot: Robot, request: MotionRequest) -> tuple[ServoCalibratio
     return tuple(out)
 
 
+def _blends(
+    request: MotionRequest,
+    cartesian: list[bool],
+    paths: list[list[LinePath] | None],
+    routes: dict[int, list[np.ndarray]],
+    seg: int,
+) -> tuple[bool, bool]:
+    """Whether the line of requested segment `seg` (into waypoint seg + 1) may start and end moving.
+
+    A Cartesian line blends into a free joint move before or after it, where the waypoint
+    between them asks for no stop (``stop``, a dwell) and is neither the first nor the last.
+    """
+    k = seg + 1
+    if not (request.blend_lines and cartesian[k]):
+        return False, False
+
+    def free(j: int, n: int) -> bool:  # waypoint j, between the moves into j and out of it (into j + 1)
+        if j <= 0 or j >= n - 1 or j in request.stops or request.dwell[j] > 0:
+            return False
+        other = j if j != k else j + 1  # the move on the far side of the waypoint from the line
+        return paths[other] is None and other not in routes
+
+    n = request.count
+    return free(k - 1, n), free(k, n)
+
+
 def plan_motion(
     robot: Robot,
     request: MotionRequest,
@@ -440,7 +466,7 @@ def plan_motion(
             user_pos.append(len(nodes) - 1)
         return np.array(nodes), user_pos, line_ranges, line_timing, owner
 
-    def plan_once(paths: list[list[LinePath] | None]) -> tuple:
+    def plan_once(paths: list[list[LinePath] | None], blend: bool = True) -> tuple:
         q_nodes, user_pos, line_ranges, line_timing, owner = build(paths)
         m = len(q_nodes)
         dwell = np.zeros(m)
@@ -450,12 +476,23 @@ def plan_motion(
         via_v = np.full(q_nodes.shape, np.nan)
         via_a = np.zeros(q_nodes.shape)
         min_dur = np.zeros(m - 1)
-        for (_, a, b), timing in zip(line_ranges, line_timing):
+        moving = [
+            _blends(request, cartesian, paths, routes, seg) if blend else (False, False) for seg, _, _ in line_ranges
+        ]
+        for i, ((_, a, b), timing) in enumerate(zip(line_ranges, line_timing)):
             # A line is timed from rest to rest: its samples get the timing's states.
             via_v[a : b + 1] = timing.velocity
             via_a[a : b + 1] = timing.acceleration
             min_dur[a:b] = np.diff(timing.t)
-            stops += [a, b]
+            if any(moving[i]):
+                # It blends into a neighbouring joint move: that move meets its end velocity.
+                ends = line_end_states(q_nodes[a : b + 1], limits, moving[i])
+                if ends is None:
+                    moving[i] = (False, False)
+                for end, node, moves in zip(ends or (), (a, b), moving[i]):
+                    if moves:
+                        via_v[node], via_a[node] = end
+            stops += [node for node, moves in zip((a, b), moving[i]) if not moves]
         trajectory_request = TrajectoryRequest(
             q_nodes,
             limits,
@@ -475,7 +512,12 @@ def plan_motion(
         if line_ranges:
             # Each line as smooth pieces between its corners, not a chain of bang-bang segments.
             stretches = [(int(plan.waypoint_indices[a]), int(plan.waypoint_indices[b])) for _, a, b in line_ranges]
-            smooth, count = smooth_lines(plan.trajectory, stretches)
+            smooth, count = smooth_lines(plan.trajectory, stretches, moving=moving)
+            if any(map(any, moving)):
+                # Blended only where every line smoothed and the whole motion got shorter.
+                rest = plan_once(paths, blend=False)
+                if count < len(stretches) or not smooth.duration < rest[0].trajectory.duration:
+                    return rest
             if count:
                 report = measure_singularities(robot, smooth, threshold, robot.resolve_task(None), rate)[0]
                 plan = dataclasses.replace(plan, trajectory=smooth, report=report)

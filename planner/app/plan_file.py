@@ -17,6 +17,7 @@ A plan file is YAML or JSON (``.json`` is read as JSON, anything else as YAML)::
     start: {q: [...], velocity: [...], acceleration: [...]}   # optional state at the first waypoint
     singularity: {condition_number: 30, detours: true, max_detours: 8}   # default 30 (position), 100 (pose)
     strategy: optimized               # or heuristic, stop
+    blend_lines: true                 # lines blend into the moves around them (default); false: rest at their ends
     servos:                           # optional pulse-width calibration per joint
       - {channel: 0, pulse_at_zero: 1500, us_per_rad: 636.6, direction: 1, min_pulse: 500, max_pulse: 2500}
     servo_period_ms: 20
@@ -30,6 +31,9 @@ A plan file is YAML or JSON (``.json`` is read as JSON, anything else as YAML)::
     avoidance: {seed: 0, time_budget: 5}   # the path search around obstacles (seeded)
 
 ``line: true`` on a target makes the motion from the previous target to it a straight line.
+A line blends into the joint moves before and after it (it starts or ends moving along the
+line) unless the target at that end asks for a stop (``stop: true`` or a ``dwell``), is the
+first or last one, or ``blend_lines: false``; two lines meeting at a target stop there.
 ``allow: [block]`` on a waypoint or target lets the arm touch those scene bodies there (and on
 the moves into and out of it), e.g. the block the gripper grasps. With a ``scene`` the plan
 also keeps the arm's links apart from each other.
@@ -66,6 +70,7 @@ _TOP_KEYS = (
     "start",
     "singularity",
     "strategy",
+    "blend_lines",
     "servos",
     "servo_period_ms",
     "controller",
@@ -125,6 +130,8 @@ class MotionRequest:
         detours: Whether to insert detours around singularities.
         max_detours: Most detours to insert.
         strategy: Via strategy (see :func:`planner.motion.trajectory.plan_trajectory`).
+        blend_lines: Whether lines blend into the joint moves before and after them where the
+            waypoint there asks for no stop (see the module doc).
         servos: Servo calibration mappings as written, or None for defaults.
         servo_period_ms: Time between two servo updates in the servo files [ms].
         controller: The controller named (a key of ``SERVO_FORMATS``), or None.
@@ -151,6 +158,7 @@ class MotionRequest:
     detours: bool = True
     max_detours: int = 8
     strategy: str = "optimized"
+    blend_lines: bool = True
     servos: tuple[Mapping[str, Any], ...] | None = None
     servo_period_ms: int = 20
     controller: str | None = None
@@ -321,6 +329,9 @@ def parse_motion_request(data: Mapping[str, Any], source: str = "<request>") -> 
         raise input_error(source, f"singularity.max_detours must be a non-negative integer, got {plain(max_detours)}")
 
     strategy = data.get("strategy", "optimized")
+    blend_lines = data.get("blend_lines", True)
+    if not isinstance(blend_lines, bool):
+        raise input_error(source, f"blend_lines must be true or false, got {blend_lines!r}")
     if strategy not in VIA_STRATEGIES:
         raise input_error(source, f"unknown strategy {strategy!r}; valid: {', '.join(VIA_STRATEGIES)}")
     servos = data.get("servos")
@@ -385,6 +396,7 @@ def parse_motion_request(data: Mapping[str, Any], source: str = "<request>") -> 
         detours=detours,
         max_detours=max_detours,
         strategy=strategy,
+        blend_lines=blend_lines,
         servos=servos,
         servo_period_ms=period,
         controller=controller,

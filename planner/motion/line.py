@@ -21,7 +21,7 @@ from planner.geometry.target import Target
 from planner.model.robot import Robot
 from planner.motion.branch_choice import TargetSolver
 
-__all__ = ["LinePath", "interpolate_target", "line_deviation", "line_waypoints", "slerp"]
+__all__ = ["LinePath", "interpolate_target", "line_deviation", "line_waypoints", "on_range_end", "slerp"]
 
 
 def slerp(rotation_a: np.ndarray, rotation_b: np.ndarray, s: float) -> np.ndarray:
@@ -138,6 +138,7 @@ def line_waypoints(
             s_list.append(s_next)
             q_list.append(q_next)
             stack.pop()
+    s_list, q_list = _bracket_range_ends(solve_at, s_list, q_list, solver.robot, min_step / max(length, 1e-300))
     q = np.array(q_list)
     s = np.array(s_list)
     points = (1.0 - s)[:, None] * start.position + s[:, None] * end.position
@@ -151,6 +152,47 @@ def line_waypoints(
         )
     inv = solver.robot.conditioning(q, solver.task)[0]
     return LinePath(read_only(s), read_only(q), read_only(points), err, float(np.min(inv)))
+
+
+def on_range_end(robot: Robot, q: np.ndarray) -> np.ndarray:
+    """Which joints of configurations q (..., dof) sit at a range end (within 1e-9 relative), bool."""
+    lower, upper = np.asarray(robot.lower, dtype=float), np.asarray(robot.upper, dtype=float)
+    near = [1e-9 * np.maximum(1.0, np.abs(np.nan_to_num(b))) for b in (lower, upper)]
+    return (q <= lower + near[0]) | (q >= upper - near[1])
+
+
+def _bracket_range_ends(solve_at, s_list: list, q_list: list, robot: Robot, ds: float) -> tuple[list, list]:
+    """Samples added where a joint reaches or leaves a range end, within `ds` of where it does.
+
+    There IK turns the joint path a corner (the joint stays at its end, the others take over):
+    bisection finds it within `ds` (a fraction of the line), and the sample at the range end
+    there is added, so that the motion can stop at the corner instead of at two samples a
+    whole step apart.
+    """
+    ends = on_range_end(robot, np.array(q_list))
+    s_out, q_out = [s_list[0]], [q_list[0]]
+    for k in range(1, len(s_list)):
+        if np.array_equal(ends[k - 1], ends[k]):
+            s_out.append(s_list[k])
+            q_out.append(q_list[k])
+            continue
+        lo, q_lo, hi, q_hi = s_list[k - 1], q_list[k - 1], s_list[k], q_list[k]
+        while hi - lo > ds:
+            mid = (lo + hi) / 2.0
+            q_mid = solve_at(mid, q_lo)
+            if np.array_equal(on_range_end(robot, q_mid), ends[k - 1]):
+                lo, q_lo = mid, q_mid
+            else:
+                hi, q_hi = mid, q_mid
+        # The sample at the range end nearest the corner (the other side is at most `ds` off).
+        s_new, q_new = (hi, q_hi) if np.any(on_range_end(robot, q_hi) & ~ends[k - 1]) else (lo, q_lo)
+        if min(abs(s_new - s_list[k - 1]), abs(s_list[k] - s_new)) > ds:
+            s_out.append(s_new)
+            q_out.append(q_new)
+        if s_list[k] != s_out[-1]:
+            s_out.append(s_list[k])
+            q_out.append(q_list[k])
+    return s_out, q_out
 
 
 def line_deviation(robot: Robot, q: np.ndarray, start: np.ndarray, end: np.ndarray) -> float:

@@ -15,7 +15,10 @@ by it buzzes.
    end, while the others take over its share of the line, or a turn by more than
    :data:`CORNER_ANGLE` at one sample: the joint path has a kink there, which no motion with
    bounded acceleration passes without stopping), the path is split and the arm stops at the
-   corner for an instant.
+   corner for an instant. :func:`planner.motion.line.line_waypoints` brackets a range end
+   between two samples a hair apart, so one kink is one stop (neighbouring corner samples
+   merge), and the spline skips samples crowding a neighbour (a step that short points across
+   the kink).
 2. The time-scaling of each piece: ``sigma`` runs at a constant speed between two ramps, each a
    smoothstep ``3x^2 - 2x^3`` in speed (acceleration continuous, one jerk sign change per
    ramp); of a few ramp lengths, the fastest is kept.
@@ -24,6 +27,11 @@ by it buzzes.
    of the piece, then scaled in time uniformly so that the tightest joint just reaches its
    velocity, acceleration or jerk limit (evaluated exactly; ``v ~ 1/k``, ``a ~ 1/k^2``,
    ``j ~ 1/k^3``).
+
+A line may blend into the move before or after it (``moving`` in :func:`smooth_lines`): that
+end has no ramp, the path spline is clamped there to the samples' own tangent (a one-sided fit),
+and the spline in time passes it with the cruise velocity and acceleration along the path
+(:func:`line_end_states`), which the neighbouring move meets as its via state.
 
 Jerk follows the path's own third derivative and the ramps instead of switching: a few sign
 changes per joint and piece. A line running along a joint limit has samples exactly at it, and
@@ -44,7 +52,7 @@ from planner.core.arrays import read_only
 from planner.motion.limits import JointLimits
 from planner.motion.trajectory import LIMIT_TOLERANCE, JointTrajectory
 
-__all__ = ["rest_to_rest_spline", "smooth_lines"]
+__all__ = ["line_end_states", "path_corners", "rest_to_rest_spline", "smooth_lines"]
 
 
 def _knots(t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -62,16 +70,26 @@ def _knots(t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 
 def rest_to_rest_spline(
-    t: np.ndarray, q: np.ndarray
+    t: np.ndarray,
+    q: np.ndarray,
+    start_velocity: np.ndarray | None = None,
+    end_velocity: np.ndarray | None = None,
+    start_acceleration: np.ndarray | None = None,
+    end_acceleration: np.ndarray | None = None,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """The C2 cubic spline through ``q[k]`` at ``t[k]``, at rest (v = a = 0) at both ends.
 
     Solved for the second derivatives at the knots (a tridiagonal system, linear in the number
-    of samples): the positions at the two free knots follow from the zero end slopes.
+    of samples): the positions at the two free knots follow from the end slopes. An end may
+    move instead (a given velocity and acceleration): where a line blends into the next move.
 
     Args:
         t: Increasing times, shape (N,) with N >= 2 [s].
         q: Positions, shape (N, dof).
+        start_velocity: Velocity at t[0], shape (dof,); None is at rest.
+        end_velocity: Velocity at t[-1], shape (dof,); None is at rest.
+        start_acceleration: Acceleration at t[0], shape (dof,); None is zero.
+        end_acceleration: Acceleration at t[-1], shape (dof,); None is zero.
 
     Returns:
         ``(knots, p, v, a, j)``: interval start times, shape (M,) (M = N + 1), and the state and
@@ -86,12 +104,22 @@ def rest_to_rest_spline(
     y[known] = q[sample[known]]
     # The free knots 1 and m-1 take the end positions for now; their dependence on M moves left.
     y[1], y[m - 1] = q[0], q[-1]
+    a0 = np.zeros(q.shape[1]) if start_acceleration is None else np.asarray(start_acceleration, dtype=float)
+    a1 = np.zeros(q.shape[1]) if end_acceleration is None else np.asarray(end_acceleration, dtype=float)
+    if start_velocity is not None:
+        y[1] = y[1] + h[0] * np.asarray(start_velocity, dtype=float)
+    if end_velocity is not None:
+        y[m - 1] = y[m - 1] - h[m - 1] * np.asarray(end_velocity, dtype=float)
+    y[1] = y[1] + h[0] ** 2 * a0 / 3.0
+    y[m - 1] = y[m - 1] + h[m - 1] ** 2 * a1 / 3.0
     free = {1: h[0] ** 2 / 6.0, m - 1: h[m - 1] ** 2 / 6.0}  # y_f = y_end + alpha_f * M_f
     # Rows i = 1..m-1: h_{i-1} M_{i-1} + 2 (h_{i-1} + h_i) M_i + h_i M_{i+1} = r_i (M_0 = M_m = 0).
     rows = np.arange(1, m)
     sub, sup = h[rows - 1].copy(), h[rows].copy()
     diag = 2.0 * (h[rows - 1] + h[rows])
     rhs = 6.0 * ((y[rows + 1] - y[rows]) / h[rows, None] - (y[rows] - y[rows - 1]) / h[rows - 1, None])
+    rhs[0] -= h[0] * a0  # the known end moments M_0 = a0, M_m = a1
+    rhs[-1] -= h[m - 1] * a1
     for f, alpha in free.items():
         for i in (f - 1, f, f + 1):
             if not 1 <= i <= m - 1:
@@ -120,7 +148,7 @@ def rest_to_rest_spline(
         cp[k] = sup[k] / den
         dp[k] = (rhs[k] - sub[k] * dp[k - 1]) / den
     moments = np.zeros((m + 1, q.shape[1]))
-    moments[n] = dp[n - 1]
+    moments[0], moments[m] = a0, a1
     for k in range(n - 2, -1, -1):
         dp[k] -= cp[k] * dp[k + 1]
     moments[1:m] = dp
@@ -137,22 +165,33 @@ KNOT_SPACING = 0.01
 CORNER_ANGLE = 0.1
 #: Ramp lengths tried, as fractions of the time at constant speed (1: the ramps meet).
 _RAMPS = (0.1, 0.2, 0.3, 0.45, 0.65, 1.0)
+#: Shortest step between the samples the path spline passes, over the median step.
+NODE_GAP = 0.2
 #: Largest move of a knot off a joint bound the spline may make [rad or m].
 MAX_NUDGE = 1e-3
 
 
 def smooth_lines(
-    trajectory: JointTrajectory, stretches: Sequence[tuple[int, int]], *, max_stretch: float = 1.25
+    trajectory: JointTrajectory,
+    stretches: Sequence[tuple[int, int]],
+    *,
+    max_stretch: float = 1.25,
+    moving: Sequence[tuple[bool, bool]] | None = None,
 ) -> tuple[JointTrajectory, int]:
     """Replace the trajectory between waypoints ``a`` and ``b`` of each stretch by a smooth motion.
 
     Args:
         trajectory: A trajectory that rests at waypoints ``a`` and ``b`` of each stretch (after
-            ``a``'s dwell) and passes the waypoints between them (the samples of a line).
+            ``a``'s dwell), unless `moving` says otherwise, and passes the waypoints between
+            them (the samples of a line).
         stretches: ``(a, b)`` waypoint index pairs, a < b, not overlapping.
         max_stretch: A stretch whose smooth motion takes longer than this factor times its
             chain keeps the chain (everything after a smoothed stretch moves by the time it
             adds or saves).
+        moving: Per stretch, whether it starts and ends moving (blending into the moves before
+            and after it) instead of at rest: then the trajectory must pass that end with the
+            velocity and acceleration :func:`line_end_states` gives (else the stretch
+            keeps its chain). None: every stretch rests at both ends.
 
     Returns:
         The trajectory with every stretch smoothed whose motion keeps every limit, and how many
@@ -163,20 +202,22 @@ def smooth_lines(
     traj = trajectory
     smoothed = 0
     lim = traj.limits
-    finite = np.concatenate([lim.lower[np.isfinite(lim.lower)], lim.upper[np.isfinite(lim.upper)]])
-    bound = max(1.0, float(np.max(np.abs(finite), initial=1.0)))
-    for a, b in sorted(stretches):
+    bound = _bound(lim)
+    order = sorted(range(len(stretches)), key=lambda i: stretches[i])
+    for i in order:
+        a, b = stretches[i]
+        rest = (True, True) if moving is None else (not moving[i][0], not moving[i][1])
         start = float(traj.waypoint_times[a] + traj.dwell[a])
         chain = float(traj.waypoint_times[b] - start)
         q = np.array(traj.waypoints[a : b + 1], dtype=float)
         if b - a < 1 or not chain > 0:
             continue
-        cuts = [0, *_corners(q, lim), len(q) - 1]
-        pieces = [_smooth_piece(q[i : k + 1], traj, bound) for i, k in zip(cuts, cuts[1:])]
-        if any(p is None for p in pieces):
+        pieces = _line_pieces(q, traj, bound, rest)
+        if pieces is None or sum(p[0][-1] for p in pieces) > max_stretch * chain:
             continue
-        if sum(p[0][-1] for p in pieces) > max_stretch * chain:
-            continue
+        start_state, end_state = _piece_end_states(pieces)
+        if not _matches(traj, a, start_state) or not _matches(traj, b, end_state):
+            continue  # the moves around it do not blend in with this velocity (range repair)
         t, pos, parts, offset = [np.zeros(1)], [q[:1]], [], 0.0
         for times, positions, knots, p, v, acc, j in pieces:
             t.append(offset + times[1:])
@@ -189,7 +230,80 @@ def smooth_lines(
     return traj, smoothed
 
 
-def _corners(q: np.ndarray, limits: JointLimits) -> list[int]:
+def line_end_states(
+    q: np.ndarray, limits: JointLimits, moving: tuple[bool, bool]
+) -> tuple[tuple[np.ndarray, np.ndarray], tuple[np.ndarray, np.ndarray]] | None:
+    """The joint velocities and accelerations a smoothed line (samples q (M, dof)) starts and ends with.
+
+    Where it blends into the move before or after it (`moving`), it passes that end at its
+    cruise speed along the path; the neighbouring move must meet that state.
+
+    Returns:
+        ``((v0, a0), (v1, a1))``, shapes (dof,); zeros for an end at rest; None if the line
+        has no smooth motion within the limits.
+    """
+    q = np.asarray(q, dtype=float)
+    template = _template(limits, q)
+    pieces = _line_pieces(q, template, _bound(limits), (not moving[0], not moving[1]))
+    return None if pieces is None else _piece_end_states(pieces)
+
+
+def _bound(lim: JointLimits) -> float:
+    finite = np.concatenate([lim.lower[np.isfinite(lim.lower)], lim.upper[np.isfinite(lim.upper)]])
+    return max(1.0, float(np.max(np.abs(finite), initial=1.0)))
+
+
+def _template(limits: JointLimits, q: np.ndarray) -> JointTrajectory:
+    """An empty trajectory with these limits, for :func:`_smooth_piece` to fill in."""
+    dof = q.shape[1]
+    zeros = np.zeros((1, dof))
+    return JointTrajectory.lazy(
+        lambda: (np.zeros(1), zeros, zeros, zeros, zeros),
+        duration=0.0,
+        waypoints=q[:1],
+        waypoint_times=np.zeros(1),
+        via_velocities=zeros,
+        via_accelerations=zeros,
+        dwell=np.zeros(1),
+        limits=limits,
+        strategy="line",
+        repaired=np.zeros((1, dof), dtype=bool),
+    )
+
+
+def _line_pieces(q: np.ndarray, template: JointTrajectory, bound: float, rest: tuple[bool, bool]) -> list | None:
+    """The smooth pieces between the corners of the samples q, or None if one has none."""
+    cuts = [0, *path_corners(q, template.limits), len(q) - 1]
+    pieces = []
+    for n, (i, k) in enumerate(zip(cuts, cuts[1:])):
+        ends = (rest[0] or n > 0, rest[1] or n < len(cuts) - 2)
+        piece = _smooth_piece(q[i : k + 1], template, bound, ends)
+        if piece is None:
+            return None
+        pieces.append(piece)
+    return pieces
+
+
+def _piece_end_states(pieces: list) -> tuple[tuple[np.ndarray, np.ndarray], tuple[np.ndarray, np.ndarray]]:
+    """Velocity and acceleration where the first piece starts and the last one ends."""
+    first, last = pieces[0], pieces[-1]
+    knots, _, v, acc, j = last[2:]
+    h = float(last[0][-1] - knots[-1])
+    end = (v[-1] + acc[-1] * h + j[-1] * h * h / 2.0, acc[-1] + j[-1] * h)
+    return (first[4][0].copy(), first[5][0].copy()), end
+
+
+def _matches(traj: JointTrajectory, k: int, state: tuple[np.ndarray, np.ndarray]) -> bool:
+    """Whether the trajectory passes waypoint k (after its dwell) with this velocity and acceleration."""
+    at = traj.sample(np.array([traj.waypoint_times[k] + traj.dwell[k]]))
+    lim = traj.limits
+    return bool(
+        np.all(np.abs(at.qd[0] - state[0]) <= 1e-9 * lim.velocity)
+        and np.all(np.abs(at.qdd[0] - state[1]) <= 1e-9 * lim.acceleration)
+    )
+
+
+def path_corners(q: np.ndarray, limits: JointLimits) -> list[int]:
     """Inner samples where the path turns a corner.
 
     A joint arriving at or leaving a range end (the sample at the end next to one inside it),
@@ -212,30 +326,76 @@ def _corners(q: np.ndarray, limits: JointLimits) -> list[int]:
     padded = np.concatenate([[0.0, 0.0], angle, [0.0, 0.0]])
     around = np.maximum(padded[:-4], padded[4:])
     turns = set(np.nonzero((angle > CORNER_ANGLE) & (angle > 3.0 * around))[0] + 1)
-    return sorted(int(k) for k in turns | at_end if 0 < k < len(q) - 1)
+    return _merge(sorted(int(k) for k in turns | at_end if 0 < k < len(q) - 1), on_end, h)
 
 
-def _natural_spline(x: np.ndarray, y: np.ndarray) -> np.ndarray:
-    """Second derivatives at the nodes of the natural cubic spline through ``y`` at ``x``, shape of y."""
+def _merge(corners: list[int], on_end: np.ndarray, steps: np.ndarray) -> list[int]:
+    """One corner per kink: corner samples a hair apart become the one where a joint sits at its end.
+
+    Samples closer than :data:`NODE_GAP` times the median step (speed-normalised joint space)
+    around a kink both read as corners (the turn, the arrival); stopping at each would stop
+    twice for one kink. Corners a real step apart stay apart: IK may jump there (the arm's
+    spare freedom turns while the tip waits), and the straight joint step between two stops
+    keeps the tip nearest the line.
+    """
+    gap = NODE_GAP * float(np.median(steps)) if len(steps) else 0.0
+    out: list[int] = []
+    group: list[int] = []
+    for k in corners:
+        if group and not float(np.sum(steps[group[-1] : k])) < gap:
+            out.append(_pick(group, on_end))
+            group = []
+        group.append(k)
+    if group:
+        out.append(_pick(group, on_end))
+    return out
+
+
+def _pick(group: list[int], on_end: np.ndarray) -> int:
+    """The middle one of a group of corner samples that sits at a range end (else of all)."""
+    ends = [k for k in group if np.any(on_end[k])] or group
+    return ends[len(ends) // 2]
+
+
+def _natural_spline(
+    x: np.ndarray, y: np.ndarray, slopes: tuple[np.ndarray | None, np.ndarray | None] = (None, None)
+) -> np.ndarray:
+    """Second derivatives at the nodes of the cubic spline through ``y`` at ``x``, shape of y.
+
+    Natural (zero second derivative) at an end whose slope is None, else clamped to that slope.
+    """
     n = len(x)
-    moments = np.zeros_like(y)
-    if n < 3:
-        return moments
+    if n < 2 or (n < 3 and slopes == (None, None)):
+        return np.zeros_like(y)
     h = np.diff(x)
-    diag = 2.0 * (h[:-1] + h[1:])
-    off = h[1:-1]
-    rhs = 6.0 * ((y[2:] - y[1:-1]) / h[1:, None] - (y[1:-1] - y[:-2]) / h[:-1, None])
-    m = n - 2
-    cp, dp = np.zeros(m), np.zeros_like(rhs)
-    cp[0], dp[0] = (off[0] / diag[0] if m > 1 else 0.0), rhs[0] / diag[0]
-    for k in range(1, m):
-        den = diag[k] - off[k - 1] * cp[k - 1]
-        cp[k] = off[k] / den if k < m - 1 else 0.0
-        dp[k] = (rhs[k] - off[k - 1] * dp[k - 1]) / den
-    for k in range(m - 2, -1, -1):
+    sub, diag, sup = np.zeros(n), np.ones(n), np.zeros(n)
+    rhs = np.zeros_like(y)
+    sub[1:-1], diag[1:-1], sup[1:-1] = h[:-1], 2.0 * (h[:-1] + h[1:]), h[1:]
+    rhs[1:-1] = 6.0 * ((y[2:] - y[1:-1]) / h[1:, None] - (y[1:-1] - y[:-2]) / h[:-1, None])
+    if slopes[0] is not None:
+        diag[0], sup[0] = 2.0 * h[0], h[0]
+        rhs[0] = 6.0 * ((y[1] - y[0]) / h[0] - slopes[0])
+    if slopes[1] is not None:
+        sub[-1], diag[-1] = h[-1], 2.0 * h[-1]
+        rhs[-1] = 6.0 * (slopes[1] - (y[-1] - y[-2]) / h[-1])
+    cp, dp = np.zeros(n), np.zeros_like(rhs)
+    cp[0], dp[0] = sup[0] / diag[0], rhs[0] / diag[0]
+    for k in range(1, n):
+        den = diag[k] - sub[k] * cp[k - 1]
+        cp[k] = sup[k] / den
+        dp[k] = (rhs[k] - sub[k] * dp[k - 1]) / den
+    for k in range(n - 2, -1, -1):
         dp[k] -= cp[k] * dp[k + 1]
-    moments[1:-1] = dp
-    return moments
+    return dp
+
+
+def _one_sided_slope(x: np.ndarray, y: np.ndarray, at_end: bool) -> np.ndarray:
+    """dy/dx at the first (or last) node from a least-squares quadratic through up to four nodes there."""
+    idx = np.arange(max(0, len(x) - 4), len(x)) if at_end else np.arange(min(4, len(x)))
+    h = x[idx] - x[idx[-1] if at_end else idx[0]]
+    scale = float(np.max(np.abs(h)))
+    coef, *_ = np.linalg.lstsq(np.vander(h / scale, min(3, len(idx)), increasing=True), y[idx], rcond=None)
+    return coef[1] / scale
 
 
 def _spline_at(x: np.ndarray, y: np.ndarray, moments: np.ndarray, xq: np.ndarray) -> np.ndarray:
@@ -246,21 +406,27 @@ def _spline_at(x: np.ndarray, y: np.ndarray, moments: np.ndarray, xq: np.ndarray
     return s0 * y[i] + s1 * y[i + 1] + h * h / 6.0 * ((s0**3 - s0) * moments[i] + (s1**3 - s1) * moments[i + 1])
 
 
-def _ramp_position(t: np.ndarray, total: float, ramp: float) -> np.ndarray:
-    """Distance covered at time ``t`` at unit cruise speed with smoothstep ramps of length ``ramp``.
+def _ramp_position(t: np.ndarray, total: float, ramps: tuple[float, float]) -> np.ndarray:
+    """Distance covered at time ``t`` at unit cruise speed with smoothstep ramps ``(up, down)`` long.
 
-    The speed rises as ``3x^2 - 2x^3`` (x = t / ramp), stays at 1, and falls symmetrically to
-    rest at ``total``; the distance at ``total`` is ``total - ramp``.
+    The speed rises as ``3x^2 - 2x^3`` (x = t / up), stays at 1, and falls the same way to rest
+    at ``total``; a ramp of length 0 is none (the piece starts or ends at cruise speed). The
+    distance at ``total`` is ``total - (up + down) / 2``.
     """
-    x = np.clip(t / ramp, 0.0, 1.0)
-    y = np.clip((total - t) / ramp, 0.0, 1.0)
-    out = np.where(t < ramp, ramp * (x**3 - x**4 / 2.0), ramp / 2.0 + (t - ramp))
-    return np.where(t > total - ramp, (total - ramp) - ramp * (y**3 - y**4 / 2.0), out)
+    up, down = ramps
+    out = t - up / 2.0
+    if up > 0:
+        x = np.clip(t / up, 0.0, 1.0)
+        out = np.where(t < up, up * (x**3 - x**4 / 2.0), out)
+    if down > 0:
+        y = np.clip((total - t) / down, 0.0, 1.0)
+        out = np.where(t > total - down, (total - (up + down) / 2.0) - down * (y**3 - y**4 / 2.0), out)
+    return out
 
 
-def _time_grid(total: float, ramp: float) -> np.ndarray:
+def _time_grid(total: float, ramps: tuple[float, float]) -> np.ndarray:
     """Knot times: evenly spaced within each ramp and the cruise, the jerk steps on knots."""
-    ends = [0.0, ramp, total - ramp, total]
+    ends = [0.0, ramps[0], total - ramps[1], total]
     parts = [np.zeros(1)]
     for a, b in zip(ends, ends[1:]):
         if b - a > 1e-12 * total:
@@ -268,18 +434,31 @@ def _time_grid(total: float, ramp: float) -> np.ndarray:
     return np.concatenate(parts)
 
 
-def _ramp_time(s: np.ndarray, total: float, ramp: float) -> np.ndarray:
+def _ramp_time(s: np.ndarray, total: float, ramps: tuple[float, float]) -> np.ndarray:
     """Inverse of :func:`_ramp_position` (bisection; the distance only grows)."""
     lo, hi = np.zeros_like(s), np.full_like(s, total)
     for _ in range(60):
         mid = (lo + hi) / 2.0
-        below = _ramp_position(mid, total, ramp) < s
+        below = _ramp_position(mid, total, ramps) < s
         lo, hi = np.where(below, mid, lo), np.where(below, hi, mid)
     return (lo + hi) / 2.0
 
 
-def _smooth_piece(q: np.ndarray, template: JointTrajectory, bound: float) -> tuple | None:
-    """The fastest smooth rest-to-rest motion along the samples q (M, dof) within every limit.
+def _end_slopes(x: np.ndarray, y: np.ndarray, moments: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """dq/dsigma of the spline (nodes x, values y, second derivatives moments) at its two ends."""
+    h0, h1 = x[1] - x[0], x[-1] - x[-2]
+    first = (y[1] - y[0]) / h0 - h0 * (2.0 * moments[0] + moments[1]) / 6.0
+    last = (y[-1] - y[-2]) / h1 + h1 * (moments[-2] + 2.0 * moments[-1]) / 6.0
+    return first, last
+
+
+def _smooth_piece(
+    q: np.ndarray, template: JointTrajectory, bound: float, rest: tuple[bool, bool] = (True, True)
+) -> tuple | None:
+    """The fastest smooth motion along the samples q (M, dof) within every limit.
+
+    `rest` says whether it starts and ends at rest; an end not at rest is passed at the
+    cruise speed (zero acceleration), to blend into the move before or after it.
 
     Returns:
         ``(t, positions, knots, p, v, a, j)`` from time 0: the times at which the samples are
@@ -291,20 +470,31 @@ def _smooth_piece(q: np.ndarray, template: JointTrajectory, bound: float) -> tup
     length = float(sigma[-1])
     if not np.all(steps > 0):
         return None  # a repeated sample: no path parameter through it
-    moments = _natural_spline(sigma, q)
+    nodes = _spline_nodes(sigma)
+    q_nodes, sigma_nodes = q[nodes], sigma[nodes]
+    # An end passed moving keeps the path's own direction there (a natural end would straighten it).
+    moments = _natural_spline(
+        sigma_nodes,
+        q_nodes,
+        tuple(None if r else _one_sided_slope(sigma_nodes, q_nodes, end) for r, end in zip(rest, (False, True))),
+    )
     lower = np.where(np.isfinite(lim.lower), lim.lower, -np.inf)
     upper = np.where(np.isfinite(lim.upper), lim.upper, np.inf)
+    slopes = _end_slopes(sigma_nodes, q_nodes, moments)
     best = None
     for fraction in _RAMPS:
-        total, ramp = length * (1.0 + fraction), length * fraction
-        grid = _time_grid(total, ramp)
-        s = np.clip(_ramp_position(grid, total, ramp), 0.0, length)
-        qk = np.clip(_spline_at(sigma, q, moments, s), lower, upper)
+        ramps = (length * fraction if rest[0] else 0.0, length * fraction if rest[1] else 0.0)
+        total = length + (ramps[0] + ramps[1]) / 2.0
+        grid = _time_grid(total, ramps)
+        s = np.clip(_ramp_position(grid, total, ramps), 0.0, length)
+        qk = np.clip(_spline_at(sigma_nodes, q_nodes, moments, s), lower, upper)
         qk[0], qk[-1] = q[0], q[-1]
         scale, ok = 1.0, False
         for _ in range(8):
             t = grid * scale
-            knots, p, v, acc, j = rest_to_rest_spline(t, qk)
+            ends = [None if at_rest else slope / scale for at_rest, slope in zip(rest, slopes)]
+            curves = [None if at_rest else bend / scale**2 for at_rest, bend in zip(rest, (moments[0], moments[-1]))]
+            knots, p, v, acc, j = rest_to_rest_spline(t, qk, *ends, *curves)
             alone = replace(template, knots=knots, p=p, v=v, a=acc, j=j, duration=float(t[-1]))
             peaks = alone.peak_ratios(None)
             if peaks["position"] > LIMIT_TOLERANCE * bound:
@@ -321,12 +511,28 @@ def _smooth_piece(q: np.ndarray, template: JointTrajectory, bound: float) -> tup
         if not ok:
             continue
         if best is None or t[-1] < best[0][-1]:
-            at = _ramp_time(sigma, total, ramp) * scale
+            at = _ramp_time(sigma, total, ramps) * scale
             at[0], at[-1] = 0.0, t[-1]
             best = (at, alone.sample(at).q, knots, p, v, acc, j)
     if best is not None:
         best[1][0], best[1][-1] = q[0], q[-1]
     return best
+
+
+def _spline_nodes(sigma: np.ndarray) -> np.ndarray:
+    """Indices of the samples the path spline passes: all but those crowding a neighbour.
+
+    A sample closer than :data:`NODE_GAP` times the median step to the node before it (or to
+    the piece's end) is left out: there the line was bisected to bracket a corner, and a step
+    that short points across the corner, which a spline through it would ring around.
+    """
+    gap = NODE_GAP * float(np.median(np.diff(sigma)))
+    keep = [0]
+    for i in range(1, len(sigma) - 1):
+        if sigma[i] - sigma[keep[-1]] >= gap and sigma[-1] - sigma[i] >= gap:
+            keep.append(i)
+    keep.append(len(sigma) - 1)
+    return np.array(keep)
 
 
 def _nudge(q: np.ndarray, spline: JointTrajectory, lower: np.ndarray, upper: np.ndarray) -> bool:
