@@ -182,6 +182,8 @@ class SegmentSolver:
         # One Ruckig input per segment (made when first used), holding its positions: the
         # searches alternate between the two segments next to a via.
         self._inputs: list[InputParameter | None] = [None] * (len(q) - 1)
+        # Per input, the cache key of the states it holds (None: unknown).
+        self._held: list[tuple | None] = [None] * (len(q) - 1)
         # Per segment, the joints that do not move: only they can go out and back on one
         # parabola, which Ruckig 0.19 cannot take (see _on_one_parabola).
         still = np.abs(np.diff(q, axis=0)) <= 1e-9 * np.maximum(1.0, np.abs(q[1:]))
@@ -217,13 +219,19 @@ class SegmentSolver:
         key = (k, va.tobytes(), aa.tobytes(), vb.tobytes(), ab.tobytes())
         hit = self._cache.get(key)
         if hit is None:
-            hit = self._cache[key] = self._solve(k, va, aa, vb, ab)
+            hit = self._cache[key] = self._solve(k, va, aa, vb, ab, key)
         if keep and hit[2] is not None:
             return self._unsynchronise_missed(k, hit, va, aa, vb, ab)
         return hit
 
-    def _input(self, k: int, va: np.ndarray, aa: np.ndarray, vb: np.ndarray, ab: np.ndarray) -> InputParameter:
-        """Ruckig's input for segment k between the given states."""
+    def _input(
+        self, k: int, va: np.ndarray, aa: np.ndarray, vb: np.ndarray, ab: np.ndarray, key: tuple | None = None
+    ) -> InputParameter:
+        """Ruckig's input for segment k between the given states.
+
+        `key` is the states' cache key (:meth:`solve`): an end state the input already holds
+        (a line search changes one end of a segment) is not set again.
+        """
         inp = self._inputs[k]
         if inp is None:
             inp = self._inputs[k] = InputParameter(self.dof)
@@ -232,22 +240,26 @@ class SegmentSolver:
             inp.target_position = self.rows[k + 1]
             if self.min_durations is not None and self.min_durations[k] > 0:
                 inp.minimum_duration = float(self.min_durations[k])
-        inp.current_velocity = va.tolist()
-        inp.current_acceleration = aa.tolist()
-        inp.target_velocity = vb.tolist()
-        inp.target_acceleration = ab.tolist()
+        held = self._held[k]
+        if key is None or held is None or key[1] != held[1] or key[2] != held[2]:
+            inp.current_velocity = va.tolist()
+            inp.current_acceleration = aa.tolist()
+        if key is None or held is None or key[3] != held[3] or key[4] != held[4]:
+            inp.target_velocity = vb.tolist()
+            inp.target_acceleration = ab.tolist()
+        self._held[k] = key
         return inp
 
     def _solve(
-        self, k: int, va: np.ndarray, aa: np.ndarray, vb: np.ndarray, ab: np.ndarray
+        self, k: int, va: np.ndarray, aa: np.ndarray, vb: np.ndarray, ab: np.ndarray, key: tuple | None = None
     ) -> tuple[float, np.ndarray | None, RuckigTrajectory | None]:
-        """:meth:`solve` without the cache (and without `keep`)."""
+        """:meth:`solve` without the cache (and without `keep`); `key` as for :meth:`_input`."""
         still = self._still[k]
         if still is not None and self._on_one_parabola(still, va, aa, vb, ab):
             return math.inf, None, None
         traj = RuckigTrajectory(self.dof)
         try:
-            result = self.otg.calculate(self._input(k, va, aa, vb, ab), traj)
+            result = self.otg.calculate(self._input(k, va, aa, vb, ab, key), traj)
         except RuckigError:  # Ruckig's own failure on an input it accepts: no profile from it
             return math.inf, None, None
         if result not in _SOLVED:
