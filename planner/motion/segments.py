@@ -264,7 +264,16 @@ class SegmentSolver:
             return math.inf, None, None
         if result not in _SOLVED:
             return math.inf, None, None
-        return traj.duration, self._outside(traj) if self.bounded else None, traj
+        if self.bounded:
+            extrema = traj.position_extrema
+            for e, lo, hi in zip(extrema, self._lows, self._highs):
+                if e.min < lo or e.max > hi:
+                    return traj.duration, self._outside_mask(extrema), traj
+        return traj.duration, None, traj
+
+    def _outside_mask(self, extrema: list) -> np.ndarray:
+        """The joints whose Ruckig extrema lie outside their range (bool mask)."""
+        return np.array([e.min < lo or e.max > hi for e, lo, hi in zip(extrema, self._lows, self._highs)])
 
     def _outside(self, traj: RuckigTrajectory) -> np.ndarray | None:
         """The joints that Ruckig's extrema put outside their range (bool mask), or None."""
@@ -272,7 +281,7 @@ class SegmentSolver:
             extrema = traj.position_extrema
             for e, lo, hi in zip(extrema, self._lows, self._highs):
                 if e.min < lo or e.max > hi:
-                    return np.array([e.min < lo or e.max > hi for e, lo, hi in zip(extrema, self._lows, self._highs)])
+                    return self._outside_mask(extrema)
         return None
 
     @staticmethod

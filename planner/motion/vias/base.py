@@ -104,8 +104,7 @@ class ViaChain:
         With `admissible`, `ca` already obeys :func:`admissible_acceleration` for `cv`.
         """
         cv = np.array(cv, dtype=float)
-        ca = np.asarray(ca, dtype=float)
-        ca = ca.copy() if admissible else admissible_acceleration(cv, ca, self.limits)
+        ca = np.array(ca, dtype=float) if admissible else admissible_acceleration(cv, ca, self.limits)
         for attempt in range(SEARCH_HALVINGS + 1):
             d1, bad1, _ = self.seg.solve(i - 1, self.v[i - 1], self.acc[i - 1], cv, ca)
             d2, bad2, _ = self.seg.solve(i, cv, ca, self.v[i + 1], self.acc[i + 1])
