@@ -224,6 +224,35 @@ class SegmentSolver:
             return self._unsynchronise_missed(k, hit, va, aa, vb, ab)
         return hit
 
+    def solve_around(
+        self, i: int, va: np.ndarray, aa: np.ndarray, cv: np.ndarray, ca: np.ndarray, vb: np.ndarray, ab: np.ndarray
+    ) -> tuple[tuple[float, np.ndarray | None, RuckigTrajectory | None], ...]:
+        """:meth:`solve` of segments i-1 and i with state (cv, ca) at waypoint i between them.
+
+        Args:
+            i: The waypoint, 0 < i < N-1.
+            va: Velocities at waypoint i-1, shape (dof,); `aa` its accelerations.
+            aa: Accelerations at waypoint i-1, shape (dof,).
+            cv: Velocities at waypoint i, shape (dof,).
+            ca: Accelerations at waypoint i, shape (dof,).
+            vb: Velocities at waypoint i+1, shape (dof,).
+            ab: Accelerations at waypoint i+1, shape (dof,).
+
+        Returns:
+            The answers of both segments, as :meth:`solve` gives them.
+        """
+        bv, ba = cv.tobytes(), ca.tobytes()
+        cache = self._cache
+        key = (i - 1, va.tobytes(), aa.tobytes(), bv, ba)
+        first = cache.get(key)
+        if first is None:
+            first = cache[key] = self._solve(i - 1, va, aa, cv, ca, key)
+        key = (i, bv, ba, vb.tobytes(), ab.tobytes())
+        second = cache.get(key)
+        if second is None:
+            second = cache[key] = self._solve(i, cv, ca, vb, ab, key)
+        return first, second
+
     def _input(
         self, k: int, va: np.ndarray, aa: np.ndarray, vb: np.ndarray, ab: np.ndarray, key: tuple | None = None
     ) -> InputParameter:
