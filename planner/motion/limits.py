@@ -150,6 +150,12 @@ class JointLimits:
         )
 
     @cached_property
+    def finite_bounds(self) -> tuple[tuple[float, ...], tuple[float, ...]]:
+        """:attr:`finite_range` as tuples of floats (lower, upper)."""
+        lower, upper = self.finite_range
+        return tuple(lower.tolist()), tuple(upper.tolist())
+
+    @cached_property
     def ruckig_limits(self) -> tuple[tuple[float, ...], tuple[float, ...], tuple[float, ...]]:
         """Velocity, acceleration and jerk limits as tuples of floats, for Ruckig's ``InputParameter``."""
         return tuple(self.velocity.tolist()), tuple(self.acceleration.tolist()), tuple(self.jerk.tolist())

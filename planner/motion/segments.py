@@ -182,6 +182,8 @@ class SegmentSolver:
         # One Ruckig input per segment (made when first used), holding its positions: the
         # searches alternate between the two segments next to a via.
         self._inputs: list[InputParameter | None] = [None] * (len(q) - 1)
+        # Per input, the cache key of the states it holds (None: unknown).
+        self._held: list[tuple | None] = [None] * (len(q) - 1)
         # Per segment, the joints that do not move: only they can go out and back on one
         # parabola, which Ruckig 0.19 cannot take (see _on_one_parabola).
         still = np.abs(np.diff(q, axis=0)) <= 1e-9 * np.maximum(1.0, np.abs(q[1:]))
@@ -217,13 +219,48 @@ class SegmentSolver:
         key = (k, va.tobytes(), aa.tobytes(), vb.tobytes(), ab.tobytes())
         hit = self._cache.get(key)
         if hit is None:
-            hit = self._cache[key] = self._solve(k, va, aa, vb, ab)
+            hit = self._cache[key] = self._solve(k, va, aa, vb, ab, key)
         if keep and hit[2] is not None:
             return self._unsynchronise_missed(k, hit, va, aa, vb, ab)
         return hit
 
-    def _input(self, k: int, va: np.ndarray, aa: np.ndarray, vb: np.ndarray, ab: np.ndarray) -> InputParameter:
-        """Ruckig's input for segment k between the given states."""
+    def solve_around(
+        self, i: int, va: np.ndarray, aa: np.ndarray, cv: np.ndarray, ca: np.ndarray, vb: np.ndarray, ab: np.ndarray
+    ) -> tuple[tuple[float, np.ndarray | None, RuckigTrajectory | None], ...]:
+        """:meth:`solve` of segments i-1 and i with state (cv, ca) at waypoint i between them.
+
+        Args:
+            i: The waypoint, 0 < i < N-1.
+            va: Velocities at waypoint i-1, shape (dof,); `aa` its accelerations.
+            aa: Accelerations at waypoint i-1, shape (dof,).
+            cv: Velocities at waypoint i, shape (dof,).
+            ca: Accelerations at waypoint i, shape (dof,).
+            vb: Velocities at waypoint i+1, shape (dof,).
+            ab: Accelerations at waypoint i+1, shape (dof,).
+
+        Returns:
+            The answers of both segments, as :meth:`solve` gives them.
+        """
+        bv, ba = cv.tobytes(), ca.tobytes()
+        cache = self._cache
+        key = (i - 1, va.tobytes(), aa.tobytes(), bv, ba)
+        first = cache.get(key)
+        if first is None:
+            first = cache[key] = self._solve(i - 1, va, aa, cv, ca, key)
+        key = (i, bv, ba, vb.tobytes(), ab.tobytes())
+        second = cache.get(key)
+        if second is None:
+            second = cache[key] = self._solve(i, cv, ca, vb, ab, key)
+        return first, second
+
+    def _input(
+        self, k: int, va: np.ndarray, aa: np.ndarray, vb: np.ndarray, ab: np.ndarray, key: tuple | None = None
+    ) -> InputParameter:
+        """Ruckig's input for segment k between the given states.
+
+        `key` is the states' cache key (:meth:`solve`): an end state the input already holds
+        (a line search changes one end of a segment) is not set again.
+        """
         inp = self._inputs[k]
         if inp is None:
             inp = self._inputs[k] = InputParameter(self.dof)
@@ -232,27 +269,40 @@ class SegmentSolver:
             inp.target_position = self.rows[k + 1]
             if self.min_durations is not None and self.min_durations[k] > 0:
                 inp.minimum_duration = float(self.min_durations[k])
-        inp.current_velocity = va.tolist()
-        inp.current_acceleration = aa.tolist()
-        inp.target_velocity = vb.tolist()
-        inp.target_acceleration = ab.tolist()
+        held = self._held[k]
+        if key is None or held is None or key[1] != held[1] or key[2] != held[2]:
+            inp.current_velocity = va.tolist()
+            inp.current_acceleration = aa.tolist()
+        if key is None or held is None or key[3] != held[3] or key[4] != held[4]:
+            inp.target_velocity = vb.tolist()
+            inp.target_acceleration = ab.tolist()
+        self._held[k] = key
         return inp
 
     def _solve(
-        self, k: int, va: np.ndarray, aa: np.ndarray, vb: np.ndarray, ab: np.ndarray
+        self, k: int, va: np.ndarray, aa: np.ndarray, vb: np.ndarray, ab: np.ndarray, key: tuple | None = None
     ) -> tuple[float, np.ndarray | None, RuckigTrajectory | None]:
-        """:meth:`solve` without the cache (and without `keep`)."""
+        """:meth:`solve` without the cache (and without `keep`); `key` as for :meth:`_input`."""
         still = self._still[k]
         if still is not None and self._on_one_parabola(still, va, aa, vb, ab):
             return math.inf, None, None
         traj = RuckigTrajectory(self.dof)
         try:
-            result = self.otg.calculate(self._input(k, va, aa, vb, ab), traj)
+            result = self.otg.calculate(self._input(k, va, aa, vb, ab, key), traj)
         except RuckigError:  # Ruckig's own failure on an input it accepts: no profile from it
             return math.inf, None, None
         if result not in _SOLVED:
             return math.inf, None, None
-        return traj.duration, self._outside(traj) if self.bounded else None, traj
+        if self.bounded:
+            extrema = traj.position_extrema
+            for e, lo, hi in zip(extrema, self._lows, self._highs):
+                if e.min < lo or e.max > hi:
+                    return traj.duration, self._outside_mask(extrema), traj
+        return traj.duration, None, traj
+
+    def _outside_mask(self, extrema: list) -> np.ndarray:
+        """The joints whose Ruckig extrema lie outside their range (bool mask)."""
+        return np.array([e.min < lo or e.max > hi for e, lo, hi in zip(extrema, self._lows, self._highs)])
 
     def _outside(self, traj: RuckigTrajectory) -> np.ndarray | None:
         """The joints that Ruckig's extrema put outside their range (bool mask), or None."""
@@ -260,7 +310,7 @@ class SegmentSolver:
             extrema = traj.position_extrema
             for e, lo, hi in zip(extrema, self._lows, self._highs):
                 if e.min < lo or e.max > hi:
-                    return np.array([e.min < lo or e.max > hi for e, lo, hi in zip(extrema, self._lows, self._highs)])
+                    return self._outside_mask(extrema)
         return None
 
     @staticmethod

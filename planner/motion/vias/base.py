@@ -104,11 +104,10 @@ class ViaChain:
         With `admissible`, `ca` already obeys :func:`admissible_acceleration` for `cv`.
         """
         cv = np.array(cv, dtype=float)
-        ca = np.asarray(ca, dtype=float)
-        ca = ca.copy() if admissible else admissible_acceleration(cv, ca, self.limits)
+        ca = np.array(ca, dtype=float) if admissible else admissible_acceleration(cv, ca, self.limits)
+        va, aa, vb, ab = self.v[i - 1], self.acc[i - 1], self.v[i + 1], self.acc[i + 1]
         for attempt in range(SEARCH_HALVINGS + 1):
-            d1, bad1, _ = self.seg.solve(i - 1, self.v[i - 1], self.acc[i - 1], cv, ca)
-            d2, bad2, _ = self.seg.solve(i, cv, ca, self.v[i + 1], self.acc[i + 1])
+            (d1, bad1, _), (d2, bad2, _) = self.seg.solve_around(i, va, aa, cv, ca, vb, ab)
             if bad1 is None and bad2 is None:
                 return d1 + d2, cv, ca
             bad_any = (bad1 if bad1 is not None else False) | (bad2 if bad2 is not None else False)
