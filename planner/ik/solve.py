@@ -309,33 +309,38 @@ def closed_form_answer(
     """
     check = robot.derived.get(_TipCheck, lambda: _TipCheck(robot))
     raw = family.solutions
-    if seed is not None and raw:
-        distances: list[float | None] = check.distances(raw, seed)  # type: ignore[assignment]
-        order = sorted(range(len(raw)), key=distances.__getitem__)
-    else:
-        distances = [None] * len(raw)
-        order = list(range(len(raw)))
+    # The solutions within the limits, nearest to the seed first (a stable sort: the family's
+    # order among equal distances, as in the sorted list of all solutions, built when read).
+    within = [i for i, sol in enumerate(raw) if sol.within_limits]
+    if seed is not None and len(within) > 1:
+        near = check.distances([raw[i] for i in within], seed)
+        within = [within[k] for k in sorted(range(len(within)), key=near.__getitem__)]
     errors: dict[int, tuple[float, float]] = {}
     position_tolerance, orientation_tolerance = options.position_tolerance, options.orientation_tolerance
-    index = first = None
-    for i in order:
-        if raw[i].within_limits:
-            position_error, orientation_error = errors[i] = check.errors(target, raw[i].q)
-            if first is None:
-                first = i
-            if position_error <= position_tolerance and orientation_error <= orientation_tolerance:
-                index = i
-                break
+    index = None
+    first = within[0] if within else None
+    for i in within:
+        position_error, orientation_error = errors[i] = check.errors(target, raw[i].q)
+        if position_error <= position_tolerance and orientation_error <= orientation_tolerance:
+            index = i
+            break
 
-    def solution(i: int) -> IKSolution:
+    def solution(i: int, distance: float | None) -> IKSolution:
         """Solution i, its errors by Pinocchio FK (computed once)."""
         sol = raw[i]
         error = errors.get(i)
         if error is None:
             error = errors[i] = check.errors(target, sol.q)
-        return IKSolution(sol.q, sol.within_limits, sol.branch, *error, distances[i], sol.singular)
+        return IKSolution(sol.q, sol.within_limits, sol.branch, *error, distance, sol.singular)
 
-    solutions = LazySolutions(lambda: tuple(solution(i) for i in order))
+    def every_solution() -> tuple[IKSolution, ...]:
+        """Every solution, nearest to the seed first."""
+        if seed is None or not raw:
+            return tuple(solution(i, None) for i in range(len(raw)))
+        distances = check.distances(raw, seed)
+        return tuple(solution(i, distances[i]) for i in sorted(range(len(raw)), key=distances.__getitem__))
+
+    solutions = LazySolutions(every_solution)
     if index is not None:
         position_error, orientation_error = errors[index]
         return IKResult.from_solver(
