@@ -37,8 +37,18 @@ ratios of the calls' CPU times (``time.thread_time``, blind to time the process 
 shared machine) are given too.
 Written to benchmarks/results/bench_ik.md and the ``peers`` entry of bench_ik.json.
 
+Closed form vs NLP as users call them (issue 12, goal 3), printed next: on the seed arms with
+a closed form (shelley, dh3, three_joint, al5c) and every target kind the arm's closed form
+solves (position, position + pitch, pose), ``solve_ik(robot, target, seed)`` (the default
+method, which takes the closed form) and ``solve_ik(..., method="nlp")``, each call
+interleaved target by target with one ``robot.fk`` call and the family solver's own
+``solver.solve`` call (``--public-n`` targets, the main table's streams). The table gives
+median and p95 times, each median as a ratio to fk, and auto / nlp (below 1: the closed form
+is the faster through the public entry). Written to the ``public`` entry of bench_ik.json.
+
     python benchmarks/bench_ik.py [--n 1000] [--seed 0] [--robots ur5 panda] [--ipopt-baseline]
     python benchmarks/bench_ik.py --peers-only [--peer-n 500]
+    python benchmarks/bench_ik.py --public-only [--public-n 2000] [--out /tmp/bench_ik.json]
 """
 
 from __future__ import annotations
