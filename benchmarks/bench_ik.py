@@ -37,8 +37,18 @@ ratios of the calls' CPU times (``time.thread_time``, blind to time the process 
 shared machine) are given too.
 Written to benchmarks/results/bench_ik.md and the ``peers`` entry of bench_ik.json.
 
+Closed form vs NLP as users call them (issue 12, goal 3), printed next: on the seed arms with
+a closed form (shelley, dh3, three_joint, al5c) and every target kind the arm's closed form
+solves (position, position + pitch, pose), ``solve_ik(robot, target, seed)`` (the default
+method, which takes the closed form) and ``solve_ik(..., method="nlp")``, each call
+interleaved target by target with one ``robot.fk`` call and the family solver's own
+``solver.solve`` call (``--public-n`` targets, the main table's streams). The table gives
+median and p95 times, each median as a ratio to fk, and auto / nlp (below 1: the closed form
+is the faster through the public entry). Written to the ``public`` entry of bench_ik.json.
+
     python benchmarks/bench_ik.py [--n 1000] [--seed 0] [--robots ur5 panda] [--ipopt-baseline]
     python benchmarks/bench_ik.py --peers-only [--peer-n 500]
+    python benchmarks/bench_ik.py --public-only [--public-n 2000] [--out /tmp/bench_ik.json]
 """
 
 from __future__ import annotations
@@ -53,10 +63,22 @@ import numpy as np
 from ik_peers import PEERS, make_peer
 
 from planner import Robot, available_robots, load_robot, solve_ik
-from planner.app.benchmark import BUNDLED_KINDS, KINDS, ORIENTATION_TOL, POSITION_TOL, bench_robot, markdown, run_record
+from planner.app.benchmark import (
+    BUNDLED_KINDS,
+    KINDS,
+    ORIENTATION_TOL,
+    POSITION_TOL,
+    bench_robot,
+    make_target,
+    markdown,
+    run_record,
+    verify,
+)
 from planner.app.progress import progress
+from planner.exceptions import UnsupportedChainError
 from planner.geometry.target import Target
 from planner.ik.numeric.solver import NlpIK
+from planner.ik.solvers import IKSolvers
 from planner.model.catalog import EXAMPLE_ROBOTS, example_robot_data_dir
 
 RESULTS = Path(__file__).resolve().parent / "results"
@@ -150,6 +172,95 @@ def bench_peers(name: str, n: int, seed: int, peers: list[str]) -> dict:
     return out
 
 
+#: The arms with a closed form timed through solve_ik (``--public-robots``), and the target kinds tried.
+PUBLIC_ROBOTS = ("shelley", "dh3", "three_joint", "al5c")
+PUBLIC_KINDS = ("position", "pitch", "pose")
+
+
+def bench_public(name: str, kind: str, n: int, seed: int) -> dict | None:
+    """Closed form vs NLP as users call them: ``solve_ik`` (auto) and ``solve_ik(method="nlp")``.
+
+    Per target, interleaved (the order rotating from target to target): one ``robot.fk`` call
+    (the reference of the ratios), the family solver's own call (``solver.solve``), ``solve_ik``
+    with the default method (the closed form where the arm has one) and with ``method="nlp"``,
+    on the same targets and seeds (streams ``[seed, 1000]`` and ``[seed, 1001]``, as the main
+    table). Success as the main table (Pinocchio FK errors, within the limits).
+
+    Returns:
+        The row, or None when the arm's closed form does not solve this kind of target.
+    """
+    robot = load_robot(name)
+    analytic = IKSolvers.of(robot).analytic
+    if analytic is None:
+        return None
+    q_targets = robot.random_configurations(np.random.default_rng([seed, 1000]), n)
+    q_seeds = robot.random_configurations(np.random.default_rng([seed, 1001]), n)
+    targets = [make_target(robot, kind, q) for q in q_targets]
+    try:
+        if not all(analytic.solve(t, s).ok for t, s in zip(targets[:20], q_seeds[:20])):
+            return None
+    except UnsupportedChainError:
+        return None
+    calls = {
+        "fk": lambda i: robot.fk(q_targets[i]),
+        "solver": lambda i: analytic.solve(targets[i], q_seeds[i]),
+        "auto": lambda i: solve_ik(robot, targets[i], q_seeds[i]),
+        "nlp": lambda i: solve_ik(robot, targets[i], q_seeds[i], method="nlp"),
+    }
+    labels = list(calls)
+    for i in range(min(n, 50)):  # warm-up
+        for call in calls.values():
+            call(i)
+    times = {label: np.zeros(n) for label in labels}
+    ok = {label: np.zeros(n, dtype=bool) for label in ("auto", "nlp")}
+    methods = set()
+    clock = time.perf_counter
+    for i in progress(range(n), label=f"{name} {kind} solve_ik"):
+        for shift in range(len(labels)):
+            label = labels[(i + shift) % len(labels)]
+            call = calls[label]
+            t0 = clock()
+            out = call(i)
+            times[label][i] = clock() - t0
+            if label in ok:
+                ok[label][i] = verify(robot, targets[i], out.q)[0] and out.success
+                if label == "auto":
+                    methods.add(out.method)
+    med = {label: float(np.median(times[label])) for label in labels}
+    p95 = {label: float(np.percentile(times[label], 95)) for label in labels}
+    return {
+        "robot": name,
+        "kind": kind,
+        "n": n,
+        "fk_us": med["fk"] * 1e6,
+        **{f"{label}_median_us": med[label] * 1e6 for label in labels[1:]},
+        **{f"{label}_p95_us": p95[label] * 1e6 for label in labels[1:]},
+        **{f"{label}_fk": med[label] / med["fk"] for label in labels[1:]},
+        "auto_methods": sorted(methods),
+        "auto_solve_rate": float(ok["auto"].mean()),
+        "nlp_solve_rate": float(ok["nlp"].mean()),
+        "auto_over_nlp": med["auto"] / med["nlp"],
+        "auto_over_solver": med["auto"] / med["solver"],
+    }
+
+
+def public_markdown(rows: list[dict]) -> str:
+    """The solve_ik comparison as a Markdown table (times in us, ratios to fk in brackets)."""
+    lines = [
+        "| robot | target | auto answered by | solver.solve us (x fk) | solve_ik auto us (x fk) | p95 us "
+        "| solve_ik nlp us (x fk) | p95 us | auto / nlp | solved auto / nlp |",
+        "|" + "---|" * 10,
+    ]
+    for r in rows:
+        lines.append(
+            f"| {r['robot']} | {r['kind']} | {', '.join(r['auto_methods'])} "
+            f"| {r['solver_median_us']:.1f} ({r['solver_fk']:.2f}) | {r['auto_median_us']:.1f} ({r['auto_fk']:.2f}) "
+            f"| {r['auto_p95_us']:.1f} | {r['nlp_median_us']:.1f} ({r['nlp_fk']:.2f}) | {r['nlp_p95_us']:.1f} "
+            f"| **{r['auto_over_nlp']:.2f}** | {100 * r['auto_solve_rate']:.1f} % / {100 * r['nlp_solve_rate']:.1f} % |"
+        )
+    return "\n".join(lines)
+
+
 def peers_markdown(rows: list[dict]) -> str:
     """The side-by-side table: solve rate, median and p95 [ms] per solver, ratios planner / ik_LM."""
     peers = [p for p in PEERS if any(p in r["solvers"] for r in rows)]
@@ -192,9 +303,12 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--peers", nargs="*", default=list(PEERS), choices=list(PEERS), help="peers to compare with")
     parser.add_argument("--arms", nargs="*", default=list(PEER_ARMS), choices=list(PEER_ARMS), help="arms of the peers")
     parser.add_argument("--no-peers", action="store_true", help="skip the comparison with the peers")
+    parser.add_argument("--public-n", type=int, default=2000, help="targets per arm and kind through solve_ik")
+    parser.add_argument("--public-only", action="store_true", help="only closed form vs NLP through solve_ik")
+    parser.add_argument("--no-public", action="store_true", help="skip closed form vs NLP through solve_ik")
     args = parser.parse_args(argv)
-    if args.n < 1 or args.peer_n < 1:
-        parser.error("--n and --peer-n must be >= 1")
+    if args.n < 1 or args.peer_n < 1 or args.public_n < 1:
+        parser.error("--n, --peer-n and --public-n must be >= 1")
     peer_rows = []
     if not args.no_peers:
         if example_robot_data_dir() is None:
@@ -218,6 +332,19 @@ def main(argv: list[str] | None = None) -> int:
             print(f"wrote {md}")
     if args.peers_only:
         _write(args.out, {"peers": peer_rows}, merge=True)
+        return 0
+    public_rows = []
+    if not args.no_public:
+        arms = [r for r in (args.robots or PUBLIC_ROBOTS) if r in PUBLIC_ROBOTS]
+        public_rows = [
+            row for name in arms for kind in PUBLIC_KINDS if (row := bench_public(name, kind, args.public_n, args.seed))
+        ]
+        if public_rows:
+            print("Closed form vs NLP through solve_ik (interleaved; ratios to one robot.fk call in brackets):\n")
+            print(public_markdown(public_rows))
+            print()
+    if args.public_only:
+        _write(args.out, {"public": public_rows}, merge=True)
         return 0
     names = args.robots or list(available_robots())
     skipped = [n for n in ("ur5", "panda", "so101", "z1") if n not in available_robots()]
@@ -257,8 +384,9 @@ def main(argv: list[str] | None = None) -> int:
         "overall": overall,
         "table": table,
         "peers": peer_rows,
+        "public": public_rows,
     }
-    _write(args.out, record, merge=bool(args.no_peers))
+    _write(args.out, record, merge=bool(args.no_peers or args.no_public))
     print(f"\nwrote {args.out}")
     if args.plot is not None:
         from planner.app.plots import plot_ik_benchmark

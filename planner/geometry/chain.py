@@ -349,17 +349,23 @@ def wrap_scalar(x: float, lower: float, upper: float, ref: float) -> float:
     violation it shows is the smallest). Values within :data:`LIMIT_SNAP` outside a limit are
     set onto it.
     """
-    x = x + TWO_PI * round((ref - x) / TWO_PI)
+    turns = (ref - x) / TWO_PI
+    # round() of a turn count within half a turn is 0: skip the call (x + 0.0 keeps -0.0 -> 0.0).
+    x = x + 0.0 if -0.5 <= turns <= 0.5 else x + TWO_PI * round(turns)
+    if lower <= x <= upper:
+        return x  # the common case: inside the range, nothing to snap
     if x > upper:
-        if x - TWO_PI >= lower - LIMIT_SNAP or (x - upper) > (lower - (x - TWO_PI)):
-            x -= TWO_PI
-    elif x < lower:
-        if x + TWO_PI <= upper + LIMIT_SNAP or (lower - x) > ((x + TWO_PI) - upper):
-            x += TWO_PI
+        down = x - TWO_PI
+        if down >= lower - LIMIT_SNAP or (x - upper) > (lower - down):
+            x = down
+    else:
+        up = x + TWO_PI
+        if up <= upper + LIMIT_SNAP or (lower - x) > (up - upper):
+            x = up
     if upper < x <= upper + LIMIT_SNAP:
-        x = upper
-    elif lower - LIMIT_SNAP <= x < lower:
-        x = lower
+        return upper
+    if lower - LIMIT_SNAP <= x < lower:
+        return lower
     return x
 
 

@@ -273,7 +273,11 @@ def tip_errors(
         sin = 0.5 * math.sqrt((r21 - r12) ** 2 + (r02 - r20) ** 2 + (r10 - r01) ** 2)
         return position_error, math.atan2(sin, min(1.0, max(-1.0, cos)))
     if target.pitch is not None:
-        return position_error, pitch_error(rotation @ approach_axis, target.position, target.pitch)
+        # pitch_error's scalar path, without its array conversions.
+        ax, ay, az = (rotation @ approach_axis).tolist()
+        pitch = target.pitch
+        cos_p, sin_p = math.cos(pitch), math.sin(pitch)
+        return position_error, pitch_error_scalar(ax, ay, az, tx, ty, cos_p, sin_p, math.atan2(sin_p, abs(cos_p)))
     return position_error, 0.0
 
 

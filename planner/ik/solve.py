@@ -11,11 +11,13 @@ answers), each marked within the joint limits or not, nearest to the seed first.
 from __future__ import annotations
 
 import dataclasses
+import math
 import time
 from collections.abc import Sequence
 from typing import Literal
 
 import numpy as np
+import pinocchio as pin
 
 from planner.collision.checker import CollisionChecker
 from planner.exceptions import InvalidArgumentError, UnsupportedChainError
@@ -231,6 +233,53 @@ def _numeric(
     return solvers.nlp.solve(target, seed, options, extra_seeds=extra)
 
 
+class _TipCheck:
+    """What verifying closed-form answers by Pinocchio FK needs of one robot, looked up once.
+
+    Kept in ``robot.derived``: a call of a few microseconds should not pay for finding the
+    joint kinds, the model and the tip frame again.
+    """
+
+    def __init__(self, robot: Robot) -> None:
+        self.robot = robot
+        self.model, self.data, self.frame = robot.model, robot.data, robot.tip_frame_id
+        # Pinocchio takes q as it is unless a continuous joint needs (cos, sin): then Robot.tip_pose.
+        self.direct = "continuous" not in robot.joint_kinds
+        self.axis = robot.approach_axis
+        self.angular = angular_joints(robot)
+        self.all_angular = all(self.angular)
+
+    def errors(self, target: Target, q: np.ndarray) -> tuple[float, float]:
+        """Position [m] and orientation [rad] errors of ``q`` by Pinocchio FK (:func:`tip_errors`)."""
+        if self.direct:
+            pin.forwardKinematics(self.model, self.data, q)
+            placement = pin.updateFramePlacement(self.model, self.data, self.frame)
+            if target.rotation is None and target.pitch is None:
+                (x, y, z), (tx, ty, tz) = placement.translation.tolist(), target.position.tolist()
+                return math.sqrt((x - tx) ** 2 + (y - ty) ** 2 + (z - tz) ** 2), 0.0
+            return tip_errors(target, placement.translation, placement.rotation, self.axis)
+        position, rotation = self.robot.tip_pose(q)
+        return tip_errors(target, position, rotation, self.axis)
+
+    def distances(self, solutions: Sequence, seed: np.ndarray) -> list[float]:
+        """:func:`wrapped_distance` of each solution's ``q`` to the seed, on Python floats."""
+        reference = seed.tolist()
+        if not self.all_angular:
+            return [wrapped_distance(sol.q.tolist(), reference, self.angular) for sol in solutions]
+        pi, two_pi, sqrt = math.pi, _TWO_PI, math.sqrt
+        out = []
+        for sol in solutions:
+            total = 0.0
+            for a, b in zip(sol.q.tolist(), reference):
+                d = (a - b + pi) % two_pi - pi
+                total += d * d
+            out.append(sqrt(total))
+        return out
+
+
+_TWO_PI = 2.0 * math.pi
+
+
 def closed_form_answer(
     robot: Robot,
     target: Target,
@@ -258,60 +307,71 @@ def closed_form_answer(
         family's; with solutions within the limits that all miss the target by Pinocchio FK,
         ``status`` is ``"inaccurate"``.
     """
+    check = robot.derived.get(_TipCheck, lambda: _TipCheck(robot))
     raw = family.solutions
-    order = list(range(len(raw)))
-    distances: list[float | None] = [None] * len(raw)
-    if seed is not None and raw:
-        angular, reference = angular_joints(robot), seed.tolist()
-        distances = [wrapped_distance(sol.q, reference, angular) for sol in raw]
-        order.sort(key=distances.__getitem__)
+    # The solutions within the limits, nearest to the seed first (a stable sort: the family's
+    # order among equal distances, as in the sorted list of all solutions, built when read).
+    within = [i for i, sol in enumerate(raw) if sol.within_limits]
+    if seed is not None and len(within) > 1:
+        near = check.distances([raw[i] for i in within], seed)
+        within = [within[k] for k in sorted(range(len(within)), key=near.__getitem__)]
     errors: dict[int, tuple[float, float]] = {}
+    position_tolerance, orientation_tolerance = options.position_tolerance, options.orientation_tolerance
+    index = None
+    first = within[0] if within else None
+    for i in within:
+        position_error, orientation_error = errors[i] = check.errors(target, raw[i].q)
+        if position_error <= position_tolerance and orientation_error <= orientation_tolerance:
+            index = i
+            break
 
-    def error(i: int) -> tuple[float, float]:
-        """Pinocchio FK errors of solution i, computed once."""
-        if i not in errors:
-            position, rotation = robot.tip_pose(raw[i].q)
-            errors[i] = tip_errors(target, position, rotation, robot.approach_axis)
-        return errors[i]
-
-    def solution(i: int) -> IKSolution:
+    def solution(i: int, distance: float | None) -> IKSolution:
+        """Solution i, its errors by Pinocchio FK (computed once)."""
         sol = raw[i]
-        return IKSolution(sol.q, sol.within_limits, sol.branch, *error(i), distances[i], sol.singular)
+        error = errors.get(i)
+        if error is None:
+            error = errors[i] = check.errors(target, sol.q)
+        return IKSolution(sol.q, sol.within_limits, sol.branch, *error, distance, sol.singular)
 
-    within = [i for i in order if raw[i].within_limits]
-    tolerances = (options.position_tolerance, options.orientation_tolerance)
-    index = next((i for i in within if error(i)[0] <= tolerances[0] and error(i)[1] <= tolerances[1]), None)
+    def every_solution() -> tuple[IKSolution, ...]:
+        """Every solution, nearest to the seed first."""
+        if seed is None or not raw:
+            return tuple(solution(i, None) for i in range(len(raw)))
+        distances = check.distances(raw, seed)
+        return tuple(solution(i, distances[i]) for i in sorted(range(len(raw)), key=distances.__getitem__))
+
+    solutions = LazySolutions(every_solution)
     if index is not None:
-        best = solution(index)
-        q, status, reason = best.q, IKStatus.SOLVED, f"closed-form branch {best.label}"
-    elif within:
-        best = solution(within[0])
-        q, status = best.q, IKStatus.INACCURATE
+        position_error, orientation_error = errors[index]
+        return IKResult.from_solver(
+            raw[index].q.copy(), True, IKStatus.SOLVED, f"closed-form branch {raw[index].branch}", position_error,
+            orientation_error, 0, len(raw), index, "closed_form", time.perf_counter() - start, "analytic", solutions,
+        )  # fmt: skip
+    if first is not None:
+        position_error, orientation_error = errors[first]
+        q, status = raw[first].q.copy(), IKStatus.INACCURATE
         reason = (
-            f"the closed-form solution ({best.label}) misses the target by {best.position_error:.3g} m and "
-            f"{best.orientation_error:.3g} rad by Pinocchio FK"
+            f"the closed-form solution ({raw[first].branch}) misses the target by {position_error:.3g} m and "
+            f"{orientation_error:.3g} rad by Pinocchio FK"
         )
     else:
-        best = None
-        q = seed if seed is not None else np.clip(np.zeros(robot.dof), robot.lower, robot.upper)
+        q = seed.copy() if seed is not None else np.clip(np.zeros(robot.dof), robot.lower, robot.upper)
         status, reason = IKStatus(family.status), family.reason
-    position_error, orientation_error = (
-        (best.position_error, best.orientation_error) if best is not None else target_errors(robot, target, q)
-    )
+        position_error, orientation_error = target_errors(robot, target, q)
     return IKResult(
         q=q,
-        success=index is not None,
+        success=False,
         status=status,
         reason=reason,
         position_error=position_error,
         orientation_error=orientation_error,
         iterations=0,
         attempts=len(raw),
-        attempt=index,
-        attempt_kind="closed_form" if index is not None else None,
+        attempt=None,
+        attempt_kind=None,
         wall_time=time.perf_counter() - start,
         method="analytic",
-        solutions=LazySolutions(lambda: tuple(solution(i) for i in order)),
+        solutions=solutions,
     )
 
 

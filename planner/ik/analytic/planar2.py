@@ -26,11 +26,10 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from planner.core.arrays import read_only
 from planner.core.rotations import rotation_error
 from planner.geometry.chain import ChainAtZero, describe_violation, poe_fk, wrap_array, wrap_scalar
 from planner.geometry.target import Target
-from planner.ik.analytic.base import FAMILY_ANGLE_TOL, AnalyticIK, ChainMismatch, base_yaw_mismatch
+from planner.ik.analytic.base import FAMILY_ANGLE_TOL, FLOAT64, AnalyticIK, ChainMismatch, base_yaw_mismatch
 from planner.ik.analytic.geometry import LENGTH_TOL, ORIENTATION_TOL, SINGULAR_TOL, angle_to_line, reach_interval
 from planner.ik.analytic.result import (
     STATUS_BEYOND_MAX_REACH,
@@ -153,8 +152,16 @@ class Planar2IK(AnalyticIK):
     # ------------------------------------------------------------------ single target
     def solve(self, target: Target, q_current: Sequence[float] | np.ndarray | None = None) -> AnalyticResult:
         """Both closed-form solutions (elbow left and right) for one target."""
-        self._check_target(target)
-        qc = self._q_current_list(q_current)
+        if not isinstance(target, Target):
+            self._check_target(target)
+        if q_current is None:
+            qc = None
+        elif type(q_current) is np.ndarray and q_current.dtype is FLOAT64 and q_current.shape == self._q_shape:
+            qc = q_current.tolist()  # the common case, checked inline (see _q_current_list)
+            if not math.isfinite(sum(qc)):
+                qc = self._q_current_list(q_current)
+        else:
+            qc = self._q_current_list(q_current)
         px, py, pz = target.position.tolist()
         if abs(pz - self.height) > self._len_tol:
             return AnalyticResult(
@@ -219,28 +226,32 @@ class Planar2IK(AnalyticIK):
             branches = [("elbow-left", base + half, -e_abs)]
             if not singular:
                 branches.append(("elbow-right", base - half, e_abs))
-        kept = []
-        for name, a1, e in branches:
-            q = [self._s1 * (a1 - self._g1), self._s2 * (e - self._delta)]
-            th1, th12 = self._s1 * q[0], self._s1 * q[0] + self._s2 * q[1]
-            fx = self._bx + r1 * math.cos(th1 + self._g1) + r2 * math.cos(th12 + self._g2)
-            fy = self._by + r1 * math.sin(th1 + self._g1) + r2 * math.sin(th12 + self._g2)
-            perr = math.sqrt((fx - px) ** 2 + (fy - py) ** 2 + (self.height - pz) ** 2)
-            oerr = self._orientation_error_scalar(th12, target)
-            kept.append([name, q, perr, oerr])
+        s1, s2, g1, g2, bx, by, height = self._s1, self._s2, self._g1, self._g2, self._bx, self._by, self.height
+        (lo0, lo1), (hi0, hi1) = self._lower, self._upper
+        ref0, ref1 = (0.0, 0.0) if qc is None else qc
+        position_only = target.rotation is None and target.pitch is None
         solutions = []
         keys = []
-        for name, q, perr, oerr in kept:
-            within = True
-            for j in range(2):
-                q[j] = wrap_scalar(q[j], self._lower[j], self._upper[j], qc[j] if qc is not None else 0.0)
-                within &= self._lower[j] <= q[j] <= self._upper[j]
+        any_within = False
+        for name, a1, e in branches:
+            v0, v1 = s1 * (a1 - g1), s2 * (e - self._delta)
+            th1, th12 = s1 * v0, s1 * v0 + s2 * v1
+            fx = bx + r1 * math.cos(th1 + g1) + r2 * math.cos(th12 + g2)
+            fy = by + r1 * math.sin(th1 + g1) + r2 * math.sin(th12 + g2)
+            perr = math.sqrt((fx - px) ** 2 + (fy - py) ** 2 + (height - pz) ** 2)
+            oerr = None if position_only else self._orientation_error_scalar(th12, target)
+            v0 = wrap_scalar(v0, lo0, hi0, ref0)
+            v1 = wrap_scalar(v1, lo1, hi1, ref1)
+            within = lo0 <= v0 <= hi0 and lo1 <= v1 <= hi1
+            any_within = any_within or within
             if qc is not None:  # the squared distance to qc, as NumPy sums two squares
-                keys.append((q[0] - qc[0]) * (q[0] - qc[0]) + (q[1] - qc[1]) * (q[1] - qc[1]))
-            solutions.append(AnalyticSolution(read_only(q), within, name, singular, perr, oerr))
+                keys.append((v0 - ref0) * (v0 - ref0) + (v1 - ref1) * (v1 - ref1))
+            q = np.array((v0, v1))
+            q.setflags(write=False)
+            solutions.append(AnalyticSolution(q, within, name, singular, perr, oerr))
         if qc is not None and len(solutions) > 1:
             solutions = [solutions[i] for i in sorted(range(len(solutions)), key=keys.__getitem__)]
-        if any(sol.within_limits for sol in solutions):
+        if any_within:
             return AnalyticResult(STATUS_SOLVED, "", tuple(solutions), singular)
         rmin, rmax = self.reach
         if dd < rmin - self._len_tol:
