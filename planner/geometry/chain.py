@@ -43,6 +43,7 @@ __all__ = [
     "chain_at_zero",
     "poe_fk",
     "rotation_about",
+    "rodrigues_rows",
     "wrap_scalar",
     "wrap_array",
     "limit_violation",
@@ -269,14 +270,18 @@ def rotation_about(axis: np.ndarray, angle: np.ndarray | float) -> np.ndarray:
     """
     a = np.asarray(angle, dtype=float)
     out = np.empty(a.shape + (3, 3))
-    for i, row in enumerate(_rodrigues(axis, np.sin(a), np.cos(a))):
+    for i, row in enumerate(rodrigues_rows(axis, np.sin(a), np.cos(a))):
         for j, value in enumerate(row):
             out[..., i, j] = value
     return out
 
 
-def _rodrigues(axis, s, c):
-    """The rows of ``c I + s [axis]x + (1 - c) axis axis^T`` as nested lists of arrays."""
+def rodrigues_rows(axis, s, c):
+    """The rows of ``c I + s [axis]x + (1 - c) axis axis^T`` as nested lists.
+
+    Plain arithmetic on `s` and `c` (the sine and cosine of the angle): floats, arrays or
+    CasADi symbols alike.
+    """
     x, y, z = (float(v) for v in axis)
     v = 1.0 - c
     vx, vy, vz = v * x, v * y, v * z
@@ -316,7 +321,7 @@ def poe_fk(
     trans = None
     for k, (axis, point) in enumerate(zip(axes, points)):
         angle = q[..., k]
-        r_k = _rodrigues(axis, np.sin(angle), np.cos(angle))
+        r_k = rodrigues_rows(axis, np.sin(angle), np.cos(angle))
         p = [float(v) for v in point]
         t_k = [p[i] - (r[0] * p[0] + r[1] * p[1] + r[2] * p[2]) for i, r in enumerate(r_k)]
         if rot is None:

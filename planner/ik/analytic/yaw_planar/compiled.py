@@ -32,7 +32,7 @@ import math
 import casadi as ca
 import numpy as np
 
-from planner.geometry.chain import LIMIT_SNAP
+from planner.geometry.chain import LIMIT_SNAP, rodrigues_rows
 from planner.ik.analytic.geometry import SINGULAR_TOL
 from planner.ik.analytic.result import (
     STATUS_BEYOND_MAX_REACH,
@@ -475,19 +475,6 @@ def _matvec(a, v):
     return [a[i][0] * v[0] + a[i][1] * v[1] + a[i][2] * v[2] for i in range(3)]
 
 
-def _rodrigues(axis, s, c):
-    """The rows of ``c I + s [axis]x + (1 - c) axis axis^T`` (:func:`~planner.geometry.chain.rotation_about`'s)."""
-    x, y, z = (float(v) for v in axis)
-    v = 1.0 - c
-    vx, vy, vz = v * x, v * y, v * z
-    sx, sy, sz = s * x, s * y, s * z
-    return [
-        [c + vx * x, vx * y - sz, vx * z + sy],
-        [vy * x + sz, c + vy * y, vy * z - sx],
-        [vz * x - sy, vz * y + sx, c + vz * z],
-    ]
-
-
 def _poe_fk(arm: ArmGeometry, q):
     """The real arm's tip position and rotation at `q` (:func:`~planner.geometry.chain.poe_fk`'s sums).
 
@@ -497,7 +484,7 @@ def _poe_fk(arm: ArmGeometry, q):
     """
     rot = trans = None
     for k in range(arm.dof):
-        r_k = _rodrigues(_tidy(arm.axes[k], 1.0), ca.sin(q[k]), ca.cos(q[k]))
+        r_k = rodrigues_rows(_tidy(arm.axes[k], 1.0), ca.sin(q[k]), ca.cos(q[k]))
         pt = _tidy(arm.points[k], arm.scale)
         t_k = [pt[i] - (r[0] * pt[0] + r[1] * pt[1] + r[2] * pt[2]) for i, r in enumerate(r_k)]
         if rot is None:
@@ -583,7 +570,7 @@ def _pitch_from_rotation(arm: ArmGeometry, m_rot, psi):
             x = _unyaw(_matvec(m_rot, e_u), cz, sz)
             phi_k = ca.atan2(x[2], x[0] * e_u[0] + x[1] * e_u[1] + x[2] * e_u[2])
             rz = [[cz, -sz, 0.0], [sz, cz, 0.0], [0.0, 0.0, 1.0]]
-            ideal = _matmul(rz, _rodrigues(n, ca.sin(phi_k), ca.cos(phi_k)))
+            ideal = _matmul(rz, rodrigues_rows(n, ca.sin(phi_k), ca.cos(phi_k)))
             phi.append(phi_k)
             residual.append(_rotation_error(ideal, m_rot))
     return phi, residual
@@ -597,7 +584,7 @@ def _roll_from_rotation(arm: ArmGeometry, m_rot, psi, phi):
     roll = []
     for k in range(2):
         un = _unyaw(mn, ca.cos(psi[k]), ca.sin(psi[k]))
-        back = _matvec(_rodrigues(n, ca.sin(-phi[k]), ca.cos(-phi[k])), un)
+        back = _matvec(rodrigues_rows(n, ca.sin(-phi[k]), ca.cos(-phi[k])), un)
         roll.append(
             ca.atan2(
                 back[0] * rxn[0] + back[1] * rxn[1] + back[2] * rxn[2], back[0] * n[0] + back[1] * n[1] + back[2] * n[2]
