@@ -383,6 +383,32 @@ def test_path_around_a_block_is_clear_and_repeatable():
         assert check_segment(checker, a, b).clear
 
 
+def test_the_path_search_can_skip_its_straight_test(monkeypatch):
+    # plan_motion's route has just found the straight segment blocked (same margin): the
+    # search grows its trees at once; on a clear segment it then finds a certified path too.
+    import planner.collision.rrt as rrt
+
+    robot = get_robot("al5c")
+    checker = CollisionChecker(robot, _al5c_block_scene())
+    calls = []
+    real = rrt.segment_is_clear
+    monkeypatch.setattr(rrt, "segment_is_clear", lambda *a, **k: calls.append(a) or real(*a, **k))
+    qa, qb = np.array([-0.6, 1.2, -1.4, -0.8, 0.0]), np.array([0.6, 1.2, -1.4, -0.8, 0.0])
+    blocked = find_clear_path(checker, qa, qb, options=PathOptions(seed=4), try_straight=False)
+    assert not calls
+    assert blocked.found and np.array_equal(
+        blocked.path, find_clear_path(checker, qa, qb, options=PathOptions(seed=4)).path
+    )
+    calls.clear()
+    qc = np.array([-0.7, 1.2, -1.4, -0.8, 0.0])
+    straight = find_clear_path(checker, qa, qc, options=PathOptions(seed=4))
+    assert len(calls) == 1 and len(straight.path) == 2
+    grown = find_clear_path(checker, qa, qc, options=PathOptions(seed=4), try_straight=False)
+    assert grown.found
+    for a, b in zip(grown.path, grown.path[1:]):
+        assert check_segment(checker, a, b).clear
+
+
 def test_unreachable_without_collision_is_an_outcome_with_a_reason():
     robot = get_robot("al5c")
     qa, qb = np.array([-0.6, 1.2, -1.4, -0.8, 0.0]), np.array([0.6, 1.2, -1.4, -0.8, 0.0])

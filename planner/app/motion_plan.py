@@ -257,7 +257,10 @@ def _route(
     margin = path_margin(checker.scene.clearance, end, request.path_options.margin)
     if segment_is_clear(checker, q_user[k - 1], q_user[k], allow=names, margin=margin):
         return [q_user[k - 1], q_user[k]]
-    result = find_clear_path(checker, q_user[k - 1], q_user[k], options=request.path_options, allow=names)
+    # The search would test the straight segment again with the same margin: it is blocked.
+    result = find_clear_path(
+        checker, q_user[k - 1], q_user[k], options=request.path_options, allow=names, try_straight=False
+    )
     if not result.found:
         raise PlanningError(
             f"{request.source}: no collision-free way from {labels[k - 1]} to {labels[k]}: {result.reason} "

@@ -5,7 +5,8 @@ the goal, deciding each straight joint-space edge by distance checks every
 :attr:`PathOptions.resolution`. The path found is shortened by straight edges between random
 points along it (not only its nodes; Geraerts and Overmars 2007 call these partial shortcuts)
 and a greedy pass that joins each node to the farthest one it sees, all decided by the same
-cheap checks kept a centimetre farther from everything; then every edge is certified with
+cheap checks as the trees' edges (the clearance plus :attr:`PathOptions.margin`, the distance
+the certificate then asks for); then every edge is certified with
 :func:`~planner.collision.continuous.check_segment`. If one fails, the trees' own path is
 certified and shortened by certified edges only, and if that fails too new trees are grown.
 It draws from its own generator seeded by :attr:`PathOptions.seed`: the same seed gives the
@@ -163,6 +164,7 @@ def find_clear_path(
     *,
     options: PathOptions | None = None,
     allow: Sequence[str] = (),
+    try_straight: bool = True,
 ) -> PathResult:
     """A joint path from `q_start` to `q_goal` that keeps the scene's clearance (plus a margin).
 
@@ -172,6 +174,9 @@ def find_clear_path(
         q_goal: Goal configuration, shape (dof,).
         options: :class:`PathOptions`; None uses the defaults.
         allow: Scene names whose contact is allowed along the path.
+        try_straight: Whether to test the straight segment first (and return it if clear);
+            False when the caller has just found it blocked with the same margin
+            (:func:`path_margin`), so that its certificate is not computed twice.
 
     Returns:
         The :class:`PathResult`; when the ends themselves collide or the search runs out of
@@ -206,7 +211,7 @@ def find_clear_path(
         n = max(1, int(np.ceil(float(np.max(np.abs(b - a))) / options.resolution)))
         return not any(near(a + s * (b - a)) for s in sweep_order(n))
 
-    if clear(q0, q1):
+    if try_straight and clear(q0, q1):
         return PathResult(PathStatus.FOUND, read_only(np.array([q0, q1])), "", 0)
     rng = np.random.default_rng(options.seed)
     lo = np.where(np.isfinite(robot.lower), robot.lower, q0 - np.pi)

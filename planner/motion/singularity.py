@@ -186,6 +186,14 @@ def jacobian_change_bound(u: np.ndarray, rho: np.ndarray, angular: float) -> np.
     return np.sqrt(np.sum(a * a, axis=1) + angular * angular * np.sum(before * before, axis=1))
 
 
+def _inside(n: int, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
+    """Mask of the n rows strictly between each ``lo[i]`` and ``hi[i]`` (disjoint gaps)."""
+    marks = np.zeros(n + 1, dtype=np.int64)
+    np.add.at(marks, lo + 1, 1)
+    np.add.at(marks, hi, -1)
+    return np.cumsum(marks[:n]) > 0
+
+
 def bounded_conditioning(
     robot: Robot, q: np.ndarray, task: Task, threshold: float, keep: np.ndarray | None = None
 ) -> tuple[np.ndarray, np.ndarray]:
@@ -299,12 +307,10 @@ def bounded_conditioning(
         hi_end = ends[np.searchsorted(ends, lo_end) + 1]
         short = hi_end - lo_end <= 4
         mids = (lo_end[~short] + hi_end[~short]) // 2
-        whole = [np.arange(x + 1, y) for x, y in zip(lo_end[short], hi_end[short])]
-        measure(np.unique(np.concatenate([mids, *whole]).astype(int)))
+        whole = np.nonzero(_inside(n, lo_end[short], hi_end[short]))[0]
+        measure(np.unique(np.concatenate([mids, whole])))
         # Bounds again for the rows of the gaps split (the others' ends are unchanged).
-        split = np.zeros(n, dtype=bool)
-        for x, y in zip(lo_end[~short], hi_end[~short]):
-            split[x + 1 : y] = True
+        split = _inside(n, lo_end[~short], hi_end[~short])
         rows = np.nonzero(split & ~exact & ~done)[0]
     free = ~exact
     inv[free], man[free] = lo_inv[free], lo_man[free]
