@@ -10,6 +10,7 @@ import pytest
 from planner import InvalidArgumentError, Robot, urdf_from_dh
 from planner.collision import FLOOR, Box, CollisionChecker, Cylinder, Obstacle, Scene, Sphere, parse_scene
 from planner.collision.arm import arm_collision_model
+from planner.collision.checker import shared_checker
 from planner.collision.continuous import check_segment, check_trajectory
 from planner.collision.rrt import PathOptions, PathStatus, find_clear_path
 from planner.core.rotations import rpy_to_matrix
@@ -723,3 +724,29 @@ def test_check_motion_with_per_pair_speeds_agrees_with_check_segment():
             assert min(dense) >= checker.scene.clearance - 1e-4
         seen.add(reference.clear)
     assert seen == {True, False}
+
+
+def test_a_shared_checker_is_reused_per_scene_and_answers_as_a_new_one():
+    robot = get_robot("panda")
+    scene = Scene(
+        floor=0.0, clearance=0.005, obstacles=(Obstacle("box", Box((0.25, 0.25, 0.5)), np.array([0.45, 0.0, 0.25])),)
+    )
+    same = Scene(
+        floor=0.0, clearance=0.005, obstacles=(Obstacle("box", Box((0.25, 0.25, 0.5)), np.array([0.45, 0.0, 0.25])),)
+    )
+    moved = Scene(
+        floor=0.0, clearance=0.005, obstacles=(Obstacle("box", Box((0.25, 0.25, 0.5)), np.array([0.45, 0.1, 0.25])),)
+    )
+    first = shared_checker(robot, scene)
+    assert shared_checker(robot, same) is first
+    assert shared_checker(robot, moved) is not first and shared_checker(robot, None) is not first
+    q = robot.random_configurations(np.random.default_rng(3), 200)
+    for row in q:  # GJK's guesses now come from these calls
+        first.in_collision(row)
+    again = shared_checker(robot, same)
+    fresh = CollisionChecker(robot, same)
+    assert [again.in_collision(row) for row in q[::-1]] == [fresh.in_collision(row) for row in q[::-1]]
+    for row in q[:20]:
+        assert again.clearance(row) == fresh.clearance(row)
+    with pytest.raises(InvalidArgumentError):
+        shared_checker(robot, "table")
