@@ -145,9 +145,12 @@ def jacobian_change_bounds(robot: Robot, task: Task) -> tuple[np.ndarray, np.nda
 
     For an arm of turning joints in one chain to the tip, column ``i`` of the Jacobian (in the
     world-aligned tip frame) is ``[z_i x (p - o_i); z_i]``. Along a straight joint-space move
-    by ``u`` its derivative is at most ``a_i = 2 rho_i U_i + sum_{k >= i} rho_k |u_k|`` (linear
+    by ``u`` its derivative is at most ``a_i = rho_i U_i + sum_{k >= i} rho_k |u_k|`` (linear
     part) and ``b_i = U_i`` (angular part), with ``U_i = sum_{k < i} |u_k|`` and ``rho_i`` the
-    chain's length from joint ``i`` to the tip (a bound on ``|p - o_i|``). So the change of the
+    chain's length from joint ``i`` to the tip (a bound on ``|p - o_i|``): the joints before
+    ``i`` turn the column as a whole, at an angular speed of at most ``U_i`` (``z_i`` and
+    ``p - o_i`` turn together: ``(w x z) x r + z x (w x r) = w x (z x r)``), and in the
+    frame of joint ``i`` only ``p`` moves, by at most ``rho_k |u_k|`` per joint ``k >= i``. So the change of the
     scaled Jacobian is at most ``sqrt(sum_i a_i^2 + L^2 b_i^2)`` in the Frobenius norm (the
     angular rows only for ``"pose"``; ``L`` the characteristic length) and of the raw one
     ``sqrt(sum_i a_i^2 + b_i^2)``.
@@ -182,7 +185,7 @@ def jacobian_change_bound(u: np.ndarray, rho: np.ndarray, angular: float) -> np.
     u = np.abs(u)
     before = np.cumsum(u, axis=1) - u
     after = np.cumsum((rho * u)[:, ::-1], axis=1)[:, ::-1]
-    a = 2.0 * rho * before + after
+    a = rho * before + after
     return np.sqrt(np.sum(a * a, axis=1) + angular * angular * np.sum(before * before, axis=1))
 
 
