@@ -143,8 +143,9 @@ def segment_looks_clear(
     """
     a, b = np.asarray(q_start, dtype=float), np.asarray(q_end, dtype=float)
     near = checker.closer_than(checker.scene.clearance, allow)
-    n = max(1, int(np.ceil(float(np.max(np.abs(b - a))) / resolution)))
-    return not near(a) and not any(near(a + s * (b - a)) for s in sweep_order(n))
+    d = b - a
+    n = max(1, int(np.ceil(float(np.abs(d).max()) / resolution)))
+    return not near(a) and not any(map(near, a + sweep_order(n)[:, None] * d))
 
 
 def path_margin(clearance: float, end_distance: float, margin: float) -> float:
@@ -208,8 +209,9 @@ def find_clear_path(
 
     def quick(a: np.ndarray, b: np.ndarray) -> bool:
         """Proximity checks every `resolution` along the edge, its end first: cheap, not a certificate."""
-        n = max(1, int(np.ceil(float(np.max(np.abs(b - a))) / options.resolution)))
-        return not any(near(a + s * (b - a)) for s in sweep_order(n))
+        d = b - a
+        n = max(1, int(np.ceil(float(np.abs(d).max()) / options.resolution)))
+        return not any(map(near, a + sweep_order(n)[:, None] * d))
 
     if try_straight and clear(q0, q1):
         return PathResult(PathStatus.FOUND, read_only(np.array([q0, q1])), "", 0)
