@@ -261,11 +261,12 @@ def _grow(
         The path, start first, or None; and the extensions used.
     """
     trees = (_Tree(q0), _Tree(q1))
+    span = hi - lo  # lo + span * rng.random(n) draws as rng.uniform(lo, hi), without its argument checks
     for it in range(1, budget + 1):
         if time.perf_counter() > deadline:
             return None, it
         a, b = trees if it % 2 else trees[::-1]
-        target = rng.uniform(lo, hi)
+        target = lo + span * rng.random(len(lo))
         new = _extend(a, target, step, edge_ok)
         if new is None:
             continue
@@ -275,7 +276,7 @@ def _grow(
         while True:
             q_near = b.nodes[k]
             delta = q_new - q_near
-            far = float(np.max(np.abs(delta)))
+            far = float(np.abs(delta).max())
             if far <= step:
                 if edge_ok(q_near, q_new):
                     return _join(a, new, b, k, trees[0] is a), it
@@ -292,7 +293,7 @@ def _extend(tree: _Tree, target: np.ndarray, step: float, edge_ok) -> int | None
     k = tree.nearest(target)
     q_near = tree.nodes[k]
     delta = target - q_near
-    far = float(np.max(np.abs(delta)))
+    far = float(np.abs(delta).max())
     if far == 0.0:
         return None
     q_new = q_near + delta * min(1.0, step / far)
