@@ -10,6 +10,7 @@ import pytest
 from planner import InvalidArgumentError, Robot, urdf_from_dh
 from planner.collision import FLOOR, Box, CollisionChecker, Cylinder, Obstacle, Scene, Sphere, parse_scene
 from planner.collision.arm import arm_collision_model
+from planner.collision.checker import shared_checker
 from planner.collision.continuous import check_segment, check_trajectory
 from planner.collision.rrt import PathOptions, PathStatus, find_clear_path
 from planner.core.rotations import rpy_to_matrix
@@ -383,6 +384,32 @@ def test_path_around_a_block_is_clear_and_repeatable():
         assert check_segment(checker, a, b).clear
 
 
+def test_the_path_search_can_skip_its_straight_test(monkeypatch):
+    # plan_motion's route has just found the straight segment blocked (same margin): the
+    # search grows its trees at once; on a clear segment it then finds a certified path too.
+    import planner.collision.rrt as rrt
+
+    robot = get_robot("al5c")
+    checker = CollisionChecker(robot, _al5c_block_scene())
+    calls = []
+    real = rrt.segment_is_clear
+    monkeypatch.setattr(rrt, "segment_is_clear", lambda *a, **k: calls.append(a) or real(*a, **k))
+    qa, qb = np.array([-0.6, 1.2, -1.4, -0.8, 0.0]), np.array([0.6, 1.2, -1.4, -0.8, 0.0])
+    blocked = find_clear_path(checker, qa, qb, options=PathOptions(seed=4), try_straight=False)
+    assert not calls
+    assert blocked.found and np.array_equal(
+        blocked.path, find_clear_path(checker, qa, qb, options=PathOptions(seed=4)).path
+    )
+    calls.clear()
+    qc = np.array([-0.7, 1.2, -1.4, -0.8, 0.0])
+    straight = find_clear_path(checker, qa, qc, options=PathOptions(seed=4))
+    assert len(calls) == 1 and len(straight.path) == 2
+    grown = find_clear_path(checker, qa, qc, options=PathOptions(seed=4), try_straight=False)
+    assert grown.found
+    for a, b in zip(grown.path, grown.path[1:]):
+        assert check_segment(checker, a, b).clear
+
+
 def test_unreachable_without_collision_is_an_outcome_with_a_reason():
     robot = get_robot("al5c")
     qa, qb = np.array([-0.6, 1.2, -1.4, -0.8, 0.0]), np.array([0.6, 1.2, -1.4, -0.8, 0.0])
@@ -697,3 +724,29 @@ def test_check_motion_with_per_pair_speeds_agrees_with_check_segment():
             assert min(dense) >= checker.scene.clearance - 1e-4
         seen.add(reference.clear)
     assert seen == {True, False}
+
+
+def test_a_shared_checker_is_reused_per_scene_and_answers_as_a_new_one():
+    robot = get_robot("panda")
+    scene = Scene(
+        floor=0.0, clearance=0.005, obstacles=(Obstacle("box", Box((0.25, 0.25, 0.5)), np.array([0.45, 0.0, 0.25])),)
+    )
+    same = Scene(
+        floor=0.0, clearance=0.005, obstacles=(Obstacle("box", Box((0.25, 0.25, 0.5)), np.array([0.45, 0.0, 0.25])),)
+    )
+    moved = Scene(
+        floor=0.0, clearance=0.005, obstacles=(Obstacle("box", Box((0.25, 0.25, 0.5)), np.array([0.45, 0.1, 0.25])),)
+    )
+    first = shared_checker(robot, scene)
+    assert shared_checker(robot, same) is first
+    assert shared_checker(robot, moved) is not first and shared_checker(robot, None) is not first
+    q = robot.random_configurations(np.random.default_rng(3), 200)
+    for row in q:  # GJK's guesses now come from these calls
+        first.in_collision(row)
+    again = shared_checker(robot, same)
+    fresh = CollisionChecker(robot, same)
+    assert [again.in_collision(row) for row in q[::-1]] == [fresh.in_collision(row) for row in q[::-1]]
+    for row in q[:20]:
+        assert again.clearance(row) == fresh.clearance(row)
+    with pytest.raises(InvalidArgumentError):
+        shared_checker(robot, "table")

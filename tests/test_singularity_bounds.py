@@ -158,3 +158,14 @@ def test_the_jacobian_moves_no_farther_than_its_bound(name, task):
         assert np.all(moved <= jacobian_change_bound(q1 - q0, rho, angular) * (1 + 1e-12) + 1e-15), (name, size)
         moved_raw = np.linalg.norm(raw1 - raw0, axis=(1, 2))
         assert np.all(moved_raw <= jacobian_change_bound(q1 - q0, rho, raw_angular) * (1 + 1e-12) + 1e-15), (name, size)
+    # One joint at a time (the earlier joints turn the column as a whole: where the bound is tight).
+    raw0, scaled0 = robot.task_jacobians(q0, task)
+    for j in range(robot.dof):
+        for size in (1e-4, 1e-2, 0.5):
+            u = np.zeros_like(q0)
+            u[:, j] = size * rng.choice([-1.0, 1.0], len(q0))
+            raw1, scaled1 = robot.task_jacobians(q0 + u, task)
+            moved = np.linalg.norm(scaled1 - scaled0, axis=(1, 2))
+            assert np.all(moved <= jacobian_change_bound(u, rho, angular) * (1 + 1e-12) + 1e-15), (name, j, size)
+            moved_raw = np.linalg.norm(raw1 - raw0, axis=(1, 2))
+            assert np.all(moved_raw <= jacobian_change_bound(u, rho, raw_angular) * (1 + 1e-12) + 1e-15), (name, j)

@@ -19,7 +19,7 @@ import numpy as np
 
 from planner.app.outputs import write_plan_files
 from planner.app.plan_file import MotionRequest
-from planner.collision.checker import CollisionChecker
+from planner.collision.checker import CollisionChecker, shared_checker
 from planner.collision.continuous import MotionClearance, check_segment, check_trajectory, segment_is_clear
 from planner.collision.rrt import find_clear_path, path_margin, segment_looks_clear
 from planner.collision.scene import Scene
@@ -257,7 +257,10 @@ def _route(
     margin = path_margin(checker.scene.clearance, end, request.path_options.margin)
     if segment_is_clear(checker, q_user[k - 1], q_user[k], allow=names, margin=margin):
         return [q_user[k - 1], q_user[k]]
-    result = find_clear_path(checker, q_user[k - 1], q_user[k], options=request.path_options, allow=names)
+    # The search would test the straight segment again with the same margin: it is blocked.
+    result = find_clear_path(
+        checker, q_user[k - 1], q_user[k], options=request.path_options, allow=names, try_straight=False
+    )
     if not result.found:
         raise PlanningError(
             f"{request.source}: no collision-free way from {labels[k - 1]} to {labels[k]}: {result.reason} "
@@ -369,7 +372,7 @@ def plan_motion(
 
     n = request.count
     labels = [f"waypoint {k}" + (f" ({request.labels[k]})" if request.labels[k] else "") for k in range(n)]
-    checker = CollisionChecker(robot, request.scene) if request.scene is not None else None
+    checker = shared_checker(robot, request.scene) if request.scene is not None else None
     allow = request.allow or ((),) * n
     branches: list[str | None] = [None] * n
     # The joint configuration of each requested waypoint, and how each requested segment moves:

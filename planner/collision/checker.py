@@ -23,7 +23,7 @@ from planner.collision.scene import FLOOR, Box, Cylinder, Obstacle, Scene, Spher
 from planner.exceptions import InvalidArgumentError
 from planner.model.robot import Robot
 
-__all__ = ["Clearance", "CollisionChecker"]
+__all__ = ["Clearance", "CollisionChecker", "shared_checker"]
 
 _FLOAT = np.dtype(float)
 
@@ -142,6 +142,19 @@ class CollisionChecker:
         self._active_now: np.ndarray | None = None
         self._everything = self._mask(())
         self._near: dict[tuple, _CloserThan] = {}
+
+    def forget_guesses(self) -> None:
+        """Start GJK from its default direction again (as a new checker does).
+
+        :meth:`in_collision` starts each pair's GJK from the direction of its last call; a
+        checker used again for a new request forgets them, so that its answers do not depend
+        on what it checked before (the distances never use them).
+        """
+        fresh = coal.CollisionRequest()
+        guess, support = fresh.cached_gjk_guess, fresh.cached_support_func_guess
+        for request in self._gdata.collisionRequests:
+            request.cached_gjk_guess = guess
+            request.cached_support_func_guess = support
 
     def __repr__(self) -> str:
         return (
@@ -338,3 +351,48 @@ class _CloserThan:
         if not self.any:
             return False
         return bool(pin.computeCollisions(self.model, self.data, self.broadphase, self.to_pinocchio(q), True))
+
+
+class _SharedCheckers:
+    """Per robot, the checkers :func:`shared_checker` has built, by scene (in ``robot.derived``)."""
+
+    def __init__(self) -> None:
+        self.items: dict[tuple, CollisionChecker] = {}
+
+
+def _scene_key(scene: Scene) -> tuple:
+    bodies = tuple(
+        (o.name, repr(o.shape), np.asarray(o.position, dtype=float).tobytes(), np.asarray(o.rotation).tobytes())
+        for o in scene.obstacles
+    )
+    return (scene.floor, scene.clearance, bodies)
+
+
+def shared_checker(robot: Robot, scene: Scene | None) -> CollisionChecker:
+    """A :class:`CollisionChecker` of `robot` and `scene`, built once per robot and equal scene.
+
+    Planning many requests in the same scene (as a user does) then builds the checker and its
+    tables once. The checker is handed out with its GJK guesses forgotten
+    (:meth:`CollisionChecker.forget_guesses`): its answers are those of a new checker. Not for
+    two threads at once (as the robot itself).
+
+    Args:
+        robot: The robot.
+        scene: The scene (None: the arm against itself).
+
+    Returns:
+        The checker (with self-collision).
+    """
+    if scene is not None and not isinstance(scene, Scene):
+        raise InvalidArgumentError(f"scene must be a planner Scene or None, got {type(scene).__name__}")
+    scene = scene or Scene()
+    held = robot.derived.get(_SharedCheckers, _SharedCheckers)
+    key = _scene_key(scene)
+    checker = held.items.get(key)
+    if checker is None or checker.arm is not arm_collision_model(robot):
+        if len(held.items) >= 8:
+            held.items.clear()
+        checker = held.items[key] = CollisionChecker(robot, scene)
+    else:
+        checker.forget_guesses()
+    return checker

@@ -567,8 +567,9 @@ def segment_is_clear(
     a, b = np.asarray(q_start, dtype=float), np.asarray(q_end, dtype=float)
     need = checker.scene.clearance + margin
     near = checker.closer_than(need, allow)
-    n = max(1, int(np.ceil(float(np.max(np.abs(b - a), initial=0.0)) / SWEEP_RESOLUTION)))
-    if near(a) or any(near(a + s * (b - a)) for s in sweep_order(n)):
+    d = b - a
+    n = max(1, int(np.ceil(float(np.max(np.abs(d), initial=0.0)) / SWEEP_RESOLUTION)))
+    if near(a) or any(map(near, a + sweep_order(n)[:, None] * d)):
         return False
     return check_segment(checker, a, b, allow=allow, clearance=need).clear
 

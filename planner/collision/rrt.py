@@ -5,7 +5,8 @@ the goal, deciding each straight joint-space edge by distance checks every
 :attr:`PathOptions.resolution`. The path found is shortened by straight edges between random
 points along it (not only its nodes; Geraerts and Overmars 2007 call these partial shortcuts)
 and a greedy pass that joins each node to the farthest one it sees, all decided by the same
-cheap checks kept a centimetre farther from everything; then every edge is certified with
+cheap checks as the trees' edges (the clearance plus :attr:`PathOptions.margin`, the distance
+the certificate then asks for); then every edge is certified with
 :func:`~planner.collision.continuous.check_segment`. If one fails, the trees' own path is
 certified and shortened by certified edges only, and if that fails too new trees are grown.
 It draws from its own generator seeded by :attr:`PathOptions.seed`: the same seed gives the
@@ -142,8 +143,9 @@ def segment_looks_clear(
     """
     a, b = np.asarray(q_start, dtype=float), np.asarray(q_end, dtype=float)
     near = checker.closer_than(checker.scene.clearance, allow)
-    n = max(1, int(np.ceil(float(np.max(np.abs(b - a))) / resolution)))
-    return not near(a) and not any(near(a + s * (b - a)) for s in sweep_order(n))
+    d = b - a
+    n = max(1, int(np.ceil(float(np.abs(d).max()) / resolution)))
+    return not near(a) and not any(map(near, a + sweep_order(n)[:, None] * d))
 
 
 def path_margin(clearance: float, end_distance: float, margin: float) -> float:
@@ -163,6 +165,7 @@ def find_clear_path(
     *,
     options: PathOptions | None = None,
     allow: Sequence[str] = (),
+    try_straight: bool = True,
 ) -> PathResult:
     """A joint path from `q_start` to `q_goal` that keeps the scene's clearance (plus a margin).
 
@@ -172,6 +175,9 @@ def find_clear_path(
         q_goal: Goal configuration, shape (dof,).
         options: :class:`PathOptions`; None uses the defaults.
         allow: Scene names whose contact is allowed along the path.
+        try_straight: Whether to test the straight segment first (and return it if clear);
+            False when the caller has just found it blocked with the same margin
+            (:func:`path_margin`), so that its certificate is not computed twice.
 
     Returns:
         The :class:`PathResult`; when the ends themselves collide or the search runs out of
@@ -203,10 +209,11 @@ def find_clear_path(
 
     def quick(a: np.ndarray, b: np.ndarray) -> bool:
         """Proximity checks every `resolution` along the edge, its end first: cheap, not a certificate."""
-        n = max(1, int(np.ceil(float(np.max(np.abs(b - a))) / options.resolution)))
-        return not any(near(a + s * (b - a)) for s in sweep_order(n))
+        d = b - a
+        n = max(1, int(np.ceil(float(np.abs(d).max()) / options.resolution)))
+        return not any(map(near, a + sweep_order(n)[:, None] * d))
 
-    if clear(q0, q1):
+    if try_straight and clear(q0, q1):
         return PathResult(PathStatus.FOUND, read_only(np.array([q0, q1])), "", 0)
     rng = np.random.default_rng(options.seed)
     lo = np.where(np.isfinite(robot.lower), robot.lower, q0 - np.pi)
@@ -254,11 +261,12 @@ def _grow(
         The path, start first, or None; and the extensions used.
     """
     trees = (_Tree(q0), _Tree(q1))
+    span = hi - lo  # lo + span * rng.random(n) draws as rng.uniform(lo, hi), without its argument checks
     for it in range(1, budget + 1):
         if time.perf_counter() > deadline:
             return None, it
         a, b = trees if it % 2 else trees[::-1]
-        target = rng.uniform(lo, hi)
+        target = lo + span * rng.random(len(lo))
         new = _extend(a, target, step, edge_ok)
         if new is None:
             continue
@@ -268,7 +276,7 @@ def _grow(
         while True:
             q_near = b.nodes[k]
             delta = q_new - q_near
-            far = float(np.max(np.abs(delta)))
+            far = float(np.abs(delta).max())
             if far <= step:
                 if edge_ok(q_near, q_new):
                     return _join(a, new, b, k, trees[0] is a), it
@@ -285,7 +293,7 @@ def _extend(tree: _Tree, target: np.ndarray, step: float, edge_ok) -> int | None
     k = tree.nearest(target)
     q_near = tree.nodes[k]
     delta = target - q_near
-    far = float(np.max(np.abs(delta)))
+    far = float(np.abs(delta).max())
     if far == 0.0:
         return None
     q_new = q_near + delta * min(1.0, step / far)

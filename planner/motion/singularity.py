@@ -145,9 +145,12 @@ def jacobian_change_bounds(robot: Robot, task: Task) -> tuple[np.ndarray, np.nda
 
     For an arm of turning joints in one chain to the tip, column ``i`` of the Jacobian (in the
     world-aligned tip frame) is ``[z_i x (p - o_i); z_i]``. Along a straight joint-space move
-    by ``u`` its derivative is at most ``a_i = 2 rho_i U_i + sum_{k >= i} rho_k |u_k|`` (linear
+    by ``u`` its derivative is at most ``a_i = rho_i U_i + sum_{k >= i} rho_k |u_k|`` (linear
     part) and ``b_i = U_i`` (angular part), with ``U_i = sum_{k < i} |u_k|`` and ``rho_i`` the
-    chain's length from joint ``i`` to the tip (a bound on ``|p - o_i|``). So the change of the
+    chain's length from joint ``i`` to the tip (a bound on ``|p - o_i|``): the joints before
+    ``i`` turn the column as a whole, at an angular speed of at most ``U_i`` (``z_i`` and
+    ``p - o_i`` turn together: ``(w x z) x r + z x (w x r) = w x (z x r)``), and in the
+    frame of joint ``i`` only ``p`` moves, by at most ``rho_k |u_k|`` per joint ``k >= i``. So the change of the
     scaled Jacobian is at most ``sqrt(sum_i a_i^2 + L^2 b_i^2)`` in the Frobenius norm (the
     angular rows only for ``"pose"``; ``L`` the characteristic length) and of the raw one
     ``sqrt(sum_i a_i^2 + b_i^2)``.
@@ -182,8 +185,16 @@ def jacobian_change_bound(u: np.ndarray, rho: np.ndarray, angular: float) -> np.
     u = np.abs(u)
     before = np.cumsum(u, axis=1) - u
     after = np.cumsum((rho * u)[:, ::-1], axis=1)[:, ::-1]
-    a = 2.0 * rho * before + after
+    a = rho * before + after
     return np.sqrt(np.sum(a * a, axis=1) + angular * angular * np.sum(before * before, axis=1))
+
+
+def _inside(n: int, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
+    """Mask of the n rows strictly between each ``lo[i]`` and ``hi[i]`` (disjoint gaps)."""
+    marks = np.zeros(n + 1, dtype=np.int64)
+    np.add.at(marks, lo + 1, 1)
+    np.add.at(marks, hi, -1)
+    return np.cumsum(marks[:n]) > 0
 
 
 def bounded_conditioning(
@@ -299,12 +310,10 @@ def bounded_conditioning(
         hi_end = ends[np.searchsorted(ends, lo_end) + 1]
         short = hi_end - lo_end <= 4
         mids = (lo_end[~short] + hi_end[~short]) // 2
-        whole = [np.arange(x + 1, y) for x, y in zip(lo_end[short], hi_end[short])]
-        measure(np.unique(np.concatenate([mids, *whole]).astype(int)))
+        whole = np.nonzero(_inside(n, lo_end[short], hi_end[short]))[0]
+        measure(np.unique(np.concatenate([mids, whole])))
         # Bounds again for the rows of the gaps split (the others' ends are unchanged).
-        split = np.zeros(n, dtype=bool)
-        for x, y in zip(lo_end[~short], hi_end[~short]):
-            split[x + 1 : y] = True
+        split = _inside(n, lo_end[~short], hi_end[~short])
         rows = np.nonzero(split & ~exact & ~done)[0]
     free = ~exact
     inv[free], man[free] = lo_inv[free], lo_man[free]
