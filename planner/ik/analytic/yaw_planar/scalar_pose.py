@@ -45,12 +45,20 @@ class PoseFrame:
         tip_offset: The roll centre to the tip in the tip frame, as ``Rx(-kappa) B^T rot0 l``
             (plane basis), or None when the tip is the roll centre (or there is no roll).
         shift_local: The roll centre to the tip in the tip frame, shape (3,), or None (as above).
+        cos_kappa: cos(kappa).
+        sin_kappa: sin(kappa).
+        cos_mu: cos(mu) (the arm's plane direction at yaw 0).
+        sin_mu: sin(mu).
     """
 
     linear: np.ndarray
     kappa: float
     tip_offset: tuple[float, float, float] | None
     shift_local: tuple[float, float, float] | None
+    cos_kappa: float
+    sin_kappa: float
+    cos_mu: float
+    sin_mu: float
 
 
 def _rot_x(a: float) -> np.ndarray:
@@ -71,7 +79,10 @@ def pose_frame(arm: ArmGeometry) -> PoseFrame:
     linear = np.kron(b.T, c.T)
     if shift_local is not None:
         linear = np.vstack([linear, np.kron(np.eye(3), np.asarray(shift_local)[None, :])])
-    return PoseFrame(linear, kappa, tip_offset, shift_local)
+    mu = arm.mu
+    return PoseFrame(
+        linear, kappa, tip_offset, shift_local, math.cos(kappa), math.sin(kappa), math.cos(mu), math.sin(mu)
+    )
 
 
 def solve_pose_scalar(
@@ -141,6 +152,7 @@ def _pose(arm: ArmGeometry, frame: PoseFrame, position, rotation, qc, plan: Scal
         u = 0.0
     ue = [u, -u]
     cat = [CYLINDER, CYLINDER] if cylinder else [VALID, VALID]
+    same_yaw = False  # both sides at one yaw (no roll: the rotation fixes it), so side 1 repeats side 0
     if back_dup and not cylinder:
         cat[1] = DUPLICATE
     # The yaw from the rotation (orientation.yaw_for_rotation).
@@ -168,18 +180,26 @@ def _pose(arm: ArmGeometry, frame: PoseFrame, position, rotation, qc, plan: Scal
             psi = [psi_a, psi_a]
             cat_rot = [off_plane, DUPLICATE] if forward else [DUPLICATE, off_plane]
         ue = [abs(ue_a), -abs(ue_a)]
+        same_yaw = not arm.has_roll
         cat = [c if c == CYLINDER else r for c, r in zip(cat, cat_rot)]
     # Per side: the pitch sum and its residual, the roll (orientation.pitch_from_rotation).
     orient_tol = arm.orient_tol
     kappa = frame.kappa
-    ck, sk = cos(kappa), sin(kappa)
+    ck, sk = frame.cos_kappa, frame.sin_kappa
     col0 = (m[0][0], m[1][0], m[2][0])
     col1 = (m[0][1], m[1][1], m[2][1])
     phis = [0.0, 0.0]
     rolls = [0.0, 0.0]
     twisted = [False, False]  # the rotation is not the arm's at this yaw
+    # Sines and cosines of each side's yaw and pitch sum, computed once (reused below).
+    cpsi, spsi, cphi, sphi = [0.0, 0.0], [0.0, 0.0], [0.0, 0.0], [0.0, 0.0]
     for side in (0, 1):
-        cp_, sp_ = cos(psi[side]), sin(psi[side])
+        if side == 1 and same_yaw:
+            cpsi[1], spsi[1], cphi[1], sphi[1] = cpsi[0], spsi[0], cphi[0], sphi[0]
+            phis[1], twisted[1] = phis[0], twisted[0]
+            break
+        cpsi[side] = cp_ = cos(psi[side])
+        spsi[side] = sp_ = sin(psi[side])
         x1 = cp_ * col1[0] + sp_ * col1[1]
         x2 = -sp_ * col1[0] + cp_ * col1[1]
         x3 = col1[2]
@@ -190,18 +210,21 @@ def _pose(arm: ArmGeometry, frame: PoseFrame, position, rotation, qc, plan: Scal
             v1 = cp_ * col0[0] + sp_ * col0[1]
             v2 = -sp_ * col0[0] + cp_ * col0[1]
             v3 = col0[2]
-            cf, sf = cos(phi), sin(phi)
+            cphi[side] = cf = cos(phi)
+            sphi[side] = sf = sin(phi)
             b2 = cf * v2 + sf * v3
             b3 = -sf * v2 + cf * v3
             rolls[side] = atan2(sk * b2 - ck * b3, v1)
         else:
             phi = atan2(x3, x2)
-            residual = _rotation_angle_unrolled(m, cp_, sp_, phi)
+            cphi[side] = cf = cos(phi)
+            sphi[side] = sf = sin(phi)
+            residual = _rotation_angle_unrolled(m, cp_, sp_, cf, sf)
         phis[side] = phi
         twisted[side] = residual > orient_tol
     if arm.n_pitch == 3:
         cat = [ORIENT if c == VALID and t else c for c, t in zip(cat, twisted)]
-        cands, cats, dist = _three_pitch(arm, ue, ez, tu, tz, phis, cat)
+        cands, cats, dist = _three_pitch(arm, ue, ez, tu, tz, cphi, sphi, cat)
     else:
         cands, cats, dist = _two_pitch(arm, ue, ez, tu, tz, phis, cat, twisted)
     # Assemble each branch; with a plan, verify it by the forward model (tip position and
@@ -230,7 +253,7 @@ def _pose(arm: ArmGeometry, frame: PoseFrame, position, rotation, qc, plan: Scal
     bx, by = arm.bx, arm.by
     pos_tol = 1e-10 * max(1.0, arm.scale)
     offset = frame.tip_offset
-    smu, cmu = math.sin(mu), math.cos(mu)
+    smu, cmu = frame.sin_mu, frame.cos_mu
     lo0, hi0, lo1, hi1, lo2, hi2, lo3, hi3, lo4, hi4 = plan.limits
     sort = qc is not None
     ref = qc if sort else plan.zeros
@@ -239,7 +262,7 @@ def _pose(arm: ArmGeometry, frame: PoseFrame, position, rotation, qc, plan: Scal
     r4 = ref[roll_idx] if roll_idx is not None else 0.0
     entries = []
     any_within = singular = False
-    last_key = last_side = None
+    last_side = orient_side = last_f4 = None
     for slot, side, a1, phi2_3, elbow_singular in cands:
         side_psi, phi, theta = psi[side], phis[side], rolls[side]
         # Forward model at q; its pitch sums (f2, f3, f4) are sign * q of the joints below,
@@ -258,22 +281,38 @@ def _pose(arm: ArmGeometry, frame: PoseFrame, position, rotation, qc, plan: Scal
             f4 = f3 + d43
         else:
             f4 = f3
-        c4, s4 = cos(f4), sin(f4)
+        # Each sine and cosine computed once: of an angle equal to one known before, reused.
+        if f4 == phi:
+            c4, s4 = cphi[side], sphi[side]
+        else:
+            c4, s4 = cos(f4), sin(f4)
         fu += c4 * tu - s4 * tz
         fz += s4 * tu + c4 * tz
-        yaw = side_psi
-        key = (yaw, f4, theta)
-        if key != last_key:  # the elbow branches of a side share these (bitwise)
-            last_key = key
-            cyw, syw = cos(yaw), sin(yaw)
-            cm, sm = cos(mu + yaw), sin(mu + yaw)
-            if roll_idx is None:
-                oerr = _rotation_angle_unrolled(m, cyw, syw, f4 + kappa)
+        if side != orient_side:
+            orient_side = side
+            cyw, syw = cpsi[side], spsi[side]
+            cm, sm = cos(mu + side_psi), sin(mu + side_psi)
+            ct, st = cos(theta), sin(theta)
+            last_f4 = None
+        if f4 != last_f4:  # the elbow branches of a side share the rotation (bitwise, mostly)
+            last_f4 = f4
+            alpha = f4 + kappa
+            if alpha == f4:
+                ca, sa = c4, s4
             else:
-                oerr = _rotation_angle(m, cyw, syw, f4 + kappa, theta)
+                ca, sa = cos(alpha), sin(alpha)
+            if roll_idx is None:
+                oerr = _rotation_angle_unrolled(m, cyw, syw, ca, sa)
+            else:
+                oerr = _rotation_angle(m, cyw, syw, ca, sa, ct, st)
             if offset is not None:
-                ox, oy, oz = _turn(cyw, syw, f4 + kappa, theta, offset)
-                # In the base frame: B = [n, e_u, z], n = (sin mu, -cos mu, 0), e_u = (cos mu, sin mu, 0).
+                # Rz(yaw) Rx(alpha) Ry(theta) offset (plane basis), then in the base frame:
+                # B = [n, e_u, z], n = (sin mu, -cos mu, 0), e_u = (cos mu, sin mu, 0).
+                x, y, z = offset
+                ta = ct * x + st * z
+                tc = -st * x + ct * z
+                tb, oz = ca * y - sa * tc, sa * y + ca * tc
+                ox, oy = cyw * ta - syw * tb, syw * ta + cyw * tb
                 ox, oy = smu * ox + cmu * oy, -cmu * ox + smu * oy
         fx = bx + cm * fu + sm * d
         fy = by + sm * fu - cm * d
@@ -328,16 +367,18 @@ def _pose(arm: ArmGeometry, frame: PoseFrame, position, rotation, qc, plan: Scal
     return entries, cats, dist, any_within, singular
 
 
-def _three_pitch(arm: ArmGeometry, ue, ze, tu, tz, phis, cat):
-    """Branch candidates (slot, side, a1, e + a1 (link 2's angle), elbow singular) of a 3-pitch arm."""
+def _three_pitch(arm: ArmGeometry, ue, ze, tu, tz, cphi, sphi, cat):
+    """Branch candidates (slot, side, a1, e + a1 (link 2's angle), elbow singular) of a 3-pitch arm.
+
+    `cphi`, `sphi`: per side, the cosine and sine of the pitch sum.
+    """
     l1, l2, su, sz, g2 = arm.l1, arm.l2, arm.su, arm.sz, arm.g2
     len_tol = arm.core_len_tol
     cats = [cat[0], cat[0], cat[1], cat[1]]
     dist = [0.0] * 4
     cands = []
     for side in (0, 1):
-        phi = phis[side]
-        cp, sp = cos(phi), sin(phi)
+        cp, sp = cphi[side], sphi[side]
         vx = ue[side] - (cp * tu - sp * tz) - su
         vz = ze - (sp * tu + cp * tz) - sz
         dd = hypot(vx, vz)
@@ -410,19 +451,11 @@ def _two_pitch(arm: ArmGeometry, ue, ze, tu, tz, phis, cat, twisted):
     return cands, cats, dist
 
 
-def _turn(cyw: float, syw: float, alpha: float, theta: float, v) -> tuple[float, float, float]:
-    """``Rz(yaw) Rx(alpha) Ry(theta) v`` (plane basis)."""
-    ca, sa, ct, st = math.cos(alpha), math.sin(alpha), math.cos(theta), math.sin(theta)
-    x, y, z = v
-    a = ct * x + st * z
-    c = -st * x + ct * z
-    b, c = ca * y - sa * c, sa * y + ca * c
-    return cyw * a - syw * b, syw * a + cyw * b, c
+def _rotation_angle(m, cyw: float, syw: float, ca: float, sa: float, ct: float, st: float) -> float:
+    """Angle [rad] between ``E = Rz(yaw) Rx(alpha) Ry(theta)`` and ``m`` (as rotation_error).
 
-
-def _rotation_angle(m, cyw: float, syw: float, alpha: float, theta: float) -> float:
-    """Angle [rad] between ``E = Rz(yaw) Rx(alpha) Ry(theta)`` and ``m`` (as rotation_error)."""
-    ca, sa, ct, st = math.cos(alpha), math.sin(alpha), math.cos(theta), math.sin(theta)
+    The angles enter by their cosines and sines (cyw = cos yaw, ca = cos alpha, ct = cos theta...).
+    """
     e00, e01, e02 = cyw * ct - syw * sa * st, -syw * ca, cyw * st + syw * sa * ct
     e10, e11, e12 = syw * ct + cyw * sa * st, cyw * ca, syw * st - cyw * sa * ct
     e20, e21, e22 = -ca * st, sa, ca * ct
@@ -442,13 +475,12 @@ def _rotation_angle(m, cyw: float, syw: float, alpha: float, theta: float) -> fl
     return math.atan2(sin_a, min(1.0, max(-1.0, cos_a)))
 
 
-def _rotation_angle_unrolled(m, cyw: float, syw: float, alpha: float) -> float:
+def _rotation_angle_unrolled(m, cyw: float, syw: float, ca: float, sa: float) -> float:
     """:func:`_rotation_angle` at roll 0: ``E = Rz(yaw) Rx(alpha)``, its terms in cos 0 = 1 and sin 0 = 0 dropped.
 
     The dropped terms are zeros added to (or multiplied into) finite sums, which changes no
     result but the sign of an exact zero, which the angle does not see.
     """
-    ca, sa = math.cos(alpha), math.sin(alpha)
     e01, e02 = -syw * ca, syw * sa
     e11, e12 = cyw * ca, -(cyw * sa)
     (m00, m01, m02), (m10, m11, m12), (m20, m21, m22) = m
