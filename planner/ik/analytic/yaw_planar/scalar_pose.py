@@ -142,21 +142,14 @@ def _pose(arm: ArmGeometry, frame: PoseFrame, position, rotation, qc, plan: Scal
     len_tol = arm.core_len_tol
     under = rho2 - d * d
     cylinder = not free and under < -2.0 * abs(d) * len_tol
-    u = sqrt(under) if under > 0.0 else 0.0
-    ang = atan2(hy, hx)
+    u_pos = sqrt(under) if under > 0.0 else 0.0
+    u = 0.0 if free else u_pos
     mu = arm.mu
-    psi = [ang - mu - atan2(-d, u), ang - mu - atan2(-d, -u)]
-    back_dup = free or u == 0.0
-    if free:
-        psi[0] = arm.sigma * qc[0] if qc is not None else 0.0
-        u = 0.0
-    ue = [u, -u]
-    cat = [CYLINDER, CYLINDER] if cylinder else [VALID, VALID]
+    has_roll = arm.has_roll
     same_yaw = False  # both sides at one yaw (no roll: the rotation fixes it), so side 1 repeats side 0
-    if back_dup and not cylinder:
-        cat[1] = DUPLICATE
-    # The yaw from the rotation (orientation.yaw_for_rotation).
-    if arm.has_roll:
+    # The yaw from the rotation where it fixes it better (orientation.yaw_for_rotation), else
+    # from the position.
+    if has_roll:
         w1, w2 = m[0][1], m[1][1]  # the roll axis's image (its n and e_u parts)
         horiz = hypot(w1, w2)
         psi_a = atan2(-w1, w2)
@@ -164,14 +157,24 @@ def _pose(arm: ArmGeometry, frame: PoseFrame, position, rotation, qc, plan: Scal
     else:
         psi_a = atan2(m[1][0], m[0][0])  # the pitch axis's image, from n
         use = True
-    if use:
+    if not use:
+        ang = atan2(hy, hx)
+        psi = [ang - mu - atan2(-d, u_pos), ang - mu - atan2(-d, -u_pos)]
+        if free:
+            psi[0] = arm.sigma * qc[0] if qc is not None else 0.0
+        ue = [u, -u]
+        if cylinder:
+            cat = [CYLINDER, CYLINDER]
+        else:
+            cat = [VALID, DUPLICATE if free or u_pos == 0.0 else VALID]
+    else:
         cy, sy = cos(mu + psi_a), sin(mu + psi_a)
         ue_a = hx * cy + hy * sy
         lat_a = hx * sy - hy * cy
         forward = ue_a >= 0.0
         tol = max(arm.consistency_tol, arm.core_len_tol)
         off_plane = ORIENT if abs(lat_a - d) > tol else VALID
-        if arm.has_roll:
+        if has_roll:
             off_back = ORIENT if abs(-lat_a - d) > tol else VALID
             front = psi_a if forward else psi_a + PI
             psi = [front, front + PI]
@@ -180,8 +183,8 @@ def _pose(arm: ArmGeometry, frame: PoseFrame, position, rotation, qc, plan: Scal
             psi = [psi_a, psi_a]
             cat_rot = [off_plane, DUPLICATE] if forward else [DUPLICATE, off_plane]
         ue = [abs(ue_a), -abs(ue_a)]
-        same_yaw = not arm.has_roll
-        cat = [c if c == CYLINDER else r for c, r in zip(cat, cat_rot)]
+        same_yaw = not has_roll
+        cat = [CYLINDER, CYLINDER] if cylinder else cat_rot
     # Per side: the pitch sum and its residual, the roll (orientation.pitch_from_rotation).
     orient_tol = arm.orient_tol
     kappa = frame.kappa
@@ -203,7 +206,7 @@ def _pose(arm: ArmGeometry, frame: PoseFrame, position, rotation, qc, plan: Scal
         x1 = cp_ * col1[0] + sp_ * col1[1]
         x2 = -sp_ * col1[0] + cp_ * col1[1]
         x3 = col1[2]
-        if arm.has_roll:
+        if has_roll:
             phi = atan2(x3, x2) - kappa
             residual = math.asin(min(1.0, abs(x1)))
             # roll: Rx(-phi) Rz(-psi) (the pitch axis's image).
@@ -223,7 +226,8 @@ def _pose(arm: ArmGeometry, frame: PoseFrame, position, rotation, qc, plan: Scal
         phis[side] = phi
         twisted[side] = residual > orient_tol
     if arm.n_pitch == 3:
-        cat = [ORIENT if c == VALID and t else c for c, t in zip(cat, twisted)]
+        c0, c1 = cat
+        cat = [ORIENT if c0 == VALID and twisted[0] else c0, ORIENT if c1 == VALID and twisted[1] else c1]
         cands, cats, dist = _three_pitch(arm, ue, ez, tu, tz, cphi, sphi, cat)
     else:
         cands, cats, dist = _two_pitch(arm, ue, ez, tu, tz, phis, cat, twisted)
@@ -251,6 +255,7 @@ def _pose(arm: ArmGeometry, frame: PoseFrame, position, rotation, qc, plan: Scal
             sols.append((slot, q, elbow_singular or free or abs(ue[side]) < scale_axis, None, None))
         return sols, cats, dist
     bx, by = arm.bx, arm.by
+    (m00, m01, m02), (m10, m11, m12), (m20, m21, m22) = m
     pos_tol = 1e-10 * max(1.0, arm.scale)
     offset = frame.tip_offset
     smu, cmu = frame.sin_mu, frame.cos_mu
@@ -304,7 +309,23 @@ def _pose(arm: ArmGeometry, frame: PoseFrame, position, rotation, qc, plan: Scal
             if roll_idx is None:
                 oerr = _rotation_angle_unrolled(m, cyw, syw, ca, sa)
             else:
-                oerr = _rotation_angle(m, cyw, syw, ca, sa, ct, st)
+                # The angle between E = Rz(yaw) Rx(alpha) Ry(theta) and m (as rotation_error).
+                e00, e01, e02 = cyw * ct - syw * sa * st, -syw * ca, cyw * st + syw * sa * ct
+                e10, e11, e12 = syw * ct + cyw * sa * st, cyw * ca, syw * st - cyw * sa * ct
+                e20, e21, e22 = -ca * st, sa, ca * ct
+                # rel = E^T m
+                r00 = e00 * m00 + e10 * m10 + e20 * m20
+                r11 = e01 * m01 + e11 * m11 + e21 * m21
+                r22 = e02 * m02 + e12 * m12 + e22 * m22
+                r21 = e02 * m01 + e12 * m11 + e22 * m21
+                r12 = e01 * m02 + e11 * m12 + e21 * m22
+                r02 = e00 * m02 + e10 * m12 + e20 * m22
+                r20 = e02 * m00 + e12 * m10 + e22 * m20
+                r10 = e01 * m00 + e11 * m10 + e21 * m20
+                r01 = e00 * m01 + e10 * m11 + e20 * m21
+                cos_a = 0.5 * (r00 + r11 + r22 - 1.0)
+                sin_a = 0.5 * sqrt((r21 - r12) ** 2 + (r02 - r20) ** 2 + (r10 - r01) ** 2)
+                oerr = atan2(sin_a, min(1.0, max(-1.0, cos_a)))
             if offset is not None:
                 # Rz(yaw) Rx(alpha) Ry(theta) offset (plane basis), then in the base frame:
                 # B = [n, e_u, z], n = (sin mu, -cos mu, 0), e_u = (cos mu, sin mu, 0).
@@ -451,32 +472,11 @@ def _two_pitch(arm: ArmGeometry, ue, ze, tu, tz, phis, cat, twisted):
     return cands, cats, dist
 
 
-def _rotation_angle(m, cyw: float, syw: float, ca: float, sa: float, ct: float, st: float) -> float:
-    """Angle [rad] between ``E = Rz(yaw) Rx(alpha) Ry(theta)`` and ``m`` (as rotation_error).
-
-    The angles enter by their cosines and sines (cyw = cos yaw, ca = cos alpha, ct = cos theta...).
-    """
-    e00, e01, e02 = cyw * ct - syw * sa * st, -syw * ca, cyw * st + syw * sa * ct
-    e10, e11, e12 = syw * ct + cyw * sa * st, cyw * ca, syw * st - cyw * sa * ct
-    e20, e21, e22 = -ca * st, sa, ca * ct
-    (m00, m01, m02), (m10, m11, m12), (m20, m21, m22) = m
-    # rel = E^T m
-    r00 = e00 * m00 + e10 * m10 + e20 * m20
-    r11 = e01 * m01 + e11 * m11 + e21 * m21
-    r22 = e02 * m02 + e12 * m12 + e22 * m22
-    r21 = e02 * m01 + e12 * m11 + e22 * m21
-    r12 = e01 * m02 + e11 * m12 + e21 * m22
-    r02 = e00 * m02 + e10 * m12 + e20 * m22
-    r20 = e02 * m00 + e12 * m10 + e22 * m20
-    r10 = e01 * m00 + e11 * m10 + e21 * m20
-    r01 = e00 * m01 + e10 * m11 + e20 * m21
-    cos_a = 0.5 * (r00 + r11 + r22 - 1.0)
-    sin_a = 0.5 * math.sqrt((r21 - r12) ** 2 + (r02 - r20) ** 2 + (r10 - r01) ** 2)
-    return math.atan2(sin_a, min(1.0, max(-1.0, cos_a)))
-
-
 def _rotation_angle_unrolled(m, cyw: float, syw: float, ca: float, sa: float) -> float:
-    """:func:`_rotation_angle` at roll 0: ``E = Rz(yaw) Rx(alpha)``, its terms in cos 0 = 1 and sin 0 = 0 dropped.
+    """The angle [rad] between ``E = Rz(yaw) Rx(alpha)`` and ``m`` (as rotation_error), from their cosines and sines.
+
+    :func:`_pose`'s rotation check (``E = Rz(yaw) Rx(alpha) Ry(theta)``) at roll 0, its terms
+    in cos 0 = 1 and sin 0 = 0 dropped.
 
     The dropped terms are zeros added to (or multiplied into) finite sums, which changes no
     result but the sign of an exact zero, which the angle does not see.
