@@ -296,7 +296,11 @@ def _pose(arm: ArmGeometry, frame: PoseFrame, position, rotation, qc, plan: Scal
         if side != orient_side:
             orient_side = side
             cyw, syw = cpsi[side], spsi[side]
-            cm, sm = cos(mu + side_psi), sin(mu + side_psi)
+            yaw_plane = mu + side_psi
+            if yaw_plane == side_psi:  # mu = 0 (the seed arms)
+                cm, sm = cyw, syw
+            else:
+                cm, sm = cos(yaw_plane), sin(yaw_plane)
             ct, st = cos(theta), sin(theta)
             last_f4 = None
         if f4 != last_f4:  # the elbow branches of a side share the rotation (bitwise, mostly)
