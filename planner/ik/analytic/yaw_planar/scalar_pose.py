@@ -49,6 +49,9 @@ class PoseFrame:
         sin_kappa: sin(kappa).
         cos_mu: cos(mu) (the arm's plane direction at yaw 0).
         sin_mu: sin(mu).
+        elbow: The elbow's constants for 3-pitch arms (:func:`_three_pitch`): the reach limits
+            l1 + l2 + tol and abs(l1 - l2) - tol [m], l1 ** 2, l2 ** 2, 2 l1 l2, and whether
+            both lengths are positive (NaN and False for 2-pitch arms).
     """
 
     linear: np.ndarray
@@ -59,6 +62,7 @@ class PoseFrame:
     sin_kappa: float
     cos_mu: float
     sin_mu: float
+    elbow: tuple[float, float, float, float, float, bool]
 
 
 def _rot_x(a: float) -> np.ndarray:
@@ -80,8 +84,13 @@ def pose_frame(arm: ArmGeometry) -> PoseFrame:
     if shift_local is not None:
         linear = np.vstack([linear, np.kron(np.eye(3), np.asarray(shift_local)[None, :])])
     mu = arm.mu
+    l1, l2, len_tol = arm.l1, arm.l2, arm.core_len_tol
+    if arm.n_pitch == 3:
+        elbow = (l1 + l2 + len_tol, abs(l1 - l2) - len_tol, l1 * l1, l2 * l2, 2.0 * l1 * l2, l1 > 0.0 and l2 > 0.0)
+    else:
+        elbow = (math.nan, math.nan, math.nan, math.nan, math.nan, False)
     return PoseFrame(
-        linear, kappa, tip_offset, shift_local, math.cos(kappa), math.sin(kappa), math.cos(mu), math.sin(mu)
+        linear, kappa, tip_offset, shift_local, math.cos(kappa), math.sin(kappa), math.cos(mu), math.sin(mu), elbow
     )
 
 
@@ -228,7 +237,7 @@ def _pose(arm: ArmGeometry, frame: PoseFrame, position, rotation, qc, plan: Scal
     if arm.n_pitch == 3:
         c0, c1 = cat
         cat = [ORIENT if c0 == VALID and twisted[0] else c0, ORIENT if c1 == VALID and twisted[1] else c1]
-        cands, cats, dist = _three_pitch(arm, ue, ez, tu, tz, cphi, sphi, cat)
+        cands, cats, dist = _three_pitch(arm, frame.elbow, ue, ez, tu, tz, cphi, sphi, cat)
     else:
         cands, cats, dist = _two_pitch(arm, ue, ez, tu, tz, phis, cat, twisted)
     # Assemble each branch; with a plan, verify it by the forward model (tip position and
@@ -392,13 +401,13 @@ def _pose(arm: ArmGeometry, frame: PoseFrame, position, rotation, qc, plan: Scal
     return entries, cats, dist, any_within, singular
 
 
-def _three_pitch(arm: ArmGeometry, ue, ze, tu, tz, cphi, sphi, cat):
+def _three_pitch(arm: ArmGeometry, elbow, ue, ze, tu, tz, cphi, sphi, cat):
     """Branch candidates (slot, side, a1, e + a1 (link 2's angle), elbow singular) of a 3-pitch arm.
 
-    `cphi`, `sphi`: per side, the cosine and sine of the pitch sum.
+    `elbow`: :attr:`PoseFrame.elbow`; `cphi`, `sphi`: per side, the cosine and sine of the pitch sum.
     """
     l1, l2, su, sz, g2 = arm.l1, arm.l2, arm.su, arm.sz, arm.g2
-    len_tol = arm.core_len_tol
+    reach_hi, reach_lo, l1_sq, l2_sq, l1_l2, has_lengths = elbow
     cats = [cat[0], cat[0], cat[1], cat[1]]
     dist = [0.0] * 4
     cands = []
@@ -410,13 +419,13 @@ def _three_pitch(arm: ArmGeometry, ue, ze, tu, tz, cphi, sphi, cat):
         dist[2 * side] = dist[2 * side + 1] = dd
         if cat[side] != VALID:
             continue
-        if dd > l1 + l2 + len_tol:
+        if dd > reach_hi:
             cats[2 * side] = cats[2 * side + 1] = BEYOND
             continue
-        if dd < abs(l1 - l2) - len_tol:
+        if dd < reach_lo:
             cats[2 * side] = cats[2 * side + 1] = INSIDE
             continue
-        c = (dd * dd - l1 * l1 - l2 * l2) / (2.0 * l1 * l2) if l1 > 0.0 and l2 > 0.0 else 1.0
+        c = (dd * dd - l1_sq - l2_sq) / l1_l2 if has_lengths else 1.0
         c = 1.0 if c > 1.0 else (-1.0 if c < -1.0 else c)
         s = sqrt(1.0 - c * c)
         singular = s < SINGULAR_TOL
@@ -425,15 +434,16 @@ def _three_pitch(arm: ArmGeometry, ue, ze, tu, tz, cphi, sphi, cat):
         e_abs = atan2(s, c)
         base = atan2(vz, vx)
         half = atan2(l2 * s, l1 + l2 * c)
-        first, second = (base + half, -e_abs), (base - half, e_abs)
-        if side == 1:
-            first, second = second, first
+        if side == 0:
+            a_first, e_first, a_second, e_second = base + half, -e_abs, base - half, e_abs
+        else:
+            a_first, e_first, a_second, e_second = base - half, e_abs, base + half, -e_abs
         # Link 2's angle a1 + e (less g2, as solve_core's phi3).
-        cands.append((2 * side, side, first[0], first[0] + first[1] - g2, singular))
+        cands.append((2 * side, side, a_first, a_first + e_first - g2, singular))
         if singular:
             cats[2 * side + 1] = DUPLICATE
         else:
-            cands.append((2 * side + 1, side, second[0], second[0] + second[1] - g2, False))
+            cands.append((2 * side + 1, side, a_second, a_second + e_second - g2, False))
     return cands, cats, dist
 
 
