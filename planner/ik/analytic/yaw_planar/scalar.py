@@ -334,7 +334,10 @@ def solve_scalar(
             if three:
                 d43 = phi - phi3
                 f4 = f3 + d43
-                ct, st = cos(f4), sin(f4)
+                if f4 == phi:  # mostly: the side's sine and cosine reused
+                    ct, st = cp, sp
+                else:
+                    ct, st = cos(f4), sin(f4)
                 fu += ct * tu - st * tz
                 fz += st * tu + ct * tz
             else:
@@ -346,7 +349,10 @@ def solve_scalar(
             oerr = None
             if pitch is not None:
                 alpha = beta + f4
-                c_alpha, s_alpha = cos(alpha), sin(alpha)
+                if alpha == pitch:
+                    c_alpha, s_alpha = cos_p, sin_p
+                else:
+                    c_alpha, s_alpha = cos(alpha), sin(alpha)
                 ax, ay = c_alpha * cy, c_alpha * sy
                 # pitch_error_scalar, its first line inline; the rest where it applies.
                 oerr = abs(atan2(s_alpha, hypot(ax, ay)) - elevation_p)

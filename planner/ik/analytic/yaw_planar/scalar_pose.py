@@ -45,12 +45,24 @@ class PoseFrame:
         tip_offset: The roll centre to the tip in the tip frame, as ``Rx(-kappa) B^T rot0 l``
             (plane basis), or None when the tip is the roll centre (or there is no roll).
         shift_local: The roll centre to the tip in the tip frame, shape (3,), or None (as above).
+        cos_kappa: cos(kappa).
+        sin_kappa: sin(kappa).
+        cos_mu: cos(mu) (the arm's plane direction at yaw 0).
+        sin_mu: sin(mu).
+        elbow: The elbow's constants for 3-pitch arms (:func:`_three_pitch`): the reach limits
+            l1 + l2 + tol and abs(l1 - l2) - tol [m], l1 ** 2, l2 ** 2, 2 l1 l2, and whether
+            both lengths are positive (NaN and False for 2-pitch arms).
     """
 
     linear: np.ndarray
     kappa: float
     tip_offset: tuple[float, float, float] | None
     shift_local: tuple[float, float, float] | None
+    cos_kappa: float
+    sin_kappa: float
+    cos_mu: float
+    sin_mu: float
+    elbow: tuple[float, float, float, float, float, bool]
 
 
 def _rot_x(a: float) -> np.ndarray:
@@ -71,7 +83,15 @@ def pose_frame(arm: ArmGeometry) -> PoseFrame:
     linear = np.kron(b.T, c.T)
     if shift_local is not None:
         linear = np.vstack([linear, np.kron(np.eye(3), np.asarray(shift_local)[None, :])])
-    return PoseFrame(linear, kappa, tip_offset, shift_local)
+    mu = arm.mu
+    l1, l2, len_tol = arm.l1, arm.l2, arm.core_len_tol
+    if arm.n_pitch == 3:
+        elbow = (l1 + l2 + len_tol, abs(l1 - l2) - len_tol, l1 * l1, l2 * l2, 2.0 * l1 * l2, l1 > 0.0 and l2 > 0.0)
+    else:
+        elbow = (math.nan, math.nan, math.nan, math.nan, math.nan, False)
+    return PoseFrame(
+        linear, kappa, tip_offset, shift_local, math.cos(kappa), math.sin(kappa), math.cos(mu), math.sin(mu), elbow
+    )
 
 
 def solve_pose_scalar(
@@ -112,7 +132,7 @@ def _pose(arm: ArmGeometry, frame: PoseFrame, position, rotation, qc, plan: Scal
     any singular); without: (solutions as pose_branches returns them, categories, distances).
     """
     px, py, pz = position
-    flat = (frame.linear @ rotation.reshape(9)).tolist()
+    flat = frame.linear.dot(rotation.ravel()).tolist()  # ndarray.dot: half the time of @ for this size
     m = (flat[0:3], flat[3:6], flat[6:9])
     # End point: the tip, or the roll centre (the tip minus its offset turned by the target).
     if arm.has_roll:
@@ -131,20 +151,14 @@ def _pose(arm: ArmGeometry, frame: PoseFrame, position, rotation, qc, plan: Scal
     len_tol = arm.core_len_tol
     under = rho2 - d * d
     cylinder = not free and under < -2.0 * abs(d) * len_tol
-    u = sqrt(under) if under > 0.0 else 0.0
-    ang = atan2(hy, hx)
+    u_pos = sqrt(under) if under > 0.0 else 0.0
+    u = 0.0 if free else u_pos
     mu = arm.mu
-    psi = [ang - mu - atan2(-d, u), ang - mu - atan2(-d, -u)]
-    back_dup = free or u == 0.0
-    if free:
-        psi[0] = arm.sigma * qc[0] if qc is not None else 0.0
-        u = 0.0
-    ue = [u, -u]
-    cat = [CYLINDER, CYLINDER] if cylinder else [VALID, VALID]
-    if back_dup and not cylinder:
-        cat[1] = DUPLICATE
-    # The yaw from the rotation (orientation.yaw_for_rotation).
-    if arm.has_roll:
+    has_roll = arm.has_roll
+    same_yaw = False  # both sides at one yaw (no roll: the rotation fixes it), so side 1 repeats side 0
+    # The yaw from the rotation where it fixes it better (orientation.yaw_for_rotation), else
+    # from the position.
+    if has_roll:
         w1, w2 = m[0][1], m[1][1]  # the roll axis's image (its n and e_u parts)
         horiz = hypot(w1, w2)
         psi_a = atan2(-w1, w2)
@@ -152,14 +166,24 @@ def _pose(arm: ArmGeometry, frame: PoseFrame, position, rotation, qc, plan: Scal
     else:
         psi_a = atan2(m[1][0], m[0][0])  # the pitch axis's image, from n
         use = True
-    if use:
+    if not use:
+        ang = atan2(hy, hx)
+        psi = [ang - mu - atan2(-d, u_pos), ang - mu - atan2(-d, -u_pos)]
+        if free:
+            psi[0] = arm.sigma * qc[0] if qc is not None else 0.0
+        ue = [u, -u]
+        if cylinder:
+            cat = [CYLINDER, CYLINDER]
+        else:
+            cat = [VALID, DUPLICATE if free or u_pos == 0.0 else VALID]
+    else:
         cy, sy = cos(mu + psi_a), sin(mu + psi_a)
         ue_a = hx * cy + hy * sy
         lat_a = hx * sy - hy * cy
         forward = ue_a >= 0.0
         tol = max(arm.consistency_tol, arm.core_len_tol)
         off_plane = ORIENT if abs(lat_a - d) > tol else VALID
-        if arm.has_roll:
+        if has_roll:
             off_back = ORIENT if abs(-lat_a - d) > tol else VALID
             front = psi_a if forward else psi_a + PI
             psi = [front, front + PI]
@@ -168,40 +192,52 @@ def _pose(arm: ArmGeometry, frame: PoseFrame, position, rotation, qc, plan: Scal
             psi = [psi_a, psi_a]
             cat_rot = [off_plane, DUPLICATE] if forward else [DUPLICATE, off_plane]
         ue = [abs(ue_a), -abs(ue_a)]
-        cat = [c if c == CYLINDER else r for c, r in zip(cat, cat_rot)]
+        same_yaw = not has_roll
+        cat = [CYLINDER, CYLINDER] if cylinder else cat_rot
     # Per side: the pitch sum and its residual, the roll (orientation.pitch_from_rotation).
     orient_tol = arm.orient_tol
     kappa = frame.kappa
-    ck, sk = cos(kappa), sin(kappa)
+    ck, sk = frame.cos_kappa, frame.sin_kappa
     col0 = (m[0][0], m[1][0], m[2][0])
     col1 = (m[0][1], m[1][1], m[2][1])
     phis = [0.0, 0.0]
     rolls = [0.0, 0.0]
     twisted = [False, False]  # the rotation is not the arm's at this yaw
+    # Sines and cosines of each side's yaw and pitch sum, computed once (reused below).
+    cpsi, spsi, cphi, sphi = [0.0, 0.0], [0.0, 0.0], [0.0, 0.0], [0.0, 0.0]
     for side in (0, 1):
-        cp_, sp_ = cos(psi[side]), sin(psi[side])
+        if side == 1 and same_yaw:
+            cpsi[1], spsi[1], cphi[1], sphi[1] = cpsi[0], spsi[0], cphi[0], sphi[0]
+            phis[1], twisted[1] = phis[0], twisted[0]
+            break
+        cpsi[side] = cp_ = cos(psi[side])
+        spsi[side] = sp_ = sin(psi[side])
         x1 = cp_ * col1[0] + sp_ * col1[1]
         x2 = -sp_ * col1[0] + cp_ * col1[1]
         x3 = col1[2]
-        if arm.has_roll:
+        if has_roll:
             phi = atan2(x3, x2) - kappa
             residual = math.asin(min(1.0, abs(x1)))
             # roll: Rx(-phi) Rz(-psi) (the pitch axis's image).
             v1 = cp_ * col0[0] + sp_ * col0[1]
             v2 = -sp_ * col0[0] + cp_ * col0[1]
             v3 = col0[2]
-            cf, sf = cos(phi), sin(phi)
+            cphi[side] = cf = cos(phi)
+            sphi[side] = sf = sin(phi)
             b2 = cf * v2 + sf * v3
             b3 = -sf * v2 + cf * v3
             rolls[side] = atan2(sk * b2 - ck * b3, v1)
         else:
             phi = atan2(x3, x2)
-            residual = _rotation_angle_unrolled(m, cp_, sp_, phi)
+            cphi[side] = cf = cos(phi)
+            sphi[side] = sf = sin(phi)
+            residual = _rotation_angle_unrolled(m, cp_, sp_, cf, sf)
         phis[side] = phi
         twisted[side] = residual > orient_tol
     if arm.n_pitch == 3:
-        cat = [ORIENT if c == VALID and t else c for c, t in zip(cat, twisted)]
-        cands, cats, dist = _three_pitch(arm, ue, ez, tu, tz, phis, cat)
+        c0, c1 = cat
+        cat = [ORIENT if c0 == VALID and twisted[0] else c0, ORIENT if c1 == VALID and twisted[1] else c1]
+        cands, cats, dist = _three_pitch(arm, frame.elbow, ue, ez, tu, tz, cphi, sphi, cat)
     else:
         cands, cats, dist = _two_pitch(arm, ue, ez, tu, tz, phis, cat, twisted)
     # Assemble each branch; with a plan, verify it by the forward model (tip position and
@@ -228,9 +264,10 @@ def _pose(arm: ArmGeometry, frame: PoseFrame, position, rotation, qc, plan: Scal
             sols.append((slot, q, elbow_singular or free or abs(ue[side]) < scale_axis, None, None))
         return sols, cats, dist
     bx, by = arm.bx, arm.by
+    (m00, m01, m02), (m10, m11, m12), (m20, m21, m22) = m
     pos_tol = 1e-10 * max(1.0, arm.scale)
     offset = frame.tip_offset
-    smu, cmu = math.sin(mu), math.cos(mu)
+    smu, cmu = frame.sin_mu, frame.cos_mu
     lo0, hi0, lo1, hi1, lo2, hi2, lo3, hi3, lo4, hi4 = plan.limits
     sort = qc is not None
     ref = qc if sort else plan.zeros
@@ -239,7 +276,7 @@ def _pose(arm: ArmGeometry, frame: PoseFrame, position, rotation, qc, plan: Scal
     r4 = ref[roll_idx] if roll_idx is not None else 0.0
     entries = []
     any_within = singular = False
-    last_key = last_side = None
+    last_side = orient_side = last_f4 = None
     for slot, side, a1, phi2_3, elbow_singular in cands:
         side_psi, phi, theta = psi[side], phis[side], rolls[side]
         # Forward model at q; its pitch sums (f2, f3, f4) are sign * q of the joints below,
@@ -258,22 +295,58 @@ def _pose(arm: ArmGeometry, frame: PoseFrame, position, rotation, qc, plan: Scal
             f4 = f3 + d43
         else:
             f4 = f3
-        c4, s4 = cos(f4), sin(f4)
+        # Each sine and cosine computed once: of an angle equal to one known before, reused.
+        if f4 == phi:
+            c4, s4 = cphi[side], sphi[side]
+        else:
+            c4, s4 = cos(f4), sin(f4)
         fu += c4 * tu - s4 * tz
         fz += s4 * tu + c4 * tz
-        yaw = side_psi
-        key = (yaw, f4, theta)
-        if key != last_key:  # the elbow branches of a side share these (bitwise)
-            last_key = key
-            cyw, syw = cos(yaw), sin(yaw)
-            cm, sm = cos(mu + yaw), sin(mu + yaw)
-            if roll_idx is None:
-                oerr = _rotation_angle_unrolled(m, cyw, syw, f4 + kappa)
+        if side != orient_side:
+            orient_side = side
+            cyw, syw = cpsi[side], spsi[side]
+            yaw_plane = mu + side_psi
+            if yaw_plane == side_psi:  # mu = 0 (the seed arms)
+                cm, sm = cyw, syw
             else:
-                oerr = _rotation_angle(m, cyw, syw, f4 + kappa, theta)
+                cm, sm = cos(yaw_plane), sin(yaw_plane)
+            ct, st = cos(theta), sin(theta)
+            last_f4 = None
+        if f4 != last_f4:  # the elbow branches of a side share the rotation (bitwise, mostly)
+            last_f4 = f4
+            alpha = f4 + kappa
+            if alpha == f4:
+                ca, sa = c4, s4
+            else:
+                ca, sa = cos(alpha), sin(alpha)
+            if roll_idx is None:
+                oerr = _rotation_angle_unrolled(m, cyw, syw, ca, sa)
+            else:
+                # The angle between E = Rz(yaw) Rx(alpha) Ry(theta) and m (as rotation_error).
+                e00, e01, e02 = cyw * ct - syw * sa * st, -syw * ca, cyw * st + syw * sa * ct
+                e10, e11, e12 = syw * ct + cyw * sa * st, cyw * ca, syw * st - cyw * sa * ct
+                e20, e21, e22 = -ca * st, sa, ca * ct
+                # rel = E^T m
+                r00 = e00 * m00 + e10 * m10 + e20 * m20
+                r11 = e01 * m01 + e11 * m11 + e21 * m21
+                r22 = e02 * m02 + e12 * m12 + e22 * m22
+                r21 = e02 * m01 + e12 * m11 + e22 * m21
+                r12 = e01 * m02 + e11 * m12 + e21 * m22
+                r02 = e00 * m02 + e10 * m12 + e20 * m22
+                r20 = e02 * m00 + e12 * m10 + e22 * m20
+                r10 = e01 * m00 + e11 * m10 + e21 * m20
+                r01 = e00 * m01 + e10 * m11 + e20 * m21
+                cos_a = 0.5 * (r00 + r11 + r22 - 1.0)
+                sin_a = 0.5 * sqrt((r21 - r12) ** 2 + (r02 - r20) ** 2 + (r10 - r01) ** 2)
+                oerr = atan2(sin_a, min(1.0, max(-1.0, cos_a)))
             if offset is not None:
-                ox, oy, oz = _turn(cyw, syw, f4 + kappa, theta, offset)
-                # In the base frame: B = [n, e_u, z], n = (sin mu, -cos mu, 0), e_u = (cos mu, sin mu, 0).
+                # Rz(yaw) Rx(alpha) Ry(theta) offset (plane basis), then in the base frame:
+                # B = [n, e_u, z], n = (sin mu, -cos mu, 0), e_u = (cos mu, sin mu, 0).
+                x, y, z = offset
+                ta = ct * x + st * z
+                tc = -st * x + ct * z
+                tb, oz = ca * y - sa * tc, sa * y + ca * tc
+                ox, oy = cyw * ta - syw * tb, syw * ta + cyw * tb
                 ox, oy = smu * ox + cmu * oy, -cmu * ox + smu * oy
         fx = bx + cm * fu + sm * d
         fy = by + sm * fu - cm * d
@@ -328,29 +401,31 @@ def _pose(arm: ArmGeometry, frame: PoseFrame, position, rotation, qc, plan: Scal
     return entries, cats, dist, any_within, singular
 
 
-def _three_pitch(arm: ArmGeometry, ue, ze, tu, tz, phis, cat):
-    """Branch candidates (slot, side, a1, e + a1 (link 2's angle), elbow singular) of a 3-pitch arm."""
+def _three_pitch(arm: ArmGeometry, elbow, ue, ze, tu, tz, cphi, sphi, cat):
+    """Branch candidates (slot, side, a1, e + a1 (link 2's angle), elbow singular) of a 3-pitch arm.
+
+    `elbow`: :attr:`PoseFrame.elbow`; `cphi`, `sphi`: per side, the cosine and sine of the pitch sum.
+    """
     l1, l2, su, sz, g2 = arm.l1, arm.l2, arm.su, arm.sz, arm.g2
-    len_tol = arm.core_len_tol
+    reach_hi, reach_lo, l1_sq, l2_sq, l1_l2, has_lengths = elbow
     cats = [cat[0], cat[0], cat[1], cat[1]]
     dist = [0.0] * 4
     cands = []
     for side in (0, 1):
-        phi = phis[side]
-        cp, sp = cos(phi), sin(phi)
+        cp, sp = cphi[side], sphi[side]
         vx = ue[side] - (cp * tu - sp * tz) - su
         vz = ze - (sp * tu + cp * tz) - sz
         dd = hypot(vx, vz)
         dist[2 * side] = dist[2 * side + 1] = dd
         if cat[side] != VALID:
             continue
-        if dd > l1 + l2 + len_tol:
+        if dd > reach_hi:
             cats[2 * side] = cats[2 * side + 1] = BEYOND
             continue
-        if dd < abs(l1 - l2) - len_tol:
+        if dd < reach_lo:
             cats[2 * side] = cats[2 * side + 1] = INSIDE
             continue
-        c = (dd * dd - l1 * l1 - l2 * l2) / (2.0 * l1 * l2) if l1 > 0.0 and l2 > 0.0 else 1.0
+        c = (dd * dd - l1_sq - l2_sq) / l1_l2 if has_lengths else 1.0
         c = 1.0 if c > 1.0 else (-1.0 if c < -1.0 else c)
         s = sqrt(1.0 - c * c)
         singular = s < SINGULAR_TOL
@@ -359,15 +434,16 @@ def _three_pitch(arm: ArmGeometry, ue, ze, tu, tz, phis, cat):
         e_abs = atan2(s, c)
         base = atan2(vz, vx)
         half = atan2(l2 * s, l1 + l2 * c)
-        first, second = (base + half, -e_abs), (base - half, e_abs)
-        if side == 1:
-            first, second = second, first
+        if side == 0:
+            a_first, e_first, a_second, e_second = base + half, -e_abs, base - half, e_abs
+        else:
+            a_first, e_first, a_second, e_second = base - half, e_abs, base + half, -e_abs
         # Link 2's angle a1 + e (less g2, as solve_core's phi3).
-        cands.append((2 * side, side, first[0], first[0] + first[1] - g2, singular))
+        cands.append((2 * side, side, a_first, a_first + e_first - g2, singular))
         if singular:
             cats[2 * side + 1] = DUPLICATE
         else:
-            cands.append((2 * side + 1, side, second[0], second[0] + second[1] - g2, False))
+            cands.append((2 * side + 1, side, a_second, a_second + e_second - g2, False))
     return cands, cats, dist
 
 
@@ -410,45 +486,15 @@ def _two_pitch(arm: ArmGeometry, ue, ze, tu, tz, phis, cat, twisted):
     return cands, cats, dist
 
 
-def _turn(cyw: float, syw: float, alpha: float, theta: float, v) -> tuple[float, float, float]:
-    """``Rz(yaw) Rx(alpha) Ry(theta) v`` (plane basis)."""
-    ca, sa, ct, st = math.cos(alpha), math.sin(alpha), math.cos(theta), math.sin(theta)
-    x, y, z = v
-    a = ct * x + st * z
-    c = -st * x + ct * z
-    b, c = ca * y - sa * c, sa * y + ca * c
-    return cyw * a - syw * b, syw * a + cyw * b, c
+def _rotation_angle_unrolled(m, cyw: float, syw: float, ca: float, sa: float) -> float:
+    """The angle [rad] between ``E = Rz(yaw) Rx(alpha)`` and ``m`` (as rotation_error), from their cosines and sines.
 
-
-def _rotation_angle(m, cyw: float, syw: float, alpha: float, theta: float) -> float:
-    """Angle [rad] between ``E = Rz(yaw) Rx(alpha) Ry(theta)`` and ``m`` (as rotation_error)."""
-    ca, sa, ct, st = math.cos(alpha), math.sin(alpha), math.cos(theta), math.sin(theta)
-    e00, e01, e02 = cyw * ct - syw * sa * st, -syw * ca, cyw * st + syw * sa * ct
-    e10, e11, e12 = syw * ct + cyw * sa * st, cyw * ca, syw * st - cyw * sa * ct
-    e20, e21, e22 = -ca * st, sa, ca * ct
-    (m00, m01, m02), (m10, m11, m12), (m20, m21, m22) = m
-    # rel = E^T m
-    r00 = e00 * m00 + e10 * m10 + e20 * m20
-    r11 = e01 * m01 + e11 * m11 + e21 * m21
-    r22 = e02 * m02 + e12 * m12 + e22 * m22
-    r21 = e02 * m01 + e12 * m11 + e22 * m21
-    r12 = e01 * m02 + e11 * m12 + e21 * m22
-    r02 = e00 * m02 + e10 * m12 + e20 * m22
-    r20 = e02 * m00 + e12 * m10 + e22 * m20
-    r10 = e01 * m00 + e11 * m10 + e21 * m20
-    r01 = e00 * m01 + e10 * m11 + e20 * m21
-    cos_a = 0.5 * (r00 + r11 + r22 - 1.0)
-    sin_a = 0.5 * math.sqrt((r21 - r12) ** 2 + (r02 - r20) ** 2 + (r10 - r01) ** 2)
-    return math.atan2(sin_a, min(1.0, max(-1.0, cos_a)))
-
-
-def _rotation_angle_unrolled(m, cyw: float, syw: float, alpha: float) -> float:
-    """:func:`_rotation_angle` at roll 0: ``E = Rz(yaw) Rx(alpha)``, its terms in cos 0 = 1 and sin 0 = 0 dropped.
+    :func:`_pose`'s rotation check (``E = Rz(yaw) Rx(alpha) Ry(theta)``) at roll 0, its terms
+    in cos 0 = 1 and sin 0 = 0 dropped.
 
     The dropped terms are zeros added to (or multiplied into) finite sums, which changes no
     result but the sign of an exact zero, which the angle does not see.
     """
-    ca, sa = math.cos(alpha), math.sin(alpha)
     e01, e02 = -syw * ca, syw * sa
     e11, e12 = cyw * ca, -(cyw * sa)
     (m00, m01, m02), (m10, m11, m12), (m20, m21, m22) = m
