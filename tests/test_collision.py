@@ -726,17 +726,15 @@ def test_check_motion_with_per_pair_speeds_agrees_with_check_segment():
     assert seen == {True, False}
 
 
-def test_a_shared_checker_is_reused_per_scene_and_answers_as_a_new_one():
-    robot = get_robot("panda")
-    scene = Scene(
-        floor=0.0, clearance=0.005, obstacles=(Obstacle("box", Box((0.25, 0.25, 0.5)), np.array([0.45, 0.0, 0.25])),)
-    )
-    same = Scene(
-        floor=0.0, clearance=0.005, obstacles=(Obstacle("box", Box((0.25, 0.25, 0.5)), np.array([0.45, 0.0, 0.25])),)
-    )
-    moved = Scene(
-        floor=0.0, clearance=0.005, obstacles=(Obstacle("box", Box((0.25, 0.25, 0.5)), np.array([0.45, 0.1, 0.25])),)
-    )
+@pytest.mark.parametrize(("name", "size"), [("al5c", 0.1), pytest.param("panda", 0.5, marks=needs_example_robot_data)])
+def test_a_shared_checker_is_reused_per_scene_and_answers_as_a_new_one(name, size):
+    robot = get_robot(name)
+    box, at = Box((size / 2, size / 2, size)), np.array([0.9 * size, 0.0, size / 2])
+
+    def scene_at(y):
+        return Scene(floor=0.0, clearance=0.005, obstacles=(Obstacle("box", box, at + [0.0, y, 0.0]),))
+
+    scene, same, moved = scene_at(0.0), scene_at(0.0), scene_at(size / 5)
     first = shared_checker(robot, scene)
     assert shared_checker(robot, same) is first
     assert shared_checker(robot, moved) is not first and shared_checker(robot, None) is not first

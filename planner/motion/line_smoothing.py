@@ -365,7 +365,7 @@ def _natural_spline(
     Natural (zero second derivative) at an end whose slope is None, else clamped to that slope.
     """
     n = len(x)
-    if n < 2 or (n < 3 and slopes == (None, None)):
+    if n < 2 or (n < 3 and slopes[0] is None and slopes[1] is None):
         return np.zeros_like(y)
     h = np.diff(x)
     sub, diag, sup = np.zeros(n), np.ones(n), np.zeros(n)
