@@ -51,17 +51,6 @@ from planner.motion.line_timing import line_trajectory
 RESULTS = Path(__file__).resolve().parent / "results"
 
 
-def sign_changes(traj, t0: float, t1: float, jerk_limit: np.ndarray) -> np.ndarray:
-    """Per joint, sign changes of the 1 kHz jerk where |jerk| > 1 % of its limit."""
-    s = traj.sample(np.arange(t0, t1, 1e-3))
-    out = []
-    for d in range(s.qddd.shape[1]):
-        x = s.qddd[:, d]
-        x = x[np.abs(x) > 0.01 * jerk_limit[d]]
-        out.append(int(np.sum(np.sign(x[1:]) != np.sign(x[:-1]))))
-    return np.array(out)
-
-
 def line_figures(plan, k: int) -> dict:
     """Figures of the line into user waypoint k of a plan."""
     traj, lim = plan.trajectory, plan.limits
@@ -69,8 +58,8 @@ def line_figures(plan, k: int) -> dict:
     inside = traj.waypoint_times[(traj.waypoint_times > t0 + 1e-9) & (traj.waypoint_times < t1 - 1e-9)]
     rests = [t for t in inside if np.all(np.abs(traj.sample(np.array([t])).qd[0]) <= 1e-9 * lim.velocity)]
     bounds = [t0, *rests, t1]
-    pieces = [int(sign_changes(traj, a, b, lim.jerk).max()) for a, b in zip(bounds, bounds[1:])]
-    counts = sign_changes(traj, t0, t1, lim.jerk)
+    pieces = [int(traj.jerk_sign_changes(a, b).max()) for a, b in zip(bounds, bounds[1:])]
+    counts = traj.jerk_sign_changes(t0, t1)
     peaks = [traj.peak_ratios(None), traj.peak_ratios(1000.0)]
     return {
         "sign_changes": counts.tolist(),
@@ -138,7 +127,7 @@ def blended_plans(robot: Robot, count: int, rng: np.random.Generator) -> tuple[l
                 "limit_ratio": max(max(p["velocity"], p["acceleration"], p["jerk"]) for p in peaks),
                 "position_excess": max(p["position"] for p in peaks),
                 "deviation": float(blended.line_deviation[1]),
-                "worst_joint": int(sign_changes(traj, t0, t1, blended.limits.jerk).max()),
+                "worst_joint": int(traj.jerk_sign_changes(t0, t1).max()),
             }
         )
     return out, skipped

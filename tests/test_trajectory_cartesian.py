@@ -267,6 +267,16 @@ def test_the_demo_lines_are_smooth_splines_within_every_limit():
             # A chain of time-optimal segments between the samples switched 100-120 times here.
             assert max(counts) <= 9, (k, counts)
             assert plan.line_deviation[k - 1] <= 1e-5
+    # The summary (and the demo's summary.json) reports the same count per move and joint.
+    summary = plan.summary()
+    expected = [
+        _jerk_sign_changes(traj, plan.departure_times[k - 1], plan.waypoint_times[k], plan.limits)
+        for k in range(1, len(plan.waypoints))
+    ]
+    assert summary["jerk_sign_changes"] == expected
+    assert traj.jerk_sign_changes(traj.duration, traj.duration).tolist() == [0] * robot.dof
+    with pytest.raises(planner.InvalidArgumentError, match="rate"):
+        traj.jerk_sign_changes(rate=0.0)
 
 
 def test_random_lines_are_smooth_and_keep_every_limit():

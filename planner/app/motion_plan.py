@@ -118,6 +118,10 @@ class MotionPlan:
             ],
             "unresolved_segments": list(self.unresolved),
             "line_deviation": list(self.line_deviation),
+            "jerk_sign_changes": [
+                self.trajectory.jerk_sign_changes(a, b, rate).tolist()
+                for a, b in zip(self.departure_times[:-1], self.waypoint_times[1:])
+            ],
             "strategy": self.trajectory.strategy,
             "controller": None if self.setup is None else self.setup.controller,
             "sample_rate": rate,

@@ -245,6 +245,34 @@ class JointTrajectory:
             "position": pos,
         }
 
+    def jerk_sign_changes(
+        self, t0: float = 0.0, t1: float | None = None, rate: float = 1000.0, floor: float = 0.01
+    ) -> np.ndarray:
+        """Per joint, how often the sampled jerk changes sign between `t0` and `t1` [s].
+
+        The smoothness count of issue 11: samples at `rate` [Hz] from `t0` (up to, not
+        including, `t1`; None: the end), those with |jerk| above `floor` times the joint's jerk
+        limit, and the sign changes between consecutive ones. A jerk-limited S-curve between
+        two rests has a few; a chain of time-optimal segments through many samples switches
+        between +limit and -limit at every one.
+
+        Returns:
+            Shape (dof,), integers.
+
+        Raises:
+            InvalidArgumentError: On a rate that is not positive and finite.
+        """
+        if not (isinstance(rate, (int, float)) and math.isfinite(rate) and rate > 0):
+            raise InvalidArgumentError(f"rate must be positive and finite [Hz], got {plain(rate)}")
+        end = self.duration if t1 is None else float(t1)
+        s = self.sample(np.arange(float(t0), end, 1.0 / rate), clamp=True)
+        out = np.zeros(self.dof, dtype=int)
+        for d in range(self.dof):
+            x = s.qddd[:, d]
+            x = x[np.abs(x) > floor * self.limits.jerk[d]]
+            out[d] = int(np.sum(np.sign(x[1:]) != np.sign(x[:-1])))
+        return out
+
     def _extreme_states(self) -> TrajectorySample:
         """States at every knot, interval end and interior velocity/position extremum."""
         ends = np.append(self.knots[1:], self.duration)
