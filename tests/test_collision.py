@@ -21,6 +21,14 @@ from conftest import get_robot, needs_example_robot_data
 
 deg = np.radians
 
+#: Two bundled arms (capsules) and two example-robot-data arms (meshes), the latter where installed.
+MIXED_ARMS = [
+    "al5c",
+    "dh3",
+    pytest.param("ur5", marks=needs_example_robot_data),
+    pytest.param("panda", marks=needs_example_robot_data),
+]
+
 
 def _one_link(radius: float = 0.01, length: float = 0.3, speed: float = 60.0) -> Robot:
     """A single link turning about the vertical axis at height 0.1 m: a capsule from the axis out."""
@@ -275,15 +283,7 @@ def _independent_pair_checks(checker: CollisionChecker, q: np.ndarray, mask: np.
     return np.array(distances), np.array(hits)
 
 
-@pytest.mark.parametrize(
-    "name",
-    [
-        "al5c",
-        "dh3",
-        pytest.param("ur5", marks=needs_example_robot_data),
-        pytest.param("panda", marks=needs_example_robot_data),
-    ],
-)
+@pytest.mark.parametrize("name", MIXED_ARMS)
 def test_checks_equal_an_independent_per_pair_computation(name):
     """in_collision (AABB tree) and clearance (Pinocchio's closest pair) against coal pair by pair."""
     robot = get_robot(name)
@@ -559,15 +559,7 @@ def _placements(checker, q):
     return [pin.SE3(m) for m in gdata.oMg]
 
 
-@pytest.mark.parametrize(
-    "name",
-    [
-        "al5c",
-        "dh3",
-        pytest.param("ur5", marks=needs_example_robot_data),
-        pytest.param("panda", marks=needs_example_robot_data),
-    ],
-)
+@pytest.mark.parametrize("name", MIXED_ARMS)
 def test_pair_bounds_never_underestimate_the_relative_motion_of_two_bodies(name):
     """Along random joint segments, densely sampled by FK: every corner of one body's bounding box,
     seen from the other body, moves no farther than pair_weights allows."""
@@ -675,15 +667,7 @@ def test_a_clear_certificate_holds_between_checks_on_the_table_and_box_scene(nam
     assert clear == 4
 
 
-@pytest.mark.parametrize(
-    "name",
-    [
-        "al5c",
-        "dh3",
-        pytest.param("ur5", marks=needs_example_robot_data),
-        pytest.param("panda", marks=needs_example_robot_data),
-    ],
-)
+@pytest.mark.parametrize("name", MIXED_ARMS)
 def test_closer_than_agrees_with_the_distances(name):
     """The broad-phase proximity test says "closer" exactly where some checked pair's distance is below it."""
     robot = get_robot(name)
