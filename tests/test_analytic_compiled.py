@@ -24,6 +24,7 @@ from test_analytic_fast_paths import yaw_planar_arms
 
 from planner import Target, load_robot
 from planner.core.rotations import rotation_error
+from planner.exceptions import InvalidArgumentError
 from planner.geometry.chain import LIMIT_SNAP, wrap_array
 from planner.geometry.target import approach_pitch
 from planner.ik.analytic import STATUS_NAMES, closed_form_solver
@@ -238,3 +239,20 @@ def test_wrap_sx_equals_wrap_array(lower, upper, centred):
     got = np.asarray(f(x, ref)).ravel()
     want = wrap_array(x.copy(), lower, upper, ref)
     np.testing.assert_array_equal(got, want)
+
+
+def test_batch_rotation_check_finds_the_bad_row():
+    """solve_batch's rotation check (entry by entry, in slices of 16384) names the first
+    improper or non-orthonormal rotation, in any slice, and accepts round-off."""
+    s = solver("al5c")
+    rng = np.random.default_rng(4)
+    n = 16384 + 40
+    rot = np.linalg.qr(rng.normal(size=(n, 3, 3)))[0]
+    rot *= np.linalg.det(rot)[:, None, None]
+    pos = np.zeros((n, 3))
+    s.solve_batch(pos, rotations=rot * (1.0 + 1e-9))
+    for row, change in ((16390, -1.0), (3, 1.0 + 2e-6), (n - 1, np.diag([1.0, 1.0, -1.0]))):
+        bad = rot.copy()
+        bad[row] = bad[row] @ change if np.ndim(change) else bad[row] * change
+        with pytest.raises(InvalidArgumentError, match=rf"rotations\[{row}\] is not a proper orthonormal"):
+            s.solve_batch(pos, rotations=bad)
