@@ -93,6 +93,19 @@ def _where(cond, a, b):
     return ca.if_else(cond, a, b)
 
 
+def _max(x, c: float):
+    """C's ``fmax(x, c)`` for a constant `c` (glibc's: x where ``x >= c``, c where x is NaN), inline.
+
+    (CasADi's ``fmax`` compiles to a libm call.)
+    """
+    return _where(x >= c, x, c)
+
+
+def _min(x, c: float):
+    """C's ``fmin(x, c)`` for a constant `c`, inline (see :func:`_max`)."""
+    return _where(x <= c, x, c)
+
+
 def _rint(y):
     """``numpy.round``: to the nearest integer, halves to even, for ``|y| < 2**51``.
 
@@ -243,7 +256,7 @@ def _one_target(arm: ArmGeometry, kind: str, current: bool) -> ca.Function:
     len_tol = arm.core_len_tol
     under = rho2 - d * d
     cylinder = ca.logic_and(ca.logic_not(free), under < -2.0 * abs(d) * len_tol)
-    u = ca.sqrt(ca.fmax(under, 0.0))
+    u = ca.sqrt(_max(under, 0.0))
     ang = _Angle.atan2(hy, hx, ca.sqrt(rho2)).shift(-arm.mu)
     if d == 0.0:
         # NumPy's atan2(-0.0, u) and atan2(-0.0, -u) for u >= 0 (CasADi folds -0.0 into 0).
@@ -251,8 +264,10 @@ def _one_target(arm: ArmGeometry, kind: str, current: bool) -> ca.Function:
         psi_b = ang.shift(PI)
     else:
         r_d = ca.sqrt(u * u + d * d)
-        psi_f = ang - _Angle(ca.atan2(-d, u), u / r_d, -d / r_d)
-        psi_b = ang - _Angle(ca.atan2(-d, -u), -u / r_d, -d / r_d)
+        # atan2(-d, -u) = -atan2(-d, u) - pi sign(d) for u >= 0 (to round-off; one arc tangent).
+        off = ca.atan2(-d, u)
+        psi_f = ang - _Angle(off, u / r_d, -d / r_d)
+        psi_b = ang - _Angle(-off - math.copysign(PI, d), -u / r_d, -d / r_d)
     back_dup = ca.logic_or(free, u == 0.0)
     # q_current's yaw sigma q0 [rad].
     yaw_qc = _Angle.of(qc[0]).signed(arm.sigma) if current else None
@@ -354,7 +369,7 @@ def _one_target(arm: ArmGeometry, kind: str, current: bool) -> ca.Function:
             c = cat[k]
             c = _where(ca.logic_and(c == VALID, dk > l1 + l2 + len_tol), BEYOND, c)
             cat[k] = _where(ca.logic_and(c == VALID, dk < abs(l1 - l2) - len_tol), INSIDE, c)
-            cc = ca.fmin(ca.fmax((dk * dk - l1 * l1 - l2 * l2) / (2.0 * l1 * l2), -1.0), 1.0)
+            cc = _min(_max((dk * dk - l1 * l1 - l2 * l2) / (2.0 * l1 * l2), -1.0), 1.0)
             s = ca.sqrt(1.0 - cc * cc)
             es = s < SINGULAR_TOL
             s = _where(es, 0.0, s)
@@ -503,13 +518,13 @@ def _default_end_angle(arm: ArmGeometry, ue, ze):
     for k in range(2):
         ex, ez = ue[k] - su, ze - sz
         de = ca.sqrt(ex * ex + ez * ez)
-        lo = ca.fmax(abs(de - lt), rmin)
-        hi = ca.fmin(de + lt, rmax)
+        lo = _max(abs(de - lt), rmin)
+        hi = _min(de + lt, rmax)
         bad = ca.logic_or(lo > hi + arm.core_len_tol, de == 0.0)
         fail.append(_where(bad, _where(de - lt > rmax, BEYOND, INSIDE), VALID))
         safe = _where(de == 0.0, 1.0, de)
         a = (lo * lo - lt * lt + safe * safe) / (2.0 * safe)
-        h = _where(abs(de - lt) >= rmin, 0.0, ca.sqrt(ca.fmax(lo * lo - a * a, 0.0)))
+        h = _where(abs(de - lt) >= rmin, 0.0, ca.sqrt(_max(lo * lo - a * a, 0.0)))
         ux, uz = ex / safe, ez / safe
         options = []
         for sgn in (1.0, -1.0):
@@ -598,7 +613,7 @@ def _rotation_beyond(a, b, tol: float):
     ``sin cos(tol) - cos sin(tol) > 0`` (no arc tangent).
     """
     rel = _matmul([[a[j][i] for j in range(3)] for i in range(3)], b)
-    cos = ca.fmin(ca.fmax((rel[0][0] + rel[1][1] + rel[2][2] - 1.0) / 2.0, -1.0), 1.0)
+    cos = _min(_max((rel[0][0] + rel[1][1] + rel[2][2] - 1.0) / 2.0, -1.0), 1.0)
     k = [rel[2][1] - rel[1][2], rel[0][2] - rel[2][0], rel[1][0] - rel[0][1]]
     sin = ca.sqrt(k[0] * k[0] + k[1] * k[1] + k[2] * k[2]) / 2.0
     if not 0.0 < tol < PI / 2:
@@ -667,7 +682,7 @@ def _pitch_from_rotation(arm: ArmGeometry, m_rot, psi: list[_Angle]):
             x = _unyaw(_matvec(m_rot, arm.r0), cz, sz)
             phi.append(_Angle.atan2(x[2], x[0] * e_u[0] + x[1] * e_u[1] + x[2] * e_u[2]).shift(-arm.kappa))
             xn = x[0] * n[0] + x[1] * n[1] + x[2] * n[2]
-            beyond.append(ca.fmin(ca.fmax(abs(xn), 0.0), 1.0) > math.sin(arm.orient_tol))
+            beyond.append(_min(_max(abs(xn), 0.0), 1.0) > math.sin(arm.orient_tol))
         else:
             x = _unyaw(_matvec(m_rot, e_u), cz, sz)
             phi_k = _Angle.atan2(x[2], x[0] * e_u[0] + x[1] * e_u[1] + x[2] * e_u[2])
