@@ -472,7 +472,10 @@ def _one_target(arm: ArmGeometry, kind: str, current: bool) -> ca.Function:
     outputs = [
         ca.vertcat(*[x for m in range(4) for x in q[m]]),
         ca.vertcat(*perr),
-        ca.vertcat(*valid, *within, *singular, status, best, *extra),
+        ca.vertcat(*valid),
+        ca.vertcat(*within),
+        ca.vertcat(*singular),
+        ca.vertcat(status, best, *extra),
     ]
     inputs = [p] + ([pit] if pitch else []) + ([rflat] if pose else []) + ([qc] if current else [])
     return ca.Function("yaw_planar_closed_form", inputs, ca.cse(outputs))
@@ -792,14 +795,17 @@ def _run(fn: ca.Function, args, out: BranchArrays, handover, start: int, stop: i
     """Rows `start` to `stop` of `out` (and `handover`) by `fn` (mapped over `b` targets), block by block.
 
     (b, m) rows in C order are CasADi's (m, b) columns: full blocks read the inputs and write
-    the joint values and errors in place; the masks and codes go through one reused buffer.
+    the joint values and errors in place; the masks and codes go through reused buffers, one
+    per output (converted from contiguous rows: 7 times as fast as from strided columns).
     """
     if start >= stop:
         return
     buffer, evaluate = fn.buffer()
     dof = out.q.shape[2]
-    codes = np.empty((b, 4 * 3 + 2 + (handover is not None)))
-    buffer.set_res(2, memoryview(codes))
+    masks = [np.empty((b, 4)) for _ in range(3)]
+    codes = np.empty((b, 2 + (handover is not None)))
+    for i, res in enumerate([*masks, codes]):
+        buffer.set_res(2 + i, memoryview(res))
     q_part = perr_part = None
     for first in range(start, stop, b):
         last = min(first + b, stop)
@@ -820,13 +826,12 @@ def _run(fn: ca.Function, args, out: BranchArrays, handover, start: int, stop: i
         if k < b:
             out.q[rows] = q_part[:k]
             out.perr[rows] = perr_part[:k]
-        np.not_equal(codes[:k, 0:4], 0.0, out=out.valid[rows])
-        np.not_equal(codes[:k, 4:8], 0.0, out=out.within[rows])
-        np.not_equal(codes[:k, 8:12], 0.0, out=out.singular[rows])
-        out.status[rows] = codes[:k, 12]
-        out.best[rows] = codes[:k, 13]
+        for mask, name in zip(masks, ("valid", "within", "singular")):
+            np.not_equal(mask[:k], 0.0, out=getattr(out, name)[rows])
+        out.status[rows] = codes[:k, 0]
+        out.best[rows] = codes[:k, 1]
         if handover is not None:
-            np.not_equal(codes[:k, 14], 0.0, out=handover[rows])
+            np.not_equal(codes[:k, 2], 0.0, out=handover[rows])
 
 
 def _block(x: np.ndarray, b: int) -> np.ndarray:
