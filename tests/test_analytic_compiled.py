@@ -256,3 +256,43 @@ def test_batch_rotation_check_finds_the_bad_row():
         bad[row] = bad[row] @ change if np.ndim(change) else bad[row] * change
         with pytest.raises(InvalidArgumentError, match=rf"rotations\[{row}\] is not a proper orthonormal"):
             s.solve_batch(pos, rotations=bad)
+
+
+@pytest.mark.parametrize("compiled", [True, False], ids=["C", "vm"])
+@pytest.mark.parametrize(("name", "kind", "current"), KINDS)
+def test_compiled_on_the_axes(name, kind, current, compiled):
+    """Targets exactly on the x and y axes, q_current's yaw 0, +-pi / 2 or pi (on its range),
+    pitches of 0 and +-pi / 2, rotations by quarter turns about z: the sign tests at right
+    angles (e.g. which side faces q_current) and the wrapping at half turns from q_current
+    decide as on the NumPy path. The best branch may differ only between branches equally
+    near q_current (to round-off)."""
+    s = solver(name)
+    arm = s.arm
+    rng = np.random.default_rng(7)
+    n = 600
+    pos = np.zeros((n, 3))
+    t = rng.uniform(0.05, 0.9, n) * arm.scale * rng.choice([-1.0, 1.0], n)
+    on_y = rng.random(n) < 0.5
+    pos[on_y, 1], pos[~on_y, 0] = t[on_y], t[~on_y]
+    pos[:, 2] = rng.uniform(-0.3, 0.6, n) * arm.scale
+    yaw = rng.choice([0.0, np.pi / 2, -np.pi / 2, np.pi], n)
+    qc = np.clip(np.zeros((n, arm.dof)) + (np.arange(arm.dof) == 0) * yaw[:, None], arm.lower, arm.upper)
+    pit = rng.choice([0.0, np.pi / 2, -np.pi / 2, 0.3], n) if kind == "pitch" else None
+    rot = None
+    if kind == "pose":
+        c, sn = np.round(np.cos(yaw)), np.round(np.sin(yaw))
+        rot = np.zeros((n, 3, 3))
+        rot[:, 0, 0], rot[:, 0, 1], rot[:, 1, 0], rot[:, 1, 1], rot[:, 2, 2] = c, -sn, sn, c, 1.0
+    qc = qc if current else None
+    got = solve_compiled_within(CompiledKernels(arm), pos, pit, rot, qc, compiled=compiled)
+    want = solve_arrays_within(arm, pos, pit, rot, qc)
+    for field in ("valid", "within", "singular", "status"):
+        np.testing.assert_array_equal(getattr(got, field), getattr(want, field), err_msg=field)
+    np.testing.assert_array_equal(np.isnan(got.q), np.isnan(want.q))
+    np.testing.assert_allclose(got.q, want.q, rtol=0.0, atol=1e-9)
+    differ = np.flatnonzero(got.best != want.best)
+    assert np.all((got.best[differ] >= 0) & (want.best[differ] >= 0))
+    ref = np.zeros((n, arm.dof)) if qc is None else qc
+    for i in differ:
+        near = [np.sum((got.q[i, b] - ref[i]) ** 2) for b in (got.best[i], want.best[i])]
+        assert qc is not None and abs(near[0] - near[1]) < 1e-12

@@ -264,10 +264,8 @@ def _one_target(arm: ArmGeometry, kind: str, current: bool) -> ca.Function:
         psi_b = ang.shift(PI)
     else:
         r_d = ca.sqrt(u * u + d * d)
-        # atan2(-d, -u) = -atan2(-d, u) - pi sign(d) for u >= 0 (to round-off; one arc tangent).
-        off = ca.atan2(-d, u)
-        psi_f = ang - _Angle(off, u / r_d, -d / r_d)
-        psi_b = ang - _Angle(-off - math.copysign(PI, d), -u / r_d, -d / r_d)
+        psi_f = ang - _Angle(ca.atan2(-d, u), u / r_d, -d / r_d)
+        psi_b = ang - _Angle(ca.atan2(-d, -u), -u / r_d, -d / r_d)
     back_dup = ca.logic_or(free, u == 0.0)
     # q_current's yaw sigma q0 [rad].
     yaw_qc = _Angle.of(qc[0]).signed(arm.sigma) if current else None
@@ -305,7 +303,7 @@ def _one_target(arm: ArmGeometry, kind: str, current: bool) -> ca.Function:
         roll_q = _Angle(qc[arm.roll_idx], None, None) if current else _Angle.const(0.0)
     handover = None
     if free_end and current:
-        phi_end, handover = _current_end_angle(arm, qc, yaw_qc, psi, ue, ze)
+        phi_end, handover = _current_end_angle(arm, qc, psi, ue, ze)
     elif free_end:
         phi_end, fail = _default_end_angle(arm, ue, ze)
         cat = [_where(ca.logic_and(cat[k] == VALID, fail[k] != VALID), fail[k], cat[k]) for k in range(2)]
@@ -481,12 +479,11 @@ def _one_target(arm: ArmGeometry, kind: str, current: bool) -> ca.Function:
     return ca.Function("yaw_planar_closed_form", inputs, ca.cse(outputs))
 
 
-def _current_end_angle(arm: ArmGeometry, qc, yaw_qc: _Angle, psi: list[_Angle], ue, ze):
+def _current_end_angle(arm: ArmGeometry, qc, psi: list[_Angle], ue, ze):
     """q_current's in-plane end angle per side, and whether a side cannot take it.
 
     As :func:`~planner.ik.analytic.yaw_planar.free_pitch.free_pitch_array`; where a side
-    cannot, NumPy's default choice applies: the target is handed over. `yaw_qc`: q_current's
-    yaw sigma q0.
+    cannot, NumPy's default choice applies: the target is handed over.
     """
     tu, tz, _ = arm.tip_fixed
     rmin = max(abs(arm.l1 - arm.l2), arm.rmin_lim)
@@ -494,7 +491,9 @@ def _current_end_angle(arm: ArmGeometry, qc, yaw_qc: _Angle, psi: list[_Angle], 
     alpha = _Angle.of(arm.beta + sum(s * qc[i] for s, i in zip(arm.signs, arm.pitch_idx)))
     phi, handover = [], ca.SX(0)
     for k in range(2):
-        facing = (psi[k] - yaw_qc).c >= 0.0
+        # The sign of the cosine of the same value as NumPy's (not of the sum formula's: they
+        # differ at +-pi / 2, e.g. for q0 = 0 and a target on the y axis).
+        facing = ca.cos(psi[k].a - arm.sigma * qc[0]) >= 0.0
         phi_k = _Angle.where(facing, alpha, alpha.reflect()).shift(-arm.beta)
         cp, sp = phi_k.c, phi_k.s
         du = ue[k] - (cp * tu - sp * tz) - arm.su
