@@ -20,17 +20,18 @@ reach are handed back to NumPy (see :func:`~planner.ik.analytic.yaw_planar.batch
 Branches, categories, statuses and masks are the NumPy path's; joint values and errors agree
 to round-off.
 
-Speed: the cosines and sines of the angles the closed form computes are not recomputed by
-``cos`` and ``sin`` but carried along from the geometry that gave them (:class:`_Angle`:
-``cos(atan2(y, x)) = x / r``, the law of cosines, the sum formulas), so the errors' forward
-kinematics and the pose check by the product of exponentials need no libm calls; the
-orientation tests compare sines with ``sin(tol)`` instead of calling ``asin`` or ``atan2``.
-What remains per target: the arc tangents of the returned angles and the sine and cosine of
-input angles (q_current's, the approach pitch). Compared with the cosines of the rounded
-angles, the errors change by round-off; at a nearly straight elbow (conditioning 1 / sin of
-the elbow angle) joint values by up to a few 1e-9 rad, never farther from the target by
-Pinocchio FK (the largest position error of 1e6 generated targets per kind: 4e-11 m instead
-of 1.1e-10 m).
+Speed: the checks run without libm calls. The cosines and sines of the computed angles that
+feed only the errors' forward kinematics and the pose check by the product of exponentials
+are carried along from the geometry that gave them (:class:`_Angle`: ``cos(atan2(y, x)) =
+x / r``, the law of cosines, the sum formulas), and the orientation tests compare sines with
+``sin(tol)`` instead of calling ``asin`` or ``atan2``. Whatever decides a returned angle or a
+branch's side (the end angle's cosine and sine before the wrist point's arc tangents, the
+yaw's in the rotation's pitch and roll, which side faces q_current) takes ``cos`` and ``sin``
+of the same values as NumPy: the sum formulas' exact zeros (``sin(pi - 0) = 0`` where libm
+gives 1.2e-16) would move answers at half turns by 2 pi (joint values of quarter-turn
+configurations). So the joint values, masks, statuses and best branches are those of the
+plain formulas bit for bit (1e6 generated targets per arm, kind and q_current); the position
+errors change by round-off (< 1e-14 m).
 
 Compiler flags: ``-O3`` without ``-march``: the shared library is cached on disk by a hash of
 the code and flags, not of the CPU, so it must run on any x86-64 (and FMA contraction would
@@ -287,8 +288,7 @@ def _one_target(arm: ArmGeometry, kind: str, current: bool) -> ca.Function:
     sy = [psi[k].shift(arm.mu).s for k in range(2)]
     alpha_t = None
     if pitch:
-        pit_a = _Angle.of(pit)
-        alpha_t = [_Angle.where(cy[k] * p[0] + sy[k] * p[1] >= 0.0, pit_a, pit_a.reflect()) for k in range(2)]
+        alpha_t = [_where(cy[k] * p[0] + sy[k] * p[1] >= 0.0, pit, PI - pit) for k in range(2)]
     l1, g1, su, sz = arm.l1, arm.g1, arm.su, arm.sz
     sg, idx = arm.signs, arm.pitch_idx
     # Per branch: the joint angles, the in-plane angles of the links and of the end (the
@@ -321,7 +321,7 @@ def _one_target(arm: ArmGeometry, kind: str, current: bool) -> ca.Function:
                 phi = phi_rot[k]
                 c = _where(ca.logic_and(c == VALID, residual[k]), ORIENT, c)
             else:
-                phi = alpha_t[k].shift(-arm.beta)
+                phi = _Angle.of(alpha_t[k] - arm.beta)
             cp, sp = phi.c, phi.s
             ex = ue[k] - (cp * tu - sp * tz) - su
             ez = ze - (sp * tu + cp * tz) - sz
@@ -350,7 +350,7 @@ def _one_target(arm: ArmGeometry, kind: str, current: bool) -> ca.Function:
     else:
         if arm.n_pitch == 3:
             l2, g2 = arm.l2, arm.g2
-            phi = phi_end if free_end else phi_rot if pose else [alpha_t[k].shift(-arm.beta) for k in range(2)]
+            phi = phi_end if free_end else phi_rot if pose else [_Angle.of(alpha_t[k] - arm.beta) for k in range(2)]
             cp = [phi[k].c for k in range(2)]
             sp = [phi[k].s for k in range(2)]
             wu = [ue[k] - (cp[k] * tu - sp[k] * tz) for k in range(2)]
@@ -488,13 +488,13 @@ def _current_end_angle(arm: ArmGeometry, qc, psi: list[_Angle], ue, ze):
     tu, tz, _ = arm.tip_fixed
     rmin = max(abs(arm.l1 - arm.l2), arm.rmin_lim)
     rmax = min(arm.l1 + arm.l2, arm.rmax_lim)
-    alpha = _Angle.of(arm.beta + sum(s * qc[i] for s, i in zip(arm.signs, arm.pitch_idx)))
+    alpha = arm.beta + sum(s * qc[i] for s, i in zip(arm.signs, arm.pitch_idx))
     phi, handover = [], ca.SX(0)
     for k in range(2):
         # The sign of the cosine of the same value as NumPy's (not of the sum formula's: they
         # differ at +-pi / 2, e.g. for q0 = 0 and a target on the y axis).
         facing = ca.cos(psi[k].a - arm.sigma * qc[0]) >= 0.0
-        phi_k = _Angle.where(facing, alpha, alpha.reflect()).shift(-arm.beta)
+        phi_k = _Angle.of(_where(facing, alpha, PI - alpha) - arm.beta)
         cp, sp = phi_k.c, phi_k.s
         du = ue[k] - (cp * tu - sp * tz) - arm.su
         dz = ze - (sp * tu + cp * tz) - arm.sz
@@ -532,10 +532,10 @@ def _default_end_angle(arm: ArmGeometry, ue, ze):
         for sgn in (1.0, -1.0):
             wx = su + a * ux - sgn * h * uz
             wz = sz + a * uz + sgn * h * ux
-            phi_s = _Angle.atan2(ze - wz, ue[k] - wx).shift(-gt)
-            options.append((phi_s, phi_s.shift(arm.beta).s))
+            phi_s = ca.atan2(ze - wz, ue[k] - wx) - gt
+            options.append((phi_s, ca.sin(arm.beta + phi_s)))
         (phi1, lift1), (phi2, lift2) = options
-        phi.append(_Angle.where(lift2 < lift1 - 1e-15, phi2, phi1))
+        phi.append(_Angle.of(_where(lift2 < lift1 - 1e-15, phi2, phi1)))
     return phi, fail
 
 
@@ -634,8 +634,7 @@ def _yaw_for_rotation(arm: ArmGeometry, m_rot, hx, hy, d, u, psi, ue, cat):
         w = _matvec(m_rot, arm.n)
         psi_a = _Angle.atan2(w[1], w[0]).shift(-math.atan2(float(arm.n[1]), float(arm.n[0])))
         use = None
-    yaw = psi_a.shift(arm.mu)
-    cy, sy = yaw.c, yaw.s
+    cy, sy = ca.cos(arm.mu + psi_a.a), ca.sin(arm.mu + psi_a.a)
     ue_a = hx * cy + hy * sy
     lat_a = hx * sy - hy * cy
     forward = ue_a >= 0.0
@@ -679,15 +678,15 @@ def _pitch_from_rotation(arm: ArmGeometry, m_rot, psi: list[_Angle]):
     n = [float(v) for v in arm.n]
     phi, beyond = [], []
     for k in range(2):
-        cz, sz = psi[k].c, psi[k].s
+        cz, sz = ca.cos(psi[k].a), ca.sin(psi[k].a)
         if arm.has_roll:
             x = _unyaw(_matvec(m_rot, arm.r0), cz, sz)
-            phi.append(_Angle.atan2(x[2], x[0] * e_u[0] + x[1] * e_u[1] + x[2] * e_u[2]).shift(-arm.kappa))
+            phi.append(_Angle.of(ca.atan2(x[2], x[0] * e_u[0] + x[1] * e_u[1] + x[2] * e_u[2]) - arm.kappa))
             xn = x[0] * n[0] + x[1] * n[1] + x[2] * n[2]
             beyond.append(_min(_max(abs(xn), 0.0), 1.0) > math.sin(arm.orient_tol))
         else:
             x = _unyaw(_matvec(m_rot, e_u), cz, sz)
-            phi_k = _Angle.atan2(x[2], x[0] * e_u[0] + x[1] * e_u[1] + x[2] * e_u[2])
+            phi_k = _Angle.of(ca.atan2(x[2], x[0] * e_u[0] + x[1] * e_u[1] + x[2] * e_u[2]))
             rz = [[cz, -sz, 0.0], [sz, cz, 0.0], [0.0, 0.0, 1.0]]
             ideal = _matmul(rz, rodrigues_rows(n, phi_k.s, phi_k.c))
             phi.append(phi_k)
@@ -696,14 +695,21 @@ def _pitch_from_rotation(arm: ArmGeometry, m_rot, psi: list[_Angle]):
 
 
 def _roll_from_rotation(arm: ArmGeometry, m_rot, psi: list[_Angle], phi: list[_Angle]) -> list[_Angle]:
-    """:func:`~planner.ik.analytic.yaw_planar.orientation.roll_from_rotation` per side."""
+    """:func:`~planner.ik.analytic.yaw_planar.orientation.roll_from_rotation` per side.
+
+    By the cosines and sines of psi and phi as NumPy computes them (libm): at the half turn
+    (the back side's roll when the front's is 0, common for rotations by quarter turns) the
+    sign of a zero decides between pi and -pi.
+    """
     n = [float(v) for v in arm.n]
     rxn = np.cross(arm.r0, arm.n).tolist()
     mn = _matvec(m_rot, n)
     roll = []
     for k in range(2):
-        un = _unyaw(mn, psi[k].c, psi[k].s)
-        back = _matvec(rodrigues_rows(n, -phi[k].s, phi[k].c), un)
+        # -phi's: sin(-x) = -sin(x) exactly (libm's sine is odd), shared with phi's.
+        yaw, pitch = _Angle.of(psi[k].a), -phi[k]
+        un = _unyaw(mn, yaw.c, yaw.s)
+        back = _matvec(rodrigues_rows(n, pitch.s, pitch.c), un)
         roll.append(
             _Angle.atan2(
                 back[0] * rxn[0] + back[1] * rxn[1] + back[2] * rxn[2], back[0] * n[0] + back[1] * n[1] + back[2] * n[2]
