@@ -34,7 +34,7 @@ the yaw + 3-link arms (three_joint, al5c, dh3), i.e. (with the issue's 3.8 us fk
 and >= 3.8 targets per fk-call time. Prints the Markdown table, writes JSON to
 benchmarks/results/bench_analytic.json and the table to bench_analytic.md.
 
-    python benchmarks/bench_analytic.py [--single 2000] [--batch 1000000] [--seed 0]
+    python benchmarks/bench_analytic.py [--single 2000] [--batch 1000000] [--seed 0] [--batch-only]
 """
 
 from __future__ import annotations
@@ -155,15 +155,22 @@ def percentile_ratio(times, fk_median, pct):
     return float(np.percentile(times, pct) / fk_median)
 
 
+def free_joint(solver, kind, use_current):
+    """The joint the solve-rate comparison skips, or None.
+
+    al5c's wrist roll turns about the approach axis through the tip: without q_current and a
+    rotation it is free (set to 0), so the comparison with the generating q skips it.
+    """
+    arm = getattr(solver, "arm", None)
+    if arm is not None and arm.has_roll and arm.tip_on_roll_axis and kind != "pose" and not use_current:
+        return arm.roll_idx
+    return None
+
+
 def bench_kind(robot, solver, kind, n_single, n_batch, seed):
     rng = np.random.default_rng(seed)
     use_current = uses_current(solver, kind)
-    # al5c's wrist roll turns about the approach axis through the tip: without q_current and a
-    # rotation it is free (set to 0), so the comparison with the generating q skips it.
-    arm = getattr(solver, "arm", None)
-    free = None
-    if arm is not None and arm.has_roll and arm.tip_on_roll_axis and kind != "pose" and not use_current:
-        free = arm.roll_idx
+    free = free_joint(solver, kind, use_current)
     q1 = robot.random_configurations(rng, n_single)
     pos, pitch, rot = targets_of(robot, kind, q1)
     targets = [
@@ -207,7 +214,29 @@ def bench_kind(robot, solver, kind, n_single, n_batch, seed):
             skew = np.stack([rel[:, 2, 1] - rel[:, 1, 2], rel[:, 0, 2] - rel[:, 2, 0], rel[:, 1, 0] - rel[:, 0, 1]], -1)
             good &= bool(np.arctan2(np.linalg.norm(skew, axis=-1) / 2.0, cos).max() < 1e-9)
         ok += good
+    return {
+        "robot": robot.name,
+        "family": solver.family,
+        "dof": robot.dof,
+        "target": kind,
+        "q_current": use_current,
+        "single_n": n_single,
+        "fk_median_us": fk_median * 1e-3,
+        "single_median_us": float(np.median(times)) * 1e-3,
+        "single_p99_us": float(np.percentile(times, 99)) * 1e-3,
+        "single_max_us": float(np.max(times)) * 1e-3,
+        "ratio_median": float(np.median(times) / fk_median),
+        "ratio_p99": percentile_ratio(times, fk_median, 99),
+        "single_solve_rate": ok / n_single,
+        **bench_batch(robot, solver, kind, n_batch, rng),
+    }
 
+
+def bench_batch(robot, solver, kind, n_batch, rng):
+    """``solve_batch``'s figures (the batch columns) on targets drawn from `rng`."""
+    use_current = uses_current(solver, kind)
+    free = free_joint(solver, kind, use_current)
+    fk, clock = robot.fk, time.perf_counter_ns
     exact = solver.family == "planar2" or solver.exact
     n_batch = n_batch if exact else min(n_batch, 20_000)
     if kind == "pose":
@@ -230,20 +259,7 @@ def bench_kind(robot, solver, kind, n_single, n_batch, seed):
     found = np.any(np.where(batch.valid, same(batch.q, q2[:, None, :], free), False), axis=1)
     batch_ok = (batch.status == 0) & found
     return {
-        "robot": robot.name,
-        "family": solver.family,
-        "dof": robot.dof,
-        "target": kind,
-        "q_current": use_current,
         "exact": bool(exact),
-        "single_n": n_single,
-        "fk_median_us": fk_median * 1e-3,
-        "single_median_us": float(np.median(times)) * 1e-3,
-        "single_p99_us": float(np.percentile(times, 99)) * 1e-3,
-        "single_max_us": float(np.max(times)) * 1e-3,
-        "ratio_median": float(np.median(times) / fk_median),
-        "ratio_p99": percentile_ratio(times, fk_median, 99),
-        "single_solve_rate": ok / n_single,
         "batch_n": n_batch,
         "batch_seconds": best,
         "batch_targets_per_s": n_batch / best,
@@ -304,6 +320,37 @@ def verdicts(rows):
     return out
 
 
+def batch_rows(names, args):
+    """--batch-only: the batch figures of every kind, on the targets of the full run (the same
+    seeds; the single calls' configurations drawn first), and the batch goals' verdicts."""
+    lines = [
+        "| robot | target | batch [targets/s] | targets per fk time | fk [us] | batch N | batch solve rate "
+        "| batch path |",
+        "| --- | --- | ---: | ---: | ---: | ---: | ---: | --- |",
+    ]
+    goals = []
+    for name in names:
+        robot = load_robot(name)
+        solver = closed_form_solver(robot)
+        for k, kind in enumerate(kinds(solver)):
+            rng = np.random.default_rng(args.seed + k)
+            robot.random_configurations(rng, args.single)
+            r = bench_batch(robot, solver, kind, args.batch, rng)
+            target = kind + (" (q_current)" if uses_current(solver, kind) else "")
+            lines.append(
+                f"| {name} | {target} | {r['batch_targets_per_s']:,.0f} | {r['batch_targets_per_fk']:.2f} | "
+                f"{r['batch_fk_us']:.2f} | {r['batch_n']:,} | {100 * r['batch_solve_rate']:.2f} % | {r['batch_path']} |"
+            )
+            if name in GOAL_ARMS:
+                per_fk = BATCH_GOALS[kind] * ISSUE_FK_SECONDS
+                met = "meets" if r["batch_targets_per_fk"] >= per_fk else "MISSES"
+                goals.append(
+                    f"{name} {kind} batch: {met} >= {per_fk:.1f} targets per fk time ({r['batch_targets_per_fk']:.2f})"
+                )
+            print(f"{name} {kind}: done", file=sys.stderr)
+    return "\n".join(lines), goals
+
+
 def main(argv=None):
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--single", type=int, default=2000, help="targets for single-call timing")
@@ -311,10 +358,17 @@ def main(argv=None):
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--robots", nargs="*", default=None)
     parser.add_argument("--no-write", action="store_true", help="print only, do not write benchmarks/results")
+    parser.add_argument(
+        "--batch-only", action="store_true", help="only the batch columns (same targets; prints, writes nothing)"
+    )
     args = parser.parse_args(argv)
     names = args.robots or ["shelley", "dh3", "three_joint", "al5c"] + (
         ["so101"] if example_robot_data_dir() is not None else []
     )
+    if args.batch_only:
+        table, goals = batch_rows(names, args)
+        print(table + "\n\n" + "\n".join(f"- {line}" for line in goals))
+        return 0
     rows = []
     for name in names:
         robot = load_robot(name)
