@@ -33,6 +33,7 @@ from planner.ik.analytic.yaw_planar.compiled import (
     SMALL_BLOCK,
     CompiledKernels,
     compiled_supported,
+    cos_nonnegative,
     solve_compiled,
     wrap_sx,
 )
@@ -296,3 +297,21 @@ def test_compiled_on_the_axes(name, kind, current, compiled):
     for i in differ:
         near = [np.sum((got.q[i, b] - ref[i]) ** 2) for b in (got.best[i], want.best[i])]
         assert qc is not None and abs(near[0] - near[1]) < 1e-12
+
+
+def test_cos_nonnegative_equals_numpy_next_to_the_zeros():
+    """The sign of the cosine without calling cos equals NumPy's on the 80 doubles around each
+    zero (m + 1/2) pi, m = -12 ... 11, around the multiples of pi, and on random values."""
+    values = []
+    for m in range(-12, 12):
+        v = (m + 0.5) * np.pi
+        for _ in range(40):
+            v = np.nextafter(v, -np.inf)
+        for _ in range(80):
+            values.append(v)
+            v = np.nextafter(v, np.inf)
+        values += [m * np.pi, np.nextafter(m * np.pi, np.inf), np.nextafter(m * np.pi, -np.inf)]
+    x = np.concatenate([values, np.random.default_rng(2).uniform(-40.0, 40.0, 20000), [0.0, -0.0]])
+    sx = ca.SX.sym("x")
+    f = ca.Function("f", [sx], [cos_nonnegative(sx)]).map(x.size)
+    np.testing.assert_array_equal(np.asarray(f(x)).ravel() != 0.0, np.cos(x) >= 0.0)

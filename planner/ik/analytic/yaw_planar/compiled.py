@@ -41,6 +41,8 @@ change round-off against the NumPy path).
 from __future__ import annotations
 
 import math
+from decimal import Decimal
+from fractions import Fraction
 
 import casadi as ca
 import numpy as np
@@ -60,7 +62,16 @@ from planner.ik.analytic.yaw_planar.arrays import BranchArrays
 from planner.ik.analytic.yaw_planar.branches import BEYOND, CYLINDER, DUPLICATE, INSIDE, ORIENT, VALID
 from planner.ik.numeric.codegen import compile_function
 
-__all__ = ["BLOCK", "SMALL_BLOCK", "CompiledKernels", "compiled_supported", "kind_of", "solve_compiled", "wrap_sx"]
+__all__ = [
+    "BLOCK",
+    "SMALL_BLOCK",
+    "CompiledKernels",
+    "compiled_supported",
+    "cos_nonnegative",
+    "kind_of",
+    "solve_compiled",
+    "wrap_sx",
+]
 
 PI = math.pi
 TWO_PI = 2.0 * math.pi
@@ -115,6 +126,36 @@ def _rint(y):
     pair away; it compiles to one instruction (``fmax`` would be a call).
     """
     return ca.fabs(y + MAGIC) - MAGIC
+
+
+def _pi_parts() -> tuple[float, float, float]:
+    """Three doubles P1 + P2 + P3 that sum to pi within 1e-31 (Cody and Waite 1980).
+
+    P1 and P2 have 26 significant bits: their products with small half-integers are exact.
+    """
+    pi = Fraction(Decimal("3.14159265358979323846264338327950288419716939937510582097494459230781640628"))
+    p1 = Fraction(math.floor(pi * 2**24), 2**24)
+    p2 = Fraction(math.floor((pi - p1) * 2**50), 2**50)
+    return float(p1), float(p2), float(pi - p1 - p2)
+
+
+PI_PARTS = _pi_parts()
+
+
+def cos_nonnegative(x):
+    """Whether ``cos(x) >= 0`` for `x` of moderate size (|x| < 1e6), without calling ``cos``.
+
+    The cosine of a double is never 0 and libm's (as NumPy's) has the sign of the exact
+    value, which is that of ``(-1)^(m + 1) e`` with e = x - (m + 1/2) pi for the zero
+    (m + 1/2) pi of the cosine nearest x (any m with |e| < pi will do). e is computed with
+    pi in three parts: exact near the zeros (Sterbenz), where only its sign matters.
+    """
+    m = _rint(x / PI - 0.5)
+    h = m + 0.5
+    p1, p2, p3 = PI_PARTS
+    e = ((x - h * p1) - h * p2) - h * p3
+    odd = abs(m - 2.0 * _rint(0.5 * m)) > 0.5
+    return odd == (e > 0.0)
 
 
 def _wrap_pi(x):
@@ -493,7 +534,7 @@ def _current_end_angle(arm: ArmGeometry, qc, psi: list[_Angle], ue, ze):
     for k in range(2):
         # The sign of the cosine of the same value as NumPy's (not of the sum formula's: they
         # differ at +-pi / 2, e.g. for q0 = 0 and a target on the y axis).
-        facing = ca.cos(psi[k].a - arm.sigma * qc[0]) >= 0.0
+        facing = cos_nonnegative(psi[k].a - arm.sigma * qc[0])
         phi_k = _Angle.of(_where(facing, alpha, PI - alpha) - arm.beta)
         cp, sp = phi_k.c, phi_k.s
         du = ue[k] - (cp * tu - sp * tz) - arm.su
