@@ -168,8 +168,8 @@ class _Angle:
     """An angle [rad] (an SX value) with its cosine and sine, carried through sums and differences.
 
     The cosines and sines come from the geometry that gave the angles (``cos(atan2(y, x)) =
-    x / r``) and the sum formulas, not from calls to ``sin`` and ``cos``: the values of the
-    angles are the same expressions as before, their cosines and sines agree with
+    x / r``) and the sum formulas, not from calls to ``sin`` and ``cos`` (except :meth:`of`);
+    the values of the angles are the plain formulas', their cosines and sines agree with
     ``cos(value)`` and ``sin(value)`` to round-off.
     """
 
@@ -221,10 +221,6 @@ class _Angle:
             return _Angle(self.a + k, -self.c, -self.s)
         ck, sk = math.cos(k), math.sin(k)
         return _Angle(self.a + k, self.c * ck - self.s * sk, self.s * ck + self.c * sk)
-
-    def reflect(self) -> _Angle:
-        """``pi - a``."""
-        return _Angle(PI - self.a, -self.c, self.s)
 
     def signed(self, sign: float) -> _Angle:
         """``sign a`` for sign +-1."""
