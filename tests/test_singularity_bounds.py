@@ -169,3 +169,77 @@ def test_the_jacobian_moves_no_farther_than_its_bound(name, task):
             assert np.all(moved <= jacobian_change_bound(u, rho, angular) * (1 + 1e-12) + 1e-15), (name, j, size)
             moved_raw = np.linalg.norm(raw1 - raw0, axis=(1, 2))
             assert np.all(moved_raw <= jacobian_change_bound(u, rho, raw_angular) * (1 + 1e-12) + 1e-15), (name, j)
+
+
+@pytest.mark.parametrize("name", ARMS)
+@pytest.mark.parametrize("task", ["position", "pose"])
+def test_the_jacobian_bends_no_more_than_its_curvature_bound(name, task):
+    """Halfway along a straight joint move, ||J(mid) - (J(q0) + J(q1)) / 2||_F <= curvature / 8 (Pinocchio)."""
+    from planner.motion.singularity import jacobian_change_bounds, jacobian_curvature_bound
+
+    robot = get_robot(name)
+    change = jacobian_change_bounds(robot, task)
+    if change is None:
+        pytest.skip(f"{name}: no joint-change bound (sliding joints or a branched chain)")
+    rho, angular, raw_angular = change
+    rng = np.random.default_rng(19)
+    q0 = robot.random_configurations(rng, 300)
+    moves = [rng.normal(0.0, size, q0.shape) for size in (1e-3, 3e-2, 0.3, 3.0)]
+    for j in range(robot.dof):  # one joint at a time, and all but one
+        for size in (1e-2, 0.5):
+            u = np.zeros_like(q0)
+            u[:, j] = size
+            moves += [u, rng.normal(0.0, size, q0.shape) * (u == 0)]
+    raw0, scaled0 = robot.task_jacobians(q0, task)
+    for u in moves:
+        raw1, scaled1 = robot.task_jacobians(q0 + u, task)
+        raw_mid, scaled_mid = robot.task_jacobians(q0 + 0.5 * u, task)
+        bent = np.linalg.norm(scaled_mid - 0.5 * (scaled0 + scaled1), axis=(1, 2))
+        assert np.all(bent <= jacobian_curvature_bound(u, rho, angular) / 8 * (1 + 1e-12) + 1e-15), name
+        bent_raw = np.linalg.norm(raw_mid - 0.5 * (raw0 + raw1), axis=(1, 2))
+        assert np.all(bent_raw <= jacobian_curvature_bound(u, rho, raw_angular) / 8 * (1 + 1e-12) + 1e-15), name
+
+
+def test_the_cholesky_certificate_agrees_with_the_eigenvalues():
+    # Gram matrices with a known spectrum, shifted just below and above their smallest eigenvalue.
+    from planner.motion.singularity import _positive_definite
+
+    rng = np.random.default_rng(23)
+    for k in (2, 3, 6):
+        basis = np.linalg.qr(rng.normal(size=(400, k, k)))[0]
+        values = np.sort(10.0 ** rng.uniform(-8, 1, (400, k)), axis=1)
+        gram = basis @ (values[:, :, None] * basis.transpose(0, 2, 1))
+        trace = values.sum(axis=1)
+        below = values[:, 0] * (1 - 1e-6) - 2e-12 * trace
+        ok, product = _positive_definite(gram, below)
+        clear = values[:, 0] - below > 1e-10 * trace  # well above rounding
+        assert ok[clear].all()
+        # Where it holds, the pivots' product bounds the product of the excesses from below.
+        assert np.all(product[ok] <= np.prod(values[ok] - below[ok, None], axis=1) * (1 + 1e-6))
+        ok_above, product_above = _positive_definite(gram, values[:, 0] * (1 + 1e-6))
+        assert not ok_above.any() and not product_above.any()
+
+
+@pytest.mark.parametrize("name", ARMS)
+def test_bounded_measure_equals_the_one_by_one_measure(name):
+    # Dense random walks through a singular configuration's neighbourhood and far from it, at
+    # thresholds from 0 to where nearly every row is below: the exact rows equal Robot.conditioning
+    # of that configuration alone, the others are lower bounds above the threshold and both minima.
+    robot = get_robot(name)
+    task = robot.resolve_task(None)
+    rng = np.random.default_rng(29)
+    start = robot.random_configurations(rng, 2)
+    start[1] = np.clip(np.zeros(robot.dof), robot.lower, robot.upper)  # straight arms are singular
+    for q0 in start:
+        walk = np.clip(q0 + np.cumsum(rng.normal(0.0, 1e-3, (1500, robot.dof)), axis=0), robot.lower, robot.upper)
+        one = np.array([robot.conditioning(row, task) for row in walk])
+        for threshold in (0.0, inverse_condition_threshold(None, task), 0.2, 0.9):
+            inv, man = bounded_conditioning(robot, walk, task, threshold, keep=[3, 700])
+            exact = inv == one[:, 0]
+            assert exact[one[:, 0] < threshold].all() and exact[[3, 700]].all()
+            assert np.array_equal(man[[3, 700]], one[[3, 700], 1])
+            assert inv.min() == one[:, 0].min() and man.min() == one[:, 1].min()
+            assert int(np.argmin(inv)) == int(np.argmin(one[:, 0]))
+            assert np.all(inv <= one[:, 0]) and np.all(man <= one[:, 1])
+            assert np.all(inv[~exact] > max(threshold, one[:, 0].min()))
+            assert np.all(man[man != one[:, 1]] > one[:, 1].min())

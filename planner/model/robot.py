@@ -609,13 +609,18 @@ class Robot:
         t = self.resolve_task(task)
         length = self._characteristic_length
         columns = np.where(np.array(self.joint_kinds) == "prismatic", length, 1.0)
+        model, data = self.model, self.data
         fid, ref = self.tip_frame_id, pin.ReferenceFrame.LOCAL_WORLD_ALIGNED
-        jacs = np.empty((len(q), 6, self.model.nv))
+        jacobian = pin.computeFrameJacobian
+        jacs = np.empty((len(q), 6, model.nv))
         # Written in place row by row (a 1-joint arm's Jacobian comes back flat: reshaped).
-        one = self.model.nv == 1
-        for k, row in enumerate(q):
-            jac = pin.computeFrameJacobian(self.model, self.data, self._pin_q(row), fid, ref)
-            jacs[k] = np.reshape(jac, (6, 1)) if one else jac
+        rows = (self._pin_q(row) for row in q) if self._has_continuous else q
+        if model.nv == 1:
+            for k, row in enumerate(rows):
+                jacs[k] = np.reshape(jacobian(model, data, row, fid, ref), (6, 1))
+        else:
+            for k, row in enumerate(rows):
+                jacs[k] = jacobian(model, data, row, fid, ref)
         if t == "position":
             jacs = jacs[:, :3]
             scaled = jacs * columns
