@@ -216,7 +216,7 @@ def jacobian_curvature_bound(u: np.ndarray, rho: np.ndarray, angular: float) -> 
     return np.sqrt(np.sum(c * c, axis=1) + angular * angular * np.sum(g * g, axis=1))
 
 
-def _positive_definite(gram: np.ndarray, shift: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def _positive_definite(gram: np.ndarray, shift: np.ndarray) -> tuple[np.ndarray, np.ndarray, list[list[np.ndarray]]]:
     """Whether each ``gram - shift I`` is positive definite, by a Cholesky factorisation.
 
     `gram` (N, k, k) holds the Gram matrices of scaled Jacobians (their eigenvalues the squared
@@ -229,7 +229,8 @@ def _positive_definite(gram: np.ndarray, shift: np.ndarray) -> tuple[np.ndarray,
     failure).
 
     Returns:
-        The mask (N,) and the product of the pivots (0 where the mask is False).
+        The mask (N,), the product of the pivots (0 where the mask is False) and the factor
+        ``L`` (``L[i][j]``, j <= i, each of shape (N,); meaningless where the mask is False).
     """
     k = gram.shape[1]
     g = np.ascontiguousarray(gram.transpose(1, 2, 0))  # (k, k, N): whole vectors per entry
@@ -243,14 +244,54 @@ def _positive_definite(gram: np.ndarray, shift: np.ndarray) -> tuple[np.ndarray,
             pivot -= low[j][p] * low[j][p]
         ok &= pivot > 0.0
         product *= np.where(ok, pivot, 0.0)
-        scale = 1.0 / np.sqrt(np.where(pivot > 0.0, pivot, 1.0))
+        root = np.sqrt(np.where(pivot > 0.0, pivot, 1.0))
         for i in range(j + 1, k):
             entry = g[i, j].copy()
             for p in range(j):
                 entry -= low[i][p] * low[j][p]
-            low[i].append(entry * scale)
-        low[j].append(np.sqrt(np.where(pivot > 0.0, pivot, 1.0)))
-    return ok, product
+            low[i].append(entry / root)
+        low[j].append(root)
+    return ok, product, low
+
+
+def _rayleigh_bounds(gram: np.ndarray, low: list[list[np.ndarray]]) -> tuple[np.ndarray, np.ndarray]:
+    """An upper bound of the smallest and a lower bound of the largest eigenvalue of each `gram`.
+
+    Rayleigh quotients ``x^T G x / x^T x``, which lie between the extreme eigenvalues for any
+    ``x``: for the smallest, ``x`` after two steps of inverse iteration (solves with the Cholesky
+    factor `low` of `gram`, from :func:`_positive_definite` with no shift), for the largest after
+    three steps of power iteration; the rounding of the quotients (below ``k eps tr(G)``) is
+    covered by ``1e-12 tr(G)``.
+
+    Returns:
+        ``(upper bound of the smallest eigenvalue, lower bound of the largest)``, each (N,).
+    """
+    k = gram.shape[1]
+    g = np.ascontiguousarray(gram.transpose(1, 2, 0))
+    margin = 1e-12 * np.trace(g)
+
+    def quotient(x: list[np.ndarray]) -> np.ndarray:
+        gx = [sum(g[i, j] * x[j] for j in range(k)) for i in range(k)]
+        return sum(x[i] * gx[i] for i in range(k)) / sum(x[i] * x[i] for i in range(k))
+
+    x = [np.ones(len(gram)) for _ in range(k)]
+    for _ in range(2):
+        y: list[np.ndarray] = []
+        for i in range(k):  # L y = x
+            y.append((x[i] - sum((low[i][j] * y[j] for j in range(i)), np.zeros(len(gram)))) / low[i][i])
+        z: list[np.ndarray] = [np.zeros(len(gram))] * k
+        for i in reversed(range(k)):  # L^T z = y
+            z[i] = (y[i] - sum((low[j][i] * z[j] for j in range(i + 1, k)), np.zeros(len(gram)))) / low[i][i]
+        norm = np.sqrt(sum(v * v for v in z))
+        x = [v / norm for v in z]
+    smallest = quotient(x) + margin
+    x = [np.full(len(gram), 1.0 + 0.1 * i) for i in range(k)]
+    for _ in range(3):
+        x = [sum(g[i, j] * x[j] for j in range(k)) for i in range(k)]
+        norm = np.sqrt(sum(v * v for v in x))
+        x = [v / np.where(norm > 0.0, norm, 1.0) for v in x]
+    largest = quotient(x) - margin
+    return smallest, largest
 
 
 def _gram(scaled: np.ndarray) -> np.ndarray:
@@ -284,10 +325,12 @@ def bounded_conditioning(
 ) -> tuple[np.ndarray, np.ndarray]:
     """:meth:`Robot.conditioning` of a dense sequence of configurations, exact only where it matters.
 
-    Every :data:`ANCHOR_SPACING`-th row, the last and the rows `keep` are measured exactly (their
-    singular values). Every other row is then shown to lie above the threshold and above the
-    smallest exact values so far (inverse condition number and manipulability), or else
-    measured exactly too; the smallest exact values only fall as rows are added, so a row shown
+    Every :data:`ANCHOR_SPACING`-th row, the first, the last and the rows `keep` are measured
+    exactly (their singular values). `keep` cuts the rows into stretches (ends included). Every
+    other row is then shown either above the threshold and above the smallest exact value so far
+    (inverse condition number), or below the threshold and above the smallest exact value so far
+    in its stretch, and in both cases its manipulability above the smallest exact one; or else it
+    is measured exactly too. The smallest exact values only fall as rows are added, so a row shown
     above them stays above the final minima. Each row goes through these steps until one shows it:
 
     1. Joint changes alone: a singular value moves by at most the spectral norm (below the
@@ -306,18 +349,26 @@ def bounded_conditioning(
        product of the pivots) times ``(1 - e / f)^k``.
     3. The row's own Jacobian: the bounds of step 1 with ``e = ||J - J_a||_F`` to both
        neighbours, then the certificate of step 2 with ``J`` itself and ``s_max`` bounded by
-       Weyl's inequality from the neighbours.
+       Weyl's inequality from the neighbours; the manipulability from the factorisation of
+       ``J J^T`` itself. Below the threshold: Rayleigh quotients of ``J J^T``
+       (:func:`_rayleigh_bounds`) bound its smallest eigenvalue from above and its largest from
+       below, so the inverse condition number from above; and the certificate at the stretch's
+       smallest exact value bounds it from below.
     4. The row is measured exactly.
 
-    In the end every row below the threshold and the row of each minimum hold the exact value,
-    and the others a lower bound above the threshold and above both minima.
+    In the end the rows `keep`, the row of each minimum (inverse condition number and
+    manipulability) and the row of the minimum of every stretch that dips below the threshold
+    hold the exact values; every other row holds lower bounds on the same side of the threshold
+    as the exact value: above the threshold and both minima when above it, above its stretch's
+    minimum when below it. So the minima, where they are, which rows lie below the threshold and
+    where each stretch is lowest are the exact measure's.
 
     Args:
         robot: The robot.
         q: Configurations, shape (n, dof) [rad or m], checked.
         task: Resolved task (``"position"`` or ``"pose"``).
-        threshold: Inverse condition number below which values must be exact.
-        keep: Rows measured exactly in any case.
+        threshold: Inverse condition number the rows are sorted against.
+        keep: Rows measured exactly in any case, and the ends of the stretches (sorted).
 
     Returns:
         ``(inverse_condition_number, manipulability)``, each of shape (n,).
@@ -343,7 +394,8 @@ def bounded_conditioning(
         inv[idx], man[idx] = robot.conditioning_from(s_inv[idx], s_man[idx], task)
         exact[idx] = True
 
-    first = np.concatenate([np.arange(0, n, ANCHOR_SPACING), [n - 1], [] if keep is None else np.asarray(keep)])
+    bounds_of = np.unique(np.concatenate([[0, n - 1], [] if keep is None else np.asarray(keep)]).astype(int))
+    first = np.concatenate([np.arange(0, n, ANCHOR_SPACING), bounds_of])
     measure(np.unique(first.astype(int)))
     rows = np.nonzero(~exact)[0]
     if not len(rows):
@@ -354,7 +406,16 @@ def bounded_conditioning(
     ends = np.nonzero(exact)[0]
     right = np.searchsorted(ends, rows)
     left, right = ends[right - 1], ends[right]  # the exact neighbours of each row
+    # The stretches between the rows `keep`: the smallest exact value in each (ends included).
+    stretch = np.searchsorted(bounds_of, rows) - 1
+    of_end = np.clip(np.searchsorted(bounds_of, ends, side="right") - 1, 0, len(bounds_of) - 2)
+    least = np.full(len(bounds_of) - 1, np.inf)
+    np.minimum.at(least, of_end, inv[ends])
+    np.minimum.at(least, np.clip(np.searchsorted(bounds_of, bounds_of) - 1, 0, None), inv[bounds_of])
+    least = least[stretch]
+    lifted_least = least * (1.0 + 1e-9)
     lo_inv, lo_man = np.zeros(len(rows)), np.zeros(len(rows))
+    below = np.zeros(len(rows), dtype=bool)  # shown below the threshold
     s_cap = np.full(len(rows), np.inf)  # upper bounds of the largest singular value
 
     def weyl(take: np.ndarray, a: np.ndarray, e: np.ndarray, e_man: np.ndarray) -> None:
@@ -365,16 +426,18 @@ def bounded_conditioning(
         low = np.prod(np.maximum(s_man[a] - e_man[:, None], 0.0), axis=1) * (scale * (1.0 - 1e-9))
         lo_man[take] = np.maximum(lo_man[take], low)
 
-    def undecided() -> np.ndarray:
-        return np.nonzero((lo_inv <= level) | (lo_man <= level_man))[0]
+    def settled() -> np.ndarray:
+        above = lo_inv > level
+        dip = below & (lo_inv > least)
+        return (above | dip) & (lo_man > level_man)
 
     def hopeless(take: np.ndarray) -> np.ndarray:
-        # Both neighbours below the level: no certificate will hold (only saves the attempt).
+        # Both neighbours below the level: the certificate above it will not hold (saves the attempt).
         return (inv[left[take]] <= level) & (inv[right[take]] <= level)
 
     def certify(take: np.ndarray, scaled: np.ndarray, s_up: np.ndarray, err: np.ndarray) -> None:
         floor = lifted * s_up + err
-        ok, det = _positive_definite(_gram(scaled), floor * floor)
+        ok, det, _ = _positive_definite(_gram(scaled), floor * floor)
         lo_inv[take[ok]] = np.maximum(lo_inv[take[ok]], lifted)
         if divisor is not None:  # the manipulability is that of the scaled Jacobian
             shrink = np.maximum(1.0 - err[ok] / floor[ok], 0.0) ** k
@@ -387,7 +450,7 @@ def bounded_conditioning(
         du = q[rows] - q[near]
         e = jacobian_change_bound(du, rho, angular)
         weyl(np.arange(len(rows)), near, e, e if divisor is not None else jacobian_change_bound(du, rho, raw_angular))
-        take = undecided()
+        take = np.nonzero(~settled())[0]
         take = take[~hopeless(take)]
         if len(take):
             lam, err = _interpolation_error(q, rows[take], left[take], right[take], (rho, angular))
@@ -399,29 +462,42 @@ def bounded_conditioning(
                 right[take]
             ]
             certify(take, interpolated, s_cap[take], err)
-    take = undecided()
+    take = np.nonzero(~settled())[0]
     if len(take):
         raw, scaled = robot.task_jacobians(q[rows[take]], task)
-        trying = ~hopeless(take)
+        s_up = np.minimum(np.linalg.norm(scaled, axis=(1, 2)), s_cap[take])
+        for a in (left[take], right[take]):
+            e = np.linalg.norm(scaled - scaled_all[a], axis=(1, 2))
+            weyl(take, a, e, e if divisor is not None else np.linalg.norm(raw - raw_all[a], axis=(1, 2)))
+            s_up = np.minimum(s_up, s_inv[a, 0] + e + 1e-9 * (s_inv[a, 0] + 1.0))
+        s_up *= 1.0 + 1e-9
+        trying = ~hopeless(take) & (lo_inv[take] <= level)
         if trying.any():
-            tried = take[trying]
-            s_up = np.minimum(np.linalg.norm(scaled[trying], axis=(1, 2)), s_cap[tried])
-            for a in (left[tried], right[tried]):
-                e = np.linalg.norm(scaled[trying] - scaled_all[a], axis=(1, 2))
-                e_raw = e if divisor is not None else np.linalg.norm(raw[trying] - raw_all[a], axis=(1, 2))
-                weyl(tried, a, e, e_raw)
-                s_up = np.minimum(s_up, s_inv[a, 0] + e + 1e-9 * (s_inv[a, 0] + 1.0))
-            short = (lo_inv[tried] <= level) | (lo_man[tried] <= level_man)
-            if short.any():
-                certify(tried[short], scaled[trying][short], s_up[short] * (1.0 + 1e-9), np.zeros(int(short.sum())))
-            # The manipulability is the root of det(J J^T) (of the matrix it is computed from):
-            # at least that of the product of the pivots.
-            short = (lo_inv[tried] > level) & (lo_man[tried] <= level_man)
-            if short.any():
-                of = (scaled if divisor is not None else raw)[trying][short]
-                det = _positive_definite(_gram(of), np.zeros(len(of)))[1]
-                lo_man[tried[short]] = np.maximum(lo_man[tried[short]], np.sqrt(det) * (scale * (1.0 - 1e-9)))
-        rest = (lo_inv[take] <= level) | (lo_man[take] <= level_man)
+            certify(take[trying], scaled[trying], s_up[trying], np.zeros(int(trying.sum())))
+        # The rest: its own Gram matrix. The manipulability is the root of its determinant (at
+        # least that of the product of the pivots); below the threshold when a Rayleigh quotient
+        # shows the smallest singular value below threshold times (a lower bound of) the largest,
+        # and above its stretch's smallest exact value by a certificate at that level.
+        short = ~settled()[take]
+        if short.any():
+            gram = _gram(scaled[short])
+            ok, det, low = _positive_definite(gram, np.zeros(len(gram)))
+            if divisor is None:
+                det = _positive_definite(_gram(raw[short]), np.zeros(len(gram)))[1]
+            idx = take[short]
+            lo_man[idx] = np.maximum(lo_man[idx], np.sqrt(det) * (scale * (1.0 - 1e-9)))
+            dip = ok & (lo_inv[idx] <= level)
+            if dip.any():
+                smallest, largest = _rayleigh_bounds(gram[dip], [[v[dip] for v in row] for row in low])
+                with np.errstate(invalid="ignore", divide="ignore"):
+                    ratio = np.sqrt(np.maximum(smallest, 0.0) / largest) * (1.0 + 1e-9)
+                shown = (largest > 0.0) & (ratio < threshold * (1.0 - 1e-9))
+                at = idx[dip][shown]
+                below[at] = True
+                floor = lifted_least[at] * s_up[short][dip][shown]
+                above_least = _positive_definite(gram[dip][shown], floor * floor)[0]
+                lo_inv[at[above_least]] = np.maximum(lo_inv[at[above_least]], lifted_least[at[above_least]])
+        rest = ~settled()[take]
         if rest.any():
             measure(rows[take[rest]], raw[rest], scaled[rest])
     free = ~exact[rows]
@@ -444,8 +520,10 @@ def measure_singularities(
     Returns:
         The report, the sample times (n,) [s], the sampled configurations (n, dof) and their
         inverse condition numbers (n,): exact (as :meth:`Robot.conditioning`) at the waypoints,
-        wherever below the threshold and at the minimum, elsewhere a lower bound above both
-        (see :func:`bounded_conditioning`).
+        at the minimum and at the lowest sample between two waypoints where that is below the
+        threshold; elsewhere a lower bound on the same side of the threshold, above the minimum
+        (and above the threshold) or above the lowest sample between its waypoints (see
+        :func:`bounded_conditioning`).
     """
     t = _sample_times(trajectory, rate)
     q = trajectory.sample(t).q
