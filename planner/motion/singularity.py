@@ -216,7 +216,7 @@ def jacobian_curvature_bound(u: np.ndarray, rho: np.ndarray, angular: float) -> 
     return np.sqrt(np.sum(c * c, axis=1) + angular * angular * np.sum(g * g, axis=1))
 
 
-def _positive_definite(gram: np.ndarray, shift: np.ndarray) -> tuple[np.ndarray, np.ndarray, list[list[np.ndarray]]]:
+def _positive_definite(gram: np.ndarray, shift: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Whether each ``gram - shift I`` is positive definite, by a Cholesky factorisation.
 
     `gram` (N, k, k) holds the Gram matrices of scaled Jacobians (their eigenvalues the squared
@@ -229,39 +229,31 @@ def _positive_definite(gram: np.ndarray, shift: np.ndarray) -> tuple[np.ndarray,
     failure).
 
     Returns:
-        The mask (N,), the product of the pivots (0 where the mask is False) and the factor
-        ``L`` (``L[i][j]``, j <= i, each of shape (N,); meaningless where the mask is False).
+        The mask (N,), the product of the pivots (0 where the mask is False) and the factor ``L``
+        as (k, k, N) (meaningless where the mask is False).
     """
     k = gram.shape[1]
     g = np.ascontiguousarray(gram.transpose(1, 2, 0))  # (k, k, N): whole vectors per entry
+    low = np.zeros_like(g)
+    pivots = np.empty((k, len(gram)))
     margin = shift + 1e-12 * np.trace(g)
-    low: list[list[np.ndarray]] = [[] for _ in range(k)]
-    product = np.ones(len(gram))
-    ok = np.ones(len(gram), dtype=bool)
     for j in range(k):
-        pivot = g[j, j] - margin
-        for p in range(j):
-            pivot -= low[j][p] * low[j][p]
-        ok &= pivot > 0.0
-        product *= np.where(ok, pivot, 0.0)
-        root = np.sqrt(np.where(pivot > 0.0, pivot, 1.0))
-        for i in range(j + 1, k):
-            entry = g[i, j].copy()
-            for p in range(j):
-                entry -= low[i][p] * low[j][p]
-            low[i].append(entry / root)
-        low[j].append(root)
-    return ok, product, low
+        pivots[j] = g[j, j] - margin - np.sum(low[j, :j] * low[j, :j], axis=0)
+        root = np.sqrt(np.where(pivots[j] > 0.0, pivots[j], 1.0))
+        low[j, j] = root
+        low[j + 1 :, j] = (g[j + 1 :, j] - np.sum(low[j + 1 :, :j] * low[j, :j], axis=1)) / root
+    ok = np.all(pivots > 0.0, axis=0)
+    return ok, np.where(ok, np.prod(np.where(ok, pivots, 0.0), axis=0), 0.0), low
 
 
-def _rayleigh_bounds(gram: np.ndarray, low: list[list[np.ndarray]]) -> tuple[np.ndarray, np.ndarray]:
+def _rayleigh_bounds(gram: np.ndarray, low: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """An upper bound of the smallest and a lower bound of the largest eigenvalue of each `gram`.
 
     Rayleigh quotients ``x^T G x / x^T x``, which lie between the extreme eigenvalues for any
     ``x``: for the smallest, ``x`` after two steps of inverse iteration (solves with the Cholesky
-    factor `low` of `gram`, from :func:`_positive_definite` with no shift), for the largest after
-    three steps of power iteration; the rounding of the quotients (below ``k eps tr(G)``) is
-    covered by ``1e-12 tr(G)``.
+    factor `low` of `gram`, (k, k, N) from :func:`_positive_definite` with no shift), for the
+    largest after three steps of power iteration; the rounding of the quotients (below
+    ``k eps tr(G)``) is covered by ``1e-12 tr(G)``.
 
     Returns:
         ``(upper bound of the smallest eigenvalue, lower bound of the largest)``, each (N,).
@@ -270,26 +262,23 @@ def _rayleigh_bounds(gram: np.ndarray, low: list[list[np.ndarray]]) -> tuple[np.
     g = np.ascontiguousarray(gram.transpose(1, 2, 0))
     margin = 1e-12 * np.trace(g)
 
-    def quotient(x: list[np.ndarray]) -> np.ndarray:
-        gx = [sum(g[i, j] * x[j] for j in range(k)) for i in range(k)]
-        return sum(x[i] * gx[i] for i in range(k)) / sum(x[i] * x[i] for i in range(k))
+    def quotient(x: np.ndarray) -> np.ndarray:
+        return np.sum(x * np.sum(g * x, axis=1), axis=0) / np.sum(x * x, axis=0)
 
-    x = [np.ones(len(gram)) for _ in range(k)]
+    x = np.ones((k, len(gram)))
     for _ in range(2):
-        y: list[np.ndarray] = []
+        y = np.empty_like(x)
         for i in range(k):  # L y = x
-            y.append((x[i] - sum((low[i][j] * y[j] for j in range(i)), np.zeros(len(gram)))) / low[i][i])
-        z: list[np.ndarray] = [np.zeros(len(gram))] * k
-        for i in reversed(range(k)):  # L^T z = y
-            z[i] = (y[i] - sum((low[j][i] * z[j] for j in range(i + 1, k)), np.zeros(len(gram)))) / low[i][i]
-        norm = np.sqrt(sum(v * v for v in z))
-        x = [v / norm for v in z]
+            y[i] = (x[i] - np.sum(low[i, :i] * y[:i], axis=0)) / low[i, i]
+        for i in reversed(range(k)):  # L^T x = y
+            x[i] = (y[i] - np.sum(low[i + 1 :, i] * x[i + 1 :], axis=0)) / low[i, i]
+        x /= np.sqrt(np.sum(x * x, axis=0))
     smallest = quotient(x) + margin
-    x = [np.full(len(gram), 1.0 + 0.1 * i) for i in range(k)]
+    x = np.repeat(1.0 + 0.1 * np.arange(k)[:, None], len(gram), axis=1)
     for _ in range(3):
-        x = [sum(g[i, j] * x[j] for j in range(k)) for i in range(k)]
-        norm = np.sqrt(sum(v * v for v in x))
-        x = [v / np.where(norm > 0.0, norm, 1.0) for v in x]
+        x = np.sum(g * x, axis=1)
+        norm = np.sqrt(np.sum(x * x, axis=0))
+        x /= np.where(norm > 0.0, norm, 1.0)
     largest = quotient(x) - margin
     return smallest, largest
 
@@ -488,7 +477,7 @@ def bounded_conditioning(
             lo_man[idx] = np.maximum(lo_man[idx], np.sqrt(det) * (scale * (1.0 - 1e-9)))
             dip = ok & (lo_inv[idx] <= level)
             if dip.any():
-                smallest, largest = _rayleigh_bounds(gram[dip], [[v[dip] for v in row] for row in low])
+                smallest, largest = _rayleigh_bounds(gram[dip], low[:, :, dip])
                 with np.errstate(invalid="ignore", divide="ignore"):
                     ratio = np.sqrt(np.maximum(smallest, 0.0) / largest) * (1.0 + 1e-9)
                 shown = (largest > 0.0) & (ratio < threshold * (1.0 - 1e-9))
