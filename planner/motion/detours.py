@@ -131,11 +131,15 @@ def _ascend(robot: Robot, q: np.ndarray, limits: JointLimits, target: float, tas
 
     def measure_with_probes(point: np.ndarray) -> tuple[float, np.ndarray]:
         # Forward differences, one joint a row (a probe steps back where a step forward
-        # would leave the limits), measured together with the point itself.
-        probes = point + np.diag(np.where(point + h <= hi, h, -h))
-        raw, scaled = robot.task_jacobians(np.vstack([point, probes]), task)
-        values = robot.conditioning_of(raw, scaled, task)[0]
-        return float(values[0]), (values[1:] - values[0]) / (probes.diagonal() - point)
+        # would leave the limits), measured together with the point itself: the inverse
+        # condition numbers as Robot.conditioning computes them (the same SVD and ratio).
+        steps = np.where(point + h <= hi, h, -h)
+        rows = np.tile(point, (len(point) + 1, 1))
+        rows[1:] += np.diag(steps)
+        scaled = robot.task_jacobians(rows, task)[1]
+        s = np.linalg.svd(scaled, compute_uv=False)[:, : min(scaled.shape[1:])]
+        values = np.divide(s[:, -1], s[:, 0], out=np.zeros(len(s)), where=s[:, 0] != 0.0)
+        return float(values[0]), (values[1:] - values[0]) / (rows[1:].diagonal() - point)
 
     x = np.clip(q, lo, hi)
     f, grad = measure_with_probes(x)
