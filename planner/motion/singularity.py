@@ -177,6 +177,19 @@ def jacobian_change_bounds(robot: Robot, task: Task) -> tuple[np.ndarray, float,
     return rho, robot.characteristic_length, 1.0
 
 
+class _ChangeBounds:
+    """Per robot, :func:`jacobian_change_bounds` by task, computed once (kept in ``robot.derived``)."""
+
+    def __init__(self, robot: Robot) -> None:
+        self.robot = robot
+        self.by_task: dict[str, tuple[np.ndarray, float, float] | None] = {}
+
+    def of(self, task: Task) -> tuple[np.ndarray, float, float] | None:
+        if task not in self.by_task:
+            self.by_task[task] = jacobian_change_bounds(self.robot, task)
+        return self.by_task[task]
+
+
 def jacobian_change_bound(u: np.ndarray, rho: np.ndarray, angular: float) -> np.ndarray:
     """Per row of joint changes `u` (rows, dof) [rad], the bound of :func:`jacobian_change_bounds` [m/rad].
 
@@ -238,10 +251,10 @@ def _positive_definite(gram: np.ndarray, shift: np.ndarray) -> tuple[np.ndarray,
     pivots = np.empty((k, len(gram)))
     margin = shift + 1e-12 * np.trace(g)
     for j in range(k):
-        pivots[j] = g[j, j] - margin - np.sum(low[j, :j] * low[j, :j], axis=0)
+        pivots[j] = g[j, j] - margin - (low[j, :j] * low[j, :j]).sum(axis=0)
         root = np.sqrt(np.where(pivots[j] > 0.0, pivots[j], 1.0))
         low[j, j] = root
-        low[j + 1 :, j] = (g[j + 1 :, j] - np.sum(low[j + 1 :, :j] * low[j, :j], axis=1)) / root
+        low[j + 1 :, j] = (g[j + 1 :, j] - (low[j + 1 :, :j] * low[j, :j]).sum(axis=1)) / root
     ok = np.all(pivots > 0.0, axis=0)
     return ok, np.where(ok, np.prod(np.where(ok, pivots, 0.0), axis=0), 0.0), low
 
@@ -263,21 +276,21 @@ def _rayleigh_bounds(gram: np.ndarray, low: np.ndarray) -> tuple[np.ndarray, np.
     margin = 1e-12 * np.trace(g)
 
     def quotient(x: np.ndarray) -> np.ndarray:
-        return np.sum(x * np.sum(g * x, axis=1), axis=0) / np.sum(x * x, axis=0)
+        return (x * (g * x).sum(axis=1)).sum(axis=0) / (x * x).sum(axis=0)
 
     x = np.ones((k, len(gram)))
     for _ in range(2):
         y = np.empty_like(x)
         for i in range(k):  # L y = x
-            y[i] = (x[i] - np.sum(low[i, :i] * y[:i], axis=0)) / low[i, i]
+            y[i] = (x[i] - (low[i, :i] * y[:i]).sum(axis=0)) / low[i, i]
         for i in reversed(range(k)):  # L^T x = y
-            x[i] = (y[i] - np.sum(low[i + 1 :, i] * x[i + 1 :], axis=0)) / low[i, i]
-        x /= np.sqrt(np.sum(x * x, axis=0))
+            x[i] = (y[i] - (low[i + 1 :, i] * x[i + 1 :]).sum(axis=0)) / low[i, i]
+        x /= np.sqrt((x * x).sum(axis=0))
     smallest = quotient(x) + margin
     x = np.repeat(1.0 + 0.1 * np.arange(k)[:, None], len(gram), axis=1)
     for _ in range(3):
-        x = np.sum(g * x, axis=1)
-        norm = np.sqrt(np.sum(x * x, axis=0))
+        x = (g * x).sum(axis=1)
+        norm = np.sqrt((x * x).sum(axis=0))
         x /= np.where(norm > 0.0, norm, 1.0)
     largest = quotient(x) - margin
     return smallest, largest
@@ -432,7 +445,7 @@ def bounded_conditioning(
             shrink = np.maximum(1.0 - err[ok] / floor[ok], 0.0) ** k
             lo_man[take[ok]] = np.maximum(lo_man[take[ok]], np.sqrt(det[ok]) * shrink * (scale * (1.0 - 1e-9)))
 
-    change = jacobian_change_bounds(robot, task)
+    change = robot.derived.get(_ChangeBounds, lambda: _ChangeBounds(robot)).of(task)
     if change is not None:
         rho, angular, raw_angular = change
         near = np.where(rows - left <= right - rows, left, right)
