@@ -270,6 +270,8 @@ class Robot:
         self._has_continuous = "continuous" in kinds
         self._idx_q = [model.joints[j].idx_q for j in range(1, model.njoints)]
         self._characteristic_length = _chain_length(model, self.tip_frame_id)
+        # Columns of prismatic joints scaled by that length (see conditioning).
+        self._column_scale = read_only(np.where(np.array(kinds) == "prismatic", self._characteristic_length, 1.0))
         self.derived = DerivedCache()
 
     @classmethod
@@ -608,7 +610,7 @@ class Robot:
         """
         t = self.resolve_task(task)
         length = self._characteristic_length
-        columns = np.where(np.array(self.joint_kinds) == "prismatic", length, 1.0)
+        columns = self._column_scale
         model, data = self.model, self.data
         fid, ref = self.tip_frame_id, pin.ReferenceFrame.LOCAL_WORLD_ALIGNED
         jacobian = pin.computeFrameJacobian

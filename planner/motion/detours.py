@@ -128,29 +128,29 @@ def _ascend(robot: Robot, q: np.ndarray, limits: JointLimits, target: float, tas
     inset = 1e-3 * np.where(np.isfinite(hi - lo), hi - lo, 1.0)
     lo, hi = lo + inset, hi - inset
     h = 1e-5
+    joints = np.arange(len(q))
 
     def measure_with_probes(point: np.ndarray) -> tuple[float, np.ndarray]:
         # Forward differences, one joint a row (a probe steps back where a step forward
         # would leave the limits), measured together with the point itself: the inverse
         # condition numbers as Robot.conditioning computes them (the same SVD and ratio).
-        steps = np.where(point + h <= hi, h, -h)
         rows = np.tile(point, (len(point) + 1, 1))
-        rows[1:] += np.diag(steps)
+        rows[joints + 1, joints] += np.where(point + h <= hi, h, -h)
         scaled = robot.task_jacobians(rows, task)[1]
         s = np.linalg.svd(scaled, compute_uv=False)[:, : min(scaled.shape[1:])]
         values = np.divide(s[:, -1], s[:, 0], out=np.zeros(len(s)), where=s[:, 0] != 0.0)
-        return float(values[0]), (values[1:] - values[0]) / (rows[1:].diagonal() - point)
+        return float(values[0]), (values[1:] - values[0]) / (rows[joints + 1, joints] - point)
 
-    x = np.clip(q, lo, hi)
+    x = np.minimum(np.maximum(q, lo), hi)
     f, grad = measure_with_probes(x)
     step = 0.05
     for _ in range(200):
         if f >= target:
             break
-        norm = float(np.linalg.norm(grad))
+        norm = math.sqrt(float(grad @ grad))
         if norm == 0.0 or not math.isfinite(norm):
             break
-        cand = np.clip(x + step * grad / norm, lo, hi)
+        cand = np.minimum(np.maximum(x + step * grad / norm, lo), hi)
         fc, grad_c = measure_with_probes(cand)
         if fc > f:
             x, f, grad = cand, fc, grad_c
