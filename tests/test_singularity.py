@@ -18,7 +18,7 @@ from planner.motion.request import TrajectoryRequest
 from planner.motion.singularity import check_singularities
 from planner.motion.trajectory import LIMIT_TOLERANCE
 
-from conftest import get_robot, needs_example_robot_data
+from conftest import HAVE_EXAMPLE_ROBOT_DATA, get_robot, needs_example_robot_data
 
 THRESHOLD = 1.0 / 30.0
 
@@ -403,3 +403,67 @@ def test_default_thresholds_follow_the_task():
     ur5 = get_robot("ur5")
     with pytest.raises(InvalidArgumentError, match=r"a condition number of 100 is 0.01\)"):
         check_singularities(ur5, plan_trajectory([UR5_HOME, UR5_HOME], JointLimits.from_robot(ur5)), threshold=2)
+
+
+def _ascend_one_by_one(robot, q, limits, target, task):
+    """The detour ascent as first written: the probes and each candidate measured apart."""
+    lo = np.where(np.isfinite(limits.lower), limits.lower, -np.inf)
+    hi = np.where(np.isfinite(limits.upper), limits.upper, np.inf)
+    inset = 1e-3 * np.where(np.isfinite(hi - lo), hi - lo, 1.0)
+    lo, hi = lo + inset, hi - inset
+    x = np.clip(q, lo, hi)
+    f = float(robot.conditioning(x, task)[0])
+    step, h = 0.05, 1e-5
+    for _ in range(200):
+        if f >= target:
+            break
+        probes = x + np.diag(np.where(x + h <= hi, h, -h))
+        grad = np.array([float(robot.conditioning(p, task)[0]) - f for p in probes]) / (probes.diagonal() - x)
+        norm = float(np.linalg.norm(grad))
+        if norm == 0.0 or not np.isfinite(norm):
+            break
+        cand = np.clip(x + step * grad / norm, lo, hi)
+        fc = float(robot.conditioning(cand, task)[0])
+        if fc > f:
+            x, f = cand, fc
+            step = min(step * 1.5, 0.5)
+        else:
+            step *= 0.5
+            if step < 1e-6:
+                break
+    return x, f
+
+
+def _detour_cases():
+    yield "three_joint", np.array([[0.0, 1.0, 0.5, 0.5], [0.0, 1.0, -0.5, -0.5]])
+    rng = np.random.default_rng(5)
+    for name in ("dh3", "al5c"):
+        yield name, get_robot(name).random_configurations(rng, 4)
+    if HAVE_EXAMPLE_ROBOT_DATA:  # the 5th and 6th of these panda moves get a detour each
+        pairs = get_robot("panda").random_configurations(np.random.default_rng(7), 12).reshape(6, 2, 7)
+        yield "panda", pairs[4]
+        yield "panda", pairs[5]
+
+
+def test_detours_equal_those_of_the_one_by_one_ascent(monkeypatch):
+    # The ascent measures each candidate with the probes around it in one batch, and keeps the
+    # gradient after a loss: the same steps, so the same detours, bit for bit.
+    import planner.motion.detours as detours_module
+
+    cases = list(_detour_cases())
+    plans = [
+        plan_clear_of_singularities(get_robot(n), TrajectoryRequest(q, JointLimits.from_robot(get_robot(n))))
+        for n, q in cases
+    ]
+    monkeypatch.setattr(detours_module, "_ascend", _ascend_one_by_one)
+    detoured = 0
+    for (name, q), plan in zip(cases, plans):
+        robot = get_robot(name)
+        want = plan_clear_of_singularities(robot, TrajectoryRequest(q, JointLimits.from_robot(robot)))
+        assert len(plan.detours) == len(want.detours), name
+        for got, ref in zip(plan.detours, want.detours):
+            assert np.array_equal(got.q, ref.q) and got.inverse_condition == ref.inverse_condition
+        assert np.array_equal(plan.trajectory.waypoints, want.trajectory.waypoints)
+        assert plan.report.min_inverse_condition == want.report.min_inverse_condition
+        detoured += len(plan.detours)
+    assert detoured >= (4 if HAVE_EXAMPLE_ROBOT_DATA else 2)

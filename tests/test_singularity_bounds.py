@@ -58,6 +58,30 @@ def _reference(robot, trajectory, threshold, task, rate) -> tuple[SingularityRep
     return report, inv, man
 
 
+def _check_bounded(inv, man, inv_all, man_all, threshold, keep) -> None:
+    """What bounded_conditioning promises, against the exact values (man None: not checked).
+
+    Exact at the rows `keep` and at the minimum (the global one, and that of every stretch between
+    two rows of `keep` that dips below the threshold); elsewhere a lower bound on the same side of
+    the threshold, above the threshold and the global minimum when above, above its stretch's
+    minimum when below.
+    """
+    exact = inv == inv_all
+    assert np.array_equal(inv < threshold, inv_all < threshold)
+    assert np.all(inv <= inv_all) and exact[keep].all()
+    assert inv.min() == inv_all.min() and int(np.argmin(inv)) == int(np.argmin(inv_all))
+    assert np.all(inv[~exact & (inv_all >= threshold)] > max(threshold, inv_all.min()))
+    ends = np.unique(np.concatenate([[0, len(inv) - 1], keep]))
+    for a, b in zip(ends[:-1], ends[1:]):
+        piece, piece_all = inv[a : b + 1], inv_all[a : b + 1]
+        if piece_all.min() < threshold:
+            assert int(np.argmin(piece)) == int(np.argmin(piece_all)) and piece.min() == piece_all.min()
+            assert np.all(piece[piece != piece_all] > piece_all.min())
+    if man is not None:
+        assert np.all(man <= man_all) and np.array_equal(man[keep], man_all[keep])
+        assert man.min() == man_all.min() and np.all(man[man != man_all] > man_all.min())
+
+
 @pytest.mark.parametrize("name", ARMS)
 @given(seed=st.integers(0, 2**32 - 1), points=st.integers(2, 4), scale=st.sampled_from([1.0, 3.0, 10.0]))
 @property_settings(8)
@@ -77,10 +101,7 @@ def test_bounded_measure_matches_the_exact_one(name, seed, points, scale):
         else:
             assert got == want, field
     # Exact below the threshold and at the minimum, a lower bound above the threshold elsewhere.
-    exact = inv == inv_all
-    assert exact[inv_all < threshold].all()
-    assert np.all(inv <= inv_all)
-    assert np.all(inv[~exact] > threshold) and np.all(inv[~exact] > inv_all.min())
+    _check_bounded(inv, None, inv_all, None, threshold, np.searchsorted(t, trajectory.waypoint_times))
 
 
 @pytest.mark.parametrize("name", ARMS)
@@ -169,3 +190,75 @@ def test_the_jacobian_moves_no_farther_than_its_bound(name, task):
             assert np.all(moved <= jacobian_change_bound(u, rho, angular) * (1 + 1e-12) + 1e-15), (name, j, size)
             moved_raw = np.linalg.norm(raw1 - raw0, axis=(1, 2))
             assert np.all(moved_raw <= jacobian_change_bound(u, rho, raw_angular) * (1 + 1e-12) + 1e-15), (name, j)
+
+
+@pytest.mark.parametrize("name", ARMS)
+@pytest.mark.parametrize("task", ["position", "pose"])
+def test_the_jacobian_bends_no_more_than_its_curvature_bound(name, task):
+    """Halfway along a straight joint move, ||J(mid) - (J(q0) + J(q1)) / 2||_F <= curvature / 8 (Pinocchio)."""
+    from planner.motion.singularity import jacobian_change_bounds, jacobian_curvature_bound
+
+    robot = get_robot(name)
+    change = jacobian_change_bounds(robot, task)
+    if change is None:
+        pytest.skip(f"{name}: no joint-change bound (sliding joints or a branched chain)")
+    rho, angular, raw_angular = change
+    rng = np.random.default_rng(19)
+    q0 = robot.random_configurations(rng, 300)
+    moves = [rng.normal(0.0, size, q0.shape) for size in (1e-3, 3e-2, 0.3, 3.0)]
+    for j in range(robot.dof):  # one joint at a time, and all but one
+        for size in (1e-2, 0.5):
+            u = np.zeros_like(q0)
+            u[:, j] = size
+            moves += [u, rng.normal(0.0, size, q0.shape) * (u == 0)]
+    raw0, scaled0 = robot.task_jacobians(q0, task)
+    for u in moves:
+        raw1, scaled1 = robot.task_jacobians(q0 + u, task)
+        raw_mid, scaled_mid = robot.task_jacobians(q0 + 0.5 * u, task)
+        bent = np.linalg.norm(scaled_mid - 0.5 * (scaled0 + scaled1), axis=(1, 2))
+        assert np.all(bent <= jacobian_curvature_bound(u, rho, angular) / 8 * (1 + 1e-12) + 1e-15), name
+        bent_raw = np.linalg.norm(raw_mid - 0.5 * (raw0 + raw1), axis=(1, 2))
+        assert np.all(bent_raw <= jacobian_curvature_bound(u, rho, raw_angular) / 8 * (1 + 1e-12) + 1e-15), name
+
+
+def test_the_cholesky_certificate_agrees_with_the_eigenvalues():
+    # Gram matrices with a known spectrum, shifted just below and above their smallest eigenvalue.
+    from planner.motion.singularity import _positive_definite, _rayleigh_bounds
+
+    rng = np.random.default_rng(23)
+    for k in (2, 3, 6):
+        basis = np.linalg.qr(rng.normal(size=(400, k, k)))[0]
+        values = np.sort(10.0 ** rng.uniform(-8, 1, (400, k)), axis=1)
+        gram = basis @ (values[:, :, None] * basis.transpose(0, 2, 1))
+        trace = values.sum(axis=1)
+        below = values[:, 0] * (1 - 1e-6) - 2e-12 * trace
+        ok, product, _ = _positive_definite(gram, below)
+        clear = values[:, 0] - below > 1e-10 * trace  # well above rounding
+        assert ok[clear].all()
+        # Where it holds, the pivots' product bounds the product of the excesses from below.
+        assert np.all(product[ok] <= np.prod(values[ok] - below[ok, None], axis=1) * (1 + 1e-6))
+        ok_above, product_above, _ = _positive_definite(gram, values[:, 0] * (1 + 1e-6))
+        assert not ok_above.any() and not product_above.any()
+        # The Rayleigh quotients bracket the extreme eigenvalues, tightly after a few iterations.
+        ok, _, low = _positive_definite(gram, np.zeros(len(gram)))
+        smallest, largest = _rayleigh_bounds(gram[ok], low[:, :, ok])
+        assert np.all(smallest >= values[ok, 0]) and np.all(largest <= values[ok, -1])
+        assert np.median(smallest / values[ok, 0]) < 1 + 1e-3 and np.median(largest / values[ok, -1]) > 0.9
+
+
+@pytest.mark.parametrize("name", ARMS)
+def test_bounded_measure_equals_the_one_by_one_measure(name):
+    # Dense random walks through a singular configuration's neighbourhood and far from it, at
+    # thresholds from 0 to where nearly every row is below: the exact rows equal Robot.conditioning
+    # of that configuration alone, the others are bounds as bounded_conditioning promises.
+    robot = get_robot(name)
+    task = robot.resolve_task(None)
+    rng = np.random.default_rng(29)
+    start = robot.random_configurations(rng, 2)
+    start[1] = np.clip(np.zeros(robot.dof), robot.lower, robot.upper)  # straight arms are singular
+    for q0 in start:
+        walk = np.clip(q0 + np.cumsum(rng.normal(0.0, 1e-3, (1500, robot.dof)), axis=0), robot.lower, robot.upper)
+        one = np.array([robot.conditioning(row, task) for row in walk])
+        for threshold in (0.0, inverse_condition_threshold(None, task), 0.2, 0.9):
+            inv, man = bounded_conditioning(robot, walk, task, threshold, keep=[3, 700])
+            _check_bounded(inv, man, one[:, 0], one[:, 1], threshold, np.array([3, 700]))

@@ -270,6 +270,8 @@ class Robot:
         self._has_continuous = "continuous" in kinds
         self._idx_q = [model.joints[j].idx_q for j in range(1, model.njoints)]
         self._characteristic_length = _chain_length(model, self.tip_frame_id)
+        # Columns of prismatic joints scaled by that length (see conditioning).
+        self._column_scale = read_only(np.where(np.array(kinds) == "prismatic", self._characteristic_length, 1.0))
         self.derived = DerivedCache()
 
     @classmethod
@@ -608,14 +610,19 @@ class Robot:
         """
         t = self.resolve_task(task)
         length = self._characteristic_length
-        columns = np.where(np.array(self.joint_kinds) == "prismatic", length, 1.0)
+        columns = self._column_scale
+        model, data = self.model, self.data
         fid, ref = self.tip_frame_id, pin.ReferenceFrame.LOCAL_WORLD_ALIGNED
-        jacs = np.empty((len(q), 6, self.model.nv))
+        jacobian = pin.computeFrameJacobian
+        jacs = np.empty((len(q), 6, model.nv))
         # Written in place row by row (a 1-joint arm's Jacobian comes back flat: reshaped).
-        one = self.model.nv == 1
-        for k, row in enumerate(q):
-            jac = pin.computeFrameJacobian(self.model, self.data, self._pin_q(row), fid, ref)
-            jacs[k] = np.reshape(jac, (6, 1)) if one else jac
+        rows = (self._pin_q(row) for row in q) if self._has_continuous else q
+        if model.nv == 1:
+            for k, row in enumerate(rows):
+                jacs[k] = np.reshape(jacobian(model, data, row, fid, ref), (6, 1))
+        else:
+            for k, row in enumerate(rows):
+                jacs[k] = jacobian(model, data, row, fid, ref)
         if t == "position":
             jacs = jacs[:, :3]
             scaled = jacs * columns

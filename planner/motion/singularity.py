@@ -51,6 +51,7 @@ __all__ = [
     "check_singularities",
     "jacobian_change_bound",
     "jacobian_change_bounds",
+    "jacobian_curvature_bound",
     "inverse_condition_threshold",
     "measure_singularities",
 ]
@@ -137,10 +138,10 @@ def _intervals(t: np.ndarray, low: np.ndarray) -> tuple[tuple[float, float], ...
 
 
 #: Samples between the first rows :func:`bounded_conditioning` measures exactly.
-ANCHOR_SPACING = 8
+ANCHOR_SPACING = 16
 
 
-def jacobian_change_bounds(robot: Robot, task: Task) -> tuple[np.ndarray, np.ndarray, float] | None:
+def jacobian_change_bounds(robot: Robot, task: Task) -> tuple[np.ndarray, float, float] | None:
     """Constants of a bound on how far the task Jacobian moves with the joints, or None.
 
     For an arm of turning joints in one chain to the tip, column ``i`` of the Jacobian (in the
@@ -176,6 +177,19 @@ def jacobian_change_bounds(robot: Robot, task: Task) -> tuple[np.ndarray, np.nda
     return rho, robot.characteristic_length, 1.0
 
 
+class _ChangeBounds:
+    """Per robot, :func:`jacobian_change_bounds` by task, computed once (kept in ``robot.derived``)."""
+
+    def __init__(self, robot: Robot) -> None:
+        self.robot = robot
+        self.by_task: dict[str, tuple[np.ndarray, float, float] | None] = {}
+
+    def of(self, task: Task) -> tuple[np.ndarray, float, float] | None:
+        if task not in self.by_task:
+            self.by_task[task] = jacobian_change_bounds(self.robot, task)
+        return self.by_task[task]
+
+
 def jacobian_change_bound(u: np.ndarray, rho: np.ndarray, angular: float) -> np.ndarray:
     """Per row of joint changes `u` (rows, dof) [rad], the bound of :func:`jacobian_change_bounds` [m/rad].
 
@@ -189,12 +203,123 @@ def jacobian_change_bound(u: np.ndarray, rho: np.ndarray, angular: float) -> np.
     return np.sqrt(np.sum(a * a, axis=1) + angular * angular * np.sum(before * before, axis=1))
 
 
-def _inside(n: int, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
-    """Mask of the n rows strictly between each ``lo[i]`` and ``hi[i]`` (disjoint gaps)."""
-    marks = np.zeros(n + 1, dtype=np.int64)
-    np.add.at(marks, lo + 1, 1)
-    np.add.at(marks, hi, -1)
-    return np.cumsum(marks[:n]) > 0
+def jacobian_curvature_bound(u: np.ndarray, rho: np.ndarray, angular: float) -> np.ndarray:
+    """Per row of joint changes `u` (rows, dof), a bound on the second derivative of the Jacobian.
+
+    Along the straight move ``q + s u`` (s in [0, 1]) of an arm as in
+    :func:`jacobian_change_bounds`, ``||d^2 J / ds^2||_F`` is at most
+    ``sqrt(sum_i c_i^2 + L^2 g_i^2)``, from the derivatives of the column ``[z_i x r_i; z_i]``
+    (``r_i = p - o_i``): with ``w_i = sum_{k < i} z_k u_k`` the angular velocity of joint
+    ``i``'s axis (``|w_i| <= U_i = sum_{k < i} |u_k|``, ``|w_i'| <= V_i = sum_{k < i} U_k |u_k|``),
+    ``z_i'' = w_i' x z_i + w_i x z_i'`` gives ``g_i = V_i + U_i^2``; ``r_i' = w_i x r_i + sum_{k >= i}
+    (z_k x r_k) u_k`` is at most ``a_i`` (:func:`jacobian_change_bound`), and its derivative at most
+    ``e_i = V_i rho_i + U_i a_i + sum_{k >= i} (U_k rho_k + a_k) |u_k|``; so
+    ``(z x r)'' = z'' x r + 2 z' x r' + z x r''`` is at most ``c_i = g_i rho_i + 2 U_i a_i + e_i``.
+    A straight line between two configurations then misses the Jacobian halfway along it by at most
+    an eighth of this bound, at ``s`` by ``s (1 - s) / 2`` of it. `rho` and `angular` as for
+    :func:`jacobian_change_bound` [m/rad^2].
+    """
+    u = np.abs(u)
+    before = np.cumsum(u, axis=1) - u
+    turn = np.cumsum(before * u, axis=1) - before * u
+    a = rho * before + np.cumsum((rho * u)[:, ::-1], axis=1)[:, ::-1]
+    tail = np.cumsum(((before * rho + a) * u)[:, ::-1], axis=1)[:, ::-1]
+    g = turn + before * before
+    c = g * rho + 3.0 * before * a + turn * rho + tail
+    return np.sqrt(np.sum(c * c, axis=1) + angular * angular * np.sum(g * g, axis=1))
+
+
+def _positive_definite(gram: np.ndarray, shift: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Whether each ``gram - shift I`` is positive definite, by a Cholesky factorisation.
+
+    `gram` (N, k, k) holds the Gram matrices of scaled Jacobians (their eigenvalues the squared
+    singular values). The factorisation in floating point gives ``LL^T = gram - shift I + E`` with
+    ``|E| <= (k + 1) eps tr(gram)`` (Demmel 1989), and forming the Gram matrix rounds by as much,
+    so the shift is raised by ``1e-12 tr(gram)``, thousands of times both: where every pivot is
+    positive, ``gram - shift I`` is then at least ``LL^T``, every eigenvalue of `gram` exceeds
+    `shift` and the product of their excesses is at least the product of the pivots. Written out
+    over the batch, one column at a time (NumPy's factorisation stops the batch at the first
+    failure).
+
+    Returns:
+        The mask (N,), the product of the pivots (0 where the mask is False) and the factor ``L``
+        as (k, k, N) (meaningless where the mask is False).
+    """
+    k = gram.shape[1]
+    g = np.ascontiguousarray(gram.transpose(1, 2, 0))  # (k, k, N): whole vectors per entry
+    low = np.zeros_like(g)
+    pivots = np.empty((k, len(gram)))
+    margin = shift + 1e-12 * np.trace(g)
+    for j in range(k):
+        pivots[j] = g[j, j] - margin - (low[j, :j] * low[j, :j]).sum(axis=0)
+        root = np.sqrt(np.where(pivots[j] > 0.0, pivots[j], 1.0))
+        low[j, j] = root
+        low[j + 1 :, j] = (g[j + 1 :, j] - (low[j + 1 :, :j] * low[j, :j]).sum(axis=1)) / root
+    ok = np.all(pivots > 0.0, axis=0)
+    return ok, np.where(ok, np.prod(np.where(ok, pivots, 0.0), axis=0), 0.0), low
+
+
+def _rayleigh_bounds(gram: np.ndarray, low: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """An upper bound of the smallest and a lower bound of the largest eigenvalue of each `gram`.
+
+    Rayleigh quotients ``x^T G x / x^T x``, which lie between the extreme eigenvalues for any
+    ``x``: for the smallest, ``x`` after two steps of inverse iteration (solves with the Cholesky
+    factor `low` of `gram`, (k, k, N) from :func:`_positive_definite` with no shift), for the
+    largest after three steps of power iteration; the rounding of the quotients (below
+    ``k eps tr(G)``) is covered by ``1e-12 tr(G)``.
+
+    Returns:
+        ``(upper bound of the smallest eigenvalue, lower bound of the largest)``, each (N,).
+    """
+    k = gram.shape[1]
+    g = np.ascontiguousarray(gram.transpose(1, 2, 0))
+    margin = 1e-12 * np.trace(g)
+
+    def quotient(x: np.ndarray) -> np.ndarray:
+        return (x * (g * x).sum(axis=1)).sum(axis=0) / (x * x).sum(axis=0)
+
+    x = np.ones((k, len(gram)))
+    for _ in range(2):
+        y = np.empty_like(x)
+        for i in range(k):  # L y = x
+            y[i] = (x[i] - (low[i, :i] * y[:i]).sum(axis=0)) / low[i, i]
+        for i in reversed(range(k)):  # L^T x = y
+            x[i] = (y[i] - (low[i + 1 :, i] * x[i + 1 :]).sum(axis=0)) / low[i, i]
+        x /= np.sqrt((x * x).sum(axis=0))
+    smallest = quotient(x) + margin
+    x = np.repeat(1.0 + 0.1 * np.arange(k)[:, None], len(gram), axis=1)
+    for _ in range(3):
+        x = (g * x).sum(axis=1)
+        norm = np.sqrt((x * x).sum(axis=0))
+        x /= np.where(norm > 0.0, norm, 1.0)
+    largest = quotient(x) - margin
+    return smallest, largest
+
+
+def _gram(scaled: np.ndarray) -> np.ndarray:
+    """``S S^T`` of each matrix of `scaled` (or ``S^T S`` for tall ones): eigenvalues ``s_i^2``."""
+    if scaled.shape[1] <= scaled.shape[2]:
+        return scaled @ scaled.transpose(0, 2, 1)
+    return scaled.transpose(0, 2, 1) @ scaled
+
+
+def _interpolation_error(
+    q: np.ndarray, rows: np.ndarray, left: np.ndarray, right: np.ndarray, bounds: tuple[np.ndarray, float]
+) -> tuple[np.ndarray, np.ndarray]:
+    """``lam`` and ``e`` of the rows between two exact rows, for :func:`bounded_conditioning`.
+
+    Row ``r`` at ``lam = (r - left) / (right - left)`` lies off the straight joint-space line
+    between its neighbours by ``d = q_r - ((1 - lam) q_left + lam q_right)``, so its scaled
+    Jacobian is the interpolation ``(1 - lam) J_left + lam J_right`` up to
+    ``e = change(d) + lam (1 - lam) / 2 curvature(q_right - q_left)`` in the Frobenius norm
+    (:func:`jacobian_change_bound`, :func:`jacobian_curvature_bound`) [m/rad].
+    """
+    rho, angular = bounds
+    lam = (rows - left) / (right - left)
+    u = q[right] - q[left]
+    off = q[rows] - (q[left] + lam[:, None] * u)
+    err = jacobian_change_bound(off, rho, angular) + 0.5 * lam * (1.0 - lam) * jacobian_curvature_bound(u, rho, angular)
+    return lam, err
 
 
 def bounded_conditioning(
@@ -202,26 +327,50 @@ def bounded_conditioning(
 ) -> tuple[np.ndarray, np.ndarray]:
     """:meth:`Robot.conditioning` of a dense sequence of configurations, exact only where it matters.
 
-    Every :data:`ANCHOR_SPACING`-th row, the last and the rows `keep` are measured exactly; every
-    row between two exact ones gets lower bounds from both by Weyl's inequality: a singular value
-    moves by at most the spectral norm (below the Frobenius norm) of the change of the matrix, so
-    with ``e`` a bound on ``||J - J_a||_F`` the inverse condition number is at least
-    ``(s_min(J_a) - e) / (s_max(J_a) + e)`` and the manipulability (a fixed factor times the
-    product of the singular values of the matrix it is computed from) at least that factor times
-    the product of ``max(s_i - e, 0)``. ``e`` is first the bound of
-    :func:`jacobian_change_bounds` from the joint changes alone (no Jacobian needed); rows it
-    leaves undecided get their Jacobian and ``e = ||J - J_a||_F`` itself. Where a bound between
-    two exact rows could be below the threshold or below the smallest exact value so far, the
-    row halfway is measured too, and so on: in the end every row below the threshold and the
-    row of each minimum hold the exact value, and the others a lower bound above the threshold
-    and above both minima.
+    Every :data:`ANCHOR_SPACING`-th row, the first, the last and the rows `keep` are measured
+    exactly (their singular values). `keep` cuts the rows into stretches (ends included). Every
+    other row is then shown either above the threshold and above the smallest exact value so far
+    (inverse condition number), or below the threshold and above the smallest exact value so far
+    in its stretch, and in both cases its manipulability above the smallest exact one; or else it
+    is measured exactly too. The smallest exact values only fall as rows are added, so a row shown
+    above them stays above the final minima. Each row goes through these steps until one shows it:
+
+    1. Joint changes alone: a singular value moves by at most the spectral norm (below the
+       Frobenius norm) of the change of the matrix (Weyl's inequality), and
+       :func:`jacobian_change_bound` bounds ``e >= ||J - J_a||_F`` from the nearer exact row
+       ``a``: the inverse condition number is at least ``(s_min(J_a) - e) / (s_max(J_a) + e)``
+       and the manipulability its fixed factor times the product of ``max(s_i - e, 0)``.
+    2. The exact neighbours' Jacobians: the row's Jacobian is their interpolation ``J_lam`` up to
+       ``e`` (:func:`_interpolation_error`, second order in the spacing); the largest singular
+       value is at most ``s_up = (1 - lam) s_max(J_left) + lam s_max(J_right) + e`` (the spectral
+       norm is convex) and the others at least those of ``J_lam`` less ``e``, so ``J_lam J_lam^T
+       - f^2 I`` positive definite (:func:`_positive_definite`) for ``f = level s_up + e`` shows
+       the inverse condition number above ``level`` (the threshold, or the smallest exact value
+       when that is larger). There every ``s_i(J_lam) > f``, so ``s_i - e >= s_i (1 - e / f)``
+       and the manipulability is at least the root of ``det(J_lam J_lam^T)`` (at least the
+       product of the pivots) times ``(1 - e / f)^k``.
+    3. The row's own Jacobian: the bounds of step 1 with ``e = ||J - J_a||_F`` to both
+       neighbours, then the certificate of step 2 with ``J`` itself and ``s_max`` bounded by
+       Weyl's inequality from the neighbours; the manipulability from the factorisation of
+       ``J J^T`` itself. Below the threshold: Rayleigh quotients of ``J J^T``
+       (:func:`_rayleigh_bounds`) bound its smallest eigenvalue from above and its largest from
+       below, so the inverse condition number from above; and the certificate at the stretch's
+       smallest exact value bounds it from below.
+    4. The row is measured exactly.
+
+    In the end the rows `keep`, the row of each minimum (inverse condition number and
+    manipulability) and the row of the minimum of every stretch that dips below the threshold
+    hold the exact values; every other row holds lower bounds on the same side of the threshold
+    as the exact value: above the threshold and both minima when above it, above its stretch's
+    minimum when below it. So the minima, where they are, which rows lie below the threshold and
+    where each stretch is lowest are the exact measure's.
 
     Args:
         robot: The robot.
         q: Configurations, shape (n, dof) [rad or m], checked.
         task: Resolved task (``"position"`` or ``"pose"``).
-        threshold: Inverse condition number below which values must be exact.
-        keep: Rows measured exactly in any case.
+        threshold: Inverse condition number the rows are sorted against.
+        keep: Rows measured exactly in any case, and the ends of the stretches (sorted).
 
     Returns:
         ``(inverse_condition_number, manipulability)``, each of shape (n,).
@@ -233,90 +382,128 @@ def bounded_conditioning(
     # The manipulability is a fixed factor times the product of the scaled Jacobian's singular
     # values, or of the raw Jacobian's: its bound is on the matrix it is computed from.
     divisor = robot.manipulability_divisor(task)
-    raw, scaled = np.empty((n, m_rows, dof)), np.empty((n, m_rows, dof))
-    have = np.zeros(n, dtype=bool)  # rows whose Jacobians are computed
-
-    def jacobians(idx: np.ndarray) -> None:
-        idx = idx[~have[idx]]
-        if len(idx):
-            raw[idx], scaled[idx] = robot.task_jacobians(q[idx], task)
-            have[idx] = True
-
+    scale = 1.0 if divisor is None else 1.0 / divisor
+    raw_all, scaled_all = np.empty((n, m_rows, dof)), np.empty((n, m_rows, dof))
     inv, man = np.empty(n), np.empty(n)
     s_inv, s_man = np.zeros((n, k)), np.zeros((n, k))  # singular values at the exact rows
     exact = np.zeros(n, dtype=bool)
 
-    def measure(idx: np.ndarray) -> None:
-        jacobians(idx)
-        s_inv[idx], s_man[idx] = robot.task_singular_values(raw[idx], scaled[idx], task)
+    def measure(idx: np.ndarray, raw: np.ndarray | None = None, scaled: np.ndarray | None = None) -> None:
+        if raw is None or scaled is None:
+            raw, scaled = robot.task_jacobians(q[idx], task)
+        raw_all[idx], scaled_all[idx] = raw, scaled
+        s_inv[idx], s_man[idx] = robot.task_singular_values(raw, scaled, task)
         inv[idx], man[idx] = robot.conditioning_from(s_inv[idx], s_man[idx], task)
         exact[idx] = True
 
-    first = np.concatenate([np.arange(0, n, ANCHOR_SPACING), [n - 1], [] if keep is None else np.asarray(keep)])
+    bounds_of = np.unique(np.concatenate([[0, n - 1], [] if keep is None else np.asarray(keep)]).astype(int))
+    first = np.concatenate([np.arange(0, n, ANCHOR_SPACING), bounds_of])
     measure(np.unique(first.astype(int)))
-    scale = 1.0 if divisor is None else 1.0 / divisor
-    lo_inv, lo_man = np.zeros(n), np.zeros(n)
-    rows = np.nonzero(~exact)[0]  # rows whose bounds are (re)computed
-    change = jacobian_change_bounds(robot, task)
-    if change is not None and len(rows):
+    rows = np.nonzero(~exact)[0]
+    if not len(rows):
+        return inv, man
+    level = max(threshold, float(np.min(inv[exact])))
+    level_man = float(np.min(man[exact]))
+    lifted = level * (1.0 + 1e-9)  # what a certificate shows the rows to be above
+    ends = np.nonzero(exact)[0]
+    right = np.searchsorted(ends, rows)
+    left, right = ends[right - 1], ends[right]  # the exact neighbours of each row
+    # The stretches between the rows `keep`: the smallest exact value in each (ends included).
+    stretch = np.searchsorted(bounds_of, rows) - 1
+    of_end = np.clip(np.searchsorted(bounds_of, ends, side="right") - 1, 0, len(bounds_of) - 2)
+    least = np.full(len(bounds_of) - 1, np.inf)
+    np.minimum.at(least, of_end, inv[ends])
+    np.minimum.at(least, np.clip(np.searchsorted(bounds_of, bounds_of) - 1, 0, None), inv[bounds_of])
+    least = least[stretch]
+    lifted_least = least * (1.0 + 1e-9)
+    lo_inv, lo_man = np.zeros(len(rows)), np.zeros(len(rows))
+    below = np.zeros(len(rows), dtype=bool)  # shown below the threshold
+    s_cap = np.full(len(rows), np.inf)  # upper bounds of the largest singular value
+
+    def weyl(take: np.ndarray, a: np.ndarray, e: np.ndarray, e_man: np.ndarray) -> None:
+        # Rounding of the SVDs and norms: a margin far above it.
+        e = e + 1e-9 * (s_inv[a, 0] + 1.0)
+        e_man = e_man + 1e-9 * (s_man[a, 0] + 1.0)
+        lo_inv[take] = np.maximum(lo_inv[take], np.maximum(s_inv[a, -1] - e, 0.0) / (s_inv[a, 0] + e))
+        low = np.prod(np.maximum(s_man[a] - e_man[:, None], 0.0), axis=1) * (scale * (1.0 - 1e-9))
+        lo_man[take] = np.maximum(lo_man[take], low)
+
+    def settled() -> np.ndarray:
+        above = lo_inv > level
+        dip = below & (lo_inv > least)
+        return (above | dip) & (lo_man > level_man)
+
+    def hopeless(take: np.ndarray) -> np.ndarray:
+        # Both neighbours below the level: the certificate above it will not hold (saves the attempt).
+        return (inv[left[take]] <= level) & (inv[right[take]] <= level)
+
+    def certify(take: np.ndarray, scaled: np.ndarray, s_up: np.ndarray, err: np.ndarray) -> None:
+        floor = lifted * s_up + err
+        ok, det, _ = _positive_definite(_gram(scaled), floor * floor)
+        lo_inv[take[ok]] = np.maximum(lo_inv[take[ok]], lifted)
+        if divisor is not None:  # the manipulability is that of the scaled Jacobian
+            shrink = np.maximum(1.0 - err[ok] / floor[ok], 0.0) ** k
+            lo_man[take[ok]] = np.maximum(lo_man[take[ok]], np.sqrt(det[ok]) * shrink * (scale * (1.0 - 1e-9)))
+
+    change = robot.derived.get(_ChangeBounds, lambda: _ChangeBounds(robot)).of(task)
+    if change is not None:
         rho, angular, raw_angular = change
-        ends = np.nonzero(exact)[0]
-        right = np.searchsorted(ends, rows)
-        for a in (ends[right - 1], ends[right]):
-            du = q[rows] - q[a]
-            e = jacobian_change_bound(du, rho, angular) + 1e-9 * (s_inv[a, 0] + 1.0)
-            e_man = (
-                e if divisor is not None else jacobian_change_bound(du, rho, raw_angular) + 1e-9 * (s_man[a, 0] + 1.0)
-            )
-            lo_inv[rows] = np.maximum(lo_inv[rows], np.maximum(s_inv[a, -1] - e, 0.0) / (s_inv[a, 0] + e))
-            lo_man[rows] = np.maximum(lo_man[rows], np.prod(np.maximum(s_man[a] - e_man[:, None], 0.0), axis=1))
-        lo_man[rows] *= scale * (1.0 - 1e-9)
-        # Rows these bounds settle keep them (the smallest exact values only fall as rows are
-        # added); the others go on with their Jacobians.
-        settled = (lo_inv[rows] > max(threshold, float(np.min(inv[exact])))) & (
-            lo_man[rows] > float(np.min(man[exact]))
-        )
-        done = np.zeros(n, dtype=bool)
-        done[rows[settled]] = True
-        rows = rows[~settled]
-    else:
-        done = np.zeros(n, dtype=bool)
-    while len(rows):
-        jacobians(rows)
-        ends = np.nonzero(exact)[0]
-        right = np.searchsorted(ends, rows)
-        lo_inv[rows], lo_man[rows] = 0.0, 0.0
-        for a in (ends[right - 1], ends[right]):
-            jacobians(np.unique(a))
-            # Rounding of the SVDs and norms: a margin far above it.
-            e = np.linalg.norm(scaled[rows] - scaled[a], axis=(1, 2)) + 1e-9 * (s_inv[a, 0] + 1.0)
+        near = np.where(rows - left <= right - rows, left, right)
+        du = q[rows] - q[near]
+        e = jacobian_change_bound(du, rho, angular)
+        weyl(np.arange(len(rows)), near, e, e if divisor is not None else jacobian_change_bound(du, rho, raw_angular))
+        take = np.nonzero(~settled())[0]
+        take = take[~hopeless(take)]
+        if len(take):
+            lam, err = _interpolation_error(q, rows[take], left[take], right[take], (rho, angular))
+            s_lam = (1.0 - lam) * s_inv[left[take], 0] + lam * s_inv[right[take], 0]
+            # Rounding of the interpolation and of the singular values: a margin far above it.
+            err = err * (1.0 + 1e-9) + 1e-9 * (s_lam + 1.0)
+            s_cap[take] = s_lam + err
+            interpolated = (1.0 - lam)[:, None, None] * scaled_all[left[take]] + lam[:, None, None] * scaled_all[
+                right[take]
+            ]
+            certify(take, interpolated, s_cap[take], err)
+    take = np.nonzero(~settled())[0]
+    if len(take):
+        raw, scaled = robot.task_jacobians(q[rows[take]], task)
+        s_up = np.minimum(np.linalg.norm(scaled, axis=(1, 2)), s_cap[take])
+        for a in (left[take], right[take]):
+            e = np.linalg.norm(scaled - scaled_all[a], axis=(1, 2))
+            weyl(take, a, e, e if divisor is not None else np.linalg.norm(raw - raw_all[a], axis=(1, 2)))
+            s_up = np.minimum(s_up, s_inv[a, 0] + e + 1e-9 * (s_inv[a, 0] + 1.0))
+        s_up *= 1.0 + 1e-9
+        trying = ~hopeless(take) & (lo_inv[take] <= level)
+        if trying.any():
+            certify(take[trying], scaled[trying], s_up[trying], np.zeros(int(trying.sum())))
+        # The rest: its own Gram matrix. The manipulability is the root of its determinant (at
+        # least that of the product of the pivots); below the threshold when a Rayleigh quotient
+        # shows the smallest singular value below threshold times (a lower bound of) the largest,
+        # and above its stretch's smallest exact value by a certificate at that level.
+        short = ~settled()[take]
+        if short.any():
+            gram = _gram(scaled[short])
+            ok, det, low = _positive_definite(gram, np.zeros(len(gram)))
             if divisor is None:
-                e_man = np.linalg.norm(raw[rows] - raw[a], axis=(1, 2)) + 1e-9 * (s_man[a, 0] + 1.0)
-            else:
-                e_man = e
-            lo_inv[rows] = np.maximum(lo_inv[rows], np.maximum(s_inv[a, -1] - e, 0.0) / (s_inv[a, 0] + e))
-            lo_man[rows] = np.maximum(lo_man[rows], np.prod(np.maximum(s_man[a] - e_man[:, None], 0.0), axis=1))
-        lo_man[rows] *= scale * (1.0 - 1e-9)
-        # The smallest exact values only fall as rows are added: a row certified stays certified.
-        open_rows = np.nonzero(~exact & ~done)[0]
-        near = (lo_inv[open_rows] <= max(threshold, float(np.min(inv[exact])))) | (
-            lo_man[open_rows] <= float(np.min(man[exact]))
-        )
-        if not near.any():
-            break
-        # Split each gap holding a row too near: its middle row (a short gap: all its rows).
-        pos = np.searchsorted(ends, open_rows[near])
-        lo_end, hi_end = np.unique(ends[pos - 1]), None
-        hi_end = ends[np.searchsorted(ends, lo_end) + 1]
-        short = hi_end - lo_end <= 4
-        mids = (lo_end[~short] + hi_end[~short]) // 2
-        whole = np.nonzero(_inside(n, lo_end[short], hi_end[short]))[0]
-        measure(np.unique(np.concatenate([mids, whole])))
-        # Bounds again for the rows of the gaps split (the others' ends are unchanged).
-        split = _inside(n, lo_end[~short], hi_end[~short])
-        rows = np.nonzero(split & ~exact & ~done)[0]
-    free = ~exact
-    inv[free], man[free] = lo_inv[free], lo_man[free]
+                det = _positive_definite(_gram(raw[short]), np.zeros(len(gram)))[1]
+            idx = take[short]
+            lo_man[idx] = np.maximum(lo_man[idx], np.sqrt(det) * (scale * (1.0 - 1e-9)))
+            dip = ok & (lo_inv[idx] <= level)
+            if dip.any():
+                smallest, largest = _rayleigh_bounds(gram[dip], low[:, :, dip])
+                with np.errstate(invalid="ignore", divide="ignore"):
+                    ratio = np.sqrt(np.maximum(smallest, 0.0) / largest) * (1.0 + 1e-9)
+                shown = (largest > 0.0) & (ratio < threshold * (1.0 - 1e-9))
+                at = idx[dip][shown]
+                below[at] = True
+                floor = lifted_least[at] * s_up[short][dip][shown]
+                above_least = _positive_definite(gram[dip][shown], floor * floor)[0]
+                lo_inv[at[above_least]] = np.maximum(lo_inv[at[above_least]], lifted_least[at[above_least]])
+        rest = ~settled()[take]
+        if rest.any():
+            measure(rows[take[rest]], raw[rest], scaled[rest])
+    free = ~exact[rows]
+    inv[rows[free]], man[rows[free]] = lo_inv[free], lo_man[free]
     return inv, man
 
 
@@ -335,8 +522,10 @@ def measure_singularities(
     Returns:
         The report, the sample times (n,) [s], the sampled configurations (n, dof) and their
         inverse condition numbers (n,): exact (as :meth:`Robot.conditioning`) at the waypoints,
-        wherever below the threshold and at the minimum, elsewhere a lower bound above both
-        (see :func:`bounded_conditioning`).
+        at the minimum and at the lowest sample between two waypoints where that is below the
+        threshold; elsewhere a lower bound on the same side of the threshold, above the minimum
+        (and above the threshold) or above the lowest sample between its waypoints (see
+        :func:`bounded_conditioning`).
     """
     t = _sample_times(trajectory, rate)
     q = trajectory.sample(t).q
