@@ -598,6 +598,24 @@ def test_stop_shortcut_equals_the_chain_bit_for_bit(name):
         assert_within_limits(fast)
 
 
+@pytest.mark.parametrize("name", ["al5c", "three_joint", "dh3", "shelley"])
+def test_stop_shortcut_equals_the_chain_with_waypoints_at_the_range_ends(name):
+    # Waypoints at or next to a range end: the shortcut reads Ruckig's profiles there (a turn
+    # inside a phase of zero jerk could reach beyond the range) and must still decide as the chain.
+    robot = get_robot(name)
+    limits = JointLimits.from_robot(robot)
+    rng = np.random.default_rng(11)
+    lower, upper = limits.lower, limits.upper
+    for n in (2, 3, 5):
+        for offset in (0.0, 1e-9, 1e-4):
+            q = robot.random_configurations(rng, n)
+            ends = np.where(rng.random(q.shape) < 0.5, lower + offset, upper - offset)
+            q = np.where((rng.random(q.shape) < 0.4) & np.isfinite(ends), ends, q)
+            assert_same_plan(
+                plan_trajectory(q, limits, strategy="stop"), plan_trajectory(q, limits, strategy=_EagerStop())
+            )
+
+
 @given(
     st.lists(
         st.lists(st.floats(-1.5, 1.5, allow_nan=False, allow_subnormal=False), min_size=2, max_size=2),

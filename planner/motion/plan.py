@@ -47,6 +47,7 @@ every waypoint) is the baseline it is compared with.
 from __future__ import annotations
 
 from collections.abc import Sequence
+from itertools import accumulate
 
 import numpy as np
 
@@ -370,11 +371,8 @@ def _plan_at_rest(q: np.ndarray, limits: JointLimits) -> JointTrajectory | None:
     if segments is None:
         return None
     n, dof = q.shape
-    times = np.empty(n)
-    t = times[0] = 0.0
-    for k, (d, _) in enumerate(segments, 1):
-        t += d
-        times[k] = t
+    times = np.array(list(accumulate((d for d, _ in segments), initial=0.0)))
+    t = times[-1]
     dw = np.zeros(n)
 
     def build() -> tuple[np.ndarray, ...]:
