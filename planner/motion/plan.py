@@ -47,6 +47,7 @@ every waypoint) is the baseline it is compared with.
 from __future__ import annotations
 
 from collections.abc import Sequence
+from functools import lru_cache
 from itertools import accumulate
 
 import numpy as np
@@ -372,27 +373,34 @@ def _plan_at_rest(q: np.ndarray, limits: JointLimits) -> JointTrajectory | None:
         return None
     n, dof = q.shape
     times = np.array(list(accumulate((d for d, _ in segments), initial=0.0)))
-    t = times[-1]
-    dw = np.zeros(n)
+    via, dw, repaired = _rest_arrays(n, dof)
 
     def build() -> tuple[np.ndarray, ...]:
         rest = np.zeros(dof)
         merged = [merge_segment(traj, d, (q[k], rest, rest), q[k + 1], limits) for k, (d, traj) in enumerate(segments)]
         return _assemble(q, dw, times, times, merged, None)
 
-    via = _frozen(np.zeros((n, dof)))
     return JointTrajectory.lazy(
         build,
-        duration=float(t),
+        duration=float(times[-1]),
         waypoints=q if not q.flags.writeable else _frozen(q),
         waypoint_times=_frozen(times),
         via_velocities=via,
         via_accelerations=via,
-        dwell=_frozen(dw),
+        dwell=dw,
         limits=limits,
         strategy=StopStrategy.name,
-        repaired=_frozen(np.zeros((n, dof), dtype=bool)),
+        repaired=repaired,
     )
+
+
+@lru_cache(maxsize=16)
+def _rest_arrays(n: int, dof: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Read-only zero via states (N, dof), dwell (N,) and repair flags (N, dof) of a plan at rest.
+
+    Shared by the plans of that shape: nothing can change them.
+    """
+    return _frozen(np.zeros((n, dof))), _frozen(np.zeros(n)), _frozen(np.zeros((n, dof), dtype=bool))
 
 
 def _frozen(arr: np.ndarray) -> np.ndarray:
