@@ -350,7 +350,7 @@ class SegmentSolver:
             result = self.otg.calculate(self._input(k, va, aa, vb, ab, key), traj)
         except RuckigError:  # Ruckig's own failure on an input it accepts: no profile from it
             return math.inf, None, None
-        if result is not Result.Working and result is not Result.Finished:
+        if result not in _SOLVED:
             return math.inf, None, None
         if self.bounded:
             extrema = traj.position_extrema
