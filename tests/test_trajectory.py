@@ -618,6 +618,16 @@ def test_stop_shortcut_equals_the_chain_bit_for_bit(name):
         assert_within_limits(fast)
 
 
+def test_stop_plans_share_zero_arrays_that_cannot_be_made_writeable():
+    limits = JointLimits(1.0, 2.0, 20.0, lower=[-2, -2], upper=[2, 2])
+    first = plan_trajectory([[0.0, 0.0], [1.0, 1.0], [0.5, -1.0]], limits, strategy="stop")
+    second = plan_trajectory([[0.0, 1.0], [1.0, 0.0], [0.5, 1.0]], limits, strategy="stop")
+    for name in ("via_velocities", "via_accelerations", "dwell", "repaired"):
+        with pytest.raises(ValueError, match="WRITEABLE"):
+            getattr(first, name).setflags(write=True)
+        assert not getattr(second, name).any()
+
+
 @pytest.mark.parametrize("name", ["al5c", "three_joint", "dh3", "shelley"])
 def test_stop_shortcut_equals_the_chain_with_waypoints_at_the_range_ends(name):
     # Waypoints at or next to a range end: the shortcut reads Ruckig's profiles there (a turn

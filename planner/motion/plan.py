@@ -398,9 +398,11 @@ def _plan_at_rest(q: np.ndarray, limits: JointLimits) -> JointTrajectory | None:
 def _rest_arrays(n: int, dof: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Read-only zero via states (N, dof), dwell (N,) and repair flags (N, dof) of a plan at rest.
 
-    Shared by the plans of that shape: nothing can change them.
+    Shared by the plans of that shape: views of frozen arrays, which cannot be made writeable
+    again (``setflags(write=True)`` raises).
     """
-    return _frozen(np.zeros((n, dof))), _frozen(np.zeros(n)), _frozen(np.zeros((n, dof), dtype=bool))
+    via, dwell, repaired = np.zeros((n, dof)), np.zeros(n), np.zeros((n, dof), dtype=bool)
+    return _frozen(via)[...], _frozen(dwell)[...], _frozen(repaired)[...]
 
 
 def _frozen(arr: np.ndarray) -> np.ndarray:
