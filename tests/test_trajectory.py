@@ -516,6 +516,26 @@ def test_segment_solver_answers_a_repeated_state_from_its_cache():
     assert solver.solve(1, v, a, np.zeros(2), np.zeros(2))[0] != first[0]
 
 
+@pytest.mark.parametrize(("turn", "limited"), [(0.01, False), (1.0, True)])
+def test_turn_search_runs_only_where_a_turning_joint_sets_a_segment_duration(turn, limited):
+    from planner.motion.vias import ViaChain
+
+    # Joint 0 moves on through the via, joint 1 turns round there: a tiny turn never sets
+    # the duration of a segment next to it, a big one does.
+    q = np.array([[0.0, 0.0], [0.5, turn], [1.0, 0.0]])
+    limits = JointLimits(1.0, 2.0, 20.0, lower=[-3, -3], upper=[3, 3])
+    chain = ViaChain(q, limits, np.zeros(2), np.zeros(2), np.zeros(3, dtype=bool))
+    turning = np.array([False, True])
+    assert chain.limited_by(1, turning) is limited
+    if not limited:  # no state of the turning joint shortens the pair, so the search is skipped
+        current = chain.pair_cost(1, chain.v[1], chain.acc[1])[0]
+        for v1 in np.linspace(-0.2, 0.2, 5):
+            for a1 in np.linspace(-2.0, 2.0, 5):
+                state_v, state_a = chain.v[1].copy(), chain.acc[1].copy()
+                state_v[1], state_a[1] = v1, a1
+                assert chain.pair_cost(1, state_v, state_a)[0] >= current
+
+
 def test_lazily_built_pieces_behave_like_given_ones():
     # plan_trajectory builds the piece arrays on first use (JointTrajectory.lazy).
     import dataclasses
@@ -596,6 +616,34 @@ def test_stop_shortcut_equals_the_chain_bit_for_bit(name):
         request = plan_trajectory_request(TrajectoryRequest(q, limits, strategy="stop"))
         assert_same_plan(request, eager)
         assert_within_limits(fast)
+
+
+def test_stop_plans_share_zero_arrays_that_cannot_be_made_writeable():
+    limits = JointLimits(1.0, 2.0, 20.0, lower=[-2, -2], upper=[2, 2])
+    first = plan_trajectory([[0.0, 0.0], [1.0, 1.0], [0.5, -1.0]], limits, strategy="stop")
+    second = plan_trajectory([[0.0, 1.0], [1.0, 0.0], [0.5, 1.0]], limits, strategy="stop")
+    for name in ("via_velocities", "via_accelerations", "dwell", "repaired"):
+        with pytest.raises(ValueError, match="WRITEABLE"):
+            getattr(first, name).setflags(write=True)
+        assert not getattr(second, name).any()
+
+
+@pytest.mark.parametrize("name", ["al5c", "three_joint", "dh3", "shelley"])
+def test_stop_shortcut_equals_the_chain_with_waypoints_at_the_range_ends(name):
+    # Waypoints at or next to a range end: the shortcut reads Ruckig's profiles there (a turn
+    # inside a phase of zero jerk could reach beyond the range) and must still decide as the chain.
+    robot = get_robot(name)
+    limits = JointLimits.from_robot(robot)
+    rng = np.random.default_rng(11)
+    lower, upper = limits.lower, limits.upper
+    for n in (2, 3, 5):
+        for offset in (0.0, 1e-9, 1e-4):
+            q = robot.random_configurations(rng, n)
+            ends = np.where(rng.random(q.shape) < 0.5, lower + offset, upper - offset)
+            q = np.where((rng.random(q.shape) < 0.4) & np.isfinite(ends), ends, q)
+            assert_same_plan(
+                plan_trajectory(q, limits, strategy="stop"), plan_trajectory(q, limits, strategy=_EagerStop())
+            )
 
 
 @given(

@@ -166,10 +166,15 @@ class JointLimits:
         return bool(np.any(np.isfinite(self.lower)) or np.any(np.isfinite(self.upper)))
 
     @cached_property
-    def checked_bounds(self) -> tuple[tuple[float, float], ...]:
-        """:attr:`checked_range` as one (lower, upper) pair of floats per joint."""
+    def checked_floats(self) -> tuple[tuple[float, ...], tuple[float, ...]]:
+        """:attr:`checked_range` as tuples of floats (lower, upper)."""
         lower, upper = self.checked_range
-        return tuple(zip(lower.tolist(), upper.tolist()))
+        return tuple(lower.tolist()), tuple(upper.tolist())
+
+    @cached_property
+    def max_jerk(self) -> float:
+        """The largest jerk limit [rad/s^3 or m/s^3]."""
+        return float(np.max(self.jerk))
 
     @classmethod
     def from_robot(

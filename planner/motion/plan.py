@@ -47,6 +47,8 @@ every waypoint) is the baseline it is compared with.
 from __future__ import annotations
 
 from collections.abc import Sequence
+from functools import lru_cache
+from itertools import accumulate
 
 import numpy as np
 
@@ -370,31 +372,37 @@ def _plan_at_rest(q: np.ndarray, limits: JointLimits) -> JointTrajectory | None:
     if segments is None:
         return None
     n, dof = q.shape
-    times = np.empty(n)
-    t = times[0] = 0.0
-    for k, (d, _) in enumerate(segments, 1):
-        t += d
-        times[k] = t
-    dw = np.zeros(n)
+    times = np.array(list(accumulate((d for d, _ in segments), initial=0.0)))
+    via, dw, repaired = _rest_arrays(n, dof)
 
     def build() -> tuple[np.ndarray, ...]:
         rest = np.zeros(dof)
         merged = [merge_segment(traj, d, (q[k], rest, rest), q[k + 1], limits) for k, (d, traj) in enumerate(segments)]
         return _assemble(q, dw, times, times, merged, None)
 
-    via = _frozen(np.zeros((n, dof)))
     return JointTrajectory.lazy(
         build,
-        duration=float(t),
+        duration=float(times[-1]),
         waypoints=q if not q.flags.writeable else _frozen(q),
         waypoint_times=_frozen(times),
         via_velocities=via,
         via_accelerations=via,
-        dwell=_frozen(dw),
+        dwell=dw,
         limits=limits,
         strategy=StopStrategy.name,
-        repaired=_frozen(np.zeros((n, dof), dtype=bool)),
+        repaired=repaired,
     )
+
+
+@lru_cache(maxsize=16)
+def _rest_arrays(n: int, dof: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Read-only zero via states (N, dof), dwell (N,) and repair flags (N, dof) of a plan at rest.
+
+    Shared by the plans of that shape: views of frozen arrays, which cannot be made writeable
+    again (``setflags(write=True)`` raises).
+    """
+    via, dwell, repaired = np.zeros((n, dof)), np.zeros(n), np.zeros((n, dof), dtype=bool)
+    return _frozen(via)[...], _frozen(dwell)[...], _frozen(repaired)[...]
 
 
 def _frozen(arr: np.ndarray) -> np.ndarray:

@@ -82,9 +82,18 @@ def rest_to_rest_segments(q: np.ndarray, limits: JointLimits) -> list[tuple[floa
     One Ruckig calculate per segment. The planner's chain (:class:`SegmentSolver` and the
     range repair) would take each profile as it is unless Ruckig finds none, a joint misses
     its target by more than :data:`END_TOLERANCE` (re-solved unsynchronised there), a joint
-    turns round inside a phase of zero jerk (which Ruckig's extrema miss) or an extremum lies
-    outside the range: in any of these cases this returns None and the chain decides. Else
-    the durations and trajectories are exactly the chain's.
+    turns round inside a phase of zero jerk (which Ruckig's extrema miss) outside the range or
+    an extremum lies outside the range: in any of these cases this returns None and the chain
+    decides. Else the durations and trajectories are exactly the chain's.
+
+    A rest-to-rest profile (jerk signs up-down-down-up or up-down-up-down) changes the sign
+    of its acceleration at most twice, so its velocity at most once: a joint either moves
+    monotonically or turns round once, at its farthest point. Where that turn lies beyond
+    both ends of the segment, the profile's phase boundary next to it (which Ruckig's extrema
+    include) lies beyond them too. So where every joint's Ruckig extrema stay within its two
+    end positions (up to :data:`_HULL_SLACK`, rounding) and the waypoints lie at least
+    :func:`_turn_reach` inside the range, no missed turn and no extremum can leave the range:
+    the profiles are read only where this does not hold.
 
     Args:
         q: Waypoints within the limits, shape (N, dof) [rad or m].
@@ -96,16 +105,20 @@ def rest_to_rest_segments(q: np.ndarray, limits: JointLimits) -> list[tuple[floa
     dof = q.shape[1]
     otg, inp = _thread_solver(dof)
     inp.max_velocity, inp.max_acceleration, inp.max_jerk = limits.ruckig_limits
-    bounds = limits.checked_bounds if limits.bounded else None
     rows = q.tolist()
+    bounded = limits.bounded
+    if bounded:
+        # Per joint, the lowest and highest waypoint (plain floats: faster than NumPy on a few).
+        low_q, high_q = list(map(min, *rows)), list(map(max, *rows))
+        slack = _HULL_SLACK * max(1.0, max(high_q), -min(low_q))
+    calculate = otg.calculate
     out = []
     start = rows[0]
     for goal in rows[1:]:
         inp.current_position, inp.target_position = start, goal
-        start = goal
         traj = RuckigTrajectory(dof)
         try:
-            if otg.calculate(inp, traj) not in _SOLVED:
+            if calculate(inp, traj) not in _SOLVED:
                 return None
         except RuckigError:
             return None
@@ -117,19 +130,65 @@ def rest_to_rest_segments(q: np.ndarray, limits: JointLimits) -> list[tuple[floa
             for x, g in zip(reached, goal):
                 if abs(x - g) > END_TOLERANCE * (g if g > 1.0 else -g if g < -1.0 else 1.0):
                     return None
-        if bounds is not None and duration > 0.0:
-            for e, (lo, hi) in zip(traj.position_extrema, bounds):
-                if e.min < lo or e.max > hi:
-                    return None
-            for prof in traj.profiles[0]:
-                v = prof.v
-                if min(v) < 0.0 < max(v):  # a sign change, often only a rounding at the end
-                    j = prof.j
-                    w = v if j[-1] == 0.0 else v[:-1]
-                    if min(w) < 0.0 < max(w) and any(j[i] == 0.0 and v[i] * v[i + 1] < 0.0 for i in range(len(j))):
+        if bounded and duration > 0.0:
+            for e, s, g in zip(traj.position_extrema, start, goal):
+                if (e.min < s - slack or e.max > g + slack) if s < g else (e.min < g - slack or e.max > s + slack):
+                    # Beyond its ends: the range checks the chain makes.
+                    if _outside_or_turn(traj, limits):
                         return None
+                    break
         out.append((duration, traj))
+        start = goal
+    if bounded and out:
+        # Within their ends, the joints stay in the range unless a missed turn could reach beyond it.
+        reach = _turn_reach(slack, limits.max_jerk, max(d for d, _ in out))
+        lower, upper = limits.checked_floats
+        if any(x - reach < lo for x, lo in zip(low_q, lower)) or any(x + reach > hi for x, hi in zip(high_q, upper)):
+            if any(d > 0.0 and _outside_or_turn(traj, limits) for d, traj in out):
+                return None
     return out
+
+
+def _outside_or_turn(traj: RuckigTrajectory, limits: JointLimits) -> bool:
+    """Whether Ruckig's extrema leave the range, or a profile turns round inside a phase of zero jerk."""
+    for e, (lo, hi) in zip(traj.position_extrema, zip(*limits.checked_floats)):
+        if e.min < lo or e.max > hi:
+            return True
+    return _missed_turn(traj)
+
+
+#: Rounding allowed when comparing a rest-to-rest profile's extrema with its end positions
+#: [rad or m per unit of the largest |position|] (see :func:`rest_to_rest_segments`).
+_HULL_SLACK = 1e-12
+
+
+def _turn_reach(slack: float, jerk: float, duration: float) -> float:
+    """How far a turn inside a phase of zero jerk can lie beyond a profile's ends [rad or m].
+
+    A joint turning round beyond an end and then moving on to (or coming from) that end at
+    rest needs a distance of at least ``|v|^1.5 / sqrt(jerk)`` to lose (or gain) the speed
+    ``|v|`` it has at the phase boundary next to the turn; where that boundary lies within
+    `slack` (plus rounding) of the end, ``|v| <= (4 slack^2 jerk)^(1/3)`` and the turn lies at
+    most ``|v| duration / 2`` beyond the boundary. Twice that bound, plus the slack.
+
+    Args:
+        slack: The allowed distance of the extrema beyond the ends [rad or m].
+        jerk: The largest jerk limit [rad/s^3 or m/s^3].
+        duration: The segment's duration [s].
+    """
+    return 2.0 * slack + 2.0 * (slack * slack * jerk) ** (1.0 / 3.0) * duration
+
+
+def _missed_turn(traj: RuckigTrajectory) -> bool:
+    """Whether a profile turns round inside a phase of zero jerk (Ruckig's extrema miss it)."""
+    for prof in traj.profiles[0]:
+        v = prof.v
+        if min(v) < 0.0 < max(v):  # a sign change, often only a rounding at the end
+            j = prof.j
+            w = v if j[-1] == 0.0 else v[:-1]
+            if min(w) < 0.0 < max(w) and any(j[i] == 0.0 and v[i] * v[i + 1] < 0.0 for i in range(len(j))):
+                return True
+    return False
 
 
 _LOCAL = threading.local()

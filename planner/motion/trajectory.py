@@ -139,8 +139,8 @@ class JointTrajectory:
                 + (f", not {', '.join(sorted(fields.keys() - _LAZY_FIELDS))}" if fields.keys() - _LAZY_FIELDS else "")
             )
         obj = cls.__new__(cls)
-        for name, value in fields.items():
-            object.__setattr__(obj, name, value)
+        # Plain attributes: the frozen dataclass's fields live in the instance dict.
+        obj.__dict__.update(fields)
         obj.__dict__["_build_pieces"] = build
         return obj
 

@@ -94,6 +94,22 @@ class ViaChain:
             out[k] = self.seg.solve(k, self.v[k], self.acc[k], self.v[k + 1], self.acc[k + 1])[0]
         return out
 
+    def limited_by(self, i: int, joints: np.ndarray) -> bool:
+        """Whether changing only `joints` (bool mask) at via i could shorten a segment next to it.
+
+        A Ruckig segment takes at least as long as each joint alone needs for its move
+        (``independent_min_durations``): where a segment next to via i already takes no longer
+        than the other joints alone need, no state of `joints` at via i shortens it.
+        """
+        for k in (i - 1, i):
+            duration, _, traj = self.seg.solve(k, self.v[k], self.acc[k], self.v[k + 1], self.acc[k + 1])
+            if traj is None:
+                return True
+            others = [t for t, moved in zip(traj.independent_min_durations, joints.tolist()) if not moved]
+            if not others or duration > max(others):
+                return True
+        return False
+
     def pair_cost(
         self, i: int, cv: np.ndarray, ca: np.ndarray, admissible: bool = False
     ) -> tuple[float, np.ndarray, np.ndarray]:
@@ -103,8 +119,11 @@ class ViaChain:
         it does not (Ruckig's extrema are used here for speed; the final plan rechecks exactly).
         With `admissible`, `ca` already obeys :func:`admissible_acceleration` for `cv`.
         """
-        cv = np.array(cv, dtype=float)
-        ca = np.array(ca, dtype=float) if admissible else admissible_acceleration(cv, ca, self.limits)
+        if not admissible:
+            cv = np.array(cv, dtype=float)
+            ca = admissible_acceleration(cv, ca, self.limits)
+        # The given arrays are copied only where a halving changes them.
+        copied = not admissible
         va, aa, vb, ab = self.v[i - 1], self.acc[i - 1], self.v[i + 1], self.acc[i + 1]
         for attempt in range(SEARCH_HALVINGS + 1):
             (d1, bad1, _), (d2, bad2, _) = self.seg.solve_around(i, va, aa, cv, ca, vb, ab)
@@ -114,6 +133,8 @@ class ViaChain:
             bad = bad_any & ((cv != 0) | (ca != 0))
             if not bad.any():
                 return math.inf, cv, ca
+            if not copied:
+                cv, ca, copied = np.array(cv, dtype=float), np.array(ca, dtype=float), True
             scale = 0.0 if attempt >= SEARCH_HALVINGS - 1 else 0.5
             cv[bad] *= scale
             ca[bad] *= scale

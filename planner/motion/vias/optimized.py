@@ -243,10 +243,14 @@ class OptimizedStrategy(ViaStrategy):
         mag, wmag = np.abs(u), np.abs(w)
         su, sw = np.sign(u), np.sign(w)
         tops = [1.0]
-        if np.any(mag > 0):
-            tops.append(float(np.max(lim.velocity[mag > 0] / mag[mag > 0])))
-        if np.any(wmag > 0):
-            tops.append(math.sqrt(float(np.max(lim.acceleration[wmag > 0] / wmag[wmag > 0]))))
+        # On plain floats: the largest scale at which a joint still gains speed (acceleration).
+        velocity, acceleration, _ = lim.ruckig_limits
+        scales = [top / m for top, m in zip(velocity, mag.tolist()) if m > 0]
+        if scales:
+            tops.append(max(scales))
+        scales = [top / m for top, m in zip(acceleration, wmag.tolist()) if m > 0]
+        if scales:
+            tops.append(math.sqrt(max(scales)))
 
         def candidates(x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
             x = x[:, None]
@@ -301,15 +305,19 @@ class OptimizedStrategy(ViaStrategy):
             v_e, acc_e = spline_via_states(q_run, h0, v_a, v_b)
             v_e, acc_e = v_e - v_q, acc_e - acc_q
         best: list = [math.inf, None, None]
+        # The via states at every scale the golden section may ask for, made in one batch.
+        points = sorted(golden_points(*_SPLINE_SCALE, _SPLINE_SCALE_EVALS))
+        inv = np.array([math.exp(-x) for x in points])[:, None, None]
+        vs, accs = v_q * inv, acc_q * (inv * inv)
+        if moving_ends:
+            vs += v_e
+            accs += acc_e * inv
+        vs = np.minimum(np.maximum(vs, -lim.velocity), lim.velocity)
+        accs = admissible_acceleration(vs, accs, lim)
+        index = {x: p for p, x in enumerate(points)}
 
         def cost(x: float) -> float:
-            inv = math.exp(-x)
-            v, acc = v_q * inv, acc_q * (inv * inv)
-            if moving_ends:
-                v += v_e
-                acc += acc_e * inv
-            v = np.minimum(np.maximum(v, -lim.velocity), lim.velocity)
-            acc = admissible_acceleration(v, acc, lim)
+            v, acc = vs[index[x]], accs[index[x]]
             total, inside = 0.0, True
             for k in range(a, b):
                 va, aa = (chain.v[a], chain.acc[a]) if k == a else (v[k - a - 1], acc[k - a - 1])
@@ -340,7 +348,7 @@ class OptimizedStrategy(ViaStrategy):
         """
         dp, dn = chain.q[i] - chain.q[i - 1], chain.q[i + 1] - chain.q[i]
         turning = dp * dn < 0
-        if not turning.any():
+        if not turning.any() or not chain.limited_by(i, turning):
             return
         lim = chain.limits
         v_now, a_now = chain.v[i].copy(), chain.acc[i].copy()
