@@ -246,11 +246,14 @@ def _route(
     k: int,
     labels: list[str],
     allow: Sequence[tuple[str, ...]],
-) -> list[np.ndarray]:
-    """The nodes of a clear way into waypoint k.
+    *,
+    certify: bool = True,
+) -> tuple[list[np.ndarray], bool]:
+    """The nodes of a clear way into waypoint k, and whether its edges are certified.
 
-    Its straight joint segment if that is clear (with the path search's margin), else a route
-    found around the obstacles.
+    Its straight joint segment if that is clear (with the path search's margin, certified),
+    else a route found around the obstacles, its edges certified only if `certify` (else
+    checked at points: the timed motion along them is certified by plan_motion's check).
 
     Raises:
         PlanningError: If no clear route exists (with the search's reason).
@@ -260,17 +263,22 @@ def _route(
     end = min(checker.distance_at(q_user[k - 1], mask).distance, checker.distance_at(q_user[k], mask).distance)
     margin = path_margin(checker.scene.clearance, end, request.path_options.margin)
     if segment_is_clear(checker, q_user[k - 1], q_user[k], allow=names, margin=margin):
-        return [q_user[k - 1], q_user[k]]
+        return [q_user[k - 1], q_user[k]], True
     # The search would test the straight segment again with the same margin: it is blocked.
+    options = request.path_options
     result = find_clear_path(
-        checker, q_user[k - 1], q_user[k], options=request.path_options, allow=names, try_straight=False
+        checker, q_user[k - 1], q_user[k], options=options, allow=names, try_straight=False, certify=certify
     )
+    if result.found and not certify and len(result.path) == 2:
+        # A straight edge is followed along its line at once: that needs its certificate.
+        result = find_clear_path(checker, q_user[k - 1], q_user[k], options=options, allow=names, try_straight=False)
+        certify = True
     if not result.found:
         raise PlanningError(
             f"{request.source}: no collision-free way from {labels[k - 1]} to {labels[k]}: {result.reason} "
             f"({result.status.value}); try another avoidance seed or time_budget, or move the obstacle"
         )
-    return list(result.path)
+    return list(result.path), certify
 
 
 def _calibrations(robot: Robot, request: MotionRequest) -> tuple[ServoCalibration, ...] | None:
@@ -422,15 +430,25 @@ def plan_motion(
     routes: dict[int, list[np.ndarray]] = {}
     dense: set[tuple[int, int]] = set()
     edge_lines: dict[tuple[int, int], LinePath] = {}
+    # Routes whose edges passed only the path search's checks at points: most timed motions
+    # along them pass the continuous check as they are; where one does not, the route is
+    # asked for again with its edges certified before an edge is followed along its line.
+    unproven: set[int] = set()
+
+    def route(k: int, certify: bool = False) -> None:
+        routes[k], proven = _route(checker, request, q_user, k, labels, allow, certify=certify)
+        if not proven:
+            unproven.add(k)
+        elif len(routes[k]) == 2:
+            dense.add((k, 0))
+
     if checker is not None:
         _check_against_scene(checker, request, q_user, paths, cartesian, labels, allow)
         for k in range(1, n):
             # A free move whose straight segment is plainly blocked is routed before timing.
             names = tuple(set(allow[k - 1]) | set(allow[k]))
             if not cartesian[k] and not segment_looks_clear(checker, q_user[k - 1], q_user[k], allow=names):
-                routes[k] = _route(checker, request, q_user, k, labels, allow)
-                if len(routes[k]) == 2:
-                    dense.add((k, 0))
+                route(k)
 
     timings: dict[int, Any] = {}  # line timing per LinePath (by id), kept across re-plans
 
@@ -547,12 +565,23 @@ def plan_motion(
             node_times = plan.trajectory.waypoint_times[plan.waypoint_indices]
             i = int(np.searchsorted(node_times, collision.first_hit, side="right")) - 1
             k, edge = owner[min(max(i, 0), m - 2)]
-            if k in routes and edge is not None and (k, edge) not in dense:
+            if k in unproven and edge is not None:
+                # The same search (same seed) again, its edges certified: the same route where
+                # they pass, whose edge is then followed along its line.
+                unproven.discard(k)
+                before = routes[k]
+                route(k, certify=True)
+                same = len(before) == len(routes[k]) and all(map(np.array_equal, before, routes[k]))
+                if same:
+                    dense.add((k, edge))
+                else:
+                    for key in [key for key in edge_lines if key[0] == k]:
+                        del edge_lines[key]
+                    dense -= {(k, e) for e in range(len(before))} - ({(k, 0)} if len(routes[k]) == 2 else set())
+            elif k in routes and edge is not None and (k, edge) not in dense:
                 dense.add((k, edge))
             elif k not in routes and paths[k] is None:
-                routes[k] = _route(checker, request, q_user, k, labels, allow)
-                if len(routes[k]) == 2:
-                    dense.add((k, 0))
+                route(k)
             else:
                 # Already along clear lines: reported as it is, with the closest pair throughout.
                 collision = check_trajectory(checker, plan.trajectory, allow=windows)
