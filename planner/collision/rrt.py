@@ -127,10 +127,6 @@ class _Tree:
         return out
 
 
-#: How much more than the margin the cheap checks of edges ask for, as a share of the margin.
-QUICK_EXTRA = 0.5
-
-
 def segment_looks_clear(
     checker: CollisionChecker,
     q_start: np.ndarray,
@@ -215,9 +211,7 @@ def find_clear_path(
         """The certificate of an edge `quick` has passed (its sweep would repeat quick's tests)."""
         return check_segment(checker, a, b, allow=allow, clearance=need).clear
 
-    # The cheap checks ask for half the margin more than the certificate: at their points the
-    # certificate then has that much room, so its steps are long (the ends have twice the margin).
-    near = checker.closer_than(need + QUICK_EXTRA * margin, allow)
+    near = checker.closer_than(need, allow)
 
     def quick(a: np.ndarray, b: np.ndarray) -> bool:
         """Proximity checks every `resolution` along the edge, its end first: cheap, not a certificate."""
