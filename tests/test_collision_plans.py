@@ -258,12 +258,14 @@ def test_a_route_is_passed_smoothly_and_stays_clear():
 
 def test_an_uncertified_route_is_certified_where_the_timed_motion_comes_too_close(monkeypatch):
     """plan_motion routes with edges checked at points only; where the timed motion along such a
-    route is reported too close, the same search is asked again with its edges certified, and
-    the plan that comes out keeps the clearance (re-checked at 1 kHz)."""
+    route is reported too close, the same search is asked again with its edges certified, the
+    edge is halved (passed through its midpoint too), and the plan that comes out keeps the
+    clearance (re-checked at 1 kHz)."""
     import planner.app.motion_plan as mp
     from planner.collision.continuous import MotionClearance
 
     robot = get_robot("al5c")
+    plain = plan_with_scene(robot, BLOCK_PLAN)
     asked = []
     real_search, real_check = mp.find_clear_path, mp.check_trajectory
 
@@ -285,6 +287,10 @@ def test_an_uncertified_route_is_certified_where_the_timed_motion_comes_too_clos
     assert asked[:2] == [False, True]
     assert plan.routes == (0,) and plan.collision_free
     independent_check(robot, plan, 0.005)
+    # The edge the motion was reported to stray from is halved: its midpoint is a node now.
+    nodes = plan.trajectory.waypoints
+    assert any(np.allclose(nodes[i], (nodes[i - 1] + nodes[i + 1]) / 2.0) for i in range(1, len(nodes) - 1))
+    assert len(nodes) == len(plain.trajectory.waypoints) + 1
 
 
 def test_the_path_search_without_certificates_keeps_its_seed_and_checks_its_points():

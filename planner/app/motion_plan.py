@@ -425,8 +425,9 @@ def plan_motion(
             q_prev = q_list[-1]
     q_user = np.array(q_list)
     # routes[k]: the nodes of a clear route into waypoint k. Its edges are passed as via
-    # waypoints, smoothly; an edge the timed motion strays from into an obstacle is followed
-    # along its straight (clear) joint line instead (`dense`), from rest to rest.
+    # waypoints, smoothly; an edge the timed motion strays from into an obstacle is halved,
+    # and a half it strays from is followed along its straight (clear) joint line instead
+    # (`dense`), from rest to rest.
     routes: dict[int, list[np.ndarray]] = {}
     dense: set[tuple[int, int]] = set()
     edge_lines: dict[tuple[int, int], LinePath] = {}
@@ -441,6 +442,29 @@ def plan_motion(
             unproven.add(k)
         elif len(routes[k]) == 2:
             dense.add((k, 0))
+
+    # Route edges made by halving one the timed motion strayed from: followed along their line
+    # if it strays from them too.
+    halves: set[tuple[int, int]] = set()
+
+    def follow(k: int, e: int) -> None:
+        """Keep the timed motion closer to edge e of route k: first through its midpoint too, then along its line."""
+        if (k, e) in halves:
+            dense.add((k, e))
+            return
+        routes[k] = [*routes[k][: e + 1], (routes[k][e] + routes[k][e + 1]) / 2.0, *routes[k][e + 1 :]]
+
+        def shift(key: tuple[int, int]) -> tuple[int, int]:
+            return (key[0], key[1] + 1) if key[0] == k and key[1] > e else key
+
+        for keys in (dense, halves):
+            moved = {shift(key) for key in keys}
+            keys.clear()
+            keys.update(moved)
+        lines = {shift(key): line for key, line in edge_lines.items()}
+        edge_lines.clear()
+        edge_lines.update(lines)
+        halves.update({(k, e), (k, e + 1)})
 
     if checker is not None:
         _check_against_scene(checker, request, q_user, paths, cartesian, labels, allow)
@@ -553,9 +577,11 @@ def plan_motion(
     if checker is not None:
         # Check the timed motion continuously. Where a free move comes too close, it follows
         # its straight joint segment if that is clear (with the path search's margin), else a
-        # route found around the obstacles; where a route's edge does, that edge is followed
-        # along its straight joint line. Then the motion is re-planned and checked again. Each
-        # round adds a route or a followed edge, so the rounds end.
+        # route found around the obstacles; where a route's edge does, that edge is halved (its
+        # midpoint passed too: the motion keeps closer to it), and where one of its halves does,
+        # that half is followed along its straight joint line. Then the motion is re-planned and
+        # checked again. Each round adds a route, halves an edge not made by halving or follows
+        # an edge, so the rounds end.
         while True:
             times = plan.trajectory.waypoint_times[plan.waypoint_indices[user_pos]]
             windows = [(float(times[k - 1]), tuple(set(allow[k - 1]) | set(allow[k]))) for k in range(1, n)]
@@ -573,13 +599,13 @@ def plan_motion(
                 route(k, certify=True)
                 same = len(before) == len(routes[k]) and all(map(np.array_equal, before, routes[k]))
                 if same:
-                    dense.add((k, edge))
+                    follow(k, edge)
                 else:
                     for key in [key for key in edge_lines if key[0] == k]:
                         del edge_lines[key]
                     dense -= {(k, e) for e in range(len(before))} - ({(k, 0)} if len(routes[k]) == 2 else set())
             elif k in routes and edge is not None and (k, edge) not in dense:
-                dense.add((k, edge))
+                follow(k, edge)
             elif k not in routes and paths[k] is None:
                 route(k)
             else:
