@@ -254,3 +254,56 @@ def test_a_route_is_passed_smoothly_and_stays_clear():
     assert len(inner) >= 1
     moving = [np.max(np.abs(traj.sample(np.array([t])).qd)) for t in traj.waypoint_times[1:-1]]
     assert max(moving) > 0.1  # [rad/s]: not at rest at every node
+
+
+def test_an_uncertified_route_is_certified_where_the_timed_motion_comes_too_close(monkeypatch):
+    """plan_motion routes with edges checked at points only; where the timed motion along such a
+    route is reported too close, the same search is asked again with its edges certified, the
+    edge is halved (passed through its midpoint too), and the plan that comes out keeps the
+    clearance (re-checked at 1 kHz)."""
+    import planner.app.motion_plan as mp
+    from planner.collision.continuous import MotionClearance
+
+    robot = get_robot("al5c")
+    plain = plan_with_scene(robot, BLOCK_PLAN)
+    asked = []
+    real_search, real_check = mp.find_clear_path, mp.check_trajectory
+
+    def search(*args, **kwargs):
+        asked.append(kwargs.get("certify", True))
+        return real_search(*args, **kwargs)
+
+    def check(checker, trajectory, **kwargs):
+        result = real_check(checker, trajectory, **kwargs)
+        if len(asked) == 1 and result.clear and kwargs.get("stop_at_first"):
+            # Report the first check as too close in the middle of the route, as a real hit would be.
+            middle = trajectory.duration / 2
+            return MotionClearance(False, result.closest, middle, middle, result.closest, result.checks)
+        return result
+
+    monkeypatch.setattr(mp, "find_clear_path", search)
+    monkeypatch.setattr(mp, "check_trajectory", check)
+    plan = plan_with_scene(robot, BLOCK_PLAN)
+    assert asked[:2] == [False, True]
+    assert plan.routes == (0,) and plan.collision_free
+    independent_check(robot, plan, 0.005)
+    # The edge the motion was reported to stray from is halved: its midpoint is a node now.
+    nodes = plan.trajectory.waypoints
+    assert any(np.allclose(nodes[i], (nodes[i - 1] + nodes[i + 1]) / 2.0) for i in range(1, len(nodes) - 1))
+    assert len(nodes) == len(plain.trajectory.waypoints) + 1
+
+
+def test_the_path_search_without_certificates_keeps_its_seed_and_checks_its_points():
+    from planner.collision.continuous import check_segment
+    from planner.collision.rrt import PathOptions, find_clear_path, segment_looks_clear
+
+    robot = get_robot("al5c")
+    checker = CollisionChecker(robot, parse_motion_request(BLOCK_PLAN).scene)
+    qa, qb = np.array([-0.6, 1.2, -1.4, -0.8, 0.0]), np.array([0.6, 1.2, -1.4, -0.8, 0.0])
+    assert not check_segment(checker, qa, qb).clear
+    first = find_clear_path(checker, qa, qb, options=PathOptions(seed=4), certify=False)
+    again = find_clear_path(checker, qa, qb, options=PathOptions(seed=4), certify=False)
+    assert first.found and np.array_equal(first.path, again.path)
+    np.testing.assert_array_equal(first.path[[0, -1]], [qa, qb])
+    for a, b in zip(first.path, first.path[1:]):
+        assert segment_looks_clear(checker, a, b)

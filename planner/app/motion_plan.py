@@ -246,11 +246,14 @@ def _route(
     k: int,
     labels: list[str],
     allow: Sequence[tuple[str, ...]],
-) -> list[np.ndarray]:
-    """The nodes of a clear way into waypoint k.
+    *,
+    certify: bool = True,
+) -> tuple[list[np.ndarray], bool]:
+    """The nodes of a clear way into waypoint k, and whether its edges are certified.
 
-    Its straight joint segment if that is clear (with the path search's margin), else a route
-    found around the obstacles.
+    Its straight joint segment if that is clear (with the path search's margin, certified),
+    else a route found around the obstacles, its edges certified only if `certify` (else
+    checked at points: the timed motion along them is certified by plan_motion's check).
 
     Raises:
         PlanningError: If no clear route exists (with the search's reason).
@@ -260,17 +263,22 @@ def _route(
     end = min(checker.distance_at(q_user[k - 1], mask).distance, checker.distance_at(q_user[k], mask).distance)
     margin = path_margin(checker.scene.clearance, end, request.path_options.margin)
     if segment_is_clear(checker, q_user[k - 1], q_user[k], allow=names, margin=margin):
-        return [q_user[k - 1], q_user[k]]
+        return [q_user[k - 1], q_user[k]], True
     # The search would test the straight segment again with the same margin: it is blocked.
+    options = request.path_options
     result = find_clear_path(
-        checker, q_user[k - 1], q_user[k], options=request.path_options, allow=names, try_straight=False
+        checker, q_user[k - 1], q_user[k], options=options, allow=names, try_straight=False, certify=certify
     )
+    if result.found and not certify and len(result.path) == 2:
+        # A straight edge is followed along its line at once: that needs its certificate.
+        result = find_clear_path(checker, q_user[k - 1], q_user[k], options=options, allow=names, try_straight=False)
+        certify = True
     if not result.found:
         raise PlanningError(
             f"{request.source}: no collision-free way from {labels[k - 1]} to {labels[k]}: {result.reason} "
             f"({result.status.value}); try another avoidance seed or time_budget, or move the obstacle"
         )
-    return list(result.path)
+    return list(result.path), certify
 
 
 def _calibrations(robot: Robot, request: MotionRequest) -> tuple[ServoCalibration, ...] | None:
@@ -417,20 +425,54 @@ def plan_motion(
             q_prev = q_list[-1]
     q_user = np.array(q_list)
     # routes[k]: the nodes of a clear route into waypoint k. Its edges are passed as via
-    # waypoints, smoothly; an edge the timed motion strays from into an obstacle is followed
-    # along its straight (clear) joint line instead (`dense`), from rest to rest.
+    # waypoints, smoothly; an edge the timed motion strays from into an obstacle is halved,
+    # and a half it strays from is followed along its straight (clear) joint line instead
+    # (`dense`), from rest to rest.
     routes: dict[int, list[np.ndarray]] = {}
     dense: set[tuple[int, int]] = set()
     edge_lines: dict[tuple[int, int], LinePath] = {}
+    # Routes whose edges passed only the path search's checks at points: most timed motions
+    # along them pass the continuous check as they are; where one does not, the route is
+    # asked for again with its edges certified before an edge is followed along its line.
+    unproven: set[int] = set()
+
+    def route(k: int, certify: bool = False) -> None:
+        routes[k], proven = _route(checker, request, q_user, k, labels, allow, certify=certify)
+        if not proven:
+            unproven.add(k)
+        elif len(routes[k]) == 2:
+            dense.add((k, 0))
+
+    # Route edges made by halving one the timed motion strayed from: followed along their line
+    # if it strays from them too.
+    halves: set[tuple[int, int]] = set()
+
+    def follow(k: int, e: int) -> None:
+        """Keep the timed motion closer to edge e of route k: first through its midpoint too, then along its line."""
+        if (k, e) in halves:
+            dense.add((k, e))
+            return
+        routes[k] = [*routes[k][: e + 1], (routes[k][e] + routes[k][e + 1]) / 2.0, *routes[k][e + 1 :]]
+
+        def shift(key: tuple[int, int]) -> tuple[int, int]:
+            return (key[0], key[1] + 1) if key[0] == k and key[1] > e else key
+
+        for keys in (dense, halves):
+            moved = {shift(key) for key in keys}
+            keys.clear()
+            keys.update(moved)
+        lines = {shift(key): line for key, line in edge_lines.items()}
+        edge_lines.clear()
+        edge_lines.update(lines)
+        halves.update({(k, e), (k, e + 1)})
+
     if checker is not None:
         _check_against_scene(checker, request, q_user, paths, cartesian, labels, allow)
         for k in range(1, n):
             # A free move whose straight segment is plainly blocked is routed before timing.
             names = tuple(set(allow[k - 1]) | set(allow[k]))
             if not cartesian[k] and not segment_looks_clear(checker, q_user[k - 1], q_user[k], allow=names):
-                routes[k] = _route(checker, request, q_user, k, labels, allow)
-                if len(routes[k]) == 2:
-                    dense.add((k, 0))
+                route(k)
 
     timings: dict[int, Any] = {}  # line timing per LinePath (by id), kept across re-plans
 
@@ -535,9 +577,11 @@ def plan_motion(
     if checker is not None:
         # Check the timed motion continuously. Where a free move comes too close, it follows
         # its straight joint segment if that is clear (with the path search's margin), else a
-        # route found around the obstacles; where a route's edge does, that edge is followed
-        # along its straight joint line. Then the motion is re-planned and checked again. Each
-        # round adds a route or a followed edge, so the rounds end.
+        # route found around the obstacles; where a route's edge does, that edge is halved (its
+        # midpoint passed too: the motion keeps closer to it), and where one of its halves does,
+        # that half is followed along its straight joint line. Then the motion is re-planned and
+        # checked again. Each round adds a route, halves an edge not made by halving or follows
+        # an edge, so the rounds end.
         while True:
             times = plan.trajectory.waypoint_times[plan.waypoint_indices[user_pos]]
             windows = [(float(times[k - 1]), tuple(set(allow[k - 1]) | set(allow[k]))) for k in range(1, n)]
@@ -547,12 +591,23 @@ def plan_motion(
             node_times = plan.trajectory.waypoint_times[plan.waypoint_indices]
             i = int(np.searchsorted(node_times, collision.first_hit, side="right")) - 1
             k, edge = owner[min(max(i, 0), m - 2)]
-            if k in routes and edge is not None and (k, edge) not in dense:
-                dense.add((k, edge))
+            if k in unproven and edge is not None:
+                # The same search (same seed) again, its edges certified: the same route where
+                # they pass, whose edge is then followed along its line.
+                unproven.discard(k)
+                before = routes[k]
+                route(k, certify=True)
+                same = len(before) == len(routes[k]) and all(map(np.array_equal, before, routes[k]))
+                if same:
+                    follow(k, edge)
+                else:
+                    for key in [key for key in edge_lines if key[0] == k]:
+                        del edge_lines[key]
+                    dense -= {(k, e) for e in range(len(before))} - ({(k, 0)} if len(routes[k]) == 2 else set())
+            elif k in routes and edge is not None and (k, edge) not in dense:
+                follow(k, edge)
             elif k not in routes and paths[k] is None:
-                routes[k] = _route(checker, request, q_user, k, labels, allow)
-                if len(routes[k]) == 2:
-                    dense.add((k, 0))
+                route(k)
             else:
                 # Already along clear lines: reported as it is, with the closest pair throughout.
                 collision = check_trajectory(checker, plan.trajectory, allow=windows)

@@ -4,8 +4,10 @@ Between two checks no pair of bodies may approach each other by more than the di
 at the last check (conservative advancement). Per pair, the speed at which the two bodies can
 approach is bounded by ``V = sum_j |qd_j| r_j``: a joint both bodies hang from moves them
 together and does not count; any other joint ``j`` moves its body's points at most
-``|qd_j| r_j`` apart, ``r_j`` an upper bound on the distance from the joint to that body (the
-joint offsets down the chain plus the body's own extent; 1 for a sliding joint). Along a
+``|qd_j| r_j`` apart, ``r_j`` an upper bound on the distance from the joint's axis to that
+body's points (the joint offsets down the chain plus the body's own extent, where the first
+offset may be the next joint's distance from the axis: zero in a wrist whose next joint sits on
+it; 1 for a sliding joint). Along a
 trajectory the joint speeds a time ``h`` after a check are at most ``|qd_j| + a_j h``
 (``a_j`` the acceleration limit), so a pair approaches by at most ``V h + A h^2 / 2`` with
 ``A = sum_j a_j r_j``; the next check comes when that reaches ``d - clearance + tolerance``
@@ -207,6 +209,14 @@ def _pair_weights(checker: CollisionChecker) -> np.ndarray:
         held.chains = [sorted(set(model.supports[j]) - {0}) for j in range(model.njoints)]
     reach: dict[int, np.ndarray] = held.table
     chain_of = held.chains
+    # Per joint, its origin's distance from its parent joint's axis (inf where the parent slides).
+    axis_distance = np.full(model.njoints, np.inf)
+    for j in range(2, model.njoints):
+        parent = model.parents[j]
+        if parent > 0 and not prismatic[parent - 1]:
+            axis = _joint_axis(model, parent)
+            at = np.asarray(model.jointPlacements[j].translation, dtype=float)
+            axis_distance[j] = float(np.linalg.norm(at - (at @ axis) * axis))
 
     def reach_of(k: int) -> np.ndarray:
         if k not in reach:
@@ -217,7 +227,15 @@ def _pair_weights(checker: CollisionChecker) -> np.ndarray:
             for jid in chain:
                 # Offsets from joint jid down to the object's joint (a slide adds its travel).
                 below = [j for j in chain if j > jid]
-                r[jid - 1] = 1.0 if prismatic[jid - 1] else own + offset[below].sum() + travel[[jid, *below]].sum()
+                if prismatic[jid - 1]:
+                    r[jid - 1] = 1.0
+                    continue
+                r[jid - 1] = own + offset[below].sum() + travel[below].sum()
+                if below:
+                    # What counts is the distance from jid's axis: the next joint's origin is at a
+                    # fixed distance from it (often on it: a wrist), the object beyond as above.
+                    beyond = own + offset[below[1:]].sum() + travel[below].sum()
+                    r[jid - 1] = min(r[jid - 1], axis_distance[below[0]] + beyond)
             if obj.parentJoint > 0 and not prismatic[obj.parentJoint - 1]:
                 # The joint that carries the object itself turns it about its axis: what counts
                 # is the object's distance from that axis, not from the joint's origin.

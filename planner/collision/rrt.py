@@ -166,6 +166,7 @@ def find_clear_path(
     options: PathOptions | None = None,
     allow: Sequence[str] = (),
     try_straight: bool = True,
+    certify: bool = True,
 ) -> PathResult:
     """A joint path from `q_start` to `q_goal` that keeps the scene's clearance (plus a margin).
 
@@ -178,12 +179,17 @@ def find_clear_path(
         try_straight: Whether to test the straight segment first (and return it if clear);
             False when the caller has just found it blocked with the same margin
             (:func:`path_margin`), so that its certificate is not computed twice.
+        certify: Whether to certify the path's edges (conservative advancement). False returns
+            the shortened path whose edges passed only the cheap checks at points every
+            :attr:`PathOptions.resolution`, for a caller that certifies the motion along it
+            itself (and asks again with True where that fails).
 
     Returns:
         The :class:`PathResult`; when the ends themselves collide or the search runs out of
         iterations or time, a status and a reason instead of a path.
     """
     options = options or PathOptions()
+    certify_edges = bool(certify)
     robot = checker.robot
     q0 = robot.check_configuration(q_start, batch=False)
     q1 = robot.check_configuration(q_goal, batch=False)
@@ -234,7 +240,7 @@ def find_clear_path(
             break
         path = _merge_collinear(path)
         short = _shortcut(path, quick, rng, options.shortcuts)
-        if all(certify(a, b) for a, b in zip(short, short[1:])):
+        if not certify_edges or all(certify(a, b) for a, b in zip(short, short[1:])):
             return PathResult(PathStatus.FOUND, read_only(np.array(short)), "", iterations)
         if all(certify(a, b) for a, b in zip(path, path[1:])):
             path = _prune(path, lambda a, b: quick(a, b) and certify(a, b))
