@@ -22,9 +22,11 @@ configurations (``--plans`` per arm), planned with the line at rest at both ends
 (``blend_lines: false``) and blended into the moves around it (the default): the duration
 ratio, the line's ends passed moving, every limit and the tip's distance from the line.
 
-Goal (issue 11): single digits of jerk sign changes per joint per line, as a joint-space
-S-curve has. Prints Markdown tables, writes JSON to benchmarks/results/bench_lines.json (and
-the tables to bench_lines.md).
+Goal (issue 11): per joint and line, no more jerk sign changes than the joint-space S-curve of
+the same move (:func:`s_curve_reference`: Ruckig rest-to-rest segments through the line's start,
+its stops and its end), single digits. Where a joint reverses along the line, no motion along it
+reaches the S-curve's count (:func:`reversal_floor`); the table counts both. Prints Markdown
+tables, writes JSON to benchmarks/results/bench_lines.json (and the tables to bench_lines.md).
 
     python benchmarks/bench_lines.py [--lines 40] [--seed 5] [--plans 20]
 """
@@ -47,6 +49,7 @@ from planner.motion.branch_choice import TargetSolver
 from planner.motion.line import line_waypoints
 from planner.motion.line_smoothing import path_corners
 from planner.motion.line_timing import line_trajectory
+from planner.motion.plan import plan_trajectory
 
 RESULTS = Path(__file__).resolve().parent / "results"
 
@@ -60,10 +63,17 @@ def line_figures(plan, k: int) -> dict:
     bounds = [t0, *rests, t1]
     pieces = [int(traj.jerk_sign_changes(a, b).max()) for a, b in zip(bounds, bounds[1:])]
     counts = traj.jerk_sign_changes(t0, t1)
+    reference = s_curve_reference(traj, bounds)
+    floor = sum(reversal_floor(traj, a, b) for a, b in zip(bounds, bounds[1:]))
     peaks = [traj.peak_ratios(None), traj.peak_ratios(1000.0)]
     return {
         "sign_changes": counts.tolist(),
         "worst_joint": int(counts.max()),
+        "s_curve_sign_changes": reference.tolist(),
+        "within_s_curve": bool(np.all(counts <= reference)),
+        "excess_over_s_curve": int(np.max(counts - reference)),
+        "reversal_floor": floor.tolist(),
+        "within_floor": bool(np.all(counts <= np.maximum(reference, floor))),
         "pieces": len(pieces),
         "worst_piece": max(pieces),
         "limit_ratio": max(max(p["velocity"], p["acceleration"], p["jerk"]) for p in peaks),
@@ -71,6 +81,51 @@ def line_figures(plan, k: int) -> dict:
         "deviation": float(plan.line_deviation[k - 1]),
         "duration": t1 - t0,
     }
+
+
+def s_curve_reference(traj, bounds: list[float]) -> np.ndarray:
+    """Issue 11's reference: per joint, the jerk sign changes of the joint-space S-curve of the same move.
+
+    Ruckig rest-to-rest segments (``strategy="stop"``) with the same limits through the
+    configurations where the line rests: its start, its stops inside (its corners) and its end.
+    """
+    q = traj.sample(np.array(bounds)).q
+    keep = np.concatenate([[True], np.any(np.abs(np.diff(q, axis=0)) > 0, axis=1)])
+    if keep.sum() < 2:
+        return np.zeros(traj.dof, dtype=int)
+    scurve = plan_trajectory(q[keep], traj.limits, strategy="stop")
+    return scurve.jerk_sign_changes(0.0, scurve.duration)
+
+
+def reversals(x: np.ndarray, eps: float) -> tuple[int, bool]:
+    """How often the sequence x turns back by more than eps, and whether it moves more than eps at all."""
+    direction, extreme, count = 0, float(x[0]), 0
+    for v in x[1:]:
+        if direction == 0:
+            if abs(v - extreme) > eps:
+                direction, extreme = (1 if v > extreme else -1), float(v)
+        elif (v - extreme) * direction > 0:
+            extreme = float(v)
+        elif abs(v - extreme) > eps:
+            direction, extreme, count = -direction, float(v), count + 1
+    return count, direction != 0
+
+
+def reversal_floor(traj, t0: float, t1: float, eps: float = 1e-3) -> np.ndarray:
+    """Per joint, the fewest jerk sign changes a rest-to-rest motion along this piece's joint path has.
+
+    A joint that reverses r times between two rests has r + 1 velocity extrema and r + 2
+    acceleration extrema (the acceleration is 0 at both rests), so its jerk changes sign at
+    least r + 2 times; a joint that does not move, 0 times. Where a line's joint reverses, the
+    S-curve (which moves it straight) has fewer than any motion along the line can. Reversals
+    by less than `eps` [rad or m] are not counted (their jerk may stay under the count's floor).
+    """
+    q = traj.sample(np.arange(t0, t1, 1e-3), clamp=True).q
+    out = np.zeros(traj.dof, dtype=int)
+    for d in range(traj.dof):
+        count, moves = reversals(q[:, d], eps)
+        out[d] = count + 2 if moves else 0
+    return out
 
 
 def random_lines(robot: Robot, count: int, rng: np.random.Generator) -> tuple[list[dict], int]:
@@ -168,6 +223,10 @@ def summary(name: str, lines: list[dict]) -> dict | None:
         "worst_joint_median": float(np.median(worst)),
         "worst_joint_max": int(max(worst)),
         "single_digit_lines": sum(w <= 9 for w in worst),
+        "within_s_curve_lines": sum(f["within_s_curve"] for f in lines),
+        "within_floor_lines": sum(f["within_floor"] for f in lines),
+        "excess_over_s_curve_max": max(f["excess_over_s_curve"] for f in lines),
+        "s_curve_worst_joint_max": max(max(f["s_curve_sign_changes"]) for f in lines),
         "worst_piece_max": int(max(pieces)),
         "limit_ratio_max": max(f["limit_ratio"] for f in lines),
         "position_excess_max": max(f["position_excess"] for f in lines),
@@ -179,23 +238,48 @@ def summary(name: str, lines: list[dict]) -> dict | None:
 
 
 def table(rows: list[dict]) -> str:
-    head = (
-        "| lines | count (with corners) | stops inside max | sign changes per joint: median / max | worst joint per "
-        "line: median / max | lines single digit | worst piece | peak limit ratio | tip off line max [m] | "
-        "duration median [s] | duration / chain: median (range) |\n|---|---|---|---|---|---|---|---|---|---|---|\n"
+    columns = (
+        "lines",
+        "count (with corners)",
+        "stops inside max",
+        "sign changes per joint: median / max",
+        "worst joint per line: median / max",
+        "lines single digit",
+        "S-curve's worst joint max",
+        "lines <= the S-curve's (every joint)",
+        "lines <= max(S-curve's, reversal floor)",
+        "excess over the S-curve max",
+        "worst piece",
+        "peak limit ratio",
+        "tip off line max [m]",
+        "duration median [s]",
+        "duration / chain: median (range)",
     )
+    head = "| " + " | ".join(columns) + " |\n" + "|---" * len(columns) + "|\n"
     body = ""
     for r in rows:
         if r is None:
             continue
         ratio = "-" if r["chain_ratio"] is None else "{:.2f} ({:.2f}-{:.2f})".format(*r["chain_ratio"])
-        body += (
-            f"| {r['robot']} | {r['lines']} ({r['with_corners']}) | {r['stops_max']} "
-            f"| {r['per_joint_median']:g} / {r['per_joint_max']} "
-            f"| {r['worst_joint_median']:g} / {r['worst_joint_max']} | {r['single_digit_lines']} / {r['lines']} "
-            f"| {r['worst_piece_max']} | {r['limit_ratio_max']:.9f} | {r['deviation_max']:.1e} "
-            f"| {r['duration_median']:.2f} | {ratio} |\n"
+        n = r["lines"]
+        cells = (
+            r["robot"],
+            f"{n} ({r['with_corners']})",
+            r["stops_max"],
+            f"{r['per_joint_median']:g} / {r['per_joint_max']}",
+            f"{r['worst_joint_median']:g} / {r['worst_joint_max']}",
+            f"{r['single_digit_lines']} / {n}",
+            r["s_curve_worst_joint_max"],
+            f"{r['within_s_curve_lines']} / {n}",
+            f"{r['within_floor_lines']} / {n}",
+            r["excess_over_s_curve_max"],
+            r["worst_piece_max"],
+            f"{r['limit_ratio_max']:.9f}",
+            f"{r['deviation_max']:.1e}",
+            f"{r['duration_median']:.2f}",
+            ratio,
         )
+        body += "| " + " | ".join(str(c) for c in cells) + " |\n"
     return head + body
 
 
