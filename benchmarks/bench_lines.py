@@ -21,6 +21,8 @@ Blending: plans of a joint move, a line and a joint move between the tips of fou
 configurations (``--plans`` per arm), planned with the line at rest at both ends
 (``blend_lines: false``) and blended into the moves around it (the default): the duration
 ratio, the line's ends passed moving, every limit and the tip's distance from the line.
+Junctions: two lines straight on from one another (``--plans`` per arm), passing the target
+between them (the default) and with ``stop: true`` there (:func:`collinear_plans`).
 
 Goal (issue 11): per joint and line, no more jerk sign changes than the joint-space S-curve of
 the same move (:func:`s_curve_reference`: Ruckig rest-to-rest segments through the line's start,
@@ -188,6 +190,68 @@ def blended_plans(robot: Robot, count: int, rng: np.random.Generator) -> tuple[l
     return out, skipped
 
 
+def collinear_plans(robot: Robot, count: int, rng: np.random.Generator) -> tuple[list[dict], int]:
+    """Two lines straight on from one another (tips of two random configurations, split in the middle).
+
+    Planned passing the junction (the default) and with ``stop: true`` there: the duration
+    ratio, the speed at the junction, every limit, the tip's distance from the lines, and the jerk
+    sign changes from the first line's start to the second's end against the S-curve's.
+    """
+    out, skipped = [], 0
+    while len(out) < count:
+        q = robot.random_configurations(rng, 2)
+        a, c = robot.position(q)
+        targets = [{"position": a.tolist()}, {"position": ((a + c) / 2).tolist(), "line": True}]
+        targets.append({"position": c.tolist(), "line": True})
+        stopped = [dict(t) for t in targets]
+        stopped[1]["stop"] = True
+        try:
+            rest = plan_motion(robot, parse_motion_request({"targets": stopped}))
+            through = plan_motion(robot, parse_motion_request({"targets": targets}))
+        except planner.PlannerError:
+            skipped += 1
+            continue
+        traj, lim = through.trajectory, through.limits
+        peaks = [traj.peak_ratios(None), traj.peak_ratios(1000.0)]
+        t0, t1 = float(through.departure_times[0]), float(through.waypoint_times[2])
+        inside = traj.waypoint_times[(traj.waypoint_times > t0 + 1e-9) & (traj.waypoint_times < t1 - 1e-9)]
+        rests = [t for t in inside if np.all(np.abs(traj.sample(np.array([t])).qd[0]) <= 1e-9 * lim.velocity)]
+        counts = traj.jerk_sign_changes(t0, t1)
+        reference = s_curve_reference(traj, [t0, *rests, t1])
+        junction = traj.sample(np.array([through.waypoint_times[1]])).qd[0]
+        out.append(
+            {
+                "ratio": traj.duration / rest.trajectory.duration,
+                "junction_speed": float(np.max(np.abs(junction) / lim.velocity)),
+                "limit_ratio": max(max(p["velocity"], p["acceleration"], p["jerk"]) for p in peaks),
+                "position_excess": max(p["position"] for p in peaks),
+                "deviation": max(float(d) for d in through.line_deviation if d is not None),
+                "worst_joint": int(counts.max()),
+                "within_s_curve": bool(np.all(counts <= reference)),
+            }
+        )
+    return out, skipped
+
+
+def junction_table(rows: list[tuple[str, list[dict], int]]) -> str:
+    head = (
+        "| two lines straight on | count (skipped) | junction passed moving | duration passing / stopping: median "
+        "(range) | peak limit ratio | tip off line max [m] | worst joint sign changes: median / max | "
+        "lines <= the S-curve's |\n|---|---|---|---|---|---|---|---|\n"
+    )
+    body = ""
+    for name, plans, skipped in rows:
+        ratios = [f["ratio"] for f in plans]
+        worst = [f["worst_joint"] for f in plans]
+        body += (
+            f"| {name} | {len(plans)} ({skipped}) | {sum(f['junction_speed'] > 1e-6 for f in plans)} / {len(plans)} "
+            f"| {np.median(ratios):.3f} ({min(ratios):.3f}-{max(ratios):.3f}) "
+            f"| {max(f['limit_ratio'] for f in plans):.9f} | {max(f['deviation'] for f in plans):.1e} "
+            f"| {np.median(worst):g} / {max(worst)} | {sum(f['within_s_curve'] for f in plans)} / {len(plans)} |\n"
+        )
+    return head + body
+
+
 def blend_table(rows: list[tuple[str, list[dict], int]]) -> str:
     head = (
         "| plans (joint move, line, joint move) | count (skipped) | line ends moving | duration blended / at rest: "
@@ -312,7 +376,12 @@ def main(argv=None) -> None:
         plans, skipped = blended_plans(planner.load_robot(name), args.plans, rng)
         blends.append((name, plans, skipped))
         record["blending"] = record.get("blending", {}) | {name: {"skipped": skipped, "plans": plans}}
-    text = table(rows) + "\n" + blend_table(blends)
+    junctions = []
+    for name in ("al5c", "three_joint"):
+        plans, skipped = collinear_plans(planner.load_robot(name), args.plans, rng)
+        junctions.append((name, plans, skipped))
+        record["junctions"] = record.get("junctions", {}) | {name: {"skipped": skipped, "plans": plans}}
+    text = table(rows) + "\n" + blend_table(blends) + "\n" + junction_table(junctions)
     print(text)
     RESULTS.mkdir(exist_ok=True)
     (RESULTS / "bench_lines.json").write_text(json.dumps(record, indent=2) + "\n")

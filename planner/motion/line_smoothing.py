@@ -527,7 +527,7 @@ def _smooth_piece(
             # Knots KNOT_SPACING apart before the time scaling, and (where that scaling
             # stretches them) KNOT_SPACING apart after it: the spline through fewer knots
             # smooths the path spline's bends, the one through more follows them.
-            pinned = (_ramp_time(sigma[list(fixed)], total, ramps), q[list(fixed)])
+            pinned = (_ramp_time(sigma[list(fixed)], total, ramps), q[list(fixed)]) if fixed else None
             scale, ok, fit = _scaled_spline(
                 q, (sigma_nodes, q_nodes, moments), slopes, total, ramps, spacing, scale, template, bound, rest, pinned
             )
@@ -548,7 +548,8 @@ def _smooth_piece(
     knots, p, v, acc, j, alone = fit
     at = _ramp_time(sigma, total, ramps) * scale
     at[0], at[-1] = 0.0, duration
-    at[list(fixed)] = _ramp_time(sigma[list(fixed)], total, ramps) * scale  # their knots' times
+    if fixed:
+        at[list(fixed)] = _ramp_time(sigma[list(fixed)], total, ramps) * scale  # their knots' times
     positions = alone.sample(at).q
     positions[0], positions[-1] = q[0], q[-1]
     return at, positions, knots, p, v, acc, j
