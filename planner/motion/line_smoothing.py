@@ -372,7 +372,10 @@ def _pick(group: list[int], on_end: np.ndarray) -> int:
 
 
 def _natural_spline(
-    x: np.ndarray, y: np.ndarray, slopes: tuple[np.ndarray | None, np.ndarray | None] = (None, None)
+    x: np.ndarray,
+    y: np.ndarray,
+    slopes: tuple[np.ndarray | None, np.ndarray | None] = (None, None),
+    bends: tuple[np.ndarray | None, np.ndarray | None] = (None, None),
 ) -> np.ndarray:
     """Second derivatives at the nodes of the cubic spline through ``y`` at ``x``, shape of y.
 
@@ -389,9 +392,13 @@ def _natural_spline(
     if slopes[0] is not None:
         diag[0], sup[0] = 2.0 * h[0], h[0]
         rhs[0] = 6.0 * ((y[1] - y[0]) / h[0] - slopes[0])
+    elif bends[0] is not None:
+        rhs[0] = bends[0]
     if slopes[1] is not None:
         sub[-1], diag[-1] = h[-1], 2.0 * h[-1]
         rhs[-1] = 6.0 * (slopes[1] - (y[-1] - y[-2]) / h[-1])
+    elif bends[1] is not None:
+        rhs[-1] = bends[1]
     cp, dp = np.zeros(n), np.zeros_like(rhs)
     cp[0], dp[0] = sup[0] / diag[0], rhs[0] / diag[0]
     for k in range(1, n):
@@ -401,6 +408,17 @@ def _natural_spline(
     for k in range(n - 2, -1, -1):
         dp[k] -= cp[k] * dp[k + 1]
     return dp
+
+
+def _one_sided_bend(x: np.ndarray, y: np.ndarray, at_end: bool) -> np.ndarray | None:
+    """d2y/dx2 at the first (or last) node from a least-squares cubic through up to six nodes there."""
+    if len(x) < 5:
+        return None
+    idx = np.arange(max(0, len(x) - 6), len(x)) if at_end else np.arange(min(6, len(x)))
+    h = x[idx] - x[idx[-1] if at_end else idx[0]]
+    scale = float(np.max(np.abs(h)))
+    coef, *_ = np.linalg.lstsq(np.vander(h / scale, 4, increasing=True), y[idx], rcond=None)
+    return 2.0 * coef[2] / scale**2
 
 
 def _one_sided_slope(x: np.ndarray, y: np.ndarray, at_end: bool) -> np.ndarray:
@@ -516,6 +534,7 @@ def _smooth_piece(
         sigma_nodes,
         q_nodes,
         tuple(None if r else _one_sided_slope(sigma_nodes, q_nodes, end) for r, end in zip(rest, (False, True))),
+        tuple(_one_sided_bend(sigma_nodes, q_nodes, end) for end in (False, True)),
     )
     slopes = _end_slopes(sigma_nodes, q_nodes, moments)
     candidates = []
