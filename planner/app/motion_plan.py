@@ -328,6 +328,39 @@ def _blends(
     return free(k - 1, n), free(k, n)
 
 
+def _line_groups(
+    request: MotionRequest, cartesian: list[bool], line_ranges: list[tuple[int, int, int]]
+) -> list[list[int]]:
+    """Runs of consecutive lines (indices into `line_ranges`) that pass their junctions without stopping.
+
+    A Cartesian line into waypoint k + 1 continues the one into waypoint k where both meet at
+    k, the second goes straight on from the first (:func:`planner.motion.line.continues_line`),
+    the request blends lines and asks for no stop or dwell at k.
+    """
+    from planner.motion.line import continues_line
+
+    groups: list[list[int]] = []
+    for i, (seg, a, _) in enumerate(line_ranges):
+        if groups:
+            prev_seg, _, prev_b = line_ranges[groups[-1][-1]]
+            k = seg  # the waypoint between the two lines
+            if (
+                request.blend_lines
+                and prev_seg == seg - 1
+                and prev_b == a
+                and cartesian[k]
+                and cartesian[k + 1]
+                and k not in request.stops
+                and not request.dwell[k] > 0
+                and request.targets is not None
+                and continues_line(request.targets[k - 1], request.targets[k], request.targets[k + 1])
+            ):
+                groups[-1].append(i)
+                continue
+        groups.append([i])
+    return groups
+
+
 def plan_motion(
     robot: Robot,
     request: MotionRequest,
@@ -515,7 +548,7 @@ def plan_motion(
             user_pos.append(len(nodes) - 1)
         return np.array(nodes), user_pos, line_ranges, line_timing, owner
 
-    def plan_once(paths: list[list[LinePath] | None], blend: bool = True) -> tuple:
+    def plan_once(paths: list[list[LinePath] | None], blend: bool = True, merge: bool = True) -> tuple:
         q_nodes, user_pos, line_ranges, line_timing, owner = build(paths)
         m = len(q_nodes)
         dwell = np.zeros(m)
@@ -528,14 +561,20 @@ def plan_motion(
         moving = [
             _blends(request, cartesian, paths, routes, seg) if blend else (False, False) for seg, _, _ in line_ranges
         ]
-        for i, ((_, a, b), timing) in enumerate(zip(line_ranges, line_timing)):
+        for (_, a, b), timing in zip(line_ranges, line_timing):
             # A line is timed from rest to rest: its samples get the timing's states.
             via_v[a : b + 1] = timing.velocity
             via_a[a : b + 1] = timing.acceleration
             min_dur[a:b] = np.diff(timing.t)
+        # Lines going straight on from one another are smoothed as one (the chain rests between).
+        groups = _line_groups(request, cartesian, line_ranges) if merge else [[i] for i in range(len(line_ranges))]
+        moving = [(moving[g[0]][0], moving[g[-1]][1]) for g in groups]
+        for i, g in enumerate(groups):
+            a, b = line_ranges[g[0]][1], line_ranges[g[-1]][2]
             if any(moving[i]):
                 # It blends into a neighbouring joint move: that move meets its end velocity.
-                ends = line_end_states(q_nodes[a : b + 1], limits, moving[i])
+                joins = [line_ranges[j][2] - a for j in g[:-1]]
+                ends = line_end_states(q_nodes[a : b + 1], limits, moving[i], joins)
                 if ends is None:
                     moving[i] = (False, False)
                 for end, node, moves in zip(ends or (), (a, b), moving[i]):
@@ -560,11 +599,19 @@ def plan_motion(
         plan = plan_clear_of_singularities(robot, trajectory_request, options, keep_segments=keep)
         if line_ranges:
             # Each line as smooth pieces between its corners, not a chain of bang-bang segments.
-            stretches = [(int(plan.waypoint_indices[a]), int(plan.waypoint_indices[b])) for _, a, b in line_ranges]
-            smooth, count = smooth_lines(plan.trajectory, stretches, moving=moving)
+            stretches = [
+                (int(plan.waypoint_indices[line_ranges[g[0]][1]]), int(plan.waypoint_indices[line_ranges[g[-1]][2]]))
+                for g in groups
+            ]
+            # The user's waypoints where lines join are passed exactly.
+            joins = [[int(plan.waypoint_indices[line_ranges[i][2]]) for i in g[:-1]] for g in groups]
+            smooth, count = smooth_lines(plan.trajectory, stretches, moving=moving, exact=joins)
+            if count < len(stretches) and len(groups) < len(line_ranges):
+                # A run of lines that did not smooth as one: each on its own, resting between.
+                return plan_once(paths, blend, merge=False)
             if any(map(any, moving)):
                 # Blended only where every line smoothed and the whole motion got shorter.
-                rest = plan_once(paths, blend=False)
+                rest = plan_once(paths, blend=False, merge=merge)
                 if count < len(stretches) or not smooth.duration < rest[0].trajectory.duration:
                     return rest
             if count:

@@ -33,7 +33,9 @@ A plan file is YAML or JSON (``.json`` is read as JSON, anything else as YAML)::
 ``line: true`` on a target makes the motion from the previous target to it a straight line.
 A line blends into the joint moves before and after it (it starts or ends moving along the
 line) unless the target at that end asks for a stop (``stop: true`` or a ``dwell``), is the
-first or last one, or ``blend_lines: false``; two lines meeting at a target stop there.
+first or last one, or ``blend_lines: false``. Two lines meeting at a target stop there, unless
+the second goes straight on from the first (the same direction and change of orientation or
+pitch per metre) and the target asks for no stop: then the tip passes it without slowing down.
 ``allow: [block]`` on a waypoint or target lets the arm touch those scene bodies there (and on
 the moves into and out of it), e.g. the block the gripper grasps. With a ``scene`` the plan
 also keeps the arm's links apart from each other.

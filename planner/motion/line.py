@@ -21,7 +21,15 @@ from planner.geometry.target import Target
 from planner.model.robot import Robot
 from planner.motion.branch_choice import TargetSolver
 
-__all__ = ["LinePath", "interpolate_target", "line_deviation", "line_waypoints", "on_range_end", "slerp"]
+__all__ = [
+    "LinePath",
+    "continues_line",
+    "interpolate_target",
+    "line_deviation",
+    "line_waypoints",
+    "on_range_end",
+    "slerp",
+]
 
 
 def slerp(rotation_a: np.ndarray, rotation_b: np.ndarray, s: float) -> np.ndarray:
@@ -54,6 +62,40 @@ def interpolate_target(a: Target, b: Target, s: float) -> Target:
             raise InvalidArgumentError("a line to a target with an approach pitch must start at one with a pitch")
         return Target(pos, pitch=(1.0 - s) * a.pitch + s * b.pitch)
     return Target(pos)
+
+
+def continues_line(a: Target, b: Target, c: Target, tolerance: float = 1e-9) -> bool:
+    """Whether the line from b to c goes straight on from the line from a to b.
+
+    Straight on: the same direction (within `tolerance` [rad]) and the same change of the
+    orientation or approach pitch per metre (within `tolerance` [rad/m]), so that the tip's
+    motion along the two lines is one line traced at one rate: IK follows it without a kink at b.
+
+    Args:
+        a: Where the first line starts.
+        b: Where it ends and the second one starts.
+        c: Where the second line ends.
+        tolerance: Largest difference of the directions [rad] and the rates [rad/m].
+
+    Returns:
+        True if both lines have a length and the second one continues the first.
+    """
+    d1, d2 = b.position - a.position, c.position - b.position
+    l1, l2 = float(np.linalg.norm(d1)), float(np.linalg.norm(d2))
+    if not (l1 > 0.0 and l2 > 0.0):
+        return False
+    u1, u2 = d1 / l1, d2 / l2
+    if float(np.linalg.norm(np.cross(u1, u2))) > tolerance or float(u1 @ u2) <= 0.0:
+        return False
+    kinds = [(t.rotation is None, t.pitch is None) for t in (a, b, c)]
+    if kinds[0] != kinds[1] or kinds[1] != kinds[2]:
+        return False
+    if b.rotation is not None:
+        w1, w2 = pin.log3(a.rotation.T @ b.rotation) / l1, pin.log3(b.rotation.T @ c.rotation) / l2
+        return float(np.linalg.norm(w1 - w2)) <= tolerance
+    if b.pitch is not None:
+        return abs((b.pitch - a.pitch) / l1 - (c.pitch - b.pitch) / l2) <= tolerance
+    return True
 
 
 @dataclass(frozen=True)

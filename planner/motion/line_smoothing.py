@@ -21,7 +21,8 @@ by it buzzes.
    the kink).
 2. The time-scaling of each piece: ``sigma`` runs at a constant speed between two ramps, each a
    smoothstep ``3x^2 - 2x^3`` in speed (acceleration continuous, one jerk sign change per
-   ramp); of a few ramp lengths, the fastest is kept.
+   ramp); of a few ramp lengths, and of two knot spacings (step 3), the one whose jerk changes
+   sign least often among those within :data:`DURATION_SLACK` of the fastest is kept.
 3. The trajectory: the C2 cubic spline in time (:func:`rest_to_rest_spline`) through the path
    at evenly spaced times (:data:`KNOT_SPACING`; knots on the ramps' ends), at rest at both ends
    of the piece, then scaled in time uniformly so that the tightest joint just reaches its
@@ -159,12 +160,15 @@ def rest_to_rest_spline(
     return x[:-1], y[:-1], v, moments[:-1], jerk
 
 
-#: Time between the knots of the smooth spline in time [s] (at least 6 intervals per piece).
+#: Time between the knots of the smooth spline in time [s] (at least 6 intervals per piece),
+#: before the uniform time scaling; where that stretches them, also after it (a second candidate).
 KNOT_SPACING = 0.01
 #: Angle between neighbouring sample steps (speed-normalised joint space) that marks a corner [rad].
 CORNER_ANGLE = 0.1
 #: Ramp lengths tried, as fractions of the time at constant speed (1: the ramps meet).
 _RAMPS = (0.1, 0.2, 0.3, 0.45, 0.65, 1.0)
+#: Longer than the fastest smooth motion of a piece its motion may be, if it changes jerk sign less often.
+DURATION_SLACK = 0.03
 #: Shortest step between the samples the path spline passes, over the median step.
 NODE_GAP = 0.2
 #: Largest move of a knot off a joint bound the spline may make [rad or m].
@@ -177,6 +181,7 @@ def smooth_lines(
     *,
     max_stretch: float = 1.25,
     moving: Sequence[tuple[bool, bool]] | None = None,
+    exact: Sequence[Sequence[int]] | None = None,
 ) -> tuple[JointTrajectory, int]:
     """Replace the trajectory between waypoints ``a`` and ``b`` of each stretch by a smooth motion.
 
@@ -192,6 +197,8 @@ def smooth_lines(
             and after it) instead of at rest: then the trajectory must pass that end with the
             velocity and acceleration :func:`line_end_states` gives (else the stretch
             keeps its chain). None: every stretch rests at both ends.
+        exact: Per stretch, waypoints inside it the smooth motion passes exactly (the user's
+            waypoints where lines join), not within the spline's interpolation error. None: none.
 
     Returns:
         The trajectory with every stretch smoothed whose motion keeps every limit, and how many
@@ -212,7 +219,8 @@ def smooth_lines(
         q = np.array(traj.waypoints[a : b + 1], dtype=float)
         if b - a < 1 or not chain > 0:
             continue
-        pieces = _line_pieces(q, traj, bound, rest)
+        fixed = () if exact is None else tuple(int(w) - a for w in exact[i] if a < w < b)
+        pieces = _line_pieces(q, traj, bound, rest, fixed)
         if pieces is None or sum(p[0][-1] for p in pieces) > max_stretch * chain:
             continue
         start_state, end_state = _piece_end_states(pieces)
@@ -231,12 +239,13 @@ def smooth_lines(
 
 
 def line_end_states(
-    q: np.ndarray, limits: JointLimits, moving: tuple[bool, bool]
+    q: np.ndarray, limits: JointLimits, moving: tuple[bool, bool], exact: Sequence[int] = ()
 ) -> tuple[tuple[np.ndarray, np.ndarray], tuple[np.ndarray, np.ndarray]] | None:
     """The joint velocities and accelerations a smoothed line (samples q (M, dof)) starts and ends with.
 
     Where it blends into the move before or after it (`moving`), it passes that end at its
-    cruise speed along the path; the neighbouring move must meet that state.
+    cruise speed along the path; the neighbouring move must meet that state. The samples
+    `exact` (inner indices) are passed exactly, as :func:`smooth_lines` is told.
 
     Returns:
         ``((v0, a0), (v1, a1))``, shapes (dof,); zeros for an end at rest; None if the line
@@ -244,7 +253,7 @@ def line_end_states(
     """
     q = np.asarray(q, dtype=float)
     template = _template(limits, q)
-    pieces = _line_pieces(q, template, _bound(limits), (not moving[0], not moving[1]))
+    pieces = _line_pieces(q, template, _bound(limits), (not moving[0], not moving[1]), tuple(exact))
     return None if pieces is None else _piece_end_states(pieces)
 
 
@@ -271,13 +280,18 @@ def _template(limits: JointLimits, q: np.ndarray) -> JointTrajectory:
     )
 
 
-def _line_pieces(q: np.ndarray, template: JointTrajectory, bound: float, rest: tuple[bool, bool]) -> list | None:
-    """The smooth pieces between the corners of the samples q, or None if one has none."""
+def _line_pieces(
+    q: np.ndarray, template: JointTrajectory, bound: float, rest: tuple[bool, bool], fixed: Sequence[int] = ()
+) -> list | None:
+    """The smooth pieces between the corners of the samples q, or None if one has none.
+
+    The samples `fixed` (indices into q) are passed exactly.
+    """
     cuts = [0, *path_corners(q, template.limits), len(q) - 1]
     pieces = []
     for n, (i, k) in enumerate(zip(cuts, cuts[1:])):
         ends = (rest[0] or n > 0, rest[1] or n < len(cuts) - 2)
-        piece = _smooth_piece(q[i : k + 1], template, bound, ends)
+        piece = _smooth_piece(q[i : k + 1], template, bound, ends, tuple(f - i for f in fixed if i < f < k))
         if piece is None:
             return None
         pieces.append(piece)
@@ -358,7 +372,10 @@ def _pick(group: list[int], on_end: np.ndarray) -> int:
 
 
 def _natural_spline(
-    x: np.ndarray, y: np.ndarray, slopes: tuple[np.ndarray | None, np.ndarray | None] = (None, None)
+    x: np.ndarray,
+    y: np.ndarray,
+    slopes: tuple[np.ndarray | None, np.ndarray | None] = (None, None),
+    bends: tuple[np.ndarray | None, np.ndarray | None] = (None, None),
 ) -> np.ndarray:
     """Second derivatives at the nodes of the cubic spline through ``y`` at ``x``, shape of y.
 
@@ -375,9 +392,13 @@ def _natural_spline(
     if slopes[0] is not None:
         diag[0], sup[0] = 2.0 * h[0], h[0]
         rhs[0] = 6.0 * ((y[1] - y[0]) / h[0] - slopes[0])
+    elif bends[0] is not None:
+        rhs[0] = bends[0]
     if slopes[1] is not None:
         sub[-1], diag[-1] = h[-1], 2.0 * h[-1]
         rhs[-1] = 6.0 * (slopes[1] - (y[-1] - y[-2]) / h[-1])
+    elif bends[1] is not None:
+        rhs[-1] = bends[1]
     cp, dp = np.zeros(n), np.zeros_like(rhs)
     cp[0], dp[0] = sup[0] / diag[0], rhs[0] / diag[0]
     for k in range(1, n):
@@ -387,6 +408,17 @@ def _natural_spline(
     for k in range(n - 2, -1, -1):
         dp[k] -= cp[k] * dp[k + 1]
     return dp
+
+
+def _one_sided_bend(x: np.ndarray, y: np.ndarray, at_end: bool) -> np.ndarray | None:
+    """d2y/dx2 at the first (or last) node from a least-squares cubic through up to six nodes there."""
+    if len(x) < 5:
+        return None
+    idx = np.arange(max(0, len(x) - 6), len(x)) if at_end else np.arange(min(6, len(x)))
+    h = x[idx] - x[idx[-1] if at_end else idx[0]]
+    scale = float(np.max(np.abs(h)))
+    coef, *_ = np.linalg.lstsq(np.vander(h / scale, 4, increasing=True), y[idx], rcond=None)
+    return 2.0 * coef[2] / scale**2
 
 
 def _one_sided_slope(x: np.ndarray, y: np.ndarray, at_end: bool) -> np.ndarray:
@@ -424,14 +456,33 @@ def _ramp_position(t: np.ndarray, total: float, ramps: tuple[float, float]) -> n
     return out
 
 
-def _time_grid(total: float, ramps: tuple[float, float]) -> np.ndarray:
-    """Knot times: evenly spaced within each ramp and the cruise, the jerk steps on knots."""
+def _time_grid(total: float, ramps: tuple[float, float], spacing: float = KNOT_SPACING) -> np.ndarray:
+    """Knot times at most `spacing` apart: evenly spaced within each ramp and the cruise, the jerk steps on knots."""
     ends = [0.0, ramps[0], total - ramps[1], total]
     parts = [np.zeros(1)]
     for a, b in zip(ends, ends[1:]):
         if b - a > 1e-12 * total:
-            parts.append(np.linspace(a, b, max(2, int(math.ceil((b - a) / KNOT_SPACING))) + 1)[1:])
+            parts.append(np.linspace(a, b, max(2, int(math.ceil((b - a) / spacing))) + 1)[1:])
     return np.concatenate(parts)
+
+
+def _pin_knots(
+    grid: np.ndarray, times: np.ndarray, ramps: tuple[float, float], total: float, spacing: float
+) -> tuple[np.ndarray, np.ndarray]:
+    """The knot grid with knots at `times`, and their indices in it.
+
+    The knot nearest each time moves there, unless it is an end or a ramp's end (where the
+    time-scaling's jerk steps); knots closer than a third of the spacing to it go.
+    """
+    keep = {0.0, ramps[0], total - ramps[1], total}
+    out = grid
+    for t in times:
+        if np.any(out == t):
+            continue
+        near = np.abs(out - t) < spacing / 3.0
+        near &= ~np.isin(out, list(keep))
+        out = np.sort(np.append(out[~near], t))
+    return out, np.searchsorted(out, times)
 
 
 def _ramp_time(s: np.ndarray, total: float, ramps: tuple[float, float]) -> np.ndarray:
@@ -453,12 +504,18 @@ def _end_slopes(x: np.ndarray, y: np.ndarray, moments: np.ndarray) -> tuple[np.n
 
 
 def _smooth_piece(
-    q: np.ndarray, template: JointTrajectory, bound: float, rest: tuple[bool, bool] = (True, True)
+    q: np.ndarray,
+    template: JointTrajectory,
+    bound: float,
+    rest: tuple[bool, bool] = (True, True),
+    fixed: tuple[int, ...] = (),
 ) -> tuple | None:
     """The fastest smooth motion along the samples q (M, dof) within every limit.
 
     `rest` says whether it starts and ends at rest; an end not at rest is passed at the
-    cruise speed (zero acceleration), to blend into the move before or after it.
+    cruise speed (zero acceleration), to blend into the move before or after it. The samples
+    `fixed` (inner indices) are nodes of the path spline and knots of the spline in time, so
+    the motion passes them exactly.
 
     Returns:
         ``(t, positions, knots, p, v, a, j)`` from time 0: the times at which the samples are
@@ -470,53 +527,105 @@ def _smooth_piece(
     length = float(sigma[-1])
     if not np.all(steps > 0):
         return None  # a repeated sample: no path parameter through it
-    nodes = _spline_nodes(sigma)
+    nodes = np.union1d(_spline_nodes(sigma), np.asarray(fixed, dtype=int))
     q_nodes, sigma_nodes = q[nodes], sigma[nodes]
     # An end passed moving keeps the path's own direction there (a natural end would straighten it).
     moments = _natural_spline(
         sigma_nodes,
         q_nodes,
         tuple(None if r else _one_sided_slope(sigma_nodes, q_nodes, end) for r, end in zip(rest, (False, True))),
+        tuple(_one_sided_bend(sigma_nodes, q_nodes, end) for end in (False, True)),
     )
-    lower = np.where(np.isfinite(lim.lower), lim.lower, -np.inf)
-    upper = np.where(np.isfinite(lim.upper), lim.upper, np.inf)
     slopes = _end_slopes(sigma_nodes, q_nodes, moments)
-    best = None
+    candidates = []
     for fraction in _RAMPS:
         ramps = (length * fraction if rest[0] else 0.0, length * fraction if rest[1] else 0.0)
         total = length + (ramps[0] + ramps[1]) / 2.0
-        grid = _time_grid(total, ramps)
-        s = np.clip(_ramp_position(grid, total, ramps), 0.0, length)
-        qk = np.clip(_spline_at(sigma_nodes, q_nodes, moments, s), lower, upper)
-        qk[0], qk[-1] = q[0], q[-1]
-        scale, ok = 1.0, False
-        for _ in range(8):
-            t = grid * scale
-            ends = [None if at_rest else slope / scale for at_rest, slope in zip(rest, slopes)]
-            curves = [None if at_rest else bend / scale**2 for at_rest, bend in zip(rest, (moments[0], moments[-1]))]
-            knots, p, v, acc, j = rest_to_rest_spline(t, qk, *ends, *curves)
-            alone = replace(template, knots=knots, p=p, v=v, a=acc, j=j, duration=float(t[-1]))
-            peaks = alone.peak_ratios(None)
-            if peaks["position"] > LIMIT_TOLERANCE * bound:
-                if not _nudge(qk, alone, lower, upper):
-                    break
-                continue
-            # A uniform time scaling by k scales v, a, j by 1/k, 1/k^2, 1/k^3: the tightest
-            # joint then reaches its limit (faster or slower).
-            k = max(peaks["velocity"], peaks["acceleration"] ** 0.5, peaks["jerk"] ** (1.0 / 3.0))
-            if max(peaks["velocity"], peaks["acceleration"], peaks["jerk"]) <= 1 + LIMIT_TOLERANCE and k > 1 - 1e-6:
-                ok = True
+        scale, spacing = 1.0, KNOT_SPACING
+        for _ in range(2):
+            # Knots KNOT_SPACING apart before the time scaling, and (where that scaling
+            # stretches them) KNOT_SPACING apart after it: the spline through fewer knots
+            # smooths the path spline's bends, the one through more follows them.
+            pinned = (_ramp_time(sigma[list(fixed)], total, ramps), q[list(fixed)]) if fixed else None
+            scale, ok, fit = _scaled_spline(
+                q, (sigma_nodes, q_nodes, moments), slopes, total, ramps, spacing, scale, template, bound, rest, pinned
+            )
+            if not ok:
                 break
-            scale *= k * (1.0 + 1e-9)
-        if not ok:
+            count = fit[-1].jerk_sign_changes()
+            candidates.append((float(fit[-1].duration), int(count.max()), int(count.sum()), total, ramps, scale, fit))
+            if scale * spacing <= 1.5 * KNOT_SPACING:
+                break
+            spacing = KNOT_SPACING / scale
+    if not candidates:
+        return None
+    # The fastest, unless one within DURATION_SLACK of it changes jerk sign less often.
+    fastest = min(c[0] for c in candidates)
+    duration, _, _, total, ramps, scale, fit = min(
+        (c for c in candidates if c[0] <= fastest * (1.0 + DURATION_SLACK)), key=lambda c: (c[1], c[2], c[0])
+    )
+    knots, p, v, acc, j, alone = fit
+    at = _ramp_time(sigma, total, ramps) * scale
+    at[0], at[-1] = 0.0, duration
+    if fixed:
+        at[list(fixed)] = _ramp_time(sigma[list(fixed)], total, ramps) * scale  # their knots' times
+    positions = alone.sample(at).q
+    positions[0], positions[-1] = q[0], q[-1]
+    return at, positions, knots, p, v, acc, j
+
+
+def _scaled_spline(
+    q: np.ndarray,
+    path: tuple[np.ndarray, np.ndarray, np.ndarray],
+    slopes: tuple[np.ndarray, np.ndarray],
+    total: float,
+    ramps: tuple[float, float],
+    spacing: float,
+    scale: float,
+    template: JointTrajectory,
+    bound: float,
+    rest: tuple[bool, bool],
+    pinned: tuple[np.ndarray, np.ndarray] | None = None,
+) -> tuple:
+    """The spline in time along the path spline with these ramps, scaled so the tightest joint reaches its limit.
+
+    Returns:
+        ``(scale, ok, (knots, p, v, a, j, trajectory))``; ok False if none keeps the range.
+    """
+    sigma_nodes, q_nodes, moments = path
+    lim = template.limits
+    lower = np.where(np.isfinite(lim.lower), lim.lower, -np.inf)
+    upper = np.where(np.isfinite(lim.upper), lim.upper, np.inf)
+    length = float(sigma_nodes[-1])
+    grid = _time_grid(total, ramps, spacing)
+    where = np.zeros(0, dtype=int)
+    if pinned is not None and len(pinned[0]):
+        grid, where = _pin_knots(grid, pinned[0], ramps, total, spacing)
+    s = np.clip(_ramp_position(grid, total, ramps), 0.0, length)
+    qk = np.clip(_spline_at(sigma_nodes, q_nodes, moments, s), lower, upper)
+    qk[0], qk[-1] = q[0], q[-1]
+    if len(where):
+        qk[where] = pinned[1]
+    ok, fit = False, None
+    for _ in range(8):
+        t = grid * scale
+        ends = [None if at_rest else slope / scale for at_rest, slope in zip(rest, slopes)]
+        curves = [None if at_rest else bend / scale**2 for at_rest, bend in zip(rest, (moments[0], moments[-1]))]
+        knots, p, v, acc, j = rest_to_rest_spline(t, qk, *ends, *curves)
+        alone = replace(template, knots=knots, p=p, v=v, a=acc, j=j, duration=float(t[-1]))
+        peaks = alone.peak_ratios(None)
+        if peaks["position"] > LIMIT_TOLERANCE * bound:
+            if not _nudge(qk, alone, lower, upper):
+                break
             continue
-        if best is None or t[-1] < best[0][-1]:
-            at = _ramp_time(sigma, total, ramps) * scale
-            at[0], at[-1] = 0.0, t[-1]
-            best = (at, alone.sample(at).q, knots, p, v, acc, j)
-    if best is not None:
-        best[1][0], best[1][-1] = q[0], q[-1]
-    return best
+        # A uniform time scaling by k scales v, a, j by 1/k, 1/k^2, 1/k^3: the tightest
+        # joint then reaches its limit (faster or slower).
+        k = max(peaks["velocity"], peaks["acceleration"] ** 0.5, peaks["jerk"] ** (1.0 / 3.0))
+        if max(peaks["velocity"], peaks["acceleration"], peaks["jerk"]) <= 1 + LIMIT_TOLERANCE and k > 1 - 1e-6:
+            ok, fit = True, (knots, p, v, acc, j, alone)
+            break
+        scale *= k * (1.0 + 1e-9)
+    return scale, ok, fit
 
 
 def _spline_nodes(sigma: np.ndarray) -> np.ndarray:
