@@ -155,12 +155,14 @@ def end_plan(arm: ArmGeometry, tu: float, tz: float, d: float) -> EndPlan:
 
 
 def solve_scalar(
-    arm: ArmGeometry, target: Target, qc: list[float] | None, plan: ScalarPlan | None = None
-) -> AnalyticResult:
+    arm: ArmGeometry, target: Target, qc: list[float] | None, plan: ScalarPlan | None = None, lean: bool = False
+) -> AnalyticResult | list | None:
     """Position or pitch targets on an exact chain, in scalar arithmetic (no NumPy per step).
 
     The joints are ``q = (yaw, pitch joints..., roll)`` in this order (the family's layout).
-    `plan` is :func:`scalar_plan` of the arm (computed here when None).
+    `plan` is :func:`scalar_plan` of the arm (computed here when None). With `lean`, the
+    solutions' entries (as :func:`solutions_result` takes them, unsorted) when one lies within
+    the limits, else None, instead of the result (:mod:`~planner.ik.analytic.nearest`).
     """
     if plan is None:
         plan = scalar_plan(arm)
@@ -387,6 +389,8 @@ def solve_scalar(
             append((key, slot, q, (within, BRANCHES[slot], sing, perr, oerr)))
             any_within = any_within or within
             singular = singular or sing
+    if lean:
+        return sols if any_within else None
     d0, d1 = dists
     return solutions_result(arm, sols, sort, any_within, singular, cats, [d0, d0, d1, d1], target)
 

@@ -28,7 +28,7 @@ from planner.ik.analytic.yaw_planar.arm import ArmGeometry
 from planner.ik.analytic.yaw_planar.branches import BEYOND, BRANCHES, CYLINDER, DUPLICATE, INSIDE, ORIENT, VALID
 from planner.ik.analytic.yaw_planar.scalar import NEG_PI, ScalarPlan, scalar_plan, solutions_result
 
-__all__ = ["PoseFrame", "pose_frame", "pose_branches", "solve_pose_scalar"]
+__all__ = ["PoseFrame", "pose_frame", "pose_branches", "pose_entries", "solve_pose_scalar"]
 
 PI = math.pi
 
@@ -106,6 +106,12 @@ def solve_pose_scalar(
         plan = scalar_plan(arm)
     entries, cats, dist, any_within, singular = _pose(arm, frame, target.position.tolist(), target.rotation, qc, plan)
     return solutions_result(arm, entries, qc is not None, any_within, singular, cats, dist, target)
+
+
+def pose_entries(arm: ArmGeometry, frame: PoseFrame, target: Target, qc: list[float] | None, plan: ScalarPlan):
+    """The verified entries of :func:`solve_pose_scalar` (unsorted); None when none lies within the limits."""
+    entries, _, _, any_within, _ = _pose(arm, frame, target.position.tolist(), target.rotation, qc, plan)
+    return entries if any_within else None
 
 
 def pose_branches(arm: ArmGeometry, frame: PoseFrame, position: list[float], rotation: np.ndarray, qc):

@@ -12,6 +12,7 @@ from planner.exceptions import UnsupportedChainError
 from planner.geometry.chain import ChainAtZero
 from planner.geometry.target import Target, approach_pitch
 from planner.ik.analytic.base import FLOAT64, AnalyticIK, ChainMismatch
+from planner.ik.analytic.nearest import NearestSolution, nearest_entry
 from planner.ik.analytic.result import (
     STATUS_CODES,
     STATUS_ORIENTATION_NOT_ACHIEVABLE,
@@ -29,7 +30,7 @@ from planner.ik.analytic.yaw_planar.corrected import real_tip_pose, solve_correc
 from planner.ik.analytic.yaw_planar.layout import chain_layout
 from planner.ik.analytic.yaw_planar.real_model import true_fk
 from planner.ik.analytic.yaw_planar.scalar import scalar_plan, solve_scalar
-from planner.ik.analytic.yaw_planar.scalar_pose import pose_frame, solve_pose_scalar
+from planner.ik.analytic.yaw_planar.scalar_pose import pose_entries, pose_frame, solve_pose_scalar
 from planner.ik.analytic.yaw_planar.search import free_joints, solve_searched
 from planner.model.robot import Robot
 
@@ -79,6 +80,8 @@ class YawPlanarIK(AnalyticIK):
         self._scalar_plan = scalar_plan(arm) if arm.exact else None
         self._real_tip_pose = None if arm.exact else real_tip_pose(robot)
         self._kernels = CompiledKernels(arm)
+        # nearest's distances are modulo 2 pi on every joint (revolute joints, as planner.ik.solve's).
+        self._nearest_ok = arm.exact and all(kind == "revolute" for kind in robot.joint_kinds)
 
     def describe(self) -> dict:
         """The detected geometry, for reports and tests (lengths [m], angles [rad])."""
@@ -140,6 +143,21 @@ class YawPlanarIK(AnalyticIK):
         if not result.ok and any(free_joints(arm, target.pitch, target.rotation)):
             return self._search_one(target, qc, result, arrays)
         return result
+
+    def nearest(self, target: Target, seed: np.ndarray | None) -> NearestSolution | None:
+        """The solution within the limits nearest the seed (see :meth:`AnalyticIK.nearest`).
+
+        On exact chains, from the scalar paths' entries; None on inexact ones.
+        """
+        arm = self.arm
+        if not self._nearest_ok or (target.pitch is not None and not arm.pitch_supported):
+            return None
+        qc = None if seed is None else seed.tolist()
+        if target.rotation is None:
+            entries = solve_scalar(arm, target, qc, self._scalar_plan, True)
+        else:
+            entries = pose_entries(arm, self._pose_frame, target, qc, self._scalar_plan)
+        return None if entries is None else nearest_entry(entries, qc)
 
     def _search_one(
         self, target: Target, qc: list[float] | None, result: AnalyticResult, base: BranchArrays | None

@@ -1,0 +1,91 @@
+"""``AnalyticIK.nearest`` (the solution ``solve_ik`` answers with) against the family's whole result.
+
+The reference applies ``solve_ik``'s rule to ``solver.solve``'s result: the solutions within the
+limits, in the result's order, sorted stably by their wrapped joint distance to the seed; the
+first one. ``nearest`` must pick that solution bitwise, with its place in the result and the
+result's count, on random arms of the yaw-planar family and the bundled arms, for reachable
+targets and targets moved off them.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from dh_arms import property_settings
+from hypothesis import given
+from hypothesis import strategies as st
+from test_analytic_fast_paths import _FLOAT, configuration, yaw_planar_arms
+
+from planner import Target, load_robot
+from planner.exceptions import PlannerError
+from planner.geometry.joint_space import angular_joints, wrapped_distance
+from planner.geometry.target import approach_pitch
+from planner.ik.analytic import closed_form_solver
+
+
+def _expected(solver, target, seed):
+    """(q, branch, count, index) by solve_ik's rule on the whole result, or None without one within the limits."""
+    result = solver.solve(target, seed)
+    if not result.ok:
+        return None
+    raw = result.solutions
+    within = [i for i, s in enumerate(raw) if s.within_limits]
+    if seed is not None:
+        angular = angular_joints(solver.robot)
+        within.sort(key=lambda i: wrapped_distance(raw[i].q.tolist(), seed.tolist(), angular))
+    i = within[0]
+    return raw[i].q.tolist(), raw[i].branch, len(raw), i
+
+
+def _check(solver, target, seed) -> bool:
+    """Whether nearest answered (None: solve_ik builds the whole result), checked against the reference."""
+    try:
+        expected = _expected(solver, target, seed)
+    except PlannerError:
+        assert solver.nearest(target, seed) is None
+        return False
+    got = solver.nearest(target, seed)
+    if got is None:  # no shortcut: inexact chains, or none within the limits before the search
+        return False
+    assert expected is not None
+    q, branch, count, index = expected
+    assert list(got.q) == q  # bitwise
+    assert (got.branch, got.count, got.index) == (branch, count, index)
+    return True
+
+
+def _targets(robot, q, shift):
+    pose = robot.fk(q)
+    position = pose[:3, 3] + shift
+    return (
+        Target(position),
+        Target(position, pitch=approach_pitch(robot, q)),
+        Target(position, rotation=pose[:3, :3]),
+    )
+
+
+@property_settings(150)
+@given(robot=yaw_planar_arms(), data=st.data())
+def test_nearest_on_random_arms(robot, data):
+    solver = closed_form_solver(robot)
+    q = configuration(data, robot)
+    seed = configuration(data, robot) if data.draw(st.booleans()) else None
+    far = data.draw(st.booleans())
+    shift = np.array([data.draw(st.floats(-0.1, 0.1, **_FLOAT)) for _ in range(3)]) if far else np.zeros(3)
+    for target in _targets(robot, q, shift):
+        _check(solver, target, seed)
+
+
+@pytest.mark.parametrize("name", ["shelley", "dh3", "three_joint", "al5c"])
+def test_nearest_on_bundled_arms(name):
+    robot = load_robot(name)
+    solver = closed_form_solver(robot)
+    rng = np.random.default_rng(3)
+    answered = 0
+    for q, seed in zip(robot.random_configurations(rng, 150), robot.random_configurations(rng, 150)):
+        reachable = rng.random() < 0.7
+        shift = np.zeros(3) if reachable else rng.uniform(-0.05, 0.05, 3)
+        for target in _targets(robot, q, shift):
+            answered += _check(solver, target, seed) + _check(solver, target, None)
+    if name != "shelley":  # a yaw-planar arm: the shortcut answers most reachable targets
+        assert answered > 150
