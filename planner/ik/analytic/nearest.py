@@ -50,22 +50,27 @@ def nearest_entry(entries: list, reference: list[float] | None) -> NearestSoluti
     Returns:
         The chosen solution.
     """
-    if reference is not None and len(entries) > 1:
-        entries.sort(key=_first)
-    best = best_distance = None
-    for k, entry in enumerate(entries):
-        if not entry[3][0]:
-            continue
-        if reference is None:
-            best = k
-            break
-        # planner.ik.solve's joint distance (angles modulo 2 pi), term by term the same.
-        total = 0.0
-        for a, b in zip(entry[2], reference):
-            d = (a - b + _PI) % _TWO_PI - _PI
-            total += d * d
-        distance = sqrt(total)
-        if best is None or distance < best_distance:
-            best, best_distance = k, distance
+    if reference is None:
+        best = next(k for k, entry in enumerate(entries) if entry[3][0])
+    else:
+        if len(entries) > 1:
+            entries.sort(key=_first)
+        within = [k for k, entry in enumerate(entries) if entry[3][0]]
+        best = within[0]
+        if len(within) > 1:
+            best_distance = _distance(entries[best][2], reference)
+            for k in within[1:]:
+                distance = _distance(entries[k][2], reference)
+                if distance < best_distance:  # the first of equal distances stays (a stable sort's)
+                    best, best_distance = k, distance
     entry = entries[best]
     return NearestSolution(tuple(entry[2]), entry[3][1], len(entries), best)
+
+
+def _distance(q, reference: list[float]) -> float:
+    """planner.ik.solve's joint distance (angles modulo 2 pi), term by term the same."""
+    total = 0.0
+    for a, b in zip(q, reference):
+        d = (a - b + _PI) % _TWO_PI - _PI
+        total += d * d
+    return sqrt(total)

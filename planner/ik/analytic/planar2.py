@@ -31,6 +31,7 @@ from planner.geometry.chain import ChainAtZero, describe_violation, poe_fk, wrap
 from planner.geometry.target import Target
 from planner.ik.analytic.base import FAMILY_ANGLE_TOL, FLOAT64, AnalyticIK, ChainMismatch, base_yaw_mismatch
 from planner.ik.analytic.geometry import LENGTH_TOL, ORIENTATION_TOL, SINGULAR_TOL, angle_to_line, reach_interval
+from planner.ik.analytic.nearest import NearestSolution, nearest_entry
 from planner.ik.analytic.result import (
     STATUS_BEYOND_MAX_REACH,
     STATUS_CODES,
@@ -137,6 +138,8 @@ class Planar2IK(AnalyticIK):
         self._a0 = np.array(chain.approach)
         self._axes = [j.axis for j in joints]
         self._points = [j.point for j in joints]
+        # nearest's distances are modulo 2 pi on both joints (revolute joints, as planner.ik.solve's).
+        self._nearest_ok = all(kind == "revolute" for kind in robot.joint_kinds)
 
     def describe(self) -> dict:
         """The detected geometry (lengths [m], angles [rad])."""
@@ -162,6 +165,21 @@ class Planar2IK(AnalyticIK):
                 qc = self._q_current_list(q_current)
         else:
             qc = self._q_current_list(q_current)
+        return self._solve(target, qc, False)
+
+    def nearest(self, target: Target, seed: np.ndarray | None) -> NearestSolution | None:
+        """The solution within the limits nearest the seed (see :meth:`AnalyticIK.nearest`)."""
+        if not self._nearest_ok:
+            return None
+        found = self._solve(target, None if seed is None else seed.tolist(), True)
+        return None if isinstance(found, AnalyticResult) else found
+
+    def _solve(self, target: Target, qc: list[float] | None, lean: bool) -> AnalyticResult | NearestSolution | None:
+        """:meth:`solve` for a checked q_current (a list or None); with `lean`, :meth:`nearest`'s answer.
+
+        With `lean`, a target without a solution gives its result (as without), one with
+        solutions only outside the limits None.
+        """
         px, py, pz = target.position.tolist()
         if abs(pz - self.height) > self._len_tol:
             return AnalyticResult(
@@ -235,6 +253,14 @@ class Planar2IK(AnalyticIK):
         any_within = False
         for name, a1, e in branches:
             v0, v1 = s1 * (a1 - g1), s2 * (e - self._delta)
+            if lean:  # unchecked: solve_ik checks the one it answers with by Pinocchio FK
+                v0 = wrap_scalar(v0, lo0, hi0, ref0)
+                v1 = wrap_scalar(v1, lo1, hi1, ref1)
+                within = lo0 <= v0 <= hi0 and lo1 <= v1 <= hi1
+                any_within = any_within or within
+                key = (v0 - ref0) * (v0 - ref0) + (v1 - ref1) * (v1 - ref1) if qc is not None else 0.0
+                solutions.append((key, len(solutions), (v0, v1), (within, name)))
+                continue
             th1, th12 = s1 * v0, s1 * v0 + s2 * v1
             fx = bx + r1 * math.cos(th1 + g1) + r2 * math.cos(th12 + g2)
             fy = by + r1 * math.sin(th1 + g1) + r2 * math.sin(th12 + g2)
@@ -249,6 +275,8 @@ class Planar2IK(AnalyticIK):
             q = np.array((v0, v1))
             q.setflags(write=False)
             solutions.append(AnalyticSolution(q, within, name, singular, perr, oerr))
+        if lean:
+            return nearest_entry(solutions, qc) if any_within else None
         if qc is not None and len(solutions) > 1:
             solutions = [solutions[i] for i in sorted(range(len(solutions)), key=keys.__getitem__)]
         if any_within:

@@ -284,7 +284,7 @@ def _pose(arm: ArmGeometry, frame: PoseFrame, position, rotation, qc, plan: Scal
     any_within = singular = False
     last_side = orient_side = last_f4 = None
     for slot, side, a1, phi2_3, elbow_singular in cands:
-        side_psi, phi, theta = psi[side], phis[side], rolls[side]
+        phi = phis[side]
         # Forward model at q; its pitch sums (f2, f3, f4) are sign * q of the joints below,
         # the yaw sigma * q[0] (the signs are +-1).
         phi2 = a1 - g1
@@ -310,6 +310,8 @@ def _pose(arm: ArmGeometry, frame: PoseFrame, position, rotation, qc, plan: Scal
         fz += s4 * tu + c4 * tz
         if side != orient_side:
             orient_side = side
+            side_psi, theta = psi[side], rolls[side]
+            side_singular = free or abs(ue[side]) < scale_axis
             cyw, syw = cpsi[side], spsi[side]
             yaw_plane = mu + side_psi
             if yaw_plane == side_psi:  # mu = 0 (the seed arms)
@@ -329,8 +331,9 @@ def _pose(arm: ArmGeometry, frame: PoseFrame, position, rotation, qc, plan: Scal
                 oerr = _rotation_angle_unrolled(m, cyw, syw, ca, sa)
             else:
                 # The angle between E = Rz(yaw) Rx(alpha) Ry(theta) and m (as rotation_error).
-                e00, e01, e02 = cyw * ct - syw * sa * st, -syw * ca, cyw * st + syw * sa * ct
-                e10, e11, e12 = syw * ct + cyw * sa * st, cyw * ca, syw * st - cyw * sa * ct
+                ssa, csa = syw * sa, cyw * sa
+                e00, e01, e02 = cyw * ct - ssa * st, -syw * ca, cyw * st + ssa * ct
+                e10, e11, e12 = syw * ct + csa * st, cyw * ca, syw * st - csa * ct
                 e20, e21, e22 = -ca * st, sa, ca * ct
                 # rel = E^T m
                 r00 = e00 * m00 + e10 * m10 + e20 * m20
@@ -343,8 +346,10 @@ def _pose(arm: ArmGeometry, frame: PoseFrame, position, rotation, qc, plan: Scal
                 r10 = e01 * m00 + e11 * m10 + e21 * m20
                 r01 = e00 * m01 + e10 * m11 + e20 * m21
                 cos_a = 0.5 * (r00 + r11 + r22 - 1.0)
-                sin_a = 0.5 * sqrt((r21 - r12) ** 2 + (r02 - r20) ** 2 + (r10 - r01) ** 2)
-                oerr = atan2(sin_a, min(1.0, max(-1.0, cos_a)))
+                w0, w1, w2 = r21 - r12, r02 - r20, r10 - r01
+                sin_a = 0.5 * sqrt(w0 * w0 + w1 * w1 + w2 * w2)
+                # min(1.0, max(-1.0, cos_a)) of a finite cos_a, without the calls.
+                oerr = atan2(sin_a, cos_a if -1.0 <= cos_a <= 1.0 else (1.0 if cos_a > 1.0 else -1.0))
             if offset is not None:
                 # Rz(yaw) Rx(alpha) Ry(theta) offset (plane basis), then in the base frame:
                 # B = [n, e_u, z], n = (sin mu, -cos mu, 0), e_u = (cos mu, sin mu, 0).
@@ -364,7 +369,7 @@ def _pose(arm: ArmGeometry, frame: PoseFrame, position, rotation, qc, plan: Scal
         if perr > pos_tol or oerr > orient_tol:
             cats[slot] = ORIENT
             continue
-        sing = elbow_singular or free or abs(ue[side]) < scale_axis
+        sing = elbow_singular or side_singular
         # The joints wrapped into their limits nearest ref (finish_scalar's rule): the yaw
         # and the roll once per side; the key: the squared distance to ref, in joint order.
         if side != last_side:
@@ -379,28 +384,33 @@ def _pose(arm: ArmGeometry, frame: PoseFrame, position, rotation, qc, plan: Scal
                 v4 = wrap_scalar(v4, lo4, hi4, r4)
                 side_ok = side_ok and lo4 <= v4 <= hi4
             side_key = 0.0 + (v0 - r0) * (v0 - r0) if sort else 0.0
-            roll_key = (v4 - r4) * (v4 - r4)
+            # Added last (joint order); 0.0 without a roll adds exactly (a key is never -0.0).
+            roll_key = (v4 - r4) * (v4 - r4) if roll_idx is not None else 0.0
         within = side_ok
         v1 = s0 * phi2
-        if not (lo1 <= v1 and v1 <= hi1 and NEG_PI <= v1 - r1 <= PI):
+        t1 = v1 - r1
+        if not (lo1 <= v1 and v1 <= hi1 and NEG_PI <= t1 and t1 <= PI):
             v1 = wrap_scalar(v1, lo1, hi1, r1)
+            t1 = v1 - r1
             within = within and lo1 <= v1 <= hi1
         v2 = s1 * d32
-        if not (lo2 <= v2 and v2 <= hi2 and NEG_PI <= v2 - r2 <= PI):
+        t2 = v2 - r2
+        if not (lo2 <= v2 and v2 <= hi2 and NEG_PI <= t2 and t2 <= PI):
             v2 = wrap_scalar(v2, lo2, hi2, r2)
+            t2 = v2 - r2
             within = within and lo2 <= v2 <= hi2
         if three:
             v3 = s2 * d43
-            if not (lo3 <= v3 and v3 <= hi3 and NEG_PI <= v3 - r3 <= PI):
+            t3 = v3 - r3
+            if not (lo3 <= v3 and v3 <= hi3 and NEG_PI <= t3 and t3 <= PI):
                 v3 = wrap_scalar(v3, lo3, hi3, r3)
+                t3 = v3 - r3
                 within = within and lo3 <= v3 <= hi3
             q = (v0, v1, v2, v3, v4) if roll_idx is not None else (v0, v1, v2, v3)
-            key = side_key + (v1 - r1) * (v1 - r1) + (v2 - r2) * (v2 - r2) + (v3 - r3) * (v3 - r3) if sort else 0.0
+            key = side_key + t1 * t1 + t2 * t2 + t3 * t3 + roll_key if sort else 0.0
         else:
             q = (v0, v1, v2, v4) if roll_idx is not None else (v0, v1, v2)
-            key = side_key + (v1 - r1) * (v1 - r1) + (v2 - r2) * (v2 - r2) if sort else 0.0
-        if roll_idx is not None and sort:
-            key += roll_key
+            key = side_key + t1 * t1 + t2 * t2 + roll_key if sort else 0.0
         entries.append((key, slot, q, (within, BRANCHES[slot], sing, perr, oerr)))
         any_within = any_within or within
         singular = singular or sing
