@@ -178,6 +178,7 @@ class IKResult:
         wall_time: float,
         method: str = "nlp",
         solutions: tuple[IKSolution, ...] | LazySolutions = (),
+        counts: Callable[[], tuple[int, int | None]] | None = None,
     ) -> IKResult:
         """The result a solver hands out, built without the constructor's conversions.
 
@@ -200,6 +201,9 @@ class IKResult:
             wall_time: As the attribute [s].
             method: As the attribute.
             solutions: A tuple of :class:`IKSolution` or a :class:`LazySolutions`.
+            counts: None, or a function giving ``(attempts, attempt)``, called when either is
+                first read (then the `attempts` and `attempt` arguments are ignored): for a
+                solver that learns them only by building what the caller may never read.
         """
         q.setflags(write=False)
         result = object.__new__(cls)
@@ -219,7 +223,19 @@ class IKResult:
             method=method,
             solutions=solutions,
         )
+        if counts is not None:
+            del result.__dict__["attempts"], result.__dict__["attempt"]
+            result.__dict__["_counts"] = counts
         return result
+
+    def __getattr__(self, name: str):
+        # Only reached for attributes not set: the counts from_solver left to compute when read.
+        counts = self.__dict__.get("_counts")
+        if counts is None or name not in ("attempts", "attempt"):
+            raise AttributeError(f"{type(self).__name__!r} object has no attribute {name!r}")
+        self.__dict__["attempts"], self.__dict__["attempt"] = counts()
+        del self.__dict__["_counts"]
+        return self.__dict__[name]
 
     @property
     def within_limits(self) -> tuple[IKSolution, ...]:

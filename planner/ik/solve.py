@@ -304,10 +304,22 @@ def _nearest_answer(
     position_error, orientation_error = check.errors(target, q)
     if position_error > options.position_tolerance or orientation_error > options.orientation_tolerance:
         return None
-    solutions = LazySolutions(lambda: _every_solution(check, target, analytic.solve(target, seed).solutions, seed, {}))
+    family: list[AnalyticResult] = []  # the whole result, built once when read
+
+    def raw() -> tuple:
+        if not family:
+            family.append(analytic.solve(target, seed))
+        return family[0].solutions
+
+    def counts() -> tuple[int, int]:
+        found = raw()
+        return len(found), next(i for i, sol in enumerate(found) if sol.branch == nearest.branch)
+
+    solutions = LazySolutions(lambda: _every_solution(check, target, raw(), seed, {}))
     return IKResult.from_solver(
         q, True, IKStatus.SOLVED, f"closed-form branch {nearest.branch}", position_error, orientation_error, 0,
         nearest.count, nearest.index, "closed_form", time.perf_counter() - start, "analytic", solutions,
+        None if nearest.count is not None else counts,
     )  # fmt: skip
 
 

@@ -29,14 +29,15 @@ class NearestSolution(NamedTuple):
     Attributes:
         q: Joint values [rad] (the result's row, bitwise).
         branch: Its branch name.
-        count: How many solutions the result holds.
-        index: Its place in the result's solutions.
+        count: How many solutions the result holds, or None where that takes the whole result
+            (full poses: whether a branch is a solution is known once it is verified).
+        index: Its place in the result's solutions, or None (as `count`).
     """
 
     q: tuple[float, ...]
     branch: str
-    count: int
-    index: int
+    count: int | None
+    index: int | None
 
 
 def nearest_entry(entries: list, reference: list[float] | None) -> NearestSolution:

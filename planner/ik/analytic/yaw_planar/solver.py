@@ -30,7 +30,7 @@ from planner.ik.analytic.yaw_planar.corrected import real_tip_pose, solve_correc
 from planner.ik.analytic.yaw_planar.layout import chain_layout
 from planner.ik.analytic.yaw_planar.real_model import true_fk
 from planner.ik.analytic.yaw_planar.scalar import scalar_plan, solve_scalar
-from planner.ik.analytic.yaw_planar.scalar_pose import pose_entries, pose_frame, solve_pose_scalar
+from planner.ik.analytic.yaw_planar.scalar_pose import pose_frame, pose_nearest, solve_pose_scalar
 from planner.ik.analytic.yaw_planar.search import free_joints, solve_searched
 from planner.model.robot import Robot
 
@@ -153,10 +153,9 @@ class YawPlanarIK(AnalyticIK):
         if not self._nearest_ok or (target.pitch is not None and not arm.pitch_supported):
             return None
         qc = None if seed is None else seed.tolist()
-        if target.rotation is None:
-            entries = solve_scalar(arm, target, qc, self._scalar_plan, True)
-        else:
-            entries = pose_entries(arm, self._pose_frame, target, qc, self._scalar_plan)
+        if target.rotation is not None:
+            return pose_nearest(arm, self._pose_frame, target, qc, self._scalar_plan)
+        entries = solve_scalar(arm, target, qc, self._scalar_plan, True)
         return None if entries is None else nearest_entry(entries, qc)
 
     def _search_one(
