@@ -48,6 +48,8 @@ from planner.model.robot import Robot
 
 __all__ = ["Planar2IK", "PLANAR_BRANCHES"]
 
+PI = math.pi
+
 #: Branch names in batch order.
 PLANAR_BRANCHES = ("elbow-left", "elbow-right")
 
@@ -254,8 +256,9 @@ class Planar2IK(AnalyticIK):
         for name, a1, e in branches:
             v0, v1 = s1 * (a1 - g1), s2 * (e - self._delta)
             if lean:  # unchecked: solve_ik checks the one it answers with by Pinocchio FK
-                v0 = wrap_scalar(v0, lo0, hi0, ref0)
-                v1 = wrap_scalar(v1, lo1, hi1, ref1)
+                # wrap_scalar, which within the range and pi of the reference adds 0.0.
+                v0 = v0 + 0.0 if lo0 <= v0 <= hi0 and -PI <= v0 - ref0 <= PI else wrap_scalar(v0, lo0, hi0, ref0)
+                v1 = v1 + 0.0 if lo1 <= v1 <= hi1 and -PI <= v1 - ref1 <= PI else wrap_scalar(v1, lo1, hi1, ref1)
                 within = lo0 <= v0 <= hi0 and lo1 <= v1 <= hi1
                 any_within = any_within or within
                 key = (v0 - ref0) * (v0 - ref0) + (v1 - ref1) * (v1 - ref1) if qc is not None else 0.0
@@ -266,8 +269,8 @@ class Planar2IK(AnalyticIK):
             fy = by + r1 * math.sin(th1 + g1) + r2 * math.sin(th12 + g2)
             perr = math.sqrt((fx - px) ** 2 + (fy - py) ** 2 + (height - pz) ** 2)
             oerr = None if position_only else self._orientation_error_scalar(th12, target)
-            v0 = wrap_scalar(v0, lo0, hi0, ref0)
-            v1 = wrap_scalar(v1, lo1, hi1, ref1)
+            v0 = v0 + 0.0 if lo0 <= v0 <= hi0 and -PI <= v0 - ref0 <= PI else wrap_scalar(v0, lo0, hi0, ref0)
+            v1 = v1 + 0.0 if lo1 <= v1 <= hi1 and -PI <= v1 - ref1 <= PI else wrap_scalar(v1, lo1, hi1, ref1)
             within = lo0 <= v0 <= hi0 and lo1 <= v1 <= hi1
             any_within = any_within or within
             if qc is not None:  # the squared distance to qc, as NumPy sums two squares
