@@ -16,7 +16,7 @@ import pytest
 from dh_arms import property_settings
 from hypothesis import given
 from hypothesis import strategies as st
-from test_analytic_fast_paths import _FLOAT, configuration, yaw_planar_arms
+from test_analytic_fast_paths import configuration, yaw_planar_arms
 
 from planner import Target, load_robot, solve_ik
 from planner.exceptions import PlannerError
@@ -77,7 +77,7 @@ def test_nearest_on_random_arms(robot, data):
     q = configuration(data, robot)
     seed = configuration(data, robot) if data.draw(st.booleans()) else None
     far = data.draw(st.booleans())
-    shift = np.array([data.draw(st.floats(-0.1, 0.1, **_FLOAT)) for _ in range(3)]) if far else np.zeros(3)
+    shift = np.array([data.draw(st.floats(-0.1, 0.1)) for _ in range(3)]) if far else np.zeros(3)
     for target in _targets(robot, q, shift):
         _check(solver, target, seed)
 
