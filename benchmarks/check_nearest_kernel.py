@@ -1,10 +1,11 @@
 """Check: solve_ik's answers by the compiled nearest kernel against the Python closed form's.
 
-:meth:`YawPlanarIK.nearest <planner.ik.analytic.yaw_planar.solver.YawPlanarIK.nearest>` answers
-``solve_ik``'s closed-form calls by one compiled call
-(:mod:`planner.ik.analytic.yaw_planar.single`) after a few calls of a target kind. This script
+:meth:`YawPlanarIK.nearest <planner.ik.analytic.yaw_planar.solver.YawPlanarIK.nearest>` and
+``Planar2IK.nearest`` answer ``solve_ik``'s closed-form calls by one compiled call
+(:mod:`planner.ik.analytic.yaw_planar.single`, :mod:`planner.ik.analytic.planar2_single`) after
+a few calls of a target kind. This script
 runs ``planner.solve_ik`` on N generated targets per arm and kind twice, once with the kernel
-switched off (``SINGLE_AFTER`` out of reach: the Python scalar paths) and once with it on from
+switched off (``SINGLE_AFTER`` out of reach: the Python paths) and once with it on from
 the first call, and compares every result: status, success, reason (it names the branch),
 ``attempts`` and ``attempt``, and ``q`` (the largest joint difference). Targets: half FK of a
 random configuration within the limits, half that point moved by up to 2 cm (reachable or not);
@@ -22,9 +23,11 @@ import time
 
 import numpy as np
 
+import planner.ik.analytic.planar2 as planar2
 import planner.ik.analytic.yaw_planar.solver as yaw_solver
-from planner import Target, load_robot, solve_ik
+from planner import Target, UnsupportedChainError, load_robot, solve_ik
 from planner.geometry.target import approach_pitch
+from planner.ik.analytic.planar2_single import Planar2Kernel
 from planner.ik.analytic.yaw_planar.single import SingleKernel
 
 KINDS = ("position", "pitch", "pose")
@@ -51,7 +54,7 @@ def targets(robot, kind: str, n: int, seed: int) -> list[tuple[Target, np.ndarra
 
 
 def run(robot, pairs, after: int) -> list[tuple]:
-    yaw_solver.SINGLE_AFTER = after
+    yaw_solver.SINGLE_AFTER = planar2.SINGLE_AFTER = after
     rows = []
     for target, seed in pairs:
         r = solve_ik(robot, target, seed, method="analytic")
@@ -62,18 +65,18 @@ def run(robot, pairs, after: int) -> list[tuple]:
 def main(argv=None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--n", type=int, default=100_000, help="targets per arm and kind")
-    parser.add_argument("--robots", nargs="*", default=["al5c", "three_joint", "dh3"])
+    parser.add_argument("--robots", nargs="*", default=["al5c", "three_joint", "dh3", "shelley"])
     parser.add_argument("--seed", type=int, default=0)
     args = parser.parse_args(argv)
     sure = [0, 0]
-    original = SingleKernel.__call__
+    for kernel_class in (SingleKernel, Planar2Kernel):
 
-    def counted(self) -> None:
-        original(self)
-        sure[0] += 1
-        sure[1] += self.outputs[0] != 0.0
+        def counted(self, original=kernel_class.__call__) -> None:
+            original(self)
+            sure[0] += 1
+            sure[1] += self.outputs[0] != 0.0
 
-    SingleKernel.__call__ = counted
+        kernel_class.__call__ = counted
     print("| robot | kind | targets | answered by the kernel | status differs | reason differs | counts differ "
           "| q differs > 1e-12 | max joint difference [rad] | s |")  # fmt: skip
     print("|---|---|---|---|---|---|---|---|---|---|")
@@ -81,6 +84,10 @@ def main(argv=None) -> None:
         for kind in KINDS:
             start = time.perf_counter()
             pairs = targets(load_robot(name), kind, args.n, args.seed)
+            try:
+                solve_ik(load_robot(name), pairs[0][0], method="analytic")
+            except UnsupportedChainError:
+                continue  # no closed form of this kind
             python = run(load_robot(name), pairs, 10**12)  # a fresh robot: its own solvers
             sure[:] = [0, 0]
             kernel = run(load_robot(name), pairs, 1)

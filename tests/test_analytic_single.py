@@ -1,12 +1,13 @@
-"""The compiled nearest kernel (``planner.ik.analytic.yaw_planar.single``) against the scalar paths.
+"""The compiled nearest kernels (``yaw_planar.single``, ``planar2_single``) against the Python paths.
 
-``YawPlanarIK.nearest`` answers by one compiled call after ``SINGLE_AFTER`` calls of a target
-kind. Its answer must be the scalar paths' (the same branch, joint values equal to round-off)
-wherever it answers, and ``solve_ik`` through it must give the result of the scalar paths
+``YawPlanarIK.nearest`` and ``Planar2IK.nearest`` answer by one compiled call after
+``SINGLE_AFTER`` calls of a target kind. Its answer must be the Python paths' (the same
+branch, joint values equal to round-off) wherever it answers, and ``solve_ik`` through it must
+give the result of the Python paths
 (status, reason, counts; ``q`` to round-off), every answer within the limits and confirmed
 here by Pinocchio FK; where it is not sure (not solved, ties, a free end angle handed to the
-search) the scalar paths answer. Generated targets (reachable, random and far; positions,
-pitches and poses) on the bundled yaw-planar arms.
+search) the Python paths answer. Generated targets (reachable, random and far; positions,
+pitches and poses) on the bundled yaw-planar arms and shelley (planar 2-link).
 """
 
 from __future__ import annotations
@@ -17,12 +18,13 @@ from dh_arms import property_settings, seeds, targets, tip_errors
 from hypothesis import given
 from hypothesis import strategies as st
 
+import planner.ik.analytic.planar2 as planar2
 import planner.ik.analytic.yaw_planar.solver as yaw_solver
 from planner import Target, load_robot, solve_ik
 from planner.exceptions import UnsupportedChainError
 from planner.ik.analytic import closed_form_solver
 
-ARMS = ("al5c", "three_joint", "dh3")
+ARMS = ("al5c", "three_joint", "dh3", "shelley")
 # Round-off of two operation sequences, amplified near a singular elbow or wrist [rad].
 ROUND_OFF = 1e-10
 
@@ -47,16 +49,17 @@ def _solvers(name):
 def kernel_first(monkeypatch):
     """SINGLE_AFTER 1: the kernel from the first call of a kind."""
     monkeypatch.setattr(yaw_solver, "SINGLE_AFTER", 1)
+    monkeypatch.setattr(planar2, "SINGLE_AFTER", 1)
 
 
 def _after(calls, call):
     """``call()`` with SINGLE_AFTER `calls` (1: the kernel from the first call; huge: never)."""
-    old = yaw_solver.SINGLE_AFTER
-    yaw_solver.SINGLE_AFTER = calls
+    old = yaw_solver.SINGLE_AFTER, planar2.SINGLE_AFTER
+    yaw_solver.SINGLE_AFTER = planar2.SINGLE_AFTER = calls
     try:
         return call()
     finally:
-        yaw_solver.SINGLE_AFTER = old
+        yaw_solver.SINGLE_AFTER, planar2.SINGLE_AFTER = old
 
 
 def _scalar(call):
@@ -130,3 +133,17 @@ def test_no_kernel_without_compiler(kernel_first, monkeypatch):
     q = robot.random_configurations(np.random.default_rng(2), 1)[0]
     nearest = closed_form_solver(robot).nearest(Target(robot.fk(q)[:3, 3]), None)
     assert nearest is not None and nearest.count is not None
+
+
+def test_planar_kernel_used_on_reachable_targets(kernel_first):
+    """Shelley's positions and poses through the kernel (count and index left to the result)."""
+    robot = load_robot("shelley")
+    solver = closed_form_solver(robot)
+    rng = np.random.default_rng(8)
+    answered = 0
+    for q, seed in zip(robot.random_configurations(rng, 20), robot.random_configurations(rng, 20)):
+        pose = robot.fk(q)
+        for target in (Target(pose[:3, 3]), Target(pose[:3, 3], rotation=pose[:3, :3])):
+            nearest = solver.nearest(target, seed)
+            answered += nearest is not None and nearest.count is None
+    assert answered >= 30

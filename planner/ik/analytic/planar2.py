@@ -32,6 +32,7 @@ from planner.geometry.target import Target
 from planner.ik.analytic.base import FAMILY_ANGLE_TOL, FLOAT64, AnalyticIK, ChainMismatch, base_yaw_mismatch
 from planner.ik.analytic.geometry import LENGTH_TOL, ORIENTATION_TOL, SINGULAR_TOL, angle_to_line, reach_interval
 from planner.ik.analytic.nearest import NearestSolution, nearest_entry
+from planner.ik.analytic.planar2_single import Planar2Geometry, Planar2Kernel, planar2_kernel
 from planner.ik.analytic.result import (
     STATUS_BEYOND_MAX_REACH,
     STATUS_CODES,
@@ -46,12 +47,17 @@ from planner.ik.analytic.result import (
 )
 from planner.model.robot import Robot
 
-__all__ = ["Planar2IK", "PLANAR_BRANCHES"]
+__all__ = ["Planar2IK", "PLANAR_BRANCHES", "SINGLE_AFTER"]
 
 PI = math.pi
 
 #: Branch names in batch order.
 PLANAR_BRANCHES = ("elbow-left", "elbow-right")
+
+#: Calls of :meth:`Planar2IK.nearest` of one target kind (with a seed or without) after which
+#: it builds its :class:`~planner.ik.analytic.planar2_single.Planar2Kernel` (compiled to C the
+#: first time, then loaded from the disk cache): an arm met for a call or two never pays for it.
+SINGLE_AFTER = 8
 
 #: Largest axis deviation [rad] from vertical/parallel accepted (no correction is made).
 PLANAR_ANGLE_TOL = 1e-9
@@ -142,6 +148,9 @@ class Planar2IK(AnalyticIK):
         self._points = [j.point for j in joints]
         # nearest's distances are modulo 2 pi on both joints (revolute joints, as planner.ik.solve's).
         self._nearest_ok = all(kind == "revolute" for kind in robot.joint_kinds)
+        # nearest's compiled kernels by (pose, with a seed): a Planar2Kernel, False (none), or
+        # the calls so far (an int) until SINGLE_AFTER.
+        self._single: dict[tuple[bool, bool], Planar2Kernel | bool | int] = {}
 
     def describe(self) -> dict:
         """The detected geometry (lengths [m], angles [rad])."""
@@ -170,11 +179,40 @@ class Planar2IK(AnalyticIK):
         return self._solve(target, qc, False)
 
     def nearest(self, target: Target, seed: np.ndarray | None) -> NearestSolution | None:
-        """The solution within the limits nearest the seed (see :meth:`AnalyticIK.nearest`)."""
+        """The solution within the limits nearest the seed (see :meth:`AnalyticIK.nearest`).
+
+        After :data:`SINGLE_AFTER` calls of a position or pose target kind, by one compiled call
+        (:mod:`~planner.ik.analytic.planar2_single`; where it is not sure, the Python path; joint
+        values the same to round-off; ``count`` and ``index`` None).
+        """
         if not self._nearest_ok:
             return None
+        if target.pitch is None:
+            key = (target.rotation is not None, seed is not None)
+            kernel = self._single.get(key, 0)
+            if kernel.__class__ is int:
+                kernel = self._single[key] = kernel + 1 if kernel + 1 < SINGLE_AFTER else self._planar2_kernel(key)
+            if kernel.__class__ is Planar2Kernel:
+                inputs = kernel.inputs
+                inputs[0:3] = target.position
+                if key[0]:
+                    inputs[3:12] = target.rotation.ravel()
+                if seed is not None:
+                    inputs[-2:] = seed
+                kernel()
+                sure, slot, q0, q1 = kernel.outputs.tolist()
+                if sure:
+                    return NearestSolution((q0, q1), PLANAR_BRANCHES[int(slot)], None, None)
         found = self._solve(target, None if seed is None else seed.tolist(), True)
         return None if isinstance(found, AnalyticResult) else found
+
+    def _planar2_kernel(self, key: tuple[bool, bool]) -> Planar2Kernel | bool:
+        """The compiled kernel of :meth:`nearest` for (pose, with a seed), or False."""
+        geometry = Planar2Geometry(
+            self._s1, self._s2, self._bx, self._by, self._r1, self._r2, self._g1, self._g2, self._delta,
+            self.height, self._len_tol, self._consistency_tol, tuple(self._lower), tuple(self._upper), self._rot0,
+        )  # fmt: skip
+        return planar2_kernel(geometry, *key) or False
 
     def _solve(self, target: Target, qc: list[float] | None, lean: bool) -> AnalyticResult | NearestSolution | None:
         """:meth:`solve` for a checked q_current (a list or None); with `lean`, :meth:`nearest`'s answer.
