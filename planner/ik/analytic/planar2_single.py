@@ -163,6 +163,8 @@ class Planar2Kernel:
         inputs: Position, then the rotation's nine entries row by row (poses), then the seed.
         outputs: ``[sure, slot, q0, q1]`` (see the module docstring).
         compiled: Whether the function runs as C code.
+
+    Not thread-safe: its buffers serve one call at a time (each solver owns its kernels).
     """
 
     def __init__(self, geometry: Planar2Geometry, pose: bool, current: bool) -> None:

@@ -53,6 +53,8 @@ class SingleKernel:
         inputs: The input vector.
         outputs: ``[1.0 if the pick is sure else 0.0, the chosen slot (branch index), q (dof)]``.
         compiled: Whether the function runs as C code (else the caller should not use it).
+
+    Not thread-safe: its buffers serve one call at a time (each solver owns its kernels).
     """
 
     def __init__(self, kernels: CompiledKernels, kind: str, current: bool) -> None:
