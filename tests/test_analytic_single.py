@@ -25,8 +25,8 @@ from planner.exceptions import UnsupportedChainError
 from planner.ik.analytic import closed_form_solver
 
 ARMS = ("al5c", "three_joint", "dh3", "shelley")
-# Round-off of two operation sequences, amplified near a singular elbow or wrist [rad].
-ROUND_OFF = 1e-10
+# Round-off of two operation sequences (the kernels leave a nearly singular elbow to Python) [rad].
+ROUND_OFF = 1e-12
 
 
 def _pair(name):

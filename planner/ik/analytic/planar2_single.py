@@ -12,8 +12,9 @@ once), as the NLP's kernel.
 
 The output is ``[sure, slot, q0, q1]``; ``sure`` is 0, and the caller takes the Python path,
 wherever that path gives a status or something other than one clean pick: off the plane, beyond
-or inside the reach, a singular elbow, an orientation the arm cannot take or that does not
-match the position, nothing within the limits, or two branches at exactly the same distance.
+or inside the reach, a singular or nearly singular elbow (:data:`ELBOW_MARGIN`), an
+orientation the arm cannot take or that does not match the position, nothing within the
+limits, or two branches at exactly the same distance.
 Joint values agree with the Python path's to round-off (``hypot`` there is a square root
 here); the caller confirms every answer by Pinocchio FK.
 """
@@ -30,10 +31,13 @@ from planner.geometry.chain import LIMIT_SNAP
 from planner.ik.analytic.geometry import ORIENTATION_TOL, SINGULAR_TOL
 from planner.ik.numeric.codegen import compile_function
 
-__all__ = ["Planar2Geometry", "Planar2Kernel", "planar2_kernel"]
+__all__ = ["ELBOW_MARGIN", "Planar2Geometry", "Planar2Kernel", "planar2_kernel"]
 
 _PI = math.pi
 _TWO_PI = 2.0 * math.pi
+#: |sin| of the elbow angle below which a position target is left to the Python path (its
+#: joint values' round-off differences there would exceed about 1e-12 rad).
+ELBOW_MARGIN = 2e-3
 #: 1.5 * 2**52: y + MAGIC - MAGIC rounds y to an integer, halves to even (Python's round).
 _MAGIC = 6755399441055744.0
 #: As :data:`planner.ik.analytic.yaw_planar.compiled.FLAGS`: no FMA contraction (no -march).
@@ -114,7 +118,9 @@ def _symbolic(g: Planar2Geometry, pose: bool, current: bool) -> ca.Function:
     else:
         c = ca.fmin(1.0, ca.fmax(-1.0, (dd * dd - r1 * r1 - r2 * r2) / (2.0 * r1 * r2)))
         s = ca.sqrt(1.0 - c * c)
-        sure = ca.logic_and(sure, s >= SINGULAR_TOL)  # a singular elbow: one branch (the Python path)
+        # A singular elbow gives one branch (the Python path's); near one, the round-off
+        # differences (hypot there, a square root here) grow as 1 / s: both left to Python.
+        sure = ca.logic_and(sure, s >= max(SINGULAR_TOL, ELBOW_MARGIN))
         e_abs = ca.atan2(s, c)
         base = ca.atan2(k, h)
         half = ca.atan2(r2 * s, r1 + r2 * c)

@@ -12,8 +12,9 @@ buffer binding (one input vector, one output vector, bound once), as the NLP's k
 
 The output's first entry says whether the pick is the Python path's for sure; it is 0, and
 the caller takes the Python path, where the status is not solved, where the function hands a
-free end angle over to the search, and where two branches within the limits lie at exactly the
-same distance (the Python path's order among them is its sort key's).
+free end angle over to the search, where two branches within the limits lie at exactly the
+same distance (the Python path's order among them is its sort key's), and near a stretched or
+folded elbow (:data:`ELBOW_MARGIN`), where round-off differences grow.
 
 Joint values agree with the Python path's to round-off (the same sequence of operations; the
 C compiler without FMA contraction): the caller confirms every answer by Pinocchio FK.
@@ -30,11 +31,14 @@ from planner.ik.analytic.result import STATUS_CODES, STATUS_SOLVED
 from planner.ik.analytic.yaw_planar.compiled import FLAGS, CompiledKernels
 from planner.ik.numeric.codegen import compile_function
 
-__all__ = ["SingleKernel", "single_kernel"]
+__all__ = ["ELBOW_MARGIN", "SingleKernel", "single_kernel"]
 
 _PI = math.pi
 _TWO_PI = 2.0 * math.pi
 _SOLVED = STATUS_CODES[STATUS_SOLVED]
+#: |sin| of the elbow's interior angle below which the kernel leaves the pick to the Python path
+#: (the joint values' round-off differences there would exceed about 1e-12 rad).
+ELBOW_MARGIN = 2e-3
 
 
 def _wrapped(a, b):
@@ -100,6 +104,15 @@ class SingleKernel:
             for j in range(dof)
         ]
         sure = ca.logic_and(sure, best >= 0)
+        # Near a stretched or folded elbow the two operation sequences' round-off grows as
+        # 1 / |sin e| (the elbow's interior angle e, from the chosen q): leave those to Python.
+        if arm.n_pitch == 3:
+            g2 = arm.g2
+        else:
+            tu, tz, _ = arm.centre if kind == "pose" and arm.has_roll else arm.tip_fixed
+            g2 = math.atan2(tz, tu)
+        elbow = arm.signs[1] * chosen[arm.pitch_idx[1]] + g2 - arm.g1
+        sure = ca.logic_and(sure, ca.fabs(ca.sin(elbow)) >= ELBOW_MARGIN)
         fn = ca.Function(f"yaw_planar_nearest_{kind}", [x], [ca.cse(ca.vertcat(sure, best, *chosen))])
         self.function = compile_function(fn, flags=FLAGS)
         self.compiled = self.function.class_name() == "External"
