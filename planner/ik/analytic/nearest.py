@@ -30,7 +30,8 @@ class NearestSolution(NamedTuple):
         q: Joint values [rad] (the result's row, bitwise).
         branch: Its branch name.
         count: How many solutions the result holds, or None where that takes the whole result
-            (full poses: whether a branch is a solution is known once it is verified).
+            (full poses: whether a branch is a solution is known once it is verified; the
+            compiled kernels' answers, which pick without counting).
         index: Its place in the result's solutions, or None (as `count`).
     """
 
