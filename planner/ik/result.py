@@ -9,7 +9,7 @@ answers), each marked within the joint limits or not, sorted by joint distance t
 from __future__ import annotations
 
 from collections.abc import Callable, Iterator, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, fields
 from typing import overload
 
 import numpy as np
@@ -23,6 +23,9 @@ __all__ = ["IKResult", "IKSolution", "LazySolutions"]
 @dataclass(frozen=True)
 class IKSolution:
     """One configuration that reaches the target (possibly outside the joint limits).
+
+    Equal to another when every field is (``q`` by value); pickles and copies with ``q``
+    read-only.
 
     Attributes:
         q: Joint values, shape (dof,) [rad or m], read-only.
@@ -50,6 +53,17 @@ class IKSolution:
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "q", read_only(self.q))
+
+    def __eq__(self, other: object) -> bool:
+        if other.__class__ is not self.__class__:
+            return NotImplemented
+        return _same_fields(self, other)
+
+    __hash__ = None  # type: ignore[assignment]
+
+    def __reduce__(self) -> tuple:
+        # Through the constructor: the copy's q read-only too.
+        return (IKSolution, tuple(getattr(self, f.name) for f in fields(self)))
 
     def as_dict(self) -> dict:
         """A JSON-ready mapping."""
@@ -114,10 +128,37 @@ class LazySolutions(Sequence[IKSolution]):
     def __repr__(self) -> str:
         return repr(self._get()) if self._items is not None else "LazySolutions(<not yet read>)"
 
+    def __reduce__(self) -> tuple:
+        # The builder (a closure over the solver's state) does not pickle: the solutions, built.
+        return (_built, (self._get(),))
+
+
+def _built(items: tuple[IKSolution, ...]) -> LazySolutions:
+    """A LazySolutions already read (what a pickled one becomes)."""
+    solutions = LazySolutions(tuple)
+    solutions._items, solutions._build = items, None
+    return solutions
+
+
+def _same_fields(a: object, b: object) -> bool:
+    """Whether two dataclass objects hold equal fields (arrays by shape and value)."""
+    for f in fields(a):  # type: ignore[arg-type]
+        x, y = getattr(a, f.name), getattr(b, f.name)
+        if isinstance(x, np.ndarray) or isinstance(y, np.ndarray):
+            if not np.array_equal(x, y, equal_nan=True):
+                return False
+        elif x != y and not (x != x and y != y):  # NaN errors equal NaN
+            return False
+    return True
+
 
 @dataclass(frozen=True)
 class IKResult:
     """Outcome of an IK call.
+
+    Equal to another when every field is (``q`` by value, NaN errors equal). Pickling or
+    copying (``copy.deepcopy``) first computes what is computed when read (``attempts``,
+    ``attempt``, ``solutions``), so the copy is equal whether or not they had been read.
 
     Attributes:
         q: Joint values, shape (dof,) [rad or m], read-only, always within the joint limits:
@@ -178,6 +219,7 @@ class IKResult:
         wall_time: float,
         method: str = "nlp",
         solutions: tuple[IKSolution, ...] | LazySolutions = (),
+        counts: Callable[[], tuple[int, int | None]] | None = None,
     ) -> IKResult:
         """The result a solver hands out, built without the constructor's conversions.
 
@@ -200,6 +242,9 @@ class IKResult:
             wall_time: As the attribute [s].
             method: As the attribute.
             solutions: A tuple of :class:`IKSolution` or a :class:`LazySolutions`.
+            counts: None, or a function giving ``(attempts, attempt)``, called when either is
+                first read (then the `attempts` and `attempt` arguments are ignored): for a
+                solver that learns them only by building what the caller may never read.
         """
         q.setflags(write=False)
         result = object.__new__(cls)
@@ -219,7 +264,31 @@ class IKResult:
             method=method,
             solutions=solutions,
         )
+        if counts is not None:
+            del result.__dict__["attempts"], result.__dict__["attempt"]
+            result.__dict__["_counts"] = counts
         return result
+
+    def __getattr__(self, name: str):
+        # Only reached for attributes not set: the counts from_solver left to compute when read.
+        counts = self.__dict__.get("_counts")
+        if counts is None or name not in ("attempts", "attempt"):
+            raise AttributeError(f"{type(self).__name__!r} object has no attribute {name!r}")
+        self.__dict__["attempts"], self.__dict__["attempt"] = counts()
+        del self.__dict__["_counts"]
+        return self.__dict__[name]
+
+    def __eq__(self, other: object) -> bool:
+        if other.__class__ is not self.__class__:
+            return NotImplemented
+        return _same_fields(self, other)
+
+    __hash__ = None  # type: ignore[assignment]
+
+    def __reduce__(self) -> tuple:
+        # Every field read (the lazy counts computed, the solutions built: their builders are
+        # closures that do not pickle), through the constructor (q read-only in the copy too).
+        return (IKResult, tuple(getattr(self, f.name) for f in fields(self)))
 
     @property
     def within_limits(self) -> tuple[IKSolution, ...]:

@@ -23,7 +23,8 @@ from planner.collision.checker import CollisionChecker
 from planner.exceptions import InvalidArgumentError, UnsupportedChainError
 from planner.geometry.joint_space import angular_joints, wrapped_distance
 from planner.geometry.target import Target, as_target, target_errors, tip_errors
-from planner.ik.analytic import AnalyticResult
+from planner.ik.analytic import AnalyticIK, AnalyticResult
+from planner.ik.analytic.nearest import NearestSolution
 from planner.ik.options import IKOptions
 from planner.ik.result import IKResult, IKSolution, LazySolutions
 from planner.ik.solvers import IKSolvers
@@ -183,6 +184,9 @@ def _solve(
     if analytic is None:
         return _numeric(solvers, target, seed, options)
     try:
+        nearest = analytic.nearest(target, seed)
+        if nearest is not None and (answer := _nearest_answer(robot, analytic, target, nearest, seed, options, start)):
+            return answer
         family = analytic.solve(target, seed)
     except UnsupportedChainError:
         if method == "analytic":
@@ -280,6 +284,66 @@ class _TipCheck:
 _TWO_PI = 2.0 * math.pi
 
 
+def _nearest_answer(
+    robot: Robot,
+    analytic: AnalyticIK,
+    target: Target,
+    nearest: NearestSolution,
+    seed: np.ndarray | None,
+    options: IKOptions,
+    start: float,
+) -> IKResult | None:
+    """:func:`closed_form_answer` of the family's result, from its nearest solution (None if that misses).
+
+    The family picked the solution :func:`closed_form_answer` tries first (without building
+    its result); when Pinocchio FK confirms it, it is that function's answer, else None (the
+    caller builds the result and tries the others). The other solutions are computed when read.
+    """
+    check = robot.derived.get(_TipCheck, lambda: _TipCheck(robot))
+    q = np.array(nearest.q)
+    position_error, orientation_error = check.errors(target, q)
+    if position_error > options.position_tolerance or orientation_error > options.orientation_tolerance:
+        return None
+    family: list[AnalyticResult] = []  # the whole result, built once when read
+
+    def raw() -> tuple:
+        if not family:
+            family.append(analytic.solve(target, seed))
+        return family[0].solutions
+
+    def counts() -> tuple[int, int]:
+        found = raw()
+        return len(found), next(i for i, sol in enumerate(found) if sol.branch == nearest.branch)
+
+    solutions = LazySolutions(lambda: _every_solution(check, target, raw(), seed, {}))
+    return IKResult.from_solver(
+        q, True, IKStatus.SOLVED, f"closed-form branch {nearest.branch}", position_error, orientation_error, 0,
+        nearest.count, nearest.index, "closed_form", time.perf_counter() - start, "analytic", solutions,
+        None if nearest.count is not None else counts,
+    )  # fmt: skip
+
+
+def _every_solution(
+    check: _TipCheck, target: Target, raw: Sequence, seed: np.ndarray | None, errors: dict[int, tuple[float, float]]
+) -> tuple[IKSolution, ...]:
+    """Every solution of a family's result, nearest to the seed first, with its errors by Pinocchio FK.
+
+    `errors` holds the errors already computed, by index in `raw` (filled in here).
+    """
+
+    def solution(i: int, distance: float | None) -> IKSolution:
+        sol = raw[i]
+        error = errors.get(i)
+        if error is None:
+            error = errors[i] = check.errors(target, sol.q)
+        return IKSolution(sol.q, sol.within_limits, sol.branch, *error, distance, sol.singular)
+
+    if seed is None or not raw:
+        return tuple(solution(i, None) for i in range(len(raw)))
+    distances = check.distances(raw, seed)
+    return tuple(solution(i, distances[i]) for i in sorted(range(len(raw)), key=distances.__getitem__))
+
+
 def closed_form_answer(
     robot: Robot,
     target: Target,
@@ -325,22 +389,7 @@ def closed_form_answer(
             index = i
             break
 
-    def solution(i: int, distance: float | None) -> IKSolution:
-        """Solution i, its errors by Pinocchio FK (computed once)."""
-        sol = raw[i]
-        error = errors.get(i)
-        if error is None:
-            error = errors[i] = check.errors(target, sol.q)
-        return IKSolution(sol.q, sol.within_limits, sol.branch, *error, distance, sol.singular)
-
-    def every_solution() -> tuple[IKSolution, ...]:
-        """Every solution, nearest to the seed first."""
-        if seed is None or not raw:
-            return tuple(solution(i, None) for i in range(len(raw)))
-        distances = check.distances(raw, seed)
-        return tuple(solution(i, distances[i]) for i in sorted(range(len(raw)), key=distances.__getitem__))
-
-    solutions = LazySolutions(every_solution)
+    solutions = LazySolutions(lambda: _every_solution(check, target, raw, seed, errors))
     if index is not None:
         position_error, orientation_error = errors[index]
         return IKResult.from_solver(

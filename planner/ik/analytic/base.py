@@ -27,6 +27,7 @@ from planner.exceptions import InvalidArgumentError, InvalidConfigurationError, 
 from planner.geometry.chain import ChainAtZero
 from planner.geometry.target import Target
 from planner.ik.analytic.geometry import angle_to_line
+from planner.ik.analytic.nearest import NearestSolution
 from planner.ik.analytic.result import AnalyticBatchResult, AnalyticResult
 from planner.model.robot import Robot
 
@@ -157,6 +158,21 @@ class AnalyticIK(ABC):
         Returns:
             The result; unreachable targets give a status, not an exception.
         """
+
+    def nearest(self, target: Target, seed: np.ndarray | None) -> NearestSolution | None:
+        """The solution :func:`planner.solve_ik` answers with, without building the whole result.
+
+        The first solution within the limits of ``solve(target, seed).solutions`` nearest the
+        seed (joint distance, angles modulo 2 pi; the first in the result's order among equal
+        distances), and its place there; None when the family has no such shortcut for this
+        target (the caller then uses :meth:`solve`): e.g. when no branch lies within the
+        limits before a search of the free joints.
+
+        Args:
+            target: The target.
+            seed: A checked seed (float array of shape (dof,), within the limits), or None.
+        """
+        return None
 
     @abstractmethod
     def solve_batch(

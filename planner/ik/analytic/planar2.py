@@ -31,6 +31,8 @@ from planner.geometry.chain import ChainAtZero, describe_violation, poe_fk, wrap
 from planner.geometry.target import Target
 from planner.ik.analytic.base import FAMILY_ANGLE_TOL, FLOAT64, AnalyticIK, ChainMismatch, base_yaw_mismatch
 from planner.ik.analytic.geometry import LENGTH_TOL, ORIENTATION_TOL, SINGULAR_TOL, angle_to_line, reach_interval
+from planner.ik.analytic.nearest import NearestSolution, nearest_entry
+from planner.ik.analytic.planar2_single import Planar2Geometry, Planar2Kernel, planar2_kernel
 from planner.ik.analytic.result import (
     STATUS_BEYOND_MAX_REACH,
     STATUS_CODES,
@@ -45,10 +47,17 @@ from planner.ik.analytic.result import (
 )
 from planner.model.robot import Robot
 
-__all__ = ["Planar2IK", "PLANAR_BRANCHES"]
+__all__ = ["Planar2IK", "PLANAR_BRANCHES", "SINGLE_AFTER"]
+
+PI = math.pi
 
 #: Branch names in batch order.
 PLANAR_BRANCHES = ("elbow-left", "elbow-right")
+
+#: Calls of :meth:`Planar2IK.nearest` of one target kind (with a seed or without) after which
+#: it builds its :class:`~planner.ik.analytic.planar2_single.Planar2Kernel` (compiled to C the
+#: first time, then loaded from the disk cache): an arm met for a call or two never pays for it.
+SINGLE_AFTER = 8
 
 #: Largest axis deviation [rad] from vertical/parallel accepted (no correction is made).
 PLANAR_ANGLE_TOL = 1e-9
@@ -137,6 +146,11 @@ class Planar2IK(AnalyticIK):
         self._a0 = np.array(chain.approach)
         self._axes = [j.axis for j in joints]
         self._points = [j.point for j in joints]
+        # nearest's distances are modulo 2 pi on both joints (revolute joints, as planner.ik.solve's).
+        self._nearest_ok = all(kind == "revolute" for kind in robot.joint_kinds)
+        # nearest's compiled kernels by (pose, with a seed): a Planar2Kernel, False (none), or
+        # the calls so far (an int) until SINGLE_AFTER.
+        self._single: dict[tuple[bool, bool], Planar2Kernel | bool | int] = {}
 
     def describe(self) -> dict:
         """The detected geometry (lengths [m], angles [rad])."""
@@ -162,6 +176,50 @@ class Planar2IK(AnalyticIK):
                 qc = self._q_current_list(q_current)
         else:
             qc = self._q_current_list(q_current)
+        return self._solve(target, qc, False)
+
+    def nearest(self, target: Target, seed: np.ndarray | None) -> NearestSolution | None:
+        """The solution within the limits nearest the seed (see :meth:`AnalyticIK.nearest`).
+
+        After :data:`SINGLE_AFTER` calls of a position or pose target kind, by one compiled call
+        (:mod:`~planner.ik.analytic.planar2_single`; where it is not sure, the Python path; joint
+        values the same to round-off; ``count`` and ``index`` None).
+        """
+        if not self._nearest_ok:
+            return None
+        if target.pitch is None:
+            key = (target.rotation is not None, seed is not None)
+            kernel = self._single.get(key, 0)
+            if kernel.__class__ is int:
+                kernel = self._single[key] = kernel + 1 if kernel + 1 < SINGLE_AFTER else self._planar2_kernel(key)
+            if kernel.__class__ is Planar2Kernel:
+                inputs = kernel.inputs
+                inputs[0:3] = target.position
+                if key[0]:
+                    inputs[3:12] = target.rotation.ravel()
+                if seed is not None:
+                    inputs[-2:] = seed
+                kernel()
+                sure, slot, q0, q1 = kernel.outputs.tolist()
+                if sure:
+                    return NearestSolution((q0, q1), PLANAR_BRANCHES[int(slot)], None, None)
+        found = self._solve(target, None if seed is None else seed.tolist(), True)
+        return None if isinstance(found, AnalyticResult) else found
+
+    def _planar2_kernel(self, key: tuple[bool, bool]) -> Planar2Kernel | bool:
+        """The compiled kernel of :meth:`nearest` for (pose, with a seed), or False."""
+        geometry = Planar2Geometry(
+            self._s1, self._s2, self._bx, self._by, self._r1, self._r2, self._g1, self._g2, self._delta,
+            self.height, self._len_tol, self._consistency_tol, tuple(self._lower), tuple(self._upper), self._rot0,
+        )  # fmt: skip
+        return planar2_kernel(geometry, *key) or False
+
+    def _solve(self, target: Target, qc: list[float] | None, lean: bool) -> AnalyticResult | NearestSolution | None:
+        """:meth:`solve` for a checked q_current (a list or None); with `lean`, :meth:`nearest`'s answer.
+
+        With `lean`, a target without a solution gives its result (as without), one with
+        solutions only outside the limits None.
+        """
         px, py, pz = target.position.tolist()
         if abs(pz - self.height) > self._len_tol:
             return AnalyticResult(
@@ -235,13 +293,22 @@ class Planar2IK(AnalyticIK):
         any_within = False
         for name, a1, e in branches:
             v0, v1 = s1 * (a1 - g1), s2 * (e - self._delta)
+            if lean:  # unchecked: solve_ik checks the one it answers with by Pinocchio FK
+                # wrap_scalar, which within the range and pi of the reference adds 0.0.
+                v0 = v0 + 0.0 if lo0 <= v0 <= hi0 and -PI <= v0 - ref0 <= PI else wrap_scalar(v0, lo0, hi0, ref0)
+                v1 = v1 + 0.0 if lo1 <= v1 <= hi1 and -PI <= v1 - ref1 <= PI else wrap_scalar(v1, lo1, hi1, ref1)
+                within = lo0 <= v0 <= hi0 and lo1 <= v1 <= hi1
+                any_within = any_within or within
+                key = (v0 - ref0) * (v0 - ref0) + (v1 - ref1) * (v1 - ref1) if qc is not None else 0.0
+                solutions.append((key, len(solutions), (v0, v1), (within, name)))
+                continue
             th1, th12 = s1 * v0, s1 * v0 + s2 * v1
             fx = bx + r1 * math.cos(th1 + g1) + r2 * math.cos(th12 + g2)
             fy = by + r1 * math.sin(th1 + g1) + r2 * math.sin(th12 + g2)
             perr = math.sqrt((fx - px) ** 2 + (fy - py) ** 2 + (height - pz) ** 2)
             oerr = None if position_only else self._orientation_error_scalar(th12, target)
-            v0 = wrap_scalar(v0, lo0, hi0, ref0)
-            v1 = wrap_scalar(v1, lo1, hi1, ref1)
+            v0 = v0 + 0.0 if lo0 <= v0 <= hi0 and -PI <= v0 - ref0 <= PI else wrap_scalar(v0, lo0, hi0, ref0)
+            v1 = v1 + 0.0 if lo1 <= v1 <= hi1 and -PI <= v1 - ref1 <= PI else wrap_scalar(v1, lo1, hi1, ref1)
             within = lo0 <= v0 <= hi0 and lo1 <= v1 <= hi1
             any_within = any_within or within
             if qc is not None:  # the squared distance to qc, as NumPy sums two squares
@@ -249,6 +316,8 @@ class Planar2IK(AnalyticIK):
             q = np.array((v0, v1))
             q.setflags(write=False)
             solutions.append(AnalyticSolution(q, within, name, singular, perr, oerr))
+        if lean:
+            return nearest_entry(solutions, qc) if any_within else None
         if qc is not None and len(solutions) > 1:
             solutions = [solutions[i] for i in sorted(range(len(solutions)), key=keys.__getitem__)]
         if any_within:

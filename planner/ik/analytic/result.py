@@ -91,6 +91,9 @@ class AnalyticSolution(NamedTuple):
     position_error: float
     orientation_error: float | None
 
+    def __reduce__(self) -> tuple:
+        return (_with_q_frozen, (AnalyticSolution, tuple(self)))
+
     def as_dict(self) -> dict:
         """A JSON-ready mapping of the solution."""
         return {
@@ -172,6 +175,9 @@ class AnalyticBatchResult(NamedTuple):
     best: np.ndarray
     branches: tuple[str, ...]
 
+    def __reduce__(self) -> tuple:
+        return (_with_q_frozen, (AnalyticBatchResult, tuple(self)))
+
     @property
     def status_names(self) -> np.ndarray:
         """Shape (N,) status names."""
@@ -185,3 +191,9 @@ class AnalyticBatchResult(NamedTuple):
         has = self.best >= 0
         out[has] = self.q[np.nonzero(has)[0], self.best[has]]
         return out
+
+
+def _with_q_frozen(cls: type, values: tuple):
+    """``cls(*values)`` with its first field, ``q``, read-only (a pickled or copied array is not)."""
+    values[0].setflags(write=False)
+    return cls(*values)

@@ -155,12 +155,15 @@ def end_plan(arm: ArmGeometry, tu: float, tz: float, d: float) -> EndPlan:
 
 
 def solve_scalar(
-    arm: ArmGeometry, target: Target, qc: list[float] | None, plan: ScalarPlan | None = None
-) -> AnalyticResult:
+    arm: ArmGeometry, target: Target, qc: list[float] | None, plan: ScalarPlan | None = None, lean: bool = False
+) -> AnalyticResult | list | None:
     """Position or pitch targets on an exact chain, in scalar arithmetic (no NumPy per step).
 
     The joints are ``q = (yaw, pitch joints..., roll)`` in this order (the family's layout).
-    `plan` is :func:`scalar_plan` of the arm (computed here when None).
+    `plan` is :func:`scalar_plan` of the arm (computed here when None). With `lean`, the
+    solutions' entries (as :func:`solutions_result` takes them, unsorted, without the forward
+    check: errors None) when one lies within the limits, else None, instead of the result
+    (for :mod:`~planner.ik.analytic.nearest`).
     """
     if plan is None:
         plan = scalar_plan(arm)
@@ -234,7 +237,8 @@ def solve_scalar(
     append = sols.append
     any_within = singular = False
     for side, psi, ue in yaws:
-        cy, sy = cos(psi + mu), sin(psi + mu)
+        if pitch is not None or not lean:  # (the forward check's, and the pitch's side)
+            cy, sy = cos(psi + mu), sin(psi + mu)
         if pitch is not None:
             # In-plane approach angle: the pitch, or pi - pitch where the arm's plane
             # direction points towards the base z axis (planner.geometry.target's outward side).
@@ -325,39 +329,43 @@ def solve_scalar(
             phi2 = a1 - g1
             phi3 = a1 + e - g2
             d32 = phi3 - phi2
-            # Forward check: the closed-form forward model at the assembled q; its pitch sums
-            # (f2, f3, f4) are sign * q of the joints below, i.e. these (the signs are +-1).
-            f3 = phi2 + d32
-            a2, a3 = phi2 + g1, f3 + g2
-            fu = su + l1 * cos(a2) + l2 * cos(a3)
-            fz = sz + l1 * sin(a2) + l2 * sin(a3)
-            if three:
-                d43 = phi - phi3
-                f4 = f3 + d43
-                if f4 == phi:  # mostly: the side's sine and cosine reused
-                    ct, st = cp, sp
-                else:
-                    ct, st = cos(f4), sin(f4)
-                fu += ct * tu - st * tz
-                fz += st * tu + ct * tz
+            if lean:  # unchecked: solve_ik checks the one it answers with by Pinocchio FK
+                perr = oerr = None
+                d43 = phi - phi3 if three else 0.0
             else:
-                f4 = f3
-            dx = bx + cy * fu + sy * d - px
-            dy = by + sy * fu - cy * d - py
-            dz = fz - pz
-            perr = sqrt(dx * dx + dy * dy + dz * dz)
-            oerr = None
-            if pitch is not None:
-                alpha = beta + f4
-                if alpha == pitch:
-                    c_alpha, s_alpha = cos_p, sin_p
+                # Forward check: the closed-form forward model at the assembled q; its pitch sums
+                # (f2, f3, f4) are sign * q of the joints below, i.e. these (the signs are +-1).
+                f3 = phi2 + d32
+                a2, a3 = phi2 + g1, f3 + g2
+                fu = su + l1 * cos(a2) + l2 * cos(a3)
+                fz = sz + l1 * sin(a2) + l2 * sin(a3)
+                if three:
+                    d43 = phi - phi3
+                    f4 = f3 + d43
+                    if f4 == phi:  # mostly: the side's sine and cosine reused
+                        ct, st = cp, sp
+                    else:
+                        ct, st = cos(f4), sin(f4)
+                    fu += ct * tu - st * tz
+                    fz += st * tu + ct * tz
                 else:
-                    c_alpha, s_alpha = cos(alpha), sin(alpha)
-                ax, ay = c_alpha * cy, c_alpha * sy
-                # pitch_error_scalar, its first line inline; the rest where it applies.
-                oerr = abs(atan2(s_alpha, hypot(ax, ay)) - elevation_p)
-                if cos_p * (ax * px + ay * py) < 0.0:
-                    oerr = pitch_error_scalar(ax, ay, s_alpha, px, py, cos_p, sin_p, elevation_p)
+                    f4 = f3
+                dx = bx + cy * fu + sy * d - px
+                dy = by + sy * fu - cy * d - py
+                dz = fz - pz
+                perr = sqrt(dx * dx + dy * dy + dz * dz)
+                oerr = None
+                if pitch is not None:
+                    alpha = beta + f4
+                    if alpha == pitch:
+                        c_alpha, s_alpha = cos_p, sin_p
+                    else:
+                        c_alpha, s_alpha = cos(alpha), sin(alpha)
+                    ax, ay = c_alpha * cy, c_alpha * sy
+                    # pitch_error_scalar, its first line inline; the rest where it applies.
+                    oerr = abs(atan2(s_alpha, hypot(ax, ay)) - elevation_p)
+                    if cos_p * (ax * px + ay * py) < 0.0:
+                        oerr = pitch_error_scalar(ax, ay, s_alpha, px, py, cos_p, sin_p, elevation_p)
             within = side_ok
             v1 = s0 * phi2
             t1 = v1 - r1
@@ -387,6 +395,8 @@ def solve_scalar(
             append((key, slot, q, (within, BRANCHES[slot], sing, perr, oerr)))
             any_within = any_within or within
             singular = singular or sing
+    if lean:
+        return sols if any_within else None
     d0, d1 = dists
     return solutions_result(arm, sols, sort, any_within, singular, cats, [d0, d0, d1, d1], target)
 

@@ -23,12 +23,13 @@ import numpy as np
 from planner.geometry.chain import wrap_scalar
 from planner.geometry.target import Target
 from planner.ik.analytic.geometry import SINGULAR_TOL, wrap_pi
+from planner.ik.analytic.nearest import NearestSolution, nearest_entry
 from planner.ik.analytic.result import AnalyticResult
 from planner.ik.analytic.yaw_planar.arm import ArmGeometry
 from planner.ik.analytic.yaw_planar.branches import BEYOND, BRANCHES, CYLINDER, DUPLICATE, INSIDE, ORIENT, VALID
 from planner.ik.analytic.yaw_planar.scalar import NEG_PI, ScalarPlan, scalar_plan, solutions_result
 
-__all__ = ["PoseFrame", "pose_frame", "pose_branches", "solve_pose_scalar"]
+__all__ = ["PoseFrame", "pose_frame", "pose_branches", "pose_nearest", "solve_pose_scalar"]
 
 PI = math.pi
 
@@ -108,6 +109,17 @@ def solve_pose_scalar(
     return solutions_result(arm, entries, qc is not None, any_within, singular, cats, dist, target)
 
 
+def pose_nearest(
+    arm: ArmGeometry, frame: PoseFrame, target: Target, qc: list[float] | None, plan: ScalarPlan
+) -> NearestSolution | None:
+    """The solution of :func:`solve_pose_scalar` solve_ik answers with, or None.
+
+    Only the candidates within the limits are verified by the forward model (the others are
+    assembled and wrapped, not checked); where one is not, the count and place are left None.
+    """
+    return _pose(arm, frame, target.position.tolist(), target.rotation, qc, plan, True)
+
+
 def pose_branches(arm: ArmGeometry, frame: PoseFrame, position: list[float], rotation: np.ndarray, qc):
     """The ideal closed form's branches of a pose, unverified (for the correction of inexact chains).
 
@@ -125,11 +137,15 @@ def pose_branches(arm: ArmGeometry, frame: PoseFrame, position: list[float], rot
     return _pose(arm, frame, position, rotation, qc, None)
 
 
-def _pose(arm: ArmGeometry, frame: PoseFrame, position, rotation, qc, plan: ScalarPlan | None):
+def _pose(arm: ArmGeometry, frame: PoseFrame, position, rotation, qc, plan: ScalarPlan | None, lean: bool = False):
     """The branches of a pose: verified and wrapped with `plan` (as solve_scalar), else raw.
 
     With a plan: (entries as in solutions_result, categories, distances, any within limits,
     any singular); without: (solutions as pose_branches returns them, categories, distances).
+    With a plan and `lean`: the verified solution within the limits nearest `qc` (as
+    :func:`~planner.ik.analytic.nearest.nearest_entry` picks it from the verified entries),
+    or None; only the candidates within the limits are verified, and where one outside them
+    is not, its count and place (which depend on every check) are left None.
     """
     px, py, pz = position
     flat = frame.linear.dot(rotation.ravel()).tolist()  # ndarray.dot: half the time of @ for this size
@@ -276,93 +292,22 @@ def _pose(arm: ArmGeometry, frame: PoseFrame, position, rotation, qc, plan: Scal
     r4 = ref[roll_idx] if roll_idx is not None else 0.0
     entries = []
     any_within = singular = False
-    last_side = orient_side = last_f4 = None
+    orient_side = None
+    # lean: only the candidates within the limits are verified (solve_ik picks one of them).
+    unchecked = False
     for slot, side, a1, phi2_3, elbow_singular in cands:
-        side_psi, phi, theta = psi[side], phis[side], rolls[side]
-        # Forward model at q; its pitch sums (f2, f3, f4) are sign * q of the joints below,
-        # the yaw sigma * q[0] (the signs are +-1).
+        phi = phis[side]
         phi2 = a1 - g1
         d32 = phi2_3 - phi2
-        f3 = phi2 + d32
-        a2 = phi2 + g1
-        fu = su + l1 * cos(a2)
-        fz = sz + l1 * sin(a2)
         if three:
-            a3 = f3 + g2
-            fu += l2 * cos(a3)
-            fz += l2 * sin(a3)
             d43 = phi - phi2_3
-            f4 = f3 + d43
-        else:
-            f4 = f3
-        # Each sine and cosine computed once: of an angle equal to one known before, reused.
-        if f4 == phi:
-            c4, s4 = cphi[side], sphi[side]
-        else:
-            c4, s4 = cos(f4), sin(f4)
-        fu += c4 * tu - s4 * tz
-        fz += s4 * tu + c4 * tz
         if side != orient_side:
             orient_side = side
-            cyw, syw = cpsi[side], spsi[side]
-            yaw_plane = mu + side_psi
-            if yaw_plane == side_psi:  # mu = 0 (the seed arms)
-                cm, sm = cyw, syw
-            else:
-                cm, sm = cos(yaw_plane), sin(yaw_plane)
-            ct, st = cos(theta), sin(theta)
-            last_f4 = None
-        if f4 != last_f4:  # the elbow branches of a side share the rotation (bitwise, mostly)
-            last_f4 = f4
-            alpha = f4 + kappa
-            if alpha == f4:
-                ca, sa = c4, s4
-            else:
-                ca, sa = cos(alpha), sin(alpha)
-            if roll_idx is None:
-                oerr = _rotation_angle_unrolled(m, cyw, syw, ca, sa)
-            else:
-                # The angle between E = Rz(yaw) Rx(alpha) Ry(theta) and m (as rotation_error).
-                e00, e01, e02 = cyw * ct - syw * sa * st, -syw * ca, cyw * st + syw * sa * ct
-                e10, e11, e12 = syw * ct + cyw * sa * st, cyw * ca, syw * st - cyw * sa * ct
-                e20, e21, e22 = -ca * st, sa, ca * ct
-                # rel = E^T m
-                r00 = e00 * m00 + e10 * m10 + e20 * m20
-                r11 = e01 * m01 + e11 * m11 + e21 * m21
-                r22 = e02 * m02 + e12 * m12 + e22 * m22
-                r21 = e02 * m01 + e12 * m11 + e22 * m21
-                r12 = e01 * m02 + e11 * m12 + e21 * m22
-                r02 = e00 * m02 + e10 * m12 + e20 * m22
-                r20 = e02 * m00 + e12 * m10 + e22 * m20
-                r10 = e01 * m00 + e11 * m10 + e21 * m20
-                r01 = e00 * m01 + e10 * m11 + e20 * m21
-                cos_a = 0.5 * (r00 + r11 + r22 - 1.0)
-                sin_a = 0.5 * sqrt((r21 - r12) ** 2 + (r02 - r20) ** 2 + (r10 - r01) ** 2)
-                oerr = atan2(sin_a, min(1.0, max(-1.0, cos_a)))
-            if offset is not None:
-                # Rz(yaw) Rx(alpha) Ry(theta) offset (plane basis), then in the base frame:
-                # B = [n, e_u, z], n = (sin mu, -cos mu, 0), e_u = (cos mu, sin mu, 0).
-                x, y, z = offset
-                ta = ct * x + st * z
-                tc = -st * x + ct * z
-                tb, oz = ca * y - sa * tc, sa * y + ca * tc
-                ox, oy = cyw * ta - syw * tb, syw * ta + cyw * tb
-                ox, oy = smu * ox + cmu * oy, -cmu * ox + smu * oy
-        fx = bx + cm * fu + sm * d
-        fy = by + sm * fu - cm * d
-        if offset is not None:
-            dx, dy, dz = fx + ox - px, fy + oy - py, fz + oz - pz
-        else:
-            dx, dy, dz = fx - ex, fy - ey, fz - ez
-        perr = sqrt(dx * dx + dy * dy + dz * dz)
-        if perr > pos_tol or oerr > orient_tol:
-            cats[slot] = ORIENT
-            continue
-        sing = elbow_singular or free or abs(ue[side]) < scale_axis
-        # The joints wrapped into their limits nearest ref (finish_scalar's rule): the yaw
-        # and the roll once per side; the key: the squared distance to ref, in joint order.
-        if side != last_side:
-            last_side = side
+            side_psi, theta = psi[side], rolls[side]
+            side_singular = free or abs(ue[side]) < scale_axis
+            side_checked = False  # the side's constants of the forward check are computed on first use
+            # The joints wrapped into their limits nearest ref (finish_scalar's rule): the yaw
+            # and the roll once per side; the key: the squared distance to ref, in joint order.
             v0 = sigma * side_psi
             side_ok = True
             if not (lo0 <= v0 and v0 <= hi0 and NEG_PI <= v0 - r0 <= PI):
@@ -373,31 +318,126 @@ def _pose(arm: ArmGeometry, frame: PoseFrame, position, rotation, qc, plan: Scal
                 v4 = wrap_scalar(v4, lo4, hi4, r4)
                 side_ok = side_ok and lo4 <= v4 <= hi4
             side_key = 0.0 + (v0 - r0) * (v0 - r0) if sort else 0.0
-            roll_key = (v4 - r4) * (v4 - r4)
+            # Added last (joint order); 0.0 without a roll adds exactly (a key is never -0.0).
+            roll_key = (v4 - r4) * (v4 - r4) if roll_idx is not None else 0.0
         within = side_ok
         v1 = s0 * phi2
-        if not (lo1 <= v1 and v1 <= hi1 and NEG_PI <= v1 - r1 <= PI):
+        t1 = v1 - r1
+        if not (lo1 <= v1 and v1 <= hi1 and NEG_PI <= t1 and t1 <= PI):
             v1 = wrap_scalar(v1, lo1, hi1, r1)
+            t1 = v1 - r1
             within = within and lo1 <= v1 <= hi1
         v2 = s1 * d32
-        if not (lo2 <= v2 and v2 <= hi2 and NEG_PI <= v2 - r2 <= PI):
+        t2 = v2 - r2
+        if not (lo2 <= v2 and v2 <= hi2 and NEG_PI <= t2 and t2 <= PI):
             v2 = wrap_scalar(v2, lo2, hi2, r2)
+            t2 = v2 - r2
             within = within and lo2 <= v2 <= hi2
         if three:
             v3 = s2 * d43
-            if not (lo3 <= v3 and v3 <= hi3 and NEG_PI <= v3 - r3 <= PI):
+            t3 = v3 - r3
+            if not (lo3 <= v3 and v3 <= hi3 and NEG_PI <= t3 and t3 <= PI):
                 v3 = wrap_scalar(v3, lo3, hi3, r3)
+                t3 = v3 - r3
                 within = within and lo3 <= v3 <= hi3
             q = (v0, v1, v2, v3, v4) if roll_idx is not None else (v0, v1, v2, v3)
-            key = side_key + (v1 - r1) * (v1 - r1) + (v2 - r2) * (v2 - r2) + (v3 - r3) * (v3 - r3) if sort else 0.0
+            key = side_key + t1 * t1 + t2 * t2 + t3 * t3 + roll_key if sort else 0.0
         else:
             q = (v0, v1, v2, v4) if roll_idx is not None else (v0, v1, v2)
-            key = side_key + (v1 - r1) * (v1 - r1) + (v2 - r2) * (v2 - r2) if sort else 0.0
-        if roll_idx is not None and sort:
-            key += roll_key
+            key = side_key + t1 * t1 + t2 * t2 + roll_key if sort else 0.0
+        if within or not lean:
+            if not side_checked:
+                side_checked = True
+                cyw, syw = cpsi[side], spsi[side]
+                yaw_plane = mu + side_psi
+                if yaw_plane == side_psi:  # mu = 0 (the seed arms)
+                    cm, sm = cyw, syw
+                else:
+                    cm, sm = cos(yaw_plane), sin(yaw_plane)
+                ct, st = cos(theta), sin(theta)
+                last_f4 = None
+            # Forward model at q; its pitch sums (f2, f3, f4) are sign * q of the joints below,
+            # the yaw sigma * q[0] (the signs are +-1).
+            f3 = phi2 + d32
+            a2 = phi2 + g1
+            fu = su + l1 * cos(a2)
+            fz = sz + l1 * sin(a2)
+            if three:
+                a3 = f3 + g2
+                fu += l2 * cos(a3)
+                fz += l2 * sin(a3)
+                f4 = f3 + d43
+            else:
+                f4 = f3
+            # Each sine and cosine computed once: of an angle equal to one known before, reused.
+            if f4 == phi:
+                c4, s4 = cphi[side], sphi[side]
+            else:
+                c4, s4 = cos(f4), sin(f4)
+            fu += c4 * tu - s4 * tz
+            fz += s4 * tu + c4 * tz
+            if f4 != last_f4:  # the elbow branches of a side share the rotation (bitwise, mostly)
+                last_f4 = f4
+                alpha = f4 + kappa
+                if alpha == f4:
+                    ca, sa = c4, s4
+                else:
+                    ca, sa = cos(alpha), sin(alpha)
+                if roll_idx is None:
+                    oerr = _rotation_angle_unrolled(m, cyw, syw, ca, sa)
+                else:
+                    # The angle between E = Rz(yaw) Rx(alpha) Ry(theta) and m (as rotation_error).
+                    ssa, csa = syw * sa, cyw * sa
+                    e00, e01, e02 = cyw * ct - ssa * st, -syw * ca, cyw * st + ssa * ct
+                    e10, e11, e12 = syw * ct + csa * st, cyw * ca, syw * st - csa * ct
+                    e20, e21, e22 = -ca * st, sa, ca * ct
+                    # rel = E^T m
+                    r00 = e00 * m00 + e10 * m10 + e20 * m20
+                    r11 = e01 * m01 + e11 * m11 + e21 * m21
+                    r22 = e02 * m02 + e12 * m12 + e22 * m22
+                    r21 = e02 * m01 + e12 * m11 + e22 * m21
+                    r12 = e01 * m02 + e11 * m12 + e21 * m22
+                    r02 = e00 * m02 + e10 * m12 + e20 * m22
+                    r20 = e02 * m00 + e12 * m10 + e22 * m20
+                    r10 = e01 * m00 + e11 * m10 + e21 * m20
+                    r01 = e00 * m01 + e10 * m11 + e20 * m21
+                    cos_a = 0.5 * (r00 + r11 + r22 - 1.0)
+                    w0, w1, w2 = r21 - r12, r02 - r20, r10 - r01
+                    sin_a = 0.5 * sqrt(w0 * w0 + w1 * w1 + w2 * w2)
+                    # min(1.0, max(-1.0, cos_a)) of a finite cos_a, without the calls.
+                    oerr = atan2(sin_a, cos_a if -1.0 <= cos_a <= 1.0 else (1.0 if cos_a > 1.0 else -1.0))
+                if offset is not None:
+                    # Rz(yaw) Rx(alpha) Ry(theta) offset (plane basis), then in the base frame:
+                    # B = [n, e_u, z], n = (sin mu, -cos mu, 0), e_u = (cos mu, sin mu, 0).
+                    x, y, z = offset
+                    ta = ct * x + st * z
+                    tc = -st * x + ct * z
+                    tb, oz = ca * y - sa * tc, sa * y + ca * tc
+                    ox, oy = cyw * ta - syw * tb, syw * ta + cyw * tb
+                    ox, oy = smu * ox + cmu * oy, -cmu * ox + smu * oy
+            fx = bx + cm * fu + sm * d
+            fy = by + sm * fu - cm * d
+            if offset is not None:
+                dx, dy, dz = fx + ox - px, fy + oy - py, fz + oz - pz
+            else:
+                dx, dy, dz = fx - ex, fy - ey, fz - ez
+            perr = sqrt(dx * dx + dy * dy + dz * dz)
+            if perr > pos_tol or oerr > orient_tol:
+                cats[slot] = ORIENT
+                continue
+        else:  # lean, outside the limits: not verified
+            perr = oerr = None
+            unchecked = True
+        sing = elbow_singular or side_singular
         entries.append((key, slot, q, (within, BRANCHES[slot], sing, perr, oerr)))
         any_within = any_within or within
         singular = singular or sing
+    if lean:
+        if not any_within:
+            return None
+        found = nearest_entry(entries, qc)
+        # With a candidate unverified, which of them are solutions (the count, the place) is unknown.
+        return found._replace(count=None, index=None) if unchecked else found
     return entries, cats, dist, any_within, singular
 
 

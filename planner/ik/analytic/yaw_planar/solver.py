@@ -12,6 +12,7 @@ from planner.exceptions import UnsupportedChainError
 from planner.geometry.chain import ChainAtZero
 from planner.geometry.target import Target, approach_pitch
 from planner.ik.analytic.base import FLOAT64, AnalyticIK, ChainMismatch
+from planner.ik.analytic.nearest import NearestSolution, nearest_entry
 from planner.ik.analytic.result import (
     STATUS_CODES,
     STATUS_ORIENTATION_NOT_ACHIEVABLE,
@@ -24,16 +25,23 @@ from planner.ik.analytic.yaw_planar.arm import arm_geometry
 from planner.ik.analytic.yaw_planar.arrays import BranchArrays, result_from_arrays, solve_arrays
 from planner.ik.analytic.yaw_planar.batch import solve_chunked
 from planner.ik.analytic.yaw_planar.branches import BRANCHES
-from planner.ik.analytic.yaw_planar.compiled import CompiledKernels
+from planner.ik.analytic.yaw_planar.compiled import CompiledKernels, compiled_supported, kind_of
 from planner.ik.analytic.yaw_planar.corrected import real_tip_pose, solve_corrected_pose, solve_corrected_scalar
 from planner.ik.analytic.yaw_planar.layout import chain_layout
 from planner.ik.analytic.yaw_planar.real_model import true_fk
 from planner.ik.analytic.yaw_planar.scalar import scalar_plan, solve_scalar
-from planner.ik.analytic.yaw_planar.scalar_pose import pose_frame, solve_pose_scalar
+from planner.ik.analytic.yaw_planar.scalar_pose import pose_frame, pose_nearest, solve_pose_scalar
 from planner.ik.analytic.yaw_planar.search import free_joints, solve_searched
+from planner.ik.analytic.yaw_planar.single import SingleKernel, single_kernel
 from planner.model.robot import Robot
 
-__all__ = ["YawPlanarIK"]
+__all__ = ["SINGLE_AFTER", "YawPlanarIK"]
+
+#: Calls of :meth:`YawPlanarIK.nearest` of one target kind (with a seed or without) after which
+#: it builds its :class:`~planner.ik.analytic.yaw_planar.single.SingleKernel` (compiled to C the
+#: first time, then 0.1-0.5 s to build and load from the disk cache): an arm met for a call or
+#: two never pays for it.
+SINGLE_AFTER = 8
 
 
 class YawPlanarIK(AnalyticIK):
@@ -79,6 +87,11 @@ class YawPlanarIK(AnalyticIK):
         self._scalar_plan = scalar_plan(arm) if arm.exact else None
         self._real_tip_pose = None if arm.exact else real_tip_pose(robot)
         self._kernels = CompiledKernels(arm)
+        # nearest's distances are modulo 2 pi on every joint (revolute joints, as planner.ik.solve's).
+        self._nearest_ok = arm.exact and all(kind == "revolute" for kind in robot.joint_kinds)
+        # nearest's compiled kernels by (kind, with a seed): a SingleKernel, False (none), or
+        # the calls so far (an int) until SINGLE_AFTER.
+        self._single: dict[tuple[str, bool], SingleKernel | bool | int] = {}
 
     def describe(self) -> dict:
         """The detected geometry, for reports and tests (lengths [m], angles [rad])."""
@@ -140,6 +153,52 @@ class YawPlanarIK(AnalyticIK):
         if not result.ok and any(free_joints(arm, target.pitch, target.rotation)):
             return self._search_one(target, qc, result, arrays)
         return result
+
+    def nearest(self, target: Target, seed: np.ndarray | None) -> NearestSolution | None:
+        """The solution within the limits nearest the seed (see :meth:`AnalyticIK.nearest`).
+
+        On exact chains, from the scalar paths' entries, or after :data:`SINGLE_AFTER` calls
+        of a target kind by one compiled call
+        (:class:`~planner.ik.analytic.yaw_planar.single.SingleKernel`; where it is not sure,
+        the scalar paths; joint values the same to round-off; ``count`` and ``index`` None);
+        None on inexact chains.
+        """
+        arm = self.arm
+        if not self._nearest_ok or (target.pitch is not None and not arm.pitch_supported):
+            return None
+        key = (kind_of(target.pitch, target.rotation), seed is not None)
+        kernel = self._single.get(key, 0)
+        if kernel.__class__ is int:
+            kernel = self._single[key] = kernel + 1 if kernel + 1 < SINGLE_AFTER else self._single_kernel(key)
+        if kernel.__class__ is SingleKernel:
+            inputs = kernel.inputs
+            inputs[0:3] = target.position
+            if key[0] == "pose":
+                inputs[3:12] = target.rotation.ravel()
+            elif key[0] == "pitch":
+                inputs[3] = target.pitch
+            if seed is not None:
+                inputs[-arm.dof :] = seed
+            kernel()
+            out = kernel.outputs.tolist()
+            if out[0]:
+                return NearestSolution(tuple(out[2:]), BRANCHES[int(out[1])], None, None)
+        qc = None if seed is None else seed.tolist()
+        if target.rotation is not None:
+            return pose_nearest(arm, self._pose_frame, target, qc, self._scalar_plan)
+        entries = solve_scalar(arm, target, qc, self._scalar_plan, True)
+        return None if entries is None else nearest_entry(entries, qc)
+
+    def _single_kernel(self, key: tuple[str, bool]) -> SingleKernel | bool:
+        """The compiled kernel of :meth:`nearest` for a target kind, or False where there is none."""
+        kind, current = key
+        arm = self.arm
+        qc = np.zeros(arm.dof) if current else None
+        pitch = 0.0 if kind == "pitch" else None
+        rotation = np.eye(3) if kind == "pose" else None
+        if not compiled_supported(arm, pitch, rotation, qc):
+            return False
+        return single_kernel(self._kernels, kind, current) or False
 
     def _search_one(
         self, target: Target, qc: list[float] | None, result: AnalyticResult, base: BranchArrays | None
