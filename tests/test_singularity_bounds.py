@@ -221,6 +221,43 @@ def test_the_jacobian_bends_no_more_than_its_curvature_bound(name, task):
         assert np.all(bent_raw <= jacobian_curvature_bound(u, rho, raw_angular) / 8 * (1 + 1e-12) + 1e-15), name
 
 
+@pytest.mark.parametrize("name", ARMS)
+@pytest.mark.parametrize("task", ["position", "pose"])
+def test_a_row_off_the_line_is_within_the_interpolation_error_of_its_neighbours(name, task):
+    """What step 2 of bounded_conditioning relies on: for rows q_r near the straight joint line
+    between two exact rows (any lam, not only halfway, and off the line), ||J(q_r) - ((1 - lam)
+    J_left + lam J_right)||_F <= the bound of _interpolation_error (Pinocchio's Jacobians)."""
+    from planner.motion.singularity import _interpolation_error, jacobian_change_bounds
+
+    robot = get_robot(name)
+    change = jacobian_change_bounds(robot, task)
+    if change is None:
+        pytest.skip(f"{name}: no joint-change bound (sliding joints or a branched chain)")
+    rho, angular, _ = change
+    rng = np.random.default_rng(31)
+    for size, off in ((1e-3, 1e-5), (3e-2, 1e-3), (0.3, 1e-2), (2.0, 0.1)):
+        n, gap = 200, 16
+        left_q = robot.random_configurations(rng, n)
+        right_q = left_q + rng.normal(0.0, size, left_q.shape)
+        r = rng.integers(1, gap, n)
+        lam = r / gap
+        row_q = left_q + lam[:, None] * (right_q - left_q) + rng.normal(0.0, off, left_q.shape)
+        # Laid out as bounded_conditioning sees them: each row at lam between its exact neighbours.
+        left = np.arange(n) * 2 * gap
+        right = left + gap
+        rows = left + r
+        q_big = np.zeros((int(right[-1]) + 1, robot.dof))
+        q_big[left], q_big[rows], q_big[right] = left_q, row_q, right_q
+        got_lam, err = _interpolation_error(q_big, rows, left, right, (rho, angular))
+        np.testing.assert_allclose(got_lam, lam, rtol=0, atol=1e-15)
+        _, s_left = robot.task_jacobians(left_q, task)
+        _, s_right = robot.task_jacobians(right_q, task)
+        _, s_row = robot.task_jacobians(row_q, task)
+        interpolated = (1.0 - lam)[:, None, None] * s_left + lam[:, None, None] * s_right
+        missed = np.linalg.norm(s_row - interpolated, axis=(1, 2))
+        assert np.all(missed <= err * (1 + 1e-12) + 1e-15), (name, size, float(np.max(missed / err)))
+
+
 def test_the_cholesky_certificate_agrees_with_the_eigenvalues():
     # Gram matrices with a known spectrum, shifted just below and above their smallest eigenvalue.
     from planner.motion.singularity import _positive_definite, _rayleigh_bounds
