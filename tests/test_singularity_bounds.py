@@ -299,3 +299,21 @@ def test_bounded_measure_equals_the_one_by_one_measure(name):
         for threshold in (0.0, inverse_condition_threshold(None, task), 0.2, 0.9):
             inv, man = bounded_conditioning(robot, walk, task, threshold, keep=[3, 700])
             _check_bounded(inv, man, one[:, 0], one[:, 1], threshold, np.array([3, 700]))
+
+
+@pytest.mark.parametrize(
+    ("q", "keep", "match"),
+    [
+        (np.zeros((0, 3)), None, "non-empty"),
+        (np.zeros(3), None, "shape"),
+        (np.zeros((4, 2)), None, "shape"),
+        (np.zeros((4, 3)), [0, 4], r"\[0, 3\]"),
+        (np.zeros((4, 3)), [-1], r"\[0, 3\]"),
+    ],
+)
+def test_bounded_conditioning_rejects_bad_input(q, keep, match):
+    """Empty or misshapen configurations and rows outside them name the valid choices."""
+    from planner.exceptions import InvalidArgumentError
+
+    with pytest.raises(InvalidArgumentError, match=match):
+        bounded_conditioning(get_robot("dh3"), q, "position", 0.05, keep)

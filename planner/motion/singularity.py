@@ -375,7 +375,16 @@ def bounded_conditioning(
     Returns:
         ``(inverse_condition_number, manipulability)``, each of shape (n,).
     """
+    q = np.asarray(q, dtype=float)
+    if q.ndim != 2 or len(q) == 0 or q.shape[1] != robot.dof:
+        raise InvalidArgumentError(
+            f"q must be a non-empty array of configurations of shape (n, {robot.dof}), got shape {q.shape}"
+        )
     n = len(q)
+    if keep is not None:
+        keep = np.asarray(keep)
+        if keep.size and (keep.dtype.kind not in "iu" or keep.min() < 0 or keep.max() >= n):
+            raise InvalidArgumentError(f"keep must hold row indices in [0, {n - 1}], got {keep.tolist()}")
     dof = q.shape[1]
     m_rows = 3 if task == "position" else 6
     k = min(m_rows, dof)

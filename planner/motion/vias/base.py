@@ -99,11 +99,13 @@ class ViaChain:
 
         A Ruckig segment takes at least as long as each joint alone needs for its move
         (``independent_min_durations``): where a segment next to via i already takes no longer
-        than the other joints alone need, no state of `joints` at via i shortens it.
+        than the other joints alone need, no state of `joints` at via i shortens it. A segment
+        without a profile, or whose extrema leave the range (the search would halve states
+        there), counts as limited: the argument assumes the current pair is within range.
         """
         for k in (i - 1, i):
-            duration, _, traj = self.seg.solve(k, self.v[k], self.acc[k], self.v[k + 1], self.acc[k + 1])
-            if traj is None:
+            duration, bad, traj = self.seg.solve(k, self.v[k], self.acc[k], self.v[k + 1], self.acc[k + 1])
+            if traj is None or bad is not None:
                 return True
             others = [t for t, moved in zip(traj.independent_min_durations, joints.tolist()) if not moved]
             if not others or duration > max(others):
