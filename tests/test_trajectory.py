@@ -741,8 +741,8 @@ def test_rest_to_rest_segments_the_same_with_the_rows_given(name):
         q = robot.random_configurations(rng, n)
         given = rest_to_rest_segments(q, limits, waypoint_rows_within(q, limits)[1:])
         alone = rest_to_rest_segments(q, limits)
-        assert [d for d, _ in given] == [d for d, _ in alone]
-        assert [t.at_time(t.duration / 3) for _, t in given] == [t.at_time(t.duration / 3) for _, t in alone]
+        assert given[0] == alone[0] and len(given[0]) == n - 1
+        assert [t.at_time(t.duration / 3) for t in given[1]] == [t.at_time(t.duration / 3) for t in alone[1]]
 
 
 def test_stop_plans_with_other_limits_in_between_use_their_own():

@@ -375,8 +375,9 @@ def _plan_at_rest(
     segments = rest_to_rest_segments(q, limits, rows)
     if segments is None:
         return None
+    durations, trajectories = segments
     n, dof = q.shape
-    times = list(accumulate((d for d, _ in segments), initial=0.0))
+    times = list(accumulate(durations, initial=0.0))
     via, dw, repaired = _rest_arrays(n, dof)
     waypoint_times = np.array(times)
     waypoint_times.setflags(write=False)
@@ -384,7 +385,10 @@ def _plan_at_rest(
 
     def build() -> tuple[np.ndarray, ...]:
         rest = np.zeros(dof)
-        merged = [merge_segment(traj, d, (q[k], rest, rest), q[k + 1], limits) for k, (d, traj) in enumerate(segments)]
+        merged = [
+            merge_segment(traj, d, (q[k], rest, rest), q[k + 1], limits)
+            for k, (d, traj) in enumerate(zip(durations, trajectories))
+        ]
         return _assemble(q, dw, waypoint_times, waypoint_times, merged, None)
 
     return JointTrajectory.lazy(

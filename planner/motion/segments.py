@@ -81,7 +81,7 @@ def rest_to_rest_segments(
     q: np.ndarray,
     limits: JointLimits,
     rows: tuple[list[list[float]], list[float], list[float]] | None = None,
-) -> list[tuple[float, RuckigTrajectory]] | None:
+) -> tuple[list[float], list[RuckigTrajectory]] | None:
     """The rest-to-rest Ruckig segments between the rows of `q`, where they need nothing more.
 
     One Ruckig calculate per segment. The planner's chain (:class:`SegmentSolver` and the
@@ -107,7 +107,7 @@ def rest_to_rest_segments(
             :func:`planner.motion.checks.waypoint_rows_within` gives them), or None to take them from `q`.
 
     Returns:
-        Per segment its duration [s] and Ruckig trajectory, or None.
+        The durations of the segments [s] and their Ruckig trajectories, or None.
     """
     dof = q.shape[1]
     solver = _thread_solver(dof)
@@ -125,7 +125,7 @@ def rest_to_rest_segments(
     if bounded:
         slack = _HULL_SLACK * max(1.0, max(high_q), -min(low_q))
     calculate = otg.calculate
-    out = []
+    durations, trajectories = [], []
     start = points[0]
     for goal in points[1:]:
         inp.current_position, inp.target_position = start, goal
@@ -151,16 +151,17 @@ def rest_to_rest_segments(
                     if _outside_or_turn(traj, limits):
                         return None
                     break
-        out.append((duration, traj))
+        durations.append(duration)
+        trajectories.append(traj)
         start = goal
-    if bounded and out:
+    if bounded and durations:
         # Within their ends, the joints stay in the range unless a missed turn could reach beyond it.
-        reach = repeat(_turn_reach(slack, limits.max_jerk, max(d for d, _ in out)))
+        reach = repeat(_turn_reach(slack, limits.max_jerk, max(durations)))
         lower, upper = limits.checked_floats
         if any(map(lt, map(sub, low_q, reach), lower)) or any(map(gt, map(add, high_q, reach), upper)):
-            if any(d > 0.0 and _outside_or_turn(traj, limits) for d, traj in out):
+            if any(d > 0.0 and _outside_or_turn(traj, limits) for d, traj in zip(durations, trajectories)):
                 return None
-    return out
+    return durations, trajectories
 
 
 #: :data:`END_TOLERANCE` less a margin for the rounding of ``math.dist``: a distance at most
