@@ -14,9 +14,11 @@ from ruckig import InputParameter, Ruckig
 from ruckig import Trajectory as RuckigTrajectory
 
 from planner import InvalidArgumentError, InvalidConfigurationError, InvalidLimitsError, JointLimitError
+from planner.motion.checks import check_waypoints, waypoint_rows_within
 from planner.motion.limits import JointLimits
 from planner.motion.plan import plan_trajectory, plan_trajectory_request
 from planner.motion.request import TrajectoryRequest
+from planner.motion.segments import rest_to_rest_segments
 from planner.motion.trajectory import LIMIT_TOLERANCE
 from planner.motion.vias import VIA_STRATEGIES, HeuristicStrategy, StopStrategy, ViaStrategy
 from planner.motion.vias.optimized import golden_minimum, golden_points, spline_via_states
@@ -698,3 +700,57 @@ def test_a_tiny_move_to_a_range_end_beside_moving_joints_plans(strategy):
     traj = plan_trajectory(q, limits, strategy=strategy)
     assert_within_limits(traj)
     assert_passes_waypoints(traj, q)
+
+
+@pytest.mark.parametrize(
+    ("waypoints", "joint"),
+    [
+        ([[1.0, 0.0], [math.nan, 0.0], [0.5, 0.0]], "nan"),  # the NaN between the extremes of its joint
+        ([[1.0, 0.0], [0.5, 0.0], [math.nan, 0.0]], "nan"),
+        ([[0.0, 0.0], [0.0, -math.inf], [0.0, 1.0]], "inf"),
+    ],
+)
+def test_waypoint_rows_within_rejects_what_min_and_max_would_hide(waypoints, joint):
+    limits = JointLimits(1.0, 2.0, 20.0, lower=[-2, -2], upper=[2, 2])
+    assert waypoint_rows_within(waypoints, limits) is None
+    with pytest.raises(InvalidConfigurationError, match=joint):
+        plan_trajectory(waypoints, limits, strategy="stop")
+
+
+def test_waypoint_rows_within_gives_the_rows_and_extremes_of_accepted_waypoints():
+    limits = JointLimits(1.0, 2.0, 20.0, lower=[-2, -math.inf], upper=[2, math.inf])
+    q = np.array([[0.5, -1e300], [-2.0, 1e300], [2.0, 3.0]])
+    whole, rows, low, high = waypoint_rows_within(q, limits)
+    assert whole is not q and whole.flags.writeable
+    np.testing.assert_array_equal(whole, q)
+    assert rows == q.tolist() and low == [-2.0, -1e300] and high == [2.0, 1e300]
+    assert waypoint_rows_within(q[:1], limits) is None
+    assert waypoint_rows_within(q + [[0.0, 0.0], [-1e-12, 0.0], [0.0, 0.0]], limits) is None  # below the range
+    # Values whose sum overflows are left to check_waypoints, which accepts them.
+    huge = np.array([[0.0, 1e308], [0.0, 1e308]])
+    assert waypoint_rows_within(huge, limits) is None
+    np.testing.assert_array_equal(check_waypoints(huge, limits), huge)
+
+
+@pytest.mark.parametrize("name", ["al5c", "dh3"])
+def test_rest_to_rest_segments_the_same_with_the_rows_given(name):
+    robot = get_robot(name)
+    limits = JointLimits.from_robot(robot)
+    rng = np.random.default_rng(3)
+    for n in (2, 5):
+        q = robot.random_configurations(rng, n)
+        given = rest_to_rest_segments(q, limits, waypoint_rows_within(q, limits)[1:])
+        alone = rest_to_rest_segments(q, limits)
+        assert given[0] == alone[0] and len(given[0]) == n - 1
+        assert [t.at_time(t.duration / 3) for t in given[1]] == [t.at_time(t.duration / 3) for t in alone[1]]
+
+
+def test_stop_plans_with_other_limits_in_between_use_their_own():
+    # The thread's rest-to-rest input keeps the last limits it was given: a change must reach it.
+    q = [[0.0, 0.0], [1.0, -1.0], [0.2, 0.5]]
+    slow = JointLimits(0.5, 1.0, 10.0, lower=[-2, -2], upper=[2, 2])
+    fast = JointLimits(2.0, 8.0, 80.0, lower=[-2, -2], upper=[2, 2])
+    same_as_fast = JointLimits(2.0, 8.0, 80.0, lower=[-2, -2], upper=[2, 2])
+    for limits in (slow, fast, slow, same_as_fast, fast):
+        assert_same_plan(plan_trajectory(q, limits, strategy="stop"), plan_trajectory(q, limits, strategy=_EagerStop()))
+    assert plan_trajectory(q, fast, strategy="stop").duration < plan_trajectory(q, slow, strategy="stop").duration

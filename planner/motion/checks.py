@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
+from operator import le
 
 import numpy as np
 
@@ -15,14 +16,40 @@ from planner.core.text import plain
 from planner.exceptions import InvalidArgumentError, InvalidConfigurationError, JointLimitError
 from planner.motion.limits import JointLimits
 
-__all__ = ["check_dwell", "check_given", "check_state", "check_stops", "check_waypoints", "waypoints_within"]
+__all__ = [
+    "check_dwell",
+    "check_given",
+    "check_state",
+    "check_stops",
+    "check_waypoints",
+    "waypoint_rows_within",
+    "waypoints_within",
+]
 
 
 def waypoints_within(waypoints: Sequence[Sequence[float]] | np.ndarray, limits: JointLimits) -> np.ndarray | None:
     """The waypoints as a new (N, dof) float array if :func:`check_waypoints` accepts them at once, else None.
 
-    The common case on plain floats (:attr:`JointLimits.finite_bounds` rejects NaN and
-    infinities too); None leaves the diagnosis to :func:`check_waypoints`.
+    The common case on plain floats (see :func:`waypoint_rows_within`); None leaves the
+    diagnosis to :func:`check_waypoints`.
+    """
+    within = waypoint_rows_within(waypoints, limits)
+    return None if within is None else within[0]
+
+
+def waypoint_rows_within(
+    waypoints: Sequence[Sequence[float]] | np.ndarray, limits: JointLimits
+) -> tuple[np.ndarray, list[list[float]], list[float], list[float]] | None:
+    """:func:`waypoints_within` with the waypoints also as rows of floats and per joint their extremes.
+
+    On plain floats (on a few waypoints faster than NumPy): a sum of all values that is not
+    finite rejects NaN and infinities (and the rare sums that overflow), and then each joint's
+    lowest and highest value lie within :attr:`JointLimits.finite_bounds` exactly when all of
+    its values do. None leaves the diagnosis to :func:`check_waypoints`.
+
+    Returns:
+        The new (N, dof) float array, its rows as lists of floats and per joint the lowest and
+        the highest waypoint value (lists of dof floats) [rad or m]; or None.
     """
     try:
         whole = np.array(waypoints, dtype=float)
@@ -30,13 +57,14 @@ def waypoints_within(waypoints: Sequence[Sequence[float]] | np.ndarray, limits: 
         return None
     if whole.ndim != 2 or whole.shape[0] < 2 or whole.shape[1] != limits.dof:
         return None
+    rows = whole.tolist()
+    if not math.isfinite(sum(map(sum, rows))):
+        return None
+    low, high = list(map(min, *rows)), list(map(max, *rows))
     lows, highs = limits.finite_bounds
-    # Plain floats: on a few waypoints faster than NumPy's comparisons (NaN fails both).
-    for row in whole.tolist():
-        for x, lo, hi in zip(row, lows, highs):
-            if not lo <= x <= hi:
-                return None
-    return whole
+    if all(map(le, lows, low)) and all(map(le, high, highs)):
+        return whole, rows, low, high
+    return None
 
 
 def check_waypoints(waypoints: Sequence[Sequence[float]] | np.ndarray, limits: JointLimits) -> np.ndarray:

@@ -54,7 +54,7 @@ import numpy as np
 
 from planner.core.arrays import read_only
 from planner.exceptions import InvalidArgumentError, PlanningError
-from planner.motion.checks import waypoints_within
+from planner.motion.checks import waypoint_rows_within
 from planner.motion.limits import JointLimits
 from planner.motion.request import TrajectoryRequest
 from planner.motion.segments import (
@@ -218,8 +218,8 @@ def plan_trajectory(
     ):
         # The baseline at Ruckig's own speed: nothing to choose, so no request and no chain
         # unless the waypoints or a segment need them (they then give the same plan or error).
-        q = waypoints_within(waypoints, limits)
-        planned = _plan_at_rest(q, limits) if q is not None else None
+        within = waypoint_rows_within(waypoints, limits)
+        planned = _plan_at_rest(within[0], limits, within[1:]) if within is not None else None
         if planned is not None:
             return planned
     return plan_trajectory_request(
@@ -357,7 +357,9 @@ def _assemble(
     return _frozen(all_knots), pvaj[0], pvaj[1], pvaj[2], pvaj[3]
 
 
-def _plan_at_rest(q: np.ndarray, limits: JointLimits) -> JointTrajectory | None:
+def _plan_at_rest(
+    q: np.ndarray, limits: JointLimits, rows: tuple[list[list[float]], list[float], list[float]] | None = None
+) -> JointTrajectory | None:
     """The plan resting at every waypoint (no dwell, no start state), or None if the chain must decide.
 
     What :func:`plan_trajectory_request` makes of such a request, bit for bit, with one Ruckig
@@ -367,24 +369,33 @@ def _plan_at_rest(q: np.ndarray, limits: JointLimits) -> JointTrajectory | None:
     Args:
         q: Validated waypoints, shape (N, dof) [rad or m]; kept (frozen) as the result's.
         limits: The limits.
+        rows: `q` as rows of floats and its per-joint extremes, if at hand (see
+            :func:`planner.motion.segments.rest_to_rest_segments`).
     """
-    segments = rest_to_rest_segments(q, limits)
+    segments = rest_to_rest_segments(q, limits, rows)
     if segments is None:
         return None
+    durations, trajectories = segments
     n, dof = q.shape
-    times = np.array(list(accumulate((d for d, _ in segments), initial=0.0)))
+    times = list(accumulate(durations, initial=0.0))
     via, dw, repaired = _rest_arrays(n, dof)
+    waypoint_times = np.array(times)
+    waypoint_times.setflags(write=False)
+    q.setflags(write=False)  # new, or the request's own (read-only) array
 
     def build() -> tuple[np.ndarray, ...]:
         rest = np.zeros(dof)
-        merged = [merge_segment(traj, d, (q[k], rest, rest), q[k + 1], limits) for k, (d, traj) in enumerate(segments)]
-        return _assemble(q, dw, times, times, merged, None)
+        merged = [
+            merge_segment(traj, d, (q[k], rest, rest), q[k + 1], limits)
+            for k, (d, traj) in enumerate(zip(durations, trajectories))
+        ]
+        return _assemble(q, dw, waypoint_times, waypoint_times, merged, None)
 
     return JointTrajectory.lazy(
         build,
-        duration=float(times[-1]),
-        waypoints=q if not q.flags.writeable else _frozen(q),
-        waypoint_times=_frozen(times),
+        duration=times[-1],
+        waypoints=q,
+        waypoint_times=waypoint_times,
         via_velocities=via,
         via_accelerations=via,
         dwell=dw,

@@ -16,7 +16,8 @@ from __future__ import annotations
 import math
 import threading
 from collections.abc import Callable
-from operator import sub
+from itertools import repeat
+from operator import add, gt, lt, sub
 
 import numpy as np
 from ruckig import ControlInterface, InputParameter, Result, Ruckig, RuckigError, Synchronization
@@ -76,7 +77,11 @@ def piece_position_range(knots: np.ndarray, pvaj: np.ndarray, end: float) -> tup
     return stacked.min(axis=0), stacked.max(axis=0)
 
 
-def rest_to_rest_segments(q: np.ndarray, limits: JointLimits) -> list[tuple[float, RuckigTrajectory]] | None:
+def rest_to_rest_segments(
+    q: np.ndarray,
+    limits: JointLimits,
+    rows: tuple[list[list[float]], list[float], list[float]] | None = None,
+) -> tuple[list[float], list[RuckigTrajectory]] | None:
     """The rest-to-rest Ruckig segments between the rows of `q`, where they need nothing more.
 
     One Ruckig calculate per segment. The planner's chain (:class:`SegmentSolver` and the
@@ -98,23 +103,31 @@ def rest_to_rest_segments(q: np.ndarray, limits: JointLimits) -> list[tuple[floa
     Args:
         q: Waypoints within the limits, shape (N, dof) [rad or m].
         limits: The limits.
+        rows: `q` as rows of floats with per joint its lowest and highest value (as
+            :func:`planner.motion.checks.waypoint_rows_within` gives them), or None to take them from `q`.
 
     Returns:
-        Per segment its duration [s] and Ruckig trajectory, or None.
+        The durations of the segments [s] and their Ruckig trajectories, or None.
     """
     dof = q.shape[1]
-    otg, inp = _thread_solver(dof)
-    inp.max_velocity, inp.max_acceleration, inp.max_jerk = limits.ruckig_limits
-    rows = q.tolist()
+    solver = _thread_solver(dof)
+    otg, inp = solver[0], solver[1]
+    if solver[2] is not limits:  # the input keeps the limits it was last given
+        inp.max_velocity, inp.max_acceleration, inp.max_jerk = limits.ruckig_limits
+        solver[2] = limits
+    if rows is None:
+        points = q.tolist()
+        # Per joint, the lowest and highest waypoint (plain floats: faster than NumPy on a few).
+        low_q, high_q = list(map(min, *points)), list(map(max, *points))
+    else:
+        points, low_q, high_q = rows
     bounded = limits.bounded
     if bounded:
-        # Per joint, the lowest and highest waypoint (plain floats: faster than NumPy on a few).
-        low_q, high_q = list(map(min, *rows)), list(map(max, *rows))
         slack = _HULL_SLACK * max(1.0, max(high_q), -min(low_q))
     calculate = otg.calculate
-    out = []
-    start = rows[0]
-    for goal in rows[1:]:
+    durations, trajectories = [], []
+    start = points[0]
+    for goal in points[1:]:
         inp.current_position, inp.target_position = start, goal
         traj = RuckigTrajectory(dof)
         try:
@@ -124,9 +137,10 @@ def rest_to_rest_segments(q: np.ndarray, limits: JointLimits) -> list[tuple[floa
             return None
         duration = traj.duration
         # Where the chain would correct the end (see SegmentSolver._unsynchronise_missed): at_time
-        # at the end gives every profile's last position, as one list.
+        # at the end gives every profile's last position, as one list. Its distance to the goal
+        # bounds every joint's miss (within rounding, which _END_DISTANCE leaves room for).
         reached = traj.at_time(duration)[0]
-        if max(map(abs, map(sub, reached, goal))) > END_TOLERANCE:  # else within every joint's tolerance
+        if not math.dist(reached, goal) <= _END_DISTANCE:
             for x, g in zip(reached, goal):
                 if abs(x - g) > END_TOLERANCE * (g if g > 1.0 else -g if g < -1.0 else 1.0):
                     return None
@@ -137,16 +151,22 @@ def rest_to_rest_segments(q: np.ndarray, limits: JointLimits) -> list[tuple[floa
                     if _outside_or_turn(traj, limits):
                         return None
                     break
-        out.append((duration, traj))
+        durations.append(duration)
+        trajectories.append(traj)
         start = goal
-    if bounded and out:
+    if bounded and durations:
         # Within their ends, the joints stay in the range unless a missed turn could reach beyond it.
-        reach = _turn_reach(slack, limits.max_jerk, max(d for d, _ in out))
+        reach = repeat(_turn_reach(slack, limits.max_jerk, max(durations)))
         lower, upper = limits.checked_floats
-        if any(x - reach < lo for x, lo in zip(low_q, lower)) or any(x + reach > hi for x, hi in zip(high_q, upper)):
-            if any(d > 0.0 and _outside_or_turn(traj, limits) for d, traj in out):
+        if any(map(lt, map(sub, low_q, reach), lower)) or any(map(gt, map(add, high_q, reach), upper)):
+            if any(d > 0.0 and _outside_or_turn(traj, limits) for d, traj in zip(durations, trajectories)):
                 return None
-    return out
+    return durations, trajectories
+
+
+#: :data:`END_TOLERANCE` less a margin for the rounding of ``math.dist``: a distance at most
+#: this puts every joint within END_TOLERANCE of its goal.
+_END_DISTANCE = END_TOLERANCE * (1.0 - 1e-9)
 
 
 def _outside_or_turn(traj: RuckigTrajectory, limits: JointLimits) -> bool:
@@ -194,20 +214,21 @@ def _missed_turn(traj: RuckigTrajectory) -> bool:
 _LOCAL = threading.local()
 
 
-def _thread_solver(dof: int) -> tuple[Ruckig, InputParameter]:
-    """This thread's Ruckig instance for `dof` joints and an input for rest-to-rest segments.
+def _thread_solver(dof: int) -> list:
+    """This thread's Ruckig instance for `dof` joints, an input for rest-to-rest segments and its limits.
 
     Kept between plans (making them costs as much as solving a segment): Ruckig's calculate
-    depends on its input only. Only :func:`rest_to_rest_segments` sets this input, always the
-    limits and both positions; :class:`SegmentSolver` keeps inputs of its own.
+    depends on its input only. Only :func:`rest_to_rest_segments` sets this input, always both
+    positions, and the limits where they are not those of the last plan (the third entry, None
+    at first).
     """
     solvers = getattr(_LOCAL, "solvers", None)
     if solvers is None:
         solvers = _LOCAL.solvers = {}
-    pair = solvers.get(dof)
-    if pair is None:
-        pair = solvers[dof] = (Ruckig(dof), InputParameter(dof))
-    return pair
+    entry = solvers.get(dof)
+    if entry is None:
+        entry = solvers[dof] = [Ruckig(dof), InputParameter(dof), None]
+    return entry
 
 
 class SegmentSolver:
