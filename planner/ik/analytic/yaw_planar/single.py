@@ -74,12 +74,14 @@ class SingleKernel:
         qc = x[3 + n_extra :] if current else None
         if current:
             args.append(qc)
-        q_flat, _, codes = inner(*args)
+        # The kernel's outputs: q (4 branches x dof), position errors, then per branch valid,
+        # within and singular, then (status, best[, handed over]).
+        q_flat, _, _, within_v, _, codes = inner(*args)
         q = [[q_flat[m * dof + j] for j in range(dof)] for m in range(4)]
-        within = [codes[4 + m] for m in range(4)]
-        sure = codes[12] == _SOLVED
-        if codes.numel() > 14:  # a free end angle handed over to the search
-            sure = ca.logic_and(sure, codes[14] == 0)
+        within = [within_v[m] for m in range(4)]
+        sure = codes[0] == _SOLVED
+        if codes.numel() > 2:  # a free end angle handed over to the search
+            sure = ca.logic_and(sure, codes[2] == 0)
         if current:
             dist = []
             for m in range(4):
@@ -98,7 +100,7 @@ class SingleKernel:
                 ties = ca.logic_or(ties, ca.logic_and(ca.logic_and(within[m], m != best), dist[m] == nearest))
             sure = ca.logic_and(sure, ca.logic_not(ties))
         else:
-            best = codes[13]
+            best = codes[1]
         chosen = [
             ca.if_else(best == 0, q[0][j], ca.if_else(best == 1, q[1][j], ca.if_else(best == 2, q[2][j], q[3][j])))
             for j in range(dof)
