@@ -135,6 +135,7 @@ def line_waypoints(
     max_step: float = 0.005,
     max_joint_step: float = 0.02,
     min_step: float = 1e-5,
+    free_pitch: bool = True,
 ) -> LinePath:
     """Sample a straight line from `start` to `end` into a continuous joint path.
 
@@ -147,6 +148,9 @@ def line_waypoints(
         max_joint_step: Largest joint change between neighbouring samples [rad or m]; longer
             steps are bisected.
         min_step: Shortest line step bisection goes down to [m].
+        free_pitch: Whether a position line may take the linear approach pitch (above); False
+            tracks it (a line going straight on into or from another one, whose joint paths
+            must meet without a kink).
 
     A position line (no orientation, no pitch) on an arm with a closed form whose tracked path
     has a joint arrive at or leave a range end inside the line is sampled again with the
@@ -165,7 +169,7 @@ def line_waypoints(
             raise InvalidArgumentError(f"{name} must be positive, got {val!r}")
     steps = (max_step, max_joint_step, min_step)
     path = _track_line(solver, start, end, q_start, *steps)
-    if start.rotation is None and start.pitch is None and end.rotation is None and end.pitch is None:
+    if free_pitch and all(t.rotation is None and t.pitch is None for t in (start, end)):
         return _smooth_free_pitch(solver, start, end, q_start, path, steps)
     return path
 
