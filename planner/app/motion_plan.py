@@ -440,14 +440,18 @@ def plan_motion(
             )
     else:
         from planner.motion.branch_choice import TargetSolver
-        from planner.motion.line import line_waypoints
+        from planner.motion.line import continues_line, line_waypoints
 
         solver = TargetSolver(robot, threshold=threshold)
         q_prev = start_q
         for k, target in enumerate(request.targets):
             label = f"target {k}" + (f" ({request.labels[k]})" if request.labels[k] else "")
             if request.lines[k]:
-                path = line_waypoints(solver, request.targets[k - 1], target, q_list[-1])
+                targets = request.targets
+                straight_on = (k >= 2 and request.lines[k - 1] and continues_line(*targets[k - 2 : k + 1])) or (
+                    k + 1 < n and request.lines[k + 1] and continues_line(*targets[k - 1 : k + 2])
+                )
+                path = line_waypoints(solver, targets[k - 1], target, q_list[-1], free_pitch=not straight_on)
                 paths[k], cartesian[k], branches[k] = [path], True, "line"
                 q_list.append(np.array(path.q[-1]))
                 q_prev = q_list[-1]

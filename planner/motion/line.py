@@ -4,7 +4,10 @@
 (position linearly; approach pitch linearly; orientation by spherical interpolation,
 :func:`interpolate_target`), solves IK at every sample seeded by (closed form: nearest to) the
 previous one, and bisects wherever a joint would jump more than a step bound, so the joint
-path is continuous. :func:`line_deviation` measures how far a sampled tip strays from the line.
+path is continuous. Where a position line so tracked drives a joint into a range end (a
+corner of the joint path, where the arm stops), the free approach pitch of a yaw-planar arm is
+chosen instead, linear along the line, if that keeps the joints off their range ends.
+:func:`line_deviation` measures how far a sampled tip strays from the line.
 """
 
 from __future__ import annotations
@@ -17,9 +20,15 @@ import pinocchio as pin
 
 from planner.core.arrays import read_only
 from planner.exceptions import InvalidArgumentError
-from planner.geometry.target import Target
+from planner.geometry.target import Target, approach_pitch
 from planner.model.robot import Robot
 from planner.motion.branch_choice import TargetSolver
+
+#: End pitches tried for a position line's free angle (a grid over the turn), line samples
+#: checked for a solution before a pitch line is followed, and pitch lines followed at most.
+_PITCH_GRID = 24
+_PROBES = 9
+_MAX_TRIES = 3
 
 __all__ = [
     "LinePath",
@@ -126,6 +135,7 @@ def line_waypoints(
     max_step: float = 0.005,
     max_joint_step: float = 0.02,
     min_step: float = 1e-5,
+    free_pitch: bool = True,
 ) -> LinePath:
     """Sample a straight line from `start` to `end` into a continuous joint path.
 
@@ -138,6 +148,14 @@ def line_waypoints(
         max_joint_step: Largest joint change between neighbouring samples [rad or m]; longer
             steps are bisected.
         min_step: Shortest line step bisection goes down to [m].
+        free_pitch: Whether a position line may take the linear approach pitch (above); False
+            tracks it (a line going straight on into or from another one, whose joint paths
+            must meet without a kink).
+
+    A position line (no orientation, no pitch) on an arm with a closed form whose tracked path
+    has a joint arrive at or leave a range end inside the line is sampled again with the
+    approach pitch going linearly along it (start configuration's pitch to an end pitch with a
+    solution), and that path is taken if it has fewer such corners and no larger joint step.
 
     Returns:
         The joint path (the last configuration solves `end`).
@@ -149,6 +167,23 @@ def line_waypoints(
     for name, val in (("max_step", max_step), ("max_joint_step", max_joint_step), ("min_step", min_step)):
         if not (isinstance(val, (int, float)) and math.isfinite(val) and val > 0):
             raise InvalidArgumentError(f"{name} must be positive, got {val!r}")
+    steps = (max_step, max_joint_step, min_step)
+    path = _track_line(solver, start, end, q_start, *steps)
+    if free_pitch and all(t.rotation is None and t.pitch is None for t in (start, end)):
+        return _smooth_free_pitch(solver, start, end, q_start, path, steps)
+    return path
+
+
+def _track_line(
+    solver: TargetSolver,
+    start: Target,
+    end: Target,
+    q_start: np.ndarray,
+    max_step: float,
+    max_joint_step: float,
+    min_step: float,
+) -> LinePath:
+    """:func:`line_waypoints` by tracking: each sample's solution nearest the previous one."""
     length = float(np.linalg.norm(end.position - start.position))
     n0 = max(1, int(math.ceil(length / max_step)))
     q0 = np.asarray(q_start, dtype=float)
@@ -194,6 +229,64 @@ def line_waypoints(
         )
     inv = solver.robot.conditioning(q, solver.task)[0]
     return LinePath(read_only(s), read_only(q), read_only(points), err, float(np.min(inv)))
+
+
+def _range_end_changes(robot: Robot, q: np.ndarray) -> int:
+    """How many inner samples of a joint path (M, dof) a joint arrives at or leaves a range end at (corners)."""
+    ends = on_range_end(robot, q)
+    change = ends[1:] != ends[:-1]  # between samples k and k + 1
+    at = set(np.nonzero(np.any(change & ends[1:], axis=1))[0] + 1) | set(
+        np.nonzero(np.any(change & ends[:-1], axis=1))[0]
+    )
+    return sum(1 for k in at if 0 < k < len(q) - 1)
+
+
+def _smooth_free_pitch(
+    solver: TargetSolver, start: Target, end: Target, q_start: np.ndarray, tracked: LinePath, steps: tuple
+) -> LinePath:
+    """A position line whose free approach pitch changes linearly, where that avoids range ends.
+
+    Tracking a position line keeps the free end angle of a yaw-planar arm (al5c, three_joint)
+    near the previous sample's, which can drive a joint into a range end, where the joint path
+    turns a corner (the arm stops there). This tries the same line with the approach pitch
+    going linearly from the start configuration's to an end pitch (the nearest to the tracked
+    end's first, among those with a solution at a few samples of the line). A pitch target
+    leaves the arm no free angle, so a joint at a range end would mean no solution there. The
+    first such line with fewer range-end corners and no larger joint step replaces the tracked
+    one; otherwise the tracked line stays.
+    """
+    robot = solver.robot
+    corners = _range_end_changes(robot, tracked.q)
+    if corners == 0 or solver.method != "analytic":
+        return tracked
+    p0 = float(approach_pitch(robot, q_start))
+    p_end = float(approach_pitch(robot, tracked.q[-1]))
+    grid = [p_end, p0, *np.linspace(-math.pi, math.pi, _PITCH_GRID, endpoint=False)]
+    ends = sorted({p0 + math.remainder(p - p0, 2.0 * math.pi) for p in grid}, key=lambda p: abs(p - p_end))
+    probes = np.linspace(0.0, 1.0, _PROBES)
+    step = float(np.max(np.abs(np.diff(tracked.q, axis=0)))) if len(tracked.q) > 1 else 0.0
+    bound = max(step, steps[1])
+    tries = 0
+    for p1 in ends:
+        a, b = Target(start.position, pitch=p0), Target(end.position, pitch=p1)
+        if not all(solver.candidates(interpolate_target(a, b, float(s)), None)[0] for s in probes[1:]):
+            continue
+        tries += 1
+        try:
+            path = _track_line(solver, a, b, q_start, *steps)
+        except InvalidArgumentError:
+            path = None
+        if path is not None:
+            jumps = np.max(np.abs(np.diff(path.q, axis=0)), axis=1)
+            if (
+                _range_end_changes(robot, path.q) < corners
+                and float(np.max(jumps)) <= bound
+                and path.max_position_error <= max(tracked.max_position_error, 1e-6)
+            ):
+                return path
+        if tries >= _MAX_TRIES:
+            break
+    return tracked
 
 
 def on_range_end(robot: Robot, q: np.ndarray) -> np.ndarray:
