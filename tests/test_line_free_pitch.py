@@ -123,3 +123,35 @@ def test_the_benchmark_seed_has_lines_that_take_the_pitch_line():
             check_pitch_line(robot, data, path)
             taken += 1
     assert taken >= 1
+
+
+def test_a_pitch_line_ends_off_a_range_end_so_it_blends_into_the_next_move():
+    # Joint move, line, joint move on al5c (a plan of benchmarks/bench_lines.py's blending
+    # table, rng seed 11): the pitch line nearest the tracked end's pitch ends with the shoulder
+    # arriving at its range end, so the move after it cannot keep the line's end velocity; the
+    # next pitch tried ends off it, and the line blends into both moves.
+    tips = [
+        [0.17873889948215654, -0.1382685860975172, 0.2481221063594746],
+        [0.3437322710349819, 0.01986719621959437, 0.11204936010822522],
+        [0.029182707365703536, 0.004538697133893144, -0.14255980751043315],
+        [0.06335952948677974, 0.02908045570922897, 0.40937798347549886],
+    ]
+    robot = get_robot("al5c")
+    targets = [{"position": p} for p in tips]
+    targets[2]["line"] = True
+    plans = {b: plan_motion(robot, parse_motion_request({"targets": targets, "blend_lines": b})) for b in (False, True)}
+    plan = plans[True]
+    traj = plan.trajectory
+    t0, t1 = float(plan.departure_times[1]), float(plan.waypoint_times[2])
+    q = traj.sample(np.arange(t0, t1, 1e-3)).q
+    assert np.max(distance_to_segment(pinocchio_tips(robot, q), np.array(tips[1]), np.array(tips[2]))) <= 1e-4
+    times = np.asarray(traj.waypoint_times)
+    line_q = np.asarray(traj.waypoints)[(times >= t0 - 1e-9) & (times <= t1 + 1e-9)]
+    np.testing.assert_allclose(line_q[-1], plan.waypoints[2], atol=1e-9)
+    assert not np.any(on_range_end(robot, line_q[-1:]) & ~on_range_end(robot, line_q[-2:-1]))
+    ends = np.abs(traj.sample(np.array([t0, t1])).qd) / plan.limits.velocity
+    assert np.all(ends.max(axis=1) > 1e-6), "a line end not passed moving"
+    assert traj.duration < plans[False].trajectory.duration
+    for peaks in (traj.peak_ratios(None), traj.peak_ratios(1000.0)):
+        assert max(peaks["velocity"], peaks["acceleration"], peaks["jerk"]) <= 1 + LIMIT_TOLERANCE
+        assert peaks["position"] <= 4 * LIMIT_TOLERANCE

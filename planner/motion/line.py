@@ -253,7 +253,10 @@ def _smooth_free_pitch(
     end's first, among those with a solution at a few samples of the line). A pitch target
     leaves the arm no free angle, so a joint at a range end would mean no solution there. The
     first such line with fewer range-end corners and no larger joint step replaces the tracked
-    one; otherwise the tracked line stays.
+    one; otherwise the tracked line stays. One whose joint reaches a range end at the line's
+    end, moving into it, is taken only if none of the tries ends off it: a line ending so
+    cannot blend into the move after it (that move could not keep the line's end velocity
+    inside the range).
     """
     robot = solver.robot
     corners = _range_end_changes(robot, tracked.q)
@@ -266,7 +269,7 @@ def _smooth_free_pitch(
     probes = np.linspace(0.0, 1.0, _PROBES)
     step = float(np.max(np.abs(np.diff(tracked.q, axis=0)))) if len(tracked.q) > 1 else 0.0
     bound = max(step, steps[1])
-    tries = 0
+    tries, found = 0, None
     for p1 in ends:
         a, b = Target(start.position, pitch=p0), Target(end.position, pitch=p1)
         if not all(solver.candidates(interpolate_target(a, b, float(s)), None)[0] for s in probes[1:]):
@@ -283,10 +286,18 @@ def _smooth_free_pitch(
                 and float(np.max(jumps)) <= bound
                 and path.max_position_error <= max(tracked.max_position_error, 1e-6)
             ):
-                return path
+                if not _arrives_at_range_end(robot, path.q):
+                    return path
+                found = found or path
         if tries >= _MAX_TRIES:
             break
-    return tracked
+    return found or tracked
+
+
+def _arrives_at_range_end(robot: Robot, q: np.ndarray) -> bool:
+    """Whether a joint of the path q (M, dof) reaches a range end only at its last sample."""
+    ends = on_range_end(robot, q[-2:])
+    return len(q) > 1 and bool(np.any(ends[-1] & ~ends[0]))
 
 
 def on_range_end(robot: Robot, q: np.ndarray) -> np.ndarray:
