@@ -150,3 +150,20 @@ def test_the_spline_meets_given_end_velocities_and_accelerations():
     np.testing.assert_allclose([v[0], a[0], end_v[-1], end_a[-1]], [v0, a0, v1, a1], atol=1e-8)
     np.testing.assert_allclose(p[np.isin(knots, t)], q[:-1], atol=1e-9)
     np.testing.assert_allclose(end_p[-1], q[-1], atol=1e-9)
+
+
+def test_last_waypoint_time_within_the_duration_after_a_line():
+    """A line that ends the plan (here a point to itself after a pose) is spliced in: its last
+    waypoint time and the duration agree, not one rounding apart (found by fuzzing plan files)."""
+    pose = {
+        "position": [23.4153511805605, -4.8600859643141e-15, -5.156881337873559],
+        "stop": True,
+        "rpy": [179.99999999999997, -32.70422048691766, 8.16884270217236e-15],
+    }
+    line = {"position": pose["position"], "stop": True, "line": True}
+    data = {"units": {"length": "cm", "angle": "deg"}, "targets": [pose, line], "singularity": {"detours": False}}
+    result = plan_motion(get_robot("al5c"), parse_motion_request(data))
+    times = np.asarray(result.waypoint_times)
+    assert times[-1] <= result.trajectory.duration
+    assert np.all(np.asarray(result.trajectory.waypoint_times) <= result.trajectory.duration)
+    np.testing.assert_allclose(result.trajectory.sample(times).q, result.waypoints, rtol=0.0, atol=1e-7)

@@ -700,7 +700,9 @@ def _splice(
         v=read_only(np.concatenate([traj.v[before], v, traj.v[after]])),
         a=read_only(np.concatenate([traj.a[before], a, traj.a[after]])),
         j=read_only(np.concatenate([traj.j[before], j, traj.j[after]])),
-        duration=float(traj.duration + shift),
+        # From the last waypoint's new time plus what followed it (its dwell), so that the
+        # duration is never a rounding below the last waypoint time (as duration + shift can be).
+        duration=float(times[-1] + (traj.duration - traj.waypoint_times[-1])),
         waypoint_times=read_only(times),
         waypoints=read_only(waypoints),
     )
