@@ -5,7 +5,7 @@
 (:mod:`planner.ik.analytic.yaw_planar.single`, :mod:`planner.ik.analytic.planar2_single`) after
 a few calls of a target kind. This script
 runs ``planner.solve_ik`` on N generated targets per arm and kind twice, once with the kernel
-switched off (``SINGLE_AFTER`` out of reach: the Python paths) and once with it on from
+switched off (``planner.ik.analytic.base.SINGLE_AFTER`` out of reach: the Python paths) and once with it on from
 the first call, and compares every result: status, success, reason (it names the branch),
 ``attempts`` and ``attempt``, and ``q`` (the largest joint difference). Targets: half FK of a
 random configuration within the limits, half that point moved by up to 2 cm (reachable or not);
@@ -23,8 +23,7 @@ import time
 
 import numpy as np
 
-import planner.ik.analytic.planar2 as planar2
-import planner.ik.analytic.yaw_planar.solver as yaw_solver
+import planner.ik.analytic.base as analytic_base
 from planner import Target, UnsupportedChainError, load_robot, solve_ik
 from planner.geometry.target import approach_pitch
 from planner.ik.analytic.planar2_single import Planar2Kernel
@@ -54,7 +53,7 @@ def targets(robot, kind: str, n: int, seed: int) -> list[tuple[Target, np.ndarra
 
 
 def run(robot, pairs, after: int) -> list[tuple]:
-    yaw_solver.SINGLE_AFTER = planar2.SINGLE_AFTER = after
+    analytic_base.SINGLE_AFTER = after
     rows = []
     for target, seed in pairs:
         r = solve_ik(robot, target, seed, method="analytic")

@@ -18,8 +18,7 @@ from hypothesis import given
 from hypothesis import strategies as st
 from test_analytic_fast_paths import configuration, yaw_planar_arms
 
-import planner.ik.analytic.planar2 as planar2
-import planner.ik.analytic.yaw_planar.solver as yaw_solver
+import planner.ik.analytic.base as analytic_base
 from planner import Target, load_robot, solve_ik
 from planner.exceptions import PlannerError
 from planner.geometry.joint_space import angular_joints, wrapped_distance
@@ -87,8 +86,7 @@ def test_nearest_on_random_arms(robot, data):
 @pytest.mark.parametrize("name", ["shelley", "dh3", "three_joint", "al5c"])
 def test_nearest_on_bundled_arms(name, monkeypatch):
     # The scalar paths, bitwise (test_analytic_single checks the compiled kernel).
-    monkeypatch.setattr(yaw_solver, "SINGLE_AFTER", 10**12)
-    monkeypatch.setattr(planar2, "SINGLE_AFTER", 10**12)
+    monkeypatch.setattr(analytic_base, "SINGLE_AFTER", 10**12)
     robot = load_robot(name)
     solver = closed_form_solver(robot)
     rng = np.random.default_rng(3)

@@ -18,8 +18,7 @@ from dh_arms import property_settings, seeds, targets, tip_errors
 from hypothesis import given
 from hypothesis import strategies as st
 
-import planner.ik.analytic.planar2 as planar2
-import planner.ik.analytic.yaw_planar.solver as yaw_solver
+import planner.ik.analytic.base as analytic_base
 from planner import Target, load_robot, solve_ik
 from planner.exceptions import UnsupportedChainError
 from planner.ik.analytic import closed_form_solver
@@ -48,18 +47,17 @@ def _solvers(name):
 @pytest.fixture
 def kernel_first(monkeypatch):
     """SINGLE_AFTER 1: the kernel from the first call of a kind."""
-    monkeypatch.setattr(yaw_solver, "SINGLE_AFTER", 1)
-    monkeypatch.setattr(planar2, "SINGLE_AFTER", 1)
+    monkeypatch.setattr(analytic_base, "SINGLE_AFTER", 1)
 
 
 def _after(calls, call):
     """``call()`` with SINGLE_AFTER `calls` (1: the kernel from the first call; huge: never)."""
-    old = yaw_solver.SINGLE_AFTER, planar2.SINGLE_AFTER
-    yaw_solver.SINGLE_AFTER = planar2.SINGLE_AFTER = calls
+    old = analytic_base.SINGLE_AFTER
+    analytic_base.SINGLE_AFTER = calls
     try:
         return call()
     finally:
-        yaw_solver.SINGLE_AFTER, planar2.SINGLE_AFTER = old
+        analytic_base.SINGLE_AFTER = old
 
 
 def _scalar(call):

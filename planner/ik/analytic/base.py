@@ -31,7 +31,7 @@ from planner.ik.analytic.nearest import NearestSolution
 from planner.ik.analytic.result import AnalyticBatchResult, AnalyticResult
 from planner.model.robot import Robot
 
-__all__ = ["AnalyticIK", "ChainMismatch", "base_yaw_mismatch", "FAMILY_ANGLE_TOL", "FLOAT64"]
+__all__ = ["AnalyticIK", "ChainMismatch", "base_yaw_mismatch", "FAMILY_ANGLE_TOL", "FLOAT64", "SINGLE_AFTER"]
 
 #: Largest deviation [rad] of an axis from the family's ideal directions (vertical, parallel,
 #: perpendicular) that a solver accepts. Deviations above 1e-12 rad (CAD round-off, as in
@@ -39,6 +39,11 @@ __all__ = ["AnalyticIK", "ChainMismatch", "base_yaw_mismatch", "FAMILY_ANGLE_TOL
 FAMILY_ANGLE_TOL = 1e-4
 #: The dtype of float arrays (a singleton: compared by identity on hot paths).
 FLOAT64 = np.dtype(np.float64)
+#: Calls of a family's :meth:`AnalyticIK.nearest` of one target kind after which it builds that
+#: kind's compiled kernel (:meth:`AnalyticIK._counted_kernel`; compiled to C the first time,
+#: then 0.1-0.5 s to build and load from the disk cache): an arm met for a call or two never
+#: pays for it.
+SINGLE_AFTER = 8
 
 
 @dataclass(frozen=True)
@@ -173,6 +178,18 @@ class AnalyticIK(ABC):
             seed: A checked seed (float array of shape (dof,), within the limits), or None.
         """
         return None
+
+    def _counted_kernel(self, key: tuple, build):
+        """:meth:`nearest`'s compiled kernel for target kind `key`, kept in ``self._single``.
+
+        The calls of that kind are counted there (an int) until :data:`SINGLE_AFTER`; then
+        ``build(key)`` is kept and returned (the kernel, or False where there is none). Returns
+        the count before that.
+        """
+        kernel = self._single.get(key, 0)
+        if kernel.__class__ is int:
+            kernel = self._single[key] = kernel + 1 if kernel + 1 < SINGLE_AFTER else build(key)
+        return kernel
 
     @abstractmethod
     def solve_batch(

@@ -47,17 +47,12 @@ from planner.ik.analytic.result import (
 )
 from planner.model.robot import Robot
 
-__all__ = ["Planar2IK", "PLANAR_BRANCHES", "SINGLE_AFTER"]
+__all__ = ["Planar2IK", "PLANAR_BRANCHES"]
 
 PI = math.pi
 
 #: Branch names in batch order.
 PLANAR_BRANCHES = ("elbow-left", "elbow-right")
-
-#: Calls of :meth:`Planar2IK.nearest` of one target kind (with a seed or without) after which
-#: it builds its :class:`~planner.ik.analytic.planar2_single.Planar2Kernel` (compiled to C the
-#: first time, then loaded from the disk cache): an arm met for a call or two never pays for it.
-SINGLE_AFTER = 8
 
 #: Largest axis deviation [rad] from vertical/parallel accepted (no correction is made).
 PLANAR_ANGLE_TOL = 1e-9
@@ -181,17 +176,15 @@ class Planar2IK(AnalyticIK):
     def nearest(self, target: Target, seed: np.ndarray | None) -> NearestSolution | None:
         """The solution within the limits nearest the seed (see :meth:`AnalyticIK.nearest`).
 
-        After :data:`SINGLE_AFTER` calls of a position or pose target kind, by one compiled call
-        (:mod:`~planner.ik.analytic.planar2_single`; where it is not sure, the Python path; joint
-        values the same to round-off; ``count`` and ``index`` None).
+        After :data:`~planner.ik.analytic.base.SINGLE_AFTER` calls of a position or pose target
+        kind, by one compiled call (:mod:`~planner.ik.analytic.planar2_single`; where it is not
+        sure, the Python path; joint values the same to round-off; ``count`` and ``index`` None).
         """
         if not self._nearest_ok:
             return None
         if target.pitch is None:
             key = (target.rotation is not None, seed is not None)
-            kernel = self._single.get(key, 0)
-            if kernel.__class__ is int:
-                kernel = self._single[key] = kernel + 1 if kernel + 1 < SINGLE_AFTER else self._planar2_kernel(key)
+            kernel = self._counted_kernel(key, self._planar2_kernel)
             if kernel.__class__ is Planar2Kernel:
                 inputs = kernel.inputs
                 inputs[0:3] = target.position

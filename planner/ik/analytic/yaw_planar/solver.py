@@ -35,13 +35,7 @@ from planner.ik.analytic.yaw_planar.search import free_joints, solve_searched
 from planner.ik.analytic.yaw_planar.single import SingleKernel, single_kernel
 from planner.model.robot import Robot
 
-__all__ = ["SINGLE_AFTER", "YawPlanarIK"]
-
-#: Calls of :meth:`YawPlanarIK.nearest` of one target kind (with a seed or without) after which
-#: it builds its :class:`~planner.ik.analytic.yaw_planar.single.SingleKernel` (compiled to C the
-#: first time, then 0.1-0.5 s to build and load from the disk cache): an arm met for a call or
-#: two never pays for it.
-SINGLE_AFTER = 8
+__all__ = ["YawPlanarIK"]
 
 
 class YawPlanarIK(AnalyticIK):
@@ -157,7 +151,7 @@ class YawPlanarIK(AnalyticIK):
     def nearest(self, target: Target, seed: np.ndarray | None) -> NearestSolution | None:
         """The solution within the limits nearest the seed (see :meth:`AnalyticIK.nearest`).
 
-        On exact chains, from the scalar paths' entries, or after :data:`SINGLE_AFTER` calls
+        On exact chains, from the scalar paths' entries, or after :data:`~planner.ik.analytic.base.SINGLE_AFTER` calls
         of a target kind by one compiled call
         (:class:`~planner.ik.analytic.yaw_planar.single.SingleKernel`; where it is not sure,
         the scalar paths; joint values the same to round-off; ``count`` and ``index`` None);
@@ -167,9 +161,7 @@ class YawPlanarIK(AnalyticIK):
         if not self._nearest_ok or (target.pitch is not None and not arm.pitch_supported):
             return None
         key = (kind_of(target.pitch, target.rotation), seed is not None)
-        kernel = self._single.get(key, 0)
-        if kernel.__class__ is int:
-            kernel = self._single[key] = kernel + 1 if kernel + 1 < SINGLE_AFTER else self._single_kernel(key)
+        kernel = self._counted_kernel(key, self._single_kernel)
         if kernel.__class__ is SingleKernel:
             inputs = kernel.inputs
             inputs[0:3] = target.position
