@@ -362,7 +362,8 @@ def test_mismatched_dof():
 def test_bad_start_state_strategy_and_dwell():
     with pytest.raises(InvalidArgumentError, match=r"start velocity of joint 'elbow' is 3, beyond its limit \+-1"):
         plan_trajectory([[0, 0], [0.5, 0.5]], LIM, start_velocity=[0, 3])
-    with pytest.raises(InvalidArgumentError, match="unknown strategy 'fast'; valid: optimized, heuristic, stop"):
+    unknown = "unknown strategy 'fast'; valid: optimized, heuristic, stop, refined"
+    with pytest.raises(InvalidArgumentError, match=unknown):
         plan_trajectory([[0, 0], [0.5, 0.5]], LIM, strategy="fast")
     with pytest.raises(InvalidArgumentError, match=r"dwell at waypoint 1 must be >= 0"):
         plan_trajectory([[0, 0], [0.5, 0.5]], LIM, dwell=[0, -1])
@@ -400,7 +401,8 @@ def test_request_plans_as_the_keywords_do():
     # Normalised and read-only: derived requests are validated again.
     assert request.stops == (2,) and request.dwell.shape == (5,) and not request.waypoints.flags.writeable
     assert np.all(np.isnan(request.via_velocities)) and request.min_durations.shape == (4,)
-    with pytest.raises(InvalidArgumentError, match="unknown strategy 'fast'; valid: optimized, heuristic, stop"):
+    unknown = "unknown strategy 'fast'; valid: optimized, heuristic, stop, refined"
+    with pytest.raises(InvalidArgumentError, match=unknown):
         replace(request, strategy="fast")
     with pytest.raises(InvalidArgumentError, match="waypoint 0 is a stop, but a non-zero start state was given"):
         TrajectoryRequest(q, limits, stops=[0], start_velocity=0.1 * limits.velocity)
@@ -409,7 +411,7 @@ def test_request_plans_as_the_keywords_do():
 
 
 def test_via_strategies_are_registered_objects():
-    assert list(VIA_STRATEGIES) == ["optimized", "heuristic", "stop"]
+    assert list(VIA_STRATEGIES) == ["optimized", "heuristic", "stop", "refined"]
     for name, cls in VIA_STRATEGIES.items():
         assert issubclass(cls, ViaStrategy) and cls.name == name
 

@@ -16,7 +16,7 @@ A plan file is YAML or JSON (``.json`` is read as JSON, anything else as YAML)::
       jerk: 1200                      # [angle/s^3]; default 10 x acceleration
     start: {q: [...], velocity: [...], acceleration: [...]}   # optional state at the first waypoint
     singularity: {condition_number: 30, detours: true, max_detours: 8}   # default 30 (position), 100 (pose)
-    strategy: optimized               # or heuristic, stop
+    strategy: optimized               # or heuristic, stop, refined
     blend_lines: true                 # lines blend into the moves around them (default); false: rest at their ends
     servos:                           # optional pulse-width calibration per joint
       - {channel: 0, pulse_at_zero: 1500, us_per_rad: 636.6, direction: 1, min_pulse: 500, max_pulse: 2500}

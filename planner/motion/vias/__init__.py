@@ -10,12 +10,14 @@ from planner.exceptions import InvalidArgumentError
 from planner.motion.vias.base import ViaChain, ViaStrategy
 from planner.motion.vias.heuristic import HeuristicStrategy
 from planner.motion.vias.optimized import OptimizedStrategy
+from planner.motion.vias.refined import RefinedStrategy
 from planner.motion.vias.stop import StopStrategy
 
 __all__ = [
     "VIA_STRATEGIES",
     "HeuristicStrategy",
     "OptimizedStrategy",
+    "RefinedStrategy",
     "StopStrategy",
     "ViaChain",
     "ViaStrategy",
@@ -27,6 +29,7 @@ VIA_STRATEGIES: dict[str, type[ViaStrategy]] = {
     "optimized": OptimizedStrategy,
     "heuristic": HeuristicStrategy,
     "stop": StopStrategy,
+    "refined": RefinedStrategy,
 }
 
 

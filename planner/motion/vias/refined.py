@@ -1,0 +1,201 @@
+"""The ``"refined"`` via strategy: the optimized via states, then a per-joint pattern search.
+
+A Ruckig segment lasts as long as its slowest joint needs (up to Ruckig's blocked intervals):
+its duration is the largest of the joints' independent minimum durations, and each of those
+depends only on that joint's own states at the segment's two ends. So one Ruckig solve of the
+two segments next to a via, with every joint's via state moved at once, tells for each joint
+alone what its move would do to both segments; any subset of the moves can then be scored
+without solving again (the pair lasts ``max_j t1_j + max_j t2_j``), and the best subset is
+solved once to confirm it. The search (a pattern search, Hooke and Jeeves 1961, over every
+joint's velocity and acceleration at the via, all joints in parallel) thereby moves the joints
+together where several limit a segment, which the one-parameter searches of
+:class:`~planner.motion.vias.optimized.OptimizedStrategy` cannot. A move is kept only if the
+two segments get shorter and stay within the range by the same exact check the planner's range
+repair makes, so the plan is never slower than the ``"optimized"`` one it starts from.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from planner.motion.limits import admissible_acceleration
+from planner.motion.segments import merge_segment, segment_position_range
+from planner.motion.vias.base import ViaChain
+from planner.motion.vias.optimized import OptimizedStrategy
+
+__all__ = ["RefinedStrategy", "best_choice"]
+
+#: Directions tried per joint in the (velocity, acceleration) plane, in units of the step.
+_DIRECTIONS = ((1.0, 0.0), (-1.0, 0.0), (0.0, 1.0), (0.0, -1.0))
+
+
+def best_choice(t1: np.ndarray, t2: np.ndarray) -> tuple[float, np.ndarray | None]:
+    """Per joint one of K options so that ``max t1 + max t2`` over the joints is smallest.
+
+    Option 0 is the joint's current state; a joint leaves it only where it has to (where its
+    current times exceed the best choice's segment durations). The first segment's duration
+    d1 is swept upwards over the options' t1; per joint the smallest t2 among its options
+    with ``t1 <= d1`` is kept as the sweep goes (plain floats: K and dof are small).
+
+    Args:
+        t1: Per option and joint, the joint's time in the first segment, shape (K, dof) [s]
+            (inf: the option is not allowed).
+        t2: Likewise in the second segment.
+
+    Returns:
+        The best ``max t1 + max t2`` [s] and per joint the option to take, shape (dof,), or
+        the current value and None where no choice is better.
+    """
+    rows1, rows2 = t1.tolist(), t2.tolist()
+    dof = len(rows1[0])
+    best = max(rows1[0]) + max(rows2[0])
+    events = sorted(
+        (a, j, b) for row1, row2 in zip(rows1, rows2) for j, (a, b) in enumerate(zip(row1, row2)) if a < math.inf
+    )
+    low = [math.inf] * dof
+    missing = dof
+    found = None
+    for e, (d1, j, b) in enumerate(events):
+        if d1 >= best:
+            break
+        if low[j] == math.inf:
+            missing -= 1
+        if b < low[j]:
+            low[j] = b
+        if missing or (e + 1 < len(events) and events[e + 1][0] == d1):
+            continue  # not every joint has an option yet, or more options share this d1
+        d2 = max(low)
+        if d1 + d2 < best:
+            best, found = d1 + d2, (d1, d2)
+    if found is None:
+        return best, None
+    d1, d2 = found
+    choice = []
+    for j in range(dof):
+        if rows1[0][j] <= d1 and rows2[0][j] <= d2:
+            choice.append(0)
+        else:
+            choice.append(min((k for k in range(len(rows1)) if rows1[k][j] <= d1), key=lambda k: rows2[k][j]))
+    return best, np.array(choice)
+
+
+class RefinedStrategy(OptimizedStrategy):
+    """The ``"optimized"`` via states refined by a pattern search over every joint's via state.
+
+    Args:
+        sweeps: Passes over the via waypoints.
+        levels: Step sizes per via and pass, each a third of the one before.
+        step: The first step, as a fraction of each joint's velocity and acceleration limits.
+    """
+
+    name = "refined"
+
+    def __init__(self, sweeps: int = 3, levels: int = 3, step: float = 0.15):
+        self.sweeps = sweeps
+        self.levels = levels
+        self.step = step
+
+    def choose(self, chain: ViaChain) -> None:
+        """The ``"optimized"`` via states, then the pattern search at every free via."""
+        super().choose(chain)
+        if not all(self._exact_inside(chain, k) for k in range(chain.n - 1)):
+            return  # the range repair changes these states: refined ones could repair worse
+        free = [i for i in range(1, chain.n - 1) if not chain.fixed[i]]
+        for _ in range(self.sweeps):
+            changed = False
+            for i in free:
+                changed |= self.refine_via(chain, i)
+            if not changed:
+                return
+
+    def _pair(
+        self, chain: ViaChain, i: int, v: np.ndarray, acc: np.ndarray
+    ) -> tuple[float, np.ndarray, np.ndarray, np.ndarray] | None:
+        """The two segments at via i with state (v, acc): total, per-joint times and out-of-range joints."""
+        (d1, bad1, traj1), (d2, bad2, traj2) = chain.seg.solve_around(
+            i, chain.v[i - 1], chain.acc[i - 1], v, acc, chain.v[i + 1], chain.acc[i + 1]
+        )
+        if traj1 is None or traj2 is None:
+            return None
+        bad = np.zeros(len(v), dtype=bool)
+        for b in (bad1, bad2):
+            if b is not None:
+                bad |= b
+        t1 = np.array(traj1.independent_min_durations)
+        t2 = np.array(traj2.independent_min_durations)
+        return d1 + d2, t1, t2, bad
+
+    def _exact_inside(
+        self, chain: ViaChain, k: int, i: int = -1, v: np.ndarray | None = None, acc: np.ndarray | None = None
+    ) -> bool:
+        """Whether segment k passes the planner's range checks, with state (v, acc) at via i if given."""
+        va, aa = (v, acc) if k == i else (chain.v[k], chain.acc[k])
+        vb, ab = (v, acc) if k + 1 == i else (chain.v[k + 1], chain.acc[k + 1])
+        d, outside, traj = chain.seg.solve(k, va, aa, vb, ab, keep=True)
+        if traj is None or outside is not None:
+            return False
+        merged = merge_segment(traj, d, (chain.q[k], va, aa), chain.q[k + 1], chain.limits)
+        if merged.residual.any():
+            return False
+        if chain.seg.bounded and d > 0.0:
+            lo, hi = segment_position_range(traj, merged, d)
+            if np.any(lo < chain.seg.lower) or np.any(hi > chain.seg.upper):
+                return False
+        return True
+
+    def _inside_around(self, chain: ViaChain, i: int, v: np.ndarray, acc: np.ndarray) -> bool:
+        """Whether both segments at via i with state (v, acc) there pass the planner's range checks."""
+        return self._exact_inside(chain, i - 1, i, v, acc) and self._exact_inside(chain, i, i, v, acc)
+
+    def refine_via(self, chain: ViaChain, i: int) -> bool:
+        """Pattern search over every joint's state at via i; returns whether it changed.
+
+        Each round moves every joint's velocity up and down and its acceleration up and down
+        by the step (four trial states, each solved once for all joints), picks per joint the
+        best of its five options (:func:`best_choice`) and keeps the result if it is faster
+        and within the range; a round without gain divides the step by three.
+        """
+        current = self._pair(chain, i, chain.v[i], chain.acc[i])
+        if current is None or current[3].any():
+            return False
+        lim = chain.limits
+        step, changed, level = self.step, False, 0
+        while level < self.levels:
+            vs, accs, t1s, t2s = [chain.v[i]], [chain.acc[i]], [current[1]], [current[2]]
+            for dv, da in _DIRECTIONS:
+                v = np.minimum(np.maximum(chain.v[i] + dv * step * lim.velocity, -lim.velocity), lim.velocity)
+                acc = np.minimum(
+                    np.maximum(chain.acc[i] + da * step * lim.acceleration, -lim.acceleration), lim.acceleration
+                )
+                acc = admissible_acceleration(v, acc, lim)
+                trial = self._pair(chain, i, v, acc)
+                if trial is None:
+                    continue
+                _, t1, t2, bad = trial
+                vs.append(v)
+                accs.append(acc)
+                t1s.append(np.where(bad, math.inf, t1))
+                t2s.append(np.where(bad, math.inf, t2))
+            _, choice = best_choice(np.array(t1s), np.array(t2s))
+            found = None
+            if choice is not None:
+                cols = np.arange(len(choice))
+                v = np.array(vs)[choice, cols]
+                acc = admissible_acceleration(v, np.array(accs)[choice, cols], lim)
+                found = self._pair(chain, i, v, acc)
+                if (
+                    found is None
+                    or found[3].any()
+                    or found[0] >= current[0]
+                    or not self._inside_around(chain, i, v, acc)
+                ):
+                    found = None
+            if found is None:
+                step /= 3.0
+                level += 1
+                continue
+            chain.v[i], chain.acc[i] = v, acc
+            current, changed = found, True
+        return changed
