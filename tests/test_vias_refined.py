@@ -83,7 +83,7 @@ def test_random_paths_hold_limits_and_are_never_slower(name):
         assert refined.duration <= optimized.duration
         faster += refined.duration < optimized.duration
         assert_passes_waypoints(refined, refined.waypoint_times, q)
-        np.testing.assert_array_equal(refined.sample(refined.waypoint_times).q, q)
+        np.testing.assert_allclose(refined.sample(refined.waypoint_times).q, q, rtol=0, atol=1e-12)
         assert_within_limits(refined, limits.velocity, limits.acceleration, limits.jerk, limits.lower, limits.upper)
         assert refined.peak_ratios(None)["position"] <= 0.0
     assert faster >= 1  # the search finds something on most random paths

@@ -11,7 +11,11 @@ joint's velocity and acceleration at the via, all joints in parallel) thereby mo
 together where several limit a segment, which the one-parameter searches of
 :class:`~planner.motion.vias.optimized.OptimizedStrategy` cannot. A move is kept only if the
 two segments get shorter and stay within the range by the same exact check the planner's range
-repair makes, so the plan is never slower than the ``"optimized"`` one it starts from.
+repair makes, so the plan is never slower than the ``"optimized"`` one it starts from (where
+that one needs the range repair, the search is left out).
+
+It costs about three times the plan time of ``"optimized"`` (``benchmarks/bench_refined.py``),
+which is why it is an option and not the default.
 """
 
 from __future__ import annotations
@@ -28,7 +32,7 @@ from planner.motion.vias.optimized import OptimizedStrategy
 __all__ = ["RefinedStrategy", "best_choice"]
 
 #: Directions tried per joint in the (velocity, acceleration) plane, in units of the step.
-_DIRECTIONS = ((1.0, 0.0), (-1.0, 0.0), (0.0, 1.0), (0.0, -1.0))
+_DIRECTIONS = np.array([[1.0, 0.0], [-1.0, 0.0], [0.0, 1.0], [0.0, -1.0]])
 
 
 def best_choice(t1: np.ndarray, t2: np.ndarray) -> tuple[float, np.ndarray | None]:
@@ -92,7 +96,7 @@ class RefinedStrategy(OptimizedStrategy):
 
     name = "refined"
 
-    def __init__(self, sweeps: int = 3, levels: int = 3, step: float = 0.15):
+    def __init__(self, sweeps: int = 3, levels: int = 4, step: float = 0.2):
         self.sweeps = sweeps
         self.levels = levels
         self.step = step
@@ -103,11 +107,17 @@ class RefinedStrategy(OptimizedStrategy):
         if not all(self._exact_inside(chain, k) for k in range(chain.n - 1)):
             return  # the range repair changes these states: refined ones could repair worse
         free = [i for i in range(1, chain.n - 1) if not chain.fixed[i]]
+        # A via whose state and neighbours are as at its last search would search the same again.
+        stale = set(free)
         for _ in range(self.sweeps):
-            changed = False
             for i in free:
-                changed |= self.refine_via(chain, i)
-            if not changed:
+                if i not in stale:
+                    continue
+                if self.refine_via(chain, i):
+                    stale |= {i - 1, i + 1}
+                else:
+                    stale.discard(i)
+            if not stale:
                 return
 
     def _pair(
@@ -163,27 +173,32 @@ class RefinedStrategy(OptimizedStrategy):
         lim = chain.limits
         step, changed, level = self.step, False, 0
         while level < self.levels:
-            vs, accs, t1s, t2s = [chain.v[i]], [chain.acc[i]], [current[1]], [current[2]]
-            for dv, da in _DIRECTIONS:
-                v = np.minimum(np.maximum(chain.v[i] + dv * step * lim.velocity, -lim.velocity), lim.velocity)
-                acc = np.minimum(
-                    np.maximum(chain.acc[i] + da * step * lim.acceleration, -lim.acceleration), lim.acceleration
-                )
-                acc = admissible_acceleration(v, acc, lim)
-                trial = self._pair(chain, i, v, acc)
+            # The four trial states at once, shape (4, dof).
+            vs = np.minimum(
+                np.maximum(chain.v[i] + _DIRECTIONS[:, :1] * (step * lim.velocity), -lim.velocity), lim.velocity
+            )
+            accs = chain.acc[i] + _DIRECTIONS[:, 1:] * (step * lim.acceleration)
+            accs = admissible_acceleration(vs, np.minimum(np.maximum(accs, -lim.acceleration), lim.acceleration), lim)
+            options, t1s, t2s = [0], [current[1]], [current[2]]
+            for g in range(len(_DIRECTIONS)):
+                trial = self._pair(chain, i, vs[g], accs[g])
                 if trial is None:
                     continue
                 _, t1, t2, bad = trial
-                vs.append(v)
-                accs.append(acc)
-                t1s.append(np.where(bad, math.inf, t1))
-                t2s.append(np.where(bad, math.inf, t2))
+                options.append(g + 1)
+                if bad.any():
+                    t1, t2 = np.where(bad, math.inf, t1), np.where(bad, math.inf, t2)
+                t1s.append(t1)
+                t2s.append(t2)
+            vs = np.concatenate([chain.v[i][None], vs])
+            accs = np.concatenate([chain.acc[i][None], accs])
             _, choice = best_choice(np.array(t1s), np.array(t2s))
             found = None
             if choice is not None:
                 cols = np.arange(len(choice))
-                v = np.array(vs)[choice, cols]
-                acc = admissible_acceleration(v, np.array(accs)[choice, cols], lim)
+                rows = np.array(options)[choice]
+                v = vs[rows, cols]
+                acc = admissible_acceleration(v, accs[rows, cols], lim)
                 found = self._pair(chain, i, v, acc)
                 if (
                     found is None
