@@ -74,19 +74,24 @@ def test_random_paths_hold_limits_and_are_never_slower(name):
     robot = get_robot(name)
     limits = JointLimits.from_robot(robot)
     rng = np.random.default_rng(7)
-    faster = 0
-    for _ in range(6):
+    faster = repaired = 0
+    for _ in range(12):
         q = robot.random_configurations(rng, 5)
         optimized = plan_trajectory(q, limits)
         refined = plan_trajectory(q, limits, strategy="refined")
         assert refined.strategy == "refined"
+        fitted = plan_trajectory(q, limits, strategy=RefinedStrategy(sweeps=0))
+        assert fitted.duration == optimized.duration
+        np.testing.assert_array_equal(fitted.repaired, optimized.repaired)
+        repaired += optimized.repaired.any()
         assert refined.duration <= optimized.duration
         faster += refined.duration < optimized.duration
         assert_passes_waypoints(refined, refined.waypoint_times, q)
         np.testing.assert_allclose(refined.sample(refined.waypoint_times).q, q, rtol=0, atol=1e-12)
         assert_within_limits(refined, limits.velocity, limits.acceleration, limits.jerk, limits.lower, limits.upper)
         assert refined.peak_ratios(None)["position"] <= 0.0
-    assert faster >= 1  # the search finds something on most random paths
+    assert faster >= 6  # the search finds something on most random paths
+    assert repaired >= 1  # and paths whose optimized states the range repair lowers are among them
 
 
 @given(problems(max_dof=4, max_points=5), st.integers(0, 2**32 - 1))
@@ -109,3 +114,26 @@ def test_generated_problems_with_stops_and_start_states(problem, seed):
     assert refined.duration <= optimized.duration
     assert_passes_waypoints(refined, refined.waypoint_times, q)
     assert_within_limits(refined, limits.velocity, limits.acceleration, limits.jerk, limits.lower, limits.upper)
+
+
+@given(problems(), st.integers(0, 2**32 - 1))
+@settings(max_examples=150, deadline=None, derandomize=True, suppress_health_check=[HealthCheck.too_slow])
+def test_without_sweeps_it_is_the_optimized_plan_bit_for_bit(problem, seed):
+    # The search starts from the optimized states brought within range by the planner's own
+    # repair rules (fit_range): with no sweep the plan is the optimized one, repairs included.
+    q, limits = problem
+    rng = np.random.default_rng(seed)
+    kwargs = {}
+    if rng.random() < 0.3 and len(q) > 2:
+        kwargs["stops"] = [int(rng.integers(1, len(q) - 1))]
+    elif rng.random() < 0.5:
+        kwargs["start_velocity"] = rng.uniform(-0.5, 0.5, q.shape[1]) * limits.velocity
+    try:
+        optimized = plan_trajectory(q, limits, **kwargs)
+    except InvalidArgumentError:
+        return
+    fitted = plan_trajectory(q, limits, strategy=RefinedStrategy(sweeps=0), **kwargs)
+    assert fitted.duration == optimized.duration
+    np.testing.assert_array_equal(fitted.via_velocities, optimized.via_velocities)
+    np.testing.assert_array_equal(fitted.via_accelerations, optimized.via_accelerations)
+    np.testing.assert_array_equal(fitted.repaired, optimized.repaired)

@@ -11,8 +11,9 @@ joint's velocity and acceleration at the via, all joints in parallel) thereby mo
 together where several limit a segment, which the one-parameter searches of
 :class:`~planner.motion.vias.optimized.OptimizedStrategy` cannot. A move is kept only if the
 two segments get shorter and stay within the range by the same exact check the planner's range
-repair makes, so the plan is never slower than the ``"optimized"`` one it starts from (where
-that one needs the range repair, the search is left out).
+repair makes. The search starts from the ``"optimized"`` states brought within the range by
+the range repair's own rules (:meth:`RefinedStrategy.fit_range`, which then gives the
+``"optimized"`` plan bit for bit), so the plan is never slower than that one.
 
 It costs about three times the plan time of ``"optimized"`` (``benchmarks/bench_refined.py``),
 which is why it is an option and not the default.
@@ -31,6 +32,8 @@ from planner.motion.vias.optimized import OptimizedStrategy
 
 __all__ = ["RefinedStrategy", "best_choice"]
 
+#: Halvings of a joint's via state that runs it out of range before it is set to rest.
+_FIT_HALVINGS = 6
 #: Directions tried per joint in the (velocity, acceleration) plane, in units of the step.
 _DIRECTIONS = np.array([[1.0, 0.0], [-1.0, 0.0], [0.0, 1.0], [0.0, -1.0]])
 
@@ -104,8 +107,8 @@ class RefinedStrategy(OptimizedStrategy):
     def choose(self, chain: ViaChain) -> None:
         """The ``"optimized"`` via states, then the pattern search at every free via."""
         super().choose(chain)
-        if not all(self._exact_inside(chain, k) for k in range(chain.n - 1)):
-            return  # the range repair changes these states: refined ones could repair worse
+        if not self.fit_range(chain):
+            return  # left to the planner's range repair (a fixed state runs a joint out)
         free = [i for i in range(1, chain.n - 1) if not chain.fixed[i]]
         # A via whose state and neighbours are as at its last search would search the same again.
         stale = set(free)
@@ -137,23 +140,87 @@ class RefinedStrategy(OptimizedStrategy):
         t2 = np.array(traj2.independent_min_durations)
         return d1 + d2, t1, t2, bad
 
+    def _outside_joints(
+        self, chain: ViaChain, k: int, i: int = -1, v: np.ndarray | None = None, acc: np.ndarray | None = None
+    ) -> np.ndarray | None:
+        """The joints that segment k carries out of range by the planner's exact check (bool mask).
+
+        With state (v, acc) at via i if given. None where the segment has no usable profile
+        (none from Ruckig, or an end it misses beyond correction): the planner rests there.
+        """
+        va, aa = (v, acc) if k == i else (chain.v[k], chain.acc[k])
+        vb, ab = (v, acc) if k + 1 == i else (chain.v[k + 1], chain.acc[k + 1])
+        d, outside, traj = chain.seg.solve(k, va, aa, vb, ab, keep=True)
+        if traj is None:
+            return None
+        merged = merge_segment(traj, d, (chain.q[k], va, aa), chain.q[k + 1], chain.limits)
+        if merged.residual.any():
+            return None
+        bad = np.zeros(chain.q.shape[1], dtype=bool) if outside is None else outside.copy()
+        if chain.seg.bounded and d > 0.0:
+            lo, hi = segment_position_range(traj, merged, d)
+            bad |= (lo < chain.seg.lower) | (hi > chain.seg.upper)
+        return bad
+
     def _exact_inside(
         self, chain: ViaChain, k: int, i: int = -1, v: np.ndarray | None = None, acc: np.ndarray | None = None
     ) -> bool:
         """Whether segment k passes the planner's range checks, with state (v, acc) at via i if given."""
-        va, aa = (v, acc) if k == i else (chain.v[k], chain.acc[k])
-        vb, ab = (v, acc) if k + 1 == i else (chain.v[k + 1], chain.acc[k + 1])
-        d, outside, traj = chain.seg.solve(k, va, aa, vb, ab, keep=True)
-        if traj is None or outside is not None:
-            return False
-        merged = merge_segment(traj, d, (chain.q[k], va, aa), chain.q[k + 1], chain.limits)
-        if merged.residual.any():
-            return False
-        if chain.seg.bounded and d > 0.0:
-            lo, hi = segment_position_range(traj, merged, d)
-            if np.any(lo < chain.seg.lower) or np.any(hi > chain.seg.upper):
-                return False
-        return True
+        bad = self._outside_joints(chain, k, i, v, acc)
+        return bad is not None and not bad.any()
+
+    def fit_range(self, chain: ViaChain) -> bool:
+        """Lower the via states that carry a joint out of range until every segment passes.
+
+        By the rules of the planner's range repair, so that the search starts from the states
+        the planner would make of these (a joint's state at the free ends of a segment that
+        carries it out is halved, after :data:`_FIT_HALVINGS` halvings or once negligible set
+        to rest; a segment without a usable profile rests at its free ends). Where that would
+        change a fixed state, nothing is changed and False returned: the planner repairs it.
+
+        Returns:
+            Whether every segment passes the exact range check now.
+        """
+        before = chain.v.copy(), chain.acc.copy()
+        halved = np.zeros(chain.v.shape, dtype=int)
+        lim = chain.limits
+        for _ in range(4 * _FIT_HALVINGS + chain.n):
+            changed = False
+            for k in range(chain.n - 1):
+                bad = self._outside_joints(chain, k)
+                ends = [idx for idx in (k, k + 1) if idx > 0]
+                if bad is None:
+                    moving = [idx for idx in ends if chain.v[idx].any() or chain.acc[idx].any()]
+                    if not moving:
+                        continue
+                    if any(chain.fixed[idx] for idx in moving):
+                        break
+                    for idx in moving:
+                        chain.v[idx] = chain.acc[idx] = 0.0
+                    changed = True
+                    continue
+                if not bad.any():
+                    continue
+                movable = [idx for idx in ends if np.any(chain.v[idx][bad] != 0) or np.any(chain.acc[idx][bad] != 0)]
+                if not movable or any(chain.fixed[idx] for idx in movable):
+                    break
+                for idx in movable:
+                    small = (np.abs(chain.v[idx]) < 1e-6 * lim.velocity) & (
+                        np.abs(chain.acc[idx]) < 1e-6 * lim.acceleration
+                    ) | (halved[idx] >= _FIT_HALVINGS)
+                    halved[idx] += bad
+                    factor = np.where(bad, np.where(small, 0.0, 0.5), 1.0)
+                    chain.v[idx] *= factor
+                    chain.acc[idx] *= factor
+                changed = True
+            else:
+                if not changed:
+                    chain.repaired |= (chain.v != before[0]) | (chain.acc != before[1])
+                    return True
+                continue
+            break  # a fixed state would have to change
+        chain.v[:], chain.acc[:] = before
+        return False
 
     def _inside_around(self, chain: ViaChain, i: int, v: np.ndarray, acc: np.ndarray) -> bool:
         """Whether both segments at via i with state (v, acc) there pass the planner's range checks."""
