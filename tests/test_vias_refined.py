@@ -64,9 +64,15 @@ def test_best_choice_is_the_brute_force_optimum(options, dof, seed):
         assert t1[choice, cols].max() + t2[choice, cols].max() == pytest.approx(value)
 
 
-def test_registered_by_name():
+def test_registered_by_name_and_checks_its_settings():
     assert VIA_STRATEGIES["refined"] is RefinedStrategy
     assert isinstance(via_strategy("refined"), RefinedStrategy)
+    with pytest.raises(InvalidArgumentError, match=r"sweeps must be an integer >= 0, got -1"):
+        RefinedStrategy(sweeps=-1)
+    with pytest.raises(InvalidArgumentError, match=r"levels must be an integer >= 0, got 1.5"):
+        RefinedStrategy(levels=1.5)
+    with pytest.raises(InvalidArgumentError, match=r"step must be a number in \(0, 2\] .*, got nan"):
+        RefinedStrategy(step=float("nan"))
 
 
 @pytest.mark.parametrize("name", BUNDLED)

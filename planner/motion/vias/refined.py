@@ -25,6 +25,7 @@ import math
 
 import numpy as np
 
+from planner.exceptions import InvalidArgumentError
 from planner.motion.limits import admissible_acceleration
 from planner.motion.segments import merge_segment, segment_position_range
 from planner.motion.vias.base import ViaChain
@@ -55,23 +56,24 @@ def best_choice(t1: np.ndarray, t2: np.ndarray) -> tuple[float, np.ndarray | Non
         The best ``max t1 + max t2`` [s] and per joint the option to take, shape (dof,), or
         the current value and None where no choice is better.
     """
-    rows1, rows2 = t1.tolist(), t2.tolist()
-    dof = len(rows1[0])
-    best = max(rows1[0]) + max(rows2[0])
-    events = sorted(
-        (a, j, b) for row1, row2 in zip(rows1, rows2) for j, (a, b) in enumerate(zip(row1, row2)) if a < math.inf
-    )
+    dof = t1.shape[1]
+    best = float(t1[0].max() + t2[0].max())
+    order = np.argsort(t1, axis=None, kind="stable")
+    times1, times2 = t1.ravel()[order].tolist(), t2.ravel()[order].tolist()
+    joints = (order % dof).tolist()
     low = [math.inf] * dof
     missing = dof
     found = None
-    for e, (d1, j, b) in enumerate(events):
+    last = len(times1) - 1
+    for e, d1 in enumerate(times1):
         if d1 >= best:
             break
+        j, b = joints[e], times2[e]
         if low[j] == math.inf:
             missing -= 1
         if b < low[j]:
             low[j] = b
-        if missing or (e + 1 < len(events) and events[e + 1][0] == d1):
+        if missing or (e < last and times1[e + 1] == d1):
             continue  # not every joint has an option yet, or more options share this d1
         d2 = max(low)
         if d1 + d2 < best:
@@ -79,13 +81,10 @@ def best_choice(t1: np.ndarray, t2: np.ndarray) -> tuple[float, np.ndarray | Non
     if found is None:
         return best, None
     d1, d2 = found
-    choice = []
-    for j in range(dof):
-        if rows1[0][j] <= d1 and rows2[0][j] <= d2:
-            choice.append(0)
-        else:
-            choice.append(min((k for k in range(len(rows1)) if rows1[k][j] <= d1), key=lambda k: rows2[k][j]))
-    return best, np.array(choice)
+    allowed = t1 <= d1
+    pick = np.argmin(np.where(allowed, t2, math.inf), axis=0)
+    keep = allowed[0] & (t2[0] <= d2)
+    return best, np.where(keep, 0, pick)
 
 
 class RefinedStrategy(OptimizedStrategy):
@@ -95,14 +94,23 @@ class RefinedStrategy(OptimizedStrategy):
         sweeps: Passes over the via waypoints.
         levels: Step sizes per via and pass, each a third of the one before.
         step: The first step, as a fraction of each joint's velocity and acceleration limits.
+
+    Raises:
+        InvalidArgumentError: A negative or non-integer number of sweeps or levels, or a step
+            outside (0, 2].
     """
 
     name = "refined"
 
     def __init__(self, sweeps: int = 3, levels: int = 4, step: float = 0.2):
-        self.sweeps = sweeps
-        self.levels = levels
-        self.step = step
+        for what, value in (("sweeps", sweeps), ("levels", levels)):
+            if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 0:
+                raise InvalidArgumentError(f"{what} must be an integer >= 0, got {value!r}")
+        if isinstance(step, bool) or not isinstance(step, (int, float, np.number)) or not 0.0 < step <= 2.0:
+            raise InvalidArgumentError(f"step must be a number in (0, 2] (a fraction of the limits), got {step!r}")
+        self.sweeps = int(sweeps)
+        self.levels = int(levels)
+        self.step = float(step)
 
     def choose(self, chain: ViaChain) -> None:
         """The ``"optimized"`` via states, then the pattern search at every free via."""
