@@ -322,6 +322,73 @@ def _interpolation_error(
     return lam, err
 
 
+def _interval_bounds(
+    q: np.ndarray,
+    rows: np.ndarray,
+    left: np.ndarray,
+    right: np.ndarray,
+    scaled: np.ndarray,
+    s: np.ndarray,
+    bounds: tuple[np.ndarray, float],
+) -> tuple[np.ndarray, np.ndarray]:
+    """Lower bounds of ``s_min / s_max`` and of ``prod(s)`` over every row between two exact rows.
+
+    One bound per interval between exact neighbours (step 0 of :func:`bounded_conditioning`),
+    second order in its length. With ``D = J_right - J_left`` (scaled Jacobians, ``d = ||D||_F``),
+    the interpolation ``J_lam`` has the Gram matrix ``G(lam) = (1 - lam) G_left + lam G_right -
+    lam (1 - lam) D D^T`` (``J J^T``, or ``J^T J`` for tall ones), and ``lam (1 - lam) D D^T`` is
+    at most ``c = d^2 / 4`` times the identity. The smallest eigenvalue is concave, so that of
+    ``G(lam)`` is at least ``m2 - c`` with ``m2`` the smaller of the ends' smallest squared
+    singular values; the largest singular value is convex along the line, at most the larger
+    end's. The determinant is log-concave, so ``det G(lam) >= min(det G_left, det G_right)
+    (1 - c / m2)^k``. Each row is within ``e`` of ``J_lam`` (:func:`_interpolation_error`, here
+    with the interval's largest joint deviation from the line and ``lam (1 - lam) <= 1 / 4``);
+    by Weyl's inequality its singular values are within ``e`` of ``J_lam``'s: the inverse
+    condition number is at least ``(sqrt(m2 - c) - e) / (s_max + e)`` and the product of the
+    singular values at least ``sqrt(det G(lam)) (1 - e / sqrt(m2 - c))^k``. The singular values
+    of the ends are first moved by ``1e-9 (s_max + 1)``, far above their rounding.
+
+    Args:
+        q: All configurations, shape (n, dof).
+        rows: The rows to bound, sorted, shape (n_rows,).
+        left: The exact row before each of `rows` (n_rows,).
+        right: The exact row after each of `rows` (n_rows,).
+        scaled: Scaled Jacobians, valid at the exact rows, shape (n, m, dof).
+        s: Their singular values, largest first, valid at the exact rows, shape (n, k).
+        bounds: ``(rho, angular)`` of :func:`jacobian_change_bounds`.
+
+    Returns:
+        Per row of `rows`: the lower bounds of the inverse condition number and of the product of
+        the singular values.
+    """
+    rho, angular = bounds
+    k = s.shape[1]
+    starts = np.flatnonzero(np.concatenate([[True], left[1:] != left[:-1]]))
+    a, b = left[starts], right[starts]
+    lam = (rows - left) / (right - left)
+    off = q[rows] - (q[left] + lam[:, None] * (q[right] - q[left]))
+    deviation = np.maximum.reduceat(np.abs(off), starts, axis=0)
+    top = np.maximum(s[a, 0], s[b, 0])
+    margin = 1e-9 * (top + 1.0)
+    err = jacobian_change_bound(deviation, rho, angular) + 0.125 * jacobian_curvature_bound(q[b] - q[a], rho, angular)
+    err = err * (1.0 + 1e-9) + margin
+    d = np.linalg.norm(scaled[b] - scaled[a], axis=(1, 2)) * (1.0 + 1e-9)
+    smallest = np.maximum(np.minimum(s[a, -1], s[b, -1]) - margin, 0.0)
+    m2, c = smallest * smallest, 0.25 * d * d
+    with np.errstate(divide="ignore", invalid="ignore"):
+        sigma = np.sqrt(np.maximum(m2 - c, 0.0))
+        inv = np.maximum(sigma - err, 0.0) / (top + margin + err)
+        product = np.minimum(
+            np.prod(np.maximum(s[a] - margin[:, None], 0.0), axis=1),
+            np.prod(np.maximum(s[b] - margin[:, None], 0.0), axis=1),
+        )
+        det_factor = np.where(m2 > c, np.maximum(1.0 - c / m2, 0.0), 0.0) ** (0.5 * k)
+        shrink = np.where(sigma > err, np.maximum(1.0 - err / sigma, 0.0), 0.0) ** k
+    man = product * det_factor * shrink
+    counts = np.diff(np.append(starts, len(rows)))
+    return np.repeat(inv, counts), np.repeat(man, counts)
+
+
 def bounded_conditioning(
     robot: Robot, q: np.ndarray, task: Task, threshold: float, keep: np.ndarray | None = None
 ) -> tuple[np.ndarray, np.ndarray]:
@@ -457,10 +524,15 @@ def bounded_conditioning(
     change = robot.derived.get(_ChangeBounds, lambda: _ChangeBounds(robot)).of(task)
     if change is not None:
         rho, angular, raw_angular = change
-        near = np.where(rows - left <= right - rows, left, right)
-        du = q[rows] - q[near]
+        if divisor is not None:
+            lo_inv[:], lo_man[:] = _interval_bounds(q, rows, left, right, scaled_all, s_inv, (rho, angular))
+            lo_inv *= 1.0 - 1e-9
+            lo_man *= scale * (1.0 - 1e-9)
+        take = np.nonzero(~settled())[0]
+        near = np.where(rows[take] - left[take] <= right[take] - rows[take], left[take], right[take])
+        du = q[rows[take]] - q[near]
         e = jacobian_change_bound(du, rho, angular)
-        weyl(np.arange(len(rows)), near, e, e if divisor is not None else jacobian_change_bound(du, rho, raw_angular))
+        weyl(take, near, e, e if divisor is not None else jacobian_change_bound(du, rho, raw_angular))
         take = np.nonzero(~settled())[0]
         take = take[~hopeless(take)]
         if len(take):
