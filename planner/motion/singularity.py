@@ -342,7 +342,8 @@ def _interval_bounds(
     singular values; the largest singular value is convex along the line, at most the larger
     end's. The determinant is log-concave, so ``det G(lam) >= min(det G_left, det G_right)
     (1 - c / m2)^k``. Each row is within ``e`` of ``J_lam`` (:func:`_interpolation_error`, here
-    with the interval's largest joint deviation from the line and ``lam (1 - lam) <= 1 / 4``);
+    with ``lam (1 - lam) <= 1 / 4`` and a bound of the rows' deviation from the straight line
+    between the ends: ``h L^2 / 8`` for ``L`` steps whose second differences are at most ``h``);
     by Weyl's inequality its singular values are within ``e`` of ``J_lam``'s: the inverse
     condition number is at least ``(sqrt(m2 - c) - e) / (s_max + e)`` and the product of the
     singular values at least ``sqrt(det G(lam)) (1 - e / sqrt(m2 - c))^k``. The singular values
@@ -365,9 +366,10 @@ def _interval_bounds(
     k = s.shape[1]
     starts = np.flatnonzero(np.concatenate([[True], left[1:] != left[:-1]]))
     a, b = left[starts], right[starts]
-    lam = (rows - left) / (right - left)
-    off = q[rows] - (q[left] + lam[:, None] * (q[right] - q[left]))
-    deviation = np.maximum.reduceat(np.abs(off), starts, axis=0)
+    # The rows a..b deviate from the straight line between q_a and q_b by at most h L^2 / 8,
+    # h their largest second difference and L = b - a (discrete maximum principle).
+    bend = np.maximum.reduceat(np.abs(np.diff(q, 2, axis=0)), a, axis=0)
+    deviation = bend * (0.125 * (b - a) ** 2)[:, None] * (1.0 + 1e-9)
     top = np.maximum(s[a, 0], s[b, 0])
     margin = 1e-9 * (top + 1.0)
     err = jacobian_change_bound(deviation, rho, angular) + 0.125 * jacobian_curvature_bound(q[b] - q[a], rho, angular)
@@ -513,9 +515,9 @@ def bounded_conditioning(
         # Both neighbours below the level: the certificate above it will not hold (saves the attempt).
         return (inv[left[take]] <= level) & (inv[right[take]] <= level)
 
-    def certify(take: np.ndarray, scaled: np.ndarray, s_up: np.ndarray, err: np.ndarray) -> None:
+    def certify(take: np.ndarray, gram: np.ndarray, s_up: np.ndarray, err: np.ndarray) -> None:
         floor = lifted * s_up + err
-        ok, det, _ = _positive_definite(_gram(scaled), floor * floor)
+        ok, det, _ = _positive_definite(gram, floor * floor)
         lo_inv[take[ok]] = np.maximum(lo_inv[take[ok]], lifted)
         if divisor is not None:  # the manipulability is that of the scaled Jacobian
             shrink = np.maximum(1.0 - err[ok] / floor[ok], 0.0) ** k
@@ -544,7 +546,7 @@ def bounded_conditioning(
             interpolated = (1.0 - lam)[:, None, None] * scaled_all[left[take]] + lam[:, None, None] * scaled_all[
                 right[take]
             ]
-            certify(take, interpolated, s_cap[take], err)
+            certify(take, _gram(interpolated), s_cap[take], err)
     take = np.nonzero(~settled())[0]
     if len(take):
         raw, scaled = robot.task_jacobians(q[rows[take]], task)
@@ -554,16 +556,17 @@ def bounded_conditioning(
             weyl(take, a, e, e if divisor is not None else np.linalg.norm(raw - raw_all[a], axis=(1, 2)))
             s_up = np.minimum(s_up, s_inv[a, 0] + e + 1e-9 * (s_inv[a, 0] + 1.0))
         s_up *= 1.0 + 1e-9
+        own = _gram(scaled)
         trying = ~hopeless(take) & (lo_inv[take] <= level)
         if trying.any():
-            certify(take[trying], scaled[trying], s_up[trying], np.zeros(int(trying.sum())))
+            certify(take[trying], own[trying], s_up[trying], np.zeros(int(trying.sum())))
         # The rest: its own Gram matrix. The manipulability is the root of its determinant (at
         # least that of the product of the pivots); below the threshold when a Rayleigh quotient
         # shows the smallest singular value below threshold times (a lower bound of) the largest,
         # and above its stretch's smallest exact value by a certificate at that level.
         short = ~settled()[take]
         if short.any():
-            gram = _gram(scaled[short])
+            gram = own[short]
             ok, det, low = _positive_definite(gram, np.zeros(len(gram)))
             if divisor is None:
                 det = _positive_definite(_gram(raw[short]), np.zeros(len(gram)))[1]
