@@ -7,8 +7,9 @@ clear) and plans again. A waypoint that is itself singular is kept, as the user 
 and flagged. For a square task Jacobian a sign change of its determinant between the ends of
 a segment means every path between them crosses a singularity; such segments are reported as
 unresolved instead of detoured (another IK branch is the remedy there); detours that did not
-clear their segment are taken out again, so they never cost time for nothing. The measure and
-its threshold are those of :mod:`planner.motion.singularity`.
+clear their segment are taken out again, so they never cost time for nothing (where that leads
+back to nodes and states planned before, that plan and its measure are reused, not made again).
+The measure and its threshold are those of :mod:`planner.motion.singularity`.
 """
 
 from __future__ import annotations
