@@ -435,7 +435,7 @@ def bounded_conditioning(
        interpolated Gram matrix, concavity of its smallest eigenvalue, log-concavity of its
        determinant). Far from a singularity this settles most rows with a few operations per
        interval (about 70 % of them on bench_collision's ur5 and panda plans).
-    1. Joint changes alone: a singular value moves by at most the spectral norm (below the
+    1. Where step 0 does not apply, joint changes alone: a singular value moves by at most the spectral norm (below the
        Frobenius norm) of the change of the matrix (Weyl's inequality), and
        :func:`jacobian_change_bound` bounds ``e >= ||J - J_a||_F`` from the nearer exact row
        ``a``: the inverse condition number is at least ``(s_min(J_a) - e) / (s_max(J_a) + e)``
@@ -562,11 +562,12 @@ def bounded_conditioning(
             lo_inv[:], lo_man[:] = _interval_bounds(q, rows, left, right, scaled_all, s_inv, (rho, angular))
             lo_inv *= 1.0 - 1e-9
             lo_man *= scale * (1.0 - 1e-9)
-        take = np.nonzero(~settled())[0]
-        near = np.where(rows[take] - left[take] <= right[take] - rows[take], left[take], right[take])
-        du = q[rows[take]] - q[near]
-        e = jacobian_change_bound(du, rho, angular)
-        weyl(take, near, e, e if divisor is not None else jacobian_change_bound(du, rho, raw_angular))
+        else:
+            take = np.arange(len(rows))
+            near = np.where(rows[take] - left[take] <= right[take] - rows[take], left[take], right[take])
+            du = q[rows[take]] - q[near]
+            e = jacobian_change_bound(du, rho, angular)
+            weyl(take, near, e, e if divisor is not None else jacobian_change_bound(du, rho, raw_angular))
         take = np.nonzero(~settled())[0]
         take = take[~hopeless(take)]
         if len(take):
