@@ -258,6 +258,47 @@ def test_a_row_off_the_line_is_within_the_interpolation_error_of_its_neighbours(
         assert np.all(missed <= err * (1 + 1e-12) + 1e-15), (name, size, float(np.max(missed / err)))
 
 
+@pytest.mark.parametrize("name", ARMS)
+@pytest.mark.parametrize("task", ["position", "pose"])
+def test_the_interval_bounds_hold_at_every_row_between_exact_rows(name, task):
+    """Step 0 of bounded_conditioning: one lower bound of the inverse condition number and of the
+    product of the singular values per interval between exact rows, against every row of dense
+    smooth walks (Pinocchio's Jacobians, NumPy's SVD): through a straight arm's neighbourhood and
+    from random configurations, at spacings and speeds where the bound is tight and where it is
+    useless, with exact rows at a regular and at an irregular spacing."""
+    from planner.motion.singularity import _interval_bounds, jacobian_change_bounds
+
+    robot = get_robot(name)
+    change = jacobian_change_bounds(robot, task)
+    if change is None or robot.manipulability_divisor(task) is None:
+        pytest.skip(f"{name}: step 0 needs the joint-change bound and the scaled Jacobian's product")
+    rho, angular, _ = change
+    rng = np.random.default_rng(37)
+    starts = robot.random_configurations(rng, 3)
+    starts[0] = np.clip(np.zeros(robot.dof), robot.lower, robot.upper)  # a straight arm: singular
+    useful = 0
+    for q0 in starts:
+        for speed in (3e-4, 3e-3, 3e-2):
+            # Smooth walks: random jerks integrated three times, like a jerk-limited trajectory.
+            jerk = rng.normal(0.0, 1.0, (2000, robot.dof))
+            walk = np.cumsum(np.cumsum(np.cumsum(jerk, axis=0), axis=0), axis=0)
+            walk = q0 + speed * walk / max(float(np.max(np.abs(np.diff(walk, axis=0)))), 1e-300)
+            raw, scaled = robot.task_jacobians(walk, task)
+            s = robot.task_singular_values(raw, scaled, task)[0]
+            inv_all = s[:, -1] / s[:, 0]
+            product = np.prod(s, axis=1)
+            for exact_rows in (np.arange(0, len(walk), 16), np.unique(rng.integers(0, len(walk), 150))):
+                ends = np.unique(np.concatenate([[0, len(walk) - 1], exact_rows]))
+                rows = np.setdiff1d(np.arange(len(walk)), ends)
+                right = np.searchsorted(ends, rows)
+                left, right = ends[right - 1], ends[right]
+                lo_inv, lo_product = _interval_bounds(walk, rows, left, right, scaled, s, (rho, angular))
+                assert np.all(lo_inv <= inv_all[rows]), (name, task, speed)
+                assert np.all(lo_product <= product[rows]), (name, task, speed)
+                useful += int(np.sum(lo_inv > 0.5 * inv_all[rows]))
+    assert useful > 0.2 * 3 * 3 * 2 * 1900, (name, task, useful)  # not vacuous: tight on many rows
+
+
 def test_the_cholesky_certificate_agrees_with_the_eigenvalues():
     # Gram matrices with a known spectrum, shifted just below and above their smallest eigenvalue.
     from planner.motion.singularity import _positive_definite, _rayleigh_bounds

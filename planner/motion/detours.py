@@ -7,8 +7,9 @@ clear) and plans again. A waypoint that is itself singular is kept, as the user 
 and flagged. For a square task Jacobian a sign change of its determinant between the ends of
 a segment means every path between them crosses a singularity; such segments are reported as
 unresolved instead of detoured (another IK branch is the remedy there); detours that did not
-clear their segment are taken out again, so they never cost time for nothing. The measure and
-its threshold are those of :mod:`planner.motion.singularity`.
+clear their segment are taken out again, so they never cost time for nothing (where that leads
+back to nodes and states planned before, that plan and its measure are reused, not made again).
+The measure and its threshold are those of :mod:`planner.motion.singularity`.
 """
 
 from __future__ import annotations
@@ -234,9 +235,23 @@ def plan_clear_of_singularities(
             )
         )
 
+    # Plans and their measures by their nodes and states: taking out detours that cleared
+    # nothing often leads back to a plan made before (the first one, when none is kept).
+    planned: dict[bytes, tuple[JointTrajectory, SingularityReport, np.ndarray, np.ndarray]] = {}
+
+    def plan_and_measure() -> tuple[JointTrajectory, SingularityReport, np.ndarray, np.ndarray]:
+        key = b"".join(
+            [np.array([nd[0] for nd in nodes]).tobytes(), bytes(nd[1] is not None for nd in nodes)]
+            + [np.concatenate([st_[0], st_[1], [st_[2]]]).tobytes() for st_ in states]
+        )
+        if key not in planned:
+            traj = plan_nodes()
+            report, t, _, inv = measure_singularities(robot, traj, thr, t_task, rate)
+            planned[key] = traj, report, t, inv
+        return planned[key]
+
     while True:
-        traj = plan_nodes()
-        report, t, _, inv = measure_singularities(robot, traj, thr, t_task, rate)
+        traj, report, t, inv = plan_and_measure()
         if len(detours) >= max_detours:
             break
         w_inv = report.waypoint_inverse_condition
@@ -292,8 +307,7 @@ def plan_clear_of_singularities(
             if k is not None and nodes[i + 1][1] == k + 1:
                 states[i] = (states[i][0], states[i][1], float(request.min_durations[k]))
         detours = [d for d in detours if d.segment not in still]
-        traj = plan_nodes()
-        report, t, _, inv = measure_singularities(robot, traj, thr, t_task, rate)
+        traj, report, t, inv = plan_and_measure()
         still = unresolved_segments()
         useless = [i for i, nd in enumerate(nodes) if nd[1] is None and nd[2] in still]
     user_idx = np.array([i for i, nd in enumerate(nodes) if nd[1] is not None])
