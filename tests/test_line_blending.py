@@ -167,3 +167,49 @@ def test_last_waypoint_time_within_the_duration_after_a_line():
     assert times[-1] <= result.trajectory.duration
     assert np.all(np.asarray(result.trajectory.waypoint_times) <= result.trajectory.duration)
     np.testing.assert_allclose(result.trajectory.sample(times).q, result.waypoints, rtol=0.0, atol=1e-7)
+
+
+def dipping_user_segments(robot, p):
+    """Requested segments dipping below the threshold between two trajectory waypoints above it,
+    measured again on the returned trajectory."""
+    from planner.motion.singularity import measure_singularities
+
+    thr = p.singularity.threshold
+    report, t, _, inv = measure_singularities(robot, p.trajectory, thr, robot.resolve_task(None), p.singularity.rate)
+    w_t, w_inv = p.trajectory.waypoint_times, report.waypoint_inverse_condition
+    dips = set()
+    for j in range(len(w_t) - 1):
+        if w_inv[j] < thr or w_inv[j + 1] < thr:
+            continue
+        inside = (t >= w_t[j]) & (t <= w_t[j + 1])
+        if inside.any() and inv[inside].min() < thr:
+            dips.add(int(np.searchsorted(p.waypoint_times, w_t[j], side="right") - 1))
+    return dips
+
+
+@pytest.mark.parametrize(("name", "seed"), [("dh3", 1), ("al5c", 2)])
+def test_unresolved_segments_are_those_of_the_smoothed_motion(name, seed):
+    # A smoothed line changes the motion: its unresolved segments are found on what is returned.
+    robot = get_robot(name)
+    rng = np.random.default_rng(seed)
+    targets = [
+        # dh3: the joint move before the line dipped only before smoothing (reported unresolved).
+        [
+            [-0.00014242, -0.12668564, 0.03276036],
+            [0.00122092, 0.01254747, 0.18803164],
+            [-0.00477667, -0.1676918, 0.01507928],
+        ]
+    ]
+    targets += [
+        [robot.position(q).tolist() for q in rng.uniform(robot.lower, robot.upper, (3, robot.dof))] for _ in range(12)
+    ]
+    planned = 0
+    for points in targets:
+        try:
+            p = plan(robot, [{"position": points[0]}, {"position": points[1], "line": True}, {"position": points[2]}])
+        except planner.PlannerError:
+            continue
+        planned += 1
+        if not p.detours:
+            assert set(p.unresolved) == dipping_user_segments(robot, p)
+    assert planned >= 4

@@ -31,7 +31,7 @@ from planner.export.calibration_file import ControllerSetup, controller_setup
 from planner.export.formats import ServoFormat
 from planner.model.robot import Robot
 from planner.motion.avoid import joint_line, time_joint_line
-from planner.motion.detours import Detour, SingularityOptions, plan_clear_of_singularities
+from planner.motion.detours import Detour, SingularityOptions, dipping_segments, plan_clear_of_singularities
 from planner.motion.limits import JointLimits
 from planner.motion.line import LinePath
 from planner.motion.line_smoothing import line_end_states, smooth_lines
@@ -619,8 +619,12 @@ def plan_motion(
                 if count < len(stretches) or not smooth.duration < rest[0].trajectory.duration:
                     return rest
             if count:
-                report = measure_singularities(robot, smooth, threshold, robot.resolve_task(None), rate)[0]
-                plan = dataclasses.replace(plan, trajectory=smooth, report=report)
+                report, t, _, inv = measure_singularities(robot, smooth, threshold, robot.resolve_task(None), rate)
+                # Segments dipping are found again on the smoothed motion, as plan_clear_of_singularities did.
+                segments = np.arange(len(smooth.waypoint_times) - 1)
+                owners = np.searchsorted(plan.waypoint_indices, segments, side="right") - 1
+                still = dipping_segments(smooth, report, t, inv, np.minimum(owners, m - 2))
+                plan = dataclasses.replace(plan, trajectory=smooth, report=report, unresolved=tuple(sorted(still)))
         return plan, user_pos, line_ranges, m, owner
 
     plan, user_pos, line_ranges, m, owner = plan_once(paths)

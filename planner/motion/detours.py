@@ -169,6 +169,39 @@ def _det_sign(robot: Robot, q: np.ndarray, task: Task) -> float:
     return float(np.sign(np.linalg.det(jac))) if jac.shape[0] == jac.shape[1] else 0.0
 
 
+def dipping_segments(
+    trajectory: JointTrajectory,
+    report: SingularityReport,
+    t: np.ndarray,
+    inverse_condition: np.ndarray,
+    owners: Sequence[int],
+) -> set[int]:
+    """The segments whose samples dip below the threshold although both their ends are above it.
+
+    Args:
+        trajectory: The measured trajectory.
+        report: Its singularity report (threshold and inverse condition at each waypoint).
+        t: The measure's sample times [s].
+        inverse_condition: The inverse condition number at each of them.
+        owners: For each of the trajectory's waypoint segments, the segment it belongs to (a
+            detour splits a segment in two; both halves belong to it).
+
+    Returns:
+        The owners of the waypoint segments that dip.
+    """
+    w_inv = report.waypoint_inverse_condition
+    wt = trajectory.waypoint_times
+    thr = report.threshold
+    still = set()
+    for s, owner in enumerate(owners):
+        if w_inv[s] < thr or w_inv[s + 1] < thr:
+            continue
+        mask = (t >= wt[s]) & (t <= wt[s + 1])
+        if mask.any() and float(np.min(inverse_condition[mask])) < thr:
+            still.add(int(owner))
+    return still
+
+
 def plan_clear_of_singularities(
     robot: Robot,
     request: TrajectoryRequest,
@@ -284,16 +317,7 @@ def plan_clear_of_singularities(
             break
 
     def unresolved_segments() -> set[int]:
-        w_inv = report.waypoint_inverse_condition
-        wt = traj.waypoint_times
-        still = set()
-        for s in range(len(nodes) - 1):
-            if w_inv[s] < thr or w_inv[s + 1] < thr:
-                continue
-            mask = (t >= wt[s]) & (t <= wt[s + 1])
-            if mask.any() and float(np.min(inv[mask])) < thr:
-                still.add(nodes[s][2])
-        return still
+        return dipping_segments(traj, report, t, inv, [nd[2] for nd in nodes[:-1]])
 
     still = unresolved_segments()
     # Detours that did not clear their segment only cost time: take them out again. Planning
