@@ -384,6 +384,35 @@ def test_path_around_a_block_is_clear_and_repeatable():
         assert check_segment(checker, a, b).clear
 
 
+def test_a_blocked_tree_edge_cuts_its_node_and_what_grew_from_it():
+    # The trees test their nodes as they grow and the edges only on a path found (lazily):
+    # a blocked edge cuts its node off, with its subtree, and is never tested twice.
+    from planner.collision.rrt import _edges_ok, _Tree
+
+    tree = _Tree(np.zeros(2))
+    one = tree.add(np.array([1.0, 0.0]), 0)
+    two = tree.add(np.array([2.0, 0.0]), one)
+    three = tree.add(np.array([1.0, 1.0]), one)
+    four = tree.add(np.array([-1.0, 0.0]), 0)
+    tested = []
+
+    def blocks_two(a, b):
+        tested.append((tuple(a), tuple(b)))
+        return not np.array_equal(b, [2.0, 0.0])
+
+    assert not _edges_ok(tree, two, blocks_two)
+    assert tested == [((0.0, 0.0), (1.0, 0.0)), ((1.0, 0.0), (2.0, 0.0))]  # root first
+    assert tree.alive == [True, True, False, True, True]
+    assert tree.nearest(np.array([2.1, 0.0])) == one
+    tested.clear()
+    assert _edges_ok(tree, three, blocks_two) and tested == [((1.0, 0.0), (1.0, 1.0))]
+    tested.clear()
+    assert _edges_ok(tree, three, blocks_two) and not tested
+    tree.cut(one)
+    assert tree.alive == [True, False, False, False, True]
+    assert tree.nearest(np.array([1.0, 1.0])) in (0, four)
+
+
 def test_the_path_search_can_skip_its_straight_test(monkeypatch):
     # plan_motion's route has just found the straight segment blocked (same margin): the
     # search grows its trees at once; on a clear segment it then finds a certified path too.
