@@ -110,20 +110,24 @@ class _Tree:
     def __init__(self, root: np.ndarray) -> None:
         self._array = np.empty((64, len(root)))
         self._array[0] = root
+        self._squares = np.empty(64)  # per node |q|^2: the nearest by |q|^2 - 2 q . target
+        self._squares[0] = float(root @ root)
         self.nodes = [root]
         self.parent = [-1]
         self.tested = [True]  # per node, whether its edge from the parent has passed the edge test
         self.alive = [True]
 
     def nearest(self, q: np.ndarray) -> int:
-        diff = self._array[: len(self.nodes)] - q
-        return int(np.argmin(np.einsum("ij,ij->i", diff, diff)))
+        n = len(self.nodes)
+        return int(np.argmin(self._squares[:n] - 2.0 * (self._array[:n] @ q)))
 
     def add(self, q: np.ndarray, parent: int) -> int:
         n = len(self.nodes)
         if n == len(self._array):
             self._array = np.concatenate([self._array, np.empty_like(self._array)])
+            self._squares = np.concatenate([self._squares, np.empty_like(self._squares)])
         self._array[n] = q
+        self._squares[n] = float(q @ q)
         self.nodes.append(q)
         self.parent.append(parent)
         self.tested.append(False)
@@ -136,7 +140,7 @@ class _Tree:
         for i in range(k, len(self.nodes)):  # a node comes after its parent
             if i == k or not self.alive[self.parent[i]]:
                 self.alive[i] = False
-                self._array[i] = np.inf  # never the nearest again
+                self._array[i], self._squares[i] = 0.0, np.inf  # never the nearest again
 
     def branch(self, k: int) -> list[np.ndarray]:
         out = []
@@ -403,10 +407,12 @@ def _shortcut(path: list[np.ndarray], edge_ok, inner_ok, rng: np.random.Generato
     replaces is not tried.
     """
     path = _prune(list(path), inner_ok)
+    cum = None  # the length along the path at each node, until the path changes
     for _ in range(attempts):
         if len(path) <= 2:
             break
-        cum = np.concatenate([[0.0], np.cumsum([float(np.linalg.norm(b - a)) for a, b in zip(path, path[1:])])])
+        if cum is None:
+            cum = np.concatenate([[0.0], np.cumsum([float(np.linalg.norm(b - a)) for a, b in zip(path, path[1:])])])
         x, y = np.sort(rng.uniform(0.0, cum[-1], size=2))
         i = int(np.searchsorted(cum, x, side="right")) - 1
         j = int(np.searchsorted(cum, y, side="right")) - 1
@@ -419,4 +425,5 @@ def _shortcut(path: list[np.ndarray], edge_ok, inner_ok, rng: np.random.Generato
             continue  # nearly straight there already: not worth the edge's checks
         if edge_ok(a, b):
             path = path[: i + 1] + [a, b] + path[j + 1 :]
+            cum = None
     return _prune(path, inner_ok)
