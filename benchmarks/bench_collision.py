@@ -32,12 +32,18 @@ Goals (from the issue): checks per second at least roboplan's on the same model;
 wherever roboplan finds a path; planning time at most roboplan's median; duration within 10 %
 of roboplan's. Prints a Markdown table and writes JSON and the table to benchmarks/results/.
 
-    python benchmarks/bench_collision.py [--paths 50] [--arms ur5 panda] [--configs 2000] [--seed 0]
+    python benchmarks/bench_collision.py [--paths 50] [--arms ur5 panda] [--configs 2000] [--seed 0] [--phases]
+
+``--phases`` also records, per plan of ours, the CPU time of its steps (path search, continuous
+check, singularity measure and timing; the rest is IK-free bookkeeping, Ruckig and the request)
+and prints their medians on the pairs both solved, straight and routed apart. Off by default:
+the wrappers add a few calls to the time measured.
 """
 
 from __future__ import annotations
 
 import argparse
+import contextlib
 import json
 import sys
 import tempfile
@@ -46,6 +52,7 @@ from pathlib import Path
 
 import numpy as np
 
+import planner.app.motion_plan as motion_plan
 from planner import load_robot
 from planner.app.benchmark import run_record
 from planner.app.motion_plan import plan_motion
@@ -68,6 +75,38 @@ SCENE = {
 SRDF = {"ur5": ("ur_description/srdf/ur5.srdf", None), "panda": ("panda_description/srdf/panda.srdf", "arm")}
 BUDGET = 5.0  # seconds, both planners
 RATE = 1000.0
+#: plan_motion's steps timed with --phases: the functions planner.app.motion_plan calls, by step.
+PHASES = {
+    "path search": ("find_clear_path", "segment_is_clear", "segment_looks_clear"),
+    "continuous check": ("check_trajectory", "check_segment"),
+    "singularity measure and timing": ("plan_clear_of_singularities", "measure_singularities", "smooth_lines"),
+}
+
+
+@contextlib.contextmanager
+def timed_phases(spent: dict):
+    """Within it, CPU time [s] of each of :data:`PHASES`'s steps called by plan_motion is added to `spent`."""
+    saved = {}
+
+    def timed(phase: str, f):
+        def call(*args, **kwargs):
+            c0 = time.process_time()
+            try:
+                return f(*args, **kwargs)
+            finally:
+                spent[phase] = spent.get(phase, 0.0) + time.process_time() - c0
+
+        return call
+
+    for phase, names in PHASES.items():
+        for name in names:
+            saved[name] = getattr(motion_plan, name)
+            setattr(motion_plan, name, timed(phase, saved[name]))
+    try:
+        yield spent
+    finally:
+        for name, f in saved.items():
+            setattr(motion_plan, name, f)
 
 
 class Roboplan:
@@ -313,7 +352,9 @@ def bench_checks(name: str, robot, scene, limits, n: int, seed: int, have_robopl
     return out
 
 
-def bench_plans(name: str, robot, limits, paths: int, seed: int, have_roboplan: bool) -> list[dict]:
+def bench_plans(
+    name: str, robot, limits, paths: int, seed: int, have_roboplan: bool, phases: bool = False
+) -> list[dict]:
     checker = CollisionChecker(robot, parse_scene(SCENE))
     rp = Roboplan(name, robot, limits, obstacles=True) if have_roboplan else None
     rng = np.random.default_rng(seed)
@@ -339,9 +380,12 @@ def bench_plans(name: str, robot, limits, paths: int, seed: int, have_roboplan: 
                 "avoidance": {"seed": seed + i, "time_budget": BUDGET},
             }
         )
+        spent: dict = {}
+        timing = timed_phases(spent) if phases else contextlib.nullcontext()
         t0, c0 = time.perf_counter(), time.process_time()
         try:
-            plan = plan_motion(robot, request)
+            with timing:
+                plan = plan_motion(robot, request)
         except PlannerError as exc:
             row["ours"] = {"found": False, "plan_time": time.perf_counter() - t0, "reason": str(exc)}
         else:
@@ -364,6 +408,8 @@ def bench_plans(name: str, robot, limits, paths: int, seed: int, have_roboplan: 
                 "jerk": max(peaks["jerk"], exact["jerk"]),
                 "leaves_range": max(peaks["position"], exact["position"]) > 1e-9,
             }
+            if phases:
+                ours["phases"] = {k: spent.get(k, 0.0) for k in PHASES}
             ours.update(collisions(traj.sample(t).q, checker, rp))
             row["ours"] = ours
         if rp is not None:
@@ -427,8 +473,32 @@ def summarise(name: str, dof: int, checks: dict, rows: list[dict]) -> dict:
                 [r["ours"]["path_length"] / r["roboplan"]["path_length"] for r in routed], 50
             ),
             "routed_waypoints_median": _p([r["ours"]["waypoints"] for r in routed], 50),
+            "routed_plan_cpu_ratio_median": _p(
+                [r["ours"]["plan_cpu"] / r["roboplan"]["Hermite"]["plan_cpu"] for r in routed], 50
+            ),
+            "straight_plan_cpu_ratio_median": _p(
+                [
+                    r["ours"]["plan_cpu"] / r["roboplan"]["Hermite"]["plan_cpu"]
+                    for r in solved
+                    if not r["ours"]["routed"]
+                ],
+                50,
+            ),
             "routed_roboplan_points_median": _p([r["roboplan"]["path_points"] for r in routed], 50),
         }
+        if solved and "phases" in solved[0]["ours"]:
+            s["phases_ms_median"] = {
+                kind: {
+                    "plans": len(group),
+                    "total": _p([r["ours"]["plan_cpu"] * 1e3 for r in group], 50),
+                    **{k: _p([r["ours"]["phases"][k] * 1e3 for r in group], 50) for k in PHASES},
+                }
+                for kind, group in (
+                    ("straight", [r for r in solved if not r["ours"]["routed"]]),
+                    ("routed", routed),
+                )
+                if group
+            }
         for mode in ("Hermite", "Cubic"):
             both = [r for r in found if r["ours"]["found"]]
             times = [r["roboplan"][mode]["plan_time"] * 1e3 if r["roboplan"]["found"] else None for r in rows]
@@ -573,8 +643,15 @@ def goals(summaries: list[dict]) -> list[str]:
             f"{b['routed']} we routed: path length ratio {_f(b['routed_path_length_ratio_median'])}, duration ratio "
             f"(Hermite) {_f(s['roboplan_Hermite']['median_ratio_routed'])}, median trajectory waypoints ours "
             f"{_f(b['routed_waypoints_median'], '.0f')} vs roboplan path points "
-            f"{_f(b['routed_roboplan_points_median'], '.0f')}"
+            f"{_f(b['routed_roboplan_points_median'], '.0f')}; median per-pair CPU ratio straight "
+            f"{_f(b['straight_plan_cpu_ratio_median'], '.2f')}, routed {_f(b['routed_plan_cpu_ratio_median'], '.2f')}"
         )
+        for kind, m in s.get("phases_ms_median", {}).items():
+            steps = ", ".join(f"{k} {_f(m[k], '.1f')}" for k in PHASES)
+            out.append(
+                f"{s['robot']}: ours, {kind} ({m['plans']} plans both solved), CPU ms median: whole plan "
+                f"{_f(m['total'], '.1f')}; {steps}"
+            )
         for mode in ("Hermite", "Cubic"):
             e = s[f"roboplan_{mode}"]
             out.append(
@@ -591,6 +668,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--arms", nargs="*", default=["ur5", "panda"], help="arms (default: ur5 panda)")
     parser.add_argument("--configs", type=int, default=2000, help="random configurations for the checks/s")
     parser.add_argument("--seed", type=int, default=0, help="seed of the configurations and pairs")
+    parser.add_argument("--phases", action="store_true", help="also time the steps of our plans (CPU)")
     args = parser.parse_args(argv)
     if example_robot_data_dir() is None:
         print("example-robot-data is not installed (pip install 'servo-arm-planner[bench]'): nothing to do")
@@ -613,7 +691,7 @@ def main(argv: list[str] | None = None) -> int:
         limits = JointLimits.from_robot(robot)  # v from the URDF, a = 2 v, j = 10 a
         t0 = time.perf_counter()
         checks = bench_checks(name, robot, parse_scene(SCENE), limits, args.configs, args.seed, have_roboplan)
-        rows = bench_plans(name, robot, limits, args.paths, args.seed, have_roboplan)
+        rows = bench_plans(name, robot, limits, args.paths, args.seed, have_roboplan, args.phases)
         print(f"{name}: {time.perf_counter() - t0:.0f} s", file=sys.stderr)
         summaries.append(summarise(name, robot.dof, checks, rows))
         raw[name] = rows
@@ -630,6 +708,7 @@ def main(argv: list[str] | None = None) -> int:
             "arms": args.arms,
             "configs": args.configs,
             "seed": args.seed,
+            "phases": args.phases,
             "scene": SCENE,
             "limits": "v = URDF, a = 2 v, j = 10 a",
             "budget_s": BUDGET,

@@ -343,6 +343,40 @@ def test_the_continuous_check_catches_a_thin_plate_that_sampling_misses():
     assert "collides at" in result.describe()
 
 
+@pytest.mark.parametrize("name", ["al5c", pytest.param("ur5", marks=needs_example_robot_data)])
+def test_the_step_rule_is_the_longer_of_the_two_bounds_per_pair(name):
+    """_joint_steps against the module docstring's two bounds evaluated pair by pair in plain Python."""
+    import planner.collision.continuous as cc
+
+    robot = get_robot(name)
+    block = Obstacle("block", Box((0.06, 0.06, 0.25)), np.array([0.23, 0.0, 0.125]))
+    checker = CollisionChecker(robot, Scene(floor=-0.01, clearance=0.005, obstacles=(block,)))
+    weights, near = cc.pair_weights(checker), cc.near_bounds(checker)
+    growth = math.exp(cc.NEAR_TURN)
+    rng = np.random.default_rng(3)
+    acceleration = rng.uniform(1.0, 5.0, robot.dof)
+    rule = cc._joint_steps(checker, acceleration)
+    n = checker.pair_count
+    for _ in range(20):
+        speed = rng.uniform(0.0, 2.0, robot.dof) * (rng.random(robot.dof) < 0.8)
+        due = np.flatnonzero(rng.random(n) < 0.5)
+        d = rng.uniform(-0.002, 0.3, len(due))
+        room = np.maximum(d - 0.005 + 1e-4, 5e-5)
+        got = rule(speed, due, d, room)
+        for p, dp, r, step in zip(due, d, room, got):
+            v, a = max(weights[p] @ speed, 1e-12), weights[p] @ acceleration
+            want = 2 * r / (v + math.sqrt(v * v + 2 * a * r))
+            if np.isfinite(near.radius[p]):
+                turn, turn_acc = near.joints[p] @ speed, near.joints[p] @ acceleration
+                ball = near.radius[p] + dp
+                v = growth * (ball * turn + near.offsets[p] @ speed)
+                a = growth * (ball * turn_acc + near.offsets[p] @ acceleration)
+                second = 2 * r / (v + math.sqrt(v * v + 2 * a * r) + 1e-300)
+                cap = 2 * cc.NEAR_TURN / (turn + math.sqrt(turn * turn + 2 * turn_acc * cc.NEAR_TURN) + 1e-300)
+                want = max(want, min(second, cap))
+            assert step == pytest.approx(want, rel=1e-9)
+
+
 def test_a_clear_certificate_holds_between_checks():
     robot = get_robot("dh3")
     scene = Scene(floor=-0.01, clearance=0.004, obstacles=(Obstacle("ball", Sphere(0.02), np.array([0.1, 0.1, 0.12])),))
@@ -382,6 +416,35 @@ def test_path_around_a_block_is_clear_and_repeatable():
     np.testing.assert_array_equal(first.path[-1], qb)
     for a, b in zip(first.path, first.path[1:]):
         assert check_segment(checker, a, b).clear
+
+
+def test_a_blocked_tree_edge_cuts_its_node_and_what_grew_from_it():
+    # The trees test their nodes as they grow and the edges only on a path found (lazily):
+    # a blocked edge cuts its node off, with its subtree, and is never tested twice.
+    from planner.collision.rrt import _edges_ok, _Tree
+
+    tree = _Tree(np.zeros(2))
+    one = tree.add(np.array([1.0, 0.0]), 0)
+    two = tree.add(np.array([2.0, 0.0]), one)
+    three = tree.add(np.array([1.0, 1.0]), one)
+    four = tree.add(np.array([-1.0, 0.0]), 0)
+    tested = []
+
+    def blocks_two(a, b):
+        tested.append((tuple(a), tuple(b)))
+        return not np.array_equal(b, [2.0, 0.0])
+
+    assert not _edges_ok(tree, two, blocks_two)
+    assert tested == [((0.0, 0.0), (1.0, 0.0)), ((1.0, 0.0), (2.0, 0.0))]  # root first
+    assert tree.alive == [True, True, False, True, True]
+    assert tree.nearest(np.array([2.1, 0.0])) == one
+    tested.clear()
+    assert _edges_ok(tree, three, blocks_two) and tested == [((1.0, 0.0), (1.0, 1.0))]
+    tested.clear()
+    assert _edges_ok(tree, three, blocks_two) and not tested
+    tree.cut(one)
+    assert tree.alive == [True, False, False, False, True]
+    assert tree.nearest(np.array([1.0, 1.0])) in (0, four)
 
 
 def test_the_path_search_can_skip_its_straight_test(monkeypatch):

@@ -307,3 +307,23 @@ def test_the_path_search_without_certificates_keeps_its_seed_and_checks_its_poin
     np.testing.assert_array_equal(first.path[[0, -1]], [qa, qb])
     for a, b in zip(first.path, first.path[1:]):
         assert segment_looks_clear(checker, a, b)
+
+
+def test_the_collision_benchmark_times_the_steps_of_a_plan_and_puts_them_back():
+    """bench_collision --phases: CPU per step of plan_motion, the module's functions restored after."""
+    import importlib.util
+    from pathlib import Path
+
+    import planner.app.motion_plan as motion_plan
+
+    path = Path(__file__).resolve().parents[1] / "benchmarks" / "bench_collision.py"
+    spec = importlib.util.spec_from_file_location("bench_collision_under_test", path)
+    bench = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(bench)
+    before = {name: getattr(motion_plan, name) for names in bench.PHASES.values() for name in names}
+    robot = get_robot("al5c")
+    with bench.timed_phases({}) as spent:
+        plan = motion_plan.plan_motion(robot, parse_motion_request(BLOCK_PLAN))
+    assert plan.routes and set(spent) == set(bench.PHASES)
+    assert all(t > 0.0 for t in spent.values())
+    assert all(getattr(motion_plan, name) is f for name, f in before.items())

@@ -440,31 +440,36 @@ def _joint_steps(checker: CollisionChecker, acceleration: np.ndarray) -> Callabl
 
         return constant
 
+    m = len(rows)
+    turn_acc, lever_acc = per_acc[n : n + m], per_acc[n + m :]
+    # Both bounds at once, every pair (only the due ones are read back): the first bound's
+    # entries for all n pairs, then the near-body bound's for the m useful ones; per pair the
+    # last distance and room given (a few whole-array operations cost less than picking out
+    # the due pairs of each bound).
+    speeds = np.empty(n + m)
+    twice_acc = np.empty(n + m)
+    twice_acc[:n] = 2.0 * per_acc[:n]
+    last_d, last_room = np.ones(n), np.ones(n)
+    both = np.concatenate([np.arange(n), rows])
+    cap_acc = 2.0 * turn_acc * NEAR_TURN
+
     def steps(speed: np.ndarray, due: np.ndarray, d: np.ndarray, room: np.ndarray) -> np.ndarray:
-        if state["speed"] is not speed:
-            state["speed"], state["product"] = speed, stacked @ speed
-        product = state["product"]
-        v = np.maximum(product[due], 1e-12)
-        a = per_acc[due]
-        step = 2.0 * room / (v + np.sqrt(v * v + 2.0 * a * room))
-        if not len(rows):
-            return step
-        where = slot[due]
-        hit = where >= 0
-        if not hit.any():
-            return step
-        k = where[hit]
-        m = len(rows)
-        turn, lever = product[n + k], product[n + m + k]
-        turn_acc, lever_acc = per_acc[n + k], per_acc[n + m + k]
-        ball = radius[k] + d[hit]
-        r = room[hit]
-        v = _NEAR_GROWTH * (ball * turn + lever)
-        a = _NEAR_GROWTH * (ball * turn_acc + lever_acc)
-        near_step = 2.0 * r / (v + np.sqrt(v * v + 2.0 * a * r) + 1e-300)
-        cap = 2.0 * NEAR_TURN / (turn + np.sqrt(turn * turn + 2.0 * turn_acc * NEAR_TURN) + 1e-300)
-        step[hit] = np.maximum(step[hit], np.minimum(near_step, cap))
-        return step
+        product = stacked @ speed
+        if not m:
+            v = np.maximum(product[due], 1e-12)
+            return 2.0 * room / (v + np.sqrt(v * v + 2.0 * per_acc[due] * room))
+        last_d[due], last_room[due] = d, room
+        np.maximum(product[:n], 1e-12, out=speeds[:n])
+        turn = product[n : n + m]
+        ball = radius + last_d[rows]
+        speeds[n:] = _NEAR_GROWTH * (ball * turn + product[n + m :])
+        twice_acc[n:] = 2.0 * (_NEAR_GROWTH * (ball * turn_acc + lever_acc))
+        r = last_room[both]
+        step = 2.0 * r / (speeds + np.sqrt(speeds * speeds + twice_acc * r) + 1e-300)
+        cap = 2.0 * NEAR_TURN / (turn + np.sqrt(turn * turn + cap_acc) + 1e-300)
+        first = step[:n]
+        first[rows] = np.maximum(first[rows], np.minimum(step[n:], cap))
+        return first[due]
 
     return steps
 

@@ -1,16 +1,17 @@
 """A collision-free joint path between two configurations: RRT-Connect, then shortcuts.
 
 :func:`find_clear_path` grows two trees (Kuffner and LaValle's RRT-Connect) from the start and
-the goal, deciding each straight joint-space edge by distance checks every
-:attr:`PathOptions.resolution`. The path found is shortened by straight edges between random
-points along it (not only its nodes; Geraerts and Overmars 2007 call these partial shortcuts)
-and a greedy pass that joins each node to the farthest one it sees, all decided by the same
-cheap checks as the trees' edges (the clearance plus :attr:`PathOptions.margin`, the distance
-the certificate then asks for); then every edge is certified with
-:func:`~planner.collision.continuous.check_segment`. If one fails, the trees' own path is
-certified and shortened by certified edges only, and if that fails too new trees are grown.
-It draws from its own generator seeded by :attr:`PathOptions.seed`: the same seed gives the
-same path; no global state is touched.
+the goal, lazily (Bohlin and Kavraki 2000): each new node is tested as it is added, the points
+every :attr:`PathOptions.resolution` along an edge only when the trees meet, on the path
+through them; a blocked edge cuts its node off and the trees grow on. The path found is
+shortened by straight edges between random points along it (not only its nodes; Geraerts and
+Overmars 2007 call these partial shortcuts) and a greedy pass that joins each node to the
+farthest one it sees, all decided by the same cheap checks as the trees' edges (the clearance
+plus :attr:`PathOptions.margin`, the distance the certificate then asks for); then every edge
+is certified with :func:`~planner.collision.continuous.check_segment`. If one fails, the trees'
+own path is certified and shortened by certified edges only, and if that fails too new trees
+are grown. It draws from its own generator seeded by :attr:`PathOptions.seed`: the same seed
+gives the same path; no global state is touched.
 """
 
 from __future__ import annotations
@@ -100,24 +101,46 @@ class PathResult:
 
 
 class _Tree:
+    """One RRT tree: its nodes, their parents, and which edges (parent to node) passed their test.
+
+    A node whose edge from its parent turns out blocked is cut off with everything grown from
+    it (:meth:`cut`): it stays listed but :meth:`nearest` no longer finds it.
+    """
+
     def __init__(self, root: np.ndarray) -> None:
         self._array = np.empty((64, len(root)))
         self._array[0] = root
+        self._squares = np.empty(64)  # per node |q|^2: the nearest by |q|^2 - 2 q . target
+        self._squares[0] = float(root @ root)
         self.nodes = [root]
         self.parent = [-1]
+        self.tested = [True]  # per node, whether its edge from the parent has passed the edge test
+        self.alive = [True]
 
     def nearest(self, q: np.ndarray) -> int:
-        diff = self._array[: len(self.nodes)] - q
-        return int(np.argmin(np.einsum("ij,ij->i", diff, diff)))
+        n = len(self.nodes)
+        return int(np.argmin(self._squares[:n] - 2.0 * (self._array[:n] @ q)))
 
     def add(self, q: np.ndarray, parent: int) -> int:
         n = len(self.nodes)
         if n == len(self._array):
             self._array = np.concatenate([self._array, np.empty_like(self._array)])
+            self._squares = np.concatenate([self._squares, np.empty_like(self._squares)])
         self._array[n] = q
+        self._squares[n] = float(q @ q)
         self.nodes.append(q)
         self.parent.append(parent)
+        self.tested.append(False)
+        self.alive.append(True)
         return n
+
+    def cut(self, k: int) -> None:
+        """Drop node `k` (not the root) and every node grown from it."""
+        self.alive[k] = False
+        for i in range(k, len(self.nodes)):  # a node comes after its parent
+            if i == k or not self.alive[self.parent[i]]:
+                self.alive[i] = False
+                self._array[i], self._squares[i] = 0.0, np.inf  # never the nearest again
 
     def branch(self, k: int) -> list[np.ndarray]:
         out = []
@@ -213,11 +236,20 @@ def find_clear_path(
 
     near = checker.closer_than(need, allow)
 
+    def near_ok(q: np.ndarray) -> bool:
+        return not near(q)
+
     def quick(a: np.ndarray, b: np.ndarray) -> bool:
         """Proximity checks every `resolution` along the edge, its end first: cheap, not a certificate."""
         d = b - a
         n = max(1, int(np.ceil(float(np.abs(d).max()) / options.resolution)))
         return not any(map(near, a + sweep_order(n)[:, None] * d))
+
+    def between(a: np.ndarray, b: np.ndarray) -> bool:
+        """`quick` without the end (a tree's node, tested when it was added)."""
+        d = b - a
+        n = max(1, int(np.ceil(float(np.abs(d).max()) / options.resolution)))
+        return not any(map(near, a + sweep_order(n)[1:, None] * d))
 
     if try_straight and clear(q0, q1):
         return PathResult(PathStatus.FOUND, read_only(np.array([q0, q1])), "", 0)
@@ -234,16 +266,16 @@ def find_clear_path(
     # budget is spent.
     while iterations < options.max_iterations and time.perf_counter() <= deadline:
         left = options.max_iterations - iterations
-        path, used = _grow(q0, q1, quick, rng, lo, hi, options.step, deadline, left)
+        path, used = _grow(q0, q1, near_ok, between, rng, lo, hi, options.step, deadline, left)
         iterations += used
         if path is None:
             break
         path = _merge_collinear(path)
-        short = _shortcut(path, quick, rng, options.shortcuts)
+        short = _shortcut(path, quick, between, rng, options.shortcuts)
         if not certify_edges or all(certify(a, b) for a, b in zip(short, short[1:])):
             return PathResult(PathStatus.FOUND, read_only(np.array(short)), "", iterations)
         if all(certify(a, b) for a, b in zip(path, path[1:])):
-            path = _prune(path, lambda a, b: quick(a, b) and certify(a, b))
+            path = _prune(path, lambda a, b: between(a, b) and certify(a, b))
             return PathResult(PathStatus.FOUND, read_only(np.array(path)), "", iterations)
     if time.perf_counter() > deadline:
         return PathResult(PathStatus.NOT_FOUND, empty, f"no clear path within {options.time_budget:g} s", iterations)
@@ -253,6 +285,7 @@ def find_clear_path(
 def _grow(
     q0: np.ndarray,
     q1: np.ndarray,
+    node_ok,
     edge_ok,
     rng: np.random.Generator,
     lo: np.ndarray,
@@ -261,7 +294,12 @@ def _grow(
     deadline: float,
     budget: int,
 ) -> tuple[list[np.ndarray] | None, int]:
-    """RRT-Connect from both ends with `edge_ok` deciding edges (their ends included).
+    """RRT-Connect from both ends, lazily: `node_ok` decides new nodes, `edge_ok` the edges of a path found.
+
+    Nodes are tested as they are added; the points between them only once the trees meet, on
+    the edges of the path through them (most edges the trees grow never join a path). A
+    blocked tree edge cuts its node off (with what grew from it) and the trees grow on.
+    `edge_ok(a, b)` tests the points strictly between `a` and `b`.
 
     Returns:
         The path, start first, or None; and the extensions used.
@@ -273,7 +311,7 @@ def _grow(
             return None, it
         a, b = trees if it % 2 else trees[::-1]
         target = lo + span * rng.random(len(lo))
-        new = _extend(a, target, step, edge_ok)
+        new = _extend(a, target, step, node_ok)
         if new is None:
             continue
         # Connect: grow the other tree toward the new node until it arrives or is blocked.
@@ -284,18 +322,32 @@ def _grow(
             delta = q_new - q_near
             far = float(np.abs(delta).max())
             if far <= step:
-                if edge_ok(q_near, q_new):
+                if _edges_ok(a, new, edge_ok) and _edges_ok(b, k, edge_ok) and edge_ok(q_near, q_new):
                     return _join(a, new, b, k, trees[0] is a), it
                 break
             q_next = q_near + delta * (step / far)
-            if not edge_ok(q_near, q_next):
+            if not node_ok(q_next):
                 break
             k = b.add(q_next, k)
     return None, budget
 
 
-def _extend(tree: _Tree, target: np.ndarray, step: float, edge_ok) -> int | None:
-    """Grow `tree` one step toward `target`; `edge_ok` decides the edge (its end included)."""
+def _edges_ok(tree: _Tree, k: int, edge_ok) -> bool:
+    """Test the untested edges from the root to node `k`, root first; cut the tree at a blocked one."""
+    chain = []
+    while k > 0 and not tree.tested[k]:
+        chain.append(k)
+        k = tree.parent[k]
+    for i in reversed(chain):
+        if not edge_ok(tree.nodes[tree.parent[i]], tree.nodes[i]):
+            tree.cut(i)
+            return False
+        tree.tested[i] = True
+    return True
+
+
+def _extend(tree: _Tree, target: np.ndarray, step: float, node_ok) -> int | None:
+    """Grow `tree` one step toward `target`; `node_ok` decides the new node."""
     k = tree.nearest(target)
     q_near = tree.nodes[k]
     delta = target - q_near
@@ -303,7 +355,7 @@ def _extend(tree: _Tree, target: np.ndarray, step: float, edge_ok) -> int | None
     if far == 0.0:
         return None
     q_new = q_near + delta * min(1.0, step / far)
-    if not edge_ok(q_near, q_new):
+    if not node_ok(q_new):
         return None
     return tree.add(q_new, k)
 
@@ -328,7 +380,10 @@ def _merge_collinear(path: list[np.ndarray]) -> list[np.ndarray]:
 
 
 def _prune(path: list[np.ndarray], edge_ok) -> list[np.ndarray]:
-    """From each node, the farthest later node `edge_ok` connects it to straight (greedy)."""
+    """From each node, the farthest later node `edge_ok` connects it to straight (greedy).
+
+    `edge_ok(a, b)` need not test `b` (a node of the path, tested already).
+    """
     out, i = [path[0]], 0
     while i < len(path) - 1:
         j = len(path) - 1
@@ -339,17 +394,25 @@ def _prune(path: list[np.ndarray], edge_ok) -> list[np.ndarray]:
     return out
 
 
-def _shortcut(path: list[np.ndarray], edge_ok, rng: np.random.Generator, attempts: int) -> list[np.ndarray]:
+#: Least share of its stretch along the path a shortcut must save to be tried.
+_GAIN = 0.01
+
+
+def _shortcut(path: list[np.ndarray], edge_ok, inner_ok, rng: np.random.Generator, attempts: int) -> list[np.ndarray]:
     """Shorten the path: the greedy prune, straight edges between random points along it, the prune again.
 
     The points are drawn by length along the path (not only its nodes), so a corner is cut
-    wherever the straight edge past it is clear (`edge_ok`).
+    wherever the straight edge past it is clear (`edge_ok`; `inner_ok` where its end is a
+    node, as in the prune). An edge that would save less than :data:`_GAIN` of the stretch it
+    replaces is not tried.
     """
-    path = _prune(list(path), edge_ok)
+    path = _prune(list(path), inner_ok)
+    cum = None  # the length along the path at each node, until the path changes
     for _ in range(attempts):
         if len(path) <= 2:
             break
-        cum = np.concatenate([[0.0], np.cumsum([float(np.linalg.norm(b - a)) for a, b in zip(path, path[1:])])])
+        if cum is None:
+            cum = np.concatenate([[0.0], np.cumsum([float(np.linalg.norm(b - a)) for a, b in zip(path, path[1:])])])
         x, y = np.sort(rng.uniform(0.0, cum[-1], size=2))
         i = int(np.searchsorted(cum, x, side="right")) - 1
         j = int(np.searchsorted(cum, y, side="right")) - 1
@@ -358,6 +421,9 @@ def _shortcut(path: list[np.ndarray], edge_ok, rng: np.random.Generator, attempt
             continue
         a = path[i] + (x - cum[i]) / (cum[i + 1] - cum[i]) * (path[i + 1] - path[i])
         b = path[j] + (y - cum[j]) / (cum[j + 1] - cum[j]) * (path[j + 1] - path[j])
+        if (y - x) - float(np.linalg.norm(b - a)) <= _GAIN * (y - x):
+            continue  # nearly straight there already: not worth the edge's checks
         if edge_ok(a, b):
             path = path[: i + 1] + [a, b] + path[j + 1 :]
-    return _prune(path, edge_ok)
+            cum = None
+    return _prune(path, inner_ok)
