@@ -27,6 +27,7 @@ from planner.ik.analytic.yaw_planar.batch import solve_chunked
 from planner.ik.analytic.yaw_planar.branches import BRANCHES
 from planner.ik.analytic.yaw_planar.compiled import CompiledKernels, compiled_supported, kind_of
 from planner.ik.analytic.yaw_planar.corrected import real_tip_pose, solve_corrected_pose, solve_corrected_scalar
+from planner.ik.analytic.yaw_planar.corrected_single import CorrectedKernel, corrected_kernel, corrected_supported
 from planner.ik.analytic.yaw_planar.layout import chain_layout
 from planner.ik.analytic.yaw_planar.real_model import true_fk
 from planner.ik.analytic.yaw_planar.scalar import scalar_plan, solve_scalar
@@ -83,9 +84,10 @@ class YawPlanarIK(AnalyticIK):
         self._kernels = CompiledKernels(arm)
         # nearest's distances are modulo 2 pi on every joint (revolute joints, as planner.ik.solve's).
         self._nearest_ok = arm.exact and all(kind == "revolute" for kind in robot.joint_kinds)
-        # nearest's compiled kernels by (kind, with a seed): a SingleKernel, False (none), or
-        # the calls so far (an int) until SINGLE_AFTER.
-        self._single: dict[tuple[str, bool], SingleKernel | bool | int] = {}
+        self._corrected_ok = corrected_supported(arm, robot.joint_kinds)
+        # nearest's compiled kernels by (kind, with a seed): a SingleKernel (a CorrectedKernel on
+        # inexact chains), False (none), or the calls so far (an int) until SINGLE_AFTER.
+        self._single: dict[tuple[str, bool], SingleKernel | CorrectedKernel | bool | int] = {}
 
     def describe(self) -> dict:
         """The detected geometry, for reports and tests (lengths [m], angles [rad])."""
@@ -154,10 +156,14 @@ class YawPlanarIK(AnalyticIK):
         On exact chains, from the scalar paths' entries, or after :data:`~planner.ik.analytic.base.SINGLE_AFTER` calls
         of a target kind by one compiled call
         (:class:`~planner.ik.analytic.yaw_planar.single.SingleKernel`; where it is not sure,
-        the scalar paths; joint values the same to round-off; ``count`` and ``index`` None);
-        None on inexact chains.
+        the scalar paths; joint values the same to round-off; ``count`` and ``index`` None).
+        On inexact chains (SO-101) after as many calls by one compiled call of the corrected
+        closed form (:class:`~planner.ik.analytic.yaw_planar.corrected_single.CorrectedKernel`),
+        else None.
         """
         arm = self.arm
+        if self._corrected_ok:
+            return self._corrected_nearest(target, seed)
         if not self._nearest_ok or (target.pitch is not None and not arm.pitch_supported):
             return None
         key = (kind_of(target.pitch, target.rotation), seed is not None)
@@ -180,6 +186,30 @@ class YawPlanarIK(AnalyticIK):
             return pose_nearest(arm, self._pose_frame, target, qc, self._scalar_plan)
         entries = solve_scalar(arm, target, qc, self._scalar_plan, True)
         return None if entries is None else nearest_entry(entries, qc)
+
+    def _corrected_nearest(self, target: Target, seed: np.ndarray | None) -> NearestSolution | None:
+        """:meth:`nearest` on inexact chains: the compiled corrected closed form's answer where sure, else None."""
+        if target.pitch is not None and not self.arm.pitch_supported:
+            return None
+        key = (kind_of(target.pitch, target.rotation), seed is not None)
+        kernel = self._counted_kernel(key, self._corrected_kernel)
+        if kernel.__class__ is not CorrectedKernel:
+            return None
+        inputs = kernel.inputs
+        inputs[0:3] = target.position
+        if key[0] == "pose":
+            inputs[3:12] = target.rotation.ravel()
+        elif key[0] == "pitch":
+            inputs[3] = target.pitch
+        if seed is not None:
+            inputs[-self.arm.dof :] = seed
+        kernel()
+        out = kernel.outputs.tolist()
+        return NearestSolution(tuple(out[2:]), BRANCHES[int(out[1])], None, None) if out[0] else None
+
+    def _corrected_kernel(self, key: tuple[str, bool]) -> CorrectedKernel | bool:
+        """The compiled kernel of :meth:`_corrected_nearest` for a target kind, or False where there is none."""
+        return corrected_kernel(self.arm, self._pose_frame, *key) or False
 
     def _single_kernel(self, key: tuple[str, bool]) -> SingleKernel | bool:
         """The compiled kernel of :meth:`nearest` for a target kind, or False where there is none."""
