@@ -112,3 +112,51 @@ def test_solve_ik_through_the_kernel(data):
     target, _ = data.draw(targets(fast_robot))
     seed = data.draw(seeds(fast_robot))
     _assert_same(fast_robot, slow_robot, target, seed)
+
+
+def _solver_pair():
+    """Two SO-101 closed-form solvers of :func:`_pair`'s robots, built once (each keeps its kernels)."""
+    cache = _solver_pair.__dict__.setdefault("cache", [])
+    if not cache:
+        cache += [IKSolvers.of(robot).analytic for robot in _pair()]
+    return cache
+
+
+def _assert_same_result(fast, slow, target: Target, seed) -> None:
+    """solver.solve through the kernel (every branch) gives the Python path's result."""
+    got = _after(1, lambda: fast.solve(target, seed))
+    expected = _after(10**12, lambda: slow.solve(target, seed))
+    assert (got.status, got.reason, got.singular) == (expected.status, expected.reason, expected.singular)
+    assert [s.branch for s in got.solutions] == [s.branch for s in expected.solutions]
+    for a, b in zip(got.solutions, expected.solutions):
+        assert (a.within_limits, a.singular) == (b.within_limits, b.singular)
+        assert _wrapped_gap(a.q, b.q) <= ROUND_OFF
+        position_error, orientation_error, _ = tip_errors(fast.robot, target, a.q)
+        assert a.position_error == pytest.approx(position_error, abs=1e-12)
+        if got.ok:
+            assert position_error <= 1e-9 and orientation_error <= 1e-9
+
+
+@pytest.mark.parametrize(("kind", "current"), KINDS)
+def test_every_branch_as_the_python_path(kind, current):
+    """Seeded random reachable targets: solver.solve through the kernel gives the Python path's result."""
+    fast, slow = _solver_pair()
+    rng = np.random.default_rng([13, len(kind), current])
+    robot = fast.robot
+    for q, seed in zip(robot.random_configurations(rng, 120), robot.random_configurations(rng, 120)):
+        _assert_same_result(fast, slow, _target(robot, kind, q), seed if current else None)
+
+
+@property_settings(100)
+@given(data=st.data())
+def test_solve_through_the_kernel(data):
+    fast, slow = _solver_pair()
+    target, _ = data.draw(targets(fast.robot))
+    seed = data.draw(seeds(fast.robot))
+    try:
+        _after(10**12, lambda: slow.solve(target, seed))
+    except UnsupportedChainError:
+        with pytest.raises(UnsupportedChainError):
+            _after(1, lambda: fast.solve(target, seed))
+        return
+    _assert_same_result(fast, slow, target, seed)

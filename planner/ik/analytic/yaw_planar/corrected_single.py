@@ -167,7 +167,7 @@ def _pitch_starts(arm: ArmGeometry, p, pit, qc, prm):
 
     Returns:
         (starts: 4 joint lists, aims: 4 elevation goals, valid: 4 flags, ok: whether the Python
-        path's preconditions hold).
+        path's preconditions hold, u: the end point's distance from the yaw axis [m]).
     """
     px, py, pz = p
     ok = ca.SX(1)
@@ -226,7 +226,7 @@ def _pitch_starts(arm: ArmGeometry, p, pit, qc, prm):
         starts += branches
         aims += [alpha, alpha]
         valid += [ca.logic_and(reached[side], reach)] * 2
-    return starts, aims, valid, ok
+    return starts, aims, valid, ok, u
 
 
 def _pose_starts(arm: ArmGeometry, frame: PoseFrame, p, rflat, qc):
@@ -289,7 +289,10 @@ def _pose_starts(arm: ArmGeometry, frame: PoseFrame, p, rflat, qc):
     l1, l2, g1, g2, su, sz = arm.l1, arm.l2, arm.g1, arm.g2, arm.su, arm.sz
     signs = arm.signs
     near_elbow = math.sin(arm.elbow_seed)
-    ok = ca.logic_not(free)
+    # Next to the yaw axis (corrected._seeded_pose; a little wider, for round-off) the Python path
+    # leaves the pose to the vectorised one.
+    seeded = _and(ca.logic_not(cylinder), u_pos < (1.0 + 1e-9) * math.sqrt(2.0 * abs(d) * len_tol))
+    ok = _and(ca.logic_not(free), ca.logic_not(seeded))
     starts, valid = [], []
     for side in (0, 1):
         cp_, sp_ = ca.cos(psi[side]), ca.sin(psi[side])
@@ -359,17 +362,22 @@ class CorrectedKernel:
     """One target kind's compiled corrected closed form with the nearest pick, its buffers bound once.
 
     Fill :attr:`inputs` (position, then the pitch or the rotation's nine entries row by row,
-    then the seed), call, read :attr:`outputs`: ``[sure, slot, q...]``.
+    then the seed), call, read :attr:`outputs`: ``[sure, slot, q...]``; with `every`, every
+    branch for :meth:`~planner.ik.analytic.yaw_planar.solver.YawPlanarIK.solve`: ``[sure,
+    singular, valid (4), q (4 x dof, not yet wrapped into the limits)]``
+    (:func:`~planner.ik.analytic.yaw_planar.corrected.corrected_result` checks and assembles them).
 
     Attributes:
         inputs: The input vector.
-        outputs: ``[1.0 if the answer is the Python path's else 0.0, the chosen slot, q (dof)]``.
+        outputs: ``[1.0 if the answer is the Python path's else 0.0, the chosen slot, q (dof)]``,
+            or with `every` as above (`singular`: the position and pitch branches' flag, next
+            to the yaw axis; 0 for poses).
         compiled: Whether the function runs as C code (else the caller should not use it).
 
     Not thread-safe: its buffers serve one call at a time (each solver owns its kernels).
     """
 
-    def __init__(self, arm: ArmGeometry, frame: PoseFrame, kind: str, current: bool) -> None:
+    def __init__(self, arm: ArmGeometry, frame: PoseFrame, kind: str, current: bool, every: bool = False) -> None:
         dof = arm.dof
         n_extra = {"position": 0, "pitch": 1, "pose": 9}[kind]
         n_in = 3 + n_extra + (dof if current else 0)
@@ -384,6 +392,7 @@ class CorrectedKernel:
             rflat = [x[3 + k] for k in range(9)]
             rows = [rflat[0:3], rflat[3:6], rflat[6:9]]
             starts, valid, sure = _pose_starts(arm, frame, p, rflat, qc)
+            flag = ca.SX(0.0)
             step = pose_kernel(dof)
             rot_t = ca.vertcat(*[ca.horzcat(*row) for row in rows])
             # The rotation fixes the arm's plane: one side's branches at most are valid (with
@@ -405,7 +414,9 @@ class CorrectedKernel:
                 settled.append(done)
         else:
             pit = x[3] if kind == "pitch" else None
-            starts, aims, valid, sure = _pitch_starts(arm, p, pit, qc, prm)
+            starts, aims, valid, sure, u = _pitch_starts(arm, p, pit, qc, prm)
+            # The branches' singular flag (corrected: u_end < SINGULAR_TOL x the arm's size).
+            flag = u < SINGULAR_TOL * arm.scale
             step = pitch_kernel(dof, arm.roll_idx)
             lx, ly, lz = (float(v) for v in arm.approach_local)
             for m in range(4):
@@ -428,6 +439,7 @@ class CorrectedKernel:
                 for k in range(dof):
                     close = _and(close, ca.fabs(_wrapped(qs[i][k], qs[j][k])) < TWIN)
                 sure = _and(sure, ca.logic_not(_and(valid[i], valid[j], close)))
+        raw = [list(q) for q in qs]
         within = []
         for m in range(4):
             inside = valid[m]
@@ -449,19 +461,25 @@ class CorrectedKernel:
                 take = _and(within[m], dist[m] < nearest)
                 best = _if(take, m, best)
                 nearest = _if(take, dist[m], nearest)
-            for m in range(4):
-                sure = _and(sure, ca.logic_not(_and(within[m], m != best, dist[m] == nearest)))
+            if not every:  # ties: the Python path's order among them is its sort key's
+                for m in range(4):
+                    sure = _and(sure, ca.logic_not(_and(within[m], m != best, dist[m] == nearest)))
         else:
             best = _if(within[0], 0, _if(within[1], 1, _if(within[2], 2, _if(within[3], 3, -1))))
         sure = _and(sure, best >= 0)
         chosen = [
             _if(best == 0, qs[0][j], _if(best == 1, qs[1][j], _if(best == 2, qs[2][j], qs[3][j]))) for j in range(dof)
         ]
-        fn = ca.Function(f"yaw_planar_corrected_{kind}", [x, prm], [ca.cse(ca.vertcat(sure, best, *chosen))])
+        if every:
+            out = ca.vertcat(sure, flag, *valid, *[v for q in raw for v in q])
+        else:
+            out = ca.vertcat(sure, best, *chosen)
+        name = f"yaw_planar_corrected_{kind}" + ("_every" if every else "")
+        fn = ca.Function(name, [x, prm], [ca.cse(out)])
         self.function = compile_function(fn, flags=FLAGS)
         self.compiled = self.function.class_name() == "External"
         self.inputs = np.zeros(n_in)
-        self.outputs = np.zeros(2 + dof)
+        self.outputs = np.zeros(out.numel())
         self._prm = arm_parameters(arm)
         self._buffer, self._evaluate = self.function.buffer()
         self._buffer.set_arg(0, memoryview(self.inputs))
@@ -473,7 +491,9 @@ class CorrectedKernel:
         self._evaluate()
 
 
-def corrected_kernel(arm: ArmGeometry, frame: PoseFrame, kind: str, current: bool) -> CorrectedKernel | None:
+def corrected_kernel(
+    arm: ArmGeometry, frame: PoseFrame, kind: str, current: bool, every: bool = False
+) -> CorrectedKernel | None:
     """The compiled :class:`CorrectedKernel`, or None where the Python path always answers.
 
     None for position targets without q_current (the Python path hands them to the vectorised
@@ -484,5 +504,5 @@ def corrected_kernel(arm: ArmGeometry, frame: PoseFrame, kind: str, current: boo
     ri = arm.roll_idx
     if not current and kind != "pose" and not arm.lower[ri] <= 0.0 <= arm.upper[ri]:
         return None
-    kernel = CorrectedKernel(arm, frame, kind, current)
+    kernel = CorrectedKernel(arm, frame, kind, current, every)
     return kernel if kernel.compiled else None

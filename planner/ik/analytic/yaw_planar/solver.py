@@ -26,7 +26,12 @@ from planner.ik.analytic.yaw_planar.arrays import BranchArrays, result_from_arra
 from planner.ik.analytic.yaw_planar.batch import solve_chunked
 from planner.ik.analytic.yaw_planar.branches import BRANCHES
 from planner.ik.analytic.yaw_planar.compiled import CompiledKernels, compiled_supported, kind_of
-from planner.ik.analytic.yaw_planar.corrected import real_tip_pose, solve_corrected_pose, solve_corrected_scalar
+from planner.ik.analytic.yaw_planar.corrected import (
+    corrected_result,
+    real_tip_pose,
+    solve_corrected_pose,
+    solve_corrected_scalar,
+)
 from planner.ik.analytic.yaw_planar.corrected_single import CorrectedKernel, corrected_kernel, corrected_supported
 from planner.ik.analytic.yaw_planar.layout import chain_layout
 from planner.ik.analytic.yaw_planar.real_model import true_fk
@@ -87,7 +92,7 @@ class YawPlanarIK(AnalyticIK):
         self._corrected_ok = corrected_supported(arm, robot.joint_kinds)
         # nearest's compiled kernels by (kind, with a seed): a SingleKernel (a CorrectedKernel on
         # inexact chains), False (none), or the calls so far (an int) until SINGLE_AFTER.
-        self._single: dict[tuple[str, bool], SingleKernel | CorrectedKernel | bool | int] = {}
+        self._single: dict[tuple, SingleKernel | CorrectedKernel | bool | int] = {}
 
     def describe(self) -> dict:
         """The detected geometry, for reports and tests (lengths [m], angles [rad])."""
@@ -135,11 +140,7 @@ class YawPlanarIK(AnalyticIK):
                 result = solve_pose_scalar(arm, self._pose_frame, target, qc, self._scalar_plan)
             if result.status is STATUS_SOLVED:
                 return result
-        elif target.rotation is None and (result := solve_corrected_scalar(arm, self._real_tip_pose, target, qc)):
-            return result
-        elif target.rotation is not None and (
-            result := solve_corrected_pose(arm, self._pose_frame, self._real_tip_pose, target, qc)
-        ):
+        elif result := self._solve_corrected(target, qc):
             return result
         else:
             arrays = solve_arrays(arm, *_one_target_arrays(target, qc))
@@ -207,9 +208,44 @@ class YawPlanarIK(AnalyticIK):
         out = kernel.outputs.tolist()
         return NearestSolution(tuple(out[2:]), BRANCHES[int(out[1])], None, None) if out[0] else None
 
-    def _corrected_kernel(self, key: tuple[str, bool]) -> CorrectedKernel | bool:
-        """The compiled kernel of :meth:`_corrected_nearest` for a target kind, or False where there is none."""
-        return corrected_kernel(self.arm, self._pose_frame, *key) or False
+    def _corrected_kernel(self, key: tuple) -> CorrectedKernel | bool:
+        """The compiled kernel of a target kind, or False where there is none.
+
+        `key`: (kind, with a seed) for :meth:`_corrected_nearest`, ("every", kind, with a seed)
+        for :meth:`_solve_corrected`.
+        """
+        every = key[0] == "every"
+        kind, current = key[1:] if every else key
+        return corrected_kernel(self.arm, self._pose_frame, kind, current, every) or False
+
+    def _solve_corrected(self, target: Target, qc: list[float] | None) -> AnalyticResult | None:
+        """:meth:`solve` on inexact chains: every branch by the corrected closed form, or None.
+
+        After :data:`~planner.ik.analytic.base.SINGLE_AFTER` calls of a target kind by one
+        compiled call (:func:`~planner.ik.analytic.yaw_planar.corrected.corrected_result`) where it
+        is sure, else by :func:`~planner.ik.analytic.yaw_planar.corrected.solve_corrected_scalar`
+        or :func:`~planner.ik.analytic.yaw_planar.corrected.solve_corrected_pose`.
+        """
+        arm = self.arm
+        if self._corrected_ok:
+            kind = kind_of(target.pitch, target.rotation)
+            kernel = self._counted_kernel(("every", kind, qc is not None), self._corrected_kernel)
+            if kernel.__class__ is CorrectedKernel:
+                inputs = kernel.inputs
+                inputs[0:3] = target.position
+                if kind == "pose":
+                    inputs[3:12] = target.rotation.ravel()
+                elif kind == "pitch":
+                    inputs[3] = target.pitch
+                if qc is not None:
+                    inputs[-arm.dof :] = qc
+                kernel()
+                result = corrected_result(arm, self._real_tip_pose, target, qc, kernel.outputs.tolist())
+                if result is not None:
+                    return result
+        if target.rotation is None:
+            return solve_corrected_scalar(arm, self._real_tip_pose, target, qc)
+        return solve_corrected_pose(arm, self._pose_frame, self._real_tip_pose, target, qc)
 
     def _single_kernel(self, key: tuple[str, bool]) -> SingleKernel | bool:
         """The compiled kernel of :meth:`nearest` for a target kind, or False where there is none."""
