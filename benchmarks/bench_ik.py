@@ -37,16 +37,17 @@ ratios of the calls' CPU times (``time.thread_time``, blind to time the process 
 shared machine) are given too.
 Written to benchmarks/results/bench_ik.md and the ``peers`` entry of bench_ik.json.
 
-Closed form vs NLP as users call them (issue 12, goal 3), printed next: on the seed arms with
-a closed form (shelley, dh3, three_joint, al5c) and every target kind the arm's closed form
-solves (position, position + pitch, pose), ``solve_ik(robot, target, seed)`` (the default
-method, which takes the closed form) and ``solve_ik(..., method="nlp")``, each call
-interleaved target by target with one ``robot.fk`` call and the family solver's own
-``solver.solve`` call (``--public-n`` targets, the main table's streams). The table gives
-median and p95 times, each median as a ratio to fk, what solve_ik adds to the solver's call
-(auto - solver: the medians' difference; solve_ik takes the family's nearest solution without
-building the whole result, so this can be small or negative), and auto / nlp (below 1: the
-closed form is the faster through the public entry). Written to the ``public`` entry of bench_ik.json.
+Closed form vs NLP as users call them (issue 12, goal 3), printed next: on the arms with a
+closed form (shelley, dh3, three_joint, al5c, and so101 where example-robot-data is installed)
+and every target kind the arm's closed form solves (position, position + pitch, pose),
+``solve_ik(robot, target, seed)`` (the default method, which takes the closed form) and
+``solve_ik(..., method="nlp")``, each call interleaved target by target with one ``robot.fk``
+call and the family solver's own ``solver.solve`` call (``--public-n`` targets, the main
+table's streams). The table gives median and p95 times, each median as a ratio to fk, what
+solve_ik adds to the solver's call (auto - solver: the medians' difference; solve_ik takes the
+family's nearest solution without building the whole result, so this can be small or
+negative), and auto / nlp (below 1: the closed form is the faster through the public entry).
+Written to the ``public`` entry of bench_ik.json.
 
     python benchmarks/bench_ik.py [--n 1000] [--seed 0] [--robots ur5 panda] [--ipopt-baseline]
     python benchmarks/bench_ik.py --peers-only [--peer-n 500]
@@ -174,8 +175,9 @@ def bench_peers(name: str, n: int, seed: int, peers: list[str]) -> dict:
     return out
 
 
-#: The arms with a closed form timed through solve_ik (``--public-robots``), and the target kinds tried.
-PUBLIC_ROBOTS = ("shelley", "dh3", "three_joint", "al5c")
+#: The arms with a closed form timed through solve_ik (``--robots``; so101 where example-robot-data is
+#: installed), and the target kinds tried.
+PUBLIC_ROBOTS = ("shelley", "dh3", "three_joint", "al5c", "so101")
 PUBLIC_KINDS = ("position", "pitch", "pose")
 
 
@@ -340,6 +342,8 @@ def main(argv: list[str] | None = None) -> int:
     public_rows = []
     if not args.no_public:
         arms = [r for r in (args.robots or PUBLIC_ROBOTS) if r in PUBLIC_ROBOTS]
+        if example_robot_data_dir() is None:
+            arms = [r for r in arms if r != "so101"]
         public_rows = [
             row for name in arms for kind in PUBLIC_KINDS if (row := bench_public(name, kind, args.public_n, args.seed))
         ]

@@ -283,6 +283,60 @@ def test_so101_pitch_target_next_to_the_yaw_axis_keeps_every_branch():
     assert has(result, q)
 
 
+def test_pose_next_to_the_yaw_axis_is_left_to_the_vectorised_path():
+    # Regression (found by test_corrected_path_on_random_inexact_arms): the roll centre 5.9 mm
+    # (in the arm's plane) from the yaw axis, within the distance where the vectorised path
+    # starts the yaws apart (11 mm on this arm, whose axes are up to 33 micro-radians off). The
+    # corrected pose path took the solution as back/elbow-up, the vectorised path as
+    # front/elbow-down: now the solver answers there by the vectorised path, and both name it alike.
+    tilt = -1.1706732937714155e-05
+    parts = ['<robot name="near_axis"><link name="base"/>']
+    joints = [
+        ("yaw", "base", "l0", (0.0, 0.0, 0.25), (tilt, tilt, -0.9999999998629523), 1.0),
+        ("p0", "l0", "l1", (0.0, 0.0, 0.0), (tilt, -0.9999999998629523, tilt), 1.0),
+        (
+            "p1",
+            "l1",
+            "l2",
+            (0.203125, 0.0, 0.0),
+            (-1.1707007039323937e-05, 0.9999999998629461, -1.1707007039323937e-05),
+            2.0,
+        ),
+        (
+            "p2",
+            "l2",
+            "l3",
+            (0.28125, 0.0, 0.0),
+            (-1.1707007039323937e-05, 0.9999999998629461, -1.1707007039323937e-05),
+            1.0,
+        ),
+        (
+            "roll",
+            "l3",
+            "l4",
+            (0.25, 0.015625, 0.0234375),
+            (0.9921989333205955, -1.1707023057375941e-05, 0.12466465650062247),
+            1.0,
+        ),
+    ]
+    for name, parent, child, xyz, axis, limit in joints:
+        parts.append(_joint(name, parent, child, xyz, axis, -limit, limit))
+    parts.append(
+        '<link name="tip"/><joint name="tip_fixed" type="fixed"><parent link="l4"/><child link="tip"/>'
+        '<origin xyz="0.25 0.0 0.0"/></joint></robot>'
+    )
+    robot = Robot("".join(parts), tip="tip", approach_axis=(1.0, 0.0, 0.0))
+    solver = closed_form_solver(robot)
+    q = np.array([0.0, 0.46875, -1.859375, 0.875, 0.0])
+    pose = robot.fk(q)
+    target = Target(pose[:3, 3], rotation=pose[:3, :3])
+    assert solve_corrected_pose(solver.arm, pose_frame(solver.arm), real_tip_pose(robot), target, None) is None
+    result = solver.solve(target)
+    assert_same(result, reference(solver, target, None))
+    assert_reproduces(robot, target, result)
+    assert has(result, q)
+
+
 @pytest.mark.parametrize("kind", ["position", "pitch", "pose"])
 def test_so101_batch_agrees_with_single_calls(kind):
     # The batch corrects every branch by the same compiled Newton steps (refine) as the single

@@ -21,8 +21,9 @@ Pose branches whose steps stall far from the target are not solutions on the rea
 ideal model accepts an orientation residual up to about its deviation): ORIENT. Targets whose
 branches do not settle within those calls (next to the boundary of the real reach: about 0.1 %
 of SO-101's random targets), branches that merge, a free pitch without ``q_current``, the yaw
-axis itself, or no branch within the limits (the search) return None: the caller takes the
-vectorised path.
+axis itself, poses whose end point lies next to it (where the vectorised path starts the yaws
+apart and may find a solution as the other side's branch), or no branch within the limits
+(the search) return None: the caller takes the vectorised path.
 """
 
 from __future__ import annotations
@@ -43,7 +44,15 @@ from planner.ik.analytic.yaw_planar.scalar import finish_scalar
 from planner.ik.analytic.yaw_planar.scalar_pose import PoseFrame, pose_branches
 from planner.model.robot import Robot
 
-__all__ = ["CALLS", "RealTip", "TipPose", "real_tip_pose", "solve_corrected_scalar", "solve_corrected_pose"]
+__all__ = [
+    "CALLS",
+    "RealTip",
+    "TipPose",
+    "corrected_result",
+    "real_tip_pose",
+    "solve_corrected_scalar",
+    "solve_corrected_pose",
+]
 
 PI = math.pi
 TWO_PI = 2.0 * math.pi
@@ -426,6 +435,10 @@ def solve_corrected_pose(
     pos = target.position
     rot = target.rotation
     position = pos.tolist()
+    if _seeded_pose(arm, position, rot):
+        # Next to the yaw axis the vectorised path starts the yaws apart and may find a
+        # solution as the other side's branch: it answers there.
+        return None
     sols, cats, dist = pose_branches(arm, frame, position, rot, qc)
     # Next to a stretched or folded elbow the vectorised path starts the elbow branches apart
     # (solve_core's seeds): take it there.
@@ -437,7 +450,6 @@ def solve_corrected_pose(
     if not sols:
         result = finish_scalar(arm, sols, cats, dist, qc, target)
         return result if result.status == STATUS_SOLVED else None
-    seeded = _seeded_pose(arm, position, rot)
     dof = arm.dof
     kernel = tip_pose.kernel(arm)
     pos_tol = SETTLE * max(1.0, arm.scale)
@@ -462,7 +474,7 @@ def solve_corrected_pose(
             oerr = _angle(r, rot_rows)
             error = perr / arm.scale + oerr
             if perr <= pos_tol and oerr <= 1e-13:
-                found[i] = (slot, q, singular or seeded, perr, oerr)
+                found[i] = (slot, q, singular, perr, oerr)
             elif error > 1e-9 and error >= 0.5 * last[i]:
                 # The steps stalled far from the target: no solution next to the ideal one
                 # (its orientation residual, accepted up to the chain's deviation, is real).
@@ -479,6 +491,69 @@ def solve_corrected_pose(
     if _twins(arm, out):
         return None
     result = finish_scalar(arm, out, cats, dist, qc, target)
+    return result if result.status == STATUS_SOLVED else None
+
+
+def corrected_result(
+    arm: ArmGeometry, tip_pose: TipPose, target: Target, qc: list[float] | None, out: list[float]
+) -> AnalyticResult | None:
+    """The result of :func:`solve_corrected_scalar` or :func:`solve_corrected_pose` from the compiled branches.
+
+    `out` is the output of the compiled corrected closed form with every branch
+    (:class:`~planner.ik.analytic.yaw_planar.corrected_single.CorrectedKernel`: sure, the
+    singular flag, 4 valid flags, 4 x dof joint values after the Newton steps). Each branch is
+    verified here as those functions verify theirs (Pinocchio's FK: the position to
+    :data:`SETTLE`, the pitch or the rotation), then wrapped and sorted by
+    :func:`~planner.ik.analytic.yaw_planar.scalar.finish_scalar`.
+
+    Returns:
+        The result, or None where the kernel is not sure, a branch misses by Pinocchio's FK, or
+        no branch lies within the limits (the caller takes the Python path).
+    """
+    if not out[0]:
+        return None
+    dof = arm.dof
+    position = target.position.tolist()
+    px, py, pz = position
+    rot = target.rotation
+    pitch = target.pitch
+    if rot is not None:
+        rot_rows = rot.tolist()
+        if _seeded_pose(arm, position, rot):
+            return None  # solve_corrected_pose leaves it to the vectorised path
+        singular = False
+    else:
+        singular = out[1] != 0.0
+        local = arm.approach_local.tolist()
+        if pitch is not None:
+            cos_p, sin_p = math.cos(pitch), math.sin(pitch)
+            elevation = math.atan2(sin_p, abs(cos_p))
+    pos_tol = SETTLE * max(1.0, arm.scale)
+    rows = tip_pose.rows
+    sols = []
+    for slot in range(4):
+        if not out[2 + slot]:
+            continue
+        q = out[6 + slot * dof : 6 + (slot + 1) * dof]
+        r = rows(q)
+        dx, dy, dz = px - r[0][3], py - r[1][3], pz - r[2][3]
+        perr = math.sqrt(dx * dx + dy * dy + dz * dz)
+        if perr > pos_tol:
+            return None
+        oerr = None
+        if rot is not None:
+            oerr = _angle(r, rot_rows)
+            if oerr > 1e-13:
+                return None
+        elif pitch is not None:
+            a = _approach(r, local)
+            oerr = pitch_error_scalar(a[0], a[1], a[2], px, py, cos_p, sin_p, elevation)
+            if oerr > 1e-9:
+                return None
+        sols.append((slot, q, singular, perr, oerr))
+    if not sols:
+        return None
+    result = finish_scalar(arm, sols, [VALID] * 4, [math.nan] * 4, qc, target)
     return result if result.status == STATUS_SOLVED else None
 
 

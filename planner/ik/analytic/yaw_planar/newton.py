@@ -32,7 +32,7 @@ import numpy as np
 from planner.ik.analytic.yaw_planar.arm import ArmGeometry
 from planner.ik.numeric.codegen import compile_function
 
-__all__ = ["STEPS", "NewtonKernel", "newton_kernel", "pitch_kernel", "pose_kernel", "arm_parameters"]
+__all__ = ["STEPS", "NewtonKernel", "newton_kernel", "pitch_kernel", "pose_kernel", "arm_parameters", "tip_fk_sx"]
 
 #: Newton steps per call. From the ideal answer (1e-6 of the arm's size off) two reach
 #: round-off where the Jacobian is well conditioned; callers repeat the call for branches
@@ -95,6 +95,13 @@ def _fk(q, axes, points, tip_p, tip_r):
         trans = trans + ca.mtimes(rot, c - ca.mtimes(r_i, c))
         rot = ca.mtimes(rot, r_i)
     return ca.mtimes(rot, tip_p) + trans, ca.mtimes(rot, tip_r), ws, rs
+
+
+def tip_fk_sx(q, prm, dof: int):
+    """The real tip's position (3 x 1) and rotation (3 x 3) at q (SX), from the parameter input `prm`."""
+    axes, points, tip_p, tip_r, *_ = _unpack(prm, dof)
+    p, rot, _, _ = _fk(q, axes, points, tip_p, tip_r)
+    return p, rot
 
 
 def _elevation(q, rot, approach, mu, sigma):

@@ -26,7 +26,13 @@ from planner.ik.analytic.yaw_planar.arrays import BranchArrays, result_from_arra
 from planner.ik.analytic.yaw_planar.batch import solve_chunked
 from planner.ik.analytic.yaw_planar.branches import BRANCHES
 from planner.ik.analytic.yaw_planar.compiled import CompiledKernels, compiled_supported, kind_of
-from planner.ik.analytic.yaw_planar.corrected import real_tip_pose, solve_corrected_pose, solve_corrected_scalar
+from planner.ik.analytic.yaw_planar.corrected import (
+    corrected_result,
+    real_tip_pose,
+    solve_corrected_pose,
+    solve_corrected_scalar,
+)
+from planner.ik.analytic.yaw_planar.corrected_single import CorrectedKernel, corrected_kernel, corrected_supported
 from planner.ik.analytic.yaw_planar.layout import chain_layout
 from planner.ik.analytic.yaw_planar.real_model import true_fk
 from planner.ik.analytic.yaw_planar.scalar import scalar_plan, solve_scalar
@@ -83,9 +89,10 @@ class YawPlanarIK(AnalyticIK):
         self._kernels = CompiledKernels(arm)
         # nearest's distances are modulo 2 pi on every joint (revolute joints, as planner.ik.solve's).
         self._nearest_ok = arm.exact and all(kind == "revolute" for kind in robot.joint_kinds)
-        # nearest's compiled kernels by (kind, with a seed): a SingleKernel, False (none), or
-        # the calls so far (an int) until SINGLE_AFTER.
-        self._single: dict[tuple[str, bool], SingleKernel | bool | int] = {}
+        self._corrected_ok = corrected_supported(arm, robot.joint_kinds)
+        # nearest's compiled kernels by (kind, with a seed): a SingleKernel (a CorrectedKernel on
+        # inexact chains), False (none), or the calls so far (an int) until SINGLE_AFTER.
+        self._single: dict[tuple, SingleKernel | CorrectedKernel | bool | int] = {}
 
     def describe(self) -> dict:
         """The detected geometry, for reports and tests (lengths [m], angles [rad])."""
@@ -133,11 +140,7 @@ class YawPlanarIK(AnalyticIK):
                 result = solve_pose_scalar(arm, self._pose_frame, target, qc, self._scalar_plan)
             if result.status is STATUS_SOLVED:
                 return result
-        elif target.rotation is None and (result := solve_corrected_scalar(arm, self._real_tip_pose, target, qc)):
-            return result
-        elif target.rotation is not None and (
-            result := solve_corrected_pose(arm, self._pose_frame, self._real_tip_pose, target, qc)
-        ):
+        elif result := self._solve_corrected(target, qc):
             return result
         else:
             arrays = solve_arrays(arm, *_one_target_arrays(target, qc))
@@ -154,10 +157,14 @@ class YawPlanarIK(AnalyticIK):
         On exact chains, from the scalar paths' entries, or after :data:`~planner.ik.analytic.base.SINGLE_AFTER` calls
         of a target kind by one compiled call
         (:class:`~planner.ik.analytic.yaw_planar.single.SingleKernel`; where it is not sure,
-        the scalar paths; joint values the same to round-off; ``count`` and ``index`` None);
-        None on inexact chains.
+        the scalar paths; joint values the same to round-off; ``count`` and ``index`` None).
+        On inexact chains (SO-101) after as many calls by one compiled call of the corrected
+        closed form (:class:`~planner.ik.analytic.yaw_planar.corrected_single.CorrectedKernel`),
+        else None.
         """
         arm = self.arm
+        if self._corrected_ok:
+            return self._corrected_nearest(target, seed)
         if not self._nearest_ok or (target.pitch is not None and not arm.pitch_supported):
             return None
         key = (kind_of(target.pitch, target.rotation), seed is not None)
@@ -180,6 +187,65 @@ class YawPlanarIK(AnalyticIK):
             return pose_nearest(arm, self._pose_frame, target, qc, self._scalar_plan)
         entries = solve_scalar(arm, target, qc, self._scalar_plan, True)
         return None if entries is None else nearest_entry(entries, qc)
+
+    def _corrected_nearest(self, target: Target, seed: np.ndarray | None) -> NearestSolution | None:
+        """:meth:`nearest` on inexact chains: the compiled corrected closed form's answer where sure, else None."""
+        if target.pitch is not None and not self.arm.pitch_supported:
+            return None
+        key = (kind_of(target.pitch, target.rotation), seed is not None)
+        kernel = self._counted_kernel(key, self._corrected_kernel)
+        if kernel.__class__ is not CorrectedKernel:
+            return None
+        inputs = kernel.inputs
+        inputs[0:3] = target.position
+        if key[0] == "pose":
+            inputs[3:12] = target.rotation.ravel()
+        elif key[0] == "pitch":
+            inputs[3] = target.pitch
+        if seed is not None:
+            inputs[-self.arm.dof :] = seed
+        kernel()
+        out = kernel.outputs.tolist()
+        return NearestSolution(tuple(out[2:]), BRANCHES[int(out[1])], None, None) if out[0] else None
+
+    def _corrected_kernel(self, key: tuple) -> CorrectedKernel | bool:
+        """The compiled kernel of a target kind, or False where there is none.
+
+        `key`: (kind, with a seed) for :meth:`_corrected_nearest`, ("every", kind, with a seed)
+        for :meth:`_solve_corrected`.
+        """
+        every = key[0] == "every"
+        kind, current = key[1:] if every else key
+        return corrected_kernel(self.arm, self._pose_frame, kind, current, every) or False
+
+    def _solve_corrected(self, target: Target, qc: list[float] | None) -> AnalyticResult | None:
+        """:meth:`solve` on inexact chains: every branch by the corrected closed form, or None.
+
+        After :data:`~planner.ik.analytic.base.SINGLE_AFTER` calls of a target kind by one
+        compiled call (:func:`~planner.ik.analytic.yaw_planar.corrected.corrected_result`) where it
+        is sure, else by :func:`~planner.ik.analytic.yaw_planar.corrected.solve_corrected_scalar`
+        or :func:`~planner.ik.analytic.yaw_planar.corrected.solve_corrected_pose`.
+        """
+        arm = self.arm
+        if self._corrected_ok:
+            kind = kind_of(target.pitch, target.rotation)
+            kernel = self._counted_kernel(("every", kind, qc is not None), self._corrected_kernel)
+            if kernel.__class__ is CorrectedKernel:
+                inputs = kernel.inputs
+                inputs[0:3] = target.position
+                if kind == "pose":
+                    inputs[3:12] = target.rotation.ravel()
+                elif kind == "pitch":
+                    inputs[3] = target.pitch
+                if qc is not None:
+                    inputs[-arm.dof :] = qc
+                kernel()
+                result = corrected_result(arm, self._real_tip_pose, target, qc, kernel.outputs.tolist())
+                if result is not None:
+                    return result
+        if target.rotation is None:
+            return solve_corrected_scalar(arm, self._real_tip_pose, target, qc)
+        return solve_corrected_pose(arm, self._pose_frame, self._real_tip_pose, target, qc)
 
     def _single_kernel(self, key: tuple[str, bool]) -> SingleKernel | bool:
         """The compiled kernel of :meth:`nearest` for a target kind, or False where there is none."""

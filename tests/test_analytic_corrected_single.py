@@ -1,0 +1,162 @@
+"""SO-101's compiled corrected closed form (``yaw_planar.corrected_single``) against the Python path.
+
+On inexact chains ``YawPlanarIK.nearest`` answers by one compiled call (ideal branches, the
+Newton steps on the real chain, the settle check, the nearest pick) after ``SINGLE_AFTER``
+calls of a target kind. ``solve_ik`` through it must give the Python path's result (status,
+success, reason, counts; ``q`` equal to round-off modulo 2 pi), every answer within the limits
+and confirmed here by Pinocchio FK; where the kernel is not sure, the Python path answers.
+Seeded random reachable targets of every kind (positions with q_current, pitches and poses with
+and without it) and generated ones (hypothesis: reachable, random and far).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from dh_arms import property_settings, seeds, targets, tip_errors
+from hypothesis import given
+from hypothesis import strategies as st
+
+import planner.ik.analytic.base as analytic_base
+from planner import Target, approach_pitch, load_robot, solve_ik
+from planner.exceptions import UnsupportedChainError
+from planner.ik.solvers import IKSolvers
+from planner.model.catalog import example_robot_data_dir
+
+pytestmark = pytest.mark.skipif(example_robot_data_dir() is None, reason="example-robot-data is not installed")
+
+# Round-off of two operation sequences whose Newton steps start a round-off apart [rad].
+ROUND_OFF = 1e-12
+KINDS = (("position", True), ("pitch", True), ("pitch", False), ("pose", True), ("pose", False))
+
+
+def _pair():
+    """Two SO-101 robots, built once: one answers through the kernel, one through the Python path."""
+    cache = _pair.__dict__.setdefault("cache", [])
+    if not cache:
+        cache += [load_robot("so101"), load_robot("so101")]
+    return cache
+
+
+def _after(calls, call):
+    """``call()`` with SINGLE_AFTER `calls` (1: the kernel from the first call; huge: never)."""
+    old = analytic_base.SINGLE_AFTER
+    analytic_base.SINGLE_AFTER = calls
+    try:
+        return call()
+    finally:
+        analytic_base.SINGLE_AFTER = old
+
+
+def _target(robot, kind: str, q: np.ndarray) -> Target:
+    pose = robot.fk(q)
+    if kind == "pose":
+        return Target(pose[:3, 3], rotation=pose[:3, :3])
+    if kind == "pitch":
+        return Target(pose[:3, 3], pitch=approach_pitch(robot, q))
+    return Target(pose[:3, 3])
+
+
+def _wrapped_gap(a: np.ndarray, b: np.ndarray) -> float:
+    return float(np.max(np.abs((np.asarray(a) - np.asarray(b) + math.pi) % (2.0 * math.pi) - math.pi)))
+
+
+def _assert_same(fast_robot, slow_robot, target: Target, seed) -> None:
+    try:
+        expected = _after(10**12, lambda: solve_ik(slow_robot, target, seed, method="analytic"))
+    except UnsupportedChainError:
+        with pytest.raises(UnsupportedChainError):
+            _after(1, lambda: solve_ik(fast_robot, target, seed, method="analytic"))
+        return
+    result = _after(1, lambda: solve_ik(fast_robot, target, seed, method="analytic"))
+    assert (result.status, result.success, result.reason) == (expected.status, expected.success, expected.reason)
+    assert (result.attempts, result.attempt) == (expected.attempts, expected.attempt)
+    assert _wrapped_gap(result.q, expected.q) <= ROUND_OFF
+    assert np.all(result.q >= fast_robot.lower) and np.all(result.q <= fast_robot.upper)
+    position_error, orientation_error, _ = tip_errors(fast_robot, target, result.q)
+    assert result.position_error == pytest.approx(position_error, abs=1e-12)
+    assert result.orientation_error == pytest.approx(orientation_error, abs=1e-9)
+    if result.success:
+        assert position_error <= 1e-9 and orientation_error <= 1e-9
+    assert len(result.solutions) == len(expected.solutions)
+
+
+@pytest.mark.parametrize(("kind", "current"), KINDS)
+def test_kernel_answers_as_the_python_path(kind, current):
+    """Seeded random reachable targets: the kernel's answers (most of them) are the Python path's."""
+    fast_robot, slow_robot = _pair()
+    fast = _after(1, lambda: solve_ik(fast_robot, Target(fast_robot.fk(np.zeros(5))[:3, 3]), np.zeros(5)))
+    assert fast.success
+    rng = np.random.default_rng([12, len(kind), current])
+    configurations = fast_robot.random_configurations(rng, 120)
+    seeds_ = fast_robot.random_configurations(rng, 120)
+    solver = IKSolvers.of(fast_robot).analytic
+    answered = 0
+    for q, seed in zip(configurations, seeds_):
+        target = _target(fast_robot, kind, q)
+        seed = seed if current else None
+        _assert_same(fast_robot, slow_robot, target, seed)
+        nearest = _after(1, lambda t=target, s=seed: solver.nearest(t, s))
+        answered += nearest is not None
+    # The kernel leaves to the Python path the targets that path itself hands over (no branch
+    # within the limits, a branch next to the boundary of the reach): 14-25 % here.
+    assert answered >= 80
+
+
+@property_settings(150)
+@given(data=st.data())
+def test_solve_ik_through_the_kernel(data):
+    fast_robot, slow_robot = _pair()
+    target, _ = data.draw(targets(fast_robot))
+    seed = data.draw(seeds(fast_robot))
+    _assert_same(fast_robot, slow_robot, target, seed)
+
+
+def _solver_pair():
+    """Two SO-101 closed-form solvers of :func:`_pair`'s robots, built once (each keeps its kernels)."""
+    cache = _solver_pair.__dict__.setdefault("cache", [])
+    if not cache:
+        cache += [IKSolvers.of(robot).analytic for robot in _pair()]
+    return cache
+
+
+def _assert_same_result(fast, slow, target: Target, seed) -> None:
+    """solver.solve through the kernel (every branch) gives the Python path's result."""
+    got = _after(1, lambda: fast.solve(target, seed))
+    expected = _after(10**12, lambda: slow.solve(target, seed))
+    assert (got.status, got.reason, got.singular) == (expected.status, expected.reason, expected.singular)
+    assert [s.branch for s in got.solutions] == [s.branch for s in expected.solutions]
+    for a, b in zip(got.solutions, expected.solutions):
+        assert (a.within_limits, a.singular) == (b.within_limits, b.singular)
+        assert _wrapped_gap(a.q, b.q) <= ROUND_OFF
+        position_error, orientation_error, _ = tip_errors(fast.robot, target, a.q)
+        assert a.position_error == pytest.approx(position_error, abs=1e-12)
+        if got.ok:
+            assert position_error <= 1e-9 and orientation_error <= 1e-9
+
+
+@pytest.mark.parametrize(("kind", "current"), KINDS)
+def test_every_branch_as_the_python_path(kind, current):
+    """Seeded random reachable targets: solver.solve through the kernel gives the Python path's result."""
+    fast, slow = _solver_pair()
+    rng = np.random.default_rng([13, len(kind), current])
+    robot = fast.robot
+    for q, seed in zip(robot.random_configurations(rng, 120), robot.random_configurations(rng, 120)):
+        _assert_same_result(fast, slow, _target(robot, kind, q), seed if current else None)
+
+
+@property_settings(100)
+@given(data=st.data())
+def test_solve_through_the_kernel(data):
+    fast, slow = _solver_pair()
+    target, _ = data.draw(targets(fast.robot))
+    seed = data.draw(seeds(fast.robot))
+    try:
+        _after(10**12, lambda: slow.solve(target, seed))
+    except UnsupportedChainError:
+        with pytest.raises(UnsupportedChainError):
+            _after(1, lambda: fast.solve(target, seed))
+        return
+    _assert_same_result(fast, slow, target, seed)
