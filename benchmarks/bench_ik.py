@@ -315,8 +315,10 @@ def main(argv: list[str] | None = None) -> int:
     args = parser.parse_args(argv)
     if args.n < 1 or args.peer_n < 1 or args.public_n < 1:
         parser.error("--n, --peer-n and --public-n must be >= 1")
+    if args.public_only and args.peers_only:
+        parser.error("--public-only and --peers-only exclude each other")
     peer_rows = []
-    if not args.no_peers:
+    if not (args.no_peers or args.public_only):
         if example_robot_data_dir() is None:
             print("example-robot-data not installed: skipping the comparison with the peers")
         else:
