@@ -11,10 +11,11 @@ the sum of squares in joint order) is least. The whole is compiled to C and call
 buffer binding (one input vector, one output vector, bound once), as the NLP's kernel.
 
 The output's first entry says whether the pick is the Python path's for sure; it is 0, and
-the caller takes the Python path, where the status is not solved, where the function hands a
-free end angle over to the search, where two branches within the limits lie at exactly the
-same distance (the Python path's order among them is its sort key's), and near a stretched or
-folded elbow (:data:`ELBOW_MARGIN`), where round-off differences grow.
+the caller takes the Python path, where the status is not solved, where the function hands
+the target over (a free end angle to the search, a target on the yaw axis with a seed),
+where two branches within the limits lie at exactly the same distance (the Python path's
+order among them is its sort key's), and near a stretched or folded elbow
+(:data:`ELBOW_MARGIN`), where round-off differences grow.
 
 Joint values agree with the Python path's to round-off (the same sequence of operations; the
 C compiler without FMA contraction): the caller confirms every answer by Pinocchio FK.
@@ -80,7 +81,7 @@ class SingleKernel:
         q = [[q_flat[m * dof + j] for j in range(dof)] for m in range(4)]
         within = [within_v[m] for m in range(4)]
         sure = codes[0] == _SOLVED
-        if codes.numel() > 2:  # a free end angle handed over to the search
+        if codes.numel() > 2:  # handed over (a free end angle to the search, a target on the yaw axis)
             sure = ca.logic_and(sure, codes[2] == 0)
         if current:
             dist = []
