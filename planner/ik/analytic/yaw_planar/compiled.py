@@ -70,6 +70,7 @@ __all__ = [
     "CompiledKernels",
     "compiled_supported",
     "cos_nonnegative",
+    "forward_sx",
     "kind_of",
     "solve_compiled",
     "wrap_sx",
@@ -310,7 +311,7 @@ def _step_thresholds(lower: float, upper: float) -> tuple[float, float]:
     return _from_ordered(first_down), _from_ordered(last_up)
 
 
-def _one_target(arm: ArmGeometry, kind: str, current: bool) -> ca.Function:
+def _one_target(arm: ArmGeometry, kind: str, current: bool, distances: bool = False) -> ca.Function:
     """The closed form of one target as an SX function of (position, pitch or rotation, q_current).
 
     `kind` is "position", "pitch" or "pose" (the rotation's nine entries row by row). The
@@ -318,7 +319,8 @@ def _one_target(arm: ArmGeometry, kind: str, current: bool) -> ca.Function:
     position targets), a last one is 1 where :func:`solve_compiled` must hand the target to
     NumPy: not solved (the search within the limits), or q_current's end angle out of a
     side's reach (the default choice); with q_current (position and pitch targets) that last
-    one is also 1 for a target on the yaw axis (the yaw is q_current's).
+    one is also 1 for a target on the yaw axis (the yaw is q_current's). With `distances`, one
+    more output: each branch's wrist point to shoulder distance [m] (its side's).
     """
     pitch, pose = kind == "pitch", kind == "pose"
     p = ca.SX.sym("p", 3)
@@ -569,7 +571,7 @@ def _one_target(arm: ArmGeometry, kind: str, current: bool) -> ca.Function:
         ca.vertcat(*within),
         ca.vertcat(*singular),
         ca.vertcat(status, best, *extra),
-    ]
+    ] + ([ca.vertcat(*dist)] if distances else [])
     inputs = [p] + ([pit] if pitch else []) + ([rflat] if pose else []) + ([qc] if current else [])
     return ca.Function("yaw_planar_closed_form", inputs, ca.cse(outputs))
 
@@ -693,6 +695,15 @@ def _poe_fk(arm: ArmGeometry, q: list[_Angle]):
     tp = _tidy(arm.tip_position, arm.scale)
     pos = [rot[i][0] * tp[0] + rot[i][1] * tp[1] + rot[i][2] * tp[2] + trans[i] for i in range(3)]
     return pos, _matmul(rot, [_tidy(row, 1.0) for row in np.asarray(arm.rot0)])
+
+
+def forward_sx(arm: ArmGeometry, q: list) -> tuple[list, list]:
+    """The real arm's tip position (3) and rotation (3 x 3 nested lists) at joint values `q` (SX).
+
+    The product of exponentials (:func:`~planner.geometry.chain.poe_fk`'s sums) with each
+    joint's cosine and sine by libm.
+    """
+    return _poe_fk(arm, [_Angle.of(v) for v in q])
 
 
 def _tidy(v, scale: float) -> list[float]:
@@ -822,21 +833,24 @@ class CompiledKernels:
 
     def __init__(self, arm: ArmGeometry) -> None:
         self.arm = arm
-        self._functions: dict[tuple[str, bool, int, bool], ca.Function] = {}
+        self._functions: dict[tuple[str, bool, int, bool, bool], ca.Function] = {}
 
-    def function(self, kind: str, current: bool = False, block: int = BLOCK, compiled: bool = True) -> ca.Function:
+    def function(
+        self, kind: str, current: bool = False, block: int = BLOCK, compiled: bool = True, distances: bool = False
+    ) -> ca.Function:
         """The closed form of `kind` targets (with q_current or not) mapped over `block` targets.
 
-        `kind`: "position", "pitch" or "pose" (:func:`kind_of`).
+        `kind`: "position", "pitch" or "pose" (:func:`kind_of`); with `distances`, one more
+        output: each branch's wrist distance [m] (:func:`_one_target`).
 
         With `compiled`, built to C by :func:`~planner.ik.numeric.codegen.compile_function`
         (which falls back to CasADi's virtual machine without a compiler or with
         ``PLANNER_JIT=0``); without, the virtual machine's.
         """
-        key = (kind, current, block, compiled)
+        key = (kind, current, block, compiled, distances)
         fn = self._functions.get(key)
         if fn is None:
-            fn = _one_target(self.arm, kind, current).map(block, "serial")
+            fn = _one_target(self.arm, kind, current, distances).map(block, "serial")
             if compiled:
                 fn = compile_function(fn, flags=FLAGS)
             self._functions[key] = fn
