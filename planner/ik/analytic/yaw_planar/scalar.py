@@ -7,8 +7,9 @@ and categories, each branch verified by the closed-form forward model. Plain flo
 :mod:`math` throughout; the only NumPy object built is the one read-only array that holds
 every solution's joint values (:func:`finish_scalar`).
 
-After :data:`~planner.ik.analytic.base.SINGLE_AFTER` calls of a target kind on one plan (one
-solver), the same result comes from one compiled call where that is sure
+With a plan's compiled closed form (one per solver), the same result comes from one call of
+a CasADi function where that is sure (compiled to C after
+:data:`~planner.ik.analytic.base.SINGLE_AFTER` calls of a kind; the same doubles before)
 (:class:`~planner.ik.analytic.yaw_planar.single.SolveKernel`: the same branches, order, masks
 and status; joint values and errors to round-off, each branch verified by the forward model
 at its returned joint values); elsewhere (failures, ties, a free end angle to search, ...)
@@ -51,7 +52,8 @@ class ScalarPlan(NamedTuple):
     """An arm's constants of :func:`solve_scalar`, computed once per solver (see its fields' code).
 
     ``compiled`` holds the solver's compiled closed form of whole results
-    (:class:`~planner.ik.analytic.yaw_planar.single.SolveKernels`; not thread-safe).
+    (:class:`~planner.ik.analytic.yaw_planar.single.SolveKernels`; not thread-safe), or None
+    (the scalar arithmetic only).
     """
 
     three: bool
@@ -76,7 +78,7 @@ class ScalarPlan(NamedTuple):
     limits: tuple[float, ...]
     zeros: tuple[float, ...]
     end: EndPlan | None
-    compiled: SolveKernels
+    compiled: SolveKernels | None
 
 
 class EndPlan(NamedTuple):
@@ -181,8 +183,9 @@ def solve_scalar(
     """
     if plan is None:
         plan = scalar_plan(arm)
-    if not lean and (found := plan.compiled.entries(target.position, target.pitch, None, qc)) is not None:
-        return solutions_result(arm, found[0], qc is not None, True, found[1], None, None, target)
+    if plan.compiled and (found := plan.compiled.entries(target.position, target.pitch, None, qc)):
+        # (lean: the same entries, so that nearest's answer is the result's row bitwise)
+        return found[0] if lean else solutions_result(arm, found[0], qc is not None, True, found[1], None, None, target)
     (
         three, has_roll, roll_idx, dof, bx, by, mu, sigma, beta, len_tol, len_tol_sq, axis_tol,
         l1, g1, su, sz, s0, s1, s2, limits, zeros, end, _,

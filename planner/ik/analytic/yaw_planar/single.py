@@ -164,7 +164,8 @@ class SolveKernel:
     masks, status), then per branch the forward model at its returned joint values (the real
     chain's product of exponentials, each joint's cosine and sine by libm: the position error,
     and the orientation error of pitch and pose targets as the Python path defines them), its
-    squared joint distance to the seed, compiled to C with its buffers bound once. Fill
+    squared joint distance to the seed, as one CasADi function (compiled to C by :meth:`compile`)
+    with its buffers bound once. Fill
     :attr:`inputs` as :class:`SingleKernel`'s, call, read :attr:`outputs`: ``[sure, any
     singular]``, then per branch ``[valid, within, singular, key, position error, orientation
     error, q...]``.
@@ -247,15 +248,28 @@ class SolveKernel:
                     (va, ka), (vb, kb) = keys[a], keys[b]
                     tie = ca.fabs(ka - kb) <= KEY_MARGIN * (1.0 + ka + kb)
                     sure = ca.logic_and(sure, ca.logic_not(ca.logic_and(ca.logic_and(va, vb), tie)))
-        fn = ca.Function(f"yaw_planar_solve_{kind}", [x], [ca.cse(ca.vertcat(sure, any_singular, *rows))])
-        self.function = compile_function(fn, flags=FLAGS)
-        self.compiled = self.function.class_name() == "External"
+        self._source = ca.Function(f"yaw_planar_solve_{kind}", [x], [ca.cse(ca.vertcat(sure, any_singular, *rows))])
         self.stride = 6 + dof
         self.inputs = np.zeros(n_in)
         self.outputs = np.zeros(2 + 4 * self.stride)
-        self._buffer, self._evaluate = self.function.buffer()
+        self.compiled = False
+        self._bind(self._source)
+
+    def _bind(self, function: ca.Function) -> None:
+        self.function = function
+        self._buffer, self._evaluate = function.buffer()
         self._buffer.set_arg(0, memoryview(self.inputs))
         self._buffer.set_res(0, memoryview(self.outputs))
+
+    def compile(self) -> None:
+        """Run as C from now on (where compiling falls back to CasADi's virtual machine, as before).
+
+        See :func:`~planner.ik.numeric.codegen.compile_function`.
+        """
+        function = compile_function(self._source, flags=FLAGS)
+        if function.class_name() == "External":
+            self.compiled = True
+            self._bind(function)
 
     def __call__(self) -> None:
         """Evaluate from :attr:`inputs` into :attr:`outputs`."""
@@ -265,8 +279,11 @@ class SolveKernel:
 class SolveKernels:
     """An exact arm's :class:`SolveKernel` per target kind.
 
-    Each built after :data:`~planner.ik.analytic.base.SINGLE_AFTER` calls of its kind (as the
-    nearest kernels).
+    Each built at the first call of its kind and evaluated by CasADi's virtual machine (3-6 us;
+    0.06-0.16 s to build), compiled to C after :data:`~planner.ik.analytic.base.SINGLE_AFTER`
+    calls: the virtual machine and the C code give the same doubles (the same operations,
+    libm's functions, no FMA contraction), so an answer does not depend on how many calls came
+    before it.
 
     Owned by the arm's :class:`~planner.ik.analytic.yaw_planar.scalar.ScalarPlan` (one per solver).
     """
@@ -274,8 +291,9 @@ class SolveKernels:
     def __init__(self, arm) -> None:
         self.arm = arm
         self._kernels = CompiledKernels(arm)
-        # By (kind, with q_current): a SolveKernel, False (none), or the calls so far (an int).
-        self._built: dict[tuple[str, bool], SolveKernel | bool | int] = {}
+        # By (kind, with q_current): a SolveKernel or False (none); the calls of kernels not yet compiled.
+        self._built: dict[tuple[str, bool], SolveKernel | bool] = {}
+        self._calls: dict[tuple[str, bool], int] = {}
 
     def entries(self, position, pitch, rotation, qc: list[float] | None):
         """A target's solutions by the compiled path, or None where it is not sure or not built.
@@ -287,11 +305,16 @@ class SolveKernels:
             caller takes the Python path.
         """
         key = (kind_of(pitch, rotation), qc is not None)
-        kernel = self._built.get(key, 0)
-        if kernel.__class__ is int:
-            kernel = self._built[key] = kernel + 1 if kernel + 1 < analytic_base.SINGLE_AFTER else self._build(key)
-        if kernel.__class__ is not SolveKernel:
+        kernel = self._built.get(key)
+        if kernel is None:
+            kernel = self._built[key] = self._build(key)
+        if kernel is False:
             return None
+        if key in self._calls:  # not compiled yet
+            calls = self._calls[key] = self._calls[key] + 1
+            if calls >= analytic_base.SINGLE_AFTER:
+                del self._calls[key]
+                kernel.compile()
         inputs = kernel.inputs
         inputs[0:3] = position
         if rotation is not None:
@@ -328,8 +351,8 @@ class SolveKernels:
         rotation = np.eye(3) if kind == "pose" else None
         if not compiled_supported(arm, pitch, rotation, qc):
             return False
-        kernel = SolveKernel(self._kernels, kind, current)
-        return kernel if kernel.compiled else False
+        self._calls[key] = 0
+        return SolveKernel(self._kernels, kind, current)
 
 
 def _rotation_error(a, b):
