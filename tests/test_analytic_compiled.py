@@ -230,14 +230,29 @@ LIMITS = [
 @pytest.mark.parametrize(("lower", "upper"), LIMITS)
 @pytest.mark.parametrize("centred", [True, False], ids=["ref0", "ref"])
 def test_wrap_sx_equals_wrap_array(lower, upper, centred):
-    """The compiled wrapping into a joint range (its steps left out where they cannot apply)
-    equals wrap_array on values around the limits, their 2 pi shifts and the half turns."""
+    """The compiled wrapping into a joint range (its steps by 2 pi as comparisons with
+    thresholds) equals wrap_array on values around the limits, their 2 pi shifts, the half
+    turns and the doubles where the steps switch on."""
     rng = np.random.default_rng(5)
     edges = np.array([lower, upper, np.pi, -np.pi, 0.0])
     offsets = np.array([0.0, 0.5, 1.0, 1.5, 2.0, -0.5, -1.0, -1.5, -2.0]) * LIMIT_SNAP
     near = (edges[:, None, None] + offsets[None, :, None] + 2 * np.pi * np.arange(-2, 3)[None, None, :]).ravel()
-    x = np.concatenate([near, rng.uniform(-4 * np.pi, 4 * np.pi, 4000), [np.nan]])
+    # Where wrap_array's steps by 2 pi switch on (x - 2 pi nearer the range than x, or within
+    # the snap): 64 doubles either side of each (the compiled form compares with thresholds).
+    mid = 0.5 * (lower + upper)
+    switches = [min(lower + 2 * np.pi - LIMIT_SNAP, mid + np.pi), max(upper + LIMIT_SNAP - 2 * np.pi, mid - np.pi)]
+    ulps = []
+    for v in switches:
+        if np.isfinite(v):
+            below, above = np.full(64, v), np.full(64, v)
+            for k in range(1, 64):
+                below[k], above[k] = np.nextafter(below[k - 1], -np.inf), np.nextafter(above[k - 1], np.inf)
+            ulps += [below, above]
+    x = np.concatenate([near, *ulps, rng.uniform(-4 * np.pi, 4 * np.pi, 4000), [np.nan]])
     ref = rng.uniform(-2 * np.pi, 2 * np.pi, x.size) if not centred else np.zeros(x.size)
+    if not centred:  # the doubles at the switches as they are (no turn)
+        at = slice(near.size, near.size + sum(u.size for u in ulps))
+        ref[at] = x[at]
     sx, sref = ca.SX.sym("x"), ca.SX.sym("ref")
     f = ca.Function("wrap", [sx, sref], [wrap_sx(sx, lower, upper, sref if not centred else 0.0)]).map(x.size)
     got = np.asarray(f(x, ref)).ravel()

@@ -42,7 +42,8 @@ FLOAT64 = np.dtype(np.float64)
 #: Calls of a family's :meth:`AnalyticIK.nearest` of one target kind after which it builds that
 #: kind's compiled kernel (:meth:`AnalyticIK._counted_kernel`; compiled to C the first time,
 #: then 0.1-0.5 s to build and load from the disk cache): an arm met for a call or two never
-#: pays for it.
+#: pays for it. The yaw-planar family's ``solve`` counts its calls the same way
+#: (:class:`~planner.ik.analytic.yaw_planar.single.SolveKernels`).
 SINGLE_AFTER = 8
 
 

@@ -40,7 +40,9 @@ change round-off against the NumPy path).
 
 from __future__ import annotations
 
+import functools
 import math
+import struct
 from decimal import Decimal
 from fractions import Fraction
 
@@ -68,6 +70,7 @@ __all__ = [
     "CompiledKernels",
     "compiled_supported",
     "cos_nonnegative",
+    "forward_sx",
     "kind_of",
     "solve_compiled",
     "wrap_sx",
@@ -85,8 +88,6 @@ SMALL_BLOCK = 64
 REP = (0, 0, 1, 1)
 #: 1.5 * 2**52: x + MAGIC - MAGIC rounds x to an integer, halves to even.
 MAGIC = 6755399441055744.0
-#: How far beyond pi [rad] a wrapped value may lie (round-off; far less than this).
-REACHED = 1e-6
 
 
 def compiled_supported(arm: ArmGeometry, pit, rot, qc) -> bool:
@@ -230,43 +231,96 @@ class _Angle:
 def wrap_sx(x, lower: float, upper: float, ref=0.0):
     """:func:`~planner.geometry.chain.wrap_array`, one value.
 
-    With `ref` 0, after the turn to the nearest 2 pi multiple |x| <= pi (to round-off), which
-    leaves out what cannot happen: a limit beyond pi + 1e-6 is never exceeded (its step is
-    left out; the other step may still turn x past it: the snaps onto the limits stay); with
-    both limits inside (-pi, pi) by 1e-6, x - 2 pi lies below the lower one and x + 2 pi above
-    the upper one by far more than the snap (those tests are left out).
+    After the turn to the nearest 2 pi multiple of `ref`, wrap_array's steps towards the range
+    (x - 2 pi for some x above it, then x + 2 pi for some x below it) each decide by a
+    test that is monotone in x (differences of x with constants, rounded: non-decreasing in
+    x), so each holds exactly from a threshold on, found once here on the doubles
+    (:func:`_step_thresholds`): one comparison per step instead of eight operations. Then
+    the snaps onto the limits.
     """
     x = x - TWO_PI * _rint((x - ref) / TWO_PI)
-    if not (math.isfinite(lower) or math.isfinite(upper)):
-        return x
-    centred = isinstance(ref, float) and ref == 0.0
-    lower_inside = centred and lower > -PI + REACHED
-    both_inside = lower_inside and upper < PI - REACHED
-    over = upper < PI + REACHED or not centred
-    if over:
-        down = x - TWO_PI
-        turn = (x - upper) > (lower - down)
-        if not lower_inside:
-            turn = ca.logic_or(down >= lower - LIMIT_SNAP, turn)
-        x = _where(ca.logic_and(x > upper, turn), down, x)
-    if over or lower > -PI - REACHED:
-        up = x + TWO_PI
-        turn = (lower - x) > (up - upper)
-        if not both_inside:
-            turn = ca.logic_or(up <= upper + LIMIT_SNAP, turn)
-        x = _where(ca.logic_and(x < lower, turn), up, x)
+    if not (math.isfinite(lower) and math.isfinite(upper)):
+        return _wrap_unbounded(x, lower, upper)
+    down_from, up_to = _step_thresholds(lower, upper)
+    x = x - _where(x >= down_from, TWO_PI, 0.0)
+    x = x + _where(x <= up_to, TWO_PI, 0.0)
     x = _where(ca.logic_and(x > upper, x <= upper + LIMIT_SNAP), upper, x)
     return _where(ca.logic_and(x < lower, x >= lower - LIMIT_SNAP), lower, x)
 
 
-def _one_target(arm: ArmGeometry, kind: str, current: bool) -> ca.Function:
+def _wrap_unbounded(x, lower: float, upper: float):
+    """wrap_array's steps after the turn, for a range with an infinite limit (as written there)."""
+    if not (math.isfinite(lower) or math.isfinite(upper)):
+        return x
+    down = x - TWO_PI
+    turn = ca.logic_or(down >= lower - LIMIT_SNAP, (x - upper) > (lower - down))
+    x = _where(ca.logic_and(x > upper, turn), down, x)
+    up = x + TWO_PI
+    turn = ca.logic_or(up <= upper + LIMIT_SNAP, (lower - x) > (up - upper))
+    x = _where(ca.logic_and(x < lower, turn), up, x)
+    x = _where(ca.logic_and(x > upper, x <= upper + LIMIT_SNAP), upper, x)
+    return _where(ca.logic_and(x < lower, x >= lower - LIMIT_SNAP), lower, x)
+
+
+def _step_down(x: float, lower: float, upper: float) -> bool:
+    """wrap_array's test for x - 2 pi (in doubles, as NumPy computes it)."""
+    down = x - TWO_PI
+    return x > upper and (down >= lower - LIMIT_SNAP or (x - upper) > (lower - down))
+
+
+def _step_up(x: float, lower: float, upper: float) -> bool:
+    """wrap_array's test for x + 2 pi."""
+    up = x + TWO_PI
+    return x < lower and (up <= upper + LIMIT_SNAP or (lower - x) > (up - upper))
+
+
+def _ordered(x: float) -> int:
+    """An integer of the same order as the double x (finite x)."""
+    (i,) = struct.unpack("<q", struct.pack("<d", x))
+    return i if i >= 0 else -(i & 0x7FFFFFFFFFFFFFFF)
+
+
+def _from_ordered(i: int) -> float:
+    (x,) = struct.unpack("<d", struct.pack("<q", i if i >= 0 else (-i) | -0x8000000000000000))
+    return x
+
+
+@functools.lru_cache(maxsize=256)
+def _step_thresholds(lower: float, upper: float) -> tuple[float, float]:
+    """The doubles from which on wrap_array steps down (x >= first) and up to which it steps up (x <= second).
+
+    Each test is monotone in x (:func:`wrap_sx`), so bisection on the doubles finds where it
+    switches.
+    """
+
+    def edge(test, below: float, above: float) -> int:
+        # The first double in (below, above] where test holds (false at below, true at above).
+        a, b = _ordered(below), _ordered(above)
+        if test(_from_ordered(a)) or not test(_from_ordered(b)):
+            raise RuntimeError(f"wrap_sx: no threshold in [{below}, {above}] for the range [{lower}, {upper}]")
+        while b - a > 1:
+            mid = (a + b) // 2
+            if test(_from_ordered(mid)):
+                b = mid
+            else:
+                a = mid
+        return b
+
+    first_down = edge(lambda v: _step_down(v, lower, upper), upper, upper + 2.0 * TWO_PI)
+    last_up = edge(lambda v: not _step_up(v, lower, upper), lower - 2.0 * TWO_PI, lower) - 1
+    return _from_ordered(first_down), _from_ordered(last_up)
+
+
+def _one_target(arm: ArmGeometry, kind: str, current: bool, distances: bool = False) -> ca.Function:
     """The closed form of one target as an SX function of (position, pitch or rotation, q_current).
 
     `kind` is "position", "pitch" or "pose" (the rotation's nine entries row by row). The
     outputs are the per-target arrays; where the end angle is free (three pitch joints,
     position targets), a last one is 1 where :func:`solve_compiled` must hand the target to
     NumPy: not solved (the search within the limits), or q_current's end angle out of a
-    side's reach (the default choice).
+    side's reach (the default choice); with q_current (position and pitch targets) that last
+    one is also 1 for a target on the yaw axis (the yaw is q_current's). With `distances`, one
+    more output: each branch's wrist point to shoulder distance [m] (its side's).
     """
     pitch, pose = kind == "pitch", kind == "pose"
     p = ca.SX.sym("p", 3)
@@ -305,9 +359,10 @@ def _one_target(arm: ArmGeometry, kind: str, current: bool) -> ca.Function:
         psi_f = ang - _Angle(ca.atan2(-d, u), u / r_d, -d / r_d)
         psi_b = ang - _Angle(ca.atan2(-d, -u), -u / r_d, -d / r_d)
     back_dup = ca.logic_or(free, u == 0.0)
-    # q_current's yaw sigma q0 [rad].
-    yaw_qc = _Angle.of(qc[0]).signed(arm.sigma) if current else None
-    psi_f = _Angle.where(free, yaw_qc if current else _Angle.const(0.0), psi_f)
+    # q_current's yaw sigma q0 [rad] (poses); position and pitch targets on the yaw axis with
+    # q_current are handed over (rare: its cosine and sine would cost two libm calls per target).
+    yaw_qc = _Angle.of(qc[0]).signed(arm.sigma) if current and pose else None
+    psi_f = _Angle.where(free, yaw_qc if yaw_qc is not None else _Angle.const(0.0), psi_f)
     u = _where(free, 0.0, u)
     psi = [psi_f, psi_b]
     ue = [u, -u]
@@ -461,8 +516,11 @@ def _one_target(arm: ArmGeometry, kind: str, current: bool) -> ca.Function:
             elif pose or not (arm.has_roll and j == arm.roll_idx):
                 q[m][j] = wrap_sx(q[m][j], arm.lower[j], arm.upper[j])
             within[m] = ca.logic_and(within[m], ca.logic_and(q[m][j] >= arm.lower[j], q[m][j] <= arm.upper[j]))
-        q[m] = [_where(valid[m], x, nan) for x in q[m]]
-        perr[m] = _where(valid[m], perr[m], nan)
+        # NaN where not valid: one product per value (x * 1.0 is x, -0.0 included; CasADi
+        # folds a product with a constant 0, so constants are selected).
+        keep = _where(valid[m], 1.0, nan)
+        q[m] = [_where(valid[m], x, nan) if ca.SX(x).is_constant() else x * keep for x in q[m]]
+        perr[m] = perr[m] * keep
         singular[m] = ca.logic_and(singular[m], valid[m])
     any_valid = ca.logic_or(ca.logic_or(valid[0], valid[1]), ca.logic_or(valid[2], valid[3]))
     any_within = ca.logic_or(ca.logic_or(within[0], within[1]), ca.logic_or(within[2], within[3]))
@@ -503,7 +561,9 @@ def _one_target(arm: ArmGeometry, kind: str, current: bool) -> ca.Function:
     extra = []
     if free_end:
         unsolved = status != code[STATUS_SOLVED]
-        extra = [unsolved if handover is None else ca.logic_or(unsolved, handover)]
+        extra = [unsolved if handover is None else ca.logic_or(ca.logic_or(unsolved, handover), free)]
+    elif current and not pose:
+        extra = [free]
     outputs = [
         ca.vertcat(*[x for m in range(4) for x in q[m]]),
         ca.vertcat(*perr),
@@ -511,7 +571,7 @@ def _one_target(arm: ArmGeometry, kind: str, current: bool) -> ca.Function:
         ca.vertcat(*within),
         ca.vertcat(*singular),
         ca.vertcat(status, best, *extra),
-    ]
+    ] + ([ca.vertcat(*dist)] if distances else [])
     inputs = [p] + ([pit] if pitch else []) + ([rflat] if pose else []) + ([qc] if current else [])
     return ca.Function("yaw_planar_closed_form", inputs, ca.cse(outputs))
 
@@ -635,6 +695,15 @@ def _poe_fk(arm: ArmGeometry, q: list[_Angle]):
     tp = _tidy(arm.tip_position, arm.scale)
     pos = [rot[i][0] * tp[0] + rot[i][1] * tp[1] + rot[i][2] * tp[2] + trans[i] for i in range(3)]
     return pos, _matmul(rot, [_tidy(row, 1.0) for row in np.asarray(arm.rot0)])
+
+
+def forward_sx(arm: ArmGeometry, q: list) -> tuple[list, list]:
+    """The real arm's tip position (3) and rotation (3 x 3 nested lists) at joint values `q` (SX).
+
+    The product of exponentials (:func:`~planner.geometry.chain.poe_fk`'s sums) with each
+    joint's cosine and sine by libm.
+    """
+    return _poe_fk(arm, [_Angle.of(v) for v in q])
 
 
 def _tidy(v, scale: float) -> list[float]:
@@ -764,21 +833,24 @@ class CompiledKernels:
 
     def __init__(self, arm: ArmGeometry) -> None:
         self.arm = arm
-        self._functions: dict[tuple[str, bool, int, bool], ca.Function] = {}
+        self._functions: dict[tuple[str, bool, int, bool, bool], ca.Function] = {}
 
-    def function(self, kind: str, current: bool = False, block: int = BLOCK, compiled: bool = True) -> ca.Function:
+    def function(
+        self, kind: str, current: bool = False, block: int = BLOCK, compiled: bool = True, distances: bool = False
+    ) -> ca.Function:
         """The closed form of `kind` targets (with q_current or not) mapped over `block` targets.
 
-        `kind`: "position", "pitch" or "pose" (:func:`kind_of`).
+        `kind`: "position", "pitch" or "pose" (:func:`kind_of`); with `distances`, one more
+        output: each branch's wrist distance [m] (:func:`_one_target`).
 
         With `compiled`, built to C by :func:`~planner.ik.numeric.codegen.compile_function`
         (which falls back to CasADi's virtual machine without a compiler or with
         ``PLANNER_JIT=0``); without, the virtual machine's.
         """
-        key = (kind, current, block, compiled)
+        key = (kind, current, block, compiled, distances)
         fn = self._functions.get(key)
         if fn is None:
-            fn = _one_target(self.arm, kind, current).map(block, "serial")
+            fn = _one_target(self.arm, kind, current, distances).map(block, "serial")
             if compiled:
                 fn = compile_function(fn, flags=FLAGS)
             self._functions[key] = fn
@@ -824,7 +896,7 @@ def solve_compiled(
     if qc is not None:
         args.append(np.ascontiguousarray(qc, dtype=float))
     free_end = arm.n_pitch == 3 and pit is None and rot is None
-    handover = np.zeros(n, dtype=bool) if free_end else None
+    handover = np.zeros(n, dtype=bool) if free_end or (qc is not None and rot is None) else None
     # Full blocks, then the rest in small ones (two compiled functions per arm and kind).
     full = n // block * block
     key = (kind_of(pit, rot), qc is not None)

@@ -6,6 +6,14 @@ microseconds: a few times one Pinocchio FK call): the same closed form as
 and categories, each branch verified by the closed-form forward model. Plain floats and
 :mod:`math` throughout; the only NumPy object built is the one read-only array that holds
 every solution's joint values (:func:`finish_scalar`).
+
+With a plan's compiled closed form (one per solver), the same result comes from one call of
+a CasADi function where that is sure (compiled to C after
+:data:`~planner.ik.analytic.base.SINGLE_AFTER` calls of a kind; the same doubles before)
+(:class:`~planner.ik.analytic.yaw_planar.single.SolveKernel`: the same branches, order, masks
+and status; joint values and errors to round-off, each branch verified by the forward model
+at its returned joint values); elsewhere (failures, ties, a free end angle to search, ...)
+from the scalar arithmetic here.
 """
 
 from __future__ import annotations
@@ -25,6 +33,7 @@ from planner.ik.analytic.result import STATUS_SOLVED, AnalyticResult, AnalyticSo
 from planner.ik.analytic.yaw_planar.arm import ArmGeometry
 from planner.ik.analytic.yaw_planar.branches import BEYOND, BRANCHES, CYLINDER, DUPLICATE, INSIDE, ORIENT, VALID
 from planner.ik.analytic.yaw_planar.free_pitch import free_pitch_failure, free_pitch_scalar
+from planner.ik.analytic.yaw_planar.single import SolveKernels
 from planner.ik.analytic.yaw_planar.status import status_and_reason
 
 __all__ = ["ScalarPlan", "EndPlan", "scalar_plan", "end_plan", "solve_scalar", "finish_scalar", "solutions_result"]
@@ -40,7 +49,12 @@ _new = tuple.__new__
 
 
 class ScalarPlan(NamedTuple):
-    """An arm's constants of :func:`solve_scalar`, computed once per solver (see its fields' code)."""
+    """An arm's constants of :func:`solve_scalar`, computed once per solver (see its fields' code).
+
+    ``compiled`` holds the solver's compiled closed form of whole results
+    (:class:`~planner.ik.analytic.yaw_planar.single.SolveKernels`; not thread-safe), or None
+    (the scalar arithmetic only).
+    """
 
     three: bool
     has_roll: bool
@@ -64,6 +78,7 @@ class ScalarPlan(NamedTuple):
     limits: tuple[float, ...]
     zeros: tuple[float, ...]
     end: EndPlan | None
+    compiled: SolveKernels | None
 
 
 class EndPlan(NamedTuple):
@@ -118,6 +133,7 @@ def scalar_plan(arm: ArmGeometry) -> ScalarPlan:
         limits=tuple(limits),
         zeros=(0.0,) * arm.dof,
         end=end_plan(arm, *arm.tip_fixed) if arm.tip_on_roll_axis else None,
+        compiled=SolveKernels(arm),
     )
 
 
@@ -167,9 +183,12 @@ def solve_scalar(
     """
     if plan is None:
         plan = scalar_plan(arm)
+    if plan.compiled and (found := plan.compiled.entries(target.position, target.pitch, None, qc)):
+        # (lean: the same entries, so that nearest's answer is the result's row bitwise)
+        return found[0] if lean else solutions_result(arm, found[0], qc is not None, True, found[1], None, None, target)
     (
         three, has_roll, roll_idx, dof, bx, by, mu, sigma, beta, len_tol, len_tol_sq, axis_tol,
-        l1, g1, su, sz, s0, s1, s2, limits, zeros, end,
+        l1, g1, su, sz, s0, s1, s2, limits, zeros, end, _,
     ) = plan  # fmt: skip
     px, py, pz = target.position.tolist()
     pitch = target.pitch

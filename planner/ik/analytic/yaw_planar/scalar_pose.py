@@ -4,6 +4,8 @@ The fast path of :meth:`~planner.ik.analytic.yaw_planar.solver.YawPlanarIK.solve
 targets: the closed form of :func:`~planner.ik.analytic.yaw_planar.core.solve_core` with a
 rotation (:mod:`~planner.ik.analytic.yaw_planar.orientation`), one target at a time, with the
 same branch order, categories and tolerances, and each branch verified by the forward model.
+As :func:`~planner.ik.analytic.yaw_planar.scalar.solve_scalar`, the result comes from one
+call of the plan's compiled closed form where that is sure.
 
 Everything orientational is done in the plane basis ``B = [n, e_u, z]`` (right-handed; a
 rotation about z, so it commutes with the yaw): there the tip rotation relative to q = 0 is
@@ -105,6 +107,8 @@ def solve_pose_scalar(
     """
     if plan is None:
         plan = scalar_plan(arm)
+    if plan.compiled and (found := plan.compiled.entries(target.position, None, target.rotation, qc)):
+        return solutions_result(arm, found[0], qc is not None, True, found[1], None, None, target)
     entries, cats, dist, any_within, singular = _pose(arm, frame, target.position.tolist(), target.rotation, qc, plan)
     return solutions_result(arm, entries, qc is not None, any_within, singular, cats, dist, target)
 
@@ -117,6 +121,8 @@ def pose_nearest(
     Only the candidates within the limits are verified by the forward model (the others are
     assembled and wrapped, not checked); where one is not, the count and place are left None.
     """
+    if plan.compiled and (found := plan.compiled.entries(target.position, None, target.rotation, qc)):
+        return nearest_entry(found[0], qc)  # the result's row bitwise (solve_pose_scalar's entries)
     return _pose(arm, frame, target.position.tolist(), target.rotation, qc, plan, True)
 
 
