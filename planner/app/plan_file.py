@@ -334,8 +334,8 @@ def parse_motion_request(data: Mapping[str, Any], source: str = "<request>") -> 
     blend_lines = data.get("blend_lines", True)
     if not isinstance(blend_lines, bool):
         raise input_error(source, f"blend_lines must be true or false, got {blend_lines!r}")
-    if strategy not in VIA_STRATEGIES:
-        raise input_error(source, f"unknown strategy {strategy!r}; valid: {', '.join(VIA_STRATEGIES)}")
+    if not isinstance(strategy, str) or strategy not in VIA_STRATEGIES:
+        raise input_error(source, f"unknown strategy {plain(strategy)}; valid: {', '.join(VIA_STRATEGIES)}")
     servos = data.get("servos")
     if servos is not None:
         if not isinstance(servos, Sequence) or isinstance(servos, (str, bytes)):
