@@ -164,6 +164,8 @@ def test_shipped_calibrations():
     ("data", "message"),
     [
         ({"controller": "dmx", "servos": []}, "unknown controller 'dmx'; valid controllers: pulses, ssc32"),
+        # A list or mapping raised TypeError (unhashable) from the membership test.
+        ({"controller": ["ssc32"], "servos": []}, r"unknown controller \['ssc32'\]; valid controllers: pulses, ssc32"),
         ({"controller": "ssc32", "servos": [{"channel": 0}]}, "servos must list one servo per joint: dh3 has 3"),
         ({"controller": "ssc32", "robot": "al5c", "servos": []}, "this calibration is for robot 'al5c', not 'dh3'"),
         (
@@ -263,3 +265,14 @@ def test_readme_dry_run_output_is_real(tmp_path, capsys, monkeypatch):
     Path("wave.yaml").write_text("{units: {angle: deg}, waypoints: [[0, 90, -90, 0, 0], [10, 85, -95, 5, 0]]}\n")
     assert main(["send", "al5c", "wave.yaml", "--dry-run"]) == 0
     assert capsys.readouterr().out == shown
+
+
+@pytest.mark.parametrize("controller", [["ssc32"], {"ssc32": 1}])
+def test_a_controller_that_is_no_name_is_refused_by_name(controller):
+    # A plan file's or an API caller's list or mapping raised TypeError (unhashable).
+    from planner.app.plan_file import parse_motion_request
+
+    with pytest.raises(InvalidArgumentError, match=r"unknown controller .*; valid controllers: pulses, ssc32"):
+        parse_motion_request({"waypoints": [[0, 0, 0], [1, 1, 1]], "controller": controller})
+    with pytest.raises(InvalidArgumentError, match=r"unknown controller .*; valid controllers: pulses, ssc32"):
+        controller_setup(get_robot("dh3"), controller)

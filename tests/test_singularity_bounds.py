@@ -358,3 +358,23 @@ def test_bounded_conditioning_rejects_bad_input(q, keep, match):
 
     with pytest.raises(InvalidArgumentError, match=match):
         bounded_conditioning(get_robot("dh3"), q, "position", 0.05, keep)
+
+
+def test_a_zero_threshold_through_a_singular_waypoint_divides_by_nothing():
+    # Threshold 0 and a singular waypoint: the certificate's level is 0 and its floor 0 on rows
+    # with no interpolation error; the manipulability's shrink factor was 0 / 0 (a RuntimeWarning
+    # and a NaN bound, which then had the row measured exactly).
+    import warnings
+
+    robot = get_robot("dh3")
+    q = np.array([[0.645416746068515, -1.084854553197284, -2.1631113075078927], [0.0, 0.0, 0.0], [0.5, 1.08, 0.2]])
+    trajectory = plan_trajectory(q, JointLimits.from_robot(robot))
+    task = robot.resolve_task(None)
+    t = np.unique(np.concatenate([trajectory.times(1000.0), trajectory.waypoint_times]))
+    keep = np.searchsorted(t, trajectory.waypoint_times)
+    samples = trajectory.sample(t).q
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        inv, man = bounded_conditioning(robot, samples, task, 0.0, keep)
+    inv_all, man_all = robot.conditioning(samples, task)
+    _check_bounded(inv, man, inv_all, man_all, 0.0, keep)

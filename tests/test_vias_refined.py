@@ -143,3 +143,13 @@ def test_without_sweeps_it_is_the_optimized_plan_bit_for_bit(problem, seed):
     np.testing.assert_array_equal(fitted.via_velocities, optimized.via_velocities)
     np.testing.assert_array_equal(fitted.via_accelerations, optimized.via_accelerations)
     np.testing.assert_array_equal(fitted.repaired, optimized.repaired)
+
+
+@pytest.mark.parametrize("strategy", [["refined"], {"refined": {"sweeps": 1}}, 3])
+def test_a_plan_file_strategy_that_is_no_name_is_refused_by_name(strategy):
+    # A YAML list or mapping raised TypeError (unhashable) from the membership test.
+    from planner import PlannerError
+    from planner.app.plan_file import parse_motion_request
+
+    with pytest.raises(PlannerError, match=r"unknown strategy .*; valid: optimized, heuristic, stop, refined"):
+        parse_motion_request({"waypoints": [[0, 0, 0], [1, 1, 1]], "strategy": strategy})

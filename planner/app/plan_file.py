@@ -334,8 +334,8 @@ def parse_motion_request(data: Mapping[str, Any], source: str = "<request>") -> 
     blend_lines = data.get("blend_lines", True)
     if not isinstance(blend_lines, bool):
         raise input_error(source, f"blend_lines must be true or false, got {blend_lines!r}")
-    if strategy not in VIA_STRATEGIES:
-        raise input_error(source, f"unknown strategy {strategy!r}; valid: {', '.join(VIA_STRATEGIES)}")
+    if not isinstance(strategy, str) or strategy not in VIA_STRATEGIES:
+        raise input_error(source, f"unknown strategy {plain(strategy)}; valid: {', '.join(VIA_STRATEGIES)}")
     servos = data.get("servos")
     if servos is not None:
         if not isinstance(servos, Sequence) or isinstance(servos, (str, bytes)):
@@ -349,8 +349,10 @@ def parse_motion_request(data: Mapping[str, Any], source: str = "<request>") -> 
     if isinstance(period, bool) or not isinstance(period, int) or not 1 <= period <= 65535:
         raise input_error(source, f"servo_period_ms must be an integer in [1, 65535], got {plain(period)}")
     controller = data.get("controller")
-    if controller is not None and controller not in SERVO_FORMATS:
-        raise input_error(source, f"unknown controller {controller!r}; valid controllers: {', '.join(SERVO_FORMATS)}")
+    if controller is not None and (not isinstance(controller, str) or controller not in SERVO_FORMATS):
+        raise input_error(
+            source, f"unknown controller {plain(controller)}; valid controllers: {', '.join(SERVO_FORMATS)}"
+        )
     calibration = data.get("calibration")
     if calibration is not None:
         if not isinstance(calibration, str) or not calibration:

@@ -240,10 +240,13 @@ def find_clear_path(
         return not near(q)
 
     def quick(a: np.ndarray, b: np.ndarray) -> bool:
-        """Proximity checks every `resolution` along the edge, its end first: cheap, not a certificate."""
+        """Proximity checks every `resolution` along the edge, end first, start last: not a certificate.
+
+        The start is tested too: a shortcut starts at a point along the path, not at a tested node.
+        """
         d = b - a
         n = max(1, int(np.ceil(float(np.abs(d).max()) / options.resolution)))
-        return not any(map(near, a + sweep_order(n)[:, None] * d))
+        return not any(map(near, a + sweep_order(n)[:, None] * d)) and not near(a)
 
     def between(a: np.ndarray, b: np.ndarray) -> bool:
         """`quick` without the end (a tree's node, tested when it was added)."""

@@ -28,6 +28,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from planner.core.files import input_error, parse_number, parse_numbers, read_data_file
+from planner.core.text import plain
 from planner.exceptions import PlannerError
 from planner.export.calibration import ServoCalibration, check_calibrations
 from planner.export.formats import SERVO_FORMATS, ServoFormat, servo_format
@@ -116,8 +117,10 @@ def parse_calibration(data: Any, robot: Robot, source: str = "<calibration>") ->
     if "robot" in data and str(data["robot"]) != robot.name:
         raise input_error(source, f"this calibration is for robot {data['robot']!r}, not {robot.name!r}")
     controller = data.get("controller")
-    if controller not in SERVO_FORMATS:
-        raise input_error(source, f"unknown controller {controller!r}; valid controllers: {', '.join(SERVO_FORMATS)}")
+    if not isinstance(controller, str) or controller not in SERVO_FORMATS:
+        raise input_error(
+            source, f"unknown controller {plain(controller)}; valid controllers: {', '.join(SERVO_FORMATS)}"
+        )
     settings = data.get("settings", {}) or {}
     if not isinstance(settings, Mapping):
         raise input_error(source, f"settings must be a mapping, got {settings!r}")
@@ -187,8 +190,10 @@ def controller_setup(
         InvalidArgumentError: On an unknown controller, a disagreement between the controller
             and the calibration, or a controller with no default calibration.
     """
-    if controller is not None and controller not in SERVO_FORMATS:
-        raise input_error(None, f"unknown controller {controller!r}; valid controllers: {', '.join(SERVO_FORMATS)}")
+    if controller is not None and (not isinstance(controller, str) or controller not in SERVO_FORMATS):
+        raise input_error(
+            None, f"unknown controller {plain(controller)}; valid controllers: {', '.join(SERVO_FORMATS)}"
+        )
     if calibration is not None:
         setup = load_calibration(calibration, robot)
         if controller is not None and setup.controller != controller:

@@ -552,7 +552,9 @@ def bounded_conditioning(
         ok, det, _ = _positive_definite(gram, floor * floor)
         lo_inv[take[ok]] = np.maximum(lo_inv[take[ok]], lifted)
         if divisor is not None:  # the manipulability is that of the scaled Jacobian
-            shrink = np.maximum(1.0 - err[ok] / floor[ok], 0.0) ** k
+            # A zero floor (level 0, no error) leaves the singular values as they are.
+            ratio = np.divide(err[ok], floor[ok], out=np.zeros(int(ok.sum())), where=floor[ok] > 0.0)
+            shrink = np.maximum(1.0 - ratio, 0.0) ** k
             lo_man[take[ok]] = np.maximum(lo_man[take[ok]], np.sqrt(det[ok]) * shrink * (scale * (1.0 - 1e-9)))
 
     change = robot.derived.get(_ChangeBounds, lambda: _ChangeBounds(robot)).of(task)
