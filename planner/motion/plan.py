@@ -255,22 +255,21 @@ def plan_trajectory_request(request: TrajectoryRequest) -> JointTrajectory:
         raise InvalidArgumentError(f"request must be a TrajectoryRequest, got {type(request).__name__}")
     chooser = via_strategy(request.strategy)
     limits = request.limits
-    if (
-        type(chooser) is StopStrategy
-        and not request.moving_start
-        and not request.dwell.any()
-        and not request.min_durations.any()
-    ):
-        planned = _plan_at_rest(request.waypoints, limits)
+    moving = request.moving_start
+    q, v0, a0, dw = request.waypoints, request.start_velocity, request.start_acceleration, request.dwell
+    dwelling = any(dw.tolist())
+    if type(chooser) is StopStrategy and not moving and not dwelling and not any(request.min_durations.tolist()):
+        planned = _plan_at_rest(q, limits)
         if planned is not None:
             return planned
-    q, v0, a0, dw = request.waypoints, request.start_velocity, request.start_acceleration, request.dwell
     n = len(q)
     stop = np.zeros(n, dtype=bool)
-    stop[list(request.stops)] = True
-    stop |= dw > 0
-    stop = chooser.stop_mask(stop, request.moving_start)
-    given = (request.via_velocities, request.via_accelerations, request.min_durations)
+    if request.stops:
+        stop[list(request.stops)] = True
+    if dwelling:
+        stop |= dw > 0
+    stop = chooser.stop_mask(stop, moving)
+    given = (request.via_velocities, request.via_accelerations, request.min_durations) if request.prescribed else None
 
     try:
         chain = ViaChain(q, limits, v0, a0, stop, given)

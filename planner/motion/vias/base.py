@@ -64,24 +64,22 @@ class ViaChain:
         self.q = q
         self.n = len(q)
         self.limits = limits
-        self.v = np.zeros_like(q)
-        self.acc = np.zeros_like(q)
+        self.v = np.zeros(q.shape)
+        self.acc = np.zeros(q.shape)
         self.stop = stop
-        self.fixed = np.zeros(self.n, dtype=bool)
+        self.fixed = stop.copy()
         min_durations = None
         if given is not None:
             gv, ga, min_durations = given
             rows = np.all(np.isfinite(gv), axis=1) & ~stop
-            if rows.any():
+            if True in rows.tolist():
                 self.v[rows], self.acc[rows] = gv[rows], admissible_acceleration(gv[rows], ga[rows], limits)
                 self.fixed |= rows
         self.v[0], self.acc[0] = v0, a0
         self.fixed[0] = self.fixed[-1] = True
-        self.fixed |= stop
         self.v[-1] = self.acc[-1] = 0.0
-        rest = stop.copy()
-        rest[0] = False
-        if rest.any():
+        rest = [k for k, s in enumerate(stop.tolist()) if s and k > 0]
+        if rest:
             self.v[rest] = 0.0
             self.acc[rest] = 0.0
         self.seg = SegmentSolver(q, limits, min_durations)
@@ -104,9 +102,11 @@ class ViaChain:
         there), counts as limited: the argument assumes the current pair is within range.
         """
         for k in (i - 1, i):
-            duration, bad, traj = self.seg.solve(k, self.v[k], self.acc[k], self.v[k + 1], self.acc[k + 1])
-            if traj is None or bad is not None:
+            va, aa, vb, ab = self.v[k], self.acc[k], self.v[k + 1], self.acc[k + 1]
+            duration, bad, _ = self.seg.solve(k, va, aa, vb, ab)
+            if duration == math.inf or bad is not None:
                 return True
+            traj = self.seg.trajectory(k, va, aa, vb, ab)
             others = [t for t, moved in zip(traj.independent_min_durations, joints.tolist()) if not moved]
             if not others or duration > max(others):
                 return True
