@@ -62,6 +62,7 @@ from planner.motion.segments import (
     brake_segment,
     merge_segment,
     rest_to_rest_segments,
+    rest_to_rest_trajectory,
     segment_position_range,
 )
 from planner.motion.trajectory import JointTrajectory
@@ -371,10 +372,9 @@ def _plan_at_rest(
         rows: `q` as rows of floats and its per-joint extremes, if at hand (see
             :func:`planner.motion.segments.rest_to_rest_segments`).
     """
-    segments = rest_to_rest_segments(q, limits, rows)
-    if segments is None:
+    durations = rest_to_rest_segments(q, limits, rows)
+    if durations is None:
         return None
-    durations, trajectories = segments
     n, dof = q.shape
     times = list(accumulate(durations, initial=0.0))
     via, dw, repaired = _rest_arrays(n, dof)
@@ -385,8 +385,8 @@ def _plan_at_rest(
     def build() -> tuple[np.ndarray, ...]:
         rest = np.zeros(dof)
         merged = [
-            merge_segment(traj, d, (q[k], rest, rest), q[k + 1], limits)
-            for k, (d, traj) in enumerate(zip(durations, trajectories))
+            merge_segment(rest_to_rest_trajectory(q[k], q[k + 1], limits), d, (q[k], rest, rest), q[k + 1], limits)
+            for k, d in enumerate(durations)
         ]
         return _assemble(q, dw, waypoint_times, waypoint_times, merged, None)
 
