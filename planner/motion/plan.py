@@ -49,6 +49,7 @@ from __future__ import annotations
 from collections.abc import Sequence
 from functools import lru_cache
 from itertools import accumulate
+from operator import gt, lt
 
 import numpy as np
 
@@ -96,11 +97,14 @@ def _repair_range(chain: ViaChain) -> list[tuple[float, SegmentPieces]]:
     """
     before_v, before_acc = chain.v.copy(), chain.acc.copy()
     halved = np.zeros(chain.v.shape, dtype=int)
+    # Row views (live: every change below is in place) and the range bounds as floats.
+    q_rows, v_rows, acc_rows = list(chain.q), list(chain.v), list(chain.acc)
+    lows, highs = chain.limits.checked_floats
     for _ in range(4 * _REPAIR_HALVINGS + chain.n):
         segments, any_bad = [], False
         for k in range(chain.n - 1):
-            start = (chain.q[k], chain.v[k], chain.acc[k])
-            d, outside, traj = chain.seg.solve(k, chain.v[k], chain.acc[k], chain.v[k + 1], chain.acc[k + 1], keep=True)
+            start = (q_rows[k], v_rows[k], acc_rows[k])
+            d, outside, traj = chain.seg.solve(k, v_rows[k], acc_rows[k], v_rows[k + 1], acc_rows[k + 1], keep=True)
             if traj is None:
                 # Ruckig found no profile: rest at the free ends of this segment.
                 for idx in (k, k + 1):
@@ -109,8 +113,8 @@ def _repair_range(chain: ViaChain) -> list[tuple[float, SegmentPieces]]:
                         chain.acc[idx] = 0.0
                 any_bad = True
                 continue
-            merged = merge_segment(traj, d, start, chain.q[k + 1], chain.limits)
-            if merged.residual.any():
+            merged = merge_segment(traj, d, start, q_rows[k + 1], chain.limits)
+            if any(merged.residual.tolist()):
                 free = [
                     idx
                     for idx in (k, k + 1)
@@ -132,7 +136,10 @@ def _repair_range(chain: ViaChain) -> list[tuple[float, SegmentPieces]]:
                 lo, hi = segment_position_range(traj, merged, d)
                 bad = (lo < chain.seg.lower) | (hi > chain.seg.upper)
             else:  # segment_position_range from Ruckig's extrema, which the solver checked already
-                bad = (merged.missed[0] < chain.seg.lower) | (merged.missed[1] > chain.seg.upper)
+                lo, hi = merged.missed
+                if outside is None and not (any(map(lt, lo.tolist(), lows)) or any(map(gt, hi.tolist(), highs))):
+                    continue  # (the common case, on floats)
+                bad = (lo < chain.seg.lower) | (hi > chain.seg.upper)
                 if outside is not None:
                     bad |= outside
             if not bad.any():
@@ -298,15 +305,16 @@ def plan_trajectory_request(request: TrajectoryRequest) -> JointTrajectory:
         v[0], acc[0] = v0, a0
 
     # The waypoint times now, the pieces when first used (JointTrajectory.lazy).
-    times, rests, starts = np.empty(n), np.empty(n), np.empty(n)
+    times, rests, starts = [], [], []
     t = head[0] if head is not None else 0.0
-    for k in range(n):
-        times[k] = 0.0 if k == 0 else t
-        rests[k] = t
-        t += dw[k]
-        starts[k] = t
+    for k, pause in enumerate(dw.tolist()):
+        times.append(0.0 if k == 0 else t)
+        rests.append(t)
+        t += pause
+        starts.append(t)
         if k < n - 1:
             t += segments[k][0]
+    times, rests, starts = np.array(times), np.array(rests), np.array(starts)
 
     def build() -> tuple[np.ndarray, ...]:
         return _assemble(q, dw, rests, starts, [merged for _, merged in segments], head)

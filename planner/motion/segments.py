@@ -505,6 +505,8 @@ class SegmentSolver:
         target = self.rows[k + 1]
         # The end positions of all profiles in one call (see rest_to_rest_segments).
         reached = traj.at_time(duration)[0]
+        if math.dist(reached, target) <= _END_DISTANCE:
+            return solved  # every joint within END_TOLERANCE of its target
         rest = ((vb == 0.0) & (ab == 0.0)).tolist()
         missed = [
             r and abs(x - goal) > END_TOLERANCE * max(1.0, abs(goal)) for r, x, goal in zip(rest, reached, target)

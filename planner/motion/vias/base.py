@@ -87,10 +87,8 @@ class ViaChain:
 
     def durations(self) -> np.ndarray:
         """Duration of every segment with the current via states, shape (N-1,) [s] (inf: no profile)."""
-        out = np.empty(self.n - 1)
-        for k in range(self.n - 1):
-            out[k] = self.seg.solve(k, self.v[k], self.acc[k], self.v[k + 1], self.acc[k + 1])[0]
-        return out
+        v, acc, solve = list(self.v), list(self.acc), self.seg.solve
+        return np.array([solve(k, v[k], acc[k], v[k + 1], acc[k + 1])[0] for k in range(self.n - 1)])
 
     def limited_by(self, i: int, joints: np.ndarray) -> bool:
         """Whether changing only `joints` (bool mask) at via i could shorten a segment next to it.
