@@ -518,40 +518,6 @@ def test_segment_solver_answers_a_repeated_state_from_its_cache():
     assert solver.solve(1, v, a, np.zeros(2), np.zeros(2))[0] != first[0]
 
 
-def test_segment_solver_keeps_a_trajectory_only_when_asked_and_it_is_ruckigs_own():
-    # The searches read durations and range checks from one scratch trajectory; a kept one is
-    # solved again into its own object and must be exactly the profile Ruckig gives.
-    from ruckig import InputParameter, Ruckig
-    from ruckig import Trajectory as RuckigTrajectory
-
-    from planner.motion.segments import SegmentSolver
-
-    limits = JointLimits(1.0, 2.0, 20.0, lower=[-2, -2], upper=[2, 2])
-    q = np.array([[0.0, 0.0], [1.0, -0.5], [0.5, 0.5]])
-    solver = SegmentSolver(q, limits)
-    v, a = np.array([0.3, -0.2]), np.array([0.1, 0.0])
-    duration, outside, traj = solver.solve(0, np.zeros(2), np.zeros(2), v, a)
-    assert traj is None and outside is None
-    other = solver.solve(1, v, a, np.zeros(2), np.zeros(2))  # the scratch trajectory moves on
-    kept = solver.trajectory(0, np.zeros(2), np.zeros(2), v, a)
-    assert solver.solve(0, np.zeros(2), np.zeros(2), v, a, keep=True)[2] is kept
-    assert solver.trajectory(1, v, a, np.zeros(2), np.zeros(2)).duration == other[0]
-    inp = InputParameter(2)
-    inp.max_velocity, inp.max_acceleration, inp.max_jerk = [1.0] * 2, [2.0] * 2, [20.0] * 2
-    inp.current_position, inp.target_position = q[0].tolist(), q[1].tolist()
-    inp.target_velocity, inp.target_acceleration = v.tolist(), a.tolist()
-    ref = RuckigTrajectory(2)
-    Ruckig(2).calculate(inp, ref)
-    assert kept.duration == ref.duration == duration
-    for mine, theirs in zip(kept.profiles[0], ref.profiles[0]):
-        assert (mine.t, mine.p, mine.v, mine.a, mine.j) == (theirs.t, theirs.p, theirs.v, theirs.a, theirs.j)
-    # No profile: no trajectory either.
-    flat = SegmentSolver(np.array([[1.0], [1.0]]), JointLimits(5.0, 10.0, 100.0, lower=[-3.0], upper=[3.0]))
-    acc = np.array([-9.99])
-    assert flat.trajectory(0, np.array([0.3]), acc, np.array([-0.3]), acc) is None
-    assert flat.solve(0, np.array([0.3]), acc, np.array([-0.3]), acc, keep=True)[2] is None
-
-
 def test_request_defaults_are_frozen_shared_zeros_and_flags_follow_the_fields():
     from planner.motion.request import TrajectoryRequest
 

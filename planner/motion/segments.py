@@ -246,8 +246,8 @@ def _thread_solver(dof: int) -> list:
     Kept between plans (making them costs as much as solving a segment): Ruckig's calculate
     depends on its input only. Only :func:`rest_to_rest_segments` sets this input, always both
     positions, and the limits where they are not those of the last plan (the third entry, None
-    at first). The scratch trajectory (fourth entry) receives the :class:`SegmentSolver`'s
-    solves, whose trajectories are mostly read once and dropped.
+    at first). :func:`rest_to_rest_segments` solves into the scratch trajectory (fourth entry)
+    and reads it at once.
     """
     solvers = getattr(_LOCAL, "solvers", None)
     if solvers is None:
@@ -286,7 +286,7 @@ class SegmentSolver:
         self.lower, self.upper = range_with_tolerance(limits)
         self._lows, self._highs = limits.checked_floats
         self.bounded = limits.bounded
-        self.otg, _, _, self._scratch = _thread_solver(self.dof)
+        self.otg = _thread_solver(self.dof)[0]
         self._limits = limits.ruckig_limits
         # One Ruckig input per segment (made when first used), holding its positions: the
         # searches alternate between the two segments next to a via.
@@ -299,9 +299,7 @@ class SegmentSolver:
             [j for j, (x, y) in enumerate(zip(a, b)) if abs(y - x) <= 1e-9 * max(1.0, abs(y))] or None
             for a, b in zip(rows, rows[1:])
         ]
-        self._cache: dict[tuple, tuple[float, np.ndarray | None, None]] = {}
-        # Trajectories solved again (into their own objects) for the callers that keep them.
-        self._kept: dict[tuple, RuckigTrajectory] = {}
+        self._cache: dict[tuple, tuple[float, np.ndarray | None, RuckigTrajectory | None]] = {}
 
     def solve(
         self, k: int, va: np.ndarray, aa: np.ndarray, vb: np.ndarray, ab: np.ndarray, keep: bool = False
@@ -318,61 +316,26 @@ class SegmentSolver:
             aa: Start accelerations, shape (dof,).
             vb: End velocities, shape (dof,).
             ab: End accelerations, shape (dof,).
-            keep: The trajectory is kept by the caller: it is returned (see
-                :meth:`trajectory`), and a joint that Ruckig's time synchronisation leaves
-                short of a target at rest is solved on its own (see
-                :meth:`_unsynchronise_missed`), in a new trajectory.
+            keep: The trajectory is kept by the caller: a joint that Ruckig's time
+                synchronisation leaves short of a target at rest is then solved on its own
+                (see :meth:`_unsynchronise_missed`), in a new trajectory.
 
         Returns:
             The duration [s] (inf when Ruckig finds no profile), a bool mask of the joints that
-            Ruckig's extrema put outside their range (None when none does), and with `keep`
-            the Ruckig trajectory (None without a profile; not to be changed), else None.
+            Ruckig's extrema put outside their range (None when none does), and the Ruckig
+            trajectory (None without a profile; not to be changed).
         """
         key = (k, va.tobytes(), aa.tobytes(), vb.tobytes(), ab.tobytes())
         hit = self._cache.get(key)
         if hit is None:
             hit = self._cache[key] = self._solve(k, va, aa, vb, ab, key)
-        if keep and hit[0] != math.inf:
-            return self._unsynchronise_missed(
-                k, (hit[0], hit[1], self._trajectory(key, va, aa, vb, ab)), va, aa, vb, ab
-            )
+        if keep and hit[2] is not None:
+            return self._unsynchronise_missed(k, hit, va, aa, vb, ab)
         return hit
-
-    def trajectory(
-        self, k: int, va: np.ndarray, aa: np.ndarray, vb: np.ndarray, ab: np.ndarray
-    ) -> RuckigTrajectory | None:
-        """Ruckig's trajectory of segment k from state (va, aa) to (vb, ab), None without a profile.
-
-        The searches read only a solve's duration and range check, so :meth:`solve` solves into
-        one scratch trajectory; the trajectory is solved again (the same calculate, the same
-        profile) into its own object when asked for, and kept.
-
-        Args:
-            k: The segment, from ``q[k]`` to ``q[k+1]``.
-            va: Start velocities, shape (dof,).
-            aa: Start accelerations, shape (dof,).
-            vb: End velocities, shape (dof,).
-            ab: End accelerations, shape (dof,).
-        """
-        key = (k, va.tobytes(), aa.tobytes(), vb.tobytes(), ab.tobytes())
-        hit = self._cache.get(key)
-        if hit is None:
-            hit = self._cache[key] = self._solve(k, va, aa, vb, ab, key)
-        return None if hit[0] == math.inf else self._trajectory(key, va, aa, vb, ab)
-
-    def _trajectory(
-        self, key: tuple, va: np.ndarray, aa: np.ndarray, vb: np.ndarray, ab: np.ndarray
-    ) -> RuckigTrajectory:
-        """The kept trajectory of a solved segment with a profile (`key` as in :meth:`solve`)."""
-        traj = self._kept.get(key)
-        if traj is None:
-            traj = self._kept[key] = RuckigTrajectory(self.dof)
-            self.otg.calculate(self._input(key[0], va, aa, vb, ab, key), traj)
-        return traj
 
     def solve_around(
         self, i: int, va: np.ndarray, aa: np.ndarray, cv: np.ndarray, ca: np.ndarray, vb: np.ndarray, ab: np.ndarray
-    ) -> tuple[tuple[float, np.ndarray | None, None], ...]:
+    ) -> tuple[tuple[float, np.ndarray | None, RuckigTrajectory | None], ...]:
         """:meth:`solve` of segments i-1 and i with state (cv, ca) at waypoint i between them.
 
         Args:
@@ -427,12 +390,12 @@ class SegmentSolver:
 
     def _solve(
         self, k: int, va: np.ndarray, aa: np.ndarray, vb: np.ndarray, ab: np.ndarray, key: tuple | None = None
-    ) -> tuple[float, np.ndarray | None, None]:
+    ) -> tuple[float, np.ndarray | None, RuckigTrajectory | None]:
         """:meth:`solve` without the cache (and without `keep`); `key` as for :meth:`_input`."""
         still = self._still[k]
         if still is not None and self._on_one_parabola(still, va, aa, vb, ab):
             return math.inf, None, None
-        traj = self._scratch
+        traj = RuckigTrajectory(self.dof)
         try:
             result = self.otg.calculate(self._input(k, va, aa, vb, ab, key), traj)
         except RuckigError:  # Ruckig's own failure on an input it accepts: no profile from it
@@ -443,8 +406,8 @@ class SegmentSolver:
             extrema = traj.position_extrema
             for e, lo, hi in zip(extrema, self._lows, self._highs):
                 if e.min < lo or e.max > hi:
-                    return traj.duration, self._outside_mask(extrema), None
-        return traj.duration, None, None
+                    return traj.duration, self._outside_mask(extrema), traj
+        return traj.duration, None, traj
 
     def _outside_mask(self, extrema: list) -> np.ndarray:
         """The joints whose Ruckig extrema lie outside their range (bool mask)."""

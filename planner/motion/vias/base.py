@@ -100,11 +100,9 @@ class ViaChain:
         there), counts as limited: the argument assumes the current pair is within range.
         """
         for k in (i - 1, i):
-            va, aa, vb, ab = self.v[k], self.acc[k], self.v[k + 1], self.acc[k + 1]
-            duration, bad, _ = self.seg.solve(k, va, aa, vb, ab)
-            if duration == math.inf or bad is not None:
+            duration, bad, traj = self.seg.solve(k, self.v[k], self.acc[k], self.v[k + 1], self.acc[k + 1])
+            if traj is None or bad is not None:
                 return True
-            traj = self.seg.trajectory(k, va, aa, vb, ab)
             others = [t for t, moved in zip(traj.independent_min_durations, joints.tolist()) if not moved]
             if not others or duration > max(others):
                 return True
