@@ -18,7 +18,7 @@ from planner.motion.checks import check_waypoints, waypoint_rows_within
 from planner.motion.limits import JointLimits
 from planner.motion.plan import plan_trajectory, plan_trajectory_request
 from planner.motion.request import TrajectoryRequest
-from planner.motion.segments import rest_to_rest_segments
+from planner.motion.segments import rest_to_rest_segments, rest_to_rest_trajectory
 from planner.motion.trajectory import LIMIT_TOLERANCE
 from planner.motion.vias import VIA_STRATEGIES, HeuristicStrategy, StopStrategy, ViaStrategy
 from planner.motion.vias.optimized import golden_minimum, golden_points, spline_via_states
@@ -520,6 +520,28 @@ def test_segment_solver_answers_a_repeated_state_from_its_cache():
     assert solver.solve(1, v, a, np.zeros(2), np.zeros(2))[0] != first[0]
 
 
+def test_request_defaults_are_frozen_shared_zeros_and_flags_follow_the_fields():
+    from planner.motion.request import TrajectoryRequest
+
+    limits = JointLimits(1.0, 2.0, 20.0, lower=[-2, -2], upper=[2, 2])
+    plain = TrajectoryRequest([[0.0, 0.0], [1.0, 1.0], [0.5, 0.0]], limits)
+    for arr in (plain.start_velocity, plain.start_acceleration, plain.dwell, plain.via_accelerations):
+        assert not arr.flags.writeable and not arr.any()
+        with pytest.raises(ValueError):
+            arr.setflags(write=True)
+    assert np.isnan(plain.via_velocities).all() and plain.stops == ()
+    assert not plain.moving_start and not plain.prescribed
+    moving = TrajectoryRequest(plain.waypoints, limits, start_velocity=[0.0, -0.5], stops=[-1])
+    assert moving.moving_start and not moving.prescribed and moving.stops == (2,)
+    given = TrajectoryRequest(plain.waypoints, limits, min_durations=[0.0, 0.0])
+    assert given.prescribed and not given.moving_start
+    caller = np.array([0.1, 0.2])
+    copied = TrajectoryRequest(plain.waypoints, limits, start_acceleration=caller)
+    assert copied.moving_start and not copied.start_acceleration.flags.writeable
+    caller[0] = 0.0
+    assert copied.start_acceleration[0] == 0.1
+
+
 @pytest.mark.parametrize(("turn", "limited"), [(0.01, False), (1.0, True)])
 def test_turn_search_runs_only_where_a_turning_joint_sets_a_segment_duration(turn, limited):
     from planner.motion.vias import ViaChain
@@ -743,8 +765,9 @@ def test_rest_to_rest_segments_the_same_with_the_rows_given(name):
         q = robot.random_configurations(rng, n)
         given = rest_to_rest_segments(q, limits, waypoint_rows_within(q, limits)[1:])
         alone = rest_to_rest_segments(q, limits)
-        assert given[0] == alone[0] and len(given[0]) == n - 1
-        assert [t.at_time(t.duration / 3) for t in given[1]] == [t.at_time(t.duration / 3) for t in alone[1]]
+        assert given == alone and len(given) == n - 1
+        # The trajectories solved again for the pieces take exactly those durations.
+        assert [rest_to_rest_trajectory(a, b, limits).duration for a, b in zip(q, q[1:])] == given
 
 
 def test_stop_plans_with_other_limits_in_between_use_their_own():

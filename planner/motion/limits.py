@@ -259,6 +259,14 @@ def admissible_acceleration(v: np.ndarray, a: np.ndarray, limits: JointLimits) -
     Returns:
         The accelerations, each clipped to what its velocity allows (a new array).
     """
-    room = np.maximum(limits.velocity - np.abs(v), 0.0)
-    amax = np.minimum(limits.acceleration, np.sqrt(limits.twice_jerk * room) * (1.0 - 1e-9))
-    return np.maximum(np.minimum(a, amax), -amax)
+    # The same operations as room = max(v_max - |v|, 0), amax = min(a_max, sqrt(2 j_max room) (1 - 1e-9)),
+    # max(min(a, amax), -amax), in place on two arrays.
+    amax = np.abs(v)
+    np.subtract(limits.velocity, amax, out=amax)
+    np.maximum(amax, 0.0, out=amax)
+    np.multiply(limits.twice_jerk, amax, out=amax)
+    np.sqrt(amax, out=amax)
+    amax *= 1.0 - 1e-9
+    np.minimum(limits.acceleration, amax, out=amax)
+    out = np.minimum(a, amax)
+    return np.maximum(out, np.negative(amax, out=amax), out=out)

@@ -49,6 +49,7 @@ from __future__ import annotations
 from collections.abc import Sequence
 from functools import lru_cache
 from itertools import accumulate
+from operator import gt, lt
 
 import numpy as np
 
@@ -62,6 +63,7 @@ from planner.motion.segments import (
     brake_segment,
     merge_segment,
     rest_to_rest_segments,
+    rest_to_rest_trajectory,
     segment_position_range,
 )
 from planner.motion.trajectory import JointTrajectory
@@ -95,11 +97,14 @@ def _repair_range(chain: ViaChain) -> list[tuple[float, SegmentPieces]]:
     """
     before_v, before_acc = chain.v.copy(), chain.acc.copy()
     halved = np.zeros(chain.v.shape, dtype=int)
+    # Row views (live: every change below is in place) and the range bounds as floats.
+    q_rows, v_rows, acc_rows = list(chain.q), list(chain.v), list(chain.acc)
+    lows, highs = chain.limits.checked_floats
     for _ in range(4 * _REPAIR_HALVINGS + chain.n):
         segments, any_bad = [], False
         for k in range(chain.n - 1):
-            start = (chain.q[k], chain.v[k], chain.acc[k])
-            d, outside, traj = chain.seg.solve(k, chain.v[k], chain.acc[k], chain.v[k + 1], chain.acc[k + 1], keep=True)
+            start = (q_rows[k], v_rows[k], acc_rows[k])
+            d, outside, traj = chain.seg.solve(k, v_rows[k], acc_rows[k], v_rows[k + 1], acc_rows[k + 1], keep=True)
             if traj is None:
                 # Ruckig found no profile: rest at the free ends of this segment.
                 for idx in (k, k + 1):
@@ -108,8 +113,8 @@ def _repair_range(chain: ViaChain) -> list[tuple[float, SegmentPieces]]:
                         chain.acc[idx] = 0.0
                 any_bad = True
                 continue
-            merged = merge_segment(traj, d, start, chain.q[k + 1], chain.limits)
-            if merged.residual.any():
+            merged = merge_segment(traj, d, start, q_rows[k + 1], chain.limits)
+            if any(merged.residual.tolist()):
                 free = [
                     idx
                     for idx in (k, k + 1)
@@ -131,7 +136,10 @@ def _repair_range(chain: ViaChain) -> list[tuple[float, SegmentPieces]]:
                 lo, hi = segment_position_range(traj, merged, d)
                 bad = (lo < chain.seg.lower) | (hi > chain.seg.upper)
             else:  # segment_position_range from Ruckig's extrema, which the solver checked already
-                bad = (merged.missed[0] < chain.seg.lower) | (merged.missed[1] > chain.seg.upper)
+                lo, hi = merged.missed
+                if outside is None and not (any(map(lt, lo.tolist(), lows)) or any(map(gt, hi.tolist(), highs))):
+                    continue  # (the common case, on floats)
+                bad = (lo < chain.seg.lower) | (hi > chain.seg.upper)
                 if outside is not None:
                     bad |= outside
             if not bad.any():
@@ -255,22 +263,21 @@ def plan_trajectory_request(request: TrajectoryRequest) -> JointTrajectory:
         raise InvalidArgumentError(f"request must be a TrajectoryRequest, got {type(request).__name__}")
     chooser = via_strategy(request.strategy)
     limits = request.limits
-    if (
-        type(chooser) is StopStrategy
-        and not request.moving_start
-        and not request.dwell.any()
-        and not request.min_durations.any()
-    ):
-        planned = _plan_at_rest(request.waypoints, limits)
+    moving = request.moving_start
+    q, v0, a0, dw = request.waypoints, request.start_velocity, request.start_acceleration, request.dwell
+    dwelling = any(dw.tolist())
+    if type(chooser) is StopStrategy and not moving and not dwelling and not any(request.min_durations.tolist()):
+        planned = _plan_at_rest(q, limits)
         if planned is not None:
             return planned
-    q, v0, a0, dw = request.waypoints, request.start_velocity, request.start_acceleration, request.dwell
     n = len(q)
     stop = np.zeros(n, dtype=bool)
-    stop[list(request.stops)] = True
-    stop |= dw > 0
-    stop = chooser.stop_mask(stop, request.moving_start)
-    given = (request.via_velocities, request.via_accelerations, request.min_durations)
+    if request.stops:
+        stop[list(request.stops)] = True
+    if dwelling:
+        stop |= dw > 0
+    stop = chooser.stop_mask(stop, moving)
+    given = (request.via_velocities, request.via_accelerations, request.min_durations) if request.prescribed else None
 
     try:
         chain = ViaChain(q, limits, v0, a0, stop, given)
@@ -298,15 +305,16 @@ def plan_trajectory_request(request: TrajectoryRequest) -> JointTrajectory:
         v[0], acc[0] = v0, a0
 
     # The waypoint times now, the pieces when first used (JointTrajectory.lazy).
-    times, rests, starts = np.empty(n), np.empty(n), np.empty(n)
+    times, rests, starts = [], [], []
     t = head[0] if head is not None else 0.0
-    for k in range(n):
-        times[k] = 0.0 if k == 0 else t
-        rests[k] = t
-        t += dw[k]
-        starts[k] = t
+    for k, pause in enumerate(dw.tolist()):
+        times.append(0.0 if k == 0 else t)
+        rests.append(t)
+        t += pause
+        starts.append(t)
         if k < n - 1:
             t += segments[k][0]
+    times, rests, starts = np.array(times), np.array(rests), np.array(starts)
 
     def build() -> tuple[np.ndarray, ...]:
         return _assemble(q, dw, rests, starts, [merged for _, merged in segments], head)
@@ -372,10 +380,9 @@ def _plan_at_rest(
         rows: `q` as rows of floats and its per-joint extremes, if at hand (see
             :func:`planner.motion.segments.rest_to_rest_segments`).
     """
-    segments = rest_to_rest_segments(q, limits, rows)
-    if segments is None:
+    durations = rest_to_rest_segments(q, limits, rows)
+    if durations is None:
         return None
-    durations, trajectories = segments
     n, dof = q.shape
     times = list(accumulate(durations, initial=0.0))
     via, dw, repaired = _rest_arrays(n, dof)
@@ -386,8 +393,8 @@ def _plan_at_rest(
     def build() -> tuple[np.ndarray, ...]:
         rest = np.zeros(dof)
         merged = [
-            merge_segment(traj, d, (q[k], rest, rest), q[k + 1], limits)
-            for k, (d, traj) in enumerate(zip(durations, trajectories))
+            merge_segment(rest_to_rest_trajectory(q[k], q[k + 1], limits), d, (q[k], rest, rest), q[k + 1], limits)
+            for k, d in enumerate(durations)
         ]
         return _assemble(q, dw, waypoint_times, waypoint_times, merged, None)
 

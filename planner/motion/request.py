@@ -8,12 +8,13 @@ with detour waypoints by :func:`dataclasses.replace`) to
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
 from dataclasses import dataclass
+from functools import lru_cache
 
 import numpy as np
 
-from planner.core.arrays import read_only
 from planner.exceptions import InvalidArgumentError
 from planner.motion.checks import check_dwell, check_given, check_state, check_stops, check_waypoints
 from planner.motion.limits import JointLimits
@@ -71,15 +72,32 @@ class TrajectoryRequest:
         if not isinstance(limits, JointLimits):
             raise InvalidArgumentError(f"limits must be a JointLimits, got {type(limits).__name__}")
         q = check_waypoints(self.waypoints, limits)
-        n = len(q)
+        n, dof = q.shape
         names = limits.joint_names
-        v0 = check_state(self.start_velocity, limits.velocity, names, "start velocity")
-        a0 = check_state(self.start_acceleration, limits.acceleration, names, "start acceleration")
-        dw = check_dwell(self.dwell, n)
-        stop = check_stops(self.stops, n)
-        if (stop[0] or dw[0] > 0) and (np.any(v0) or np.any(a0)):
+        # Every check returns a new array, frozen here in place; what is not given is a view of
+        # one frozen array shared by the requests of that shape.
+        v0 = (
+            _zeros(dof)
+            if self.start_velocity is None
+            else check_state(self.start_velocity, limits.velocity, names, "start velocity")
+        )
+        a0 = (
+            _zeros(dof)
+            if self.start_acceleration is None
+            else check_state(self.start_acceleration, limits.acceleration, names, "start acceleration")
+        )
+        dw = _zeros(n) if self.dwell is None else check_dwell(self.dwell, n)
+        stops = self.stops
+        stop = None if stops is None or (isinstance(stops, tuple) and not stops) else check_stops(stops, n)
+        moving = any(v0.tolist()) or any(a0.tolist())
+        if moving and ((stop is not None and stop[0]) or dw[0] > 0):
             raise InvalidArgumentError("waypoint 0 is a stop, but a non-zero start state was given")
-        gv, ga, md = check_given(self.via_velocities, self.via_accelerations, self.min_durations, n, limits)
+        if self.via_velocities is None and self.via_accelerations is None and self.min_durations is None:
+            gv, ga, md = _nans(n, dof), _zeros(n, dof), _zeros(n - 1)
+            prescribed = False
+        else:
+            gv, ga, md = check_given(self.via_velocities, self.via_accelerations, self.min_durations, n, limits)
+            prescribed = True
         for name, value in (
             ("waypoints", q),
             ("start_velocity", v0),
@@ -89,13 +107,21 @@ class TrajectoryRequest:
             ("via_accelerations", ga),
             ("min_durations", md),
         ):
-            object.__setattr__(self, name, read_only(value))
-        object.__setattr__(self, "stops", tuple(int(k) for k in np.nonzero(stop)[0]))
+            value.setflags(write=False)
+            object.__setattr__(self, name, value)
+        object.__setattr__(self, "stops", () if stop is None else tuple(int(k) for k in np.nonzero(stop)[0]))
+        object.__setattr__(self, "_moving_start", moving)
+        object.__setattr__(self, "_prescribed", prescribed)
 
     @property
     def moving_start(self) -> bool:
         """Whether the start state is not at rest."""
-        return bool(np.any(self.start_velocity) or np.any(self.start_acceleration))
+        return self._moving_start
+
+    @property
+    def prescribed(self) -> bool:
+        """Whether via states or minimum durations were given (they may still all be free or zero)."""
+        return self._prescribed
 
     def __repr__(self) -> str:
         strategy = self.strategy if isinstance(self.strategy, str) else type(self.strategy).__name__
@@ -103,3 +129,21 @@ class TrajectoryRequest:
             f"TrajectoryRequest(waypoints={len(self.waypoints)}, dof={self.limits.dof}, "
             f"strategy={strategy!r}, stops={self.stops})"
         )
+
+
+@lru_cache(maxsize=64)
+def _filled(shape: tuple[int, ...], value: float) -> np.ndarray:
+    """A frozen array of `shape` holding `value` everywhere (shared: hand out views)."""
+    arr = np.full(shape, value)
+    arr.setflags(write=False)
+    return arr
+
+
+def _zeros(*shape: int) -> np.ndarray:
+    """A read-only view of zeros (a view of a frozen array cannot be made writeable again)."""
+    return _filled(shape, 0.0)[...]
+
+
+def _nans(*shape: int) -> np.ndarray:
+    """A read-only view of NaNs, like :func:`_zeros`."""
+    return _filled(shape, math.nan)[...]

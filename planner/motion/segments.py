@@ -23,7 +23,7 @@ import numpy as np
 from ruckig import ControlInterface, InputParameter, Result, Ruckig, RuckigError, Synchronization
 from ruckig import Trajectory as RuckigTrajectory
 
-from planner.exceptions import InvalidArgumentError
+from planner.exceptions import InvalidArgumentError, PlanningError
 from planner.motion.limits import RANGE_TOLERANCE, JointLimits
 from planner.motion.trajectory import LIMIT_TOLERANCE
 
@@ -37,6 +37,7 @@ __all__ = [
     "piece_position_range",
     "range_with_tolerance",
     "rest_to_rest_segments",
+    "rest_to_rest_trajectory",
     "segment_position_range",
 ]
 
@@ -81,15 +82,16 @@ def rest_to_rest_segments(
     q: np.ndarray,
     limits: JointLimits,
     rows: tuple[list[list[float]], list[float], list[float]] | None = None,
-) -> tuple[list[float], list[RuckigTrajectory]] | None:
-    """The rest-to-rest Ruckig segments between the rows of `q`, where they need nothing more.
+) -> list[float] | None:
+    """The durations of the rest-to-rest Ruckig segments between the rows of `q`, where they need nothing more.
 
     One Ruckig calculate per segment. The planner's chain (:class:`SegmentSolver` and the
     range repair) would take each profile as it is unless Ruckig finds none, a joint misses
     its target by more than :data:`END_TOLERANCE` (re-solved unsynchronised there), a joint
     turns round inside a phase of zero jerk (which Ruckig's extrema miss) outside the range or
     an extremum lies outside the range: in any of these cases this returns None and the chain
-    decides. Else the durations and trajectories are exactly the chain's.
+    decides. Else the durations are exactly the chain's, and so are the trajectories
+    :func:`rest_to_rest_trajectory` solves again (the plan's pieces are made when first used).
 
     A rest-to-rest profile (jerk signs up-down-down-up or up-down-up-down) changes the sign
     of its acceleration at most twice, so its velocity at most once: a joint either moves
@@ -107,11 +109,11 @@ def rest_to_rest_segments(
             :func:`planner.motion.checks.waypoint_rows_within` gives them), or None to take them from `q`.
 
     Returns:
-        The durations of the segments [s] and their Ruckig trajectories, or None.
+        The durations of the segments [s], or None.
     """
     dof = q.shape[1]
     solver = _thread_solver(dof)
-    otg, inp = solver[0], solver[1]
+    otg, inp, _, traj = solver
     if solver[2] is not limits:  # the input keeps the limits it was last given
         inp.max_velocity, inp.max_acceleration, inp.max_jerk = limits.ruckig_limits
         solver[2] = limits
@@ -125,11 +127,11 @@ def rest_to_rest_segments(
     if bounded:
         slack = _HULL_SLACK * max(1.0, max(high_q), -min(low_q))
     calculate = otg.calculate
-    durations, trajectories = [], []
+    durations = []
     start = points[0]
     for goal in points[1:]:
         inp.current_position, inp.target_position = start, goal
-        traj = RuckigTrajectory(dof)
+        # Into the thread's scratch trajectory: read here, solved again when the pieces are made.
         try:
             if calculate(inp, traj) not in _SOLVED:
                 return None
@@ -152,16 +154,40 @@ def rest_to_rest_segments(
                         return None
                     break
         durations.append(duration)
-        trajectories.append(traj)
         start = goal
     if bounded and durations:
         # Within their ends, the joints stay in the range unless a missed turn could reach beyond it.
         reach = repeat(_turn_reach(slack, limits.max_jerk, max(durations)))
         lower, upper = limits.checked_floats
         if any(map(lt, map(sub, low_q, reach), lower)) or any(map(gt, map(add, high_q, reach), upper)):
-            if any(d > 0.0 and _outside_or_turn(traj, limits) for d, traj in zip(durations, trajectories)):
-                return None
-    return durations, trajectories
+            for start, goal, duration in zip(points, points[1:], durations):
+                if duration > 0.0:
+                    inp.current_position, inp.target_position = start, goal
+                    calculate(inp, traj)
+                    if _outside_or_turn(traj, limits):
+                        return None
+    return durations
+
+
+def rest_to_rest_trajectory(start: np.ndarray, goal: np.ndarray, limits: JointLimits) -> RuckigTrajectory:
+    """Ruckig's rest-to-rest trajectory from `start` to `goal` (as :func:`rest_to_rest_segments` solves it).
+
+    Args:
+        start: Start positions, shape (dof,) [rad or m].
+        goal: Target positions, shape (dof,) [rad or m].
+        limits: The limits.
+
+    Raises:
+        PlanningError: If Ruckig finds no profile (not for a segment rest_to_rest_segments took).
+    """
+    dof = len(start)
+    inp = InputParameter(dof)
+    inp.max_velocity, inp.max_acceleration, inp.max_jerk = limits.ruckig_limits
+    inp.current_position, inp.target_position = start.tolist(), goal.tolist()
+    traj = RuckigTrajectory(dof)
+    if _thread_solver(dof)[0].calculate(inp, traj) not in _SOLVED:  # pragma: no cover - solved before
+        raise PlanningError("Ruckig found no rest-to-rest profile between two waypoints")
+    return traj
 
 
 #: :data:`END_TOLERANCE` less a margin for the rounding of ``math.dist``: a distance at most
@@ -215,19 +241,20 @@ _LOCAL = threading.local()
 
 
 def _thread_solver(dof: int) -> list:
-    """This thread's Ruckig instance for `dof` joints, an input for rest-to-rest segments and its limits.
+    """This thread's Ruckig for `dof` joints, an input for rest-to-rest segments, its limits, a scratch trajectory.
 
     Kept between plans (making them costs as much as solving a segment): Ruckig's calculate
     depends on its input only. Only :func:`rest_to_rest_segments` sets this input, always both
     positions, and the limits where they are not those of the last plan (the third entry, None
-    at first).
+    at first). :func:`rest_to_rest_segments` solves into the scratch trajectory (fourth entry)
+    and reads it at once.
     """
     solvers = getattr(_LOCAL, "solvers", None)
     if solvers is None:
         solvers = _LOCAL.solvers = {}
     entry = solvers.get(dof)
     if entry is None:
-        entry = solvers[dof] = [Ruckig(dof), InputParameter(dof), None]
+        entry = solvers[dof] = [Ruckig(dof), InputParameter(dof), None, RuckigTrajectory(dof)]
     return entry
 
 
@@ -251,11 +278,13 @@ class SegmentSolver:
             min_durations: Shortest duration per segment, shape (N-1,) [s]; None or all zero is none.
         """
         self.q = q
-        self.rows = [row.tolist() for row in q]
-        self.min_durations = min_durations if min_durations is not None and np.any(min_durations > 0) else None
+        self.rows = rows = q.tolist()
+        self.min_durations = (
+            min_durations if min_durations is not None and any(d > 0 for d in min_durations.tolist()) else None
+        )
         self.dof = q.shape[1]
         self.lower, self.upper = range_with_tolerance(limits)
-        self._lows, self._highs = self.lower.tolist(), self.upper.tolist()
+        self._lows, self._highs = limits.checked_floats
         self.bounded = limits.bounded
         self.otg = _thread_solver(self.dof)[0]
         self._limits = limits.ruckig_limits
@@ -266,10 +295,10 @@ class SegmentSolver:
         self._held: list[tuple | None] = [None] * (len(q) - 1)
         # Per segment, the joints that do not move: only they can go out and back on one
         # parabola, which Ruckig 0.19 cannot take (see _on_one_parabola).
-        still = np.abs(np.diff(q, axis=0)) <= 1e-9 * np.maximum(1.0, np.abs(q[1:]))
-        self._still = (
-            [np.flatnonzero(row) if row.any() else None for row in still] if still.any() else [None] * len(still)
-        )
+        self._still = [
+            [j for j, (x, y) in enumerate(zip(a, b)) if abs(y - x) <= 1e-9 * max(1.0, abs(y))] or None
+            for a, b in zip(rows, rows[1:])
+        ]
         self._cache: dict[tuple, tuple[float, np.ndarray | None, RuckigTrajectory | None]] = {}
 
     def solve(
@@ -439,6 +468,8 @@ class SegmentSolver:
         target = self.rows[k + 1]
         # The end positions of all profiles in one call (see rest_to_rest_segments).
         reached = traj.at_time(duration)[0]
+        if math.dist(reached, target) <= _END_DISTANCE:
+            return solved  # every joint within END_TOLERANCE of its target
         rest = ((vb == 0.0) & (ab == 0.0)).tolist()
         missed = [
             r and abs(x - goal) > END_TOLERANCE * max(1.0, abs(goal)) for r, x, goal in zip(rest, reached, target)

@@ -64,24 +64,22 @@ class ViaChain:
         self.q = q
         self.n = len(q)
         self.limits = limits
-        self.v = np.zeros_like(q)
-        self.acc = np.zeros_like(q)
+        self.v = np.zeros(q.shape)
+        self.acc = np.zeros(q.shape)
         self.stop = stop
-        self.fixed = np.zeros(self.n, dtype=bool)
+        self.fixed = stop.copy()
         min_durations = None
         if given is not None:
             gv, ga, min_durations = given
             rows = np.all(np.isfinite(gv), axis=1) & ~stop
-            if rows.any():
+            if True in rows.tolist():
                 self.v[rows], self.acc[rows] = gv[rows], admissible_acceleration(gv[rows], ga[rows], limits)
                 self.fixed |= rows
         self.v[0], self.acc[0] = v0, a0
         self.fixed[0] = self.fixed[-1] = True
-        self.fixed |= stop
         self.v[-1] = self.acc[-1] = 0.0
-        rest = stop.copy()
-        rest[0] = False
-        if rest.any():
+        rest = [k for k, s in enumerate(stop.tolist()) if s and k > 0]
+        if rest:
             self.v[rest] = 0.0
             self.acc[rest] = 0.0
         self.seg = SegmentSolver(q, limits, min_durations)
@@ -89,10 +87,8 @@ class ViaChain:
 
     def durations(self) -> np.ndarray:
         """Duration of every segment with the current via states, shape (N-1,) [s] (inf: no profile)."""
-        out = np.empty(self.n - 1)
-        for k in range(self.n - 1):
-            out[k] = self.seg.solve(k, self.v[k], self.acc[k], self.v[k + 1], self.acc[k + 1])[0]
-        return out
+        v, acc, solve = list(self.v), list(self.acc), self.seg.solve
+        return np.array([solve(k, v[k], acc[k], v[k + 1], acc[k + 1])[0] for k in range(self.n - 1)])
 
     def limited_by(self, i: int, joints: np.ndarray) -> bool:
         """Whether changing only `joints` (bool mask) at via i could shorten a segment next to it.

@@ -37,19 +37,21 @@ def via_directions(
         limits: The limits (both results are clipped to them).
         stop: Waypoints to rest at, bool shape (N,); a stop gets zeros.
     """
-    dof = q.shape[1]
-    zero = np.zeros(dof)
-    if stop[i]:
+    tp, tn = float(durations[i - 1]), float(durations[i])
+    if stop[i] or not (math.isfinite(tp) and math.isfinite(tn)) or tp <= 0 or tn <= 0:
+        zero = np.zeros(q.shape[1])
         return zero, zero
-    dp, dn = q[i] - q[i - 1], q[i + 1] - q[i]
-    tp, tn = durations[i - 1], durations[i]
-    if not (math.isfinite(tp) and math.isfinite(tn)) or tp <= 0 or tn <= 0:
-        return zero, zero
-    sp, sn = dp / tp, dn / tn
-    u = (sp * tn + sn * tp) / (tp + tn)
-    u = np.minimum(np.maximum(u, -limits.velocity), limits.velocity)  # np.clip, without its overhead
-    w = 2.0 * (sn - sp) / (tp + tn)
-    return u, np.minimum(np.maximum(w, -limits.acceleration), limits.acceleration)
+    # On plain floats (faster than NumPy on a few joints; the same arithmetic, element by element).
+    total = tp + tn
+    velocity, acceleration, _ = limits.ruckig_limits
+    u, w = [], []
+    for before, at, after, v_max, a_max in zip(
+        q[i - 1].tolist(), q[i].tolist(), q[i + 1].tolist(), velocity, acceleration
+    ):
+        sp, sn = (at - before) / tp, (after - at) / tn
+        u.append(min(max((sp * tn + sn * tp) / total, -v_max), v_max))
+        w.append(min(max(2.0 * (sn - sp) / total, -a_max), a_max))
+    return np.array(u), np.array(w)
 
 
 class HeuristicStrategy(ViaStrategy):
