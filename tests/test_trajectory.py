@@ -371,6 +371,17 @@ def test_bad_start_state_strategy_and_dwell():
         plan_trajectory([[0, 0], [0.5, 0.5]], LIM, stops=[5])
 
 
+def test_stops_as_an_array_and_bad_stops():
+    q = [[0, 0], [0.5, 0.5], [0.2, 0.9], [0.0, 0.3]]
+    as_list = plan_trajectory(q, LIM, stops=[1, 2])
+    as_array = plan_trajectory(q, LIM, stops=np.array([1, 2]))
+    assert as_array.duration == as_list.duration
+    np.testing.assert_array_equal(as_array.waypoint_times, as_list.waypoint_times)
+    for bad in (3, "1", [[1, 2]], {"a": 1}):
+        with pytest.raises(InvalidArgumentError, match=r"stop"):
+            plan_trajectory(q, LIM, stops=bad)
+
+
 @pytest.mark.slow
 @settings(max_examples=1500, deadline=None, derandomize=True, suppress_health_check=[HealthCheck.too_slow])
 @given(problems(), st.integers(0, 2**32 - 1), st.sampled_from(["optimized", "heuristic", "stop"]))

@@ -194,10 +194,15 @@ def check_stops(stops: Sequence[int] | None, n: int) -> np.ndarray:
     """Stop indices (negative ones count from the end) as a bool mask of shape (n,).
 
     Raises:
-        InvalidArgumentError: If an index is not an integer waypoint index.
+        InvalidArgumentError: If `stops` is not a list, tuple, set or 1-D array of indices, or
+            an index is not an integer waypoint index.
     """
     stop = np.zeros(n, dtype=bool)
-    for s in stops or ():
+    if stops is None:
+        return stop
+    if isinstance(stops, (str, bytes)) or not isinstance(stops, (Sequence, np.ndarray, set, frozenset)):
+        raise InvalidArgumentError(f"stops must be a list of waypoint indices (0..{n - 1}), got {plain(stops)}")
+    for s in stops:
         if isinstance(s, bool) or not isinstance(s, (int, np.integer)) or not -n <= s < n:
             raise InvalidArgumentError(f"stop index {plain(s)} is not a waypoint index (0..{n - 1})")
         stop[s] = True
