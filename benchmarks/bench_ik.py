@@ -406,10 +406,16 @@ def main(argv: list[str] | None = None) -> int:
 
 
 def _write(path: Path, record: dict, merge: bool) -> None:
-    """Write the JSON; with `merge`, keep the entries of the file that this run did not make."""
+    """Write the JSON; with `merge`, keep the entries and robots' rows this run did not make."""
     if merge and path.exists():
         old = json.loads(path.read_text())
-        record = {**old, **{k: v for k, v in record.items() if v or k not in old}}
+        merged = {**old, **{k: v for k, v in record.items() if v or k not in old}}
+        for key in ("summary", "peers", "public"):
+            # Rows of robots this run did not measure (e.g. with --robots) are kept.
+            if record.get(key) and isinstance(old.get(key), list):
+                ran = {row["robot"] for row in record[key]}
+                merged[key] = [row for row in old[key] if row.get("robot") not in ran] + record[key]
+        record = merged
     path.parent.mkdir(parents=True, exist_ok=True)
     path.write_text(json.dumps(record, indent=2, allow_nan=False) + "\n")
 
