@@ -31,7 +31,10 @@ of the same values as NumPy: the sum formulas' exact zeros (``sin(pi - 0) = 0`` 
 gives 1.2e-16) would move answers at half turns by 2 pi (joint values of quarter-turn
 configurations). So the joint values, masks, statuses and best branches are those of the
 plain formulas bit for bit (1e6 generated targets per arm, kind and q_current); the position
-errors change by round-off (< 1e-14 m).
+errors change by round-off (< 1e-14 m). The end angle's two candidates (the approach pitch
+alpha, or pi - alpha on the side facing away) get their cosines and sines before the side is
+known (:func:`_chosen_end`): the ``sincos`` calls then need not wait for the yaw's arc
+tangent.
 
 Compiler flags: ``-O3`` without ``-march``: the shared library is cached on disk by a hash of
 the code and flags, not of the CPU, so it must run on any x86-64 (and FMA contraction would
