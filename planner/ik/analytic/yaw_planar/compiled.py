@@ -31,7 +31,10 @@ of the same values as NumPy: the sum formulas' exact zeros (``sin(pi - 0) = 0`` 
 gives 1.2e-16) would move answers at half turns by 2 pi (joint values of quarter-turn
 configurations). So the joint values, masks, statuses and best branches are those of the
 plain formulas bit for bit (1e6 generated targets per arm, kind and q_current); the position
-errors change by round-off (< 1e-14 m).
+errors change by round-off (< 1e-14 m). The end angle's two candidates (the approach pitch
+alpha, or pi - alpha on the side facing away) get their cosines and sines before the side is
+known (:func:`_chosen_end`): the ``sincos`` calls then need not wait for the yaw's arc
+tangent.
 
 Compiler flags: ``-O3`` without ``-march``: the shared library is cached on disk by a hash of
 the code and flags, not of the CPU, so it must run on any x86-64 (and FMA contraction would
@@ -141,6 +144,15 @@ def _pi_parts() -> tuple[float, float, float]:
 
 
 PI_PARTS = _pi_parts()
+INV_PI = 1.0 / math.pi
+
+
+def _div_const(x, c: float):
+    """``x / c`` for a constant `c`; where c is a power of two, the product with ``1 / c`` (exactly the same double)."""
+    mant, exp = math.frexp(c)
+    if abs(mant) == 0.5 and -1000 < exp < 1000:
+        return x * (1.0 / c)
+    return x / c
 
 
 def cos_nonnegative(x):
@@ -148,10 +160,13 @@ def cos_nonnegative(x):
 
     The cosine of a double is never 0 and libm's (as NumPy's) has the sign of the exact
     value, which is that of ``(-1)^(m + 1) e`` with e = x - (m + 1/2) pi for the zero
-    (m + 1/2) pi of the cosine nearest x (any m with |e| < pi will do). e is computed with
-    pi in three parts: exact near the zeros (Sterbenz), where only its sign matters.
+    (m + 1/2) pi of the cosine nearest x (any m with |e| < pi will do: m is rounded from
+    ``x * (1 / pi)``, a product instead of a division, which may differ from x / pi by an
+    ulp, so from the nearest m only where x is near a multiple of pi, where |e| is near
+    pi / 2). e is computed with pi in three parts: exact near the zeros (Sterbenz), where only
+    its sign matters.
     """
-    m = _rint(x / PI - 0.5)
+    m = _rint(x * INV_PI - 0.5)
     h = m + 0.5
     p1, p2, p3 = PI_PARTS
     e = ((x - h * p1) - h * p2) - h * p3
@@ -226,6 +241,19 @@ class _Angle:
     def signed(self, sign: float) -> _Angle:
         """``sign a`` for sign +-1."""
         return _Angle(sign * self.a, self.c, sign * self.s)
+
+
+def _chosen_end(cond, alpha, beta: float) -> _Angle:
+    """``where(cond, alpha, pi - alpha) - beta`` with its cosine and sine by libm.
+
+    The cosines and sines of both candidates (two ``sincos`` calls, shared by the sides),
+    chosen afterwards: the calls need not wait for `cond`. The same doubles as
+    ``_Angle.of`` of the chosen value: the candidates differ from it only in the sign of a
+    zero (``where`` turns -0.0 into 0.0), where the cosine is 1 and the chosen sine is 0.0.
+    """
+    toward, away = _Angle.of(alpha - beta), _Angle.of((PI - alpha) - beta)
+    c, s = _where(cond, toward.c, away.c), _where(cond, toward.s, away.s)
+    return _Angle(_where(cond, alpha, PI - alpha) - beta, c, s)
 
 
 def wrap_sx(x, lower: float, upper: float, ref=0.0):
@@ -378,9 +406,9 @@ def _one_target(arm: ArmGeometry, kind: str, current: bool, distances: bool = Fa
     # The cosines and sines of the yaws psi + mu.
     cy = [psi[k].shift(arm.mu).c for k in range(2)]
     sy = [psi[k].shift(arm.mu).s for k in range(2)]
-    alpha_t = None
+    end_t = None
     if pitch:
-        alpha_t = [_where(cy[k] * p[0] + sy[k] * p[1] >= 0.0, pit, PI - pit) for k in range(2)]
+        end_t = [_chosen_end(cy[k] * p[0] + sy[k] * p[1] >= 0.0, pit, arm.beta) for k in range(2)]
     l1, g1, su, sz = arm.l1, arm.g1, arm.su, arm.sz
     sg, idx = arm.signs, arm.pitch_idx
     # Per branch: the joint angles, the in-plane angles of the links and of the end (the
@@ -413,7 +441,7 @@ def _one_target(arm: ArmGeometry, kind: str, current: bool, distances: bool = Fa
                 phi = phi_rot[k]
                 c = _where(ca.logic_and(c == VALID, residual[k]), ORIENT, c)
             else:
-                phi = _Angle.of(alpha_t[k] - arm.beta)
+                phi = end_t[k]
             cp, sp = phi.c, phi.s
             ex = ue[k] - (cp * tu - sp * tz) - su
             ez = ze - (sp * tu + cp * tz) - sz
@@ -442,7 +470,7 @@ def _one_target(arm: ArmGeometry, kind: str, current: bool, distances: bool = Fa
     else:
         if arm.n_pitch == 3:
             l2, g2 = arm.l2, arm.g2
-            phi = phi_end if free_end else phi_rot if pose else [_Angle.of(alpha_t[k] - arm.beta) for k in range(2)]
+            phi = phi_end if free_end else phi_rot if pose else end_t
             cp = [phi[k].c for k in range(2)]
             sp = [phi[k].s for k in range(2)]
             wu = [ue[k] - (cp[k] * tu - sp[k] * tz) for k in range(2)]
@@ -459,7 +487,7 @@ def _one_target(arm: ArmGeometry, kind: str, current: bool, distances: bool = Fa
             c = cat[k]
             c = _where(ca.logic_and(c == VALID, dk > l1 + l2 + len_tol), BEYOND, c)
             cat[k] = _where(ca.logic_and(c == VALID, dk < abs(l1 - l2) - len_tol), INSIDE, c)
-            cc = _min(_max((dk * dk - l1 * l1 - l2 * l2) / (2.0 * l1 * l2), -1.0), 1.0)
+            cc = _min(_max(_div_const(dk * dk - l1 * l1 - l2 * l2, 2.0 * l1 * l2), -1.0), 1.0)
             s = ca.sqrt(1.0 - cc * cc)
             es = s < SINGULAR_TOL
             s = _where(es, 0.0, s)
@@ -591,7 +619,8 @@ def _current_end_angle(arm: ArmGeometry, qc, psi: list[_Angle], ue, ze):
         # The sign of the cosine of the same value as NumPy's (not of the sum formula's: they
         # differ at +-pi / 2, e.g. for q0 = 0 and a target on the y axis).
         facing = cos_nonnegative(psi[k].a - arm.sigma * qc[0])
-        phi_k = _Angle.of(_where(facing, alpha, PI - alpha) - arm.beta)
+        # (The sines and cosines do not wait for the yaw's arc tangent and this test.)
+        phi_k = _chosen_end(facing, alpha, arm.beta)
         cp, sp = phi_k.c, phi_k.s
         du = ue[k] - (cp * tu - sp * tz) - arm.su
         dz = ze - (sp * tu + cp * tz) - arm.sz
