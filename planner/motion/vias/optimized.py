@@ -16,6 +16,7 @@ joint out of its range (by Ruckig's extrema) have that joint's state halved.
 
 from __future__ import annotations
 
+import functools
 import math
 from collections.abc import Callable, Sequence
 
@@ -93,6 +94,20 @@ def golden_points(lo: float, hi: float, evals: int) -> set[float]:
             following += [(lo_, x2_, left, x1_), (x1_, hi_, x2_, right)]
         brackets = following
     return points
+
+
+@functools.lru_cache(maxsize=1024)
+def _sorted_golden_points(lo: float, hi: float, evals: int) -> tuple[float, ...]:
+    """:func:`golden_points` in ascending order, kept per bracket (a search asks for few brackets)."""
+    return tuple(sorted(golden_points(lo, hi, evals)))
+
+
+# The spline stage's golden-section points, their inverse time scales exp(-x) and those squared,
+# the same for every run.
+_SPLINE_POINTS = _sorted_golden_points(*_SPLINE_SCALE, _SPLINE_SCALE_EVALS)
+_SPLINE_INV = np.array([math.exp(-x) for x in _SPLINE_POINTS])[:, None, None]
+_SPLINE_INV2 = _SPLINE_INV * _SPLINE_INV
+_SPLINE_INDEX = {x: p for p, x in enumerate(_SPLINE_POINTS)}
 
 
 def spline_via_states(
@@ -225,7 +240,7 @@ class OptimizedStrategy(ViaStrategy):
         if values[b] < current[0] * (1.0 + _REFINE_MARGIN):  # a grid point near or beyond the current state
             lo, hi = grid[max(b - 1, 0)], grid[min(b + 1, len(grid) - 1)]
             # Every point the golden section may ask for, made in one batch.
-            points = sorted(golden_points(lo, hi, steps + 2))
+            points = _sorted_golden_points(lo, hi, steps + 2)
             states.update(zip(points, zip(*make(np.array(points)))))
             golden_minimum(cost, lo, hi, steps + 2)  # its evaluations fill the cache
             found = min(cache.values(), key=lambda c: c[0])
@@ -291,8 +306,8 @@ class OptimizedStrategy(ViaStrategy):
         """
         lim = chain.limits
         h0 = durations[a:b]
-        if not np.all(np.isfinite(h0)) or np.any(h0 <= 0):
-            return
+        if not all(0.0 < h < math.inf for h in h0.tolist()):
+            return  # a segment without a profile (inf or NaN) or of no duration
         q_run = chain.q[a : b + 1]
         v_a, v_b = chain.v[a], chain.v[b]
         # Scaling every duration by s scales the spline's via velocities by 1/s and its via
@@ -306,15 +321,13 @@ class OptimizedStrategy(ViaStrategy):
             v_e, acc_e = v_e - v_q, acc_e - acc_q
         best: list = [math.inf, None, None]
         # The via states at every scale the golden section may ask for, made in one batch.
-        points = sorted(golden_points(*_SPLINE_SCALE, _SPLINE_SCALE_EVALS))
-        inv = np.array([math.exp(-x) for x in points])[:, None, None]
-        vs, accs = v_q * inv, acc_q * (inv * inv)
+        vs, accs = v_q * _SPLINE_INV, acc_q * _SPLINE_INV2
         if moving_ends:
             vs += v_e
-            accs += acc_e * inv
+            accs += acc_e * _SPLINE_INV
         vs = np.minimum(np.maximum(vs, -lim.velocity), lim.velocity)
         accs = admissible_acceleration(vs, accs, lim)
-        index = {x: p for p, x in enumerate(points)}
+        index = _SPLINE_INDEX
 
         def cost(x: float) -> float:
             v, acc = vs[index[x]], accs[index[x]]
