@@ -200,6 +200,7 @@ class OptimizedStrategy(ViaStrategy):
         `make` maps parameters, shape (G,), to admissible via states, shapes (G, dof); the
         chain's current via state is admissible too (every strategy step keeps it so).
         """
+        pair = chain.pair_coster(i)
         cache: dict[float, tuple[float, np.ndarray, np.ndarray]] = {}
         states: dict[float, tuple[np.ndarray, np.ndarray]] = {}
 
@@ -209,10 +210,10 @@ class OptimizedStrategy(ViaStrategy):
                 if state is None:
                     cv, ca = make(np.array([x]))
                     state = cv[0], ca[0]
-                cache[x] = chain.pair_cost(i, *state, admissible=True)
+                cache[x] = pair(*state)
             return cache[x][0]
 
-        current = chain.pair_cost(i, chain.v[i], chain.acc[i], admissible=True)
+        current = pair(chain.v[i], chain.acc[i])
         grid = sorted({min(g, top) for g in grid} | {top})
         if not math.isfinite(current[0]) and 0.0 not in grid:
             grid.insert(0, 0.0)  # resting at the via: the fallback where the current state has no profile
@@ -220,7 +221,7 @@ class OptimizedStrategy(ViaStrategy):
         values = [math.inf] * len(grid)
 
         def at(g: int) -> float:
-            cache[grid[g]] = chain.pair_cost(i, cvs[g], cas[g], admissible=True)
+            cache[grid[g]] = pair(cvs[g], cas[g])
             values[g] = cache[grid[g]][0]
             return values[g]
 
