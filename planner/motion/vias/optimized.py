@@ -202,23 +202,28 @@ class OptimizedStrategy(ViaStrategy):
         """
         pair = chain.pair_coster(i)
         cache: dict[float, tuple[float, np.ndarray, np.ndarray]] = {}
-        states: dict[float, tuple[np.ndarray, np.ndarray]] = {}
-
-        def cost(x: float) -> float:
-            if x not in cache:
-                state = states.get(x)
-                if state is None:
-                    cv, ca = make(np.array([x]))
-                    state = cv[0], ca[0]
-                cache[x] = pair(*state)
-            return cache[x][0]
-
         current = pair(chain.v[i], chain.acc[i])
         grid = sorted({min(g, top) for g in grid} | {top})
         if not math.isfinite(current[0]) and 0.0 not in grid:
             grid.insert(0, 0.0)  # resting at the via: the fallback where the current state has no profile
-        cvs, cas = make(np.array(grid))
-        values = [math.inf] * len(grid)
+        n = len(grid)
+        # The grid and every point the golden section may ask for around any grid point, made
+        # in one batch (the refinement runs after most grid walks).
+        brackets = dict.fromkeys((grid[max(b - 1, 0)], grid[min(b + 1, n - 1)]) for b in range(n))
+        points = [x for lo, hi in brackets for x in _sorted_golden_points(lo, hi, steps + 2)]
+        cvs, cas = make(np.array(grid + points))
+        rows = {x: r for r, x in enumerate(points, n)}
+        values = [math.inf] * n
+
+        def cost(x: float) -> float:
+            if x not in cache:
+                r = rows.get(x)
+                if r is None:
+                    cv, ca = make(np.array([x]))
+                    cache[x] = pair(cv[0], ca[0])
+                else:
+                    cache[x] = pair(cvs[r], cas[r])
+            return cache[x][0]
 
         def at(g: int) -> float:
             cache[grid[g]] = pair(cvs[g], cas[g])
@@ -227,23 +232,19 @@ class OptimizedStrategy(ViaStrategy):
 
         # Walk the grid from `start` upwards while the duration falls, else downwards: the
         # duration is mostly unimodal in the parameter.
-        g0 = next((g for g, x in enumerate(grid) if x >= start), len(grid) - 1)
+        g0 = next((g for g, x in enumerate(grid) if x >= start), n - 1)
         g = g0
         at(g)
-        while g + 1 < len(grid) and at(g + 1) <= values[g]:
+        while g + 1 < n and at(g + 1) <= values[g]:
             g += 1
         if g == g0 or not math.isfinite(values[g]):
             g = g0
             while g > 0 and at(g - 1) <= values[g]:
                 g -= 1
-        b = min(range(len(values)), key=values.__getitem__)  # the first smallest, as np.argmin
+        b = min(range(n), key=values.__getitem__)  # the first smallest, as np.argmin
         best = current
         if values[b] < current[0] * (1.0 + _REFINE_MARGIN):  # a grid point near or beyond the current state
-            lo, hi = grid[max(b - 1, 0)], grid[min(b + 1, len(grid) - 1)]
-            # Every point the golden section may ask for, made in one batch.
-            points = _sorted_golden_points(lo, hi, steps + 2)
-            states.update(zip(points, zip(*make(np.array(points)))))
-            golden_minimum(cost, lo, hi, steps + 2)  # its evaluations fill the cache
+            golden_minimum(cost, grid[max(b - 1, 0)], grid[min(b + 1, n - 1)], steps + 2)  # fills the cache
             found = min(cache.values(), key=lambda c: c[0])
             if found[0] < current[0]:
                 best = found
