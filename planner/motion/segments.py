@@ -362,6 +362,36 @@ class SegmentSolver:
             second = cache[key] = self._solve(i, cv, ca, vb, ab, key)
         return first, second
 
+    def around(
+        self, i: int, va: np.ndarray, aa: np.ndarray, vb: np.ndarray, ab: np.ndarray
+    ) -> Callable[[np.ndarray, np.ndarray], tuple[tuple[float, np.ndarray | None, RuckigTrajectory | None], ...]]:
+        """:meth:`solve_around` at waypoint i with the states at waypoints i-1 and i+1 held.
+
+        For searches over the state at waypoint i: the neighbours' cache keys are made once.
+        The neighbour arrays must not change while the returned function is used.
+
+        Returns:
+            A function of (cv, ca) at waypoint i giving what :meth:`solve_around` gives.
+        """
+        cache, solve = self._cache, self._solve
+        bva, baa, bvb, bab = va.tobytes(), aa.tobytes(), vb.tobytes(), ab.tobytes()
+
+        def both(
+            cv: np.ndarray, ca: np.ndarray
+        ) -> tuple[tuple[float, np.ndarray | None, RuckigTrajectory | None], ...]:
+            bv, ba = cv.tobytes(), ca.tobytes()
+            key = (i - 1, bva, baa, bv, ba)
+            first = cache.get(key)
+            if first is None:
+                first = cache[key] = solve(i - 1, va, aa, cv, ca, key)
+            key = (i, bv, ba, bvb, bab)
+            second = cache.get(key)
+            if second is None:
+                second = cache[key] = solve(i, cv, ca, vb, ab, key)
+            return first, second
+
+        return both
+
     def _input(
         self, k: int, va: np.ndarray, aa: np.ndarray, vb: np.ndarray, ab: np.ndarray, key: tuple | None = None
     ) -> InputParameter:

@@ -8,8 +8,10 @@ any range overshoot and assembles the trajectory.
 
 from __future__ import annotations
 
+import functools
 import math
 from abc import ABC, abstractmethod
+from collections.abc import Callable
 from typing import ClassVar
 
 import numpy as np
@@ -120,23 +122,39 @@ class ViaChain:
         if not admissible:
             cv = np.array(cv, dtype=float)
             ca = admissible_acceleration(cv, ca, self.limits)
-        # The given arrays are copied only where a halving changes them.
-        copied = not admissible
-        va, aa, vb, ab = self.v[i - 1], self.acc[i - 1], self.v[i + 1], self.acc[i + 1]
-        for attempt in range(SEARCH_HALVINGS + 1):
-            (d1, bad1, _), (d2, bad2, _) = self.seg.solve_around(i, va, aa, cv, ca, vb, ab)
-            if bad1 is None and bad2 is None:
-                return d1 + d2, cv, ca
-            bad_any = (bad1 if bad1 is not None else False) | (bad2 if bad2 is not None else False)
-            bad = bad_any & ((cv != 0) | (ca != 0))
-            if not bad.any():
-                return math.inf, cv, ca
-            if not copied:
-                cv, ca, copied = np.array(cv, dtype=float), np.array(ca, dtype=float), True
-            scale = 0.0 if attempt >= SEARCH_HALVINGS - 1 else 0.5
-            cv[bad] *= scale
-            ca[bad] *= scale
-        return math.inf, cv, ca
+        both = self.seg.around(i, self.v[i - 1], self.acc[i - 1], self.v[i + 1], self.acc[i + 1])
+        return _halved_pair_cost(both, not admissible, cv, ca)
+
+    def pair_coster(self, i: int) -> Callable[[np.ndarray, np.ndarray], tuple[float, np.ndarray, np.ndarray]]:
+        """:meth:`pair_cost` at via i for admissible states, with the neighbours' states as they are now.
+
+        For line searches over via i, which change no other via state while they search.
+        """
+        both = self.seg.around(i, self.v[i - 1], self.acc[i - 1], self.v[i + 1], self.acc[i + 1])
+        return functools.partial(_halved_pair_cost, both, False)
+
+
+def _halved_pair_cost(
+    both: Callable, copied: bool, cv: np.ndarray, ca: np.ndarray
+) -> tuple[float, np.ndarray, np.ndarray]:
+    """:meth:`ViaChain.pair_cost` with `both` as :meth:`SegmentSolver.around` returns it.
+
+    `copied` tells whether `cv` and `ca` may be changed in place (else they are copied first).
+    """
+    for attempt in range(SEARCH_HALVINGS + 1):
+        (d1, bad1, _), (d2, bad2, _) = both(cv, ca)
+        if bad1 is None and bad2 is None:
+            return d1 + d2, cv, ca
+        bad_any = (bad1 if bad1 is not None else False) | (bad2 if bad2 is not None else False)
+        bad = bad_any & ((cv != 0) | (ca != 0))
+        if not bad.any():
+            return math.inf, cv, ca
+        if not copied:
+            cv, ca, copied = np.array(cv, dtype=float), np.array(ca, dtype=float), True
+        scale = 0.0 if attempt >= SEARCH_HALVINGS - 1 else 0.5
+        cv[bad] *= scale
+        ca[bad] *= scale
+    return math.inf, cv, ca
 
 
 class ViaStrategy(ABC):

@@ -16,6 +16,7 @@ joint out of its range (by Ruckig's extrema) have that joint's state halved.
 
 from __future__ import annotations
 
+import functools
 import math
 from collections.abc import Callable, Sequence
 
@@ -93,6 +94,20 @@ def golden_points(lo: float, hi: float, evals: int) -> set[float]:
             following += [(lo_, x2_, left, x1_), (x1_, hi_, x2_, right)]
         brackets = following
     return points
+
+
+@functools.lru_cache(maxsize=1024)
+def _sorted_golden_points(lo: float, hi: float, evals: int) -> tuple[float, ...]:
+    """:func:`golden_points` in ascending order, kept per bracket (a search asks for few brackets)."""
+    return tuple(sorted(golden_points(lo, hi, evals)))
+
+
+# The spline stage's golden-section points, their inverse time scales exp(-x) and those squared,
+# the same for every run.
+_SPLINE_POINTS = _sorted_golden_points(*_SPLINE_SCALE, _SPLINE_SCALE_EVALS)
+_SPLINE_INV = np.array([math.exp(-x) for x in _SPLINE_POINTS])[:, None, None]
+_SPLINE_INV2 = _SPLINE_INV * _SPLINE_INV
+_SPLINE_INDEX = {x: p for p, x in enumerate(_SPLINE_POINTS)}
 
 
 def spline_via_states(
@@ -185,49 +200,51 @@ class OptimizedStrategy(ViaStrategy):
         `make` maps parameters, shape (G,), to admissible via states, shapes (G, dof); the
         chain's current via state is admissible too (every strategy step keeps it so).
         """
+        pair = chain.pair_coster(i)
         cache: dict[float, tuple[float, np.ndarray, np.ndarray]] = {}
-        states: dict[float, tuple[np.ndarray, np.ndarray]] = {}
-
-        def cost(x: float) -> float:
-            if x not in cache:
-                state = states.get(x)
-                if state is None:
-                    cv, ca = make(np.array([x]))
-                    state = cv[0], ca[0]
-                cache[x] = chain.pair_cost(i, *state, admissible=True)
-            return cache[x][0]
-
-        current = chain.pair_cost(i, chain.v[i], chain.acc[i], admissible=True)
+        current = pair(chain.v[i], chain.acc[i])
         grid = sorted({min(g, top) for g in grid} | {top})
         if not math.isfinite(current[0]) and 0.0 not in grid:
             grid.insert(0, 0.0)  # resting at the via: the fallback where the current state has no profile
-        cvs, cas = make(np.array(grid))
-        values = [math.inf] * len(grid)
+        n = len(grid)
+        # The grid and every point the golden section may ask for around any grid point, made
+        # in one batch (the refinement runs after most grid walks).
+        brackets = dict.fromkeys((grid[max(b - 1, 0)], grid[min(b + 1, n - 1)]) for b in range(n))
+        points = [x for lo, hi in brackets for x in _sorted_golden_points(lo, hi, steps + 2)]
+        cvs, cas = make(np.array(grid + points))
+        rows = {x: r for r, x in enumerate(points, n)}
+        values = [math.inf] * n
+
+        def cost(x: float) -> float:
+            if x not in cache:
+                r = rows.get(x)
+                if r is None:
+                    cv, ca = make(np.array([x]))
+                    cache[x] = pair(cv[0], ca[0])
+                else:
+                    cache[x] = pair(cvs[r], cas[r])
+            return cache[x][0]
 
         def at(g: int) -> float:
-            cache[grid[g]] = chain.pair_cost(i, cvs[g], cas[g], admissible=True)
+            cache[grid[g]] = pair(cvs[g], cas[g])
             values[g] = cache[grid[g]][0]
             return values[g]
 
         # Walk the grid from `start` upwards while the duration falls, else downwards: the
         # duration is mostly unimodal in the parameter.
-        g0 = next((g for g, x in enumerate(grid) if x >= start), len(grid) - 1)
+        g0 = next((g for g, x in enumerate(grid) if x >= start), n - 1)
         g = g0
         at(g)
-        while g + 1 < len(grid) and at(g + 1) <= values[g]:
+        while g + 1 < n and at(g + 1) <= values[g]:
             g += 1
         if g == g0 or not math.isfinite(values[g]):
             g = g0
             while g > 0 and at(g - 1) <= values[g]:
                 g -= 1
-        b = min(range(len(values)), key=values.__getitem__)  # the first smallest, as np.argmin
+        b = min(range(n), key=values.__getitem__)  # the first smallest, as np.argmin
         best = current
         if values[b] < current[0] * (1.0 + _REFINE_MARGIN):  # a grid point near or beyond the current state
-            lo, hi = grid[max(b - 1, 0)], grid[min(b + 1, len(grid) - 1)]
-            # Every point the golden section may ask for, made in one batch.
-            points = sorted(golden_points(lo, hi, steps + 2))
-            states.update(zip(points, zip(*make(np.array(points)))))
-            golden_minimum(cost, lo, hi, steps + 2)  # its evaluations fill the cache
+            golden_minimum(cost, grid[max(b - 1, 0)], grid[min(b + 1, n - 1)], steps + 2)  # fills the cache
             found = min(cache.values(), key=lambda c: c[0])
             if found[0] < current[0]:
                 best = found
@@ -291,8 +308,8 @@ class OptimizedStrategy(ViaStrategy):
         """
         lim = chain.limits
         h0 = durations[a:b]
-        if not np.all(np.isfinite(h0)) or np.any(h0 <= 0):
-            return
+        if not all(0.0 < h < math.inf for h in h0.tolist()):
+            return  # a segment without a profile (inf or NaN) or of no duration
         q_run = chain.q[a : b + 1]
         v_a, v_b = chain.v[a], chain.v[b]
         # Scaling every duration by s scales the spline's via velocities by 1/s and its via
@@ -306,15 +323,13 @@ class OptimizedStrategy(ViaStrategy):
             v_e, acc_e = v_e - v_q, acc_e - acc_q
         best: list = [math.inf, None, None]
         # The via states at every scale the golden section may ask for, made in one batch.
-        points = sorted(golden_points(*_SPLINE_SCALE, _SPLINE_SCALE_EVALS))
-        inv = np.array([math.exp(-x) for x in points])[:, None, None]
-        vs, accs = v_q * inv, acc_q * (inv * inv)
+        vs, accs = v_q * _SPLINE_INV, acc_q * _SPLINE_INV2
         if moving_ends:
             vs += v_e
-            accs += acc_e * inv
+            accs += acc_e * _SPLINE_INV
         vs = np.minimum(np.maximum(vs, -lim.velocity), lim.velocity)
         accs = admissible_acceleration(vs, accs, lim)
-        index = {x: p for p, x in enumerate(points)}
+        index = _SPLINE_INDEX
 
         def cost(x: float) -> float:
             v, acc = vs[index[x]], accs[index[x]]
