@@ -169,6 +169,27 @@ def test_last_waypoint_time_within_the_duration_after_a_line():
     np.testing.assert_allclose(result.trajectory.sample(times).q, result.waypoints, rtol=0.0, atol=1e-7)
 
 
+def test_waypoint_times_never_go_back_after_a_spliced_line():
+    """What follows a spliced line starts from its new end time, so a zero-length move after it
+    is not one rounding earlier (two zero-length lines after a pose; found by the CI's fuzz)."""
+    at = [9.389303155443883, 28.257762035328508, 28.510529926675186]
+    data = {
+        "units": {"length": "cm", "angle": "deg"},
+        "targets": [
+            {"position": at, "stop": True, "rpy": [0.0, -18.380275608647096, -108.38027560864711]},
+            {"position": at, "stop": True, "line": True},
+            {"position": at, "stop": True, "line": True},
+            {"position": [36.62361517720418, 5.084119199237515e-16, 19.020683733119327], "stop": True},
+        ],
+        "singularity": {"detours": False},
+    }
+    result = plan_motion(get_robot("al5c"), parse_motion_request(data))
+    assert np.all(np.diff(result.waypoint_times) >= 0.0)
+    assert np.all(np.diff(result.trajectory.waypoint_times) >= 0.0)
+    assert np.all(np.diff(result.trajectory.knots) >= 0.0)
+    np.testing.assert_allclose(result.trajectory.sample(result.waypoint_times).q, result.waypoints, rtol=0.0, atol=1e-7)
+
+
 def dipping_user_segments(robot, p):
     """Requested segments dipping below the threshold between two trajectory waypoints above it,
     measured again on the returned trajectory."""

@@ -685,17 +685,19 @@ def _splice(
     may have been nudged off a joint bound); what follows moves later by the time they add.
     """
     t0, t1 = traj.waypoint_times[first] + traj.dwell[first], traj.waypoint_times[last]
-    shift = float(t[-1] - t1)
+    end = float(t[-1])
     before = traj.knots < t0 - 1e-12
     after = traj.knots >= t1 - 1e-12
     times = traj.waypoint_times.copy()
     times[first + 1 : last + 1] = t[1:]
     waypoints = traj.waypoints.copy()
     waypoints[first : last + 1] = q
-    times[last + 1 :] += shift
+    # What follows starts from the new end time plus how long after the old one it came (never
+    # negative), not from its old time plus the shift, which can round below the new end time.
+    times[last + 1 :] = end + (traj.waypoint_times[last + 1 :] - t1)
     return replace(
         traj,
-        knots=read_only(np.concatenate([traj.knots[before], knots, traj.knots[after] + shift])),
+        knots=read_only(np.concatenate([traj.knots[before], knots, end + (traj.knots[after] - t1)])),
         p=read_only(np.concatenate([traj.p[before], p, traj.p[after]])),
         v=read_only(np.concatenate([traj.v[before], v, traj.v[after]])),
         a=read_only(np.concatenate([traj.a[before], a, traj.a[after]])),
