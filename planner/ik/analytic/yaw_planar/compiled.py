@@ -256,6 +256,50 @@ def _chosen_end(cond, alpha, beta: float) -> _Angle:
     return _Angle(_where(cond, alpha, PI - alpha) - beta, c, s)
 
 
+def wrapped_sx(a, b):
+    """``(a - b + pi) % (2 pi) - pi`` as Python computes it for floats (the sign of the divisor)."""
+    m = ca.fmod(a - b + PI, TWO_PI)
+    return ca.if_else(m < 0.0, m + TWO_PI, m) - PI
+
+
+def nearest_branch_sx(q: list, within: list, qc) -> tuple:
+    """The branch within the limits nearest `qc` (Euclidean over the wrapped joint differences).
+
+    Args:
+        q: Per branch, its joints as SX scalars.
+        within: Per branch, whether it lies within the limits (SX).
+        qc: The reference configuration (SX, one entry per joint).
+
+    Returns:
+        ``(best, ties)``: the first nearest branch's index (-1: none within), and whether another
+        branch within the limits is exactly as near.
+    """
+    dist = []
+    for qm in q:
+        total = ca.SX(0.0)
+        for j, qj in enumerate(qm):
+            d = wrapped_sx(qj, qc[j])
+            total = d * d if j == 0 else total + d * d
+        dist.append(ca.sqrt(total))
+    best, nearest = ca.SX(-1), ca.SX(math.inf)
+    for m in range(len(q)):
+        take = ca.logic_and(within[m], dist[m] < nearest)
+        best = ca.if_else(take, m, best)
+        nearest = ca.if_else(take, dist[m], nearest)
+    ties = ca.SX(0)
+    for m in range(len(q)):
+        ties = ca.logic_or(ties, ca.logic_and(ca.logic_and(within[m], m != best), dist[m] == nearest))
+    return best, ties
+
+
+def pick_branch_sx(q: list, best) -> list:
+    """The joints of four branches' branch `best` (any other index: the last one's)."""
+    return [
+        ca.if_else(best == 0, q[0][j], ca.if_else(best == 1, q[1][j], ca.if_else(best == 2, q[2][j], q[3][j])))
+        for j in range(len(q[0]))
+    ]
+
+
 def wrap_sx(x, lower: float, upper: float, ref=0.0):
     """:func:`~planner.geometry.chain.wrap_array`, one value.
 

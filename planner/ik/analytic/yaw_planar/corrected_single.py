@@ -35,7 +35,7 @@ import numpy as np
 from planner.geometry.target import RADIAL_EPS
 from planner.ik.analytic.geometry import SINGULAR_TOL
 from planner.ik.analytic.yaw_planar.arm import ArmGeometry
-from planner.ik.analytic.yaw_planar.compiled import wrap_sx
+from planner.ik.analytic.yaw_planar.compiled import nearest_branch_sx, pick_branch_sx, wrap_sx, wrapped_sx
 from planner.ik.analytic.yaw_planar.corrected import SETTLE
 from planner.ik.analytic.yaw_planar.newton import FLAGS, arm_parameters, pitch_kernel, pose_kernel, tip_fk_sx
 from planner.ik.analytic.yaw_planar.scalar_pose import PoseFrame
@@ -44,7 +44,6 @@ from planner.ik.numeric.codegen import compile_function
 __all__ = ["MARGIN", "CorrectedKernel", "corrected_kernel", "corrected_supported"]
 
 PI = math.pi
-TWO_PI = 2.0 * math.pi
 #: A branch counts as settled only this far inside the Python path's thresholds (its check is
 #: Pinocchio's FK, this one the product of exponentials: they differ by round-off).
 MARGIN = 0.5
@@ -89,12 +88,6 @@ def _hypot(x, y):
 
 def _clamp(x, lo: float, hi: float):
     return _if(x > hi, hi, _if(x < lo, lo, x))
-
-
-def _wrapped(a, b):
-    """``(a - b + pi) % (2 pi) - pi`` as Python computes it for floats."""
-    m = ca.fmod(a - b + PI, TWO_PI)
-    return _if(m < 0.0, m + TWO_PI, m) - PI
 
 
 def _end_vector(arm: ArmGeometry, roll):
@@ -437,7 +430,7 @@ class CorrectedKernel:
             for j in range(i + 1, 4):
                 close = ca.SX(1)
                 for k in range(dof):
-                    close = _and(close, ca.fabs(_wrapped(qs[i][k], qs[j][k])) < TWIN)
+                    close = _and(close, ca.fabs(wrapped_sx(qs[i][k], qs[j][k])) < TWIN)
                 sure = _and(sure, ca.logic_not(_and(valid[i], valid[j], close)))
         raw = [list(q) for q in qs]
         within = []
@@ -449,27 +442,13 @@ class CorrectedKernel:
                 inside = _and(inside, qs[m][j] >= lo, qs[m][j] <= hi)
             within.append(inside)
         if current:
-            dist = []
-            for m in range(4):
-                total = ca.SX(0.0)
-                for j in range(dof):
-                    dj = _wrapped(qs[m][j], qc[j])
-                    total = dj * dj if j == 0 else total + dj * dj
-                dist.append(ca.sqrt(total))
-            best, nearest = ca.SX(-1), ca.SX(math.inf)
-            for m in range(4):
-                take = _and(within[m], dist[m] < nearest)
-                best = _if(take, m, best)
-                nearest = _if(take, dist[m], nearest)
+            best, ties = nearest_branch_sx(qs, within, qc)
             if not every:  # ties: the Python path's order among them is its sort key's
-                for m in range(4):
-                    sure = _and(sure, ca.logic_not(_and(within[m], m != best, dist[m] == nearest)))
+                sure = _and(sure, ca.logic_not(ties))
         else:
             best = _if(within[0], 0, _if(within[1], 1, _if(within[2], 2, _if(within[3], 3, -1))))
         sure = _and(sure, best >= 0)
-        chosen = [
-            _if(best == 0, qs[0][j], _if(best == 1, qs[1][j], _if(best == 2, qs[2][j], qs[3][j]))) for j in range(dof)
-        ]
+        chosen = pick_branch_sx(qs, best)
         if every:
             out = ca.vertcat(sure, flag, *valid, *[v for q in raw for v in q])
         else:

@@ -32,7 +32,15 @@ import planner.ik.analytic.base as analytic_base
 from planner.geometry.target import RADIAL_EPS
 from planner.ik.analytic.result import STATUS_CODES, STATUS_SOLVED
 from planner.ik.analytic.yaw_planar.branches import BRANCHES
-from planner.ik.analytic.yaw_planar.compiled import FLAGS, CompiledKernels, compiled_supported, forward_sx, kind_of
+from planner.ik.analytic.yaw_planar.compiled import (
+    FLAGS,
+    CompiledKernels,
+    compiled_supported,
+    forward_sx,
+    kind_of,
+    nearest_branch_sx,
+    pick_branch_sx,
+)
 from planner.ik.numeric.codegen import compile_function
 
 __all__ = [
@@ -47,7 +55,6 @@ __all__ = [
 ]
 
 _PI = math.pi
-_TWO_PI = 2.0 * math.pi
 _SOLVED = STATUS_CODES[STATUS_SOLVED]
 #: |sin| of the elbow's interior angle below which the kernel leaves the pick to the Python path
 #: (the joint values' round-off differences there would exceed about 1e-12 rad).
@@ -61,12 +68,6 @@ REACH_MARGIN = 1e-9
 #: Distance [rad] of a joint value from half a turn off its seed (or off its range's middle)
 #: below which :class:`SolveKernel` leaves the wrap to the Python path.
 HALF_TURN_MARGIN = 1e-9
-
-
-def _wrapped(a, b):
-    """``(a - b + pi) % (2 pi) - pi`` as Python computes it for floats (the sign of the divisor)."""
-    m = ca.fmod(a - b + _PI, _TWO_PI)
-    return ca.if_else(m < 0.0, m + _TWO_PI, m) - _PI
 
 
 class SingleKernel:
@@ -105,28 +106,11 @@ class SingleKernel:
         if codes.numel() > 2:  # handed over (a free end angle to the search, a target on the yaw axis)
             sure = ca.logic_and(sure, codes[2] == 0)
         if current:
-            dist = []
-            for m in range(4):
-                total = ca.SX(0.0)
-                for j in range(dof):
-                    d = _wrapped(q[m][j], qc[j])
-                    total = d * d if j == 0 else total + d * d
-                dist.append(ca.sqrt(total))
-            best, nearest = ca.SX(-1), ca.SX(math.inf)
-            for m in range(4):
-                take = ca.logic_and(within[m], dist[m] < nearest)
-                best = ca.if_else(take, m, best)
-                nearest = ca.if_else(take, dist[m], nearest)
-            ties = ca.SX(0)
-            for m in range(4):
-                ties = ca.logic_or(ties, ca.logic_and(ca.logic_and(within[m], m != best), dist[m] == nearest))
+            best, ties = nearest_branch_sx(q, within, qc)
             sure = ca.logic_and(sure, ca.logic_not(ties))
         else:
             best = codes[1]
-        chosen = [
-            ca.if_else(best == 0, q[0][j], ca.if_else(best == 1, q[1][j], ca.if_else(best == 2, q[2][j], q[3][j])))
-            for j in range(dof)
-        ]
+        chosen = pick_branch_sx(q, best)
         sure = ca.logic_and(sure, best >= 0)
         # Near a stretched or folded elbow the two operation sequences' round-off grows as
         # 1 / |sin e| (the elbow's interior angle e, from the chosen q): leave those to Python.
