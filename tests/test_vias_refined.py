@@ -100,16 +100,22 @@ def test_random_paths_hold_limits_and_are_never_slower(name):
     assert repaired >= 1  # and paths whose optimized states the range repair lowers are among them
 
 
-@given(problems(max_dof=4, max_points=5), st.integers(0, 2**32 - 1))
-@SETTINGS
-def test_generated_problems_with_stops_and_start_states(problem, seed):
-    q, limits = problem
+def stops_or_start(q, limits, seed, speed):
+    """A stop at a random inner waypoint (3 in 10), else a start velocity up to `speed` of the limits (half)."""
     rng = np.random.default_rng(seed)
     kwargs = {}
     if rng.random() < 0.3 and len(q) > 2:
         kwargs["stops"] = [int(rng.integers(1, len(q) - 1))]
     elif rng.random() < 0.5:
-        kwargs["start_velocity"] = rng.uniform(-0.3, 0.3, q.shape[1]) * limits.velocity
+        kwargs["start_velocity"] = rng.uniform(-speed, speed, q.shape[1]) * limits.velocity
+    return kwargs
+
+
+@given(problems(max_dof=4, max_points=5), st.integers(0, 2**32 - 1))
+@SETTINGS
+def test_generated_problems_with_stops_and_start_states(problem, seed):
+    q, limits = problem
+    kwargs = stops_or_start(q, limits, seed, 0.3)
     try:
         optimized = plan_trajectory(q, limits, **kwargs)
     except InvalidArgumentError:  # a start state that cannot stop within the range: so for both
@@ -128,12 +134,7 @@ def test_without_sweeps_it_is_the_optimized_plan_bit_for_bit(problem, seed):
     # The search starts from the optimized states brought within range by the planner's own
     # repair rules (fit_range): with no sweep the plan is the optimized one, repairs included.
     q, limits = problem
-    rng = np.random.default_rng(seed)
-    kwargs = {}
-    if rng.random() < 0.3 and len(q) > 2:
-        kwargs["stops"] = [int(rng.integers(1, len(q) - 1))]
-    elif rng.random() < 0.5:
-        kwargs["start_velocity"] = rng.uniform(-0.5, 0.5, q.shape[1]) * limits.velocity
+    kwargs = stops_or_start(q, limits, seed, 0.5)
     try:
         optimized = plan_trajectory(q, limits, **kwargs)
     except InvalidArgumentError:
