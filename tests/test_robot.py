@@ -2,7 +2,11 @@
 
 from __future__ import annotations
 
+import concurrent.futures
+import copy
 import math
+import multiprocessing
+import pickle
 
 import numpy as np
 import pinocchio as pin
@@ -284,3 +288,40 @@ def test_a_one_joint_arm_has_a_jacobian_and_conditioning():
     inverse, manipulability = robot.conditioning(np.zeros((3, 1)))
     np.testing.assert_allclose(inverse, 1.0)
     np.testing.assert_allclose(manipulability, 0.3)
+
+
+def _fk_in_worker(robot: planner.Robot, q: np.ndarray) -> np.ndarray:
+    return robot.fk(q)
+
+
+@pytest.mark.parametrize("name", [*BUNDLED, "gripper"])
+def test_a_pickled_or_copied_robot_is_the_same_robot(name):
+    robot = (
+        planner.Robot(GRIPPER_URDF, tip="tcp", locked={"finger_joint": 0.03}) if name == "gripper" else get_robot(name)
+    )
+    q = robot.random_configurations(np.random.default_rng(7), 20)
+    planner.solve_ik(robot, planner.Target(position=robot.position(q[0])))  # fills robot.derived
+    for twin in (pickle.loads(pickle.dumps(robot)), copy.deepcopy(robot)):
+        assert twin is not robot and twin.data is not robot.data
+        assert (twin.name, twin.tip, twin.source, twin.joint_names) == (
+            robot.name,
+            robot.tip,
+            robot.source,
+            robot.joint_names,
+        )
+        assert dict(twin.locked_joints) == dict(robot.locked_joints)
+        np.testing.assert_array_equal(twin.approach_axis, robot.approach_axis)
+        np.testing.assert_array_equal(twin.lower, robot.lower)
+        np.testing.assert_array_equal(twin.upper, robot.upper)
+        np.testing.assert_array_equal(twin.fk(q), robot.fk(q))
+        result = planner.solve_ik(twin, planner.Target(position=robot.position(q[1])))
+        assert result.success, result.reason
+        np.testing.assert_allclose(robot.position(result.q), robot.position(q[1]), atol=1e-9)
+
+
+def test_a_robot_goes_to_a_worker_process():
+    robot = get_robot("al5c")
+    q = robot.random_configurations(np.random.default_rng(8), 4)
+    context = multiprocessing.get_context("fork" if "fork" in multiprocessing.get_all_start_methods() else "spawn")
+    with concurrent.futures.ProcessPoolExecutor(max_workers=1, mp_context=context) as pool:
+        np.testing.assert_array_equal(pool.submit(_fk_in_worker, robot, q).result(), robot.fk(q))

@@ -141,11 +141,19 @@ def _chain_length(model: pin.Model, tip_frame_id: int) -> float:
     return length if length > 1e-9 else 1.0
 
 
+def _rebuild_robot(
+    urdf: str, tip: str, name: str, source: str, locked: dict[str, float], approach_axis: tuple[float, ...]
+) -> Robot:
+    """The robot :meth:`Robot.__reduce__` describes (its URDF was validated when first built)."""
+    return Robot(urdf, tip=tip, name=name, source=source, locked=locked, approach_axis=approach_axis, validate=False)
+
+
 class Robot:
     """A serial chain from the URDF root to a tip frame, modelled in Pinocchio.
 
     Build one with :func:`planner.load_robot` or :meth:`Robot.from_urdf`. Not thread-safe: it
-    owns one ``pinocchio.Data`` workspace.
+    owns one ``pinocchio.Data`` workspace; give each thread its own ``copy.deepcopy(robot)``.
+    Robots pickle (rebuilt from their URDF text), so they can go to worker processes.
 
     Attributes:
         name: Robot name.
@@ -320,6 +328,16 @@ class Robot:
 
     def __repr__(self) -> str:
         return f"Robot(name={self.name!r}, dof={self.dof}, tip={self.tip!r})"
+
+    def __reduce__(self) -> tuple:
+        """Pickling and deep copies rebuild the robot from its URDF text and options.
+
+        So a robot can be sent to worker processes (``multiprocessing``,
+        ``concurrent.futures``). The copy has its own ``pinocchio.Data`` and an empty
+        :attr:`derived` cache: its IK solvers are built again on first use.
+        """
+        options = (self.tip, self.name, self.source, dict(self.locked_joints), tuple(self.approach_axis.tolist()))
+        return (_rebuild_robot, (self.urdf, *options))
 
     # ------------------------------------------------------------------ description
     @property
