@@ -11,6 +11,7 @@ import numpy as np
 import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
+from line_cases import random_position_line
 
 import planner
 from planner.app.motion_plan import plan_motion
@@ -35,25 +36,10 @@ def jerk_sign_changes(traj, t0: float, t1: float, jerk_limit: np.ndarray) -> np.
     return np.array(out)
 
 
-def random_line(robot: planner.Robot, rng: np.random.Generator, tries: int = 50) -> tuple[dict, np.ndarray] | None:
+def random_line(robot: planner.Robot, rng: np.random.Generator) -> tuple[dict, np.ndarray] | None:
     """A line between the tips of two random configurations that IK can follow, and its joint samples."""
-    solver = TargetSolver(robot)
-    for _ in range(tries):
-        q = robot.random_configurations(rng, 2)
-        data = {
-            "targets": [
-                {"position": robot.position(q[0]).tolist()},
-                {"position": robot.position(q[1]).tolist(), "line": True},
-            ]
-        }
-        request = parse_motion_request(data)
-        try:
-            start = solver.choose(request.targets[0], None).q
-            path = line_waypoints(solver, request.targets[0], request.targets[1], start)
-        except planner.PlannerError:
-            continue
-        return data, np.asarray(path.q)
-    return None
+    found = random_position_line(robot, rng, tries=50)
+    return None if found is None else (found[0], np.asarray(found[1].q))
 
 
 def check_line_plan(robot: planner.Robot, data: dict, samples: np.ndarray) -> tuple[int, int, int]:

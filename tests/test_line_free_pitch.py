@@ -14,13 +14,13 @@ import pinocchio as pin
 import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
+from line_cases import random_position_line
 
 import planner
 from planner.app.motion_plan import plan_motion
 from planner.app.plan_file import parse_motion_request
 from planner.geometry.target import approach_pitch
-from planner.motion.branch_choice import TargetSolver
-from planner.motion.line import line_waypoints, on_range_end
+from planner.motion.line import on_range_end
 from planner.motion.trajectory import LIMIT_TOLERANCE
 
 from conftest import get_robot
@@ -47,27 +47,6 @@ def pitch_line_taken(robot: planner.Robot, s: np.ndarray, q: np.ndarray) -> bool
     pitch = np.unwrap(np.asarray(approach_pitch(robot, q)))
     linear = pitch[0] + s * (pitch[-1] - pitch[0])
     return bool(np.max(np.abs(pitch - linear)) <= 1e-6) and len(q) > 2
-
-
-def random_position_line(robot: planner.Robot, rng: np.random.Generator, tries: int = 40):
-    """Plan-file data for a line between the tips of two random configurations IK can follow, and its path."""
-    solver = TargetSolver(robot)
-    for _ in range(tries):
-        q = robot.random_configurations(rng, 2)
-        data = {
-            "targets": [
-                {"position": robot.position(q[0]).tolist()},
-                {"position": robot.position(q[1]).tolist(), "line": True},
-            ]
-        }
-        request = parse_motion_request(data)
-        try:
-            start = solver.choose(request.targets[0], None).q
-            path = line_waypoints(solver, request.targets[0], request.targets[1], start)
-        except planner.PlannerError:
-            continue
-        return data, path
-    return None
 
 
 def check_pitch_line(robot: planner.Robot, data: dict, path) -> None:
