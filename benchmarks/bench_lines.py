@@ -233,6 +233,18 @@ def collinear_plans(robot: Robot, count: int, rng: np.random.Generator) -> tuple
     return out, skipped
 
 
+def _plan_cells(plans: list[dict]) -> str:
+    """The cells both plan tables share: duration ratio median (range), peak limit ratio, tip off
+    line, worst joint's sign changes median / max."""
+    ratios = [f["ratio"] for f in plans]
+    worst = [f["worst_joint"] for f in plans]
+    return (
+        f"{np.median(ratios):.3f} ({min(ratios):.3f}-{max(ratios):.3f}) "
+        f"| {max(f['limit_ratio'] for f in plans):.9f} | {max(f['deviation'] for f in plans):.1e} "
+        f"| {np.median(worst):g} / {max(worst)}"
+    )
+
+
 def junction_table(rows: list[tuple[str, list[dict], int]]) -> str:
     head = (
         "| two lines straight on | count (skipped) | junction passed moving | duration passing / stopping: median "
@@ -241,13 +253,9 @@ def junction_table(rows: list[tuple[str, list[dict], int]]) -> str:
     )
     body = ""
     for name, plans, skipped in rows:
-        ratios = [f["ratio"] for f in plans]
-        worst = [f["worst_joint"] for f in plans]
         body += (
             f"| {name} | {len(plans)} ({skipped}) | {sum(f['junction_speed'] > 1e-6 for f in plans)} / {len(plans)} "
-            f"| {np.median(ratios):.3f} ({min(ratios):.3f}-{max(ratios):.3f}) "
-            f"| {max(f['limit_ratio'] for f in plans):.9f} | {max(f['deviation'] for f in plans):.1e} "
-            f"| {np.median(worst):g} / {max(worst)} | {sum(f['within_s_curve'] for f in plans)} / {len(plans)} |\n"
+            f"| {_plan_cells(plans)} | {sum(f['within_s_curve'] for f in plans)} / {len(plans)} |\n"
         )
     return head + body
 
@@ -260,13 +268,9 @@ def blend_table(rows: list[tuple[str, list[dict], int]]) -> str:
     )
     body = ""
     for name, plans, skipped in rows:
-        ratios = [f["ratio"] for f in plans]
-        worst = [f["worst_joint"] for f in plans]
         body += (
             f"| {name} | {len(plans)} ({skipped}) | {sum(f['moving_ends'] for f in plans)} / {2 * len(plans)} "
-            f"| {np.median(ratios):.3f} ({min(ratios):.3f}-{max(ratios):.3f}) "
-            f"| {max(f['limit_ratio'] for f in plans):.9f} | {max(f['deviation'] for f in plans):.1e} "
-            f"| {np.median(worst):g} / {max(worst)} |\n"
+            f"| {_plan_cells(plans)} |\n"
         )
     return head + body
 
