@@ -183,14 +183,14 @@ def _axis_reach(model, obj) -> float:
 
 
 #: Angles at which :func:`_swept_reach` turns an object about its joint's axis.
-SWEEP_ANGLES = 360
+_SWEEP_ANGLES = 360
 
 
 def _swept_reach(model, obj, parent: int) -> float:
     """Largest distance of a geometry object from joint `parent`'s axis, its own joint turned to any angle [m].
 
     For an object whose revolute joint hangs directly below revolute joint `parent`: its hull's
-    points turned about their joint's axis at :data:`SWEEP_ANGLES` angles, plus the farthest
+    points turned about their joint's axis at `_SWEEP_ANGLES` angles, plus the farthest
     a point can move between two of them (its distance from that axis times half the angle
     between them). inf where a joint is not a plain rotation.
     """
@@ -200,7 +200,7 @@ def _swept_reach(model, obj, parent: int) -> float:
         return float("inf")
     points = _joint_points(obj)
     lever = float(np.max(np.linalg.norm(points - np.outer(points @ own, own), axis=1)))
-    angles = np.linspace(0.0, 2.0 * np.pi, SWEEP_ANGLES, endpoint=False)
+    angles = np.linspace(0.0, 2.0 * np.pi, _SWEEP_ANGLES, endpoint=False)
     # Rodrigues for every angle at once: p + sin(a) k x p + (1 - cos(a)) k x (k x p).
     cross = np.cross(own, points)
     twice = np.cross(own, cross)
@@ -208,7 +208,7 @@ def _swept_reach(model, obj, parent: int) -> float:
     place = model.jointPlacements[obj.parentJoint]
     at = turned @ place.rotation.T + place.translation
     best = float(np.max(np.linalg.norm(at - (at @ above)[..., None] * above, axis=-1)))
-    return best + lever * np.pi / SWEEP_ANGLES
+    return best + lever * np.pi / _SWEEP_ANGLES
 
 
 def _joint_axis_or_none(model, jid: int) -> np.ndarray | None:
