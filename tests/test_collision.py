@@ -624,9 +624,10 @@ def _placements(checker, q):
 
 @pytest.mark.parametrize("name", MIXED_ARMS)
 def test_pair_bounds_never_underestimate_the_relative_motion_of_two_bodies(name):
-    """Along random joint segments, densely sampled by FK: every corner of one body's bounding box,
-    seen from the other body, moves no farther than pair_weights allows."""
-    from planner.collision.arm import box_corners
+    """Along random joint segments, densely sampled by FK: every vertex of one body's hull, seen
+    from the other body, moves no farther than pair_weights allows (how far a point moves is a
+    convex function of it: no point of the body moves farther than its hull's vertices)."""
+    from planner.collision.arm import hull_points
     from planner.collision.continuous import pair_weights
 
     robot = get_robot(name)
@@ -644,7 +645,7 @@ def test_pair_bounds_never_underestimate_the_relative_motion_of_two_bodies(name)
             upper, lower, chain = lower, upper, chain[::-1]
         if chain[0] <= chain[1]:
             pairs.append((k, upper, lower))
-            corners[lower] = box_corners(geom.geometryObjects[lower])
+            corners[lower] = hull_points(geom.geometryObjects[lower])
     assert pairs
     rng = np.random.default_rng(11)
     for q0, q1 in zip(*(robot.random_configurations(rng, 6) for _ in range(2))):
@@ -795,3 +796,40 @@ def test_a_shared_checker_is_reused_per_scene_and_answers_as_a_new_one(name, siz
         assert again.clearance(row) == fresh.clearance(row)
     with pytest.raises(InvalidArgumentError):
         shared_checker(robot, "table")
+
+
+@pytest.mark.parametrize("name", MIXED_ARMS)
+def test_swept_reach_bounds_the_body_turned_by_forward_kinematics(name):
+    """_swept_reach is at least the largest distance, found by Pinocchio FK at 2000 angles of the
+    body's joint, from the axis of the joint above to the body's hull (and not much more)."""
+    import pinocchio as pin
+
+    from planner.collision.arm import hull_points
+    from planner.collision.continuous import _joint_axis, _swept_reach
+
+    robot = get_robot(name)
+    model, data = robot.model, robot.model.createData()
+    geom = arm_collision_model(robot).geometry
+    tested = 0
+    for obj in geom.geometryObjects:
+        jid = obj.parentJoint
+        parent = model.parents[jid] if jid > 0 else 0
+        bound = _swept_reach(model, obj, parent) if parent > 0 else math.inf
+        if not math.isfinite(bound):
+            continue
+        points = hull_points(obj)
+        axis = _joint_axis(model, parent)
+        rng = np.random.default_rng(jid)
+        q = robot.random_configurations(rng, 1)[0]
+        farthest = 0.0
+        for angle in np.linspace(-math.pi, math.pi, 2000):
+            q[jid - 1] = angle
+            pin.forwardKinematics(model, data, robot.pinocchio_configuration(q))
+            # The body's points in the parent joint's frame, where that joint's axis is fixed.
+            where = data.oMi[parent].actInv(data.oMi[jid] * obj.placement)
+            at = points @ where.rotation.T + where.translation
+            farthest = max(farthest, float(np.max(np.linalg.norm(at - np.outer(at @ axis, axis), axis=1))))
+        assert farthest <= bound + 1e-9, (name, obj.name, farthest, bound)
+        assert bound <= farthest + 0.01, (name, obj.name, farthest, bound)
+        tested += 1
+    assert tested > 0

@@ -24,7 +24,7 @@ from planner.core.rotations import homogeneous
 from planner.model.catalog import example_robot_data_dir
 from planner.model.robot import Robot
 
-__all__ = ["ArmCollisionModel", "arm_collision_model", "bounding_radius", "box_corners"]
+__all__ = ["ArmCollisionModel", "arm_collision_model", "bounding_radius", "box_corners", "hull_points"]
 
 #: Configurations sampled to find link pairs that are always in contact.
 PAIR_SAMPLES = 300
@@ -153,6 +153,19 @@ def box_corners(obj: pin.GeometryObject) -> np.ndarray:
             for z in (box.min_[2], box.max_[2])
         ]
     )
+
+
+def hull_points(obj: pin.GeometryObject) -> np.ndarray:
+    """Points whose convex hull contains a geometry object, in its own frame [m], shape (n, 3).
+
+    A convex polytope's vertices (the arm's meshes are checked as their hulls), else the
+    corners of the object's bounding box. A convex function of the point (a distance from a
+    line or a point) is largest on the object at one of them.
+    """
+    g = obj.geometry
+    if isinstance(g, coal.Convex) and g.getSweptSphereRadius() == 0.0 and g.num_points > 0:
+        return np.array(g.points(), dtype=float).reshape(-1, 3)
+    return box_corners(obj)
 
 
 def bounding_radius(obj: pin.GeometryObject) -> float:

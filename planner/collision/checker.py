@@ -26,6 +26,7 @@ from planner.model.robot import Robot
 __all__ = ["Clearance", "CollisionChecker", "shared_checker"]
 
 _FLOAT = np.dtype(float)
+_update, _distance = pin.updateGeometryPlacements, pin.computeDistance
 
 
 @dataclass(frozen=True)
@@ -129,6 +130,7 @@ class CollisionChecker:
         self._pairs = np.array(pairs, dtype=int).reshape(-1, 2)
         self._self = np.array([s is None for s in self._pair_scene], dtype=bool)
         self._data = robot.model.createData()
+        self._to_pinocchio = robot.pinocchio_configuration
         self._gdata = pin.GeometryData(geom)
         # in_collision runs the exact test only on pairs whose world AABBs overlap; it reads this
         # GeometryData's active pairs, so allow masks hold. With a few dozen objects coal's naive
@@ -221,9 +223,8 @@ class CollisionChecker:
         :meth:`pair_distances` when few pairs are wanted.
         """
         geom, gdata = self.geometry, self._gdata
-        pin.updateGeometryPlacements(self.robot.model, self._data, geom, gdata, self.robot.pinocchio_configuration(q))
-        distance = pin.computeDistance
-        return np.fromiter((distance(geom, gdata, k).min_distance for k in pairs.tolist()), float, len(pairs))
+        _update(self.robot.model, self._data, geom, gdata, self._to_pinocchio(q))
+        return np.array([_distance(geom, gdata, k).min_distance for k in pairs.tolist()], dtype=float)
 
     def pair_clearance(self, k: int, distance: float) -> Clearance:
         """The :class:`Clearance` of pair `k` at `distance` [m] found at the last configuration computed.

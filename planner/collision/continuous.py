@@ -7,7 +7,8 @@ together and does not count; any other joint ``j`` moves its body's points at mo
 ``|qd_j| r_j`` apart, ``r_j`` an upper bound on the distance from the joint's axis to that
 body's points (the joint offsets down the chain plus the body's own extent, where the first
 offset may be the next joint's distance from the axis: zero in a wrist whose next joint sits on
-it; 1 for a sliding joint). Along a
+it; for the joint right above the body's own, the largest distance of the body's hull turned
+about its joint to every angle; 1 for a sliding joint). Along a
 trajectory the joint speeds a time ``h`` after a check are at most ``|qd_j| + a_j h``
 (``a_j`` the acceleration limit), so a pair approaches by at most ``V h + A h^2 / 2`` with
 ``A = sum_j a_j r_j``; the next check comes when that reaches ``d - clearance + tolerance``
@@ -43,7 +44,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from planner.collision.arm import bounding_radius, box_corners
+from planner.collision.arm import box_corners, hull_points
 from planner.collision.checker import Clearance, CollisionChecker
 from planner.core.arrays import read_only
 from planner.exceptions import InvalidArgumentError
@@ -162,21 +163,65 @@ def _joint_axis(model, jid: int) -> np.ndarray:
     return motion[3:, 0] / np.linalg.norm(motion[3:, 0])
 
 
+def _joint_points(obj) -> np.ndarray:
+    """:func:`~planner.collision.arm.hull_points` of a geometry object in its joint's frame [m]."""
+    return hull_points(obj) @ obj.placement.rotation.T + obj.placement.translation
+
+
 def _axis_reach(model, obj) -> float:
     """Largest distance of a geometry object from the axis of the revolute joint carrying it [m].
 
-    The object lies within its bounding box, whose corners (in the joint's frame) bound the
-    distance from the axis (a convex function): inf for a joint that is not a plain rotation.
+    The object lies within the hull of :func:`~planner.collision.arm.hull_points`, whose points
+    (in the joint's frame) bound the distance from the axis (a convex function): inf for a
+    joint that is not a plain rotation.
     """
-    joint = model.joints[obj.parentJoint]
+    axis = _joint_axis_or_none(model, obj.parentJoint)
+    if axis is None:
+        return float("inf")
+    points = _joint_points(obj)
+    return float(np.max(np.linalg.norm(points - np.outer(points @ axis, axis), axis=1)))
+
+
+#: Angles at which :func:`_swept_reach` turns an object about its joint's axis.
+_SWEEP_ANGLES = 360
+
+
+def _swept_reach(model, obj, parent: int) -> float:
+    """Largest distance of a geometry object from joint `parent`'s axis, its own joint turned to any angle [m].
+
+    For an object whose revolute joint hangs directly below revolute joint `parent`: its hull's
+    points turned about their joint's axis at `_SWEEP_ANGLES` angles, plus the farthest
+    a point can move between two of them (its distance from that axis times half the angle
+    between them). inf where a joint is not a plain rotation.
+    """
+    own = _joint_axis_or_none(model, obj.parentJoint)
+    above = _joint_axis_or_none(model, parent)
+    if own is None or above is None:
+        return float("inf")
+    points = _joint_points(obj)
+    lever = float(np.max(np.linalg.norm(points - np.outer(points @ own, own), axis=1)))
+    angles = np.linspace(0.0, 2.0 * np.pi, _SWEEP_ANGLES, endpoint=False)
+    # Rodrigues for every angle at once: p + sin(a) k x p + (1 - cos(a)) k x (k x p).
+    cross = np.cross(own, points)
+    twice = np.cross(own, cross)
+    turned = points + np.sin(angles)[:, None, None] * cross + (1.0 - np.cos(angles))[:, None, None] * twice
+    place = model.jointPlacements[obj.parentJoint]
+    at = turned @ place.rotation.T + place.translation
+    best = float(np.max(np.linalg.norm(at - (at @ above)[..., None] * above, axis=-1)))
+    return best + lever * np.pi / _SWEEP_ANGLES
+
+
+def _joint_axis_or_none(model, jid: int) -> np.ndarray | None:
+    """The unit axis of joint `jid` if it is a plain rotation about an axis through its origin, else None."""
+    if jid <= 0:
+        return None
+    joint = model.joints[jid]
     jdata = joint.createData()
     joint.calc(jdata, np.zeros(model.nq))
     motion = np.asarray(jdata.S, dtype=float).reshape(6, -1)
     if motion.shape[1] != 1 or np.linalg.norm(motion[:3, 0]) > 1e-12:
-        return float("inf")
-    axis = motion[3:, 0] / np.linalg.norm(motion[3:, 0])
-    points = box_corners(obj) @ obj.placement.rotation.T + obj.placement.translation
-    return float(np.max(np.linalg.norm(points - np.outer(points @ axis, axis), axis=1)))
+        return None
+    return motion[3:, 0] / np.linalg.norm(motion[3:, 0])
 
 
 def pair_weights(checker: CollisionChecker) -> np.ndarray:
@@ -222,7 +267,8 @@ def _pair_weights(checker: CollisionChecker) -> np.ndarray:
         if k not in reach:
             obj = geom.geometryObjects[k]
             chain = chain_of[obj.parentJoint]
-            own = float(np.linalg.norm(obj.placement.translation)) + bounding_radius(obj)
+            # The farthest point of the object from its joint's origin.
+            own = float(np.max(np.linalg.norm(_joint_points(obj), axis=1)))
             r = np.zeros(robot.dof)
             for jid in chain:
                 # Offsets from joint jid down to the object's joint (a slide adds its travel).
@@ -236,6 +282,9 @@ def _pair_weights(checker: CollisionChecker) -> np.ndarray:
                     # fixed distance from it (often on it: a wrist), the object beyond as above.
                     beyond = own + offset[below[1:]].sum() + travel[below].sum()
                     r[jid - 1] = min(r[jid - 1], axis_distance[below[0]] + beyond)
+                    if below == [obj.parentJoint]:
+                        # The object's joint hangs directly below: its points turned to every angle.
+                        r[jid - 1] = min(r[jid - 1], _swept_reach(model, obj, jid))
             if obj.parentJoint > 0 and not prismatic[obj.parentJoint - 1]:
                 # The joint that carries the object itself turns it about its axis: what counts
                 # is the object's distance from that axis, not from the joint's origin.
@@ -502,6 +551,7 @@ def _advance(
     first_hit: float | None = None
     hit: Clearance | None = None
     coarse = end / 2000.0  # past a hit: coarse steps, only to find the worst
+    half = tolerance / 2.0
     while True:
         while k_mask + 1 < len(masks) and masks[k_mask + 1][0] <= x:
             k_mask += 1
@@ -509,7 +559,7 @@ def _advance(
             on = mask if was is None else mask & ~was
             until[on], early[on] = -np.inf, -np.inf
             until[~mask], early[~mask] = np.inf, np.inf
-        due = np.flatnonzero(early <= x)
+        due = (early <= x).nonzero()[0]
         if due.size:
             q, speed = sample(x)
             if checks == 0 or due.size == n_pairs:
@@ -517,7 +567,7 @@ def _advance(
             else:
                 d = checker.distances_of(q, due)
             checks += 1
-            i = int(np.argmin(d))
+            i = int(d.argmin())
             dmin = float(d[i])
             if dmin < best[0]:
                 best = (dmin, x, checker.pair_clearance(int(due[i]), dmin) if dmin <= 0.0 else None)
@@ -528,7 +578,9 @@ def _advance(
                 hit = checker.clearance_of(checker.pair_distances(q, mask))
                 if stop_at_first:
                     break
-            room = np.maximum(d - c + tolerance, tolerance / 2.0)
+            room = d - c
+            room += tolerance
+            np.maximum(room, half, out=room)
             step = steps(speed, due, d, room)
             if first_hit is not None:
                 step = np.maximum(step, coarse)
@@ -648,8 +700,9 @@ def check_trajectory(
     # The trajectory's pieces, evaluated here one time at a time (JointTrajectory.sample's
     # polynomial without its checks and array bookkeeping).
     knots = np.asarray(trajectory.knots, dtype=float).tolist()
+    # Per piece its rows (a list of rows is faster to index than the arrays).
     p, v, a, j = trajectory.p, trajectory.v, trajectory.a, trajectory.j
-    half_a, sixth_j, half_j = a / 2.0, j / 6.0, j / 2.0
+    p, v, acc, half_a, sixth_j, half_j = (list(x) for x in (p, v, a, a / 2.0, j / 6.0, j / 2.0))
     duration, last = float(trajectory.duration), np.asarray(trajectory.waypoints[-1], dtype=float)
     rest = np.full(len(last), 1e-12)
 
@@ -659,8 +712,9 @@ def check_trajectory(
         i = max(bisect.bisect_right(knots, t) - 1, 0)
         dt = t - knots[i]
         q = p[i] + dt * (v[i] + dt * (half_a[i] + dt * sixth_j[i]))
-        qd = v[i] + dt * (a[i] + dt * half_j[i])
-        return q, np.minimum(np.abs(qd) + 1e-12, vmax)
+        qd = np.abs(v[i] + dt * (acc[i] + dt * half_j[i]))
+        qd += 1e-12
+        return q, np.minimum(qd, vmax, out=qd)
 
     masks = [(0.0, checker.pair_mask())] + [(float(t), checker.pair_mask(names)) for t, names in allow]
     masks.sort(key=lambda m: m[0])
