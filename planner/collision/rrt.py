@@ -3,7 +3,11 @@
 :func:`find_clear_path` grows two trees (Kuffner and LaValle's RRT-Connect) from the start and
 the goal, lazily (Bohlin and Kavraki 2000): each new node is tested as it is added, the points
 every :attr:`PathOptions.resolution` along an edge only when the trees meet, on the path
-through them; a blocked edge cuts its node off and the trees grow on. The path found is
+through them; a blocked edge cuts its node off and the trees grow on. Half of the trees'
+random targets are drawn near the straight segment from the start to the goal (the rest
+uniformly within the joint limits): an obstacle usually blocks a stretch of that segment and
+the shortest way around passes near it, where uniform targets over a wide joint range (an
+arm whose joints turn twice around) make the trees wander. The path found is
 shortened by straight edges between random points along it (not only its nodes; Geraerts and
 Overmars 2007 call these partial shortcuts) and a greedy pass that joins each node to the
 farthest one it sees, all decided by the same cheap checks as the trees' edges (the clearance
@@ -55,6 +59,11 @@ class PathOptions:
             where the start or goal is closer than that: see :func:`path_margin`).
         resolution: Largest joint change [rad or m] between the cheap distance checks that
             decide edges while the trees grow (the path found is then certified edge by edge).
+        line_bias: Share of the trees' random targets drawn near the straight segment from
+            the start to the goal (the rest uniformly within the joint limits): most
+            obstacles block a stretch of it, and the way around is near it.
+        line_spread: Spread of those targets about a point of the segment drawn uniformly:
+            per joint a normal spread of this share of the joint's range.
     """
 
     seed: int = 0
@@ -64,9 +73,11 @@ class PathOptions:
     shortcuts: int = 60
     margin: float = 0.002
     resolution: float = 0.05
+    line_bias: float = 0.5
+    line_spread: float = 0.1
 
     def __post_init__(self) -> None:
-        for name in ("step", "time_budget", "resolution"):
+        for name in ("step", "time_budget", "resolution", "line_spread"):
             v = getattr(self, name)
             if not (isinstance(v, (int, float)) and np.isfinite(v) and v > 0):
                 raise InvalidArgumentError(f"PathOptions.{name} must be positive, got {v!r}")
@@ -76,6 +87,8 @@ class PathOptions:
                 raise InvalidArgumentError(f"PathOptions.{name} must be a non-negative integer, got {v!r}")
         if not (isinstance(self.margin, (int, float)) and 0 <= self.margin < np.inf):
             raise InvalidArgumentError(f"PathOptions.margin must be >= 0 [m], got {self.margin!r}")
+        if not (isinstance(self.line_bias, (int, float)) and 0 <= self.line_bias <= 1):
+            raise InvalidArgumentError(f"PathOptions.line_bias must be a share from 0 to 1, got {self.line_bias!r}")
 
 
 @dataclass(frozen=True)
@@ -269,7 +282,7 @@ def find_clear_path(
     # budget is spent.
     while iterations < options.max_iterations and time.perf_counter() <= deadline:
         left = options.max_iterations - iterations
-        path, used = _grow(q0, q1, near_ok, between, rng, lo, hi, options.step, deadline, left)
+        path, used = _grow(q0, q1, near_ok, between, rng, lo, hi, options, deadline, left)
         iterations += used
         if path is None:
             break
@@ -293,7 +306,7 @@ def _grow(
     rng: np.random.Generator,
     lo: np.ndarray,
     hi: np.ndarray,
-    step: float,
+    options: PathOptions,
     deadline: float,
     budget: int,
 ) -> tuple[list[np.ndarray] | None, int]:
@@ -302,18 +315,24 @@ def _grow(
     Nodes are tested as they are added; the points between them only once the trees meet, on
     the edges of the path through them (most edges the trees grow never join a path). A
     blocked tree edge cuts its node off (with what grew from it) and the trees grow on.
-    `edge_ok(a, b)` tests the points strictly between `a` and `b`.
+    `edge_ok(a, b)` tests the points strictly between `a` and `b`. A share
+    :attr:`PathOptions.line_bias` of the targets is drawn near the segment from `q0` to `q1`.
 
     Returns:
         The path, start first, or None; and the extensions used.
     """
     trees = (_Tree(q0), _Tree(q1))
+    step, bias = options.step, options.line_bias
     span = hi - lo  # lo + span * rng.random(n) draws as rng.uniform(lo, hi), without its argument checks
+    spread, line = options.line_spread * span, q1 - q0
     for it in range(1, budget + 1):
         if time.perf_counter() > deadline:
             return None, it
         a, b = trees if it % 2 else trees[::-1]
-        target = lo + span * rng.random(len(lo))
+        if bias and rng.random() < bias:
+            target = np.clip(q0 + rng.random() * line + spread * rng.standard_normal(len(lo)), lo, hi)
+        else:
+            target = lo + span * rng.random(len(lo))
         new = _extend(a, target, step, node_ok)
         if new is None:
             continue
