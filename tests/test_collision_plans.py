@@ -258,7 +258,7 @@ def test_a_route_is_passed_smoothly_and_stays_clear():
 
 def test_an_uncertified_route_is_certified_where_the_timed_motion_comes_too_close(monkeypatch):
     """plan_motion routes with edges checked at points only; where the timed motion along such a
-    route is reported too close, the same search is asked again with its edges certified, the
+    route is reported too close, the same search's result is certified (certify_path), the
     edge is halved (passed through its midpoint too), and the plan that comes out keeps the
     clearance (re-checked at 1 kHz)."""
     import planner.app.motion_plan as mp
@@ -270,11 +270,15 @@ def test_an_uncertified_route_is_certified_where_the_timed_motion_comes_too_clos
     request = {**BLOCK_PLAN, "avoidance": {"seed": 1}}
     plain = plan_with_scene(robot, request)
     asked = []
-    real_search, real_check = mp.find_clear_path, mp.check_trajectory
+    real_search, real_certify, real_check = mp.find_clear_path, mp.certify_path, mp.check_trajectory
 
     def search(*args, **kwargs):
         asked.append(kwargs.get("certify", True))
         return real_search(*args, **kwargs)
+
+    def certify(*args, **kwargs):
+        asked.append("certify the same search's path")
+        return real_certify(*args, **kwargs)
 
     def check(checker, trajectory, **kwargs):
         result = real_check(checker, trajectory, **kwargs)
@@ -285,9 +289,11 @@ def test_an_uncertified_route_is_certified_where_the_timed_motion_comes_too_clos
         return result
 
     monkeypatch.setattr(mp, "find_clear_path", search)
+    monkeypatch.setattr(mp, "certify_path", certify)
     monkeypatch.setattr(mp, "check_trajectory", check)
     plan = plan_with_scene(robot, request)
-    assert asked[:2] == [False, True]
+    # The trees are not grown again: the search's result is certified.
+    assert asked == [False, "certify the same search's path"]
     assert plan.routes == (0,) and plan.collision_free
     independent_check(robot, plan, 0.005)
     # The edge the motion was reported to stray from is halved: its midpoint is a node now.

@@ -18,7 +18,7 @@ import planner
 from planner.app.motion_plan import plan_motion
 from planner.app.plan_file import parse_motion_request
 from planner.collision import CollisionChecker
-from planner.collision.rrt import PathOptions, PathStatus, find_clear_path
+from planner.collision.rrt import PathOptions, PathStatus, certify_path, find_clear_path
 
 _FLOAT = {"allow_nan": False, "allow_infinity": False, "allow_subnormal": False}
 #: Largest joint change between the dense re-check's samples of an edge [rad].
@@ -87,6 +87,23 @@ def test_a_path_search_is_repeatable_and_its_path_clear_or_it_says_why(data, see
     else:
         assert first.status is PathStatus.NOT_FOUND and min(ends) >= clearance
         assert "extensions" in first.reason or " s" in first.reason
+
+
+@given(data=st.data(), seed=st.integers(0, 2**16))
+@property_settings(25)
+def test_certifying_a_search_without_certificates_gives_the_search_with_them(data, seed):
+    # plan_motion searches without certificates and, where the timed motion along the route
+    # fails its check, certifies that result instead of growing the same trees again.
+    robot = bundled_robot("al5c")
+    qa, qb = data.draw(configurations(robot)), data.draw(configurations(robot))
+    checker = CollisionChecker(robot, _scene(data.draw(boxes(robot, qa, qb))))
+    options = PathOptions(seed=seed, time_budget=10.0, max_iterations=600)
+    lazy = find_clear_path(checker, qa, qb, options=options, try_straight=False, certify=False)
+    certified = certify_path(checker, lazy, options=options)
+    direct = find_clear_path(checker, qa, qb, options=options, try_straight=False)
+    event(f"{direct.status.value}, {'same' if np.array_equal(lazy.path, direct.path) else 'other'} path")
+    assert certified.status is direct.status and np.array_equal(certified.path, direct.path)
+    assert certified.iterations == direct.iterations
 
 
 @given(data=st.data(), seed=st.integers(0, 2**16))

@@ -21,7 +21,7 @@ from planner.app.outputs import write_plan_files
 from planner.app.plan_file import MotionRequest
 from planner.collision.checker import CollisionChecker, shared_checker
 from planner.collision.continuous import MotionClearance, check_segment, check_trajectory, segment_is_clear
-from planner.collision.rrt import find_clear_path, path_margin, segment_looks_clear
+from planner.collision.rrt import PathResult, certify_path, find_clear_path, path_margin, segment_looks_clear
 from planner.collision.scene import Scene
 from planner.core.arrays import read_only
 from planner.core.files import input_error, parse_number
@@ -248,37 +248,43 @@ def _route(
     allow: Sequence[tuple[str, ...]],
     *,
     certify: bool = True,
-) -> tuple[list[np.ndarray], bool]:
-    """The nodes of a clear way into waypoint k, and whether its edges are certified.
+    found: PathResult | None = None,
+) -> tuple[list[np.ndarray], bool, PathResult | None]:
+    """The nodes of a clear way into waypoint k, whether its edges are certified, and the search's result.
 
-    Its straight joint segment if that is clear (with the path search's margin, certified),
-    else a route found around the obstacles, its edges certified only if `certify` (else
-    checked at points: the timed motion along them is certified by plan_motion's check).
+    Its straight joint segment if that is clear (with the path search's margin, certified;
+    then no search result), else a route found around the obstacles, its edges certified only
+    if `certify` (else checked at points: the timed motion along them is certified by
+    plan_motion's check). `found`: this route's search without certificates, made before; with
+    `certify` its result is certified (:func:`certify_path`) instead of searching again.
 
     Raises:
         PlanningError: If no clear route exists (with the search's reason).
     """
     names = tuple(set(allow[k - 1]) | set(allow[k]))
+    options = request.path_options
+    if found is not None and certify:
+        result = certify_path(checker, found, options=options, allow=names)
+        return list(result.path), True, result
     mask = checker.pair_mask(names)
     end = min(checker.distance_at(q_user[k - 1], mask).distance, checker.distance_at(q_user[k], mask).distance)
-    margin = path_margin(checker.scene.clearance, end, request.path_options.margin)
+    margin = path_margin(checker.scene.clearance, end, options.margin)
     if segment_is_clear(checker, q_user[k - 1], q_user[k], allow=names, margin=margin):
-        return [q_user[k - 1], q_user[k]], True
+        return [q_user[k - 1], q_user[k]], True, None
     # The search would test the straight segment again with the same margin: it is blocked.
-    options = request.path_options
     result = find_clear_path(
         checker, q_user[k - 1], q_user[k], options=options, allow=names, try_straight=False, certify=certify
     )
     if result.found and not certify and len(result.path) == 2:
         # A straight edge is followed along its line at once: that needs its certificate.
-        result = find_clear_path(checker, q_user[k - 1], q_user[k], options=options, allow=names, try_straight=False)
+        result = certify_path(checker, result, options=options, allow=names)
         certify = True
     if not result.found:
         raise PlanningError(
             f"{request.source}: no collision-free way from {labels[k - 1]} to {labels[k]}: {result.reason} "
             f"({result.status.value}); try another avoidance seed or time_budget, or move the obstacle"
         )
-    return list(result.path), certify
+    return list(result.path), certify, result
 
 
 def _calibrations(robot: Robot, request: MotionRequest) -> tuple[ServoCalibration, ...] | None:
@@ -472,9 +478,13 @@ def plan_motion(
     # along them pass the continuous check as they are; where one does not, the route is
     # asked for again with its edges certified before an edge is followed along its line.
     unproven: set[int] = set()
+    searches: dict[int, PathResult | None] = {}  # per route, its search's result (None: straight)
 
     def route(k: int, certify: bool = False) -> None:
-        routes[k], proven = _route(checker, request, q_user, k, labels, allow, certify=certify)
+        found = searches.get(k) if certify else None
+        routes[k], proven, searches[k] = _route(
+            checker, request, q_user, k, labels, allow, certify=certify, found=found
+        )
         if not proven:
             unproven.add(k)
         elif len(routes[k]) == 2:

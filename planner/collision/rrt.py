@@ -14,8 +14,10 @@ farthest one it sees, all decided by the same cheap checks as the trees' edges (
 plus :attr:`PathOptions.margin`, the distance the certificate then asks for); then every edge
 is certified with :func:`~planner.collision.continuous.check_segment`. If one fails, the trees'
 own path is certified and shortened by certified edges only, and if that fails too new trees
-are grown. It draws from its own generator seeded by :attr:`PathOptions.seed`: the same seed
-gives the same path; no global state is touched.
+are grown. A caller that certifies the motion along the path itself asks without
+certificates first, and where that fails has :func:`certify_path` certify the same search's
+result (without growing its trees again). It draws from its own generator seeded by
+:attr:`PathOptions.seed`: the same seed gives the same path; no global state is touched.
 """
 
 from __future__ import annotations
@@ -23,7 +25,7 @@ from __future__ import annotations
 import enum
 import time
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -32,7 +34,15 @@ from planner.collision.continuous import check_segment, segment_is_clear, sweep_
 from planner.core.arrays import read_only
 from planner.exceptions import InvalidArgumentError
 
-__all__ = ["PathOptions", "PathResult", "PathStatus", "find_clear_path", "path_margin", "segment_looks_clear"]
+__all__ = [
+    "PathOptions",
+    "PathResult",
+    "PathStatus",
+    "certify_path",
+    "find_clear_path",
+    "path_margin",
+    "segment_looks_clear",
+]
 
 
 class PathStatus(str, enum.Enum):
@@ -100,12 +110,15 @@ class PathResult:
         path: The configurations, start and goal included, shape (n, dof); empty unless found.
         reason: Why no path was found (empty when found).
         iterations: Tree extensions made.
+        tree_path: The trees' own path that `path` was shortened from, shape (m, dof); empty
+            when no trees were grown (the straight segment, or no path).
     """
 
     status: PathStatus
     path: np.ndarray
     reason: str
     iterations: int
+    tree_path: np.ndarray = field(default_factory=lambda: read_only(np.zeros((0, 0))))
 
     @property
     def found(self) -> bool:
@@ -243,29 +256,10 @@ def find_clear_path(
     def clear(a: np.ndarray, b: np.ndarray) -> bool:
         return segment_is_clear(checker, a, b, allow=allow, margin=margin)
 
-    def certify(a: np.ndarray, b: np.ndarray) -> bool:
-        """The certificate of an edge `quick` has passed (its sweep would repeat quick's tests)."""
-        return check_segment(checker, a, b, allow=allow, clearance=need).clear
-
-    near = checker.closer_than(need, allow)
+    near, quick, between, certify = _edge_tests(checker, need, allow, options.resolution)
 
     def near_ok(q: np.ndarray) -> bool:
         return not near(q)
-
-    def quick(a: np.ndarray, b: np.ndarray) -> bool:
-        """Proximity checks every `resolution` along the edge, end first, start last: not a certificate.
-
-        The start is tested too: a shortcut starts at a point along the path, not at a tested node.
-        """
-        d = b - a
-        n = max(1, int(np.ceil(float(np.abs(d).max()) / options.resolution)))
-        return not any(map(near, a + sweep_order(n)[:, None] * d)) and not near(a)
-
-    def between(a: np.ndarray, b: np.ndarray) -> bool:
-        """`quick` without the end (a tree's node, tested when it was added)."""
-        d = b - a
-        n = max(1, int(np.ceil(float(np.abs(d).max()) / options.resolution)))
-        return not any(map(near, a + sweep_order(n)[1:, None] * d))
 
     if try_straight and clear(q0, q1):
         return PathResult(PathStatus.FOUND, read_only(np.array([q0, q1])), "", 0)
@@ -288,14 +282,82 @@ def find_clear_path(
             break
         path = _merge_collinear(path)
         short = _shortcut(path, quick, between, rng, options.shortcuts)
+        tree_path = read_only(np.array(path))
         if not certify_edges or all(certify(a, b) for a, b in zip(short, short[1:])):
-            return PathResult(PathStatus.FOUND, read_only(np.array(short)), "", iterations)
+            return PathResult(PathStatus.FOUND, read_only(np.array(short)), "", iterations, tree_path)
         if all(certify(a, b) for a, b in zip(path, path[1:])):
             path = _prune(path, lambda a, b: between(a, b) and certify(a, b))
-            return PathResult(PathStatus.FOUND, read_only(np.array(path)), "", iterations)
+            return PathResult(PathStatus.FOUND, read_only(np.array(path)), "", iterations, tree_path)
     if time.perf_counter() > deadline:
         return PathResult(PathStatus.NOT_FOUND, empty, f"no clear path within {options.time_budget:g} s", iterations)
     return PathResult(PathStatus.NOT_FOUND, empty, f"no clear path in {options.max_iterations} extensions", iterations)
+
+
+def _edge_tests(checker: CollisionChecker, need: float, allow: Sequence[str], resolution: float) -> tuple:
+    """The search's tests at distance `need` [m]: a configuration's, two cheap ones of edges, an edge's certificate."""
+    near = checker.closer_than(need, allow)
+
+    def quick(a: np.ndarray, b: np.ndarray) -> bool:
+        """Proximity checks every `resolution` along the edge, end first, start last: not a certificate.
+
+        The start is tested too: a shortcut starts at a point along the path, not at a tested node.
+        """
+        d = b - a
+        n = max(1, int(np.ceil(float(np.abs(d).max()) / resolution)))
+        return not any(map(near, a + sweep_order(n)[:, None] * d)) and not near(a)
+
+    def between(a: np.ndarray, b: np.ndarray) -> bool:
+        """`quick` without the end (a tree's node, tested when it was added)."""
+        d = b - a
+        n = max(1, int(np.ceil(float(np.abs(d).max()) / resolution)))
+        return not any(map(near, a + sweep_order(n)[1:, None] * d))
+
+    def certify(a: np.ndarray, b: np.ndarray) -> bool:
+        """The certificate of an edge `quick` has passed (its sweep would repeat quick's tests)."""
+        return check_segment(checker, a, b, allow=allow, clearance=need).clear
+
+    return near, quick, between, certify
+
+
+def certify_path(
+    checker: CollisionChecker,
+    found: PathResult,
+    *,
+    options: PathOptions | None = None,
+    allow: Sequence[str] = (),
+) -> PathResult:
+    """What :func:`find_clear_path` returns with certificates, from its result without them.
+
+    `found` is the result of ``find_clear_path(checker, a, b, options=options, allow=allow,
+    certify=False)``: the same search certifies the shortened path's edges, else the trees'
+    path's edges (then shortened by certified edges only), else grows new trees. The first two
+    are done here from `found` (its trees are not grown again); only the last searches anew.
+
+    Args:
+        checker: The collision checker `found` was searched with.
+        found: The search's result without certificates.
+        options: The same :class:`PathOptions`; None uses the defaults.
+        allow: The same scene names.
+
+    Returns:
+        The :class:`PathResult` the search with certificates gives (`found` itself where no
+        trees were grown: the straight segment, certified, or no path).
+    """
+    if not found.found or len(found.tree_path) == 0:
+        return found
+    options = options or PathOptions()
+    q0, q1 = np.array(found.path[0]), np.array(found.path[-1])
+    mask = checker.pair_mask(allow)
+    end = min(checker.distance_at(q0, mask).distance, checker.distance_at(q1, mask).distance)
+    need = checker.scene.clearance + path_margin(checker.scene.clearance, end, options.margin)
+    _, _, between, certify = _edge_tests(checker, need, allow, options.resolution)
+    short, path = list(found.path), list(found.tree_path)
+    if all(certify(a, b) for a, b in zip(short, short[1:])):
+        return found
+    if all(certify(a, b) for a, b in zip(path, path[1:])):
+        path = _prune(path, lambda a, b: between(a, b) and certify(a, b))
+        return PathResult(PathStatus.FOUND, read_only(np.array(path)), "", found.iterations, found.tree_path)
+    return find_clear_path(checker, q0, q1, options=options, allow=allow, try_straight=False)
 
 
 def _grow(
@@ -417,7 +479,7 @@ def _prune(path: list[np.ndarray], edge_ok) -> list[np.ndarray]:
 
 
 #: Least share of its stretch along the path a shortcut must save to be tried.
-_GAIN = 0.01
+_GAIN = 0.05
 
 
 def _shortcut(path: list[np.ndarray], edge_ok, inner_ok, rng: np.random.Generator, attempts: int) -> list[np.ndarray]:
