@@ -168,12 +168,13 @@ class _Tree:
                 self.alive[i] = False
                 self._array[i], self._squares[i] = 0.0, np.inf  # never the nearest again
 
-    def branch(self, k: int) -> list[np.ndarray]:
+    def chain(self, k: int) -> list[int]:
+        """The nodes from the root to node `k` (indices)."""
         out = []
         while k >= 0:
-            out.append(self.nodes[k])
+            out.append(k)
             k = self.parent[k]
-        return out
+        return out[::-1]
 
 
 def segment_looks_clear(
@@ -276,12 +277,12 @@ def find_clear_path(
     # budget is spent.
     while iterations < options.max_iterations and time.perf_counter() <= deadline:
         left = options.max_iterations - iterations
-        path, used = _grow(q0, q1, near_ok, between, rng, lo, hi, options, deadline, left)
+        found, used = _grow(q0, q1, near_ok, between, rng, lo, hi, options, deadline, left)
         iterations += used
-        if path is None:
+        if found is None:
             break
-        path = _merge_collinear(path)
-        short = _shortcut(path, quick, between, rng, options.shortcuts)
+        path = _merge_collinear(found[0])
+        short = _shortcut(found[1], quick, between, rng, options.shortcuts)
         tree_path = read_only(np.array(path))
         if not certify_edges or all(certify(a, b) for a, b in zip(short, short[1:])):
             return PathResult(PathStatus.FOUND, read_only(np.array(short)), "", iterations, tree_path)
@@ -371,7 +372,7 @@ def _grow(
     options: PathOptions,
     deadline: float,
     budget: int,
-) -> tuple[list[np.ndarray] | None, int]:
+) -> tuple[tuple[list[np.ndarray], list[np.ndarray]] | None, int]:
     """RRT-Connect from both ends, lazily: `node_ok` decides new nodes, `edge_ok` the edges of a path found.
 
     Nodes are tested as they are added; the points between them only once the trees meet, on
@@ -381,7 +382,8 @@ def _grow(
     :attr:`PathOptions.line_bias` of the targets is drawn near the segment from `q0` to `q1`.
 
     Returns:
-        The path, start first, or None; and the extensions used.
+        The trees' path and its greedy prune (:func:`_settle`), start first, or None; and the
+        extensions used.
     """
     trees = (_Tree(q0), _Tree(q1))
     step, bias = options.step, options.line_bias
@@ -406,8 +408,9 @@ def _grow(
             delta = q_new - q_near
             far = float(np.abs(delta).max())
             if far <= step:
-                if _edges_ok(a, new, edge_ok) and _edges_ok(b, k, edge_ok) and edge_ok(q_near, q_new):
-                    return _join(a, new, b, k, trees[0] is a), it
+                found = _settle(a, new, b, k, trees[0] is a, edge_ok)
+                if found is not None:
+                    return found, it
                 break
             q_next = q_near + delta * (step / far)
             if not node_ok(q_next):
@@ -416,18 +419,45 @@ def _grow(
     return None, budget
 
 
-def _edges_ok(tree: _Tree, k: int, edge_ok) -> bool:
-    """Test the untested edges from the root to node `k`, root first; cut the tree at a blocked one."""
-    chain = []
-    while k > 0 and not tree.tested[k]:
-        chain.append(k)
-        k = tree.parent[k]
-    for i in reversed(chain):
-        if not edge_ok(tree.nodes[tree.parent[i]], tree.nodes[i]):
-            tree.cut(i)
-            return False
-        tree.tested[i] = True
-    return True
+def _settle(
+    a: _Tree, ka: int, b: _Tree, kb: int, a_is_start: bool, edge_ok
+) -> tuple[list[np.ndarray], list[np.ndarray]] | None:
+    """The path where the trees meet (`a`'s node `ka` beside `b`'s `kb`) and its greedy prune.
+
+    The prune (:func:`_prune`) joins each node to the farthest later one `edge_ok` passes; a
+    tree edge is tested only where no longer edge passes over it (then its verdict is kept in
+    the tree, and a blocked one is cut off with what grew from it), as is the edge between the
+    trees.
+
+    Returns:
+        The path and its prune, start first; None where an edge it needs is blocked.
+    """
+    chain_a, chain_b = a.chain(ka), b.chain(kb)[::-1]  # root to ka; kb to root
+    nodes = [a.nodes[i] for i in chain_a] + [b.nodes[i] for i in chain_b]
+    # Per edge (node e to e + 1): its tree and child node, or None between the trees.
+    edges: list[tuple[_Tree, int] | None] = [(a, i) for i in chain_a[1:]] + [None] + [(b, i) for i in chain_b[:-1]]
+    if not a_is_start:
+        nodes, edges = nodes[::-1], edges[::-1]
+    out, i, n = [nodes[0]], 0, len(nodes)
+    while i < n - 1:
+        j = n - 1
+        while j > i + 1 and not edge_ok(nodes[i], nodes[j]):
+            j -= 1
+        if j == i + 1:
+            edge = edges[i]
+            if edge is None:
+                if not edge_ok(nodes[i], nodes[j]):
+                    return None
+            else:
+                tree, child = edge
+                if not tree.tested[child]:
+                    if not edge_ok(nodes[i], nodes[j]):
+                        tree.cut(child)
+                        return None
+                    tree.tested[child] = True
+        out.append(nodes[j])
+        i = j
+    return nodes, out
 
 
 def _extend(tree: _Tree, target: np.ndarray, step: float, node_ok) -> int | None:
@@ -442,12 +472,6 @@ def _extend(tree: _Tree, target: np.ndarray, step: float, node_ok) -> int | None
     if not node_ok(q_new):
         return None
     return tree.add(q_new, k)
-
-
-def _join(a: _Tree, ka: int, b: _Tree, kb: int, a_is_start: bool) -> list[np.ndarray]:
-    """The path through tree `a` to node `ka`, then `b`'s node `kb` back to its root, start first."""
-    path = a.branch(ka)[::-1] + b.branch(kb)
-    return path if a_is_start else path[::-1]
 
 
 def _merge_collinear(path: list[np.ndarray]) -> list[np.ndarray]:
@@ -483,14 +507,14 @@ _GAIN = 0.05
 
 
 def _shortcut(path: list[np.ndarray], edge_ok, inner_ok, rng: np.random.Generator, attempts: int) -> list[np.ndarray]:
-    """Shorten the path: the greedy prune, straight edges between random points along it, the prune again.
+    """Shorten a pruned path: straight edges between random points along it, then the greedy prune.
 
     The points are drawn by length along the path (not only its nodes), so a corner is cut
     wherever the straight edge past it is clear (`edge_ok`; `inner_ok` where its end is a
     node, as in the prune). An edge that would save less than :data:`_GAIN` of the stretch it
     replaces is not tried.
     """
-    path = _prune(list(path), inner_ok)
+    path = list(path)
     cum = None  # the length along the path at each node, until the path changes
     for _ in range(attempts):
         if len(path) <= 2:
