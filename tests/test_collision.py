@@ -459,6 +459,32 @@ def test_a_blocked_tree_edge_cuts_its_node_and_what_grew_from_it():
     assert a.nearest(np.array([1.0, 2.0])) == 0
 
 
+def test_an_edge_is_tested_first_where_the_last_one_was_blocked():
+    # The same points and verdicts as the bisection sweep; only the order: the point nearest the
+    # configuration that blocked the last edge comes first.
+    from planner.collision.rrt import _edge_tests
+
+    tested = []
+
+    def wall(q):  # too close where 0.45 <= x <= 0.55
+        tested.append(tuple(q))
+        return 0.45 <= q[0] <= 0.55
+
+    class Checker:
+        def closer_than(self, distance, allow):
+            return wall
+
+    _, quick, between, _ = _edge_tests(Checker(), 0.0, (), 0.1)
+    assert not between(np.array([0.0, 0.0]), np.array([1.0, 0.0]))
+    assert tested == [(0.5, 0.0)]  # bisection: the middle first (the ends are nodes)
+    tested.clear()
+    assert not quick(np.array([0.0, 1.0]), np.array([1.0, 1.0]))
+    assert tested == [(0.5, 1.0)]  # nearest (0.5, 0): before the end, which bisection tests first
+    tested.clear()
+    assert quick(np.array([0.0, 2.0]), np.array([0.3, 2.0]))  # clear: its 3 points and its start
+    assert len(tested) == 5 and len(set(tested)) == 4  # and first the point nearest the blocker
+
+
 def test_the_path_search_can_skip_its_straight_test(monkeypatch):
     # plan_motion's route has just found the straight segment blocked (same margin): the
     # search grows its trees at once; on a clear segment it then finds a certified path too.

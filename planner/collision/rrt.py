@@ -294,9 +294,35 @@ def find_clear_path(
     return PathResult(PathStatus.NOT_FOUND, empty, f"no clear path in {options.max_iterations} extensions", iterations)
 
 
+#: How many configurations found blocked the edge tests remember (see :func:`_edge_tests`).
+_BLOCKERS = 1
+
+
 def _edge_tests(checker: CollisionChecker, need: float, allow: Sequence[str], resolution: float) -> tuple:
     """The search's tests at distance `need` [m]: a configuration's, two cheap ones of edges, an edge's certificate."""
     near = checker.closer_than(need, allow)
+    # Where an edge was last found blocked: the point of a new edge nearest it
+    # is tested first (an obstacle that blocked one edge likely blocks the next one tried
+    # there), then the rest in bisection order. The same points, the same verdicts.
+    blockers: list[np.ndarray] = []
+
+    def blocked(a: np.ndarray, d: np.ndarray, n: int, first: int, last: int, order: np.ndarray) -> bool:
+        """Whether a point ``a + k / n d`` (k from `first` to `last`; `order` their sweep) is too close."""
+        if blockers and first <= last:
+            dd = float(d @ d)
+            ks = np.rint((np.array(blockers) - a) @ d * (n / dd)) if dd > 0.0 else np.zeros(1)
+            for k in dict.fromkeys(np.clip(ks, first, last).tolist()):
+                q = a + (k / n) * d
+                if near(q):
+                    blockers.insert(0, q)
+                    del blockers[_BLOCKERS:]
+                    return True
+        for q in a + order[:, None] * d:
+            if near(q):
+                blockers.insert(0, q)
+                del blockers[_BLOCKERS:]
+                return True
+        return False
 
     def quick(a: np.ndarray, b: np.ndarray) -> bool:
         """Proximity checks every `resolution` along the edge, end first, start last: not a certificate.
@@ -305,13 +331,13 @@ def _edge_tests(checker: CollisionChecker, need: float, allow: Sequence[str], re
         """
         d = b - a
         n = max(1, int(np.ceil(float(np.abs(d).max()) / resolution)))
-        return not any(map(near, a + sweep_order(n)[:, None] * d)) and not near(a)
+        return not blocked(a, d, n, 0, n, sweep_order(n)) and not near(a)
 
     def between(a: np.ndarray, b: np.ndarray) -> bool:
         """`quick` without the end (a tree's node, tested when it was added)."""
         d = b - a
         n = max(1, int(np.ceil(float(np.abs(d).max()) / resolution)))
-        return not any(map(near, a + sweep_order(n)[1:, None] * d))
+        return not blocked(a, d, n, 1, n - 1, sweep_order(n)[1:])
 
     def certify(a: np.ndarray, b: np.ndarray) -> bool:
         """The certificate of an edge `quick` has passed (its sweep would repeat quick's tests)."""
