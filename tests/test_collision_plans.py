@@ -302,6 +302,37 @@ def test_an_uncertified_route_is_certified_where_the_timed_motion_comes_too_clos
     assert len(nodes) == len(plain.trajectory.waypoints) + 1
 
 
+def test_a_move_straying_beside_its_clear_straight_segment_passes_its_midpoint(monkeypatch):
+    """Where the timed motion of a free move is reported too close but its straight joint segment
+    is clear, the move passes the segment's midpoint too (not every sample of the line, each
+    with its own state, which times and checks far more waypoints); the plan keeps the clearance."""
+    import planner.app.motion_plan as mp
+    from planner.collision.continuous import MotionClearance
+
+    robot = get_robot("al5c")
+    scene = {**BLOCK_PLAN["scene"], "obstacles": [{"name": "block", "box": [60, 60, 200], "position": [-230, 0, 100]}]}
+    request = {**BLOCK_PLAN, "scene": scene}
+    plain = plan_with_scene(robot, request)
+    assert not plain.routes and len(plain.trajectory.waypoints) == 2
+    real_check = mp.check_trajectory
+    calls = []
+
+    def check(checker, trajectory, **kwargs):
+        result = real_check(checker, trajectory, **kwargs)
+        calls.append(result.clear)
+        if len(calls) == 1:
+            middle = trajectory.duration / 2
+            return MotionClearance(False, result.closest, middle, middle, result.closest, result.checks)
+        return result
+
+    monkeypatch.setattr(mp, "check_trajectory", check)
+    plan = plan_with_scene(robot, request)
+    assert plan.routes == (0,) and plan.collision_free
+    nodes = plan.trajectory.waypoints
+    assert len(nodes) == 3 and np.allclose(nodes[1], (nodes[0] + nodes[2]) / 2.0)
+    independent_check(robot, plan, 0.005)
+
+
 def test_the_path_search_without_certificates_keeps_its_seed_and_checks_its_points():
     from planner.collision.continuous import check_segment
     from planner.collision.rrt import PathOptions, find_clear_path, segment_looks_clear

@@ -488,7 +488,12 @@ def plan_motion(
         if not proven:
             unproven.add(k)
         elif len(routes[k]) == 2:
-            dense.add((k, 0))
+            # The straight segment, certified clear: its midpoint is passed too (the timed motion
+            # keeps closer to it than a move between its ends), and a half the motion strays from
+            # is followed along its line.
+            a, b = routes[k]
+            routes[k] = [a, (a + b) / 2.0, b]
+            halves.update({(k, 0), (k, 1)})
 
     # Route edges made by halving one the timed motion strayed from: followed along their line
     # if it strays from them too.
@@ -668,7 +673,7 @@ def plan_motion(
                 else:
                     for key in [key for key in edge_lines if key[0] == k]:
                         del edge_lines[key]
-                    dense -= {(k, e) for e in range(len(before))} - ({(k, 0)} if len(routes[k]) == 2 else set())
+                    dense -= {(k, e) for e in range(len(before))}
             elif k in routes and edge is not None and (k, edge) not in dense:
                 follow(k, edge)
             elif k not in routes and paths[k] is None:
