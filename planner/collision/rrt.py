@@ -294,33 +294,26 @@ def find_clear_path(
     return PathResult(PathStatus.NOT_FOUND, empty, f"no clear path in {options.max_iterations} extensions", iterations)
 
 
-#: How many configurations found blocked the edge tests remember (see :func:`_edge_tests`).
-_BLOCKERS = 1
-
-
 def _edge_tests(checker: CollisionChecker, need: float, allow: Sequence[str], resolution: float) -> tuple:
     """The search's tests at distance `need` [m]: a configuration's, two cheap ones of edges, an edge's certificate."""
     near = checker.closer_than(need, allow)
-    # Where an edge was last found blocked: the point of a new edge nearest it
-    # is tested first (an obstacle that blocked one edge likely blocks the next one tried
-    # there), then the rest in bisection order. The same points, the same verdicts.
-    blockers: list[np.ndarray] = []
+    # Where an edge was last found blocked: the point of a new edge nearest it is tested first
+    # (an obstacle that blocked one edge likely blocks the next one tried there), then the rest
+    # in bisection order. The same points, the same verdicts.
+    blocker: list[np.ndarray] = []
 
     def blocked(a: np.ndarray, d: np.ndarray, n: int, first: int, last: int, order: np.ndarray) -> bool:
         """Whether a point ``a + k / n d`` (k from `first` to `last`; `order` their sweep) is too close."""
-        if blockers and first <= last:
+        if blocker and first <= last:
             dd = float(d @ d)
-            ks = np.rint((np.array(blockers) - a) @ d * (n / dd)) if dd > 0.0 else np.zeros(1)
-            for k in dict.fromkeys(np.clip(ks, first, last).tolist()):
-                q = a + (k / n) * d
-                if near(q):
-                    blockers.insert(0, q)
-                    del blockers[_BLOCKERS:]
-                    return True
+            k = min(max(round(float((blocker[0] - a) @ d) * n / dd), first), last) if dd > 0.0 else first
+            q = a + (k / n) * d
+            if near(q):
+                blocker[:] = [q]
+                return True
         for q in a + order[:, None] * d:
             if near(q):
-                blockers.insert(0, q)
-                del blockers[_BLOCKERS:]
+                blocker[:] = [q]
                 return True
         return False
 
