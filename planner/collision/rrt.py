@@ -22,7 +22,10 @@ result (without growing its trees again). It draws from its own generator seeded
 
 from __future__ import annotations
 
+import bisect
 import enum
+import itertools
+import math
 import time
 from collections.abc import Sequence
 from dataclasses import dataclass, field
@@ -534,21 +537,20 @@ def _shortcut(path: list[np.ndarray], edge_ok, inner_ok, rng: np.random.Generato
     replaces is not tried.
     """
     path = list(path)
-    cum = None  # the length along the path at each node, until the path changes
+    cum: list[float] | None = None  # the length along the path at each node, until the path changes
     for _ in range(attempts):
         if len(path) <= 2:
             break
         if cum is None:
-            cum = np.concatenate([[0.0], np.cumsum([float(np.linalg.norm(b - a)) for a, b in zip(path, path[1:])])])
-        x, y = np.sort(rng.uniform(0.0, cum[-1], size=2))
-        i = int(np.searchsorted(cum, x, side="right")) - 1
-        j = int(np.searchsorted(cum, y, side="right")) - 1
-        i, j = min(i, len(path) - 2), min(j, len(path) - 2)
+            cum = [0.0, *itertools.accumulate(math.sqrt(float((b - a) @ (b - a))) for a, b in zip(path, path[1:]))]
+        x, y = sorted(rng.uniform(0.0, cum[-1], size=2).tolist())
+        last = len(path) - 2
+        i, j = min(bisect.bisect_right(cum, x) - 1, last), min(bisect.bisect_right(cum, y) - 1, last)
         if i == j:
             continue
         a = path[i] + (x - cum[i]) / (cum[i + 1] - cum[i]) * (path[i + 1] - path[i])
         b = path[j] + (y - cum[j]) / (cum[j + 1] - cum[j]) * (path[j + 1] - path[j])
-        if (y - x) - float(np.linalg.norm(b - a)) <= _GAIN * (y - x):
+        if (y - x) - math.sqrt(float((b - a) @ (b - a))) <= _GAIN * (y - x):
             continue  # nearly straight there already: not worth the edge's checks
         if edge_ok(a, b):
             path = path[: i + 1] + [a, b] + path[j + 1 :]
