@@ -2,22 +2,25 @@
 
 :func:`find_clear_path` grows two trees (Kuffner and LaValle's RRT-Connect) from the start and
 the goal, lazily (Bohlin and Kavraki 2000): each new node is tested as it is added, the points
-every :attr:`PathOptions.resolution` along an edge only when the trees meet, on the path
-through them; a blocked edge cuts its node off and the trees grow on. Half of the trees'
-random targets are drawn near the straight segment from the start to the goal (the rest
-uniformly within the joint limits): an obstacle usually blocks a stretch of that segment and
-the shortest way around passes near it, where uniform targets over a wide joint range (an
-arm whose joints turn twice around) make the trees wander. The path found is
-shortened by straight edges between random points along it (not only its nodes; Geraerts and
-Overmars 2007 call these partial shortcuts) and a greedy pass that joins each node to the
-farthest one it sees, all decided by the same cheap checks as the trees' edges (the clearance
-plus :attr:`PathOptions.margin`, the distance the certificate then asks for); then every edge
-is certified with :func:`~planner.collision.continuous.check_segment`. If one fails, the trees'
-own path is certified and shortened by certified edges only, and if that fails too new trees
-are grown. A caller that certifies the motion along the path itself asks without
-certificates first, and where that fails has :func:`certify_path` certify the same search's
-result (without growing its trees again). It draws from its own generator seeded by
-:attr:`PathOptions.seed`: the same seed gives the same path; no global state is touched.
+every :attr:`PathOptions.resolution` along an edge only when the trees meet, and then only on
+the edges of the path through them that its greedy prune keeps (the pass that joins each node
+to the farthest later one it sees: a tree edge a longer edge passes over is never tested); a
+blocked edge cuts its node off and the trees grow on. Half of the trees' random targets are
+drawn near the straight segment from the start to the goal (the rest uniformly within the
+joint limits): an obstacle usually blocks a stretch of that segment and the shortest way
+around passes near it, where uniform targets over a wide joint range (an arm whose joints turn
+twice around) make the trees wander. The pruned path is shortened by straight edges between
+random points along it (not only its nodes; Geraerts and Overmars 2007 call these partial
+shortcuts) and the greedy pass again, all decided by the same cheap checks as the trees'
+edges (the clearance plus :attr:`PathOptions.margin`, the distance the certificate then asks
+for; an edge's points are tested from the one nearest where the last edge was blocked, then
+by bisection); then every edge is certified with
+:func:`~planner.collision.continuous.check_segment`. If one fails, the trees' own path is
+certified and shortened by certified edges only, and if that fails too new trees are grown. A
+caller that certifies the motion along the path itself asks without certificates first, and
+where that fails has :func:`certify_path` certify the same search's result (without growing
+its trees again). It draws from its own generator seeded by :attr:`PathOptions.seed`: the same
+seed gives the same path; no global state is touched.
 """
 
 from __future__ import annotations
