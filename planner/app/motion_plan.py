@@ -249,6 +249,7 @@ def _route(
     *,
     certify: bool = True,
     found: PathResult | None = None,
+    blocked: bool = False,
 ) -> tuple[list[np.ndarray], bool, PathResult | None]:
     """The nodes of a clear way into waypoint k, whether its edges are certified, and the search's result.
 
@@ -257,6 +258,8 @@ def _route(
     if `certify` (else checked at points: the timed motion along them is certified by
     plan_motion's check). `found`: this route's search without certificates, made before; with
     `certify` its result is certified (:func:`certify_path`) instead of searching again.
+    `blocked`: the straight segment is known blocked at the scene's clearance
+    (:func:`segment_looks_clear`), so also with the search's margin: it is not tested again.
 
     Raises:
         PlanningError: If no clear route exists (with the search's reason).
@@ -266,11 +269,12 @@ def _route(
     if found is not None and certify:
         result = certify_path(checker, found, options=options, allow=names)
         return list(result.path), True, result
-    mask = checker.pair_mask(names)
-    end = min(checker.distance_at(q_user[k - 1], mask).distance, checker.distance_at(q_user[k], mask).distance)
-    margin = path_margin(checker.scene.clearance, end, options.margin)
-    if segment_is_clear(checker, q_user[k - 1], q_user[k], allow=names, margin=margin):
-        return [q_user[k - 1], q_user[k]], True, None
+    if not blocked:
+        mask = checker.pair_mask(names)
+        end = min(checker.distance_at(q_user[k - 1], mask).distance, checker.distance_at(q_user[k], mask).distance)
+        margin = path_margin(checker.scene.clearance, end, options.margin)
+        if segment_is_clear(checker, q_user[k - 1], q_user[k], allow=names, margin=margin):
+            return [q_user[k - 1], q_user[k]], True, None
     # The search would test the straight segment again with the same margin: it is blocked.
     result = find_clear_path(
         checker, q_user[k - 1], q_user[k], options=options, allow=names, try_straight=False, certify=certify
@@ -480,10 +484,10 @@ def plan_motion(
     unproven: set[int] = set()
     searches: dict[int, PathResult | None] = {}  # per route, its search's result (None: straight)
 
-    def route(k: int, certify: bool = False) -> None:
+    def route(k: int, certify: bool = False, blocked: bool = False) -> None:
         found = searches.get(k) if certify else None
         routes[k], proven, searches[k] = _route(
-            checker, request, q_user, k, labels, allow, certify=certify, found=found
+            checker, request, q_user, k, labels, allow, certify=certify, found=found, blocked=blocked
         )
         if not proven:
             unproven.add(k)
@@ -524,7 +528,7 @@ def plan_motion(
             # A free move whose straight segment is plainly blocked is routed before timing.
             names = tuple(set(allow[k - 1]) | set(allow[k]))
             if not cartesian[k] and not segment_looks_clear(checker, q_user[k - 1], q_user[k], allow=names):
-                route(k)
+                route(k, blocked=True)
 
     timings: dict[int, Any] = {}  # line timing per LinePath (by id), kept across re-plans
 
