@@ -419,32 +419,70 @@ def test_path_around_a_block_is_clear_and_repeatable():
 
 
 def test_a_blocked_tree_edge_cuts_its_node_and_what_grew_from_it():
-    # The trees test their nodes as they grow and the edges only on a path found (lazily):
-    # a blocked edge cuts its node off, with its subtree, and is never tested twice.
-    from planner.collision.rrt import _edges_ok, _Tree
+    # The trees test their nodes as they grow and the edges only on a path found (lazily), and
+    # there only the edges the path's greedy prune keeps: a tree edge a longer edge passes over
+    # is never tested. A blocked one cuts its node off, with its subtree; a tested one is kept.
+    from planner.collision.rrt import _settle, _Tree
 
-    tree = _Tree(np.zeros(2))
-    one = tree.add(np.array([1.0, 0.0]), 0)
-    two = tree.add(np.array([2.0, 0.0]), one)
-    three = tree.add(np.array([1.0, 1.0]), one)
-    four = tree.add(np.array([-1.0, 0.0]), 0)
+    a, b = _Tree(np.zeros(2)), _Tree(np.array([4.0, 0.0]))
+    one = a.add(np.array([1.0, 1.0]), 0)
+    two = a.add(np.array([2.0, 0.0]), one)
+    a.add(np.array([1.0, 2.0]), one)  # a branch off the path
+    near = b.add(np.array([3.0, 1.0]), 0)
     tested = []
 
-    def blocks_two(a, b):
-        tested.append((tuple(a), tuple(b)))
-        return not np.array_equal(b, [2.0, 0.0])
+    def clear(p, q):
+        tested.append((tuple(p), tuple(q)))
+        return True
 
-    assert not _edges_ok(tree, two, blocks_two)
-    assert tested == [((0.0, 0.0), (1.0, 0.0)), ((1.0, 0.0), (2.0, 0.0))]  # root first
-    assert tree.alive == [True, True, False, True, True]
-    assert tree.nearest(np.array([2.1, 0.0])) == one
+    nodes, pruned = _settle(a, two, b, near, True, clear)
+    assert [tuple(q) for q in nodes] == [(0, 0), (1, 1), (2, 0), (3, 1), (4, 0)]
+    assert [tuple(q) for q in pruned] == [(0, 0), (4, 0)] and tested == [((0, 0), (4, 0))]
+    assert a.tested == [True, False, False, False]  # passed over, not tested
+
+    def short_and_not_b(p, q):  # edges longer than 1.5 are blocked, and b's own edge
+        tested.append((tuple(p), tuple(q)))
+        return np.linalg.norm(q - p) < 1.5 and not {tuple(p), tuple(q)} == {(3.0, 1.0), (4.0, 0.0)}
+
     tested.clear()
-    assert _edges_ok(tree, three, blocks_two) and tested == [((1.0, 0.0), (1.0, 1.0))]
+    assert _settle(a, two, b, near, True, short_and_not_b) is None
+    assert a.tested == [True, True, True, False] and b.alive == [True, False]
+    assert b.nearest(np.array([3.0, 1.0])) == 0
     tested.clear()
-    assert _edges_ok(tree, three, blocks_two) and not tested
-    tree.cut(one)
-    assert tree.alive == [True, False, False, False, True]
-    assert tree.nearest(np.array([1.0, 1.0])) in (0, four)
+    # From the goal's side (b grew the node the other tree reached): the same path, start first.
+    c = _Tree(np.array([4.0, 0.0]))
+    c.add(np.array([3.0, 1.0]), 0)
+    assert _settle(c, 1, a, two, False, short_and_not_b) is None
+    assert tested[-1] == ((3.0, 1.0), (4.0, 0.0)) and c.alive == [True, False]
+    a.cut(one)
+    assert a.alive == [True, False, False, False]
+    assert a.nearest(np.array([1.0, 2.0])) == 0
+
+
+def test_an_edge_is_tested_first_where_the_last_one_was_blocked():
+    # The same points and verdicts as the bisection sweep; only the order: the point nearest the
+    # configuration that blocked the last edge comes first.
+    from planner.collision.rrt import _edge_tests
+
+    tested = []
+
+    def wall(q):  # too close where 0.45 <= x <= 0.55
+        tested.append(tuple(q))
+        return 0.45 <= q[0] <= 0.55
+
+    class Checker:
+        def closer_than(self, distance, allow):
+            return wall
+
+    _, quick, between, _ = _edge_tests(Checker(), 0.0, (), 0.1)
+    assert not between(np.array([0.0, 0.0]), np.array([1.0, 0.0]))
+    assert tested == [(0.5, 0.0)]  # bisection: the middle first (the ends are nodes)
+    tested.clear()
+    assert not quick(np.array([0.0, 1.0]), np.array([1.0, 1.0]))
+    assert tested == [(0.5, 1.0)]  # nearest (0.5, 0): before the end, which bisection tests first
+    tested.clear()
+    assert quick(np.array([0.0, 2.0]), np.array([0.3, 2.0]))  # clear: its 3 points and its start
+    assert len(tested) == 5 and len(set(tested)) == 4  # and first the point nearest the blocker
 
 
 def test_the_path_search_can_skip_its_straight_test(monkeypatch):

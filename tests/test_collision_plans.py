@@ -258,20 +258,27 @@ def test_a_route_is_passed_smoothly_and_stays_clear():
 
 def test_an_uncertified_route_is_certified_where_the_timed_motion_comes_too_close(monkeypatch):
     """plan_motion routes with edges checked at points only; where the timed motion along such a
-    route is reported too close, the same search is asked again with its edges certified, the
+    route is reported too close, the same search's result is certified (certify_path), the
     edge is halved (passed through its midpoint too), and the plan that comes out keeps the
     clearance (re-checked at 1 kHz)."""
     import planner.app.motion_plan as mp
     from planner.collision.continuous import MotionClearance
 
     robot = get_robot("al5c")
-    plain = plan_with_scene(robot, BLOCK_PLAN)
+    # A seed whose route keeps its shortened edges once they are certified (with others the
+    # certified search may return another route, which is then planned instead).
+    request = {**BLOCK_PLAN, "avoidance": {"seed": 1}}
+    plain = plan_with_scene(robot, request)
     asked = []
-    real_search, real_check = mp.find_clear_path, mp.check_trajectory
+    real_search, real_certify, real_check = mp.find_clear_path, mp.certify_path, mp.check_trajectory
 
     def search(*args, **kwargs):
         asked.append(kwargs.get("certify", True))
         return real_search(*args, **kwargs)
+
+    def certify(*args, **kwargs):
+        asked.append("certify the same search's path")
+        return real_certify(*args, **kwargs)
 
     def check(checker, trajectory, **kwargs):
         result = real_check(checker, trajectory, **kwargs)
@@ -282,15 +289,48 @@ def test_an_uncertified_route_is_certified_where_the_timed_motion_comes_too_clos
         return result
 
     monkeypatch.setattr(mp, "find_clear_path", search)
+    monkeypatch.setattr(mp, "certify_path", certify)
     monkeypatch.setattr(mp, "check_trajectory", check)
-    plan = plan_with_scene(robot, BLOCK_PLAN)
-    assert asked[:2] == [False, True]
+    plan = plan_with_scene(robot, request)
+    # The trees are not grown again: the search's result is certified.
+    assert asked == [False, "certify the same search's path"]
     assert plan.routes == (0,) and plan.collision_free
     independent_check(robot, plan, 0.005)
     # The edge the motion was reported to stray from is halved: its midpoint is a node now.
     nodes = plan.trajectory.waypoints
     assert any(np.allclose(nodes[i], (nodes[i - 1] + nodes[i + 1]) / 2.0) for i in range(1, len(nodes) - 1))
     assert len(nodes) == len(plain.trajectory.waypoints) + 1
+
+
+def test_a_move_straying_beside_its_clear_straight_segment_passes_its_midpoint(monkeypatch):
+    """Where the timed motion of a free move is reported too close but its straight joint segment
+    is clear, the move passes the segment's midpoint too (not every sample of the line, each
+    with its own state, which times and checks far more waypoints); the plan keeps the clearance."""
+    import planner.app.motion_plan as mp
+    from planner.collision.continuous import MotionClearance
+
+    robot = get_robot("al5c")
+    scene = {**BLOCK_PLAN["scene"], "obstacles": [{"name": "block", "box": [60, 60, 200], "position": [-230, 0, 100]}]}
+    request = {**BLOCK_PLAN, "scene": scene}
+    plain = plan_with_scene(robot, request)
+    assert not plain.routes and len(plain.trajectory.waypoints) == 2
+    real_check = mp.check_trajectory
+    calls = []
+
+    def check(checker, trajectory, **kwargs):
+        result = real_check(checker, trajectory, **kwargs)
+        calls.append(result.clear)
+        if len(calls) == 1:
+            middle = trajectory.duration / 2
+            return MotionClearance(False, result.closest, middle, middle, result.closest, result.checks)
+        return result
+
+    monkeypatch.setattr(mp, "check_trajectory", check)
+    plan = plan_with_scene(robot, request)
+    assert plan.routes == (0,) and plan.collision_free
+    nodes = plan.trajectory.waypoints
+    assert len(nodes) == 3 and np.allclose(nodes[1], (nodes[0] + nodes[2]) / 2.0)
+    independent_check(robot, plan, 0.005)
 
 
 def test_the_path_search_without_certificates_keeps_its_seed_and_checks_its_points():

@@ -21,7 +21,7 @@ from planner.app.outputs import write_plan_files
 from planner.app.plan_file import MotionRequest
 from planner.collision.checker import CollisionChecker, shared_checker
 from planner.collision.continuous import MotionClearance, check_segment, check_trajectory, segment_is_clear
-from planner.collision.rrt import find_clear_path, path_margin, segment_looks_clear
+from planner.collision.rrt import PathResult, certify_path, find_clear_path, path_margin, segment_looks_clear
 from planner.collision.scene import Scene
 from planner.core.arrays import read_only
 from planner.core.files import input_error, parse_number
@@ -248,37 +248,47 @@ def _route(
     allow: Sequence[tuple[str, ...]],
     *,
     certify: bool = True,
-) -> tuple[list[np.ndarray], bool]:
-    """The nodes of a clear way into waypoint k, and whether its edges are certified.
+    found: PathResult | None = None,
+    blocked: bool = False,
+) -> tuple[list[np.ndarray], bool, PathResult | None]:
+    """The nodes of a clear way into waypoint k, whether its edges are certified, and the search's result.
 
-    Its straight joint segment if that is clear (with the path search's margin, certified),
-    else a route found around the obstacles, its edges certified only if `certify` (else
-    checked at points: the timed motion along them is certified by plan_motion's check).
+    Its straight joint segment if that is clear (with the path search's margin, certified;
+    then no search result), else a route found around the obstacles, its edges certified only
+    if `certify` (else checked at points: the timed motion along them is certified by
+    plan_motion's check). `found`: this route's search without certificates, made before; with
+    `certify` its result is certified (:func:`certify_path`) instead of searching again.
+    `blocked`: the straight segment is known blocked at the scene's clearance
+    (:func:`segment_looks_clear`), so also with the search's margin: it is not tested again.
 
     Raises:
         PlanningError: If no clear route exists (with the search's reason).
     """
     names = tuple(set(allow[k - 1]) | set(allow[k]))
-    mask = checker.pair_mask(names)
-    end = min(checker.distance_at(q_user[k - 1], mask).distance, checker.distance_at(q_user[k], mask).distance)
-    margin = path_margin(checker.scene.clearance, end, request.path_options.margin)
-    if segment_is_clear(checker, q_user[k - 1], q_user[k], allow=names, margin=margin):
-        return [q_user[k - 1], q_user[k]], True
-    # The search would test the straight segment again with the same margin: it is blocked.
     options = request.path_options
+    if found is not None and certify:
+        result = certify_path(checker, found, options=options, allow=names)
+        return list(result.path), True, result
+    if not blocked:
+        mask = checker.pair_mask(names)
+        end = min(checker.distance_at(q_user[k - 1], mask).distance, checker.distance_at(q_user[k], mask).distance)
+        margin = path_margin(checker.scene.clearance, end, options.margin)
+        if segment_is_clear(checker, q_user[k - 1], q_user[k], allow=names, margin=margin):
+            return [q_user[k - 1], q_user[k]], True, None
+    # The search would test the straight segment again with the same margin: it is blocked.
     result = find_clear_path(
         checker, q_user[k - 1], q_user[k], options=options, allow=names, try_straight=False, certify=certify
     )
     if result.found and not certify and len(result.path) == 2:
         # A straight edge is followed along its line at once: that needs its certificate.
-        result = find_clear_path(checker, q_user[k - 1], q_user[k], options=options, allow=names, try_straight=False)
+        result = certify_path(checker, result, options=options, allow=names)
         certify = True
     if not result.found:
         raise PlanningError(
             f"{request.source}: no collision-free way from {labels[k - 1]} to {labels[k]}: {result.reason} "
             f"({result.status.value}); try another avoidance seed or time_budget, or move the obstacle"
         )
-    return list(result.path), certify
+    return list(result.path), certify, result
 
 
 def _calibrations(robot: Robot, request: MotionRequest) -> tuple[ServoCalibration, ...] | None:
@@ -472,13 +482,22 @@ def plan_motion(
     # along them pass the continuous check as they are; where one does not, the route is
     # asked for again with its edges certified before an edge is followed along its line.
     unproven: set[int] = set()
+    searches: dict[int, PathResult | None] = {}  # per route, its search's result (None: straight)
 
-    def route(k: int, certify: bool = False) -> None:
-        routes[k], proven = _route(checker, request, q_user, k, labels, allow, certify=certify)
+    def route(k: int, certify: bool = False, blocked: bool = False) -> None:
+        found = searches.get(k) if certify else None
+        routes[k], proven, searches[k] = _route(
+            checker, request, q_user, k, labels, allow, certify=certify, found=found, blocked=blocked
+        )
         if not proven:
             unproven.add(k)
         elif len(routes[k]) == 2:
-            dense.add((k, 0))
+            # The straight segment, certified clear: its midpoint is passed too (the timed motion
+            # keeps closer to it than a move between its ends), and a half the motion strays from
+            # is followed along its line.
+            a, b = routes[k]
+            routes[k] = [a, (a + b) / 2.0, b]
+            halves.update({(k, 0), (k, 1)})
 
     # Route edges made by halving one the timed motion strayed from: followed along their line
     # if it strays from them too.
@@ -509,7 +528,7 @@ def plan_motion(
             # A free move whose straight segment is plainly blocked is routed before timing.
             names = tuple(set(allow[k - 1]) | set(allow[k]))
             if not cartesian[k] and not segment_looks_clear(checker, q_user[k - 1], q_user[k], allow=names):
-                route(k)
+                route(k, blocked=True)
 
     timings: dict[int, Any] = {}  # line timing per LinePath (by id), kept across re-plans
 
@@ -658,7 +677,7 @@ def plan_motion(
                 else:
                     for key in [key for key in edge_lines if key[0] == k]:
                         del edge_lines[key]
-                    dense -= {(k, e) for e in range(len(before))} - ({(k, 0)} if len(routes[k]) == 2 else set())
+                    dense -= {(k, e) for e in range(len(before))}
             elif k in routes and edge is not None and (k, edge) not in dense:
                 follow(k, edge)
             elif k not in routes and paths[k] is None:

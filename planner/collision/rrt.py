@@ -2,24 +2,36 @@
 
 :func:`find_clear_path` grows two trees (Kuffner and LaValle's RRT-Connect) from the start and
 the goal, lazily (Bohlin and Kavraki 2000): each new node is tested as it is added, the points
-every :attr:`PathOptions.resolution` along an edge only when the trees meet, on the path
-through them; a blocked edge cuts its node off and the trees grow on. The path found is
-shortened by straight edges between random points along it (not only its nodes; Geraerts and
-Overmars 2007 call these partial shortcuts) and a greedy pass that joins each node to the
-farthest one it sees, all decided by the same cheap checks as the trees' edges (the clearance
-plus :attr:`PathOptions.margin`, the distance the certificate then asks for); then every edge
-is certified with :func:`~planner.collision.continuous.check_segment`. If one fails, the trees'
-own path is certified and shortened by certified edges only, and if that fails too new trees
-are grown. It draws from its own generator seeded by :attr:`PathOptions.seed`: the same seed
-gives the same path; no global state is touched.
+every :attr:`PathOptions.resolution` along an edge only when the trees meet, and then only on
+the edges of the path through them that its greedy prune keeps (the pass that joins each node
+to the farthest later one it sees: a tree edge a longer edge passes over is never tested); a
+blocked edge cuts its node off and the trees grow on. Half of the trees' random targets are
+drawn near the straight segment from the start to the goal (the rest uniformly within the
+joint limits): an obstacle usually blocks a stretch of that segment and the shortest way
+around passes near it, where uniform targets over a wide joint range (an arm whose joints turn
+twice around) make the trees wander. The pruned path is shortened by straight edges between
+random points along it (not only its nodes; Geraerts and Overmars 2007 call these partial
+shortcuts) and the greedy pass again, all decided by the same cheap checks as the trees'
+edges (the clearance plus :attr:`PathOptions.margin`, the distance the certificate then asks
+for; an edge's points are tested from the one nearest where the last edge was blocked, then
+by bisection); then every edge is certified with
+:func:`~planner.collision.continuous.check_segment`. If one fails, the trees' own path is
+certified and shortened by certified edges only, and if that fails too new trees are grown. A
+caller that certifies the motion along the path itself asks without certificates first, and
+where that fails has :func:`certify_path` certify the same search's result (without growing
+its trees again). It draws from its own generator seeded by :attr:`PathOptions.seed`: the same
+seed gives the same path; no global state is touched.
 """
 
 from __future__ import annotations
 
+import bisect
 import enum
+import itertools
+import math
 import time
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -28,7 +40,15 @@ from planner.collision.continuous import check_segment, segment_is_clear, sweep_
 from planner.core.arrays import read_only
 from planner.exceptions import InvalidArgumentError
 
-__all__ = ["PathOptions", "PathResult", "PathStatus", "find_clear_path", "path_margin", "segment_looks_clear"]
+__all__ = [
+    "PathOptions",
+    "PathResult",
+    "PathStatus",
+    "certify_path",
+    "find_clear_path",
+    "path_margin",
+    "segment_looks_clear",
+]
 
 
 class PathStatus(str, enum.Enum):
@@ -55,6 +75,11 @@ class PathOptions:
             where the start or goal is closer than that: see :func:`path_margin`).
         resolution: Largest joint change [rad or m] between the cheap distance checks that
             decide edges while the trees grow (the path found is then certified edge by edge).
+        line_bias: Share of the trees' random targets drawn near the straight segment from
+            the start to the goal (the rest uniformly within the joint limits): most
+            obstacles block a stretch of it, and the way around is near it.
+        line_spread: Spread of those targets about a point of the segment drawn uniformly:
+            per joint a normal spread of this share of the joint's range.
     """
 
     seed: int = 0
@@ -64,9 +89,11 @@ class PathOptions:
     shortcuts: int = 60
     margin: float = 0.002
     resolution: float = 0.05
+    line_bias: float = 0.5
+    line_spread: float = 0.1
 
     def __post_init__(self) -> None:
-        for name in ("step", "time_budget", "resolution"):
+        for name in ("step", "time_budget", "resolution", "line_spread"):
             v = getattr(self, name)
             if not (isinstance(v, (int, float)) and np.isfinite(v) and v > 0):
                 raise InvalidArgumentError(f"PathOptions.{name} must be positive, got {v!r}")
@@ -76,6 +103,8 @@ class PathOptions:
                 raise InvalidArgumentError(f"PathOptions.{name} must be a non-negative integer, got {v!r}")
         if not (isinstance(self.margin, (int, float)) and 0 <= self.margin < np.inf):
             raise InvalidArgumentError(f"PathOptions.margin must be >= 0 [m], got {self.margin!r}")
+        if not (isinstance(self.line_bias, (int, float)) and 0 <= self.line_bias <= 1):
+            raise InvalidArgumentError(f"PathOptions.line_bias must be a share from 0 to 1, got {self.line_bias!r}")
 
 
 @dataclass(frozen=True)
@@ -87,12 +116,15 @@ class PathResult:
         path: The configurations, start and goal included, shape (n, dof); empty unless found.
         reason: Why no path was found (empty when found).
         iterations: Tree extensions made.
+        tree_path: The trees' own path that `path` was shortened from, shape (m, dof); empty
+            when no trees were grown (the straight segment, or no path).
     """
 
     status: PathStatus
     path: np.ndarray
     reason: str
     iterations: int
+    tree_path: np.ndarray = field(default_factory=lambda: read_only(np.zeros((0, 0))))
 
     @property
     def found(self) -> bool:
@@ -142,12 +174,13 @@ class _Tree:
                 self.alive[i] = False
                 self._array[i], self._squares[i] = 0.0, np.inf  # never the nearest again
 
-    def branch(self, k: int) -> list[np.ndarray]:
+    def chain(self, k: int) -> list[int]:
+        """The nodes from the root to node `k` (indices)."""
         out = []
         while k >= 0:
-            out.append(self.nodes[k])
+            out.append(k)
             k = self.parent[k]
-        return out
+        return out[::-1]
 
 
 def segment_looks_clear(
@@ -230,29 +263,10 @@ def find_clear_path(
     def clear(a: np.ndarray, b: np.ndarray) -> bool:
         return segment_is_clear(checker, a, b, allow=allow, margin=margin)
 
-    def certify(a: np.ndarray, b: np.ndarray) -> bool:
-        """The certificate of an edge `quick` has passed (its sweep would repeat quick's tests)."""
-        return check_segment(checker, a, b, allow=allow, clearance=need).clear
-
-    near = checker.closer_than(need, allow)
+    near, quick, between, certify = _edge_tests(checker, need, allow, options.resolution)
 
     def near_ok(q: np.ndarray) -> bool:
         return not near(q)
-
-    def quick(a: np.ndarray, b: np.ndarray) -> bool:
-        """Proximity checks every `resolution` along the edge, end first, start last: not a certificate.
-
-        The start is tested too: a shortcut starts at a point along the path, not at a tested node.
-        """
-        d = b - a
-        n = max(1, int(np.ceil(float(np.abs(d).max()) / options.resolution)))
-        return not any(map(near, a + sweep_order(n)[:, None] * d)) and not near(a)
-
-    def between(a: np.ndarray, b: np.ndarray) -> bool:
-        """`quick` without the end (a tree's node, tested when it was added)."""
-        d = b - a
-        n = max(1, int(np.ceil(float(np.abs(d).max()) / options.resolution)))
-        return not any(map(near, a + sweep_order(n)[1:, None] * d))
 
     if try_straight and clear(q0, q1):
         return PathResult(PathStatus.FOUND, read_only(np.array([q0, q1])), "", 0)
@@ -269,20 +283,107 @@ def find_clear_path(
     # budget is spent.
     while iterations < options.max_iterations and time.perf_counter() <= deadline:
         left = options.max_iterations - iterations
-        path, used = _grow(q0, q1, near_ok, between, rng, lo, hi, options.step, deadline, left)
+        found, used = _grow(q0, q1, near_ok, between, rng, lo, hi, options, deadline, left)
         iterations += used
-        if path is None:
+        if found is None:
             break
-        path = _merge_collinear(path)
-        short = _shortcut(path, quick, between, rng, options.shortcuts)
+        path = _merge_collinear(found[0])
+        short = _shortcut(found[1], quick, between, rng, options.shortcuts)
+        tree_path = read_only(np.array(path))
         if not certify_edges or all(certify(a, b) for a, b in zip(short, short[1:])):
-            return PathResult(PathStatus.FOUND, read_only(np.array(short)), "", iterations)
+            return PathResult(PathStatus.FOUND, read_only(np.array(short)), "", iterations, tree_path)
         if all(certify(a, b) for a, b in zip(path, path[1:])):
             path = _prune(path, lambda a, b: between(a, b) and certify(a, b))
-            return PathResult(PathStatus.FOUND, read_only(np.array(path)), "", iterations)
+            return PathResult(PathStatus.FOUND, read_only(np.array(path)), "", iterations, tree_path)
     if time.perf_counter() > deadline:
         return PathResult(PathStatus.NOT_FOUND, empty, f"no clear path within {options.time_budget:g} s", iterations)
     return PathResult(PathStatus.NOT_FOUND, empty, f"no clear path in {options.max_iterations} extensions", iterations)
+
+
+def _edge_tests(checker: CollisionChecker, need: float, allow: Sequence[str], resolution: float) -> tuple:
+    """The search's tests at distance `need` [m]: a configuration's, two cheap ones of edges, an edge's certificate."""
+    near = checker.closer_than(need, allow)
+    # Where an edge was last found blocked: the point of a new edge nearest it is tested first
+    # (an obstacle that blocked one edge likely blocks the next one tried there), then the rest
+    # in bisection order. The same points, the same verdicts.
+    blocker: list[np.ndarray] = []
+
+    def blocked(a: np.ndarray, d: np.ndarray, n: int, first: int, last: int, order: np.ndarray) -> bool:
+        """Whether a point ``a + k / n d`` (k from `first` to `last`; `order` their sweep) is too close."""
+        if blocker and first <= last:
+            dd = float(d @ d)
+            k = min(max(round(float((blocker[0] - a) @ d) * n / dd), first), last) if dd > 0.0 else first
+            q = a + (k / n) * d
+            if near(q):
+                blocker[:] = [q]
+                return True
+        for q in a + order[:, None] * d:
+            if near(q):
+                blocker[:] = [q]
+                return True
+        return False
+
+    def quick(a: np.ndarray, b: np.ndarray) -> bool:
+        """Proximity checks every `resolution` along the edge, end first, start last: not a certificate.
+
+        The start is tested too: a shortcut starts at a point along the path, not at a tested node.
+        """
+        d = b - a
+        n = max(1, int(np.ceil(float(np.abs(d).max()) / resolution)))
+        return not blocked(a, d, n, 0, n, sweep_order(n)) and not near(a)
+
+    def between(a: np.ndarray, b: np.ndarray) -> bool:
+        """`quick` without the end (a tree's node, tested when it was added)."""
+        d = b - a
+        n = max(1, int(np.ceil(float(np.abs(d).max()) / resolution)))
+        return not blocked(a, d, n, 1, n - 1, sweep_order(n)[1:])
+
+    def certify(a: np.ndarray, b: np.ndarray) -> bool:
+        """The certificate of an edge `quick` has passed (its sweep would repeat quick's tests)."""
+        return check_segment(checker, a, b, allow=allow, clearance=need).clear
+
+    return near, quick, between, certify
+
+
+def certify_path(
+    checker: CollisionChecker,
+    found: PathResult,
+    *,
+    options: PathOptions | None = None,
+    allow: Sequence[str] = (),
+) -> PathResult:
+    """What :func:`find_clear_path` returns with certificates, from its result without them.
+
+    `found` is the result of ``find_clear_path(checker, a, b, options=options, allow=allow,
+    certify=False)``: the same search certifies the shortened path's edges, else the trees'
+    path's edges (then shortened by certified edges only), else grows new trees. The first two
+    are done here from `found` (its trees are not grown again); only the last searches anew.
+
+    Args:
+        checker: The collision checker `found` was searched with.
+        found: The search's result without certificates.
+        options: The same :class:`PathOptions`; None uses the defaults.
+        allow: The same scene names.
+
+    Returns:
+        The :class:`PathResult` the search with certificates gives (`found` itself where no
+        trees were grown: the straight segment, certified, or no path).
+    """
+    if not found.found or len(found.tree_path) == 0:
+        return found
+    options = options or PathOptions()
+    q0, q1 = np.array(found.path[0]), np.array(found.path[-1])
+    mask = checker.pair_mask(allow)
+    end = min(checker.distance_at(q0, mask).distance, checker.distance_at(q1, mask).distance)
+    need = checker.scene.clearance + path_margin(checker.scene.clearance, end, options.margin)
+    _, _, between, certify = _edge_tests(checker, need, allow, options.resolution)
+    short, path = list(found.path), list(found.tree_path)
+    if all(certify(a, b) for a, b in zip(short, short[1:])):
+        return found
+    if all(certify(a, b) for a, b in zip(path, path[1:])):
+        path = _prune(path, lambda a, b: between(a, b) and certify(a, b))
+        return PathResult(PathStatus.FOUND, read_only(np.array(path)), "", found.iterations, found.tree_path)
+    return find_clear_path(checker, q0, q1, options=options, allow=allow, try_straight=False)
 
 
 def _grow(
@@ -293,27 +394,34 @@ def _grow(
     rng: np.random.Generator,
     lo: np.ndarray,
     hi: np.ndarray,
-    step: float,
+    options: PathOptions,
     deadline: float,
     budget: int,
-) -> tuple[list[np.ndarray] | None, int]:
+) -> tuple[tuple[list[np.ndarray], list[np.ndarray]] | None, int]:
     """RRT-Connect from both ends, lazily: `node_ok` decides new nodes, `edge_ok` the edges of a path found.
 
     Nodes are tested as they are added; the points between them only once the trees meet, on
     the edges of the path through them (most edges the trees grow never join a path). A
     blocked tree edge cuts its node off (with what grew from it) and the trees grow on.
-    `edge_ok(a, b)` tests the points strictly between `a` and `b`.
+    `edge_ok(a, b)` tests the points strictly between `a` and `b`. A share
+    :attr:`PathOptions.line_bias` of the targets is drawn near the segment from `q0` to `q1`.
 
     Returns:
-        The path, start first, or None; and the extensions used.
+        The trees' path and its greedy prune (:func:`_settle`), start first, or None; and the
+        extensions used.
     """
     trees = (_Tree(q0), _Tree(q1))
+    step, bias = options.step, options.line_bias
     span = hi - lo  # lo + span * rng.random(n) draws as rng.uniform(lo, hi), without its argument checks
+    spread, line = options.line_spread * span, q1 - q0
     for it in range(1, budget + 1):
         if time.perf_counter() > deadline:
             return None, it
         a, b = trees if it % 2 else trees[::-1]
-        target = lo + span * rng.random(len(lo))
+        if bias and rng.random() < bias:
+            target = np.clip(q0 + rng.random() * line + spread * rng.standard_normal(len(lo)), lo, hi)
+        else:
+            target = lo + span * rng.random(len(lo))
         new = _extend(a, target, step, node_ok)
         if new is None:
             continue
@@ -325,8 +433,9 @@ def _grow(
             delta = q_new - q_near
             far = float(np.abs(delta).max())
             if far <= step:
-                if _edges_ok(a, new, edge_ok) and _edges_ok(b, k, edge_ok) and edge_ok(q_near, q_new):
-                    return _join(a, new, b, k, trees[0] is a), it
+                found = _settle(a, new, b, k, trees[0] is a, edge_ok)
+                if found is not None:
+                    return found, it
                 break
             q_next = q_near + delta * (step / far)
             if not node_ok(q_next):
@@ -335,18 +444,45 @@ def _grow(
     return None, budget
 
 
-def _edges_ok(tree: _Tree, k: int, edge_ok) -> bool:
-    """Test the untested edges from the root to node `k`, root first; cut the tree at a blocked one."""
-    chain = []
-    while k > 0 and not tree.tested[k]:
-        chain.append(k)
-        k = tree.parent[k]
-    for i in reversed(chain):
-        if not edge_ok(tree.nodes[tree.parent[i]], tree.nodes[i]):
-            tree.cut(i)
-            return False
-        tree.tested[i] = True
-    return True
+def _settle(
+    a: _Tree, ka: int, b: _Tree, kb: int, a_is_start: bool, edge_ok
+) -> tuple[list[np.ndarray], list[np.ndarray]] | None:
+    """The path where the trees meet (`a`'s node `ka` beside `b`'s `kb`) and its greedy prune.
+
+    The prune (:func:`_prune`) joins each node to the farthest later one `edge_ok` passes; a
+    tree edge is tested only where no longer edge passes over it (then its verdict is kept in
+    the tree, and a blocked one is cut off with what grew from it), as is the edge between the
+    trees.
+
+    Returns:
+        The path and its prune, start first; None where an edge it needs is blocked.
+    """
+    chain_a, chain_b = a.chain(ka), b.chain(kb)[::-1]  # root to ka; kb to root
+    nodes = [a.nodes[i] for i in chain_a] + [b.nodes[i] for i in chain_b]
+    # Per edge (node e to e + 1): its tree and child node, or None between the trees.
+    edges: list[tuple[_Tree, int] | None] = [(a, i) for i in chain_a[1:]] + [None] + [(b, i) for i in chain_b[:-1]]
+    if not a_is_start:
+        nodes, edges = nodes[::-1], edges[::-1]
+    out, i, n = [nodes[0]], 0, len(nodes)
+    while i < n - 1:
+        j = n - 1
+        while j > i + 1 and not edge_ok(nodes[i], nodes[j]):
+            j -= 1
+        if j == i + 1:
+            edge = edges[i]
+            if edge is None:
+                if not edge_ok(nodes[i], nodes[j]):
+                    return None
+            else:
+                tree, child = edge
+                if not tree.tested[child]:
+                    if not edge_ok(nodes[i], nodes[j]):
+                        tree.cut(child)
+                        return None
+                    tree.tested[child] = True
+        out.append(nodes[j])
+        i = j
+    return nodes, out
 
 
 def _extend(tree: _Tree, target: np.ndarray, step: float, node_ok) -> int | None:
@@ -361,12 +497,6 @@ def _extend(tree: _Tree, target: np.ndarray, step: float, node_ok) -> int | None
     if not node_ok(q_new):
         return None
     return tree.add(q_new, k)
-
-
-def _join(a: _Tree, ka: int, b: _Tree, kb: int, a_is_start: bool) -> list[np.ndarray]:
-    """The path through tree `a` to node `ka`, then `b`'s node `kb` back to its root, start first."""
-    path = a.branch(ka)[::-1] + b.branch(kb)
-    return path if a_is_start else path[::-1]
 
 
 def _merge_collinear(path: list[np.ndarray]) -> list[np.ndarray]:
@@ -398,33 +528,32 @@ def _prune(path: list[np.ndarray], edge_ok) -> list[np.ndarray]:
 
 
 #: Least share of its stretch along the path a shortcut must save to be tried.
-_GAIN = 0.01
+_GAIN = 0.05
 
 
 def _shortcut(path: list[np.ndarray], edge_ok, inner_ok, rng: np.random.Generator, attempts: int) -> list[np.ndarray]:
-    """Shorten the path: the greedy prune, straight edges between random points along it, the prune again.
+    """Shorten a pruned path: straight edges between random points along it, then the greedy prune.
 
     The points are drawn by length along the path (not only its nodes), so a corner is cut
     wherever the straight edge past it is clear (`edge_ok`; `inner_ok` where its end is a
     node, as in the prune). An edge that would save less than :data:`_GAIN` of the stretch it
     replaces is not tried.
     """
-    path = _prune(list(path), inner_ok)
-    cum = None  # the length along the path at each node, until the path changes
+    path = list(path)
+    cum: list[float] | None = None  # the length along the path at each node, until the path changes
     for _ in range(attempts):
         if len(path) <= 2:
             break
         if cum is None:
-            cum = np.concatenate([[0.0], np.cumsum([float(np.linalg.norm(b - a)) for a, b in zip(path, path[1:])])])
-        x, y = np.sort(rng.uniform(0.0, cum[-1], size=2))
-        i = int(np.searchsorted(cum, x, side="right")) - 1
-        j = int(np.searchsorted(cum, y, side="right")) - 1
-        i, j = min(i, len(path) - 2), min(j, len(path) - 2)
+            cum = [0.0, *itertools.accumulate(math.sqrt(float((b - a) @ (b - a))) for a, b in zip(path, path[1:]))]
+        x, y = sorted(rng.uniform(0.0, cum[-1], size=2).tolist())
+        last = len(path) - 2
+        i, j = min(bisect.bisect_right(cum, x) - 1, last), min(bisect.bisect_right(cum, y) - 1, last)
         if i == j:
             continue
         a = path[i] + (x - cum[i]) / (cum[i + 1] - cum[i]) * (path[i + 1] - path[i])
         b = path[j] + (y - cum[j]) / (cum[j + 1] - cum[j]) * (path[j + 1] - path[j])
-        if (y - x) - float(np.linalg.norm(b - a)) <= _GAIN * (y - x):
+        if (y - x) - math.sqrt(float((b - a) @ (b - a))) <= _GAIN * (y - x):
             continue  # nearly straight there already: not worth the edge's checks
         if edge_ok(a, b):
             path = path[: i + 1] + [a, b] + path[j + 1 :]

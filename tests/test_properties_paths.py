@@ -1,0 +1,144 @@
+"""Property tests of the path search around obstacles (generated starts, goals and boxes).
+
+Whatever the boxes and ends, :func:`find_clear_path` gives the same answer for the same seed;
+a path it returns starts and ends where asked and keeps the clearance along every edge when
+re-checked densely by collision queries (not the distances it decided by); where it finds
+none, the result says why (an end that does not keep the clearance, or the budget spent). The
+same holds for :func:`plan_motion` with such a scene: the same seed gives the same plan.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from dh_arms import bundled_robot, configurations, property_settings
+from hypothesis import event, given, note
+from hypothesis import strategies as st
+
+import planner
+from planner.app.motion_plan import plan_motion
+from planner.app.plan_file import parse_motion_request
+from planner.collision import CollisionChecker
+from planner.collision.rrt import PathOptions, PathStatus, certify_path, find_clear_path
+
+_FLOAT = {"allow_nan": False, "allow_infinity": False, "allow_subnormal": False}
+#: Largest joint change between the dense re-check's samples of an edge [rad].
+_DENSE = 0.005
+
+
+@st.composite
+def boxes(draw, robot: planner.Robot, qa: np.ndarray, qb: np.ndarray) -> dict:
+    """One or two boxes: the first where the straight joint move from `qa` to `qb` takes the tip halfway."""
+    middle = robot.position((qa + qb) / 2.0)
+    obstacles = []
+    for k in range(draw(st.integers(1, 2))):
+        size = [draw(st.floats(0.02, 0.12, **_FLOAT)) for _ in range(3)]
+        offset = [draw(st.floats(-0.1, 0.1, **_FLOAT)) for _ in range(3)]
+        centre = (middle + offset if k == 0 else np.array(offset) * 3.0).tolist()
+        obstacles.append({"name": f"b{k}", "box": size, "position": centre})
+    return {"clearance": draw(st.sampled_from([0.0, 0.005])), "obstacles": obstacles}
+
+
+def _scene(data: dict):
+    robot = bundled_robot("al5c")
+    return parse_motion_request({"waypoints": [[0.0] * robot.dof] * 2, "scene": data}).scene
+
+
+def _edges_clear_densely(checker: CollisionChecker, path: np.ndarray, keep: float) -> bool:
+    near = checker.closer_than(keep)
+    for a, b in zip(path, path[1:]):
+        n = max(1, int(np.ceil(np.max(np.abs(b - a)) / _DENSE)))
+        if any(near(a + s * (b - a)) for s in np.linspace(0.0, 1.0, n + 1)):
+            return False
+    return True
+
+
+@given(data=st.data(), seed=st.integers(0, 2**16))
+@property_settings(40)
+def test_a_path_search_is_repeatable_and_its_path_clear_or_it_says_why(data, seed):
+    robot = bundled_robot("al5c")
+    qa, qb = data.draw(configurations(robot)), data.draw(configurations(robot))
+    checker = CollisionChecker(robot, _scene(data.draw(boxes(robot, qa, qb))))
+    # A tiny budget of extensions too: a search that runs out says so.
+    options = PathOptions(
+        seed=seed,
+        time_budget=0.3,
+        max_iterations=data.draw(st.sampled_from([2, 600])),
+        line_bias=data.draw(st.sampled_from([0.0, 0.5, 1.0])),
+    )
+    # The trees are grown even where the straight segment is clear (they are what is tested).
+    first = find_clear_path(checker, qa, qb, options=options, try_straight=False)
+    again = find_clear_path(checker, qa, qb, options=options, try_straight=False)
+    note(f"{first.status}: {first.reason}, {len(first.path)} nodes")
+    event(f"{first.status.value} {min(len(first.path), 3)}")
+    assert first.status is again.status and np.array_equal(first.path, again.path)
+    clearance = checker.scene.clearance
+    if first.found:
+        assert first.reason == "" and first.path.shape[1] == robot.dof
+        np.testing.assert_array_equal(first.path[[0, -1]], [qa, qb])
+        # The certified edges keep the clearance (less the certificate's tolerance).
+        assert _edges_clear_densely(checker, first.path, max(clearance - 1e-4, 0.0))
+        return
+    assert first.reason and first.path.shape == (0, robot.dof)
+    ends = [checker.clearance(q).distance for q in (qa, qb)]
+    if first.status is PathStatus.START_IN_COLLISION:
+        assert ends[0] < clearance
+    elif first.status is PathStatus.GOAL_IN_COLLISION:
+        assert ends[0] >= clearance > ends[1]
+    else:
+        assert first.status is PathStatus.NOT_FOUND and min(ends) >= clearance
+        assert "extensions" in first.reason or " s" in first.reason
+
+
+@given(data=st.data(), seed=st.integers(0, 2**16))
+@property_settings(25)
+def test_certifying_a_search_without_certificates_gives_the_search_with_them(data, seed):
+    # plan_motion searches without certificates and, where the timed motion along the route
+    # fails its check, certifies that result instead of growing the same trees again.
+    robot = bundled_robot("al5c")
+    qa, qb = data.draw(configurations(robot)), data.draw(configurations(robot))
+    checker = CollisionChecker(robot, _scene(data.draw(boxes(robot, qa, qb))))
+    options = PathOptions(seed=seed, time_budget=10.0, max_iterations=600)
+    lazy = find_clear_path(checker, qa, qb, options=options, try_straight=False, certify=False)
+    certified = certify_path(checker, lazy, options=options)
+    direct = find_clear_path(checker, qa, qb, options=options, try_straight=False)
+    event(f"{direct.status.value}, {'same' if np.array_equal(lazy.path, direct.path) else 'other'} path")
+    assert certified.status is direct.status and np.array_equal(certified.path, direct.path)
+    assert certified.iterations == direct.iterations
+
+
+@given(data=st.data(), seed=st.integers(0, 2**16))
+@property_settings(12)
+def test_a_plan_around_boxes_is_repeatable_and_clear_or_refused(data, seed):
+    robot = bundled_robot("al5c")
+    qa, qb = data.draw(configurations(robot)), data.draw(configurations(robot))
+    scene = data.draw(boxes(robot, qa, qb))
+    waypoints = [qa.tolist(), qb.tolist()]
+    request = {"waypoints": waypoints, "scene": scene, "avoidance": {"seed": seed, "time_budget": 0.3}}
+    note(f"{request}")
+    try:
+        plan = plan_motion(robot, parse_motion_request(request))
+    except planner.PlannerError as error:
+        note(f"refused: {error}")
+        event("refused")
+        return
+    event(f"routed {bool(plan.routes)}, clear {plan.collision_free}")
+    again = plan_motion(robot, parse_motion_request(request))
+    assert plan.routes == again.routes
+    np.testing.assert_array_equal(plan.trajectory.waypoints, again.trajectory.waypoints)
+    assert plan.trajectory.duration == again.trajectory.duration
+    if plan.collision_free:
+        checker = CollisionChecker(robot, plan.scene)
+        for q in plan.trajectory.sample(plan.trajectory.times(1000.0)).q:
+            assert not checker.in_collision(q)
+    else:
+        assert plan.collision.first_hit is not None
+
+
+def test_the_search_options_name_a_bad_value():
+    for field, value in (("line_bias", 1.5), ("line_bias", -0.1), ("line_spread", 0.0), ("step", -1.0)):
+        try:
+            PathOptions(**{field: value})
+        except planner.PlannerError as error:
+            assert field in str(error) and repr(value) in str(error)
+        else:
+            raise AssertionError(f"PathOptions({field}={value!r}) was accepted")
