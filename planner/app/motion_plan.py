@@ -31,7 +31,13 @@ from planner.export.calibration_file import ControllerSetup, controller_setup
 from planner.export.formats import ServoFormat
 from planner.model.robot import Robot
 from planner.motion.avoid import joint_line, time_joint_line
-from planner.motion.detours import Detour, SingularityOptions, dipping_segments, plan_clear_of_singularities
+from planner.motion.detours import (
+    Detour,
+    SingularityOptions,
+    dipping_segments,
+    must_cross_singularity,
+    plan_clear_of_singularities,
+)
 from planner.motion.limits import JointLimits
 from planner.motion.line import LinePath
 from planner.motion.line_smoothing import line_end_states, smooth_lines
@@ -531,6 +537,13 @@ def plan_motion(
                 route(k, blocked=True)
 
     timings: dict[int, Any] = {}  # line timing per LinePath (by id), kept across re-plans
+    crossings: dict[int, bool] = {}
+
+    def crossing(k: int) -> bool:
+        """Whether the move into waypoint k must pass a singularity (on any path)."""
+        if k not in crossings:
+            crossings[k] = must_cross_singularity(robot, q_user[k - 1], q_user[k])
+        return crossings[k]
 
     def build(paths: list[list[LinePath] | None]) -> tuple:
         """Nodes through every waypoint and line sample, and the line bookkeeping."""
@@ -577,7 +590,10 @@ def plan_motion(
         dwell = np.zeros(m)
         dwell[user_pos] = request.dwell
         stops = [user_pos[k] for k in request.stops]
-        keep = sorted({s for _, a, b in line_ranges for s in range(a, b)})
+        keep = {s for _, a, b in line_ranges for s in range(a, b)}
+        # A route between ends on opposite sides of a singularity crosses it on some edge: like
+        # a straight move between them, none of its edges gets a detour.
+        keep.update(i for i, (k, edge) in enumerate(owner) if edge is not None and crossing(k))
         via_v = np.full(q_nodes.shape, np.nan)
         via_a = np.zeros(q_nodes.shape)
         min_dur = np.zeros(m - 1)
@@ -619,7 +635,7 @@ def plan_motion(
         options = SingularityOptions(
             threshold=threshold, rate=rate, max_detours=request.max_detours if request.detours else 0
         )
-        plan = plan_clear_of_singularities(robot, trajectory_request, options, keep_segments=keep)
+        plan = plan_clear_of_singularities(robot, trajectory_request, options, keep_segments=sorted(keep))
         if line_ranges:
             # Each line as smooth pieces between its corners, not a chain of bang-bang segments.
             stretches = [

@@ -169,6 +169,25 @@ def _det_sign(robot: Robot, q: np.ndarray, task: Task) -> float:
     return float(np.sign(np.linalg.det(jac))) if jac.shape[0] == jac.shape[1] else 0.0
 
 
+def must_cross_singularity(robot: Robot, a: np.ndarray, b: np.ndarray, task: Task | None = None) -> bool:
+    """Whether every continuous joint path from `a` to `b` passes a singular configuration.
+
+    True where the task Jacobian is square and its determinant has opposite signs at the two
+    ends (it is continuous along any path, so it is zero somewhere between): e.g. a UR5 wrist
+    flip (the wrist's middle joint changing sign). No detour can keep such a move above any
+    threshold, so :func:`plan_clear_of_singularities` does not try (pass the segments of a
+    multi-segment move between such ends as ``keep_segments``).
+
+    Args:
+        robot: The robot.
+        a: Joint configuration at one end [rad or m].
+        b: Joint configuration at the other end.
+        task: ``"position"`` or ``"pose"``; None is the robot's default task.
+    """
+    t_task = robot.resolve_task(task)
+    return _det_sign(robot, a, t_task) * _det_sign(robot, b, t_task) < 0
+
+
 def dipping_segments(
     trajectory: JointTrajectory,
     report: SingularityReport,
