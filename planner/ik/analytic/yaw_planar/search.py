@@ -16,16 +16,25 @@ import math
 
 import numpy as np
 
+from planner.geometry.chain import wrap_array
 from planner.ik.analytic.result import STATUS_CODES, STATUS_SOLVED
 from planner.ik.analytic.yaw_planar.arm import ArmGeometry
 from planner.ik.analytic.yaw_planar.arrays import PER_BRANCH, BranchArrays, solve_arrays
-from planner.ik.analytic.yaw_planar.core import roll_values, solve_core
-from planner.ik.analytic.yaw_planar.end_angle import phi_choices, within_ideal
+from planner.ik.analytic.yaw_planar.branches import VALID
+from planner.ik.analytic.yaw_planar.core import ideal_position_error, roll_values, solve_core
+from planner.ik.analytic.yaw_planar.end_angle import limit_values, phi_choices, within_ideal
 from planner.ik.analytic.yaw_planar.status import status_codes
 
-__all__ = ["free_joints", "search", "solve_searched"]
+__all__ = ["free_joints", "search", "solve_searched", "within_real"]
 
 TWO_PI = 2.0 * math.pi
+#: Ideal-model misses [times the chain's deviation and size] the search checks on the real
+#: model: next to a stretched elbow the real reach exceeds the ideal one by about the
+#: deviation times the arm's size.
+NEAR_MISS = 10.0
+#: Joint values this close to a limit [rad] on the ideal model are checked on the real one
+#: (next to a stretched elbow the two differ by about the square root of the deviation).
+LIMIT_MARGIN = 1e-2
 
 
 def free_joints(arm: ArmGeometry, pit, rot) -> tuple[bool, bool]:
@@ -65,9 +74,9 @@ def search(arm: ArmGeometry, pos, pit, qc, roll_step: float = math.radians(2.5))
         q_rows = None if qc is None else qc[rows]
         if free_phi:
             return phi_choices(arm, pos[rows], q_rows, roll, margin)
-        core = solve_core(arm, pos[rows], None if pit is None else pit[rows], None, q_rows, arm.orient_tol,
-                          roll_free=roll)  # fmt: skip
-        ok = within_ideal(arm, core, pos[rows], q_rows)
+        pit_rows = None if pit is None else pit[rows]
+        core = solve_core(arm, pos[rows], pit_rows, None, q_rows, arm.orient_tol, roll_free=roll)
+        ok = within_real(arm, core, pos[rows], pit_rows, q_rows, roll, within_ideal(arm, core, pos[rows], q_rows))
         return ok, np.full(ok.shape, np.nan), np.full(ok.shape, np.nan)
 
     roll0 = None
@@ -142,6 +151,44 @@ def search(arm: ArmGeometry, pos, pit, qc, roll_step: float = math.radians(2.5))
         roll[pairs] = np.where(hit, good, roll[pairs])
         phi[pairs] = np.where(hit, ph[np.arange(len(good)), pairs[1]], phi[pairs])
     return found, phi, roll, phi_safe, roll_safe
+
+
+def within_real(arm: ArmGeometry, core, pos, pit, qc, roll, ok) -> np.ndarray:
+    """The mask `ok` (n, 4) of :func:`within_ideal`, decided on the real model where the ideal one is unsure.
+
+    On inexact chains the ideal model's answer can be wrong by about its deviation: next to a
+    stretched elbow the real arm reaches wrist points up to about the deviation times its size
+    beyond the ideal reach (SO-101: a window of wrist rolls 3 deg wide where the ideal model
+    misses by 3e-7 m), and joint values next to a limit may lie on its other side on the real
+    arm. Branches valid on the ideal model, clear of the yaw axis, that miss the target by more
+    than round-off but less than :data:`NEAR_MISS` times the deviation and size, or reach it
+    with a joint within :data:`LIMIT_MARGIN` of a limit, are solved on the real model
+    (:func:`solve_arrays`: corrected and checked there), whose answer they take.
+    """
+    n = pos.shape[0]
+    if arm.exact or n == 0:
+        return ok
+    error = ideal_position_error(arm, core, pos)
+    scale = max(1.0, arm.scale)
+    near = (core.cat == VALID) & ~core.seeded[:, None] & (error <= NEAR_MISS * arm.deviation * arm.scale)
+    edge = error > 1e-10 * scale
+    for j in range(arm.dof):
+        if limit_values(arm, j):
+            lo, hi = arm.lower[j], arm.upper[j]
+            col = wrap_array(core.q[..., j], lo, hi, qc[:, j][:, None] if qc is not None else 0.0)
+            edge |= (np.abs(col - lo) < LIMIT_MARGIN) | (np.abs(col - hi) < LIMIT_MARGIN)
+    near &= edge
+    rows = np.nonzero(near.any(axis=1))[0]
+    if rows.size == 0:
+        return ok
+    roll_rows = None if roll is None else np.broadcast_to(roll, (n,))[rows]
+    real = solve_arrays(
+        arm, pos[rows], None if pit is None else pit[rows], None, None if qc is None else qc[rows],
+        False, roll_free=roll_rows,
+    )  # fmt: skip
+    out = ok.copy()
+    out[rows] = np.where(near[rows], real.within, ok[rows])
+    return out
 
 
 def solve_searched(arm: ArmGeometry, pos, pit, qc, base: BranchArrays, orientation_errors: bool = True) -> BranchArrays:
