@@ -15,7 +15,7 @@ import math
 
 import numpy as np
 import pytest
-from dh_arms import property_settings, seeds, targets, tip_errors
+from dh_arms import configurations, property_settings, seeds, targets, tip_errors
 from hypothesis import given
 from hypothesis import strategies as st
 
@@ -219,3 +219,26 @@ def test_pitch_targets_solved_at_another_roll_next_to_the_real_limits(q, seed):
         assert position_error <= 1e-9 and orientation_error <= 1e-9
     answer = solve_ik(robot, target, np.array(seed), method="analytic")
     assert answer.success and robot.within_limits(answer.q)
+
+
+@property_settings(150)
+@given(data=st.data())
+def test_reachable_targets_solved_through_the_kernel(data):
+    """Generated reachable targets of every kind, from any seed: solved within the limits, as the Python path."""
+    fast, slow = _solver_pair()
+    robot = fast.robot
+    kind = data.draw(st.sampled_from(["position", "pitch", "pose"]))
+    q = data.draw(configurations(robot))
+    # A position leaves the approach pitch free: the seed (q_current) is needed; pitches and
+    # poses with or without one.
+    seed = data.draw(configurations(robot) if kind == "position" else seeds(robot))
+    target = _target(robot, kind, q)
+    result = _after(1, lambda: fast.solve(target, seed))
+    assert result.ok, result.reason
+    within = [s for s in result.solutions if s.within_limits]
+    assert within
+    for solution in result.solutions:
+        position_error, orientation_error, _ = tip_errors(robot, target, solution.q)
+        assert position_error <= 1e-9 and orientation_error <= 1e-9
+        assert solution.within_limits == bool(robot.within_limits(solution.q))
+    _assert_same_result(fast, slow, target, seed)
