@@ -61,8 +61,7 @@ TWO_PI = 2.0 * math.pi
 #: Calls of the compiled Newton steps (:data:`~planner.ik.analytic.yaw_planar.newton.STEPS`
 #: each, the first of a position or pitch target :data:`FIRST_STEPS`) at most per target: one
 #: settles well-conditioned branches; the others, only while a branch has not settled (started
-#: next to a stretched elbow or the yaw axis). Poses are checked from the second call on (the
-#: first call's errors only measured, for the stall test).
+#: next to a stretched elbow or the yaw axis).
 CALLS = 3
 
 #: Newton steps of the first call for position and pitch targets: one more than a later
@@ -471,7 +470,7 @@ def solve_corrected_pose(
     found = [None] * k
     last = [math.inf] * k
     pending = range(k)
-    for call in range(CALLS):
+    for _ in range(CALLS):
         flat = kernel.pose(flat, position, rot_columns)
         left = []
         for i in pending:
@@ -482,11 +481,7 @@ def solve_corrected_pose(
             perr = math.sqrt(dx * dx + dy * dy + dz * dz)
             oerr = _angle(r, rot_rows)
             error = perr / arm.scale + oerr
-            if call == 0:
-                # Two steps: measured only (the compiled single call checks after four).
-                last[i] = error
-                left.append(i)
-            elif perr <= pos_tol and oerr <= 1e-13:
+            if perr <= pos_tol and oerr <= 1e-13:
                 found[i] = (slot, q, singular, perr, oerr)
             elif error > 1e-9 and error >= 0.5 * last[i]:
                 # The steps stalled far from the target: no solution next to the ideal one
