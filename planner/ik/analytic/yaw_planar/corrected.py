@@ -5,9 +5,9 @@ whose axes deviate from the family's by round-off: each branch is solved on the 
 (the closed form of :mod:`~planner.ik.analytic.yaw_planar.core`, both elbows of a side at
 once), which misses the target by about the deviation (micro-radians) times the arm's size,
 then taken to the real arm's solution by Newton's steps on its product of exponentials
-(compiled, 2 steps per call, four branches per call:
-:mod:`~planner.ik.analytic.yaw_planar.newton`), the error squaring per step, and checked by
-Pinocchio's FK to round-off (:data:`SETTLE`); up to :data:`CALLS` calls. Position and pitch
+(compiled, four branches per call, 2 steps per call, 3 in the first for position and pitch
+targets: :mod:`~planner.ik.analytic.yaw_planar.newton`), the error squaring per step, and
+checked by Pinocchio's FK to round-off (:data:`SETTLE`); up to :data:`CALLS` calls. Position and pitch
 targets (:func:`solve_corrected_scalar`, 3 pitch joints) solve the tip position and the
 branch's approach elevation (the roll is given); full poses (:func:`solve_corrected_pose`)
 every joint by Gauss-Newton from the pose closed form of
@@ -39,13 +39,14 @@ from planner.ik.analytic.result import STATUS_SOLVED, AnalyticResult
 from planner.ik.analytic.yaw_planar.arm import ArmGeometry
 from planner.ik.analytic.yaw_planar.branches import BEYOND, INSIDE, ORIENT, VALID
 from planner.ik.analytic.yaw_planar.free_pitch import free_pitch_failure, free_pitch_scalar
-from planner.ik.analytic.yaw_planar.newton import NewtonKernel
+from planner.ik.analytic.yaw_planar.newton import STEPS, NewtonKernel
 from planner.ik.analytic.yaw_planar.scalar import finish_scalar
 from planner.ik.analytic.yaw_planar.scalar_pose import PoseFrame, pose_branches
 from planner.model.robot import Robot
 
 __all__ = [
     "CALLS",
+    "FIRST_STEPS",
     "RealTip",
     "TipPose",
     "corrected_result",
@@ -58,9 +59,16 @@ PI = math.pi
 TWO_PI = 2.0 * math.pi
 
 #: Calls of the compiled Newton steps (:data:`~planner.ik.analytic.yaw_planar.newton.STEPS`
-#: each) at most per target: one settles well-conditioned branches; the others, only while a
-#: branch has not settled (started next to a stretched elbow or the yaw axis).
+#: each, the first of a position or pitch target :data:`FIRST_STEPS`) at most per target: one
+#: settles well-conditioned branches; the others, only while a branch has not settled (started
+#: next to a stretched elbow or the yaw axis).
 CALLS = 3
+
+#: Newton steps of the first call for position and pitch targets: one more than a later
+#: call's, which settles most branches started next to a stretched elbow (1.5-2 % of random
+#: SO-101 targets are not settled after two steps, 0.2-0.4 % after three). The compiled single
+#: call (:mod:`~planner.ik.analytic.yaw_planar.corrected_single`) takes the same steps.
+FIRST_STEPS = 3
 
 #: Position error [m, times the arm's size above 1 m] of a settled branch (1e-13 rad for
 #: orientations): round-off, which Newton's steps reach where the branch's Jacobian is regular;
@@ -373,8 +381,8 @@ def _settle_pitch(arm: ArmGeometry, tip_pose: RealTip, px, py, pz, slots, starts
     rows = tip_pose.rows
     out = [None] * k
     pending = range(k)
-    for _ in range(CALLS):
-        flat, misses = kernel.pitch(flat, target, aim4)
+    for call in range(CALLS):
+        flat, misses = kernel.pitch(flat, target, aim4, FIRST_STEPS if call == 0 else STEPS)
         left = []
         for i in pending:
             q = flat[i * dof : (i + 1) * dof]

@@ -9,20 +9,24 @@ sequence is one CasADi SX function of one target, compiled to C: the ideal branc
 formulas of ``solve_corrected_scalar`` for position and pitch targets, with q_current's
 approach or the default one of
 :func:`~planner.ik.analytic.yaw_planar.free_pitch.free_pitch_scalar`, and of
-:func:`~planner.ik.analytic.yaw_planar.scalar_pose.pose_branches` for poses), one call of the
-Newton steps (:data:`~planner.ik.analytic.yaw_planar.newton.STEPS` of them) on the product of
-exponentials of the real screws, the settle check on that model, the wrapping into the limits
-and the pick of :func:`~planner.ik.analytic.nearest.nearest_entry`.
+:func:`~planner.ik.analytic.yaw_planar.scalar_pose.pose_branches` for poses), the Newton steps
+of the Python path's first call (:data:`STEPS`; for poses its first two calls, two steps each,
+a branch settled after the first kept there, whose errors decide which branches stall) on the
+product of exponentials of the real screws for all four branches, the settle check on that
+model, the wrapping into the limits and the pick of
+:func:`~planner.ik.analytic.nearest.nearest_entry`.
 
-The output's first entry says whether the answer is the Python path's for sure; it is 0 (the
-caller takes the Python path) wherever that path would not answer from the first call of the
-Newton steps: a branch not settled after it (or settled within a factor :data:`MARGIN` of the
-threshold, where the two FK codes could disagree), next to the yaw axis (the seeded yaws), the
-roll out of its range, merged branches, a singular or nearly stretched elbow (poses), no branch
-within the limits (the search), and two branches within the limits at exactly the same
-distance. Newton's steps converge to the same root from starts that differ by round-off, so
-the joint values agree with the Python path's to round-off; the caller verifies every answer
-by Pinocchio's FK.
+The output's first entry says whether the answer is the Python path's for sure (for poses
+next to a stretched elbow, which that path leaves to the vectorised one, the vectorised path's:
+the same starts, apart, and steps); it is 0 (the caller takes the Python path) wherever that
+path would not answer from its Newton steps: a branch not settled after this call's (or
+settled within a factor :data:`MARGIN` of the threshold, where the two FK codes could
+disagree), next to the yaw axis (the seeded yaws), the roll out of its range, merged branches,
+a pose's end point next to the yaw axis, a branch started next to a stretched elbow that
+stalls, no branch within the limits (the search), and two branches within the limits at
+exactly the same distance. Newton's steps converge to the same root from starts that differ by
+round-off, so the joint values agree with the Python path's to round-off; the caller verifies
+every answer by Pinocchio's FK.
 """
 
 from __future__ import annotations
@@ -36,12 +40,12 @@ from planner.geometry.target import RADIAL_EPS
 from planner.ik.analytic.geometry import SINGULAR_TOL
 from planner.ik.analytic.yaw_planar.arm import ArmGeometry
 from planner.ik.analytic.yaw_planar.compiled import nearest_branch_sx, pick_branch_sx, wrap_sx, wrapped_sx
-from planner.ik.analytic.yaw_planar.corrected import SETTLE
+from planner.ik.analytic.yaw_planar.corrected import FIRST_STEPS, SETTLE
 from planner.ik.analytic.yaw_planar.newton import FLAGS, arm_parameters, pitch_kernel, pose_kernel, tip_fk_sx
 from planner.ik.analytic.yaw_planar.scalar_pose import PoseFrame
 from planner.ik.numeric.codegen import compile_function
 
-__all__ = ["MARGIN", "CorrectedKernel", "corrected_kernel", "corrected_supported"]
+__all__ = ["MARGIN", "STEPS", "CorrectedKernel", "corrected_kernel", "corrected_supported"]
 
 PI = math.pi
 #: A branch counts as settled only this far inside the Python path's thresholds (its check is
@@ -49,6 +53,14 @@ PI = math.pi
 MARGIN = 0.5
 #: Branches closer than this on every joint [rad] may be the Python path's twins (1e-7): left to it.
 TWIN = 2e-7
+#: Newton steps of position and pitch targets: the Python path's first call's.
+STEPS = FIRST_STEPS
+#: A pose branch counts as settled after two steps only this far inside the Python path's
+#: thresholds; up to their inverse outside them, the Python path decides.
+EARLY = 0.8
+#: A pose branch's steps stalled for sure where its error after four steps is at least this
+#: share of its error after two (the Python path's test: 0.5).
+STALL = 0.75
 
 
 def corrected_supported(arm: ArmGeometry, joint_kinds) -> bool:
@@ -226,8 +238,10 @@ def _pose_starts(arm: ArmGeometry, frame: PoseFrame, p, rflat, qc):
     """The ideal branches of a pose (pose_branches' with a roll and 3 pitch joints).
 
     Returns:
-        (starts, valid, ok) as :func:`_pitch_starts` (without aims): ok is 0 where a valid branch
-        is singular or next to a stretched elbow (solve_corrected_pose declines those).
+        (starts, valid, ok, apart) as :func:`_pitch_starts` (without aims): ok is 0 where a valid
+        branch lies next to the yaw axis (flagged singular); apart, whether a valid side's elbow
+        branches start apart next to a stretched or folded elbow (where solve_corrected_pose
+        declines and the vectorised path answers).
     """
     px, py, pz = p
     lin = np.asarray(frame.linear)
@@ -287,6 +301,7 @@ def _pose_starts(arm: ArmGeometry, frame: PoseFrame, p, rflat, qc):
     seeded = _and(ca.logic_not(cylinder), u_pos < (1.0 + 1e-9) * math.sqrt(2.0 * abs(d) * len_tol))
     ok = _and(ca.logic_not(free), ca.logic_not(seeded))
     starts, valid = [], []
+    apart = ca.SX(0)
     for side in (0, 1):
         cp_, sp_ = ca.cos(psi[side]), ca.sin(psi[side])
         x1 = cp_ * col1[0] + sp_ * col1[1]
@@ -307,11 +322,18 @@ def _pose_starts(arm: ArmGeometry, frame: PoseFrame, p, rflat, qc):
         good = _and(valid_side[side], ca.logic_not(twisted), dd <= reach_hi, dd >= reach_lo)
         c = _clamp((dd * dd - l1_sq - l2_sq) / l1_l2, -1.0, 1.0)
         s = ca.sqrt(1.0 - c * c)
+        # Next to a stretched or folded elbow the two elbow branches start apart, as solve_core
+        # starts them on inexact chains (the vectorised path, which answers there: the Python
+        # path declines such poses).
+        small = s < near_elbow
+        c = _if(small, _if(c > 0.0, math.cos(arm.elbow_seed), -math.cos(arm.elbow_seed)), c)
+        s = _if(small, near_elbow, s)
+        apart = _or(apart, _and(good, small))
         e_abs = ca.atan2(s, c)
         base = ca.atan2(vz, vx)
         half = ca.atan2(l2 * s, l1 + l2 * c)
-        # Singular (a stretched or folded elbow, the yaw axis) or next to a stretched elbow: declined.
-        declined = _or(s < SINGULAR_TOL, ca.fabs(ue[side]) < SINGULAR_TOL * arm.scale)
+        # Next to the yaw axis (flagged singular there): declined.
+        declined = ca.fabs(ue[side]) < SINGULAR_TOL * arm.scale
         if side == 0:
             pairs = ((base + half, -e_abs), (base - half, e_abs))
         else:
@@ -320,12 +342,10 @@ def _pose_starts(arm: ArmGeometry, frame: PoseFrame, p, rflat, qc):
             phi2_3 = a1 + e - g2
             phi2 = a1 - g1
             q = [arm.sigma * psi[side], signs[0] * phi2, signs[1] * (phi2_3 - phi2), signs[2] * (phi - phi2_3), roll]
-            elbow = signs[1] * q[2] + g2 - g1
-            bad = _or(declined, ca.fabs(ca.sin(elbow)) < 2.0 * near_elbow)
-            ok = _and(ok, ca.logic_not(_and(good, bad)))
+            ok = _and(ok, ca.logic_not(_and(good, declined)))
             starts.append(q)
             valid.append(good)
-    return starts, valid, ok
+    return starts, valid, ok, apart
 
 
 def _rotation_angle(r, t):
@@ -384,33 +404,48 @@ class CorrectedKernel:
         if kind == "pose":
             rflat = [x[3 + k] for k in range(9)]
             rows = [rflat[0:3], rflat[3:6], rflat[6:9]]
-            starts, valid, sure = _pose_starts(arm, frame, p, rflat, qc)
+            starts, valid, sure, apart = _pose_starts(arm, frame, p, rflat, qc)
             flag = ca.SX(0.0)
-            step = pose_kernel(dof)
+            step = pose_kernel(dof, 2)
             rot_t = ca.vertcat(*[ca.horzcat(*row) for row in rows])
-            # The rotation fixes the arm's plane: one side's branches at most are valid (with
-            # both, the Python path decides), so only two are stepped, the valid side's.
-            front = ca.logic_or(valid[0], valid[1])
-            sure = _and(sure, ca.logic_not(_and(front, ca.logic_or(valid[2], valid[3]))))
-            lanes = []
-            for lane in range(2):
-                q0 = ca.vertcat(*[_if(front, a, b) for a, b in zip(starts[lane], starts[2 + lane])])
-                q0 = _if(ca.logic_or(valid[lane], valid[2 + lane]), q0, 0.0)
-                q = step(q0, target, rot_t, prm)
+
+            def errors(q):
                 tip, rot = tip_fk_sx(q, prm, dof)
-                perr = ca.norm_2(target - tip)
-                oerr = _rotation_angle(rot, rows)
-                lanes.append(([q[j] for j in range(dof)], _and(perr <= pos_tol, oerr <= MARGIN * 1e-13)))
+                return ca.norm_2(target - tip), _rotation_angle(rot, rows)
+
+            # Every branch is stepped: the rotation fixes the arm's plane up to a half turn of
+            # the yaw, and where the roll axis is next to vertical both sides are valid on the
+            # ideal model (10 % of random poses); on the real arm one of them may have no
+            # solution: its steps stall (solve_corrected_pose's ORIENT, decided from the errors
+            # after its first two calls, two steps each: the same here, with margins).
             for m in range(4):
-                q, done = lanes[m % 2]
-                qs.append(list(q))
-                settled.append(done)
+                q2 = step(_if(valid[m], ca.vertcat(*starts[m]), 0.0), target, rot_t, prm)
+                q4 = step(q2, target, rot_t, prm)
+                perr2, oerr2 = errors(q2)
+                perr, oerr = errors(q4)
+                error2 = perr2 / arm.scale + oerr2
+                error = perr / arm.scale + oerr
+                # The Python and the vectorised paths stop a branch settled after two steps (those
+                # and two more may differ by more than round-off): the same here, unsure within
+                # EARLY of their threshold (the two FK codes differ by round-off).
+                early = _and(perr2 <= EARLY * pos_tol / MARGIN, oerr2 <= EARLY * 1e-13)
+                close = _and(perr2 <= pos_tol / (MARGIN * EARLY), oerr2 <= 1e-13 / EARLY)
+                unsure = _and(close, ca.logic_not(early))
+                sure = _and(sure, ca.logic_not(_and(valid[m], unsure)))
+                q = _if(early, q2, q4)
+                # The Python path: error > 1e-9 and error >= 0.5 x error2.
+                stalled = _and(error2 > 1e-9 / MARGIN, error > 1e-9 / MARGIN, error >= STALL * error2)
+                qs.append([q[j] for j in range(dof)])
+                settled.append(_or(early, _and(perr <= pos_tol, oerr <= MARGIN * 1e-13)))
+                # Started apart, the vectorised path's damped steps decide a stalled branch.
+                sure = _and(sure, ca.logic_not(_and(apart, valid[m], stalled)))
+                valid[m] = _and(valid[m], ca.logic_not(stalled))
         else:
             pit = x[3] if kind == "pitch" else None
             starts, aims, valid, sure, u = _pitch_starts(arm, p, pit, qc, prm)
             # The branches' singular flag (corrected: u_end < SINGULAR_TOL x the arm's size).
             flag = u < SINGULAR_TOL * arm.scale
-            step = pitch_kernel(dof, arm.roll_idx)
+            step = pitch_kernel(dof, arm.roll_idx, STEPS)
             lx, ly, lz = (float(v) for v in arm.approach_local)
             for m in range(4):
                 q0 = ca.vertcat(*[_if(valid[m], v, 0.0) for v in starts[m]])

@@ -190,16 +190,16 @@ def pose_kernel(dof: int, steps: int = STEPS) -> ca.Function:
     return ca.Function("newton_pose", [q0, target, rot_t, prm], [q])
 
 
-def _function(kind: str, dof: int, roll_idx: int | None, width: int) -> ca.Function:
-    """The compiled kernel of a kind over `width` branches.
+def _function(kind: str, dof: int, roll_idx: int | None, width: int, steps: int = STEPS) -> ca.Function:
+    """The compiled kernel of a kind over `width` branches, `steps` Newton steps each.
 
     Width 4: one target's branches (the target and its rotation shared); else any branches
     (only the parameters shared).
     """
-    key = (kind, dof, roll_idx if kind == "pitch" else None, width)
+    key = (kind, dof, roll_idx if kind == "pitch" else None, width, steps)
     fn = _FUNCTIONS.get(key)
     if fn is None:
-        one = pitch_kernel(dof, roll_idx) if kind == "pitch" else pose_kernel(dof)
+        one = pitch_kernel(dof, roll_idx, steps) if kind == "pitch" else pose_kernel(dof, steps)
         if width == 4:
             # One target's: its inputs as one vector (one copy per call): the 4 starts, the
             # target position, the 4 goals or the rotation (column-major).
@@ -227,12 +227,12 @@ class NewtonKernel:
         self.arm = arm
         self.dof = arm.dof
         self.prm = arm_parameters(arm)
-        self._calls: dict[str, tuple] = {}
+        self._calls: dict[tuple[str, int], tuple] = {}
 
-    def _call(self, kind: str) -> tuple:
-        call = self._calls.get(kind)
+    def _call(self, kind: str, steps: int) -> tuple:
+        call = self._calls.get((kind, steps))
         if call is None:
-            fn = _function(kind, self.dof, self.arm.roll_idx, 4)
+            fn = _function(kind, self.dof, self.arm.roll_idx, 4, steps)
             x = np.zeros(4 * self.dof + 3 + (9 if kind == "pose" else 4))
             prm = self.prm.copy()
             out = np.zeros(4 * self.dof)
@@ -244,19 +244,21 @@ class NewtonKernel:
             if kind == "pitch":
                 buffer.set_res(1, memoryview(miss))
             call = (buffer, evaluate, x, prm, out, miss)
-            self._calls[kind] = call
+            self._calls[(kind, steps)] = call
         return call
 
-    def pitch(self, q0: list[float], target: list[float], goals: list[float]) -> tuple[list[float], list[float]]:
+    def pitch(
+        self, q0: list[float], target: list[float], goals: list[float], steps: int = STEPS
+    ) -> tuple[list[float], list[float]]:
         """Four branches (q0: 4 x dof, flat) at their elevation goals (4) -> q (4 x dof, flat), misses (4)."""
-        _, evaluate, x, _, out, miss = self._call("pitch")
+        _, evaluate, x, _, out, miss = self._call("pitch", steps)
         x[:] = q0 + target + goals
         evaluate()
         return out.tolist(), miss.tolist()
 
     def pose(self, q0: list[float], target: list[float], rotation: list[float]) -> list[float]:
         """Four branches (q0: 4 x dof, flat) of a pose (rotation column-major, 9) -> q (4 x dof, flat)."""
-        _, evaluate, x, _, out, _ = self._call("pose")
+        _, evaluate, x, _, out, _ = self._call("pose", STEPS)
         x[:] = q0 + target + rotation
         evaluate()
         return out.tolist()

@@ -7,7 +7,9 @@ it moves the tip (SO-101, for position and pitch targets): rolls outwards from `
 every 2.5 deg until one admits the branch, then the boundary by bisection, so the nearest such
 roll (a window narrower than a step may be missed). On inexact chains the search runs on the
 ideal geometry, keeps clear of its boundaries (1e-4 rad in pitch, 1e-3 rad in roll) and the
-result is checked on the real one.
+result is checked on the real one; where the ideal model is unsure (a branch it misses by about
+its deviation, next to a stretched elbow, or a joint next to a limit) the real one decides
+(:func:`within_real`).
 """
 
 from __future__ import annotations
@@ -16,16 +18,27 @@ import math
 
 import numpy as np
 
+from planner.geometry.chain import wrap_array
 from planner.ik.analytic.result import STATUS_CODES, STATUS_SOLVED
 from planner.ik.analytic.yaw_planar.arm import ArmGeometry
 from planner.ik.analytic.yaw_planar.arrays import PER_BRANCH, BranchArrays, solve_arrays
-from planner.ik.analytic.yaw_planar.core import roll_values, solve_core
-from planner.ik.analytic.yaw_planar.end_angle import phi_choices, within_ideal
+from planner.ik.analytic.yaw_planar.branches import VALID
+from planner.ik.analytic.yaw_planar.core import ideal_position_error, roll_values, solve_core
+from planner.ik.analytic.yaw_planar.end_angle import limit_values, phi_choices, within_ideal
+from planner.ik.analytic.yaw_planar.real_model import orientation_errors, true_fk
+from planner.ik.analytic.yaw_planar.refine import newton
 from planner.ik.analytic.yaw_planar.status import status_codes
 
-__all__ = ["free_joints", "search", "solve_searched"]
+__all__ = ["free_joints", "search", "solve_searched", "within_real"]
 
 TWO_PI = 2.0 * math.pi
+#: Ideal-model misses [times the chain's deviation and size] the search checks on the real
+#: model: next to a stretched elbow the real reach exceeds the ideal one by about the
+#: deviation times the arm's size.
+NEAR_MISS = 10.0
+#: Joint values this close to a limit [rad] on the ideal model are checked on the real one
+#: (SO-101's differ by about 4 times its deviation, 1.5e-5 rad).
+LIMIT_MARGIN = 1e-3
 
 
 def free_joints(arm: ArmGeometry, pit, rot) -> tuple[bool, bool]:
@@ -61,13 +74,17 @@ def search(arm: ArmGeometry, pos, pit, qc, roll_step: float = math.radians(2.5))
     margin_roll = 1e-3
     nan4 = np.full((n, 4), np.nan)
 
-    def oracle(rows, roll):
+    def oracle(rows, roll, real=True):
+        # real: where the ideal model is unsure, the real one decides (not while bisecting:
+        # the roll it ends at is decided again).
         q_rows = None if qc is None else qc[rows]
         if free_phi:
             return phi_choices(arm, pos[rows], q_rows, roll, margin)
-        core = solve_core(arm, pos[rows], None if pit is None else pit[rows], None, q_rows, arm.orient_tol,
-                          roll_free=roll)  # fmt: skip
+        pit_rows = None if pit is None else pit[rows]
+        core = solve_core(arm, pos[rows], pit_rows, None, q_rows, arm.orient_tol, roll_free=roll)
         ok = within_ideal(arm, core, pos[rows], q_rows)
+        if real:
+            ok = within_real(arm, core, pos[rows], pit_rows, q_rows, roll, ok)
         return ok, np.full(ok.shape, np.nan), np.full(ok.shape, np.nan)
 
     roll0 = None
@@ -129,7 +146,7 @@ def search(arm: ArmGeometry, pos, pit, qc, roll_step: float = math.radians(2.5))
         index = np.arange(len(bad))
         for _ in range(6 if arm.exact else 2):
             trial = bad[:, None] + (good - bad)[:, None] * fractions  # (p, parts - 1)
-            ok = oracle(np.repeat(pairs[0], parts - 1), trial.ravel())[0]
+            ok = oracle(np.repeat(pairs[0], parts - 1), trial.ravel(), False)[0]
             hit = ok[np.arange(trial.size), np.repeat(pairs[1], parts - 1)].reshape(trial.shape)
             # The first trial with a solution (from the bad end): the bracket ends there.
             k = np.where(hit.any(axis=1), np.argmax(hit, axis=1), parts - 1)
@@ -142,6 +159,56 @@ def search(arm: ArmGeometry, pos, pit, qc, roll_step: float = math.radians(2.5))
         roll[pairs] = np.where(hit, good, roll[pairs])
         phi[pairs] = np.where(hit, ph[np.arange(len(good)), pairs[1]], phi[pairs])
     return found, phi, roll, phi_safe, roll_safe
+
+
+def within_real(arm: ArmGeometry, core, pos, pit, qc, roll, ok) -> np.ndarray:
+    """The mask `ok` (n, 4) of :func:`within_ideal`, decided on the real model where the ideal one is unsure.
+
+    On inexact chains the ideal model's answer can be wrong by about its deviation: next to a
+    stretched elbow the real arm reaches wrist points up to about the deviation times its size
+    beyond the ideal reach (SO-101: a window of wrist rolls 3 deg wide where the ideal model
+    misses by 3e-7 m), and joint values next to a limit may lie on its other side on the real
+    arm. Branches valid on the ideal model, clear of the yaw axis, that miss the target by more
+    than round-off but less than :data:`NEAR_MISS` times the deviation and size, or reach it
+    with a joint within :data:`LIMIT_MARGIN` of a limit, are solved on the real model
+    (Newton's steps of :func:`~planner.ik.analytic.yaw_planar.refine.newton`, checked as
+    ``refine`` checks), whose answer they take.
+    """
+    n = pos.shape[0]
+    if arm.exact or n == 0:
+        return ok
+    error = ideal_position_error(arm, core, pos)
+    scale = max(1.0, arm.scale)
+    near = (core.cat == VALID) & ~core.seeded[:, None] & (error <= NEAR_MISS * arm.deviation * arm.scale)
+    edge = error > 1e-10 * scale
+    for j in range(arm.dof):
+        # The roll is an input here, the same on both models.
+        if limit_values(arm, j) and j != arm.roll_idx:
+            lo, hi = arm.lower[j], arm.upper[j]
+            col = wrap_array(core.q[..., j], lo, hi, qc[:, j][:, None] if qc is not None else 0.0)
+            edge |= (np.abs(col - lo) < LIMIT_MARGIN) | (np.abs(col - hi) < LIMIT_MARGIN)
+    near &= edge
+    rows = np.nonzero(near.any(axis=1))[0]
+    if rows.size == 0:
+        return ok
+    # Newton's steps on the real model (refine's, without its damped steps: a branch they do
+    # not settle counts as not reaching), then the checks of refine and within_ideal.
+    sub = near[rows]
+    q = newton(arm, core.q[rows], sub, pos[rows], core.world_pitch[rows], None)
+    fk_p, fk_r = true_fk(arm, q)
+    real = sub & (np.linalg.norm(fk_p - pos[rows][:, None, :], axis=-1) <= 1e-10 * scale)
+    errors = orientation_errors(arm, fk_r, pos[rows], None if pit is None else pit[rows], None)
+    if errors is not None:
+        real &= errors <= 1e-9
+    qc_rows = None if qc is None else qc[rows]
+    for j in range(arm.dof):
+        if limit_values(arm, j):
+            lo, hi = arm.lower[j], arm.upper[j]
+            col = wrap_array(q[..., j], lo, hi, qc_rows[:, j][:, None] if qc_rows is not None else 0.0)
+            real &= (col >= lo) & (col <= hi)
+    out = ok.copy()
+    out[rows] = np.where(sub, real, ok[rows])
+    return out
 
 
 def solve_searched(arm: ArmGeometry, pos, pit, qc, base: BranchArrays, orientation_errors: bool = True) -> BranchArrays:
