@@ -213,8 +213,11 @@ class _Angle:
         if r is None:
             r = ca.sqrt(x * x + y * y)
         zero = r == 0.0
-        safe = _where(zero, 1.0, r)
-        return cls(a, _where(zero, _where(abs(a) < 1.0, 1.0, -1.0), x / safe), _where(zero, 0.0, y / safe))
+        # The selections as sums with a zero where not chosen (r + 0 is r; c - 0 keeps -0.0), and
+        # at r = 0 x -+ 1 is -+1 (|x| < 1e-154 there).
+        safe = r + ca.if_else(zero, 1.0, 0.0)
+        flip = ca.if_else(zero, ca.if_else(abs(a) < 1.0, -1.0, 1.0), 0.0)
+        return cls(a, x / safe - flip, _where(zero, 0.0, y / safe))
 
     @staticmethod
     def where(cond, a: _Angle, b: _Angle) -> _Angle:
@@ -310,14 +313,37 @@ def wrap_sx(x, lower: float, upper: float, ref=0.0):
     (:func:`_step_thresholds`): one comparison per step instead of eight operations. Then
     the snaps onto the limits.
     """
+    return wrap_within_sx(x, lower, upper, ref)[0]
+
+
+def wrap_within_sx(x, lower: float, upper: float, ref=0.0):
+    """:func:`wrap_sx` and whether its value lies within ``[lower, upper]`` (the same test on it).
+
+    The snaps move values within ``LIMIT_SNAP`` outside a limit onto it, so the wrapped value
+    is within the range exactly where the value before the snaps lies within the range
+    widened by the snaps (``lower - LIMIT_SNAP``, ``upper + LIMIT_SNAP`` as doubles): these
+    two comparisons serve both the snaps and the test. Where ``x - limit`` is exact for the
+    values that snap (Sterbenz 1974: the limit 0, or at least ``2 LIMIT_SNAP`` from it), the
+    snap is ``x - (x - limit)``, that limit exactly (one operation less than a selection).
+    """
     x = x - TWO_PI * _rint((x - ref) / TWO_PI)
     if not (math.isfinite(lower) and math.isfinite(upper)):
-        return _wrap_unbounded(x, lower, upper)
+        x = _wrap_unbounded(x, lower, upper)
+        return x, ca.logic_and(x >= lower, x <= upper)
     down_from, up_to = _step_thresholds(lower, upper)
     x = x - _where(x >= down_from, TWO_PI, 0.0)
     x = x + _where(x <= up_to, TWO_PI, 0.0)
-    x = _where(ca.logic_and(x > upper, x <= upper + LIMIT_SNAP), upper, x)
-    return _where(ca.logic_and(x < lower, x >= lower - LIMIT_SNAP), lower, x)
+    above, below = x >= lower - LIMIT_SNAP, x <= upper + LIMIT_SNAP
+    snap_up, snap_down = ca.logic_and(x > upper, below), ca.logic_and(x < lower, above)
+    x = _snap(x, snap_up, upper)
+    return _snap(x, snap_down, lower), ca.logic_and(above, below)
+
+
+def _snap(x, cond, limit: float):
+    """``where(cond, limit, x)`` for `x` within LIMIT_SNAP of `limit` where `cond` holds."""
+    if limit == 0.0 or abs(limit) >= 2.0 * LIMIT_SNAP:
+        return x - ca.if_else(cond, x - limit, 0.0)
+    return _where(cond, limit, x)
 
 
 def _wrap_unbounded(x, lower: float, upper: float):
@@ -582,12 +608,12 @@ def _one_target(arm: ArmGeometry, kind: str, current: bool, distances: bool = Fa
     nan = ca.SX(float("nan"))
     for m in range(4):
         for j in range(dof):
-            if current:
+            if current or pose or not (arm.has_roll and j == arm.roll_idx):
                 # A roll copied from q_current: unchanged within its range (see solve_arrays).
-                q[m][j] = wrap_sx(q[m][j], arm.lower[j], arm.upper[j], qc[j])
-            elif pose or not (arm.has_roll and j == arm.roll_idx):
-                q[m][j] = wrap_sx(q[m][j], arm.lower[j], arm.upper[j])
-            within[m] = ca.logic_and(within[m], ca.logic_and(q[m][j] >= arm.lower[j], q[m][j] <= arm.upper[j]))
+                q[m][j], inside = wrap_within_sx(q[m][j], arm.lower[j], arm.upper[j], qc[j] if current else 0.0)
+            else:
+                inside = ca.logic_and(q[m][j] >= arm.lower[j], q[m][j] <= arm.upper[j])
+            within[m] = ca.logic_and(within[m], inside)
         # NaN where not valid: one product per value (x * 1.0 is x, -0.0 included; CasADi
         # folds a product with a constant 0, so constants are selected).
         keep = _where(valid[m], 1.0, nan)
