@@ -446,8 +446,10 @@ def _one_target(arm: ArmGeometry, kind: str, current: bool, distances: bool = Fa
     len_tol = arm.core_len_tol
     under = rho2 - d * d
     cylinder = ca.logic_and(ca.logic_not(free), under < -2.0 * abs(d) * len_tol)
-    u = ca.sqrt(_max(under, 0.0))
-    ang = _Angle.atan2(hy, hx, ca.sqrt(rho2)).shift(-arm.mu)
+    rho = ca.sqrt(rho2)
+    # (Without a lateral offset, u is rho: sqrt(max(rho2, 0)) = sqrt(rho2) for finite targets.)
+    u = rho if d == 0.0 else ca.sqrt(_max(under, 0.0))
+    ang = _Angle.atan2(hy, hx, rho).shift(-arm.mu)
     if d == 0.0:
         # NumPy's atan2(-0.0, u) and atan2(-0.0, -u) for u >= 0 (CasADi folds -0.0 into 0).
         psi_f = ang
