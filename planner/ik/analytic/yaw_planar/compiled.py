@@ -34,7 +34,8 @@ plain formulas bit for bit (1e6 generated targets per arm, kind and q_current); 
 errors change by round-off (< 1e-14 m). The end angle's two candidates (the approach pitch
 alpha, or pi - alpha on the side facing away) get their cosines and sines before the side is
 known (:func:`_chosen_end`): the ``sincos`` calls then need not wait for the yaw's arc
-tangent.
+tangent. Each wrapped joint's limits test shares the comparisons of the snaps onto the limits
+(:func:`wrap_within_sx`).
 
 Compiler flags: ``-O3`` without ``-march``: the shared library is cached on disk by a hash of
 the code and flags, not of the CPU, so it must run on any x86-64 (and FMA contraction would
