@@ -110,6 +110,11 @@ def _where(cond, a, b):
     return ca.if_else(cond, a, b)
 
 
+def _code(cond, a, b):
+    """``where(cond, a, b)`` for small integer codes `a`, `b` and a 0/1 `cond`: ``b + cond (a - b)`` (exact)."""
+    return b + cond * (a - b)
+
+
 def _max(x, c: float):
     """C's ``fmax(x, c)`` for a constant `c` (glibc's: x where ``x >= c``, c where x is NaN), inline.
 
@@ -633,32 +638,32 @@ def _one_target(arm: ArmGeometry, kind: str, current: bool, distances: bool = Fa
         reach = any_valid
         any_beyond = ca.SX(0)
         for m in range(4):
-            reach = ca.logic_and(reach, _where(valid[m], ca.logic_or(beyond[m], inside[m]), 1))
+            reach = ca.logic_and(reach, ca.logic_or(ca.logic_not(valid[m]), ca.logic_or(beyond[m], inside[m])))
             any_beyond = ca.logic_or(any_beyond, ca.logic_and(valid[m], beyond[m]))
-        status = _where(reach, _where(any_beyond, code[STATUS_BEYOND_MAX_REACH], code[STATUS_INSIDE_MIN_REACH]), status)
+        status = _code(reach, _code(any_beyond, code[STATUS_BEYOND_MAX_REACH], code[STATUS_INSIDE_MIN_REACH]), status)
     live = [cat4[m] != DUPLICATE for m in range(4)]
     any_orient = ca.SX(0)
     any_beyond_cat = ca.SX(0)
     for m in range(4):
         any_orient = ca.logic_or(any_orient, ca.logic_and(live[m], cat4[m] == ORIENT))
         any_beyond_cat = ca.logic_or(any_beyond_cat, ca.logic_and(live[m], cat4[m] == BEYOND))
-    none = _where(
+    none = _code(
         any_orient,
         code[STATUS_ORIENTATION_NOT_ACHIEVABLE],
-        _where(any_beyond_cat, code[STATUS_BEYOND_MAX_REACH], code[STATUS_INSIDE_MIN_REACH]),
+        _code(any_beyond_cat, code[STATUS_BEYOND_MAX_REACH], code[STATUS_INSIDE_MIN_REACH]),
     )
-    status = _where(any_valid, status, none)
-    status = _where(any_within, code[STATUS_SOLVED], status)
+    status = _code(any_valid, status, none)
+    status = _code(any_within, code[STATUS_SOLVED], status)
     if current:
         # The within-limits branch nearest q_current (the first of equals, as numpy.argmin).
         best, nearest = ca.SX(-1), ca.SX(math.inf)
         for m in range(4):
             dist_m = sum((q[m][j] - qc[j]) ** 2 for j in range(dof))
             take = ca.logic_and(within[m], dist_m < nearest)
-            best = _where(take, m, best)
+            best = _code(take, m, best)
             nearest = _where(take, dist_m, nearest)
     else:
-        best = _where(within[0], 0, _where(within[1], 1, _where(within[2], 2, _where(within[3], 3, -1))))
+        best = _code(within[0], 0, _code(within[1], 1, _code(within[2], 2, _code(within[3], 3, -1))))
     extra = []
     if free_end:
         unsolved = status != code[STATUS_SOLVED]
