@@ -35,7 +35,7 @@ from planner.ik.analytic.yaw_planar.compiled import (
     compiled_supported,
     cos_nonnegative,
     solve_compiled,
-    wrap_sx,
+    wrap_within_sx,
 )
 
 # (robot, target kind, q_current); compiling takes 1-4 s each: the rest in the slow suite.
@@ -229,6 +229,8 @@ LIMITS = [
     (-2.88, -0.436),
     (-4.0, 1.0),  # the lower beyond -pi
     (-1e9, 1e9),
+    (-1.0, 0.0),  # a limit 0: the snap x - (x - 0)
+    (-1.5e-10, 5e-11),  # limits within 2 LIMIT_SNAP of 0: the snaps as selections
 ]
 
 
@@ -236,8 +238,9 @@ LIMITS = [
 @pytest.mark.parametrize("centred", [True, False], ids=["ref0", "ref"])
 def test_wrap_sx_equals_wrap_array(lower, upper, centred):
     """The compiled wrapping into a joint range (its steps by 2 pi as comparisons with
-    thresholds) equals wrap_array on values around the limits, their 2 pi shifts, the half
-    turns and the doubles where the steps switch on."""
+    thresholds, the snaps onto the limits as differences) equals wrap_array on values around
+    the limits, their 2 pi shifts, the half turns and the doubles where the steps switch on,
+    signs of zeros included; its within-limits flag is the test on wrap_array's value."""
     rng = np.random.default_rng(5)
     edges = np.array([lower, upper, np.pi, -np.pi, 0.0])
     offsets = np.array([0.0, 0.5, 1.0, 1.5, 2.0, -0.5, -1.0, -1.5, -2.0]) * LIMIT_SNAP
@@ -259,10 +262,15 @@ def test_wrap_sx_equals_wrap_array(lower, upper, centred):
         at = slice(near.size, near.size + sum(u.size for u in ulps))
         ref[at] = x[at]
     sx, sref = ca.SX.sym("x"), ca.SX.sym("ref")
-    f = ca.Function("wrap", [sx, sref], [wrap_sx(sx, lower, upper, sref if not centred else 0.0)]).map(x.size)
-    got = np.asarray(f(x, ref)).ravel()
+    wrapped, within = wrap_within_sx(sx, lower, upper, sref if not centred else 0.0)
+    f = ca.Function("wrap", [sx, sref], [wrapped, within]).map(x.size)
+    got, got_within = (np.asarray(v).ravel() for v in f(x, ref))
     want = wrap_array(x.copy(), lower, upper, ref)
     np.testing.assert_array_equal(got, want)
+    np.testing.assert_array_equal(np.signbit(got), np.signbit(want))
+    np.testing.assert_array_equal(got_within != 0.0, (want >= lower) & (want <= upper))
+    if max(abs(lower), abs(upper)) < 10.0:  # (at 1e9, x +- LIMIT_SNAP rounds to x)
+        assert np.any(np.isin(want, [lower, upper]) & ~np.isin(x, [lower, upper]))  # snaps met
 
 
 def test_batch_rotation_check_finds_the_bad_row():

@@ -34,7 +34,8 @@ plain formulas bit for bit (1e6 generated targets per arm, kind and q_current); 
 errors change by round-off (< 1e-14 m). The end angle's two candidates (the approach pitch
 alpha, or pi - alpha on the side facing away) get their cosines and sines before the side is
 known (:func:`_chosen_end`): the ``sincos`` calls then need not wait for the yaw's arc
-tangent.
+tangent. Each wrapped joint's limits test shares the comparisons of the snaps onto the limits
+(:func:`wrap_within_sx`).
 
 Compiler flags: ``-O3`` without ``-march``: the shared library is cached on disk by a hash of
 the code and flags, not of the CPU, so it must run on any x86-64 (and FMA contraction would
@@ -107,6 +108,11 @@ def compiled_supported(arm: ArmGeometry, pit, rot, qc) -> bool:
 
 def _where(cond, a, b):
     return ca.if_else(cond, a, b)
+
+
+def _code(cond, a, b):
+    """``where(cond, a, b)`` for small integer codes `a`, `b` and a 0/1 `cond`: ``b + cond (a - b)`` (exact)."""
+    return b + cond * (a - b)
 
 
 def _max(x, c: float):
@@ -213,8 +219,11 @@ class _Angle:
         if r is None:
             r = ca.sqrt(x * x + y * y)
         zero = r == 0.0
-        safe = _where(zero, 1.0, r)
-        return cls(a, _where(zero, _where(abs(a) < 1.0, 1.0, -1.0), x / safe), _where(zero, 0.0, y / safe))
+        # The selections as sums with a zero where not chosen (r + 0 is r; c - 0 keeps -0.0), and
+        # at r = 0 x -+ 1 is -+1 (|x| < 1e-154 there).
+        safe = r + ca.if_else(zero, 1.0, 0.0)
+        flip = ca.if_else(zero, ca.if_else(abs(a) < 1.0, -1.0, 1.0), 0.0)
+        return cls(a, x / safe - flip, _where(zero, 0.0, y / safe))
 
     @staticmethod
     def where(cond, a: _Angle, b: _Angle) -> _Angle:
@@ -310,14 +319,37 @@ def wrap_sx(x, lower: float, upper: float, ref=0.0):
     (:func:`_step_thresholds`): one comparison per step instead of eight operations. Then
     the snaps onto the limits.
     """
+    return wrap_within_sx(x, lower, upper, ref)[0]
+
+
+def wrap_within_sx(x, lower: float, upper: float, ref=0.0):
+    """:func:`wrap_sx` and whether its value lies within ``[lower, upper]`` (the same test on it).
+
+    The snaps move values within ``LIMIT_SNAP`` outside a limit onto it, so the wrapped value
+    is within the range exactly where the value before the snaps lies within the range
+    widened by the snaps (``lower - LIMIT_SNAP``, ``upper + LIMIT_SNAP`` as doubles): these
+    two comparisons serve both the snaps and the test. Where ``x - limit`` is exact for the
+    values that snap (Sterbenz 1974: the limit 0, or at least ``2 LIMIT_SNAP`` from it), the
+    snap is ``x - (x - limit)``, that limit exactly (one operation less than a selection).
+    """
     x = x - TWO_PI * _rint((x - ref) / TWO_PI)
     if not (math.isfinite(lower) and math.isfinite(upper)):
-        return _wrap_unbounded(x, lower, upper)
+        x = _wrap_unbounded(x, lower, upper)
+        return x, ca.logic_and(x >= lower, x <= upper)
     down_from, up_to = _step_thresholds(lower, upper)
     x = x - _where(x >= down_from, TWO_PI, 0.0)
     x = x + _where(x <= up_to, TWO_PI, 0.0)
-    x = _where(ca.logic_and(x > upper, x <= upper + LIMIT_SNAP), upper, x)
-    return _where(ca.logic_and(x < lower, x >= lower - LIMIT_SNAP), lower, x)
+    above, below = x >= lower - LIMIT_SNAP, x <= upper + LIMIT_SNAP
+    snap_up, snap_down = ca.logic_and(x > upper, below), ca.logic_and(x < lower, above)
+    x = _snap(x, snap_up, upper)
+    return _snap(x, snap_down, lower), ca.logic_and(above, below)
+
+
+def _snap(x, cond, limit: float):
+    """``where(cond, limit, x)`` for `x` within LIMIT_SNAP of `limit` where `cond` holds."""
+    if limit == 0.0 or abs(limit) >= 2.0 * LIMIT_SNAP:
+        return x - ca.if_else(cond, x - limit, 0.0)
+    return _where(cond, limit, x)
 
 
 def _wrap_unbounded(x, lower: float, upper: float):
@@ -420,8 +452,10 @@ def _one_target(arm: ArmGeometry, kind: str, current: bool, distances: bool = Fa
     len_tol = arm.core_len_tol
     under = rho2 - d * d
     cylinder = ca.logic_and(ca.logic_not(free), under < -2.0 * abs(d) * len_tol)
-    u = ca.sqrt(_max(under, 0.0))
-    ang = _Angle.atan2(hy, hx, ca.sqrt(rho2)).shift(-arm.mu)
+    rho = ca.sqrt(rho2)
+    # (Without a lateral offset, u is rho: sqrt(max(rho2, 0)) = sqrt(rho2) for finite targets.)
+    u = rho if d == 0.0 else ca.sqrt(_max(under, 0.0))
+    ang = _Angle.atan2(hy, hx, rho).shift(-arm.mu)
     if d == 0.0:
         # NumPy's atan2(-0.0, u) and atan2(-0.0, -u) for u >= 0 (CasADi folds -0.0 into 0).
         psi_f = ang
@@ -582,12 +616,12 @@ def _one_target(arm: ArmGeometry, kind: str, current: bool, distances: bool = Fa
     nan = ca.SX(float("nan"))
     for m in range(4):
         for j in range(dof):
-            if current:
+            if current or pose or not (arm.has_roll and j == arm.roll_idx):
                 # A roll copied from q_current: unchanged within its range (see solve_arrays).
-                q[m][j] = wrap_sx(q[m][j], arm.lower[j], arm.upper[j], qc[j])
-            elif pose or not (arm.has_roll and j == arm.roll_idx):
-                q[m][j] = wrap_sx(q[m][j], arm.lower[j], arm.upper[j])
-            within[m] = ca.logic_and(within[m], ca.logic_and(q[m][j] >= arm.lower[j], q[m][j] <= arm.upper[j]))
+                q[m][j], inside = wrap_within_sx(q[m][j], arm.lower[j], arm.upper[j], qc[j] if current else 0.0)
+            else:
+                inside = ca.logic_and(q[m][j] >= arm.lower[j], q[m][j] <= arm.upper[j])
+            within[m] = ca.logic_and(within[m], inside)
         # NaN where not valid: one product per value (x * 1.0 is x, -0.0 included; CasADi
         # folds a product with a constant 0, so constants are selected).
         keep = _where(valid[m], 1.0, nan)
@@ -604,32 +638,32 @@ def _one_target(arm: ArmGeometry, kind: str, current: bool, distances: bool = Fa
         reach = any_valid
         any_beyond = ca.SX(0)
         for m in range(4):
-            reach = ca.logic_and(reach, _where(valid[m], ca.logic_or(beyond[m], inside[m]), 1))
+            reach = ca.logic_and(reach, ca.logic_or(ca.logic_not(valid[m]), ca.logic_or(beyond[m], inside[m])))
             any_beyond = ca.logic_or(any_beyond, ca.logic_and(valid[m], beyond[m]))
-        status = _where(reach, _where(any_beyond, code[STATUS_BEYOND_MAX_REACH], code[STATUS_INSIDE_MIN_REACH]), status)
+        status = _code(reach, _code(any_beyond, code[STATUS_BEYOND_MAX_REACH], code[STATUS_INSIDE_MIN_REACH]), status)
     live = [cat4[m] != DUPLICATE for m in range(4)]
     any_orient = ca.SX(0)
     any_beyond_cat = ca.SX(0)
     for m in range(4):
         any_orient = ca.logic_or(any_orient, ca.logic_and(live[m], cat4[m] == ORIENT))
         any_beyond_cat = ca.logic_or(any_beyond_cat, ca.logic_and(live[m], cat4[m] == BEYOND))
-    none = _where(
+    none = _code(
         any_orient,
         code[STATUS_ORIENTATION_NOT_ACHIEVABLE],
-        _where(any_beyond_cat, code[STATUS_BEYOND_MAX_REACH], code[STATUS_INSIDE_MIN_REACH]),
+        _code(any_beyond_cat, code[STATUS_BEYOND_MAX_REACH], code[STATUS_INSIDE_MIN_REACH]),
     )
-    status = _where(any_valid, status, none)
-    status = _where(any_within, code[STATUS_SOLVED], status)
+    status = _code(any_valid, status, none)
+    status = _code(any_within, code[STATUS_SOLVED], status)
     if current:
         # The within-limits branch nearest q_current (the first of equals, as numpy.argmin).
         best, nearest = ca.SX(-1), ca.SX(math.inf)
         for m in range(4):
             dist_m = sum((q[m][j] - qc[j]) ** 2 for j in range(dof))
             take = ca.logic_and(within[m], dist_m < nearest)
-            best = _where(take, m, best)
+            best = _code(take, m, best)
             nearest = _where(take, dist_m, nearest)
     else:
-        best = _where(within[0], 0, _where(within[1], 1, _where(within[2], 2, _where(within[3], 3, -1))))
+        best = _code(within[0], 0, _code(within[1], 1, _code(within[2], 2, _code(within[3], 3, -1))))
     extra = []
     if free_end:
         unsolved = status != code[STATUS_SOLVED]
