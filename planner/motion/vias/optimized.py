@@ -176,7 +176,7 @@ class OptimizedStrategy(ViaStrategy):
         durations = chain.durations()
         for i in free:
             u, w = via_directions(chain.q, i, durations, chain.limits, chain.stop)
-            if np.any(u) or np.any(w):
+            if u.any() or w.any():
                 self.search_via(chain, i, u, w)
             self.search_turn(chain, i)
             durations[i - 1] = chain.seg.solve(i - 1, chain.v[i - 1], chain.acc[i - 1], chain.v[i], chain.acc[i])[0]
@@ -288,7 +288,7 @@ class OptimizedStrategy(ViaStrategy):
                 if bad is None:
                     continue
                 for idx in (k, k + 1):
-                    if idx in free and np.any((chain.v[idx] != 0) & bad):
+                    if idx in free and ((chain.v[idx] != 0) & bad).any():
                         chain.v[idx] = np.where(bad, 0.5 * chain.v[idx], chain.v[idx])
                         chain.acc[idx] = np.where(bad, 0.5 * chain.acc[idx], chain.acc[idx])
                         changed = True
