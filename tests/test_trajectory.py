@@ -790,3 +790,69 @@ def test_stop_plans_with_other_limits_in_between_use_their_own():
     for limits in (slow, fast, slow, same_as_fast, fast):
         assert_same_plan(plan_trajectory(q, limits, strategy="stop"), plan_trajectory(q, limits, strategy=_EagerStop()))
     assert plan_trajectory(q, fast, strategy="stop").duration < plan_trajectory(q, slow, strategy="stop").duration
+
+
+def test_reach_time_inverts_the_distance_a_motion_from_rest_covers():
+    from planner.motion.segments import reach_time
+
+    v, a = 1.5, 3.0
+    for t in (0.0, 0.1, 0.5, 1.0, 2.0, 7.0):
+        covered = a * t * t / 2.0 if t <= v / a else v * t - v * v / (2.0 * a)
+        assert reach_time(covered, v, a) == pytest.approx(t, rel=1e-12, abs=1e-12)
+    assert reach_time(-1e-12, v, a) == -math.inf
+    assert reach_time(math.inf, v, a) == math.inf
+
+
+@pytest.mark.parametrize("name", ["al5c", "ur5", "z1"])
+def test_range_check_of_admissible_states_reads_only_reachable_ends_and_agrees_with_every_joint(name):
+    # The solver given admissible end states reads Ruckig's extrema only for range ends a joint
+    # could reach in the segment's duration: the answer (duration, joints out of range) must be
+    # the one of the check over every joint, on waypoints near the range ends too.
+    from planner.motion.limits import admissible_acceleration
+    from planner.motion.segments import SegmentSolver
+
+    robot = get_robot(name)
+    limits = JointLimits.from_robot(robot)
+    rng = np.random.default_rng(11)
+    lower, upper = limits.finite_range
+    outside = screened = 0
+    for case in range(150):
+        q = robot.random_configurations(rng, 2)
+        if case % 2:  # some joints a hair inside a range end
+            edge = np.where(rng.random(q.shape) < 0.5, lower, upper)
+            near = rng.random(q.shape) < 0.4
+            q = np.where(near, edge - np.sign(edge - (lower + upper) / 2) * rng.uniform(0, 0.05, q.shape), q)
+        v = rng.uniform(-1.0, 1.0, (2, robot.dof)) * limits.velocity * rng.choice([0.0, 0.3, 1.0], (2, 1))
+        a = admissible_acceleration(v, rng.uniform(-1.0, 1.0, (2, robot.dof)) * limits.acceleration, limits)
+        fast = SegmentSolver(q, limits, admissible=[True]).solve(0, v[0], a[0], v[1], a[1])
+        full = SegmentSolver(q, limits).solve(0, v[0], a[0], v[1], a[1])
+        assert fast[0] == full[0]
+        if full[1] is None:
+            assert fast[1] is None
+        else:
+            outside += 1
+            np.testing.assert_array_equal(fast[1], full[1])
+        screened += fast[2] is not None
+    assert outside > 10 and screened > 100  # both outcomes are exercised
+
+
+def test_a_start_state_that_is_not_admissible_gets_the_range_check_over_every_joint():
+    # The reach times assume admissible states; a given start state need not be one (its
+    # acceleration may exceed what its velocity allows), so the chain's first segment is
+    # checked on every joint, as a solver told nothing does.
+    from planner.motion.segments import SegmentSolver
+    from planner.motion.vias import ViaChain
+
+    limits = JointLimits(1.0, 2.0, 20.0, lower=[-1.0, -1.0], upper=[1.0, 1.0])
+    q = np.array([[0.9, 0.0], [0.95, 0.5], [0.0, 0.9]])
+    v0, a0 = np.array([0.9, 0.0]), np.array([2.0, 0.0])  # |v| + a^2 / (2 j) > v_max
+    chain = ViaChain(q, limits, v0, a0, np.zeros(3, dtype=bool))
+
+    full = SegmentSolver(q, limits)
+    for v1 in (np.zeros(2), np.array([0.2, 0.5])):
+        got = chain.seg.solve(0, v0, a0, v1, np.zeros(2))
+        want = full.solve(0, v0, a0, v1, np.zeros(2))
+        assert got[0] == want[0]
+        assert (got[1] is None) == (want[1] is None)
+        if want[1] is not None:
+            np.testing.assert_array_equal(got[1], want[1])

@@ -148,7 +148,7 @@ def _repair_range(chain: ViaChain) -> list[tuple[float, SegmentPieces]]:
             movable = [
                 idx
                 for idx in (k, k + 1)
-                if idx > 0 and (np.any(chain.v[idx][bad] != 0) or np.any(chain.acc[idx][bad] != 0))
+                if idx > 0 and ((chain.v[idx][bad] != 0).any() or (chain.acc[idx][bad] != 0).any())
             ]
             if not movable:
                 raise _StartOvershoot

@@ -15,7 +15,7 @@ from __future__ import annotations
 
 import math
 import threading
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from itertools import repeat
 from operator import add, gt, lt, sub
 
@@ -36,6 +36,7 @@ __all__ = [
     "merge_segment",
     "piece_position_range",
     "range_with_tolerance",
+    "reach_time",
     "rest_to_rest_segments",
     "rest_to_rest_trajectory",
     "segment_position_range",
@@ -237,6 +238,35 @@ def _missed_turn(traj: RuckigTrajectory) -> bool:
     return False
 
 
+#: Allowance for a Ruckig profile's end position missing its target [rad or m] (Ruckig accepts
+#: 1e-8; its time synchronisation misses by up to a few 1e-8 on tiny moves).
+_END_MISS = 1e-6
+#: Relative allowance on the velocity and acceleration limits Ruckig's profiles keep (it
+#: accepts 1e-12 beyond them), and on rounding of the positions it reports.
+_LIMIT_SLACK = 1e-6
+_POSITION_SLACK = 1e-9
+
+
+def reach_time(distance: float, velocity: float, acceleration: float) -> float:
+    """The least time a joint needs to cover `distance` from rest or to rest within the limits [s].
+
+    Within ``|v| <= velocity`` and ``|a| <= acceleration``, a motion that ends (or starts) at rest
+    covers at most ``a t^2 / 2`` in time t up to ``t = v / a``, then ``v t - v^2 / (2 a)``; this
+    is the inverse of that bound.
+
+    Args:
+        distance: The distance [rad or m]; negative gives -inf.
+        velocity: The velocity limit [rad/s or m/s].
+        acceleration: The acceleration limit [rad/s^2 or m/s^2].
+    """
+    if distance < 0.0:
+        return -math.inf
+    knee = velocity * velocity / (2.0 * acceleration)
+    if distance <= knee:
+        return math.sqrt(2.0 * distance / acceleration)
+    return (distance + knee) / velocity
+
+
 _LOCAL = threading.local()
 
 
@@ -269,13 +299,23 @@ class SegmentSolver:
         bounded: Whether any joint has a finite range end.
     """
 
-    def __init__(self, q: np.ndarray, limits: JointLimits, min_durations: np.ndarray | None = None):
+    def __init__(
+        self,
+        q: np.ndarray,
+        limits: JointLimits,
+        min_durations: np.ndarray | None = None,
+        admissible: Sequence[bool] | None = None,
+    ):
         """Prepare one Ruckig instance for the segments between the rows of `q`.
 
         Args:
             q: Positions, shape (N, dof) [rad or m].
             limits: Velocity, acceleration, jerk and position limits.
             min_durations: Shortest duration per segment, shape (N-1,) [s]; None or all zero is none.
+            admissible: Per segment, whether every end state it will be solved with is
+                admissible (see :meth:`_watch_ends`), as every via state the strategies choose
+                is; there the range check reads Ruckig's extrema only of the joints that could
+                reach a range end. None: no segment is known to be.
         """
         self.q = q
         self.rows = rows = q.tolist()
@@ -300,6 +340,55 @@ class SegmentSolver:
             for a, b in zip(rows, rows[1:])
         ]
         self._cache: dict[tuple, tuple[float, np.ndarray | None, RuckigTrajectory | None]] = {}
+        # Per segment, the range ends a joint could reach, in the order of the time it needs
+        # to (see _watch_ends): (time, joint, whether the upper end, the end); None: check all.
+        self._watch: list[list[tuple[float, int, bool, float]] | None] = [None] * (len(q) - 1)
+        if self.bounded and admissible is not None and any(admissible):
+            self._watch_ends(limits, admissible)
+
+    def _watch_ends(self, limits: JointLimits, admissible: Sequence[bool]) -> None:
+        """Fill :attr:`_watch` for the admissible segments.
+
+        For admissible end states (``|v| <= v_max`` and ``|v| + a^2 / (2 j_max) <= v_max``, the
+        states :func:`planner.motion.limits.admissible_acceleration` gives), Ruckig's profile
+        keeps ``|v| <= v_max`` and ``|a| <= a_max`` throughout (it checks the velocity at every
+        phase boundary and wherever the acceleration changes sign, except in the first two
+        phases, which an admissible start state keeps within the limit). At its farthest point
+        a joint is at rest, so it got there from its start and goes on to its end each within
+        the distance :func:`reach_time` allows: a segment that lasts no longer than the two
+        reach times of a range end cannot get there. The limits are taken
+        :data:`_LIMIT_SLACK` larger (Ruckig accepts 1e-12 beyond them), the range ends of the
+        checks :data:`_POSITION_SLACK` nearer (rounding of Ruckig's extrema), and the end
+        position missed by up to :data:`_END_MISS`. On plain floats (a few joints and segments).
+        """
+        grow = 1.0 + _LIMIT_SLACK
+        joints = [
+            (
+                j,
+                v * grow,
+                a * grow,
+                lo,
+                hi,
+                lo + _POSITION_SLACK * max(1.0, abs(lo)),
+                hi - _POSITION_SLACK * max(1.0, abs(hi)),
+            )
+            for j, (v, a, lo, hi) in enumerate(zip(*limits.ruckig_limits[:2], self._lows, self._highs))
+        ]
+        rows = self.rows
+        for k, ok in enumerate(admissible):
+            if not ok:
+                continue
+            ends = []
+            for j, v, a, lo, hi, low, high in joints:
+                start, end = rows[k][j], rows[k + 1][j]
+                if hi < math.inf:
+                    ends.append(
+                        (reach_time(high - start, v, a) + reach_time(high - end - _END_MISS, v, a), j, True, hi)
+                    )
+                if lo > -math.inf:
+                    ends.append((reach_time(start - low, v, a) + reach_time(end - _END_MISS - low, v, a), j, False, lo))
+            ends.sort()
+            self._watch[k] = ends
 
     def solve(
         self, k: int, va: np.ndarray, aa: np.ndarray, vb: np.ndarray, ab: np.ndarray, keep: bool = False
@@ -402,12 +491,7 @@ class SegmentSolver:
         """
         inp = self._inputs[k]
         if inp is None:
-            inp = self._inputs[k] = InputParameter(self.dof)
-            inp.max_velocity, inp.max_acceleration, inp.max_jerk = self._limits
-            inp.current_position = self.rows[k]
-            inp.target_position = self.rows[k + 1]
-            if self.min_durations is not None and self.min_durations[k] > 0:
-                inp.minimum_duration = float(self.min_durations[k])
+            inp = self._new_input(k)
         held = self._held[k]
         if key is None or held is None or key[1] != held[1] or key[2] != held[2]:
             inp.current_velocity = va.tolist()
@@ -418,6 +502,16 @@ class SegmentSolver:
         self._held[k] = key
         return inp
 
+    def _new_input(self, k: int) -> InputParameter:
+        """Segment k's Ruckig input with its limits and positions (no end states held yet)."""
+        inp = self._inputs[k] = InputParameter(self.dof)
+        inp.max_velocity, inp.max_acceleration, inp.max_jerk = self._limits
+        inp.current_position = self.rows[k]
+        inp.target_position = self.rows[k + 1]
+        if self.min_durations is not None and self.min_durations[k] > 0:
+            inp.minimum_duration = float(self.min_durations[k])
+        return inp
+
     def _solve(
         self, k: int, va: np.ndarray, aa: np.ndarray, vb: np.ndarray, ab: np.ndarray, key: tuple | None = None
     ) -> tuple[float, np.ndarray | None, RuckigTrajectory | None]:
@@ -425,18 +519,46 @@ class SegmentSolver:
         still = self._still[k]
         if still is not None and self._on_one_parabola(still, va, aa, vb, ab):
             return math.inf, None, None
+        # :meth:`_input`, written out (this runs once per Ruckig solve of the searches).
+        inp = self._inputs[k]
+        if inp is None:
+            inp = self._new_input(k)
+        held = self._held[k]
+        if key is None or held is None:
+            inp.current_velocity, inp.current_acceleration = va.tolist(), aa.tolist()
+            inp.target_velocity, inp.target_acceleration = vb.tolist(), ab.tolist()
+        else:
+            if key[1] != held[1] or key[2] != held[2]:
+                inp.current_velocity, inp.current_acceleration = va.tolist(), aa.tolist()
+            if key[3] != held[3] or key[4] != held[4]:
+                inp.target_velocity, inp.target_acceleration = vb.tolist(), ab.tolist()
+        self._held[k] = key
         traj = RuckigTrajectory(self.dof)
         try:
-            result = self.otg.calculate(self._input(k, va, aa, vb, ab, key), traj)
+            result = self.otg.calculate(inp, traj)
         except RuckigError:  # Ruckig's own failure on an input it accepts: no profile from it
             return math.inf, None, None
         if result not in _SOLVED:
             return math.inf, None, None
         if self.bounded:
-            extrema = traj.position_extrema
-            for e, lo, hi in zip(extrema, self._lows, self._highs):
-                if e.min < lo or e.max > hi:
-                    return traj.duration, self._outside_mask(extrema), traj
+            watch = self._watch[k]
+            if watch is None:
+                extrema = traj.position_extrema
+                for e, lo, hi in zip(extrema, self._lows, self._highs):
+                    if e.min < lo or e.max > hi:
+                        return traj.duration, self._outside_mask(extrema), traj
+                return traj.duration, None, traj
+            # Only the range ends a joint can reach within the duration: each of Ruckig's
+            # extrema costs about as much to read as a tenth of the solve.
+            duration = traj.duration
+            if watch and watch[0][0] < duration:
+                extrema = traj.position_extrema
+                for reach, j, upper, end in watch:
+                    if reach >= duration:
+                        break
+                    if extrema[j].max > end if upper else extrema[j].min < end:
+                        return duration, self._outside_mask(extrema), traj
+            return duration, None, traj
         return traj.duration, None, traj
 
     def _outside_mask(self, extrema: list) -> np.ndarray:

@@ -84,7 +84,12 @@ class ViaChain:
         if rest:
             self.v[rest] = 0.0
             self.acc[rest] = 0.0
-        self.seg = SegmentSolver(q, limits, min_durations)
+        # The range checks may skip joints that cannot reach a range end where every state is
+        # admissible: the strategies' via states are, a given start state need not be.
+        start_ok = not (v0.any() or a0.any()) or _admissible(v0, a0, limits)
+        given_ok = given is None or bool(np.all(np.abs(self.v) <= limits.velocity))
+        admissible = [start_ok and given_ok] + [given_ok] * (self.n - 2)
+        self.seg = SegmentSolver(q, limits, min_durations, admissible)
         self.repaired = np.zeros(q.shape, dtype=bool)
 
     def durations(self) -> np.ndarray:
@@ -123,7 +128,7 @@ class ViaChain:
             cv = np.array(cv, dtype=float)
             ca = admissible_acceleration(cv, ca, self.limits)
         both = self.seg.around(i, self.v[i - 1], self.acc[i - 1], self.v[i + 1], self.acc[i + 1])
-        return _halved_pair_cost(both, not admissible, cv, ca)
+        return _halved_pair_cost(both, cv, ca)
 
     def pair_coster(self, i: int) -> Callable[[np.ndarray, np.ndarray], tuple[float, np.ndarray, np.ndarray]]:
         """:meth:`pair_cost` at via i for admissible states, with the neighbours' states as they are now.
@@ -131,29 +136,43 @@ class ViaChain:
         For line searches over via i, which change no other via state while they search.
         """
         both = self.seg.around(i, self.v[i - 1], self.acc[i - 1], self.v[i + 1], self.acc[i + 1])
-        return functools.partial(_halved_pair_cost, both, False)
+        halved = functools.partial(_halved_pair_cost, both)
+
+        def pair(cv: np.ndarray, ca: np.ndarray) -> tuple[float, np.ndarray, np.ndarray]:
+            first, second = both(cv, ca)
+            if first[1] is None and second[1] is None:  # _halved_pair_cost's first attempt, inline
+                return first[0] + second[0], cv, ca
+            return halved(cv, ca)
+
+        return pair
 
 
-def _halved_pair_cost(
-    both: Callable, copied: bool, cv: np.ndarray, ca: np.ndarray
-) -> tuple[float, np.ndarray, np.ndarray]:
+def _admissible(v: np.ndarray, a: np.ndarray, limits: JointLimits) -> bool:
+    """Whether a state is within the speed limits and keeps its acceleration under :func:`admissible_acceleration`."""
+    return bool(np.all(np.abs(v) <= limits.velocity) and np.array_equal(admissible_acceleration(v, a, limits), a))
+
+
+def _halved_pair_cost(both: Callable, cv: np.ndarray, ca: np.ndarray) -> tuple[float, np.ndarray, np.ndarray]:
     """:meth:`ViaChain.pair_cost` with `both` as :meth:`SegmentSolver.around` returns it.
 
-    `copied` tells whether `cv` and `ca` may be changed in place (else they are copied first).
+    `cv` and `ca` are not changed: halved states are new arrays. The masks are worked out on
+    plain floats (a few joints: faster than NumPy, with the same products).
     """
     for attempt in range(SEARCH_HALVINGS + 1):
         (d1, bad1, _), (d2, bad2, _) = both(cv, ca)
         if bad1 is None and bad2 is None:
             return d1 + d2, cv, ca
-        bad_any = (bad1 if bad1 is not None else False) | (bad2 if bad2 is not None else False)
-        bad = bad_any & ((cv != 0) | (ca != 0))
-        if not bad.any():
+        if bad1 is None or bad2 is None:
+            out = (bad2 if bad1 is None else bad1).tolist()
+        else:
+            out = [x or y for x, y in zip(bad1.tolist(), bad2.tolist())]
+        velocities, accelerations = cv.tolist(), ca.tolist()
+        bad = [o and (x != 0 or y != 0) for o, x, y in zip(out, velocities, accelerations)]
+        if True not in bad:
             return math.inf, cv, ca
-        if not copied:
-            cv, ca, copied = np.array(cv, dtype=float), np.array(ca, dtype=float), True
         scale = 0.0 if attempt >= SEARCH_HALVINGS - 1 else 0.5
-        cv[bad] *= scale
-        ca[bad] *= scale
+        cv = np.array([x * scale if b else x for b, x in zip(bad, velocities)])
+        ca = np.array([x * scale if b else x for b, x in zip(bad, accelerations)])
     return math.inf, cv, ca
 
 

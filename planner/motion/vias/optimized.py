@@ -176,7 +176,7 @@ class OptimizedStrategy(ViaStrategy):
         durations = chain.durations()
         for i in free:
             u, w = via_directions(chain.q, i, durations, chain.limits, chain.stop)
-            if np.any(u) or np.any(w):
+            if u.any() or w.any():
                 self.search_via(chain, i, u, w)
             self.search_turn(chain, i)
             durations[i - 1] = chain.seg.solve(i - 1, chain.v[i - 1], chain.acc[i - 1], chain.v[i], chain.acc[i])[0]
@@ -288,7 +288,7 @@ class OptimizedStrategy(ViaStrategy):
                 if bad is None:
                     continue
                 for idx in (k, k + 1):
-                    if idx in free and np.any((chain.v[idx] != 0) & bad):
+                    if idx in free and ((chain.v[idx] != 0) & bad).any():
                         chain.v[idx] = np.where(bad, 0.5 * chain.v[idx], chain.v[idx])
                         chain.acc[idx] = np.where(bad, 0.5 * chain.acc[idx], chain.acc[idx])
                         changed = True
@@ -331,13 +331,16 @@ class OptimizedStrategy(ViaStrategy):
         accs = admissible_acceleration(vs, accs, lim)
         index = _SPLINE_INDEX
 
+        solve, start, end = chain.seg.solve, (chain.v[a], chain.acc[a]), (chain.v[b], chain.acc[b])
+
         def cost(x: float) -> float:
             v, acc = vs[index[x]], accs[index[x]]
+            # The states at waypoints a..b (row views made in one go).
+            states = [start, *zip(v, acc), end]
             total, inside = 0.0, True
             for k in range(a, b):
-                va, aa = (chain.v[a], chain.acc[a]) if k == a else (v[k - a - 1], acc[k - a - 1])
-                vb, ab = (chain.v[b], chain.acc[b]) if k == b - 1 else (v[k - a], acc[k - a])
-                d, bad, _ = chain.seg.solve(k, va, aa, vb, ab)
+                (va, aa), (vb, ab) = states[k - a], states[k - a + 1]
+                d, bad, _ = solve(k, va, aa, vb, ab)
                 if bad is not None:
                     inside = False
                     d *= _SPLINE_PENALTY
@@ -361,13 +364,19 @@ class OptimizedStrategy(ViaStrategy):
         turn); the slope blend gives it a small speed and acceleration instead. Candidates
         move the turning joints from their current state towards that one.
         """
-        dp, dn = chain.q[i] - chain.q[i - 1], chain.q[i + 1] - chain.q[i]
-        turning = dp * dn < 0
-        if not turning.any() or not chain.limited_by(i, turning):
+        # On plain floats (a few joints): the same differences and products as on arrays.
+        rows = chain.seg.rows
+        dp = [x - w for w, x in zip(rows[i - 1], rows[i])]
+        flags = [d * (y - x) < 0 for d, x, y in zip(dp, rows[i], rows[i + 1])]
+        if True not in flags:
+            return
+        turning = np.array(flags)
+        if not chain.limited_by(i, turning):
             return
         lim = chain.limits
         v_now, a_now = chain.v[i].copy(), chain.acc[i].copy()
-        a_turn = -np.sign(dp) * lim.acceleration
+        # Full deceleration against the incoming motion (used where the joint turns, dp != 0).
+        a_turn = np.array([-a if d > 0 else a for d, a in zip(dp, lim.ruckig_limits[1])])
 
         def make(y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
             y = y[:, None]
