@@ -2,8 +2,10 @@
 
 from __future__ import annotations
 
+import copy
 import csv
 import math
+import pickle
 from dataclasses import replace
 
 import numpy as np
@@ -856,3 +858,22 @@ def test_a_start_state_that_is_not_admissible_gets_the_range_check_over_every_jo
         assert (got[1] is None) == (want[1] is None)
         if want[1] is not None:
             np.testing.assert_array_equal(got[1], want[1])
+
+
+@pytest.mark.parametrize("strategy", ["optimized", "stop"])
+def test_a_pickled_or_copied_trajectory_is_the_same_motion(strategy):
+    robot = get_robot("al5c")
+    q = robot.random_configurations(np.random.default_rng(11), 4)
+    limits = JointLimits.from_robot(robot)
+    t = np.linspace(0.0, 1.0, 301)
+    for built in (False, True):
+        traj = plan_trajectory(q, limits, strategy=strategy)  # lazy: pieces built on first use
+        if built:
+            _ = traj.knots
+        for twin in (pickle.loads(pickle.dumps(traj)), copy.deepcopy(traj)):
+            assert twin.duration == traj.duration and twin.strategy == traj.strategy
+            np.testing.assert_array_equal(twin.waypoint_times, traj.waypoint_times)
+            np.testing.assert_array_equal(twin.knots, traj.knots)
+            a, b = twin.sample(t * traj.duration), traj.sample(t * traj.duration)
+            for name in ("q", "qd", "qdd", "qddd"):
+                np.testing.assert_array_equal(getattr(a, name), getattr(b, name))

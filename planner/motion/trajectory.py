@@ -144,6 +144,11 @@ class JointTrajectory:
         obj.__dict__["_build_pieces"] = build
         return obj
 
+    def __getstate__(self) -> dict:
+        """Pickling: the piece arrays are built first (a lazy trajectory's builder is a closure)."""
+        _ = self.knots
+        return dict(self.__dict__)
+
     @property
     def dof(self) -> int:
         """Number of joints."""
