@@ -25,7 +25,7 @@ from planner.motion.trajectory import LIMIT_TOLERANCE
 from planner.motion.vias import VIA_STRATEGIES, HeuristicStrategy, StopStrategy, ViaStrategy
 from planner.motion.vias.optimized import golden_minimum, golden_points, spline_via_states
 
-from conftest import get_robot
+from conftest import get_robot, needs_example_robot_data
 
 # Sampled peaks may exceed a limit by this relative amount (floating-point rounding only).
 TOL = LIMIT_TOLERANCE
@@ -805,7 +805,10 @@ def test_reach_time_inverts_the_distance_a_motion_from_rest_covers():
     assert reach_time(math.inf, v, a) == math.inf
 
 
-@pytest.mark.parametrize("name", ["al5c", "ur5", "z1"])
+@pytest.mark.parametrize(
+    "name",
+    ["al5c", pytest.param("ur5", marks=needs_example_robot_data), pytest.param("z1", marks=needs_example_robot_data)],
+)
 def test_range_check_of_admissible_states_reads_only_reachable_ends_and_agrees_with_every_joint(name):
     # The solver given admissible end states reads Ruckig's extrema only for range ends a joint
     # could reach in the segment's duration: the answer (duration, joints out of range) must be
