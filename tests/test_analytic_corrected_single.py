@@ -276,3 +276,30 @@ def test_poses_next_to_a_stretched_elbow_as_the_vectorised_path(folded):
         # The Python path answers none of them (the vectorised one does); the kernel about 70 %
         # (the rest: both elbow branches converging onto one solution, or a stalled branch).
         assert answered >= 90
+
+
+@pytest.mark.parametrize("current", [False, True])
+def test_the_quick_pose_kernel_answers_only_where_the_full_one_answers_the_same(current):
+    # Poses first run the valid side's two branches, two steps each; where that is sure, the
+    # full kernel (every branch, four steps, the stall test) is sure of the same branch and joints.
+    from planner.ik.analytic import closed_form_solver
+    from planner.ik.analytic.yaw_planar.corrected_single import CorrectedKernel
+
+    robot = load_robot("so101")
+    solver = closed_form_solver(robot)
+    kernel = CorrectedKernel(solver.arm, solver._pose_frame, "pose", current)
+    assert kernel._quick is not None
+    rng = np.random.default_rng(17)
+    q, seed = robot.random_configurations(rng, 3000), robot.random_configurations(rng, 3000)
+    quick = 0
+    for i in range(len(q)):
+        pose = robot.fk(q[i])
+        kernel.inputs[:] = [*pose[:3, 3], *pose[:3, :3].ravel(), *(seed[i] if current else ())]
+        kernel._quick[1]()
+        if not kernel._quick_outputs[0]:
+            continue
+        quick += 1
+        kernel._evaluate()
+        assert kernel.outputs[0] == 1.0 and kernel.outputs[1] == kernel._quick_outputs[1]
+        np.testing.assert_allclose(kernel.outputs[2:], kernel._quick_outputs[2:], rtol=0.0, atol=1e-13)
+    assert quick >= 0.8 * len(q)  # one side valid and settled after two steps: most poses

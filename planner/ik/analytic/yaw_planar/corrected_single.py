@@ -396,12 +396,72 @@ class CorrectedKernel:
         n_in = 3 + n_extra + (dof if current else 0)
         x = ca.SX.sym("x", n_in)
         prm = ca.SX.sym("prm", 6 * dof + 18)
+        name = f"yaw_planar_corrected_{kind}" + ("_every" if every else "")
+        self.function = self._compile(name, x, prm, self._expression(arm, frame, kind, current, every, x, prm, False))
+        self.compiled = self.function.class_name() == "External"
+        self.inputs = np.zeros(n_in)
+        self.outputs = np.zeros(self.function.numel_out(0))
+        self._prm = arm_parameters(arm)
+        self._buffer, self._evaluate = self._bind(self.function, self.outputs)
+        # Poses without every: first the valid side's two branches, two steps each (most poses:
+        # one side only is valid and both settle), the full kernel above where that is not sure.
+        self._quick = None
+        if kind == "pose" and not every and self.compiled:
+            quick = self._compile(
+                name + "_quick", x, prm, self._expression(arm, frame, kind, current, every, x, prm, True)
+            )
+            if quick.class_name() == "External":
+                self._quick_outputs = np.zeros(quick.numel_out(0))
+                self._quick_function = quick
+                self._quick = self._bind(quick, self._quick_outputs)
+
+    @staticmethod
+    def _compile(name: str, x, prm, out) -> ca.Function:
+        return compile_function(ca.Function(name, [x, prm], [ca.cse(out)]), flags=FLAGS)
+
+    def _bind(self, function: ca.Function, outputs: np.ndarray) -> tuple:
+        buffer, evaluate = function.buffer()
+        buffer.set_arg(0, memoryview(self.inputs))
+        buffer.set_arg(1, memoryview(self._prm))
+        buffer.set_res(0, memoryview(outputs))
+        return buffer, evaluate
+
+    @staticmethod
+    def _expression(arm: ArmGeometry, frame: PoseFrame, kind: str, current: bool, every: bool, x, prm, two_lanes: bool):
+        """The output expression; with `two_lanes` (poses) the quick one: sure only where one side is valid."""
+        dof = arm.dof
+        n_extra = {"position": 0, "pitch": 1, "pose": 9}[kind]
         p = [x[0], x[1], x[2]]
         qc = [x[3 + n_extra + j] for j in range(dof)] if current else None
         target = ca.vertcat(*p)
         pos_tol = MARGIN * SETTLE * max(1.0, arm.scale)
         qs, settled = [], []
-        if kind == "pose":
+        if kind == "pose" and two_lanes:
+            rflat = [x[3 + k] for k in range(9)]
+            rows = [rflat[0:3], rflat[3:6], rflat[6:9]]
+            starts, valid, sure, apart = _pose_starts(arm, frame, p, rflat, qc)
+            flag = ca.SX(0.0)
+            step = pose_kernel(dof, 2)
+            rot_t = ca.vertcat(*[ca.horzcat(*row) for row in rows])
+            # One side's branches valid and started as usual (not apart), both settled after two
+            # steps (within EARLY of the threshold: the full kernel's q2, which it keeps): the
+            # full kernel's answer. Anything else is left to it.
+            front = ca.logic_or(valid[0], valid[1])
+            sure = _and(sure, ca.logic_not(apart), ca.logic_not(_and(front, ca.logic_or(valid[2], valid[3]))))
+            lanes = []
+            for lane in range(2):
+                q0 = ca.vertcat(*[_if(front, a, b) for a, b in zip(starts[lane], starts[2 + lane])])
+                q0 = _if(ca.logic_or(valid[lane], valid[2 + lane]), q0, 0.0)
+                q = step(q0, target, rot_t, prm)
+                tip, rot = tip_fk_sx(q, prm, dof)
+                perr = ca.norm_2(target - tip)
+                oerr = _rotation_angle(rot, rows)
+                lanes.append(([q[j] for j in range(dof)], _and(perr <= pos_tol, oerr <= MARGIN * 1e-13)))
+            for m in range(4):
+                q, done = lanes[m % 2]
+                qs.append(list(q))
+                settled.append(done)
+        elif kind == "pose":
             rflat = [x[3 + k] for k in range(9)]
             rows = [rflat[0:3], rflat[3:6], rflat[6:9]]
             starts, valid, sure, apart = _pose_starts(arm, frame, p, rflat, qc)
@@ -485,23 +545,16 @@ class CorrectedKernel:
         sure = _and(sure, best >= 0)
         chosen = pick_branch_sx(qs, best)
         if every:
-            out = ca.vertcat(sure, flag, *valid, *[v for q in raw for v in q])
-        else:
-            out = ca.vertcat(sure, best, *chosen)
-        name = f"yaw_planar_corrected_{kind}" + ("_every" if every else "")
-        fn = ca.Function(name, [x, prm], [ca.cse(out)])
-        self.function = compile_function(fn, flags=FLAGS)
-        self.compiled = self.function.class_name() == "External"
-        self.inputs = np.zeros(n_in)
-        self.outputs = np.zeros(out.numel())
-        self._prm = arm_parameters(arm)
-        self._buffer, self._evaluate = self.function.buffer()
-        self._buffer.set_arg(0, memoryview(self.inputs))
-        self._buffer.set_arg(1, memoryview(self._prm))
-        self._buffer.set_res(0, memoryview(self.outputs))
+            return ca.vertcat(sure, flag, *valid, *[v for q in raw for v in q])
+        return ca.vertcat(sure, best, *chosen)
 
     def __call__(self) -> None:
         """Evaluate from :attr:`inputs` into :attr:`outputs`."""
+        if self._quick is not None:
+            self._quick[1]()
+            if self._quick_outputs[0]:
+                self.outputs[:] = self._quick_outputs
+                return
         self._evaluate()
 
 
