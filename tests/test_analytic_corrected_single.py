@@ -278,8 +278,8 @@ def test_poses_next_to_a_stretched_elbow_as_the_vectorised_path(folded):
         assert answered >= 90
 
 
-@pytest.mark.parametrize("current", [False, True])
-def test_the_quick_pose_kernel_answers_only_where_the_full_one_answers_the_same(current):
+@pytest.mark.parametrize(("current", "every"), [(False, False), (True, False), (False, True), (True, True)])
+def test_the_quick_pose_kernel_answers_only_where_the_full_one_answers_the_same(current, every):
     # Poses first run the valid side's two branches, two steps each; where that is sure, the
     # full kernel (every branch, four steps, the stall test) is sure of the same branch and joints.
     from planner.ik.analytic import closed_form_solver
@@ -287,7 +287,7 @@ def test_the_quick_pose_kernel_answers_only_where_the_full_one_answers_the_same(
 
     robot = load_robot("so101")
     solver = closed_form_solver(robot)
-    kernel = CorrectedKernel(solver.arm, solver._pose_frame, "pose", current)
+    kernel = CorrectedKernel(solver.arm, solver._pose_frame, "pose", current, every)
     assert kernel._quick is not None
     rng = np.random.default_rng(17)
     q, seed = robot.random_configurations(rng, 3000), robot.random_configurations(rng, 3000)
@@ -300,6 +300,14 @@ def test_the_quick_pose_kernel_answers_only_where_the_full_one_answers_the_same(
             continue
         quick += 1
         kernel._evaluate()
-        assert kernel.outputs[0] == 1.0 and kernel.outputs[1] == kernel._quick_outputs[1]
-        np.testing.assert_allclose(kernel.outputs[2:], kernel._quick_outputs[2:], rtol=0.0, atol=1e-13)
+        full, fast = kernel.outputs, kernel._quick_outputs
+        assert full[0] == 1.0 and full[1] == fast[1]
+        if every:  # sure, singular, valid (4), the valid branches' joints
+            dof = robot.dof
+            np.testing.assert_array_equal(full[2:6], fast[2:6])
+            for slot in np.nonzero(full[2:6])[0]:
+                a, b = 6 + slot * dof, 6 + (slot + 1) * dof
+                np.testing.assert_allclose(full[a:b], fast[a:b], rtol=0.0, atol=1e-13)
+        else:  # sure, slot, joints
+            np.testing.assert_allclose(full[2:], fast[2:], rtol=0.0, atol=1e-13)
     assert quick >= 0.8 * len(q)  # one side valid and settled after two steps: most poses

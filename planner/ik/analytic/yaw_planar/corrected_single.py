@@ -403,10 +403,11 @@ class CorrectedKernel:
         self.outputs = np.zeros(self.function.numel_out(0))
         self._prm = arm_parameters(arm)
         self._buffer, self._evaluate = self._bind(self.function, self.outputs)
-        # Poses without every: first the valid side's two branches, two steps each (most poses:
-        # one side only is valid and both settle), the full kernel above where that is not sure.
+        # Poses: first the valid side's two branches, two steps each (most poses: one side only
+        # is valid and both settle), the full kernel above where that is not sure. With
+        # `every`, the joints of branches not valid are not the full kernel's (not used).
         self._quick = None
-        if kind == "pose" and not every and self.compiled:
+        if kind == "pose" and self.compiled:
             quick = self._compile(
                 name + "_quick", x, prm, self._expression(arm, frame, kind, current, every, x, prm, True)
             )
