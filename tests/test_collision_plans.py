@@ -189,6 +189,19 @@ def test_planner_check_reports_the_clearance(tmp_path, capsys):
     assert "no scene" in capsys.readouterr().out
 
 
+def test_a_check_with_nothing_to_hit_reports_no_distance(tmp_path, capsys):
+    # shelley has no self pairs checked: with no obstacles the closest distance is inf, written as
+    # null (before, JSON refused it and planner check --json and planner plan --out raised ValueError).
+    path = tmp_path / "free.json"
+    path.write_text(json.dumps({"waypoints": [[0.1, 0.2], [0.5, 0.6]], "scene": {"obstacles": []}}))
+    assert main(["check", "shelley", str(path), "--json"]) == 0
+    report = json.loads(capsys.readouterr().out)
+    assert report["collision"]["clear"] and report["collision"]["min_distance"] is None
+    assert main(["plan", "shelley", str(path), "--out", str(tmp_path / "out")]) == 0
+    summary = json.loads((tmp_path / "out" / "summary.json").read_text())
+    assert summary["collision"]["min_distance"] is None and summary["collision"]["checks"] == 0
+
+
 def test_the_example_plan_file_goes_around_its_block(capsys):
     from pathlib import Path
 

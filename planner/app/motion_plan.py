@@ -181,9 +181,11 @@ class MotionPlan:
 
 
 def _collision_summary(c: MotionClearance) -> dict[str, Any]:
+    # Nothing to hit (an arm without checked self pairs and an empty scene): no distance, JSON null.
+    distance = c.closest.distance if math.isfinite(c.closest.distance) else None
     out: dict[str, Any] = {
         "clear": c.clear,
-        "min_distance": c.closest.distance,
+        "min_distance": distance,
         "closest_bodies": list(c.closest.bodies),
         "closest_time": c.where,
         "clearance": c.closest.clearance,
