@@ -343,6 +343,31 @@ def test_the_continuous_check_catches_a_thin_plate_that_sampling_misses():
     assert "collides at" in result.describe()
 
 
+def test_a_full_check_goes_on_past_an_overlap_deeper_than_the_near_body_ball():
+    """Without stop_at_first a check goes on past the first hit to find the worst. A 4 mm pin
+    inside al5c's base link overlaps it by 44 mm, more than the pin's ball radius: the near-body
+    bound's ball R + d was negative, the step NaN, and the check never ended (NaN is never due).
+    Floating-point errors raise here, so that fails at once instead of hanging."""
+    import pinocchio as pin
+
+    robot = get_robot("al5c")
+    lo, hi = robot.lower, robot.upper
+    qa, qb = lo + 0.3 * (hi - lo), lo + 0.7 * (hi - lo)
+    traj = plan_trajectory([qa, qb], JointLimits.from_robot(robot))
+    geom = arm_collision_model(robot).geometry
+    gdata = pin.GeometryData(geom)
+    pin.updateGeometryPlacements(robot.model, robot.model.createData(), geom, gdata, robot.pinocchio_configuration(qa))
+    base = next(k for k, o in enumerate(geom.geometryObjects) if o.parentJoint > 0)
+    pin_ = Obstacle("pin", Sphere(0.004), np.array(gdata.oMg[base].translation))
+    checker = CollisionChecker(robot, Scene(obstacles=(pin_,)))
+    with np.errstate(invalid="raise"):
+        timed = check_trajectory(checker, traj, stop_at_first=False)
+        segment = check_segment(checker, qa, qb, stop_at_first=False)
+    for result in (timed, segment):
+        assert not result.clear and result.first_hit == 0.0 and "pin" in result.hit.bodies
+        assert result.closest.distance <= result.hit.distance < -0.004
+
+
 @pytest.mark.parametrize("name", ["al5c", pytest.param("ur5", marks=needs_example_robot_data)])
 def test_the_step_rule_is_the_longer_of_the_two_bounds_per_pair(name):
     """_joint_steps against the module docstring's two bounds evaluated pair by pair in plain Python."""
@@ -368,7 +393,7 @@ def test_the_step_rule_is_the_longer_of_the_two_bounds_per_pair(name):
             want = 2 * r / (v + math.sqrt(v * v + 2 * a * r))
             if np.isfinite(near.radius[p]):
                 turn, turn_acc = near.joints[p] @ speed, near.joints[p] @ acceleration
-                ball = near.radius[p] + dp
+                ball = near.radius[p] + max(dp, 0.0)  # overlapping (past a hit): as touching
                 v = growth * (ball * turn + near.offsets[p] @ speed)
                 a = growth * (ball * turn_acc + near.offsets[p] @ acceleration)
                 second = 2 * r / (v + math.sqrt(v * v + 2 * a * r) + 1e-300)

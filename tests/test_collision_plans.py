@@ -189,6 +189,19 @@ def test_planner_check_reports_the_clearance(tmp_path, capsys):
     assert "no scene" in capsys.readouterr().out
 
 
+def test_a_check_with_nothing_to_hit_reports_no_distance(tmp_path, capsys):
+    # shelley has no self pairs checked: with no obstacles the closest distance is inf, written as
+    # null (before, JSON refused it and planner check --json and planner plan --out raised ValueError).
+    path = tmp_path / "free.json"
+    path.write_text(json.dumps({"waypoints": [[0.1, 0.2], [0.5, 0.6]], "scene": {"obstacles": []}}))
+    assert main(["check", "shelley", str(path), "--json"]) == 0
+    report = json.loads(capsys.readouterr().out)
+    assert report["collision"]["clear"] and report["collision"]["min_distance"] is None
+    assert main(["plan", "shelley", str(path), "--out", str(tmp_path / "out")]) == 0
+    summary = json.loads((tmp_path / "out" / "summary.json").read_text())
+    assert summary["collision"]["min_distance"] is None and summary["collision"]["checks"] == 0
+
+
 def test_the_example_plan_file_goes_around_its_block(capsys):
     from pathlib import Path
 
@@ -300,6 +313,39 @@ def test_an_uncertified_route_is_certified_where_the_timed_motion_comes_too_clos
     nodes = plan.trajectory.waypoints
     assert any(np.allclose(nodes[i], (nodes[i - 1] + nodes[i + 1]) / 2.0) for i in range(1, len(nodes) - 1))
     assert len(nodes) == len(plain.trajectory.waypoints) + 1
+
+
+def test_a_route_whose_certified_search_finds_none_is_refused_not_dropped(monkeypatch):
+    """Where the timed motion along an uncertified route is reported too close and its search,
+    certified, finds no path (certify_path grows new trees when neither of its paths certifies,
+    and they may run out of time), the plan is refused with the search's reason. Before, the
+    empty path became the route: the waypoint was skipped (its time that of the one before)."""
+    import planner.app.motion_plan as mp
+    from planner.collision.continuous import MotionClearance
+    from planner.collision.rrt import PathResult, PathStatus
+
+    robot = get_robot("al5c")
+    third = {"position": [200, 100, 150], "pitch": -60}
+    request = {**BLOCK_PLAN, "avoidance": {"seed": 1}, "targets": [*BLOCK_PLAN["targets"], third]}
+    real_check = mp.check_trajectory
+    hits = []
+
+    def check(checker, trajectory, **kwargs):
+        result = real_check(checker, trajectory, **kwargs)
+        if not hits and result.clear and kwargs.get("stop_at_first"):
+            hits.append(trajectory.duration / 4)  # on the route into "place"
+            return MotionClearance(False, result.closest, hits[0], hits[0], result.closest, result.checks)
+        return result
+
+    def certify(checker, found, **kwargs):
+        reason = "no clear path within 5 s"
+        return PathResult(PathStatus.NOT_FOUND, np.zeros((0, robot.dof)), reason, found.iterations)
+
+    monkeypatch.setattr(mp, "check_trajectory", check)
+    monkeypatch.setattr(mp, "certify_path", certify)
+    with pytest.raises(PlanningError, match="from waypoint 0 .pick. to waypoint 1 .place.: no clear path within 5 s"):
+        plan_with_scene(robot, request)
+    assert hits
 
 
 def test_a_move_straying_beside_its_clear_straight_segment_passes_its_midpoint(monkeypatch):

@@ -6,9 +6,9 @@ are checked by :func:`check_trajectory`, :func:`check_segment` and :func:`segmen
 then re-checked at 1 kHz (1000 points per segment) by a fresh checker's distance of every pair
 and its collision test. Whatever the motion:
 
-- where the dense check finds a collision, or a distance below the clearance less the
-  tolerance, before the first hit reported, the check cannot have reported the motion clear
-  (nothing is passed through between checks, however thin);
+- where the dense check finds a distance below the clearance less the tolerance (or, with a
+  clearance above the tolerance, a collision) before the first hit reported, the check cannot
+  have reported the motion clear (nothing is passed through between checks, however thin);
 - every distance reported (the closest pair, the first hit) is the pair's true distance at its
   instant, never more: the motion's true minimum is at most the reported closest distance;
 - the samples before the first hit keep the clearance less the tolerance.
@@ -115,10 +115,13 @@ def _check_result(result, dense: _Dense, at, samples: np.ndarray, qs: np.ndarray
     d, hits = dense.distances(qs)
     note(f"{result.describe()}; dense minimum {d.min():.6f} m, {hits.sum()} samples in collision")
     before = samples < result.first_hit if result.first_hit is not None else np.ones(len(samples), dtype=bool)
-    # Nothing passed through: the certified stretch keeps the clearance less the tolerance.
-    assert not hits[before].any(), (samples[before][hits[before]][:3], result.describe())
-    assert np.all(d[before] >= clearance - DEFAULT_TOLERANCE - _SLOP), (d[before].min(), result.describe())
-    if hits.any() or d.min() < clearance - DEFAULT_TOLERANCE - _SLOP:
+    # Nothing passed through: the certified stretch keeps the clearance less the tolerance. With
+    # clearance 0 that admits a contact shallower than the tolerance (the distances bound it).
+    floor = clearance - DEFAULT_TOLERANCE - _SLOP
+    if floor > 0:
+        assert not hits[before].any(), (samples[before][hits[before]][:3], result.describe())
+    assert np.all(d[before] >= floor), (d[before].min(), result.describe())
+    if (floor > 0 and hits.any()) or d.min() < floor:
         assert not result.clear
     # Reported distances are the true ones at their instants (so never above the true minimum).
     if np.isfinite(result.closest.distance):

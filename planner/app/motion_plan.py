@@ -181,9 +181,11 @@ class MotionPlan:
 
 
 def _collision_summary(c: MotionClearance) -> dict[str, Any]:
+    # Nothing to hit (an arm without checked self pairs and an empty scene): no distance, JSON null.
+    distance = c.closest.distance if math.isfinite(c.closest.distance) else None
     out: dict[str, Any] = {
         "clear": c.clear,
-        "min_distance": c.closest.distance,
+        "min_distance": distance,
         "closest_bodies": list(c.closest.bodies),
         "closest_time": c.where,
         "clearance": c.closest.clearance,
@@ -273,22 +275,23 @@ def _route(
     names = tuple(set(allow[k - 1]) | set(allow[k]))
     options = request.path_options
     if found is not None and certify:
+        # Where neither of its paths certifies, its trees are grown anew: that may find none.
         result = certify_path(checker, found, options=options, allow=names)
-        return list(result.path), True, result
-    if not blocked:
-        mask = checker.pair_mask(names)
-        end = min(checker.distance_at(q_user[k - 1], mask).distance, checker.distance_at(q_user[k], mask).distance)
-        margin = path_margin(checker.scene.clearance, end, options.margin)
-        if segment_is_clear(checker, q_user[k - 1], q_user[k], allow=names, margin=margin):
-            return [q_user[k - 1], q_user[k]], True, None
-    # The search would test the straight segment again with the same margin: it is blocked.
-    result = find_clear_path(
-        checker, q_user[k - 1], q_user[k], options=options, allow=names, try_straight=False, certify=certify
-    )
-    if result.found and not certify and len(result.path) == 2:
-        # A straight edge is followed along its line at once: that needs its certificate.
-        result = certify_path(checker, result, options=options, allow=names)
-        certify = True
+    else:
+        if not blocked:
+            mask = checker.pair_mask(names)
+            end = min(checker.distance_at(q_user[k - 1], mask).distance, checker.distance_at(q_user[k], mask).distance)
+            margin = path_margin(checker.scene.clearance, end, options.margin)
+            if segment_is_clear(checker, q_user[k - 1], q_user[k], allow=names, margin=margin):
+                return [q_user[k - 1], q_user[k]], True, None
+        # The search would test the straight segment again with the same margin: it is blocked.
+        result = find_clear_path(
+            checker, q_user[k - 1], q_user[k], options=options, allow=names, try_straight=False, certify=certify
+        )
+        if result.found and not certify and len(result.path) == 2:
+            # A straight edge is followed along its line at once: that needs its certificate.
+            result = certify_path(checker, result, options=options, allow=names)
+            certify = True
     if not result.found:
         raise PlanningError(
             f"{request.source}: no collision-free way from {labels[k - 1]} to {labels[k]}: {result.reason} "

@@ -32,7 +32,8 @@ axis, a point of ``B`` at ``s`` from ``c`` moves at most ``|qd_j| (s + D_j)`` pe
 can only reach ``A`` if it moves more than ``max(d, s - R)``, so the pair keeps ``d - m``
 while ``e^T ((R + d) T + sum_j D_j Q_j) <= m``, ``T = sum_j Q_j`` the joints' total turn
 (``Q_j`` of joint ``j``, at most :data:`NEAR_TURN`) and ``e^T`` covering the points' own
-drift (Gronwall). A pair takes the longer of the two steps.
+drift (Gronwall); ``d`` counts as 0 where the bodies overlap (past a hit). A pair takes the
+longer of the two steps.
 """
 
 from __future__ import annotations
@@ -483,7 +484,8 @@ def _joint_steps(checker: CollisionChecker, acceleration: np.ndarray) -> Callabl
             hit = where >= 0
             if hit.any():
                 k = where[hit]
-                v = _NEAR_GROWTH * ((radius[k] + d[hit]) * state["turn"][k] + state["lever"][k])
+                # A pair that overlaps (d < 0, past a hit) counts as touching: the ball stays R.
+                v = _NEAR_GROWTH * ((radius[k] + np.maximum(d[hit], 0.0)) * state["turn"][k] + state["lever"][k])
                 step[hit] = np.maximum(step[hit], np.minimum(room[hit] / np.maximum(v, 1e-300), state["cap"][k]))
             return step
 
@@ -510,7 +512,9 @@ def _joint_steps(checker: CollisionChecker, acceleration: np.ndarray) -> Callabl
         last_d[due], last_room[due] = d, room
         np.maximum(product[:n], 1e-12, out=speeds[:n])
         turn = product[n : n + m]
-        ball = radius + last_d[rows]
+        # As above: R + d < 0 (overlapping deeper than R) made the root's argument negative, the
+        # step NaN, and the check never ended (NaN is never due and sets no next x).
+        ball = radius + np.maximum(last_d[rows], 0.0)
         speeds[n:] = _NEAR_GROWTH * (ball * turn + product[n + m :])
         twice_acc[n:] = 2.0 * (_NEAR_GROWTH * (ball * turn_acc + lever_acc))
         r = last_room[both]
