@@ -8,10 +8,13 @@ there, instead of guessing how long rendering takes.
 from __future__ import annotations
 
 import base64
+import contextlib
 import io
 import itertools
 import json
+import os
 import shutil
+import signal
 import subprocess
 import tempfile
 import time
@@ -50,7 +53,9 @@ class HeadlessChromium:
         self._socket = None
 
     def __enter__(self) -> HeadlessChromium:
-        self._profile = tempfile.TemporaryDirectory()
+        # Chromium's helper processes can still write into the profile just after the browser
+        # exits: they share its session (killed together) and cleaning up may leave a file.
+        self._profile = tempfile.TemporaryDirectory(ignore_cleanup_errors=True)
         width, height = self.size
         self._process = subprocess.Popen(
             [
@@ -62,6 +67,7 @@ class HeadlessChromium:
             ],
             stdout=subprocess.DEVNULL,
             stderr=subprocess.DEVNULL,
+            start_new_session=True,
         )
         try:
             self._port = self._devtools_port()
@@ -84,6 +90,8 @@ class HeadlessChromium:
         except subprocess.TimeoutExpired:
             self._process.kill()
             self._process.wait()
+        with contextlib.suppress(ProcessLookupError, PermissionError):
+            os.killpg(self._process.pid, signal.SIGKILL)  # helpers left in its session
         self._profile.cleanup()
 
     def _devtools_port(self) -> int:
