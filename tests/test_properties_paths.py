@@ -16,7 +16,7 @@ from hypothesis import strategies as st
 
 import planner
 from planner.app.motion_plan import plan_motion
-from planner.app.plan_file import parse_motion_request
+from planner.app.plan_file import parse_motion_request, parse_scene
 from planner.collision import CollisionChecker
 from planner.collision.rrt import PathOptions, PathStatus, certify_path, find_clear_path
 
@@ -142,3 +142,19 @@ def test_the_search_options_name_a_bad_value():
             assert field in str(error) and repr(value) in str(error)
         else:
             raise AssertionError(f"PathOptions({field}={value!r}) was accepted")
+
+
+def test_a_search_between_ends_outside_the_joint_ranges_names_the_joint():
+    robot = planner.load_robot("al5c")
+    checker = CollisionChecker(robot, parse_scene({"floor": -0.2}))
+    inside = (robot.lower + robot.upper) / 2.0
+    for end in ("start", "goal"):
+        outside = inside.copy()
+        outside[2] = robot.upper[2] + 0.1  # the elbow
+        ends = (outside, inside) if end == "start" else (inside, outside)
+        try:
+            find_clear_path(checker, *ends)
+        except planner.JointLimitError as error:
+            assert "elbow" in str(error) and f"path {end}" in str(error)
+        else:
+            raise AssertionError(f"a {end} outside the elbow's range was accepted")

@@ -243,12 +243,18 @@ def find_clear_path(
     Returns:
         The :class:`PathResult`; when the ends themselves collide or the search runs out of
         iterations or time, a status and a reason instead of a path.
+
+    Raises:
+        InvalidConfigurationError: If an end has the wrong shape or a value that is not finite.
+        JointLimitError: If an end lies outside the joint ranges (naming the joint).
     """
     options = options or PathOptions()
     certify_edges = bool(certify)
     robot = checker.robot
     q0 = robot.check_configuration(q_start, batch=False)
     q1 = robot.check_configuration(q_goal, batch=False)
+    robot.check_limits(q0, context="path start")
+    robot.check_limits(q1, context="path goal")
     mask = checker.pair_mask(allow)
     empty = read_only(np.zeros((0, robot.dof)))
     ends = []
