@@ -31,7 +31,15 @@ from planner.ik.analytic.nearest import NearestSolution
 from planner.ik.analytic.result import AnalyticBatchResult, AnalyticResult
 from planner.model.robot import Robot
 
-__all__ = ["AnalyticIK", "ChainMismatch", "base_yaw_mismatch", "FAMILY_ANGLE_TOL", "FLOAT64", "SINGLE_AFTER"]
+__all__ = [
+    "AnalyticIK",
+    "ChainMismatch",
+    "base_yaw_mismatch",
+    "fill_kernel_inputs",
+    "FAMILY_ANGLE_TOL",
+    "FLOAT64",
+    "SINGLE_AFTER",
+]
 
 #: Largest deviation [rad] of an axis from the family's ideal directions (vertical, parallel,
 #: perpendicular) that a solver accepts. Deviations above 1e-12 rad (CAD round-off, as in
@@ -90,6 +98,21 @@ def base_yaw_mismatch(chain: ChainAtZero) -> ChainMismatch | None:
             f"the chain has only joint {first.name!r}; the closed-form families need 2 to 5 joints", first.name, 1
         )
     return None
+
+
+def fill_kernel_inputs(inputs: np.ndarray, position, pitch, rotation, seed) -> None:
+    """Write one target into the input vector of a compiled single-target kernel.
+
+    The layout they all take: the position, then the rotation's nine entries row by row or the
+    approach pitch (neither for a position target), then the seed at the end where one is given.
+    """
+    inputs[0:3] = position
+    if rotation is not None:
+        inputs[3:12] = rotation.ravel()
+    elif pitch is not None:
+        inputs[3] = pitch
+    if seed is not None:
+        inputs[-len(seed) :] = seed
 
 
 class AnalyticIK(ABC):

@@ -29,7 +29,14 @@ import numpy as np
 from planner.core.rotations import rotation_error
 from planner.geometry.chain import ChainAtZero, describe_violation, poe_fk, wrap_array, wrap_scalar
 from planner.geometry.target import Target
-from planner.ik.analytic.base import FAMILY_ANGLE_TOL, FLOAT64, AnalyticIK, ChainMismatch, base_yaw_mismatch
+from planner.ik.analytic.base import (
+    FAMILY_ANGLE_TOL,
+    FLOAT64,
+    AnalyticIK,
+    ChainMismatch,
+    base_yaw_mismatch,
+    fill_kernel_inputs,
+)
 from planner.ik.analytic.geometry import LENGTH_TOL, ORIENTATION_TOL, SINGULAR_TOL, angle_to_line, reach_interval
 from planner.ik.analytic.nearest import NearestSolution, nearest_entry
 from planner.ik.analytic.planar2_single import Planar2Geometry, Planar2Kernel, planar2_kernel
@@ -186,12 +193,7 @@ class Planar2IK(AnalyticIK):
             key = (target.rotation is not None, seed is not None)
             kernel = self._counted_kernel(key, self._planar2_kernel)
             if kernel.__class__ is Planar2Kernel:
-                inputs = kernel.inputs
-                inputs[0:3] = target.position
-                if key[0]:
-                    inputs[3:12] = target.rotation.ravel()
-                if seed is not None:
-                    inputs[-2:] = seed
+                fill_kernel_inputs(kernel.inputs, target.position, None, target.rotation, seed)
                 kernel()
                 sure, slot, q0, q1 = kernel.outputs.tolist()
                 if sure:

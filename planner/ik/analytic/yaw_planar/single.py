@@ -299,14 +299,7 @@ class SolveKernels:
             if calls >= analytic_base.SINGLE_AFTER:
                 del self._calls[key]
                 kernel.compile()
-        inputs = kernel.inputs
-        inputs[0:3] = position
-        if rotation is not None:
-            inputs[3:12] = rotation.ravel()
-        elif pitch is not None:
-            inputs[3] = pitch
-        if qc is not None:
-            inputs[-len(qc) :] = qc
+        analytic_base.fill_kernel_inputs(kernel.inputs, position, pitch, rotation, qc)
         kernel()
         out = kernel.outputs.tolist()
         if not out[0]:

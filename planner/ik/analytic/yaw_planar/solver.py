@@ -11,7 +11,7 @@ from planner.core.rotations import rotation_error
 from planner.exceptions import UnsupportedChainError
 from planner.geometry.chain import ChainAtZero
 from planner.geometry.target import Target, approach_pitch
-from planner.ik.analytic.base import FLOAT64, AnalyticIK, ChainMismatch
+from planner.ik.analytic.base import FLOAT64, AnalyticIK, ChainMismatch, fill_kernel_inputs
 from planner.ik.analytic.nearest import NearestSolution, nearest_entry
 from planner.ik.analytic.result import (
     STATUS_CODES,
@@ -170,14 +170,7 @@ class YawPlanarIK(AnalyticIK):
         key = (kind_of(target.pitch, target.rotation), seed is not None)
         kernel = self._counted_kernel(key, self._single_kernel)
         if kernel.__class__ is SingleKernel:
-            inputs = kernel.inputs
-            inputs[0:3] = target.position
-            if key[0] == "pose":
-                inputs[3:12] = target.rotation.ravel()
-            elif key[0] == "pitch":
-                inputs[3] = target.pitch
-            if seed is not None:
-                inputs[-arm.dof :] = seed
+            fill_kernel_inputs(kernel.inputs, target.position, target.pitch, target.rotation, seed)
             kernel()
             out = kernel.outputs.tolist()
             if out[0]:
@@ -196,14 +189,7 @@ class YawPlanarIK(AnalyticIK):
         kernel = self._counted_kernel(key, self._corrected_kernel)
         if kernel.__class__ is not CorrectedKernel:
             return None
-        inputs = kernel.inputs
-        inputs[0:3] = target.position
-        if key[0] == "pose":
-            inputs[3:12] = target.rotation.ravel()
-        elif key[0] == "pitch":
-            inputs[3] = target.pitch
-        if seed is not None:
-            inputs[-self.arm.dof :] = seed
+        fill_kernel_inputs(kernel.inputs, target.position, target.pitch, target.rotation, seed)
         kernel()
         out = kernel.outputs.tolist()
         return NearestSolution(tuple(out[2:]), BRANCHES[int(out[1])], None, None) if out[0] else None
@@ -231,14 +217,7 @@ class YawPlanarIK(AnalyticIK):
             kind = kind_of(target.pitch, target.rotation)
             kernel = self._counted_kernel(("every", kind, qc is not None), self._corrected_kernel)
             if kernel.__class__ is CorrectedKernel:
-                inputs = kernel.inputs
-                inputs[0:3] = target.position
-                if kind == "pose":
-                    inputs[3:12] = target.rotation.ravel()
-                elif kind == "pitch":
-                    inputs[3] = target.pitch
-                if qc is not None:
-                    inputs[-arm.dof :] = qc
+                fill_kernel_inputs(kernel.inputs, target.position, target.pitch, target.rotation, qc)
                 kernel()
                 result = corrected_result(arm, self._real_tip_pose, target, qc, kernel.outputs.tolist())
                 if result is not None:
