@@ -86,3 +86,16 @@ def assert_animation(path: Path, duration: float, fps: float, speed: float, size
     first, middle, last = frames[0], frames[len(frames) // 2], frames[-1]
     for a, b in ((first, middle), (middle, last), (first, last)):
         assert np.count_nonzero(np.any(a != b, axis=-1)) > 50
+
+
+def single_after(calls: int, call):
+    """``call()`` with the analytic solvers' SINGLE_AFTER set to `calls` (1: the compiled kernel
+    from the first call; huge: never)."""
+    import planner.ik.analytic.base as analytic_base
+
+    old = analytic_base.SINGLE_AFTER
+    analytic_base.SINGLE_AFTER = calls
+    try:
+        return call()
+    finally:
+        analytic_base.SINGLE_AFTER = old

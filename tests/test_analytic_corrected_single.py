@@ -19,11 +19,12 @@ from dh_arms import configurations, property_settings, seeds, targets, tip_error
 from hypothesis import given
 from hypothesis import strategies as st
 
-import planner.ik.analytic.base as analytic_base
 from planner import Target, approach_pitch, load_robot, solve_ik
 from planner.exceptions import UnsupportedChainError
 from planner.ik.solvers import IKSolvers
 from planner.model.catalog import example_robot_data_dir
+
+from conftest import single_after
 
 pytestmark = pytest.mark.skipif(example_robot_data_dir() is None, reason="example-robot-data is not installed")
 
@@ -43,16 +44,6 @@ def _pair():
     return cache
 
 
-def _after(calls, call):
-    """``call()`` with SINGLE_AFTER `calls` (1: the kernel from the first call; huge: never)."""
-    old = analytic_base.SINGLE_AFTER
-    analytic_base.SINGLE_AFTER = calls
-    try:
-        return call()
-    finally:
-        analytic_base.SINGLE_AFTER = old
-
-
 def _target(robot, kind: str, q: np.ndarray) -> Target:
     pose = robot.fk(q)
     if kind == "pose":
@@ -68,12 +59,12 @@ def _wrapped_gap(a: np.ndarray, b: np.ndarray) -> float:
 
 def _assert_same(fast_robot, slow_robot, target: Target, seed) -> None:
     try:
-        expected = _after(10**12, lambda: solve_ik(slow_robot, target, seed, method="analytic"))
+        expected = single_after(10**12, lambda: solve_ik(slow_robot, target, seed, method="analytic"))
     except UnsupportedChainError:
         with pytest.raises(UnsupportedChainError):
-            _after(1, lambda: solve_ik(fast_robot, target, seed, method="analytic"))
+            single_after(1, lambda: solve_ik(fast_robot, target, seed, method="analytic"))
         return
-    result = _after(1, lambda: solve_ik(fast_robot, target, seed, method="analytic"))
+    result = single_after(1, lambda: solve_ik(fast_robot, target, seed, method="analytic"))
     assert (result.status, result.success, result.reason) == (expected.status, expected.success, expected.reason)
     assert (result.attempts, result.attempt) == (expected.attempts, expected.attempt)
     assert _wrapped_gap(result.q, expected.q) <= ROUND_OFF
@@ -90,7 +81,7 @@ def _assert_same(fast_robot, slow_robot, target: Target, seed) -> None:
 def test_kernel_answers_as_the_python_path(kind, current):
     """Seeded random reachable targets: the kernel's answers (most of them) are the Python path's."""
     fast_robot, slow_robot = _pair()
-    fast = _after(1, lambda: solve_ik(fast_robot, Target(fast_robot.fk(np.zeros(5))[:3, 3]), np.zeros(5)))
+    fast = single_after(1, lambda: solve_ik(fast_robot, Target(fast_robot.fk(np.zeros(5))[:3, 3]), np.zeros(5)))
     assert fast.success
     rng = np.random.default_rng([12, len(kind), current])
     configurations = fast_robot.random_configurations(rng, 120)
@@ -101,7 +92,7 @@ def test_kernel_answers_as_the_python_path(kind, current):
         target = _target(fast_robot, kind, q)
         seed = seed if current else None
         _assert_same(fast_robot, slow_robot, target, seed)
-        nearest = _after(1, lambda t=target, s=seed: solver.nearest(t, s))
+        nearest = single_after(1, lambda t=target, s=seed: solver.nearest(t, s))
         answered += nearest is not None
     # The kernel leaves to the Python path the targets that path itself hands over (no branch
     # within the limits, a branch next to the boundary of the reach): 14-25 % here.
@@ -127,8 +118,8 @@ def _solver_pair():
 
 def _assert_same_result(fast, slow, target: Target, seed, round_off: float = ROUND_OFF) -> None:
     """solver.solve through the kernel (every branch) gives the Python path's result."""
-    got = _after(1, lambda: fast.solve(target, seed))
-    expected = _after(10**12, lambda: slow.solve(target, seed))
+    got = single_after(1, lambda: fast.solve(target, seed))
+    expected = single_after(10**12, lambda: slow.solve(target, seed))
     assert (got.status, got.reason, got.singular) == (expected.status, expected.reason, expected.singular)
     assert [s.branch for s in got.solutions] == [s.branch for s in expected.solutions]
     for a, b in zip(got.solutions, expected.solutions):
@@ -157,10 +148,10 @@ def test_solve_through_the_kernel(data):
     target, _ = data.draw(targets(fast.robot))
     seed = data.draw(seeds(fast.robot))
     try:
-        _after(10**12, lambda: slow.solve(target, seed))
+        single_after(10**12, lambda: slow.solve(target, seed))
     except UnsupportedChainError:
         with pytest.raises(UnsupportedChainError):
-            _after(1, lambda: fast.solve(target, seed))
+            single_after(1, lambda: fast.solve(target, seed))
         return
     _assert_same_result(fast, slow, target, seed)
 
@@ -182,7 +173,7 @@ def test_the_kernel_answers_almost_every_reachable_target(kind, current):
     for q in configurations:
         target = _target(fast_robot, kind, q)
         seed = q if current else None
-        nearest = _after(1, lambda t=target, s=seed: solver.nearest(t, s))
+        nearest = single_after(1, lambda t=target, s=seed: solver.nearest(t, s))
         if nearest is not None:
             answered += 1
             position_error, orientation_error, _ = tip_errors(fast_robot, target, np.array(nearest.q))
@@ -236,7 +227,7 @@ def test_reachable_targets_solved_through_the_kernel(data):
     # poses with or without one.
     seed = data.draw(configurations(robot) if kind == "position" else seeds(robot))
     target = _target(robot, kind, q)
-    result = _after(1, lambda: fast.solve(target, seed))
+    result = single_after(1, lambda: fast.solve(target, seed))
     assert result.ok, result.reason
     within = [s for s in result.solutions if s.within_limits]
     assert within
@@ -269,9 +260,9 @@ def test_poses_next_to_a_stretched_elbow_as_the_vectorised_path(folded):
         target = _target(robot, "pose", q)
         for seed in (None, q):
             _assert_same_result(fast, slow, target, seed, ROUND_OFF_ELBOW)
-            result = _after(1, lambda t=target, s=seed: fast.solve(t, s))
+            result = single_after(1, lambda t=target, s=seed: fast.solve(t, s))
             assert result.ok
-        answered += _after(1, lambda t=target: fast.nearest(t, None)) is not None
+        answered += single_after(1, lambda t=target: fast.nearest(t, None)) is not None
     if not folded:
         # The Python path answers none of them (the vectorised one does); the kernel about 70 %
         # (the rest: both elbow branches converging onto one solution, or a stalled branch).

@@ -23,6 +23,8 @@ from planner import Target, load_robot, solve_ik
 from planner.exceptions import UnsupportedChainError
 from planner.ik.analytic import closed_form_solver
 
+from conftest import single_after
+
 ARMS = ("al5c", "three_joint", "dh3", "shelley")
 # Round-off of two operation sequences (the kernels leave a nearly singular elbow to Python) [rad].
 ROUND_OFF = 1e-12
@@ -50,22 +52,12 @@ def kernel_first(monkeypatch):
     monkeypatch.setattr(analytic_base, "SINGLE_AFTER", 1)
 
 
-def _after(calls, call):
-    """``call()`` with SINGLE_AFTER `calls` (1: the kernel from the first call; huge: never)."""
-    old = analytic_base.SINGLE_AFTER
-    analytic_base.SINGLE_AFTER = calls
-    try:
-        return call()
-    finally:
-        analytic_base.SINGLE_AFTER = old
-
-
 def _scalar(call):
-    return _after(10**12, call)
+    return single_after(10**12, call)
 
 
 def _kernel(call):
-    return _after(1, call)
+    return single_after(1, call)
 
 
 @property_settings(300)

@@ -16,11 +16,12 @@ from dh_arms import property_settings, seeds, targets, tip_errors
 from hypothesis import given
 from hypothesis import strategies as st
 
-import planner.ik.analytic.base as analytic_base
 from planner import Target, load_robot
 from planner.exceptions import UnsupportedChainError
 from planner.geometry.target import approach_pitch
 from planner.ik.analytic import closed_form_solver
+
+from conftest import single_after
 
 ARMS = ("al5c", "three_joint", "dh3")
 # Round-off of two operation sequences [rad].
@@ -38,16 +39,6 @@ def _solvers(name):
     return cache[name]
 
 
-def _after(calls, call):
-    """``call()`` with SINGLE_AFTER `calls` (1: the kernel from the first call; huge: never)."""
-    old = analytic_base.SINGLE_AFTER
-    analytic_base.SINGLE_AFTER = calls
-    try:
-        return call()
-    finally:
-        analytic_base.SINGLE_AFTER = old
-
-
 @property_settings(400)
 @given(name=st.sampled_from(ARMS), data=st.data())
 def test_compiled_solve_answers_as_the_python_paths(name, data):
@@ -58,7 +49,7 @@ def test_compiled_solve_answers_as_the_python_paths(name, data):
         expected = slow.solve(target, seed)
     except UnsupportedChainError:
         return
-    result = _after(1, lambda: fast.solve(target, seed))
+    result = single_after(1, lambda: fast.solve(target, seed))
     assert (result.status, result.reason, result.singular) == (expected.status, expected.reason, expected.singular)
     assert [s.branch for s in result.solutions] == [s.branch for s in expected.solutions]
     for got, want in zip(result.solutions, expected.solutions):
@@ -90,7 +81,7 @@ def test_compiled_solve_used_on_reachable_targets(name):
                 pitch = approach_pitch(robot, q) if kind == "pitch" else None
                 rotation = pose[:3, :3] if kind == "pose" else None
                 qc = q.tolist() if with_seed else None
-                found = _after(1, lambda p=pose[:3, 3], a=pitch, r=rotation, c=qc: compiled.entries(p, a, r, c))
+                found = single_after(1, lambda p=pose[:3, 3], a=pitch, r=rotation, c=qc: compiled.entries(p, a, r, c))
                 answered += found is not None
             # (Poses with a seed on arms with a roll: the two sides' yaws, from the rotation, lie
             # half a turn apart, where the wrap towards the seed is left to the Python path.)
