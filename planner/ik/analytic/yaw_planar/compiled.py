@@ -73,6 +73,7 @@ __all__ = [
     "SMALL_BLOCK",
     "CompiledKernels",
     "compiled_supported",
+    "kind_supported",
     "cos_nonnegative",
     "forward_sx",
     "kind_of",
@@ -104,6 +105,13 @@ def compiled_supported(arm: ArmGeometry, pit, rot, qc) -> bool:
         return False
     # Without q_current the roll is 0, which must lie within its range (else NumPy wraps it).
     return not (qc is None and arm.has_roll and not arm.lower[arm.roll_idx] <= 0.0 <= arm.upper[arm.roll_idx])
+
+
+def kind_supported(arm: ArmGeometry, kind: str, current: bool) -> bool:
+    """:func:`compiled_supported` for every target of a kind, with or without q_current."""
+    pit = 0.0 if kind == "pitch" else None
+    rot = np.eye(3) if kind == "pose" else None
+    return compiled_supported(arm, pit, rot, np.zeros(arm.dof) if current else None)
 
 
 def _where(cond, a, b):

@@ -35,9 +35,9 @@ from planner.ik.analytic.yaw_planar.branches import BRANCHES
 from planner.ik.analytic.yaw_planar.compiled import (
     FLAGS,
     CompiledKernels,
-    compiled_supported,
     forward_sx,
     kind_of,
+    kind_supported,
     nearest_branch_sx,
     pick_branch_sx,
 )
@@ -322,11 +322,7 @@ class SolveKernels:
 
     def _build(self, key: tuple[str, bool]) -> SolveKernel | bool:
         kind, current = key
-        arm = self.arm
-        qc = np.zeros(arm.dof) if current else None
-        pitch = 0.0 if kind == "pitch" else None
-        rotation = np.eye(3) if kind == "pose" else None
-        if not compiled_supported(arm, pitch, rotation, qc):
+        if not kind_supported(self.arm, kind, current):
             return False
         self._calls[key] = 0
         return SolveKernel(self._kernels, kind, current)

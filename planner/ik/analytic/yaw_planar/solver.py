@@ -25,7 +25,7 @@ from planner.ik.analytic.yaw_planar.arm import arm_geometry
 from planner.ik.analytic.yaw_planar.arrays import BranchArrays, result_from_arrays, solve_arrays
 from planner.ik.analytic.yaw_planar.batch import solve_chunked
 from planner.ik.analytic.yaw_planar.branches import BRANCHES
-from planner.ik.analytic.yaw_planar.compiled import CompiledKernels, compiled_supported, kind_of
+from planner.ik.analytic.yaw_planar.compiled import CompiledKernels, kind_of, kind_supported
 from planner.ik.analytic.yaw_planar.corrected import (
     corrected_result,
     real_tip_pose,
@@ -229,11 +229,7 @@ class YawPlanarIK(AnalyticIK):
     def _single_kernel(self, key: tuple[str, bool]) -> SingleKernel | bool:
         """The compiled kernel of :meth:`nearest` for a target kind, or False where there is none."""
         kind, current = key
-        arm = self.arm
-        qc = np.zeros(arm.dof) if current else None
-        pitch = 0.0 if kind == "pitch" else None
-        rotation = np.eye(3) if kind == "pose" else None
-        if not compiled_supported(arm, pitch, rotation, qc):
+        if not kind_supported(self.arm, kind, current):
             return False
         return single_kernel(self._kernels, kind, current) or False
 
