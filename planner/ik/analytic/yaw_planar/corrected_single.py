@@ -437,32 +437,7 @@ class CorrectedKernel:
         target = ca.vertcat(*p)
         pos_tol = MARGIN * SETTLE * max(1.0, arm.scale)
         qs, settled = [], []
-        if kind == "pose" and two_lanes:
-            rflat = [x[3 + k] for k in range(9)]
-            rows = [rflat[0:3], rflat[3:6], rflat[6:9]]
-            starts, valid, sure, apart = _pose_starts(arm, frame, p, rflat, qc)
-            flag = ca.SX(0.0)
-            step = pose_kernel(dof, 2)
-            rot_t = ca.vertcat(*[ca.horzcat(*row) for row in rows])
-            # One side's branches valid and started as usual (not apart), both settled after two
-            # steps (within EARLY of the threshold: the full kernel's q2, which it keeps): the
-            # full kernel's answer. Anything else is left to it.
-            front = ca.logic_or(valid[0], valid[1])
-            sure = _and(sure, ca.logic_not(apart), ca.logic_not(_and(front, ca.logic_or(valid[2], valid[3]))))
-            lanes = []
-            for lane in range(2):
-                q0 = ca.vertcat(*[_if(front, a, b) for a, b in zip(starts[lane], starts[2 + lane])])
-                q0 = _if(ca.logic_or(valid[lane], valid[2 + lane]), q0, 0.0)
-                q = step(q0, target, rot_t, prm)
-                tip, rot = tip_fk_sx(q, prm, dof)
-                perr = ca.norm_2(target - tip)
-                oerr = _rotation_angle(rot, rows)
-                lanes.append(([q[j] for j in range(dof)], _and(perr <= pos_tol, oerr <= MARGIN * 1e-13)))
-            for m in range(4):
-                q, done = lanes[m % 2]
-                qs.append(list(q))
-                settled.append(done)
-        elif kind == "pose":
+        if kind == "pose":
             rflat = [x[3 + k] for k in range(9)]
             rows = [rflat[0:3], rflat[3:6], rflat[6:9]]
             starts, valid, sure, apart = _pose_starts(arm, frame, p, rflat, qc)
@@ -474,6 +449,24 @@ class CorrectedKernel:
                 tip, rot = tip_fk_sx(q, prm, dof)
                 return ca.norm_2(target - tip), _rotation_angle(rot, rows)
 
+        if kind == "pose" and two_lanes:
+            # One side's branches valid and started as usual (not apart), both settled after two
+            # steps (within EARLY of the threshold: the full kernel's q2, which it keeps): the
+            # full kernel's answer. Anything else is left to it.
+            front = ca.logic_or(valid[0], valid[1])
+            sure = _and(sure, ca.logic_not(apart), ca.logic_not(_and(front, ca.logic_or(valid[2], valid[3]))))
+            lanes = []
+            for lane in range(2):
+                q0 = ca.vertcat(*[_if(front, a, b) for a, b in zip(starts[lane], starts[2 + lane])])
+                q0 = _if(ca.logic_or(valid[lane], valid[2 + lane]), q0, 0.0)
+                q = step(q0, target, rot_t, prm)
+                perr, oerr = errors(q)
+                lanes.append(([q[j] for j in range(dof)], _and(perr <= pos_tol, oerr <= MARGIN * 1e-13)))
+            for m in range(4):
+                q, done = lanes[m % 2]
+                qs.append(list(q))
+                settled.append(done)
+        elif kind == "pose":
             # Every branch is stepped: the rotation fixes the arm's plane up to a half turn of
             # the yaw, and where the roll axis is next to vertical both sides are valid on the
             # ideal model (10 % of random poses); on the real arm one of them may have no
