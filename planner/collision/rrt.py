@@ -142,8 +142,10 @@ class _Tree:
     def __init__(self, root: np.ndarray) -> None:
         self._array = np.empty((64, len(root)))
         self._array[0] = root
-        self._squares = np.empty(64)  # per node |q|^2: the nearest by |q|^2 - 2 q . target
-        self._squares[0] = float(root @ root)
+        # Per node |q|^2 / 2: the nearest has the largest q . target - |q|^2 / 2 (the same as the
+        # smallest |q|^2 - 2 q . target: scaling by 2 rounds alike).
+        self._half = np.empty(64)
+        self._half[0] = 0.5 * float(root @ root)
         self.nodes = [root]
         self.parent = [-1]
         self.tested = [True]  # per node, whether its edge from the parent has passed the edge test
@@ -151,15 +153,15 @@ class _Tree:
 
     def nearest(self, q: np.ndarray) -> int:
         n = len(self.nodes)
-        return int(np.argmin(self._squares[:n] - 2.0 * (self._array[:n] @ q)))
+        return int((self._array[:n] @ q - self._half[:n]).argmax())
 
     def add(self, q: np.ndarray, parent: int) -> int:
         n = len(self.nodes)
         if n == len(self._array):
             self._array = np.concatenate([self._array, np.empty_like(self._array)])
-            self._squares = np.concatenate([self._squares, np.empty_like(self._squares)])
+            self._half = np.concatenate([self._half, np.empty_like(self._half)])
         self._array[n] = q
-        self._squares[n] = float(q @ q)
+        self._half[n] = 0.5 * float(q @ q)
         self.nodes.append(q)
         self.parent.append(parent)
         self.tested.append(False)
@@ -172,7 +174,7 @@ class _Tree:
         for i in range(k, len(self.nodes)):  # a node comes after its parent
             if i == k or not self.alive[self.parent[i]]:
                 self.alive[i] = False
-                self._array[i], self._squares[i] = 0.0, np.inf  # never the nearest again
+                self._array[i], self._half[i] = 0.0, np.inf  # never the nearest again
 
     def chain(self, k: int) -> list[int]:
         """The nodes from the root to node `k` (indices)."""
@@ -420,14 +422,15 @@ def _grow(
     step, bias = options.step, options.line_bias
     span = hi - lo  # lo + span * rng.random(n) draws as rng.uniform(lo, hi), without its argument checks
     spread, line = options.line_spread * span, q1 - q0
+    dof = len(lo)
     for it in range(1, budget + 1):
         if time.perf_counter() > deadline:
             return None, it
         a, b = trees if it % 2 else trees[::-1]
         if bias and rng.random() < bias:
-            target = np.clip(q0 + rng.random() * line + spread * rng.standard_normal(len(lo)), lo, hi)
+            target = np.minimum(np.maximum(q0 + rng.random() * line + spread * rng.standard_normal(dof), lo), hi)
         else:
-            target = lo + span * rng.random(len(lo))
+            target = lo + span * rng.random(dof)
         new = _extend(a, target, step, node_ok)
         if new is None:
             continue
@@ -437,7 +440,7 @@ def _grow(
         while True:
             q_near = b.nodes[k]
             delta = q_new - q_near
-            far = float(np.abs(delta).max())
+            far = max(map(abs, delta.tolist()))  # the largest joint change (as np.abs(delta).max())
             if far <= step:
                 found = _settle(a, new, b, k, trees[0] is a, edge_ok)
                 if found is not None:
@@ -496,7 +499,7 @@ def _extend(tree: _Tree, target: np.ndarray, step: float, node_ok) -> int | None
     k = tree.nearest(target)
     q_near = tree.nodes[k]
     delta = target - q_near
-    far = float(np.abs(delta).max())
+    far = max(map(abs, delta.tolist()))
     if far == 0.0:
         return None
     q_new = q_near + delta * min(1.0, step / far)
