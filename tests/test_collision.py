@@ -484,6 +484,33 @@ def test_a_blocked_tree_edge_cuts_its_node_and_what_grew_from_it():
     assert a.nearest(np.array([1.0, 2.0])) == 0
 
 
+def test_edges_tested_where_the_trees_met_are_not_tested_again_at_their_next_meeting():
+    # A meeting whose path is blocked leaves its edges' verdicts (`seen`); the next meeting
+    # through the same nodes reuses them: the same verdicts, each edge tested once.
+    from planner.collision.rrt import _settle, _Tree
+
+    a, b = _Tree(np.zeros(2)), _Tree(np.array([4.0, 0.0]))
+    one = a.add(np.array([1.0, 1.0]), 0)
+    up = b.add(np.array([3.0, 1.0]), 0)
+    down = b.add(np.array([3.0, -1.0]), 0)
+    tested = []
+
+    def short(p, q):  # edges of 1.5 and longer are blocked
+        tested.append((tuple(p), tuple(q)))
+        return bool(np.linalg.norm(q - p) < 1.5)
+
+    seen: dict = {}
+    assert _settle(a, one, b, up, True, short, seen) is None  # (1, 1) to (3, 1) is blocked
+    first = list(tested)
+    assert ((0.0, 0.0), (4.0, 0.0)) in first and ((1.0, 1.0), (4.0, 0.0)) in first
+    tested.clear()
+    assert _settle(a, one, b, down, True, short, seen) is None
+    assert not set(tested) & set(first)  # (0, 0) and (1, 1) to the goal: verdicts kept
+    tested.clear()
+    assert _settle(a, one, b, down, True, short) is None  # without `seen`: tested again
+    assert ((0.0, 0.0), (4.0, 0.0)) in tested
+
+
 def test_an_edge_is_tested_first_where_the_last_one_was_blocked():
     # The same points and verdicts as the bisection sweep; only the order: the point nearest the
     # configuration that blocked the last edge comes first.

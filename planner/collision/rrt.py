@@ -419,6 +419,7 @@ def _grow(
         extensions used.
     """
     trees = (_Tree(q0), _Tree(q1))
+    seen: dict[tuple[int, int], bool] = {}  # edges tested where the trees met (by their nodes' ids)
     step, bias = options.step, options.line_bias
     span = hi - lo  # lo + span * rng.random(n) draws as rng.uniform(lo, hi), without its argument checks
     spread, line = options.line_spread * span, q1 - q0
@@ -442,7 +443,7 @@ def _grow(
             delta = q_new - q_near
             far = max(map(abs, delta.tolist()))  # the largest joint change (as np.abs(delta).max())
             if far <= step:
-                found = _settle(a, new, b, k, trees[0] is a, edge_ok)
+                found = _settle(a, new, b, k, trees[0] is a, edge_ok, seen)
                 if found is not None:
                     return found, it
                 break
@@ -454,18 +455,30 @@ def _grow(
 
 
 def _settle(
-    a: _Tree, ka: int, b: _Tree, kb: int, a_is_start: bool, edge_ok
+    a: _Tree, ka: int, b: _Tree, kb: int, a_is_start: bool, edge_ok, seen: dict | None = None
 ) -> tuple[list[np.ndarray], list[np.ndarray]] | None:
     """The path where the trees meet (`a`'s node `ka` beside `b`'s `kb`) and its greedy prune.
 
     The prune (:func:`_prune`) joins each node to the farthest later one `edge_ok` passes; a
     tree edge is tested only where no longer edge passes over it (then its verdict is kept in
     the tree, and a blocked one is cut off with what grew from it), as is the edge between the
-    trees.
+    trees. `seen` keeps the verdicts of the edges tested (by their nodes' identity) for the
+    trees' next meeting: where that path shares nodes with one found blocked, the edges
+    between them are not tested again.
 
     Returns:
         The path and its prune, start first; None where an edge it needs is blocked.
     """
+    if seen is not None:
+        test = edge_ok
+
+        def edge_ok(p: np.ndarray, q: np.ndarray) -> bool:
+            key = (id(p), id(q))
+            ok = seen.get(key)
+            if ok is None:
+                ok = seen[key] = test(p, q)
+            return ok
+
     chain_a, chain_b = a.chain(ka), b.chain(kb)[::-1]  # root to ka; kb to root
     nodes = [a.nodes[i] for i in chain_a] + [b.nodes[i] for i in chain_b]
     # Per edge (node e to e + 1): its tree and child node, or None between the trees.
@@ -536,6 +549,8 @@ def _prune(path: list[np.ndarray], edge_ok) -> list[np.ndarray]:
     return out
 
 
+_PGAIN = None
+
 #: Least share of its stretch along the path a shortcut must save to be tried.
 _GAIN = 0.05
 
@@ -567,4 +582,19 @@ def _shortcut(path: list[np.ndarray], edge_ok, inner_ok, rng: np.random.Generato
         if edge_ok(a, b):
             path = path[: i + 1] + [a, b] + path[j + 1 :]
             cum = None
-    return _prune(path, inner_ok)
+    if _PGAIN is None:
+        return _prune(path, inner_ok)
+    cum = [0.0, *itertools.accumulate(math.sqrt(float((b - a) @ (b - a))) for a, b in zip(path, path[1:]))]
+
+    def worth(i: int, j: int) -> bool:
+        a, b = path[i], path[j]
+        return (cum[j] - cum[i]) - math.sqrt(float((b - a) @ (b - a))) > _PGAIN * (cum[j] - cum[i])
+
+    out, i = [path[0]], 0
+    while i < len(path) - 1:
+        j = len(path) - 1
+        while j > i + 1 and not (worth(i, j) and inner_ok(path[i], path[j])):
+            j -= 1
+        out.append(path[j])
+        i = j
+    return out
