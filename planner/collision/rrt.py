@@ -549,8 +549,6 @@ def _prune(path: list[np.ndarray], edge_ok) -> list[np.ndarray]:
     return out
 
 
-_PGAIN = None
-
 #: Least share of its stretch along the path a shortcut must save to be tried.
 _GAIN = 0.05
 
@@ -582,19 +580,4 @@ def _shortcut(path: list[np.ndarray], edge_ok, inner_ok, rng: np.random.Generato
         if edge_ok(a, b):
             path = path[: i + 1] + [a, b] + path[j + 1 :]
             cum = None
-    if _PGAIN is None:
-        return _prune(path, inner_ok)
-    cum = [0.0, *itertools.accumulate(math.sqrt(float((b - a) @ (b - a))) for a, b in zip(path, path[1:]))]
-
-    def worth(i: int, j: int) -> bool:
-        a, b = path[i], path[j]
-        return (cum[j] - cum[i]) - math.sqrt(float((b - a) @ (b - a))) > _PGAIN * (cum[j] - cum[i])
-
-    out, i = [path[0]], 0
-    while i < len(path) - 1:
-        j = len(path) - 1
-        while j > i + 1 and not (worth(i, j) and inner_ok(path[i], path[j])):
-            j -= 1
-        out.append(path[j])
-        i = j
-    return out
+    return _prune(path, inner_ok)
