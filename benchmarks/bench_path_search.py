@@ -119,6 +119,14 @@ def worker(name: str, pairs: list, count: bool) -> list[dict]:
     return rows
 
 
+def _median(values: list) -> float | None:
+    return float(np.median(values)) if values else None
+
+
+def _f(x: float | None, fmt: str = ".2f") -> str:
+    return "n/a" if x is None else format(x, fmt)
+
+
 def run(tree: str, name: str, pairs_file: str, count: bool) -> list[dict]:
     env = dict(os.environ, PYTHONPATH=tree, OPENBLAS_NUM_THREADS="1")
     cmd = [sys.executable, __file__, "--worker", name, pairs_file] + (["--count"] if count else [])
@@ -149,8 +157,9 @@ def main(argv: list[str] | None = None) -> int:
     RESULTS.mkdir(parents=True, exist_ok=True)
     record: dict = {"settings": vars(args) | {"trees": trees}, "arms": {}}
     lines = [
-        "| arm | tree | routed pairs | found | CPU ms median | p90 | tests median | length median | certify keeps |",
-        "|---|---|---|---|---|---|---|---|---|",
+        "| arm | tree | routed pairs | found | CPU ms median (found) | p90 | tests median | length median | "
+        "certify keeps | CPU ms median (not found) |",
+        "|---|---|---|---|---|---|---|---|---|---|",
     ]
     for name in args.arms:
         pairs = pairs_of(name, args.paths, args.seed)
@@ -165,32 +174,38 @@ def main(argv: list[str] | None = None) -> int:
         for t in trees:
             per_pair = np.median(np.array(cpu[t]), axis=0) * 1e3
             rows = counted[t]
+            for row, ms in zip(rows, per_pair):
+                row["cpu_ms"] = float(ms)
             ok = [r for r in rows if r["found"]]
+            missed = [r for r in rows if not r["found"]]
             arm[t] = {
-                "cpu_ms_per_pair": per_pair.tolist(),
                 "rows": rows,
                 "found": len(ok),
-                "cpu_ms_median": float(np.median(per_pair)),
-                "cpu_ms_p90": float(np.percentile(per_pair, 90)),
-                "tests_median": float(np.median([r["tests"] for r in rows])),
-                "length_median": float(np.median([r["length"] for r in ok])) if ok else None,
+                "cpu_ms_median": _median([r["cpu_ms"] for r in ok]),
+                "cpu_ms_p90": float(np.percentile([r["cpu_ms"] for r in ok], 90)) if ok else None,
+                "tests_median": _median([r["tests"] for r in ok]),
+                "length_median": _median([r["length"] for r in ok]),
                 "certify_keeps": sum(r["certified_same"] for r in ok),
+                "not_found_cpu_ms_median": _median([r["cpu_ms"] for r in missed]),
             }
             a = arm[t]
             lines.append(
-                f"| {name} | {t} | {len(pairs)} | {a['found']} | {a['cpu_ms_median']:.2f} | {a['cpu_ms_p90']:.2f} | "
-                f"{a['tests_median']:.0f} | {a['length_median'] or 0:.3f} | {a['certify_keeps']}/{a['found']} |"
+                f"| {name} | {t} | {len(pairs)} | {a['found']} | {_f(a['cpu_ms_median'])} | {_f(a['cpu_ms_p90'])} | "
+                f"{_f(a['tests_median'], '.0f')} | {_f(a['length_median'], '.3f')} | "
+                f"{a['certify_keeps']}/{a['found']} | "
+                f"{_f(a['not_found_cpu_ms_median'], '.1f')} |"
             )
         if "reference" in trees:
-            this, ref = arm["this"], arm["reference"]
-            ratio = np.array(this["cpu_ms_per_pair"]) / np.array(ref["cpu_ms_per_pair"])
-            both = [(a, b) for a, b in zip(this["rows"], ref["rows"]) if a["found"] and b["found"]]
-            arm["cpu_ratio_median"] = float(np.median(ratio))
-            arm["length_ratio_median"] = float(np.median([a["length"] / b["length"] for a, b in both]))
+            both = [(a, b) for a, b in zip(arm["this"]["rows"], arm["reference"]["rows"]) if a["found"] and b["found"]]
+            arm["cpu_ratio_median"] = _median([a["cpu_ms"] / b["cpu_ms"] for a, b in both])
+            arm["tests_ratio_median"] = _median([a["tests"] / b["tests"] for a, b in both])
+            arm["length_ratio_median"] = _median([a["length"] / b["length"] for a, b in both])
             arm["same_paths"] = sum(a["path"] == b["path"] for a, b in both)
             lines.append(
-                f"| {name} | this / reference | | | {arm['cpu_ratio_median']:.3f} (per-pair median) | | | "
-                f"{arm['length_ratio_median']:.3f} | same path {arm['same_paths']}/{len(both)} |"
+                f"| {name} | this / reference ({len(both)} both found; per-pair medians) | | | "
+                f"{_f(arm['cpu_ratio_median'])} | | {_f(arm['tests_ratio_median'])} | "
+                f"{_f(arm['length_ratio_median'])} | "
+                f"same path {arm['same_paths']}/{len(both)} | |"
             )
         record["arms"][name] = arm
         pairs_file.unlink()

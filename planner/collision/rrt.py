@@ -259,8 +259,13 @@ def find_clear_path(
     robot.check_limits(q1, context="path goal")
     mask = checker.pair_mask(allow)
     empty = read_only(np.zeros((0, robot.dof)))
-    ends = []
+    # An end at least clearance + 2 margin from everything (one proximity test) keeps the whole
+    # margin for the path (path_margin); only a nearer one needs its distance.
+    far = checker.closer_than(checker.scene.clearance + 2.0 * options.margin, allow)
+    ends = [np.inf]
     for q, status, what in ((q0, PathStatus.START_IN_COLLISION, "start"), (q1, PathStatus.GOAL_IN_COLLISION, "goal")):
+        if not far(q):
+            continue
         c = checker.distance_at(q, mask)
         if c.distance < checker.scene.clearance:
             return PathResult(status, empty, f"the {what} does not keep the clearance: {c}", 0)
@@ -272,9 +277,6 @@ def find_clear_path(
         return segment_is_clear(checker, a, b, allow=allow, margin=margin)
 
     near, quick, between, certify = _edge_tests(checker, need, allow, options.resolution)
-
-    def near_ok(q: np.ndarray) -> bool:
-        return not near(q)
 
     if try_straight and clear(q0, q1):
         return PathResult(PathStatus.FOUND, read_only(np.array([q0, q1])), "", 0)
@@ -291,7 +293,7 @@ def find_clear_path(
     # budget is spent.
     while iterations < options.max_iterations and time.perf_counter() <= deadline:
         left = options.max_iterations - iterations
-        found, used = _grow(q0, q1, near_ok, between, rng, lo, hi, options, deadline, left)
+        found, used = _grow(q0, q1, near, between, rng, lo, hi, options, deadline, left)
         iterations += used
         if found is None:
             break
@@ -382,7 +384,8 @@ def certify_path(
     options = options or PathOptions()
     q0, q1 = np.array(found.path[0]), np.array(found.path[-1])
     mask = checker.pair_mask(allow)
-    end = min(checker.distance_at(q0, mask).distance, checker.distance_at(q1, mask).distance)
+    far = checker.closer_than(checker.scene.clearance + 2.0 * options.margin, allow)
+    end = min([np.inf] + [checker.distance_at(q, mask).distance for q in (q0, q1) if far(q)])
     need = checker.scene.clearance + path_margin(checker.scene.clearance, end, options.margin)
     _, _, between, certify = _edge_tests(checker, need, allow, options.resolution)
     short, path = list(found.path), list(found.tree_path)
@@ -397,7 +400,7 @@ def certify_path(
 def _grow(
     q0: np.ndarray,
     q1: np.ndarray,
-    node_ok,
+    blocked,
     edge_ok,
     rng: np.random.Generator,
     lo: np.ndarray,
@@ -406,7 +409,7 @@ def _grow(
     deadline: float,
     budget: int,
 ) -> tuple[tuple[list[np.ndarray], list[np.ndarray]] | None, int]:
-    """RRT-Connect from both ends, lazily: `node_ok` decides new nodes, `edge_ok` the edges of a path found.
+    """RRT-Connect from both ends, lazily: `blocked` rejects new nodes, `edge_ok` decides the edges of a path found.
 
     Nodes are tested as they are added; the points between them only once the trees meet, on
     the edges of the path through them (most edges the trees grow never join a path). A
@@ -432,23 +435,30 @@ def _grow(
             target = np.minimum(np.maximum(q0 + rng.random() * line + spread * rng.standard_normal(dof), lo), hi)
         else:
             target = lo + span * rng.random(dof)
-        new = _extend(a, target, step, node_ok)
-        if new is None:
+        # Extend: one step from the nearest node toward the target.
+        k = a.nearest(target)
+        q_near = a.nodes[k]
+        delta = target - q_near
+        far = max(map(abs, delta.tolist()))  # the largest joint change (as np.abs(delta).max())
+        if far == 0.0:
             continue
+        q_new = q_near + delta * min(1.0, step / far)
+        if blocked(q_new):
+            continue
+        new = a.add(q_new, k)
         # Connect: grow the other tree toward the new node until it arrives or is blocked.
-        q_new = a.nodes[new]
         k = b.nearest(q_new)
         while True:
             q_near = b.nodes[k]
             delta = q_new - q_near
-            far = max(map(abs, delta.tolist()))  # the largest joint change (as np.abs(delta).max())
+            far = max(map(abs, delta.tolist()))
             if far <= step:
                 found = _settle(a, new, b, k, trees[0] is a, edge_ok, seen)
                 if found is not None:
                     return found, it
                 break
             q_next = q_near + delta * (step / far)
-            if not node_ok(q_next):
+            if blocked(q_next):
                 break
             k = b.add(q_next, k)
     return None, budget
@@ -505,20 +515,6 @@ def _settle(
         out.append(nodes[j])
         i = j
     return nodes, out
-
-
-def _extend(tree: _Tree, target: np.ndarray, step: float, node_ok) -> int | None:
-    """Grow `tree` one step toward `target`; `node_ok` decides the new node."""
-    k = tree.nearest(target)
-    q_near = tree.nodes[k]
-    delta = target - q_near
-    far = max(map(abs, delta.tolist()))
-    if far == 0.0:
-        return None
-    q_new = q_near + delta * min(1.0, step / far)
-    if not node_ok(q_new):
-        return None
-    return tree.add(q_new, k)
 
 
 def _merge_collinear(path: list[np.ndarray]) -> list[np.ndarray]:
