@@ -339,13 +339,13 @@ def _edge_tests(checker: CollisionChecker, need: float, allow: Sequence[str], re
         The start is tested too: a shortcut starts at a point along the path, not at a tested node.
         """
         d = b - a
-        n = max(1, int(np.ceil(float(np.abs(d).max()) / resolution)))
+        n = max(1, math.ceil(max(map(abs, d.tolist())) / resolution))
         return not blocked(a, d, n, 0, n, sweep_order(n)) and not near(a)
 
     def between(a: np.ndarray, b: np.ndarray) -> bool:
         """`quick` without the end (a tree's node, tested when it was added)."""
         d = b - a
-        n = max(1, int(np.ceil(float(np.abs(d).max()) / resolution)))
+        n = max(1, math.ceil(max(map(abs, d.tolist())) / resolution))
         return not blocked(a, d, n, 1, n - 1, sweep_order(n)[1:])
 
     def certify(a: np.ndarray, b: np.ndarray) -> bool:
