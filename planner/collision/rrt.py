@@ -5,7 +5,8 @@ the goal, lazily (Bohlin and Kavraki 2000): each new node is tested as it is add
 every :attr:`PathOptions.resolution` along an edge only when the trees meet, and then only on
 the edges of the path through them that its greedy prune keeps (the pass that joins each node
 to the farthest later one it sees: a tree edge a longer edge passes over is never tested); a
-blocked edge cuts its node off and the trees grow on. Half of the trees' random targets are
+blocked edge cuts its node off and the trees grow on, and where they meet again the edges
+tested at an earlier meeting keep their verdicts. Half of the trees' random targets are
 drawn near the straight segment from the start to the goal (the rest uniformly within the
 joint limits): an obstacle usually blocks a stretch of that segment and the shortest way
 around passes near it, where uniform targets over a wide joint range (an arm whose joints turn
@@ -522,7 +523,7 @@ def _merge_collinear(path: list[np.ndarray]) -> list[np.ndarray]:
     out = [path[0]]
     for k in range(1, len(path) - 1):
         u, w = path[k] - out[-1], path[k + 1] - path[k]
-        nu, nw = float(np.linalg.norm(u)), float(np.linalg.norm(w))
+        nu, nw = math.sqrt(float(u @ u)), math.sqrt(float(w @ w))  # as np.linalg.norm computes them
         if nu > 0 and nw > 0 and float(u @ w) >= nu * nw * (1.0 - 1e-12):
             continue
         out.append(path[k])
