@@ -40,6 +40,7 @@ import numpy as np
 from planner.core.arrays import read_only
 from planner.core.text import plain
 from planner.exceptions import InvalidArgumentError
+from planner.geometry.jacobian_kernel import jacobian_kernel
 from planner.model.robot import Robot, Task
 from planner.motion.trajectory import JointTrajectory
 
@@ -584,7 +585,12 @@ def bounded_conditioning(
             certify(take, _gram(interpolated), s_cap[take], err)
     take = np.nonzero(~settled())[0]
     if len(take):
-        raw, scaled = robot.task_jacobians(q[rows[take]], task)
+        # For bounds only (the rows measured exactly in the end take Pinocchio's Jacobians again).
+        kernel = jacobian_kernel(robot)
+        if kernel is None:
+            raw, scaled = robot.task_jacobians(q[rows[take]], task)
+        else:
+            raw, scaled = robot.task_rows(kernel(q[rows[take]]), task)
         s_up = np.minimum(np.linalg.norm(scaled, axis=(1, 2)), s_cap[take])
         for a in (left[take], right[take]):
             e = np.linalg.norm(scaled - scaled_all[a], axis=(1, 2))
@@ -620,7 +626,7 @@ def bounded_conditioning(
                 lo_inv[at[above_least]] = np.maximum(lo_inv[at[above_least]], lifted_least[at[above_least]])
         rest = ~settled()[take]
         if rest.any():
-            measure(rows[take[rest]], raw[rest], scaled[rest])
+            measure(rows[take[rest]], *((raw[rest], scaled[rest]) if kernel is None else ()))
     free = ~exact[rows]
     inv[rows[free]], man[rows[free]] = lo_inv[free], lo_man[free]
     return inv, man
