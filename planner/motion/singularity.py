@@ -327,13 +327,18 @@ def _interpolation_error(
     between its neighbours by ``d = q_r - ((1 - lam) q_left + lam q_right)``, so its scaled
     Jacobian is the interpolation ``(1 - lam) J_left + lam J_right`` up to
     ``e = change(d) + lam (1 - lam) / 2 curvature(q_right - q_left)`` in the Frobenius norm
-    (:func:`jacobian_change_bound`, :func:`jacobian_curvature_bound`) [m/rad].
+    (:func:`jacobian_change_bound`, :func:`jacobian_curvature_bound`) [m/rad]. `rows` sorted, so
+    that those between the same neighbours are consecutive.
     """
     rho, angular = bounds
     lam = (rows - left) / (right - left)
-    u = q[right] - q[left]
-    off = q[rows] - (q[left] + lam[:, None] * u)
-    err = jacobian_change_bound(off, rho, angular) + 0.5 * lam * (1.0 - lam) * jacobian_curvature_bound(u, rho, angular)
+    # The curvature bound once per interval (the rows come sorted, grouped by their left end).
+    starts = np.flatnonzero(np.concatenate([[True], left[1:] != left[:-1]]))
+    counts = np.diff(np.append(starts, len(rows)))
+    u = q[right[starts]] - q[left[starts]]
+    curvature = np.repeat(jacobian_curvature_bound(u, rho, angular), counts)
+    off = q[rows] - (q[left] + lam[:, None] * np.repeat(u, counts, axis=0))
+    err = jacobian_change_bound(off, rho, angular) + 0.5 * lam * (1.0 - lam) * curvature
     return lam, err
 
 
