@@ -13,8 +13,8 @@ draws them). Each planned trajectory is then measured twice, interleaved, in CPU
 The two reports must be identical (same minimum, where, which samples are below the threshold,
 waypoint values): the table counts the pairs where they are. It shows the median plan time, the
 median CPU time of both measures and their ratio, and how many Jacobians (Pinocchio's and the
-compiled kernel's) and SVDs the bounded measure computed per sample. Prints a Markdown table and writes JSON and the table to
-benchmarks/results/.
+compiled kernel's) and SVDs the bounded measure computed per sample. Prints a Markdown table
+and writes JSON and the table to benchmarks/results/.
 
     python benchmarks/bench_singularity_cost.py [--pairs 20] [--seed 7] [--scene] [--arms ur5 panda ...]
 """
