@@ -105,3 +105,18 @@ def test_bounded_measure_is_the_same_without_the_kernel(name, monkeypatch):
         for inv in (with_kernel, without):
             assert np.array_equal(inv < threshold, exact < threshold)
             assert inv.min() == exact.min() and np.all(inv <= exact)
+
+
+def test_a_copied_robot_keeps_a_working_kernel():
+    # The kernel passes the addresses of its arrays to C: a deep copy of the robot must not
+    # keep addresses of arrays that die with the original.
+    import copy
+    import gc
+
+    robot = mixed_robot()
+    q = robot.random_configurations(np.random.default_rng(4), 5)
+    want = jacobian_kernel(robot)(q)
+    twin = copy.deepcopy(robot)
+    del robot
+    gc.collect()
+    np.testing.assert_array_equal(jacobian_kernel(twin)(q), want)

@@ -161,6 +161,10 @@ class JacobianKernel:
             self._tip_trans.ctypes.data,
         )
 
+    def __deepcopy__(self, memo: dict) -> JacobianKernel:
+        # Immutable, and its arguments are addresses of its own arrays: copies share it.
+        return self
+
     def __call__(self, q: np.ndarray) -> np.ndarray:
         """The tip Jacobians at configurations `q` (n, dof) [rad or m], unchecked: shape (n, 6, dof)."""
         q = np.ascontiguousarray(q, dtype=float)
