@@ -14,7 +14,8 @@ subprocess per tree; each pair's figure is its smallest over the rounds). Per pl
 Printed per arm, straight and routed plans apart: the median and mean of each, per tree, and the
 median over the pairs of the second tree's over the first's. The plans themselves are compared
 too (duration, the report's minimum inverse condition number, detours and unresolved segments):
-the table counts the pairs where the trees agree. Prints a Markdown table and writes JSON and
+the table counts the pairs where the trees agree. Pairs a tree fails to plan (no route found in
+the time budget) are left out and counted. Prints a Markdown table and writes JSON and
 the table to benchmarks/results/.
 
     python benchmarks/bench_singularity_plans.py --trees /path/to/main /path/to/branch [--paths 50] [--blocks 2]
@@ -43,6 +44,7 @@ def worker(arm: str, paths: int, seed: int) -> list[dict]:
     from planner import load_robot
     from planner.app.plan_file import parse_motion_request
     from planner.collision import CollisionChecker, parse_scene
+    from planner.exceptions import PlannerError
 
     sys.path.insert(0, str(HERE.parent))
     from bench_collision import BUDGET, SCENE
@@ -86,10 +88,15 @@ def worker(arm: str, paths: int, seed: int) -> list[dict]:
         )
         spent.clear()
         start = time.process_time()
-        plan = motion_plan.plan_motion(robot, request)
+        try:
+            plan = motion_plan.plan_motion(robot, request)
+        except PlannerError:
+            rows.append({"failed": True})
+            continue
         total = time.process_time() - start
         rows.append(
             {
+                "failed": False,
                 "routed": bool(plan.routes),
                 "plan": total,
                 "side": spent.get("detours", 0.0) - spent.get("timing", 0.0),
@@ -117,16 +124,16 @@ def run_block(tree: str, arm: str, paths: int, seed: int) -> list[dict]:
 
 def summary(arm: str, trees: list[str], blocks: list[list[list[dict]]]) -> dict:
     """Per tree, each pair's smallest figures over the rounds; then medians, means and ratios."""
+    # The pairs every tree planned in every round.
+    n = len(blocks[0][0])
+    kept = [i for i in range(n) if not any(b[t][i]["failed"] for b in blocks for t in range(len(trees)))]
     best = []
     for t in range(len(trees)):
         rounds = [b[t] for b in blocks]
         best.append(
-            [
-                {k: min(r[i][k] for r in rounds) for k in ("plan", "side", "measure")} | rounds[0][i]
-                for i in range(len(rounds[0]))
-            ]
+            [rounds[0][i] | {k: min(r[i][k] for r in rounds) for k in ("plan", "side", "measure")} for i in kept]
         )
-    out: dict = {"arm": arm, "pairs": len(best[0])}
+    out: dict = {"arm": arm, "pairs": len(best[0]), "failed": n - len(kept)}
     same = [
         all(
             best[t][i][k] == best[0][i][k]
@@ -197,7 +204,11 @@ def main(argv: list[str] | None = None) -> int:
             blocks.append([got[t] for t in range(len(args.trees))])
         rows.append(summary(arm, args.trees, blocks))
     text = table(rows, args.trees)
-    lines = [f"{r['arm']}: plans identical in both trees on {r['plans_identical']}/{r['pairs']} pairs" for r in rows]
+    lines = [
+        f"{r['arm']}: plans identical in both trees on {r['plans_identical']}/{r['pairs']} pairs "
+        f"({r['failed']} pairs left out: not planned by a tree in a round)"
+        for r in rows
+    ]
     print(text + "\n\n" + "\n".join(lines))
     RESULTS.mkdir(parents=True, exist_ok=True)
     record = {"args": vars(args), "rows": rows}
