@@ -12,9 +12,9 @@ draws them). Each planned trajectory is then measured twice, interleaved, in CPU
 
 The two reports must be identical (same minimum, where, which samples are below the threshold,
 waypoint values): the table counts the pairs where they are. It shows the median plan time, the
-median CPU time of both measures and their ratio, and how many Jacobians and SVDs the bounded
-measure computed per sample. Prints a Markdown table and writes JSON and the table to
-benchmarks/results/.
+median CPU time of both measures and their ratio, and how many Jacobians (Pinocchio's and the
+compiled kernel's) and SVDs the bounded measure computed per sample. Prints a Markdown table
+and writes JSON and the table to benchmarks/results/.
 
     python benchmarks/bench_singularity_cost.py [--pairs 20] [--seed 7] [--scene] [--arms ur5 panda ...]
 """
@@ -29,11 +29,13 @@ from pathlib import Path
 
 import numpy as np
 
+import planner.motion.singularity as singularity
 from planner import load_robot
 from planner.app.benchmark import run_record
 from planner.app.motion_plan import plan_motion
 from planner.app.plan_file import parse_motion_request
 from planner.exceptions import PlannerError
+from planner.geometry.jacobian_kernel import jacobian_kernel
 from planner.model.catalog import BUNDLED_ROBOTS, EXAMPLE_ROBOTS, example_robot_data_dir
 from planner.motion.singularity import SingularityReport, inverse_condition_threshold, measure_singularities
 
@@ -74,11 +76,23 @@ def same(a: SingularityReport, b: SingularityReport) -> bool:
 
 
 class Counting:
-    """Counts the rows of a robot's Jacobians and SVDs (wraps its methods on the instance)."""
+    """Counts the rows of a robot's Jacobians and SVDs (wraps its methods on the instance).
+
+    ``jacobians`` counts Pinocchio's (:meth:`Robot.task_jacobians`), ``compiled`` those of the
+    compiled chain kernel the measure takes for its bounds (:mod:`planner.geometry.jacobian_kernel`).
+    """
 
     def __init__(self, robot) -> None:
-        self.jacobians = self.svds = 0
+        self.jacobians = self.svds = self.compiled = 0
         jacobians, singular_values = robot.task_jacobians, robot.task_singular_values
+        kernel, find = jacobian_kernel(robot), singularity.jacobian_kernel
+
+        def counted(q):
+            self.compiled += len(q)
+            return kernel(q)
+
+        if kernel is not None:
+            singularity.jacobian_kernel = lambda other: counted if other is robot else find(other)
 
         def task_jacobians(q, task=None):
             self.jacobians += len(q)
@@ -119,7 +133,7 @@ def run(arm: str, pairs: int, seed: int, scene: dict | None) -> dict:
     threshold = inverse_condition_threshold(None, task)
     counting = Counting(robot)
     plan_times, bounded, exact, samples, agree, failed = [], [], [], 0, 0, 0
-    jacobians = svds = 0  # of the bounded measure
+    jacobians = svds = compiled = 0  # of the bounded measure
     for i, (a, b) in enumerate(pairs_for(robot, pairs, seed, scene)):
         spec: dict = {"waypoints": [a.tolist(), b.tolist()]}
         if scene is not None:
@@ -131,9 +145,9 @@ def run(arm: str, pairs: int, seed: int, scene: dict | None) -> dict:
             continue
         plan_times.append(seconds)
         trajectory = plan.trajectory
-        before = (counting.jacobians, counting.svds)
+        before = (counting.jacobians, counting.svds, counting.compiled)
         t_bounded, (report, t, _, _) = cpu(measure_singularities, robot, trajectory, threshold, task, RATE)
-        jac_svd = (counting.jacobians - before[0], counting.svds - before[1])
+        jac_svd = (counting.jacobians - before[0], counting.svds - before[1], counting.compiled - before[2])
         t_exact, reference = cpu(exact_report, robot, trajectory, threshold, task)
         # Interleaved once more, the other way round, against drifts of the machine's speed.
         t_exact2 = cpu(exact_report, robot, trajectory, threshold, task)[0]
@@ -141,7 +155,7 @@ def run(arm: str, pairs: int, seed: int, scene: dict | None) -> dict:
         bounded.append(min(t_bounded, t_bounded2))
         exact.append(min(t_exact, t_exact2))
         samples += len(t)
-        jacobians, svds = jacobians + jac_svd[0], svds + jac_svd[1]
+        jacobians, svds, compiled = jacobians + jac_svd[0], svds + jac_svd[1], compiled + jac_svd[2]
         agree += same(report, reference)
     n = len(plan_times)
     return {
@@ -157,6 +171,7 @@ def run(arm: str, pairs: int, seed: int, scene: dict | None) -> dict:
         "exact_over_bounded": float(np.sum(exact) / np.sum(bounded)) if n else None,
         "jacobians_per_sample": jacobians / samples if samples else None,
         "svds_per_sample": svds / samples if samples else None,
+        "compiled_jacobians_per_sample": compiled / samples if samples else None,
         "reports_identical": agree,
     }
 
@@ -168,15 +183,16 @@ def _f(x, fmt: str) -> str:
 def table(rows: list[dict]) -> str:
     lines = [
         "| arm | scene | planned | plan median [ms] | bounded measure median [ms] | exact median [ms] "
-        "| exact / bounded | Jacobians / sample | SVDs / sample | reports identical |",
-        "|---|---|---|---|---|---|---|---|---|---|",
+        "| exact / bounded | Jacobians / sample | compiled Jacobians / sample | SVDs / sample | reports identical |",
+        "|---|---|---|---|---|---|---|---|---|---|---|",
     ]
     for r in rows:
         lines.append(
             f"| {r['arm']} | {'table and box' if r['scene'] else 'none'} | {r['planned']}/{r['pairs']} "
             f"| {_f(r['plan_ms_median'], '.2f')} | {_f(r['bounded_ms_median'], '.2f')} "
             f"| {_f(r['exact_ms_median'], '.2f')} | {_f(r['exact_over_bounded'], '.2f')} "
-            f"| {_f(r['jacobians_per_sample'], '.3f')} | {_f(r['svds_per_sample'], '.3f')} "
+            f"| {_f(r['jacobians_per_sample'], '.3f')} | {_f(r['compiled_jacobians_per_sample'], '.3f')} "
+            f"| {_f(r['svds_per_sample'], '.3f')} "
             f"| {r['reports_identical']}/{r['planned']} |"
         )
     return "\n".join(lines)

@@ -471,3 +471,28 @@ def test_detours_equal_those_of_the_one_by_one_ascent(monkeypatch):
         assert plan.report.min_inverse_condition == want.report.min_inverse_condition
         detoured += len(plan.detours)
     assert detoured >= (4 if HAVE_EXAMPLE_ROBOT_DATA else 2)
+
+
+@needs_example_robot_data
+def test_a_segment_whose_dip_a_detour_only_moves_along_is_given_up(monkeypatch):
+    # This panda move dips near its goal; a detour clears the first stretch and the dip reappears
+    # after it as deep: the segment is given up after that one detour (before, detours went on
+    # until max_detours, each pushing the dip further, and were all taken out in the end).
+    import planner.motion.detours as detours_module
+
+    robot = get_robot("panda")
+    q = np.array(
+        [[-2.86, 0.961, 2.771, -1.301, -1.045, 0.689, 1.0], [-1.767, 0.274, 0.592, -0.183, -2.479, 1.867, 1.414]]
+    )
+    request = TrajectoryRequest(q, JointLimits.from_robot(robot))
+    ascents = []
+    ascend = detours_module._ascend
+    monkeypatch.setattr(detours_module, "_ascend", lambda *a: ascents.append(1) or ascend(*a))
+    plan = plan_clear_of_singularities(robot, request)
+    assert len(ascents) == 1
+    assert plan.detours == () and plan.unresolved == (0,)
+    assert plan.report.min_inverse_condition < POSE_THRESHOLD / 10
+    # The plan without detours, as when they are switched off.
+    none = plan_clear_of_singularities(robot, request, SingularityOptions(max_detours=0))
+    assert np.array_equal(plan.trajectory.waypoints, none.trajectory.waypoints)
+    assert plan.trajectory.duration == none.trajectory.duration

@@ -627,8 +627,6 @@ class Robot:
             ``"pose"`` (raw in m/rad, m/m and rad/rad; scaled in m/rad).
         """
         t = self.resolve_task(task)
-        length = self._characteristic_length
-        columns = self._column_scale
         model, data = self.model, self.data
         fid, ref = self.tip_frame_id, pin.ReferenceFrame.LOCAL_WORLD_ALIGNED
         jacobian = pin.computeFrameJacobian
@@ -641,6 +639,22 @@ class Robot:
         else:
             for k, row in enumerate(rows):
                 jacs[k] = jacobian(model, data, row, fid, ref)
+        return self.task_rows(jacs, t)
+
+    def task_rows(self, jacs: np.ndarray, task: Task | None = None) -> tuple[np.ndarray, np.ndarray]:
+        """:meth:`task_jacobians` from the tip's geometric Jacobians, however computed.
+
+        Args:
+            jacs: Tip Jacobians as :meth:`jacobian` gives them, shape (N, 6, dof); not copied
+                (the raw pose Jacobians returned are `jacs` itself).
+            task: As for :meth:`manipulability`.
+
+        Returns:
+            ``(raw, scaled)`` as :meth:`task_jacobians`.
+        """
+        t = self.resolve_task(task)
+        length = self._characteristic_length
+        columns = self._column_scale
         if t == "position":
             jacs = jacs[:, :3]
             scaled = jacs * columns

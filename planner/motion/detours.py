@@ -6,7 +6,9 @@ configuration of the dip pushed up the gradient of the inverse condition number 
 clear) and plans again. A waypoint that is itself singular is kept, as the user asked for it,
 and flagged. For a square task Jacobian a sign change of its determinant between the ends of
 a segment means every path between them crosses a singularity; such segments are reported as
-unresolved instead of detoured (another IK branch is the remedy there); detours that did not
+unresolved instead of detoured (another IK branch is the remedy there), and so is a segment
+whose deepest dip its last detour did not raise (the dip moved along the segment instead of
+being passed: more detours would only push it further); detours that did not
 clear their segment are taken out again, so they never cost time for nothing (where that leads
 back to nodes and states planned before, that plan and its measure are reused, not made again).
 The measure and its threshold are those of :mod:`planner.motion.singularity`.
@@ -269,6 +271,7 @@ def plan_clear_of_singularities(
     nodes: list[tuple[np.ndarray, int | None, int]] = [(user[k], k, min(k, n - 2)) for k in range(n)]
     detours: list[Detour] = []
     given_up: set[int] = {int(k) for k in keep_segments}
+    replaced: dict[int, float] = {}  # per segment, the dip its last detour replaced
 
     def plan_nodes() -> JointTrajectory:
         q = np.array([nd[0] for nd in nodes])
@@ -316,6 +319,12 @@ def plan_clear_of_singularities(
             k = int(np.argmin(np.where(mask, inv, np.inf)))
             if mask.any() and inv[k] < thr:
                 dips.append((float(inv[k]), s, k))
+        # A segment whose deepest dip its last detour did not raise is given up: the dip moved
+        # along instead of being passed (its detours are taken out below).
+        for seg, before in replaced.items():
+            if min((dip for dip, s, _ in dips if nodes[s][2] == seg), default=math.inf) <= before:
+                given_up.add(seg)
+        dips = [d for d in dips if nodes[d[1]][2] not in given_up]
         inserted = False
         for dip, s, k in sorted(dips):
             seg = nodes[s][2]
@@ -330,6 +339,7 @@ def plan_clear_of_singularities(
             states[s] = (states[s][0], states[s][1], 0.0)
             states.insert(s + 1, (np.full(robot.dof, np.nan), np.zeros(robot.dof), 0.0))
             detours.append(Detour(segment=seg, q=read_only(q_new), inverse_condition=f_new, dip=dip))
+            replaced[seg] = dip
             inserted = True
             break
         if not inserted:

@@ -38,8 +38,10 @@ from types import MappingProxyType
 import numpy as np
 
 from planner.core.arrays import read_only
+from planner.core.certificates import cholesky_certificates, rayleigh_bounds
 from planner.core.text import plain
 from planner.exceptions import InvalidArgumentError
+from planner.geometry.jacobian_kernel import jacobian_kernel
 from planner.model.robot import Robot, Task
 from planner.motion.trajectory import JointTrajectory
 
@@ -229,7 +231,7 @@ def jacobian_curvature_bound(u: np.ndarray, rho: np.ndarray, angular: float) -> 
     return np.sqrt(np.sum(c * c, axis=1) + angular * angular * np.sum(g * g, axis=1))
 
 
-def _positive_definite(gram: np.ndarray, shift: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def _positive_definite(gram: np.ndarray, shift: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Whether each ``gram - shift I`` is positive definite, by a Cholesky factorisation.
 
     `gram` (N, k, k) holds the Gram matrices of scaled Jacobians (their eigenvalues the squared
@@ -237,13 +239,22 @@ def _positive_definite(gram: np.ndarray, shift: np.ndarray) -> tuple[np.ndarray,
     ``|E| <= (k + 1) eps tr(gram)`` (Demmel 1989), and forming the Gram matrix rounds by as much,
     so the shift is raised by ``1e-12 tr(gram)``, thousands of times both: where every pivot is
     positive, ``gram - shift I`` is then at least ``LL^T``, every eigenvalue of `gram` exceeds
-    `shift` and the product of their excesses is at least the product of the pivots. Written out
-    over the batch, one column at a time (NumPy's factorisation stops the batch at the first
-    failure).
+    `shift` and the product of their excesses is at least the product of the pivots. In the
+    compiled loop of :func:`planner.core.certificates.cholesky_certificates`, else written out
+    over the batch in NumPy (:func:`_cholesky`).
 
     Returns:
-        The mask (N,), the product of the pivots (0 where the mask is False) and the factor ``L``
-        as (k, k, N) (meaningless where the mask is False).
+        The mask (N,) and the product of the pivots (0 where the mask is False).
+    """
+    compiled = cholesky_certificates(gram, shift)
+    return compiled if compiled is not None else _cholesky(gram, shift)[:2]
+
+
+def _cholesky(gram: np.ndarray, shift: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """:func:`_positive_definite` in NumPy, and the factor ``L`` as (k, k, N).
+
+    One column at a time over the batch (NumPy's own factorisation stops the batch at the first
+    failure); ``L`` is meaningless where the mask is False.
     """
     k = gram.shape[1]
     g = np.ascontiguousarray(gram.transpose(1, 2, 0))  # (k, k, N): whole vectors per entry
@@ -259,7 +270,7 @@ def _positive_definite(gram: np.ndarray, shift: np.ndarray) -> tuple[np.ndarray,
     return ok, np.where(ok, np.prod(np.where(ok, pivots, 0.0), axis=0), 0.0), low
 
 
-def _rayleigh_bounds(gram: np.ndarray, low: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def _rayleigh_bounds(gram: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """An upper bound of the smallest and a lower bound of the largest eigenvalue of each `gram`.
 
     Rayleigh quotients ``x^T G x / x^T x``, which lie between the extreme eigenvalues for any
@@ -271,6 +282,10 @@ def _rayleigh_bounds(gram: np.ndarray, low: np.ndarray) -> tuple[np.ndarray, np.
     Returns:
         ``(upper bound of the smallest eigenvalue, lower bound of the largest)``, each (N,).
     """
+    compiled = rayleigh_bounds(gram)
+    if compiled is not None:
+        return compiled
+    low = _cholesky(gram, np.zeros(len(gram)))[2]
     k = gram.shape[1]
     g = np.ascontiguousarray(gram.transpose(1, 2, 0))
     margin = 1e-12 * np.trace(g)
@@ -312,13 +327,18 @@ def _interpolation_error(
     between its neighbours by ``d = q_r - ((1 - lam) q_left + lam q_right)``, so its scaled
     Jacobian is the interpolation ``(1 - lam) J_left + lam J_right`` up to
     ``e = change(d) + lam (1 - lam) / 2 curvature(q_right - q_left)`` in the Frobenius norm
-    (:func:`jacobian_change_bound`, :func:`jacobian_curvature_bound`) [m/rad].
+    (:func:`jacobian_change_bound`, :func:`jacobian_curvature_bound`) [m/rad]. `rows` sorted, so
+    that those between the same neighbours are consecutive.
     """
     rho, angular = bounds
     lam = (rows - left) / (right - left)
-    u = q[right] - q[left]
-    off = q[rows] - (q[left] + lam[:, None] * u)
-    err = jacobian_change_bound(off, rho, angular) + 0.5 * lam * (1.0 - lam) * jacobian_curvature_bound(u, rho, angular)
+    # The curvature bound once per interval (the rows come sorted, grouped by their left end).
+    starts = np.flatnonzero(np.concatenate([[True], left[1:] != left[:-1]]))
+    counts = np.diff(np.append(starts, len(rows)))
+    u = q[right[starts]] - q[left[starts]]
+    curvature = np.repeat(jacobian_curvature_bound(u, rho, angular), counts)
+    off = q[rows] - (q[left] + lam[:, None] * np.repeat(u, counts, axis=0))
+    err = jacobian_change_bound(off, rho, angular) + 0.5 * lam * (1.0 - lam) * curvature
     return lam, err
 
 
@@ -549,7 +569,7 @@ def bounded_conditioning(
 
     def certify(take: np.ndarray, gram: np.ndarray, s_up: np.ndarray, err: np.ndarray) -> None:
         floor = lifted * s_up + err
-        ok, det, _ = _positive_definite(gram, floor * floor)
+        ok, det = _positive_definite(gram, floor * floor)
         lo_inv[take[ok]] = np.maximum(lo_inv[take[ok]], lifted)
         if divisor is not None:  # the manipulability is that of the scaled Jacobian
             # A zero floor (level 0, no error) leaves the singular values as they are.
@@ -584,7 +604,12 @@ def bounded_conditioning(
             certify(take, _gram(interpolated), s_cap[take], err)
     take = np.nonzero(~settled())[0]
     if len(take):
-        raw, scaled = robot.task_jacobians(q[rows[take]], task)
+        # For bounds only (the rows measured exactly in the end take Pinocchio's Jacobians again).
+        kernel = jacobian_kernel(robot)
+        if kernel is None:
+            raw, scaled = robot.task_jacobians(q[rows[take]], task)
+        else:
+            raw, scaled = robot.task_rows(kernel(q[rows[take]]), task)
         s_up = np.minimum(np.linalg.norm(scaled, axis=(1, 2)), s_cap[take])
         for a in (left[take], right[take]):
             e = np.linalg.norm(scaled - scaled_all[a], axis=(1, 2))
@@ -602,14 +627,14 @@ def bounded_conditioning(
         short = ~settled()[take]
         if short.any():
             gram = own[short]
-            ok, det, low = _positive_definite(gram, np.zeros(len(gram)))
+            ok, det = _positive_definite(gram, np.zeros(len(gram)))
             if divisor is None:
                 det = _positive_definite(_gram(raw[short]), np.zeros(len(gram)))[1]
             idx = take[short]
             lo_man[idx] = np.maximum(lo_man[idx], np.sqrt(det) * (scale * (1.0 - 1e-9)))
             dip = ok & (lo_inv[idx] <= level)
             if dip.any():
-                smallest, largest = _rayleigh_bounds(gram[dip], low[:, :, dip])
+                smallest, largest = _rayleigh_bounds(gram[dip])
                 with np.errstate(invalid="ignore", divide="ignore"):
                     ratio = np.sqrt(np.maximum(smallest, 0.0) / largest) * (1.0 + 1e-9)
                 shown = (largest > 0.0) & (ratio < threshold * (1.0 - 1e-9))
@@ -620,7 +645,7 @@ def bounded_conditioning(
                 lo_inv[at[above_least]] = np.maximum(lo_inv[at[above_least]], lifted_least[at[above_least]])
         rest = ~settled()[take]
         if rest.any():
-            measure(rows[take[rest]], raw[rest], scaled[rest])
+            measure(rows[take[rest]], *((raw[rest], scaled[rest]) if kernel is None else ()))
     free = ~exact[rows]
     inv[rows[free]], man[rows[free]] = lo_inv[free], lo_man[free]
     return inv, man
