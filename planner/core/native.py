@@ -20,20 +20,65 @@ import shutil
 import subprocess
 import tempfile
 import warnings
+from collections.abc import Sequence
 from pathlib import Path
 
-__all__ = ["FLAGS", "load_library", "native_cache_dir"]
+__all__ = ["FLAGS", "build_library", "cache_dir", "find_compiler", "load_library", "native_cache_dir"]
 
 #: Compiler flags: optimised without value-changing shortcuts (no -ffast-math), a shared library.
 FLAGS = ("-O2", "-fPIC", "-shared")
 
 
-def native_cache_dir() -> Path:
-    """Folder of the compiled libraries (see the module docstring); not created here."""
+def cache_dir(kind: str) -> Path:
+    """Folder of compiled libraries of one kind (``"native"``, ``"casadi"``); not created here.
+
+    ``$PLANNER_CACHE_DIR/<kind>``, else ``$XDG_CACHE_HOME/planner/<kind>``, else
+    ``~/.cache/planner/<kind>``.
+    """
     if os.environ.get("PLANNER_CACHE_DIR"):
-        return Path(os.environ["PLANNER_CACHE_DIR"]) / "native"
+        return Path(os.environ["PLANNER_CACHE_DIR"]) / kind
     base = os.environ.get("XDG_CACHE_HOME") or str(Path.home() / ".cache")
-    return Path(base) / "planner" / "native"
+    return Path(base) / "planner" / kind
+
+
+def native_cache_dir() -> Path:
+    """Folder of the compiled libraries of :func:`load_library` (see the module docstring)."""
+    return cache_dir("native")
+
+
+def find_compiler() -> str | None:
+    """The C compiler to build with (``$CC``, else ``gcc``); None without one or with ``PLANNER_JIT=0``."""
+    if os.environ.get("PLANNER_JIT", "1").strip().lower() in ("0", "false", "no", "off"):
+        return None
+    return shutil.which(os.environ.get("CC") or "gcc")
+
+
+def build_library(
+    source: str, library: Path, compiler: str, flags: Sequence[str] = FLAGS, timeout: float = 600
+) -> None:
+    """Compile C `source` into the shared library `library` unless it exists.
+
+    Built in a temporary folder beside it and renamed into place, so concurrent processes never
+    load a half-written library.
+
+    Raises:
+        RuntimeError: When the compiler fails (its first error lines).
+        OSError: When the folder cannot be written.
+        subprocess.SubprocessError: When the compiler cannot run or times out.
+    """
+    if library.exists():
+        return
+    library.parent.mkdir(parents=True, exist_ok=True)
+    with tempfile.TemporaryDirectory(dir=library.parent) as tmp:
+        path = Path(tmp) / f"{library.stem}.c"
+        path.write_text(source)
+        built = Path(tmp) / library.name
+        proc = subprocess.run(
+            [compiler, *flags, "-o", str(built), str(path), "-lm"], capture_output=True, text=True, timeout=timeout
+        )
+        if proc.returncode != 0:
+            raise RuntimeError(f"{compiler} failed: {proc.stderr.strip()[:500]}")
+        os.replace(built, library)
 
 
 def load_library(source: str, name: str) -> ctypes.CDLL | None:
@@ -47,27 +92,13 @@ def load_library(source: str, name: str) -> ctypes.CDLL | None:
         The loaded library, or None when compiling is switched off (``PLANNER_JIT=0``), no
         compiler is found, or compiling or loading fails (then with a ``RuntimeWarning``).
     """
-    if os.environ.get("PLANNER_JIT", "1").strip().lower() in ("0", "false", "no", "off"):
-        return None
-    compiler = shutil.which(os.environ.get("CC") or "gcc")
+    compiler = find_compiler()
     if compiler is None:
         return None
     key = hashlib.sha256("\0".join([source, compiler, *FLAGS]).encode()).hexdigest()[:24]
-    folder = native_cache_dir()
-    library = folder / f"{name}_{key}.so"
+    library = native_cache_dir() / f"{name}_{key}.so"
     try:
-        if not library.exists():
-            folder.mkdir(parents=True, exist_ok=True)
-            with tempfile.TemporaryDirectory(dir=folder) as tmp:
-                path = Path(tmp) / f"{name}.c"
-                path.write_text(source)
-                built = Path(tmp) / f"{name}.so"
-                proc = subprocess.run(
-                    [compiler, *FLAGS, "-o", str(built), str(path), "-lm"], capture_output=True, text=True, timeout=120
-                )
-                if proc.returncode != 0:
-                    raise RuntimeError(f"{compiler} failed: {proc.stderr.strip()[:500]}")
-                os.replace(built, library)
+        build_library(source, library, compiler, timeout=120)
         return ctypes.CDLL(str(library))
     except (OSError, RuntimeError, subprocess.SubprocessError) as exc:
         warnings.warn(

@@ -13,15 +13,14 @@ machine evaluates the same function instead: the same answers, about 5 times slo
 from __future__ import annotations
 
 import hashlib
-import os
-import shutil
 import subprocess
-import tempfile
 import warnings
 from collections.abc import Sequence
 from pathlib import Path
 
 import casadi as ca
+
+from planner.core.native import build_library, cache_dir, find_compiler
 
 __all__ = ["COMPILER_FLAGS", "casadi_cache_dir", "compile_function"]
 
@@ -31,18 +30,15 @@ COMPILER_FLAGS = ("-O2", "-fPIC", "-shared")
 
 def casadi_cache_dir() -> Path:
     """Folder of the compiled CasADi functions (see the module docstring); not created here."""
-    if os.environ.get("PLANNER_CACHE_DIR"):
-        return Path(os.environ["PLANNER_CACHE_DIR"]) / "casadi"
-    base = os.environ.get("XDG_CACHE_HOME") or str(Path.home() / ".cache")
-    return Path(base) / "planner" / "casadi"
+    return cache_dir("casadi")
 
 
 def compile_function(function: ca.Function, *, flags: Sequence[str] = COMPILER_FLAGS) -> ca.Function:
     """A compiled (C shared library) version of a CasADi function, from the cache when there.
 
     The cache key is a hash of the generated C code, CasADi's version, the compiler and the
-    flags. The library is built in a temporary file and renamed into place, so concurrent
-    processes never load a half-written one.
+    flags. The library is built by :func:`planner.core.native.build_library` (in a temporary
+    file renamed into place, so concurrent processes never load a half-written one).
 
     Args:
         function: The function; it must support code generation.
@@ -53,9 +49,7 @@ def compile_function(function: ca.Function, *, flags: Sequence[str] = COMPILER_F
         (``PLANNER_JIT=0``), no compiler is found, or compiling or loading fails (then with a
         ``RuntimeWarning`` saying why).
     """
-    if os.environ.get("PLANNER_JIT", "1").strip().lower() in ("0", "false", "no", "off"):
-        return function
-    compiler = shutil.which(os.environ.get("CC") or "gcc")
+    compiler = find_compiler()
     if compiler is None:
         return function
     key = hashlib.sha256(
@@ -63,24 +57,10 @@ def compile_function(function: ca.Function, *, flags: Sequence[str] = COMPILER_F
     ).hexdigest()[:24]
     # A symbol name unique to the code keeps the functions of different robots apart.
     name = f"planner_{key}"
-    folder = casadi_cache_dir()
-    library = folder / f"{name}.so"
+    library = casadi_cache_dir() / f"{name}.so"
     try:
         if not library.exists():
-            folder.mkdir(parents=True, exist_ok=True)
-            with tempfile.TemporaryDirectory(dir=folder) as tmp:
-                source = Path(tmp) / f"{name}.c"
-                source.write_text(_generate(function, name))
-                built = Path(tmp) / f"{name}.so"
-                proc = subprocess.run(
-                    [compiler, *flags, "-o", str(built), str(source), "-lm"],
-                    capture_output=True,
-                    text=True,
-                    timeout=600,
-                )
-                if proc.returncode != 0:
-                    raise RuntimeError(f"{compiler} failed: {proc.stderr.strip()[:500]}")
-                os.replace(built, library)
+            build_library(_generate(function, name), library, compiler, flags)
         return ca.external(name, str(library))
     except (OSError, RuntimeError, subprocess.SubprocessError) as exc:
         warnings.warn(
