@@ -402,6 +402,56 @@ def test_the_step_rule_is_the_longer_of_the_two_bounds_per_pair(name):
             assert step == pytest.approx(want, rel=1e-9)
 
 
+@pytest.mark.parametrize("name", ["al5c", pytest.param("ur5", marks=needs_example_robot_data)])
+def test_a_timed_step_keeps_each_pair_within_its_room_by_its_joints_travel(name):
+    """_trajectory_steps: over each step, a pair's bound on the joints' travel (sampled densely) fits its room.
+
+    Per pair, its first bound ``sum_j r_j Q_j`` (``Q_j`` joint j's travel over the step, summed
+    over 20,000 samples of the trajectory) or the near-body bound with its turn cap is at most
+    the room, at checks anywhere in the trajectory; every step is positive.
+    """
+    import planner.collision.continuous as cc
+
+    robot = get_robot(name)
+    block = Obstacle("block", Box((0.06, 0.06, 0.25)), np.array([0.23, 0.0, 0.125]))
+    checker = CollisionChecker(robot, Scene(floor=-0.01, clearance=0.005, obstacles=(block,)))
+    weights, near = cc.pair_weights(checker), cc.near_bounds(checker)
+    growth = math.exp(cc.NEAR_TURN)
+    limits = JointLimits.from_robot(robot)
+    rng = np.random.default_rng(11)
+    n = checker.pair_count
+    for _ in range(4):
+        traj = plan_trajectory(robot.random_configurations(rng, 3), limits)
+        last = np.asarray(traj.waypoints[-1], dtype=float)
+        floor = 0.005 - cc.DEFAULT_TOLERANCE
+        rule = cc._trajectory_steps(checker, traj, last, np.asarray(limits.velocity) * (1 + 1e-6), floor)
+        fine = np.linspace(0.0, traj.duration, 20001)
+        q = traj.sample(fine).q
+        travel = np.vstack([np.zeros(robot.dof), np.cumsum(np.abs(np.diff(q, axis=0)), axis=0)])
+        for x in rng.uniform(0.0, traj.duration, 6):
+            due = np.flatnonzero(rng.random(n) < 0.6)
+            d = rng.uniform(-0.002, 0.3, len(due))
+            room = np.maximum(d - 0.005 + cc.DEFAULT_TOLERANCE, cc.DEFAULT_TOLERANCE / 2)
+            steps = rule(float(x), due, d, room)
+            assert np.all(steps > 0)
+            for p, dp, r, h in zip(due, d, room, steps):
+                # The travel from x to x + h: the samples strictly between, and the ends exactly.
+                a, b = np.searchsorted(fine, [x, min(x + h, traj.duration)], side="right")
+                ends = traj.sample(np.array([x, min(x + h, traj.duration)])).q
+                if a < b:
+                    inner = travel[b - 1] - travel[a]
+                    used = np.abs(q[a] - ends[0]) + inner + np.abs(ends[1] - q[b - 1])
+                else:
+                    used = np.abs(ends[1] - ends[0])
+                first = weights[p] @ used
+                if first <= r * (1 + 1e-9) + 1e-12:
+                    continue
+                assert np.isfinite(near.radius[p]), (p, first, r)
+                turn = near.joints[p] @ used
+                lever = growth * ((near.radius[p] + max(dp, 0.0)) * turn + near.offsets[p] @ used)
+                assert turn <= cc.NEAR_TURN * (1 + 1e-9) and lever <= r * (1 + 1e-9) + 1e-12, (p, r, turn, lever)
+
+
 def test_a_clear_certificate_holds_between_checks():
     robot = get_robot("dh3")
     scene = Scene(floor=-0.01, clearance=0.004, obstacles=(Obstacle("ball", Sphere(0.02), np.array([0.1, 0.1, 0.12])),))

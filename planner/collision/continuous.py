@@ -13,8 +13,12 @@ trajectory the joint speeds a time ``h`` after a check are at most ``|qd_j| + a_
 (``a_j`` the acceleration limit), so a pair approaches by at most ``V h + A h^2 / 2`` with
 ``A = sum_j a_j r_j``; the next check comes when that reaches ``d - clearance + tolerance``
 for some pair (``d`` its distance found). Along a straight joint-space segment the bound is
-``sum_j |dq_j| r_j`` per unit of path. A motion that passes every check therefore keeps at
-least ``clearance - tolerance`` from everything checked, at every instant.
+``sum_j |dq_j| r_j`` per unit of path. A timed trajectory is known in advance: from ``x`` to
+``t`` a pair approaches by at most ``sum_j r_j Q_j``, ``Q_j`` joint ``j``'s travel (total
+variation) over that time, read from a grid of times between which no joint turns back (its
+knots and each piece's position and velocity extrema): no acceleration bound is needed. A
+motion that passes every check therefore keeps at least ``clearance - tolerance`` from
+everything checked, at every instant.
 
 Bounding each pair by its own joints (rather than the whole arm's speed) matters most for
 links that stay close in every configuration (a compact wrist): their distance changes only
@@ -699,36 +703,187 @@ def check_trajectory(
         stop_at_first: Return at the first check below the clearance.
     """
     # The limits hold to LIMIT_TOLERANCE; the bound takes a little more.
-    acceleration = np.asarray(trajectory.limits.acceleration, dtype=float) * (1.0 + 1e-6)
     vmax = np.asarray(trajectory.limits.velocity) * (1.0 + 1e-6)
     # The trajectory's pieces, evaluated here one time at a time (JointTrajectory.sample's
     # polynomial without its checks and array bookkeeping).
     knots = np.asarray(trajectory.knots, dtype=float).tolist()
     # Per piece its rows (a list of rows is faster to index than the arrays).
     p, v, a, j = trajectory.p, trajectory.v, trajectory.a, trajectory.j
-    p, v, acc, half_a, sixth_j, half_j = (list(x) for x in (p, v, a, a / 2.0, j / 6.0, j / 2.0))
+    p, v, half_a, sixth_j = (list(x) for x in (p, v, a / 2.0, j / 6.0))
     duration, last = float(trajectory.duration), np.asarray(trajectory.waypoints[-1], dtype=float)
-    rest = np.full(len(last), 1e-12)
 
-    def sample(t: float) -> tuple[np.ndarray, np.ndarray]:
+    def sample(t: float) -> tuple[np.ndarray, float]:
         if t >= duration:
-            return last, rest
+            return last, t
         i = max(bisect.bisect_right(knots, t) - 1, 0)
         dt = t - knots[i]
-        q = p[i] + dt * (v[i] + dt * (half_a[i] + dt * sixth_j[i]))
-        qd = np.abs(v[i] + dt * (acc[i] + dt * half_j[i]))
-        qd += 1e-12
-        return q, np.minimum(qd, vmax, out=qd)
+        return p[i] + dt * (v[i] + dt * (half_a[i] + dt * sixth_j[i])), t
 
     masks = [(0.0, checker.pair_mask())] + [(float(t), checker.pair_mask(names)) for t, names in allow]
     masks.sort(key=lambda m: m[0])
     return _advance(
         checker,
         sample,
-        _joint_steps(checker, acceleration),
+        _trajectory_steps(checker, trajectory, last, vmax, max(checker.scene.clearance - tolerance, 0.0)),
         duration,
         masks,
         tolerance,
         stop_at_first,
         None,
     )
+
+
+#: Evenly spaced times per trajectory that :func:`_trajectory_steps` adds to its grid.
+GRID_POINTS = 16
+
+
+def _trajectory_grid(trajectory, last: np.ndarray, vmax: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Times ``t`` over a trajectory between which every joint moves one way at a speed moving one way.
+
+    The knots, each piece's interior extrema of position and velocity, and :data:`GRID_POINTS`
+    evenly spaced times. Returns ``t`` (G,), ``C`` (G, dof): each joint's travel (total
+    variation) from 0 to ``t[k]`` (``|q(t[k+1]) - q(t[k])|`` summed: exact as the joint does not
+    turn back in between), and ``top`` (G - 1, dof): each joint's largest speed in each
+    interval (the larger of its ends', as the speed is monotone there, plus the largest jump
+    of a joint's speed from one piece to the next: rounding).
+    """
+    knots = np.asarray(trajectory.knots, dtype=float)
+    p, v, a, j = (np.asarray(x, dtype=float) for x in (trajectory.p, trajectory.v, trajectory.a, trajectory.j))
+    duration = float(trajectory.duration)
+    h = np.append(np.diff(knots), duration - knots[-1])[:, None]
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+        # Velocity extrema (a = 0), position extrema (v = 0) of each piece's cubic (and more
+        # where a root is not one: a time more does no harm).
+        sq = np.sqrt(np.maximum(a * a - 2.0 * j * v, 0.0))
+        roots = np.concatenate([-a / j, (-a + sq) / j, (-a - sq) / j, -v / a])
+    inside = (roots > 0.0) & (roots < np.tile(h, (4, 1)))
+    at = np.tile(knots, 4)[:, None] + roots
+    t = np.unique(np.concatenate([knots, [duration], np.linspace(0.0, duration, GRID_POINTS), at[inside]]))
+    t = t[: np.searchsorted(t, duration, side="right")]
+    idx = np.maximum(np.searchsorted(knots, t, side="right") - 1, 0)
+    dt = (t - knots[idx])[:, None]
+    vi, ai, ji = v[idx], a[idx], j[idx]
+    q = p[idx] + dt * (vi + dt * (ai / 2.0 + dt * (ji / 6.0)))
+    qd = np.abs(vi + dt * (ai + dt * (ji / 2.0)))
+    travel = np.abs(np.diff(q, axis=0))
+    if len(travel):
+        # The motion ends at the last waypoint exactly (the polynomial there to rounding).
+        travel[-1] += np.abs(last - q[-1])
+    travel *= 1.0 + 1e-9
+    c = np.zeros_like(q)
+    np.cumsum(travel, axis=0, out=c[1:])
+    hk = h[:-1]
+    jump = np.abs(v[:-1] + hk * (a[:-1] + hk * (j[:-1] / 2.0)) - v[1:]).max(axis=0, initial=0.0)
+    top = np.minimum(np.maximum(qd[:-1], qd[1:]) * (1.0 + 1e-9) + (jump + 1e-12), vmax)
+    return t, c, top
+
+
+_RATES: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
+
+
+def _step_rates(checker: CollisionChecker, floor: float) -> tuple[np.ndarray, np.ndarray, int]:
+    """:func:`_trajectory_steps`'s rows of weights (first bounds, near-body bounds, turns), each pair's near row, m."""
+    held = _RATES.setdefault(checker, {})
+    out = held.get(floor)
+    if out is None:
+        weights, near = pair_weights(checker), near_bounds(checker)
+        n = weights.shape[0]
+        finite = np.isfinite(near.radius)
+        factor = _NEAR_GROWTH / (1.0 - _NEAR_GROWTH * NEAR_TURN)
+        ball = np.where(finite, near.radius, 0.0) + floor
+        turn = near.joints.astype(float)
+        lever = factor * (ball[:, None] * turn + near.offsets)
+        # The near-body bound can only be the longer where some joint's weight is below r_j.
+        rows = np.flatnonzero(finite & np.any(near.joints & (lever < weights), axis=1))
+        slot = np.full(n, -1)
+        slot[rows] = np.arange(len(rows))
+        if len(held) >= 8:
+            held.clear()
+        out = held[floor] = (np.vstack([weights, lever[rows], turn[rows]]), slot, len(rows))
+    return out
+
+
+def _trajectory_steps(
+    checker: CollisionChecker, trajectory, last: np.ndarray, vmax: np.ndarray, floor: float
+) -> Callable:
+    """The step rule of a timed trajectory: per pair, up to where its joints' travel uses its room.
+
+    With ``W_p(t) = sum_j r_j C_j(t)`` (``C_j`` joint ``j``'s travel from the start, ``r_j``
+    from :func:`pair_weights`) a pair approaches by at most ``W_p(t) - W_p(x)`` from ``x`` to
+    ``t``: its step is the longest with that at most its room ``m``. The near-body bound of the
+    module docstring in the same form: with ``d <= m + floor`` (`floor` the clearance less the
+    tolerance, at least 0) and ``T <= NEAR_TURN`` it holds while
+    ``K ((R + floor) T + sum_j D_j Q_j) <= m``, ``K = e^NEAR_TURN / (1 - e^NEAR_TURN NEAR_TURN)``:
+    weights ``K ((R + floor) [j between] + D_j)`` on the travels, and ``T`` itself (weights 1
+    on the joints between) at most :data:`NEAR_TURN`. A pair takes the longer of the two steps.
+
+    Computed on the grid of :func:`_trajectory_grid`: from the check to the next grid time
+    and within the last interval from the interval's largest speeds, in between from ``W_p``
+    at the grid times. `steps` takes the time of the check as its state.
+    """
+    rates, slot, m = _step_rates(checker, floor)
+    n = len(slot)
+    t, c, top = _trajectory_grid(trajectory, last, vmax)
+    g = len(t)
+    if g < 2:
+        return lambda x, due, d, room: np.full(len(due), np.inf)
+    # Per row (pairs' first bounds, then the near-body bounds, then their turns) and grid time,
+    # flattened: W plus an offset per row that keeps the whole ascending (one search for every
+    # row; raised by a nanometre against rounding), and per interval its largest rate and the
+    # inverse.
+    w = rates @ c.T
+    offsets = np.arange(len(rates)) * (float(w[:, -1].max(initial=0.0)) + 1.0)
+    flat = (w + (offsets[:, None] + 1e-9)).ravel()
+    speed = np.zeros((len(rates), g))
+    speed[:, :-1] = rates @ top.T
+    inverse = (1.0 / np.maximum(speed, 1e-300)).ravel()
+    speed = speed.ravel()
+    width = np.append(np.diff(t), np.inf)
+    base = np.arange(len(rates)) * g
+    last_of = g - 1
+    times = t.tolist()
+    end = times[-1]
+
+    def search(x: float, k0: int, which: np.ndarray, room: np.ndarray) -> np.ndarray:
+        at = base[which]
+        at += k0
+        s0 = speed[at]
+        first = s0 * (times[k0 + 1] - x)  # the most the row grows until the next grid time
+        target = room - first
+        at += 1
+        target += flat[at]
+        j = flat.searchsorted(target, side="right")
+        j -= 1
+        k = j - at
+        k += k0 + 1  # the grid index (at most the last)
+        np.minimum(k, last_of, out=k)
+        np.maximum(k, 0, out=k)  # (below the row only where the room is short: set below)
+        j = at + (k - k0 - 1)
+        until = np.minimum((target - flat[j]) * inverse[j], width[k])
+        until += t[k]
+        until -= x
+        short = room < first
+        if short.any():
+            until[short] = room[short] * inverse[at[short] - 1]
+        return until
+
+    def steps(x: float, due: np.ndarray, d: np.ndarray, room: np.ndarray) -> np.ndarray:
+        if x >= end:
+            return np.full(len(due), np.inf)
+        k0 = min(bisect.bisect_right(times, x) - 1, g - 2)
+        if not m:
+            return search(x, k0, due, room)
+        where = slot[due]
+        has = where >= 0
+        if not has.any():
+            return search(x, k0, due, room)
+        k = where[has]
+        nd, nk = len(due), len(k)
+        out = search(
+            x, k0, np.concatenate([due, k + n, k + (n + m)]), np.concatenate([room, room[has], np.full(nk, NEAR_TURN)])
+        )
+        step = out[:nd]
+        step[has] = np.maximum(step[has], np.minimum(out[nd : nd + nk], out[nd + nk :]))
+        return step
+
+    return steps
