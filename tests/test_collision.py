@@ -408,7 +408,8 @@ def test_a_timed_step_keeps_each_pair_within_its_room_by_its_joints_travel(name)
 
     Per pair, its first bound ``sum_j r_j Q_j`` (``Q_j`` joint j's travel over the step, summed
     over 20,000 samples of the trajectory) or the near-body bound with its turn cap is at most
-    the room, at checks anywhere in the trajectory; every step is positive.
+    the room, at checks anywhere in the trajectory; every step is positive, and the same
+    whether the pairs are computed together or one by one.
     """
     import planner.collision.continuous as cc
 
@@ -434,6 +435,9 @@ def test_a_timed_step_keeps_each_pair_within_its_room_by_its_joints_travel(name)
             room = np.maximum(d - 0.005 + cc.DEFAULT_TOLERANCE, cc.DEFAULT_TOLERANCE / 2)
             steps = rule(float(x), due, d, room)
             assert np.all(steps > 0)
+            # Pair by pair (the rule's path for few pairs) the same steps.
+            alone = [rule(float(x), due[k : k + 1], d[k : k + 1], room[k : k + 1])[0] for k in range(len(due))]
+            np.testing.assert_allclose(alone, steps, rtol=1e-9, atol=0.0)  # (rows differ in rounding)
             for p, dp, r, h in zip(due, d, room, steps):
                 # The travel from x to x + h: the samples strictly between, and the ends exactly.
                 a, b = np.searchsorted(fine, [x, min(x + h, traj.duration)], side="right")

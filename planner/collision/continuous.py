@@ -779,27 +779,34 @@ def _trajectory_grid(trajectory, last: np.ndarray, vmax: np.ndarray) -> tuple[np
 
 
 _RATES: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
+#: Up to how many due pairs :func:`_trajectory_steps` computes pair by pair.
+_FEW = 8
+#: A pair's three rooms (its own, its own, the turn cap) as ``room * _ROOMS + _TURN``.
+_ROOMS, _TURN = np.array([1.0, 1.0, 0.0]), np.array([0.0, 0.0, NEAR_TURN])
 
 
-def _step_rates(checker: CollisionChecker, floor: float) -> tuple[np.ndarray, np.ndarray, int]:
-    """:func:`_trajectory_steps`'s rows of weights (first bounds, near-body bounds, turns), each pair's near row, m."""
+def _step_rates(checker: CollisionChecker, floor: float) -> tuple[np.ndarray, list[bool]]:
+    """:func:`_trajectory_steps`'s weights: per pair three rows, shape (3 pairs, dof); per pair whether they differ.
+
+    A pair's first bound, its near-body bound and its turn; a pair where the near-body bound
+    cannot be the longer has its first bound in all three rows (its step with the turn's room
+    is then at most the step with its own: the first bound's step holds).
+    """
     held = _RATES.setdefault(checker, {})
     out = held.get(floor)
     if out is None:
         weights, near = pair_weights(checker), near_bounds(checker)
-        n = weights.shape[0]
         finite = np.isfinite(near.radius)
         factor = _NEAR_GROWTH / (1.0 - _NEAR_GROWTH * NEAR_TURN)
         ball = np.where(finite, near.radius, 0.0) + floor
         turn = near.joints.astype(float)
         lever = factor * (ball[:, None] * turn + near.offsets)
         # The near-body bound can only be the longer where some joint's weight is below r_j.
-        rows = np.flatnonzero(finite & np.any(near.joints & (lever < weights), axis=1))
-        slot = np.full(n, -1)
-        slot[rows] = np.arange(len(rows))
+        useful = (finite & np.any(near.joints & (lever < weights), axis=1))[:, None]
+        rates = np.stack([weights, np.where(useful, lever, weights), np.where(useful, turn, weights)], axis=1)
         if len(held) >= 8:
             held.clear()
-        out = held[floor] = (np.vstack([weights, lever[rows], turn[rows]]), slot, len(rows))
+        out = held[floor] = (rates.reshape(-1, weights.shape[1]), useful[:, 0].tolist())
     return out
 
 
@@ -821,16 +828,14 @@ def _trajectory_steps(
     and within the last interval from the interval's largest speeds, in between from ``W_p``
     at the grid times. `steps` takes the time of the check as its state.
     """
-    rates, slot, m = _step_rates(checker, floor)
-    n = len(slot)
+    rates, useful = _step_rates(checker, floor)
     t, c, top = _trajectory_grid(trajectory, last, vmax)
     g = len(t)
     if g < 2:
         return lambda x, due, d, room: np.full(len(due), np.inf)
-    # Per row (pairs' first bounds, then the near-body bounds, then their turns) and grid time,
-    # flattened: W plus an offset per row that keeps the whole ascending (one search for every
-    # row; raised by a nanometre against rounding), and per interval its largest rate and the
-    # inverse.
+    # Per row and grid time, flattened: W plus an offset per row that keeps the whole ascending
+    # (one search for every row; raised by a nanometre against rounding), per interval its
+    # largest rate and the inverse, its start time and length.
     w = rates @ c.T
     offsets = np.arange(len(rates)) * (float(w[:, -1].max(initial=0.0)) + 1.0)
     flat = (w + (offsets[:, None] + 1e-9)).ravel()
@@ -838,52 +843,58 @@ def _trajectory_steps(
     speed[:, :-1] = rates @ top.T
     inverse = (1.0 / np.maximum(speed, 1e-300)).ravel()
     speed = speed.ravel()
-    width = np.append(np.diff(t), np.inf)
-    base = np.arange(len(rates)) * g
-    last_of = g - 1
+    start = np.tile(t, len(rates))
+    width = np.tile(np.append(np.diff(t), np.inf), len(rates))
+    rows = np.array([0, g, 2 * g])  # a pair's three rows, from its first entry
+    per_pair = 3 * g
     times = t.tolist()
     end = times[-1]
 
-    def search(x: float, k0: int, which: np.ndarray, room: np.ndarray) -> np.ndarray:
-        at = base[which]
-        at += k0
-        s0 = speed[at]
-        first = s0 * (times[k0 + 1] - x)  # the most the row grows until the next grid time
-        target = room - first
-        at += 1
-        target += flat[at]
-        j = flat.searchsorted(target, side="right")
-        j -= 1
-        k = j - at
-        k += k0 + 1  # the grid index (at most the last)
-        np.minimum(k, last_of, out=k)
-        np.maximum(k, 0, out=k)  # (below the row only where the room is short: set below)
-        j = at + (k - k0 - 1)
-        until = np.minimum((target - flat[j]) * inverse[j], width[k])
-        until += t[k]
-        until -= x
-        short = room < first
-        if short.any():
-            until[short] = room[short] * inverse[at[short] - 1]
-        return until
+    def row_step(a: int, room: float, x: float, ahead: float, last: int) -> float:
+        """One row's step, `a` its entry at the check's interval: the same arithmetic as below."""
+        first = speed[a] * ahead
+        if room < first:
+            return float(room * inverse[a])
+        target = flat[a + 1] + room - first
+        j = bisect.bisect_right(flat, target, a + 1, last + 1) - 1
+        return float(min((target - flat[j]) * inverse[j], width[j]) + start[j] - x)
 
     def steps(x: float, due: np.ndarray, d: np.ndarray, room: np.ndarray) -> np.ndarray:
         if x >= end:
             return np.full(len(due), np.inf)
         k0 = min(bisect.bisect_right(times, x) - 1, g - 2)
-        if not m:
-            return search(x, k0, due, room)
-        where = slot[due]
-        has = where >= 0
-        if not has.any():
-            return search(x, k0, due, room)
-        k = where[has]
-        nd, nk = len(due), len(k)
-        out = search(
-            x, k0, np.concatenate([due, k + n, k + (n + m)]), np.concatenate([room, room[has], np.full(nk, NEAR_TURN)])
-        )
-        step = out[:nd]
-        step[has] = np.maximum(step[has], np.minimum(out[nd : nd + nk], out[nd + nk :]))
-        return step
+        if len(due) <= _FEW:
+            # Pair by pair in Python: fewer calls than the whole-array operations below.
+            ahead, out = times[k0 + 1] - x, []
+            for p, r in zip(due.tolist(), room.tolist()):
+                a = p * per_pair + k0
+                step = row_step(a, r, x, ahead, a + g - 1 - k0)
+                if useful[p]:
+                    near = row_step(a + g, r, x, ahead, a + 2 * g - 1 - k0)
+                    turn = row_step(a + 2 * g, NEAR_TURN, x, ahead, a + 3 * g - 1 - k0)
+                    step = max(step, min(near, turn))
+                out.append(step)
+            return np.array(out)
+        at = due * per_pair
+        at += k0
+        at = at[:, None] + rows
+        rooms = room[:, None] * _ROOMS
+        rooms += _TURN
+        s0 = speed[at]
+        first = s0 * (times[k0 + 1] - x)  # the most the row grows until the next grid time
+        target = flat[at + 1]
+        target += rooms
+        target -= first
+        j = flat.searchsorted(target, side="right")
+        j -= 1
+        np.minimum(j, at + (g - 1 - k0), out=j)  # the row's last entry at most
+        until = target - flat[j]
+        until *= inverse[j]
+        np.minimum(until, width[j], out=until)
+        until += start[j]
+        until -= x
+        # Where the room ends before the next grid time (the search's answer is then meaningless).
+        until = np.where(rooms < first, rooms * inverse[at], until)
+        return np.maximum(until[:, 0], np.minimum(until[:, 1], until[:, 2]))
 
     return steps
