@@ -781,7 +781,7 @@ def _trajectory_grid(trajectory, last: np.ndarray, vmax: np.ndarray) -> tuple[np
 _RATES: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
 #: Up to how many due pairs :func:`_trajectory_steps` computes pair by pair.
 _FEW = 8
-#: A pair's three rooms (its own, its own, the turn cap) as ``room * _ROOMS + _TURN``.
+#: A pair's three rooms (its own, its own, the turn cap) as ``room * _ROOMS + _TURN`` (less a slack).
 _ROOMS, _TURN = np.array([1.0, 1.0, 0.0]), np.array([0.0, 0.0, NEAR_TURN])
 
 
@@ -834,11 +834,14 @@ def _trajectory_steps(
     if g < 2:
         return lambda x, due, d, room: np.full(len(due), np.inf)
     # Per row and grid time, flattened: W plus an offset per row that keeps the whole ascending
-    # (one search for every row; raised by a nanometre against rounding), per interval its
-    # largest rate and the inverse, its start time and length.
+    # (one search for every row), per interval its largest rate and the inverse, its start
+    # time and length. Every room is made smaller by `slack` (a nanometre and the offsets'
+    # rounding) against rounding.
     w = rates @ c.T
     offsets = np.arange(len(rates)) * (float(w[:, -1].max(initial=0.0)) + 1.0)
-    flat = (w + (offsets[:, None] + 1e-9)).ravel()
+    flat = (w + offsets[:, None]).ravel()
+    slack = 1e-9 + 1e-15 * float(flat[-1])
+    turn_room = _TURN - slack
     speed = np.zeros((len(rates), g))
     speed[:, :-1] = rates @ top.T
     inverse = (1.0 / np.maximum(speed, 1e-300)).ravel()
@@ -850,14 +853,22 @@ def _trajectory_steps(
     times = t.tolist()
     end = times[-1]
 
-    def row_step(a: int, room: float, x: float, ahead: float, last: int) -> float:
-        """One row's step, `a` its entry at the check's interval: the same arithmetic as below."""
-        first = speed[a] * ahead
+    widths = width[:g].tolist()
+    lists: dict[int, tuple[list, list, list]] = {}
+
+    def row_step(row: int, k0: int, room: float, x: float, ahead: float) -> float:
+        """One row's step in Python floats (the row's entries as lists): the same arithmetic as below."""
+        held = lists.get(row)
+        if held is None:
+            cut = slice(row * g, (row + 1) * g)
+            held = lists[row] = (flat[cut].tolist(), inverse[cut].tolist(), speed[cut].tolist())
+        w_row, inv, rate = held
+        first = rate[k0] * ahead
         if room < first:
-            return float(room * inverse[a])
-        target = flat[a + 1] + room - first
-        j = bisect.bisect_right(flat, target, a + 1, last + 1) - 1
-        return float(min((target - flat[j]) * inverse[j], width[j]) + start[j] - x)
+            return room * inv[k0]
+        target = w_row[k0 + 1] + room - first
+        k = bisect.bisect_right(w_row, target, k0 + 1) - 1
+        return min((target - w_row[k]) * inv[k], widths[k]) + times[k] - x
 
     def steps(x: float, due: np.ndarray, d: np.ndarray, room: np.ndarray) -> np.ndarray:
         if x >= end:
@@ -865,21 +876,19 @@ def _trajectory_steps(
         k0 = min(bisect.bisect_right(times, x) - 1, g - 2)
         if len(due) <= _FEW:
             # Pair by pair in Python: fewer calls than the whole-array operations below.
-            ahead, out = times[k0 + 1] - x, []
-            for p, r in zip(due.tolist(), room.tolist()):
-                a = p * per_pair + k0
-                step = row_step(a, r, x, ahead, a + g - 1 - k0)
+            ahead, out, cap = times[k0 + 1] - x, [], NEAR_TURN - slack
+            for p, r in zip(due.tolist(), (room - slack).tolist()):
+                step = row_step(3 * p, k0, r, x, ahead)
                 if useful[p]:
-                    near = row_step(a + g, r, x, ahead, a + 2 * g - 1 - k0)
-                    turn = row_step(a + 2 * g, NEAR_TURN, x, ahead, a + 3 * g - 1 - k0)
-                    step = max(step, min(near, turn))
+                    near = min(row_step(3 * p + 1, k0, r, x, ahead), row_step(3 * p + 2, k0, cap, x, ahead))
+                    step = max(step, near)
                 out.append(step)
             return np.array(out)
         at = due * per_pair
         at += k0
         at = at[:, None] + rows
         rooms = room[:, None] * _ROOMS
-        rooms += _TURN
+        rooms += turn_room
         s0 = speed[at]
         first = s0 * (times[k0 + 1] - x)  # the most the row grows until the next grid time
         target = flat[at + 1]
