@@ -370,7 +370,7 @@ def test_a_full_check_goes_on_past_an_overlap_deeper_than_the_near_body_ball():
 
 @pytest.mark.parametrize("name", ["al5c", pytest.param("ur5", marks=needs_example_robot_data)])
 def test_the_step_rule_is_the_longer_of_the_two_bounds_per_pair(name):
-    """_joint_steps against the module docstring's two bounds evaluated pair by pair in plain Python."""
+    """_segment_steps against the module docstring's two bounds evaluated pair by pair in plain Python."""
     import planner.collision.continuous as cc
 
     robot = get_robot(name)
@@ -379,26 +379,24 @@ def test_the_step_rule_is_the_longer_of_the_two_bounds_per_pair(name):
     weights, near = cc.pair_weights(checker), cc.near_bounds(checker)
     growth = math.exp(cc.NEAR_TURN)
     rng = np.random.default_rng(3)
-    acceleration = rng.uniform(1.0, 5.0, robot.dof)
-    rule = cc._joint_steps(checker, acceleration)
+    rule = cc._segment_steps(checker)
     n = checker.pair_count
     for _ in range(20):
-        speed = rng.uniform(0.0, 2.0, robot.dof) * (rng.random(robot.dof) < 0.8)
+        # Every joint moving a little (with a joint at rest a pair may never approach: both
+        # bounds' steps are then "never", as 1e-12 and 1e-300 floors of their speeds tell).
+        speed = rng.uniform(0.0, 2.0, robot.dof) * (rng.random(robot.dof) < 0.8) + 0.01
         due = np.flatnonzero(rng.random(n) < 0.5)
         d = rng.uniform(-0.002, 0.3, len(due))
         room = np.maximum(d - 0.005 + 1e-4, 5e-5)
         got = rule(speed, due, d, room)
         for p, dp, r, step in zip(due, d, room, got):
-            v, a = max(weights[p] @ speed, 1e-12), weights[p] @ acceleration
-            want = 2 * r / (v + math.sqrt(v * v + 2 * a * r))
+            # Constant speeds (a straight segment): each bound's step is the room over its speed.
+            want = r / max(weights[p] @ speed, 1e-12)
             if np.isfinite(near.radius[p]):
-                turn, turn_acc = near.joints[p] @ speed, near.joints[p] @ acceleration
+                turn = near.joints[p] @ speed
                 ball = near.radius[p] + max(dp, 0.0)  # overlapping (past a hit): as touching
                 v = growth * (ball * turn + near.offsets[p] @ speed)
-                a = growth * (ball * turn_acc + near.offsets[p] @ acceleration)
-                second = 2 * r / (v + math.sqrt(v * v + 2 * a * r) + 1e-300)
-                cap = 2 * cc.NEAR_TURN / (turn + math.sqrt(turn * turn + 2 * turn_acc * cc.NEAR_TURN) + 1e-300)
-                want = max(want, min(second, cap))
+                want = max(want, min(r / max(v, 1e-300), cc.NEAR_TURN / max(turn, 1e-300)))
             assert step == pytest.approx(want, rel=1e-9)
 
 

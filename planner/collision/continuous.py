@@ -450,11 +450,11 @@ def check_motion(
     return _advance(checker, sample, steps, end, masks, tolerance, stop_at_first, clearance)
 
 
-def _joint_steps(checker: CollisionChecker, acceleration: np.ndarray) -> Callable:
-    """The step rule of a motion sampled with its joint speeds (an upper bound on each |qd_j|).
+def _segment_steps(checker: CollisionChecker) -> Callable:
+    """The step rule of a straight joint segment, sampled with its constant joint speeds ``|dq_j|``.
 
-    Per pair, the longer of the steps the two bounds of the module docstring allow (the
-    near-body bound only for the pairs where it can be the longer one).
+    Per pair, the longer of the steps the two bounds of the module docstring allow (``room / V``;
+    the near-body bound only for the pairs where it can be the longer one).
     """
     weights = pair_weights(checker)
     near = near_bounds(checker)
@@ -466,67 +466,29 @@ def _joint_steps(checker: CollisionChecker, acceleration: np.ndarray) -> Callabl
         axis=1,
     )
     rows = np.flatnonzero(useful)
-    # One product per speed state: the first bound's V, and per useful pair T and sum_j D_j Q_j.
+    # One product per speed: the first bound's V, and per useful pair T and sum_j D_j Q_j.
     stacked = np.vstack([weights, near.joints[rows].astype(float), near.offsets[rows]])
-    per_acc = stacked @ acceleration
     radius = near.radius[rows]
     slot = np.full(n, -1)
     slot[rows] = np.arange(len(rows))
     state: dict[str, object] = {"speed": None}
 
-    if not np.any(acceleration):
-        # Constant speeds (a straight segment): the steps are room / V.
-        def constant(speed: np.ndarray, due: np.ndarray, d: np.ndarray, room: np.ndarray) -> np.ndarray:
-            if state["speed"] is not speed:
-                product = stacked @ speed
-                state["speed"], state["v"] = speed, np.maximum(product[:n], 1e-12)
-                turn, lever = product[n : n + len(rows)], product[n + len(rows) :]
-                state["turn"], state["lever"] = turn, lever
-                state["cap"] = NEAR_TURN / np.maximum(turn, 1e-300)
-            step = room / state["v"][due]
-            where = slot[due]
-            hit = where >= 0
-            if hit.any():
-                k = where[hit]
-                # A pair that overlaps (d < 0, past a hit) counts as touching: the ball stays R.
-                v = _NEAR_GROWTH * ((radius[k] + np.maximum(d[hit], 0.0)) * state["turn"][k] + state["lever"][k])
-                step[hit] = np.maximum(step[hit], np.minimum(room[hit] / np.maximum(v, 1e-300), state["cap"][k]))
-            return step
-
-        return constant
-
-    m = len(rows)
-    turn_acc, lever_acc = per_acc[n : n + m], per_acc[n + m :]
-    # Both bounds at once, every pair (only the due ones are read back): the first bound's
-    # entries for all n pairs, then the near-body bound's for the m useful ones; per pair the
-    # last distance and room given (a few whole-array operations cost less than picking out
-    # the due pairs of each bound).
-    speeds = np.empty(n + m)
-    twice_acc = np.empty(n + m)
-    twice_acc[:n] = 2.0 * per_acc[:n]
-    last_d, last_room = np.ones(n), np.ones(n)
-    both = np.concatenate([np.arange(n), rows])
-    cap_acc = 2.0 * turn_acc * NEAR_TURN
-
     def steps(speed: np.ndarray, due: np.ndarray, d: np.ndarray, room: np.ndarray) -> np.ndarray:
-        product = stacked @ speed
-        if not m:
-            v = np.maximum(product[due], 1e-12)
-            return 2.0 * room / (v + np.sqrt(v * v + 2.0 * per_acc[due] * room))
-        last_d[due], last_room[due] = d, room
-        np.maximum(product[:n], 1e-12, out=speeds[:n])
-        turn = product[n : n + m]
-        # As above: R + d < 0 (overlapping deeper than R) made the root's argument negative, the
-        # step NaN, and the check never ended (NaN is never due and sets no next x).
-        ball = radius + np.maximum(last_d[rows], 0.0)
-        speeds[n:] = _NEAR_GROWTH * (ball * turn + product[n + m :])
-        twice_acc[n:] = 2.0 * (_NEAR_GROWTH * (ball * turn_acc + lever_acc))
-        r = last_room[both]
-        step = 2.0 * r / (speeds + np.sqrt(speeds * speeds + twice_acc * r) + 1e-300)
-        cap = 2.0 * NEAR_TURN / (turn + np.sqrt(turn * turn + cap_acc) + 1e-300)
-        first = step[:n]
-        first[rows] = np.maximum(first[rows], np.minimum(step[n:], cap))
-        return first[due]
+        if state["speed"] is not speed:
+            product = stacked @ speed
+            state["speed"], state["v"] = speed, np.maximum(product[:n], 1e-12)
+            turn, lever = product[n : n + len(rows)], product[n + len(rows) :]
+            state["turn"], state["lever"] = turn, lever
+            state["cap"] = NEAR_TURN / np.maximum(turn, 1e-300)
+        step = room / state["v"][due]
+        where = slot[due]
+        hit = where >= 0
+        if hit.any():
+            k = where[hit]
+            # A pair that overlaps (d < 0, past a hit) counts as touching: the ball stays R.
+            v = _NEAR_GROWTH * ((radius[k] + np.maximum(d[hit], 0.0)) * state["turn"][k] + state["lever"][k])
+            step[hit] = np.maximum(step[hit], np.minimum(room[hit] / np.maximum(v, 1e-300), state["cap"][k]))
+        return step
 
     return steps
 
@@ -629,7 +591,7 @@ def check_segment(
     return _advance(
         checker,
         lambda s: (q0 + s * dq, speed),
-        _joint_steps(checker, np.zeros(len(dq))),
+        _segment_steps(checker),
         1.0,
         [(0.0, checker.pair_mask(allow))],
         tolerance,
@@ -840,7 +802,7 @@ def _trajectory_steps(
     w = rates @ c.T
     offsets = np.arange(len(rates)) * (float(w[:, -1].max(initial=0.0)) + 1.0)
     flat = (w + offsets[:, None]).ravel()
-    slack = 1e-9 + 1e-15 * float(flat[-1])
+    slack = 1e-9 + 1e-15 * float(flat[-1] if flat.size else 0.0)
     turn_room = _TURN - slack
     speed = np.zeros((len(rates), g))
     speed[:, :-1] = rates @ top.T
