@@ -9,16 +9,16 @@ body's points (the joint offsets down the chain plus the body's own extent, wher
 offset may be the next joint's distance from the axis: zero in a wrist whose next joint sits on
 it; for the joint right above the body's own, the largest distance of the body's hull turned
 about its joint to every angle; 1 for a sliding joint). Along a
-trajectory the joint speeds a time ``h`` after a check are at most ``|qd_j| + a_j h``
-(``a_j`` the acceleration limit), so a pair approaches by at most ``V h + A h^2 / 2`` with
-``A = sum_j a_j r_j``; the next check comes when that reaches ``d - clearance + tolerance``
-for some pair (``d`` its distance found). Along a straight joint-space segment the bound is
-``sum_j |dq_j| r_j`` per unit of path. A timed trajectory is known in advance: from ``x`` to
-``t`` a pair approaches by at most ``sum_j r_j Q_j``, ``Q_j`` joint ``j``'s travel (total
-variation) over that time, read from a grid of times between which no joint turns back (its
-knots and each piece's position and velocity extrema): no acceleration bound is needed. A
-motion that passes every check therefore keeps at least ``clearance - tolerance`` from
-everything checked, at every instant.
+motion known only by its speeds (:func:`check_motion`) the joint speeds a time ``h`` after a
+check are at most ``|qd_j| + a_j h`` (``a_j`` the acceleration limit), so a pair approaches by
+at most ``V h + A h^2 / 2`` with ``A = sum_j a_j r_j``; the next check comes when that reaches
+``d - clearance + tolerance`` for some pair (``d`` its distance found). Along a straight
+joint-space segment the bound is ``sum_j |dq_j| r_j`` per unit of path. A timed trajectory is
+known in advance: from ``x`` to ``t`` a pair approaches by at most ``sum_j r_j Q_j``, ``Q_j``
+joint ``j``'s travel (total variation) over that time, read from a grid of times between which
+no joint turns back (its knots and each piece's position and velocity extrema): no
+acceleration bound is needed. A motion that passes every check therefore keeps at least
+``clearance - tolerance`` from everything checked, at every instant.
 
 Bounding each pair by its own joints (rather than the whole arm's speed) matters most for
 links that stay close in every configuration (a compact wrist): their distance changes only
@@ -815,22 +815,14 @@ def _trajectory_steps(
     times = t.tolist()
     end = times[-1]
 
-    widths = width[:g].tolist()
-    lists: dict[int, tuple[list, list, list]] = {}
-
-    def row_step(row: int, k0: int, room: float, x: float, ahead: float) -> float:
-        """One row's step in Python floats (the row's entries as lists): the same arithmetic as below."""
-        held = lists.get(row)
-        if held is None:
-            cut = slice(row * g, (row + 1) * g)
-            held = lists[row] = (flat[cut].tolist(), inverse[cut].tolist(), speed[cut].tolist())
-        w_row, inv, rate = held
-        first = rate[k0] * ahead
+    def row_step(a: int, room: float, x: float, ahead: float, last: int) -> float:
+        """One row's step, `a` its entry at the check's interval: the same arithmetic as below."""
+        first = speed[a] * ahead
         if room < first:
-            return room * inv[k0]
-        target = w_row[k0 + 1] + room - first
-        k = bisect.bisect_right(w_row, target, k0 + 1) - 1
-        return min((target - w_row[k]) * inv[k], widths[k]) + times[k] - x
+            return float(room * inverse[a])
+        target = flat[a + 1] + room - first
+        j = bisect.bisect_right(flat, target, a + 1, last + 1) - 1
+        return float(min((target - flat[j]) * inverse[j], width[j]) + start[j] - x)
 
     def steps(x: float, due: np.ndarray, d: np.ndarray, room: np.ndarray) -> np.ndarray:
         if x >= end:
@@ -840,10 +832,12 @@ def _trajectory_steps(
             # Pair by pair in Python: fewer calls than the whole-array operations below.
             ahead, out, cap = times[k0 + 1] - x, [], NEAR_TURN - slack
             for p, r in zip(due.tolist(), (room - slack).tolist()):
-                step = row_step(3 * p, k0, r, x, ahead)
+                a = p * per_pair + k0
+                end_of = a + g - 1 - k0  # the row's last entry
+                step = row_step(a, r, x, ahead, end_of)
                 if useful[p]:
-                    near = min(row_step(3 * p + 1, k0, r, x, ahead), row_step(3 * p + 2, k0, cap, x, ahead))
-                    step = max(step, near)
+                    near = row_step(a + g, r, x, ahead, end_of + g)
+                    step = max(step, min(near, row_step(a + 2 * g, cap, x, ahead, end_of + 2 * g)))
                 out.append(step)
             return np.array(out)
         at = due * per_pair
