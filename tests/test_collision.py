@@ -370,7 +370,7 @@ def test_a_full_check_goes_on_past_an_overlap_deeper_than_the_near_body_ball():
 
 @pytest.mark.parametrize("name", ["al5c", pytest.param("ur5", marks=needs_example_robot_data)])
 def test_the_step_rule_is_the_longer_of_the_two_bounds_per_pair(name):
-    """_joint_steps against the module docstring's two bounds evaluated pair by pair in plain Python."""
+    """_segment_steps against the module docstring's two bounds evaluated pair by pair in plain Python."""
     import planner.collision.continuous as cc
 
     robot = get_robot(name)
@@ -379,27 +379,79 @@ def test_the_step_rule_is_the_longer_of_the_two_bounds_per_pair(name):
     weights, near = cc.pair_weights(checker), cc.near_bounds(checker)
     growth = math.exp(cc.NEAR_TURN)
     rng = np.random.default_rng(3)
-    acceleration = rng.uniform(1.0, 5.0, robot.dof)
-    rule = cc._joint_steps(checker, acceleration)
+    rule = cc._segment_steps(checker)
     n = checker.pair_count
     for _ in range(20):
-        speed = rng.uniform(0.0, 2.0, robot.dof) * (rng.random(robot.dof) < 0.8)
+        # Every joint moving a little (with a joint at rest a pair may never approach: both
+        # bounds' steps are then "never", as 1e-12 and 1e-300 floors of their speeds tell).
+        speed = rng.uniform(0.0, 2.0, robot.dof) * (rng.random(robot.dof) < 0.8) + 0.01
         due = np.flatnonzero(rng.random(n) < 0.5)
         d = rng.uniform(-0.002, 0.3, len(due))
         room = np.maximum(d - 0.005 + 1e-4, 5e-5)
         got = rule(speed, due, d, room)
         for p, dp, r, step in zip(due, d, room, got):
-            v, a = max(weights[p] @ speed, 1e-12), weights[p] @ acceleration
-            want = 2 * r / (v + math.sqrt(v * v + 2 * a * r))
+            # Constant speeds (a straight segment): each bound's step is the room over its speed.
+            want = r / max(weights[p] @ speed, 1e-12)
             if np.isfinite(near.radius[p]):
-                turn, turn_acc = near.joints[p] @ speed, near.joints[p] @ acceleration
+                turn = near.joints[p] @ speed
                 ball = near.radius[p] + max(dp, 0.0)  # overlapping (past a hit): as touching
                 v = growth * (ball * turn + near.offsets[p] @ speed)
-                a = growth * (ball * turn_acc + near.offsets[p] @ acceleration)
-                second = 2 * r / (v + math.sqrt(v * v + 2 * a * r) + 1e-300)
-                cap = 2 * cc.NEAR_TURN / (turn + math.sqrt(turn * turn + 2 * turn_acc * cc.NEAR_TURN) + 1e-300)
-                want = max(want, min(second, cap))
+                want = max(want, min(r / max(v, 1e-300), cc.NEAR_TURN / max(turn, 1e-300)))
             assert step == pytest.approx(want, rel=1e-9)
+
+
+@pytest.mark.parametrize("name", ["al5c", pytest.param("ur5", marks=needs_example_robot_data)])
+def test_a_timed_step_keeps_each_pair_within_its_room_by_its_joints_travel(name):
+    """_trajectory_steps: over each step, a pair's bound on the joints' travel (sampled densely) fits its room.
+
+    Per pair, its first bound ``sum_j r_j Q_j`` (``Q_j`` joint j's travel over the step, summed
+    over 20,000 samples of the trajectory) or the near-body bound with its turn cap is at most
+    the room, at checks anywhere in the trajectory; every step is positive, and the same
+    whether the pairs are computed together or one by one.
+    """
+    import planner.collision.continuous as cc
+
+    robot = get_robot(name)
+    block = Obstacle("block", Box((0.06, 0.06, 0.25)), np.array([0.23, 0.0, 0.125]))
+    checker = CollisionChecker(robot, Scene(floor=-0.01, clearance=0.005, obstacles=(block,)))
+    weights, near = cc.pair_weights(checker), cc.near_bounds(checker)
+    growth = math.exp(cc.NEAR_TURN)
+    limits = JointLimits.from_robot(robot)
+    rng = np.random.default_rng(11)
+    n = checker.pair_count
+    for _ in range(4):
+        traj = plan_trajectory(robot.random_configurations(rng, 3), limits)
+        last = np.asarray(traj.waypoints[-1], dtype=float)
+        floor = 0.005 - cc.DEFAULT_TOLERANCE
+        rule = cc._trajectory_steps(checker, traj, last, np.asarray(limits.velocity) * (1 + 1e-6), floor)
+        fine = np.linspace(0.0, traj.duration, 20001)
+        q = traj.sample(fine).q
+        travel = np.vstack([np.zeros(robot.dof), np.cumsum(np.abs(np.diff(q, axis=0)), axis=0)])
+        for x in rng.uniform(0.0, traj.duration, 6):
+            due = np.flatnonzero(rng.random(n) < 0.6)
+            d = rng.uniform(-0.002, 0.3, len(due))
+            room = np.maximum(d - 0.005 + cc.DEFAULT_TOLERANCE, cc.DEFAULT_TOLERANCE / 2)
+            steps = rule(float(x), due, d, room)
+            assert np.all(steps > 0)
+            # Pair by pair (the rule's path for few pairs) the same steps.
+            alone = [rule(float(x), due[k : k + 1], d[k : k + 1], room[k : k + 1])[0] for k in range(len(due))]
+            np.testing.assert_allclose(alone, steps, rtol=1e-9, atol=0.0)  # (rows differ in rounding)
+            for p, dp, r, h in zip(due, d, room, steps):
+                # The travel from x to x + h: the samples strictly between, and the ends exactly.
+                a, b = np.searchsorted(fine, [x, min(x + h, traj.duration)], side="right")
+                ends = traj.sample(np.array([x, min(x + h, traj.duration)])).q
+                if a < b:
+                    inner = travel[b - 1] - travel[a]
+                    used = np.abs(q[a] - ends[0]) + inner + np.abs(ends[1] - q[b - 1])
+                else:
+                    used = np.abs(ends[1] - ends[0])
+                first = weights[p] @ used
+                if first <= r * (1 + 1e-9) + 1e-12:
+                    continue
+                assert np.isfinite(near.radius[p]), (p, first, r)
+                turn = near.joints[p] @ used
+                lever = growth * ((near.radius[p] + max(dp, 0.0)) * turn + near.offsets[p] @ used)
+                assert turn <= cc.NEAR_TURN * (1 + 1e-9) and lever <= r * (1 + 1e-9) + 1e-12, (p, r, turn, lever)
 
 
 def test_a_clear_certificate_holds_between_checks():

@@ -9,12 +9,16 @@ body's points (the joint offsets down the chain plus the body's own extent, wher
 offset may be the next joint's distance from the axis: zero in a wrist whose next joint sits on
 it; for the joint right above the body's own, the largest distance of the body's hull turned
 about its joint to every angle; 1 for a sliding joint). Along a
-trajectory the joint speeds a time ``h`` after a check are at most ``|qd_j| + a_j h``
-(``a_j`` the acceleration limit), so a pair approaches by at most ``V h + A h^2 / 2`` with
-``A = sum_j a_j r_j``; the next check comes when that reaches ``d - clearance + tolerance``
-for some pair (``d`` its distance found). Along a straight joint-space segment the bound is
-``sum_j |dq_j| r_j`` per unit of path. A motion that passes every check therefore keeps at
-least ``clearance - tolerance`` from everything checked, at every instant.
+motion known only by its speeds (:func:`check_motion`) the joint speeds a time ``h`` after a
+check are at most ``|qd_j| + a_j h`` (``a_j`` the acceleration limit), so a pair approaches by
+at most ``V h + A h^2 / 2`` with ``A = sum_j a_j r_j``; the next check comes when that reaches
+``d - clearance + tolerance`` for some pair (``d`` its distance found). Along a straight
+joint-space segment the bound is ``sum_j |dq_j| r_j`` per unit of path. A timed trajectory is
+known in advance: from ``x`` to ``t`` a pair approaches by at most ``sum_j r_j Q_j``, ``Q_j``
+joint ``j``'s travel (total variation) over that time, read from a grid of times between which
+no joint turns back (its knots and each piece's position and velocity extrema): no
+acceleration bound is needed. A motion that passes every check therefore keeps at least
+``clearance - tolerance`` from everything checked, at every instant.
 
 Bounding each pair by its own joints (rather than the whole arm's speed) matters most for
 links that stay close in every configuration (a compact wrist): their distance changes only
@@ -446,11 +450,11 @@ def check_motion(
     return _advance(checker, sample, steps, end, masks, tolerance, stop_at_first, clearance)
 
 
-def _joint_steps(checker: CollisionChecker, acceleration: np.ndarray) -> Callable:
-    """The step rule of a motion sampled with its joint speeds (an upper bound on each |qd_j|).
+def _segment_steps(checker: CollisionChecker) -> Callable:
+    """The step rule of a straight joint segment, sampled with its constant joint speeds ``|dq_j|``.
 
-    Per pair, the longer of the steps the two bounds of the module docstring allow (the
-    near-body bound only for the pairs where it can be the longer one).
+    Per pair, the longer of the steps the two bounds of the module docstring allow (``room / V``;
+    the near-body bound only for the pairs where it can be the longer one).
     """
     weights = pair_weights(checker)
     near = near_bounds(checker)
@@ -462,67 +466,29 @@ def _joint_steps(checker: CollisionChecker, acceleration: np.ndarray) -> Callabl
         axis=1,
     )
     rows = np.flatnonzero(useful)
-    # One product per speed state: the first bound's V, and per useful pair T and sum_j D_j Q_j.
+    # One product per speed: the first bound's V, and per useful pair T and sum_j D_j Q_j.
     stacked = np.vstack([weights, near.joints[rows].astype(float), near.offsets[rows]])
-    per_acc = stacked @ acceleration
     radius = near.radius[rows]
     slot = np.full(n, -1)
     slot[rows] = np.arange(len(rows))
     state: dict[str, object] = {"speed": None}
 
-    if not np.any(acceleration):
-        # Constant speeds (a straight segment): the steps are room / V.
-        def constant(speed: np.ndarray, due: np.ndarray, d: np.ndarray, room: np.ndarray) -> np.ndarray:
-            if state["speed"] is not speed:
-                product = stacked @ speed
-                state["speed"], state["v"] = speed, np.maximum(product[:n], 1e-12)
-                turn, lever = product[n : n + len(rows)], product[n + len(rows) :]
-                state["turn"], state["lever"] = turn, lever
-                state["cap"] = NEAR_TURN / np.maximum(turn, 1e-300)
-            step = room / state["v"][due]
-            where = slot[due]
-            hit = where >= 0
-            if hit.any():
-                k = where[hit]
-                # A pair that overlaps (d < 0, past a hit) counts as touching: the ball stays R.
-                v = _NEAR_GROWTH * ((radius[k] + np.maximum(d[hit], 0.0)) * state["turn"][k] + state["lever"][k])
-                step[hit] = np.maximum(step[hit], np.minimum(room[hit] / np.maximum(v, 1e-300), state["cap"][k]))
-            return step
-
-        return constant
-
-    m = len(rows)
-    turn_acc, lever_acc = per_acc[n : n + m], per_acc[n + m :]
-    # Both bounds at once, every pair (only the due ones are read back): the first bound's
-    # entries for all n pairs, then the near-body bound's for the m useful ones; per pair the
-    # last distance and room given (a few whole-array operations cost less than picking out
-    # the due pairs of each bound).
-    speeds = np.empty(n + m)
-    twice_acc = np.empty(n + m)
-    twice_acc[:n] = 2.0 * per_acc[:n]
-    last_d, last_room = np.ones(n), np.ones(n)
-    both = np.concatenate([np.arange(n), rows])
-    cap_acc = 2.0 * turn_acc * NEAR_TURN
-
     def steps(speed: np.ndarray, due: np.ndarray, d: np.ndarray, room: np.ndarray) -> np.ndarray:
-        product = stacked @ speed
-        if not m:
-            v = np.maximum(product[due], 1e-12)
-            return 2.0 * room / (v + np.sqrt(v * v + 2.0 * per_acc[due] * room))
-        last_d[due], last_room[due] = d, room
-        np.maximum(product[:n], 1e-12, out=speeds[:n])
-        turn = product[n : n + m]
-        # As above: R + d < 0 (overlapping deeper than R) made the root's argument negative, the
-        # step NaN, and the check never ended (NaN is never due and sets no next x).
-        ball = radius + np.maximum(last_d[rows], 0.0)
-        speeds[n:] = _NEAR_GROWTH * (ball * turn + product[n + m :])
-        twice_acc[n:] = 2.0 * (_NEAR_GROWTH * (ball * turn_acc + lever_acc))
-        r = last_room[both]
-        step = 2.0 * r / (speeds + np.sqrt(speeds * speeds + twice_acc * r) + 1e-300)
-        cap = 2.0 * NEAR_TURN / (turn + np.sqrt(turn * turn + cap_acc) + 1e-300)
-        first = step[:n]
-        first[rows] = np.maximum(first[rows], np.minimum(step[n:], cap))
-        return first[due]
+        if state["speed"] is not speed:
+            product = stacked @ speed
+            state["speed"], state["v"] = speed, np.maximum(product[:n], 1e-12)
+            turn, lever = product[n : n + len(rows)], product[n + len(rows) :]
+            state["turn"], state["lever"] = turn, lever
+            state["cap"] = NEAR_TURN / np.maximum(turn, 1e-300)
+        step = room / state["v"][due]
+        where = slot[due]
+        hit = where >= 0
+        if hit.any():
+            k = where[hit]
+            # A pair that overlaps (d < 0, past a hit) counts as touching: the ball stays R.
+            v = _NEAR_GROWTH * ((radius[k] + np.maximum(d[hit], 0.0)) * state["turn"][k] + state["lever"][k])
+            step[hit] = np.maximum(step[hit], np.minimum(room[hit] / np.maximum(v, 1e-300), state["cap"][k]))
+        return step
 
     return steps
 
@@ -625,7 +591,7 @@ def check_segment(
     return _advance(
         checker,
         lambda s: (q0 + s * dq, speed),
-        _joint_steps(checker, np.zeros(len(dq))),
+        _segment_steps(checker),
         1.0,
         [(0.0, checker.pair_mask(allow))],
         tolerance,
@@ -699,36 +665,201 @@ def check_trajectory(
         stop_at_first: Return at the first check below the clearance.
     """
     # The limits hold to LIMIT_TOLERANCE; the bound takes a little more.
-    acceleration = np.asarray(trajectory.limits.acceleration, dtype=float) * (1.0 + 1e-6)
     vmax = np.asarray(trajectory.limits.velocity) * (1.0 + 1e-6)
     # The trajectory's pieces, evaluated here one time at a time (JointTrajectory.sample's
     # polynomial without its checks and array bookkeeping).
     knots = np.asarray(trajectory.knots, dtype=float).tolist()
     # Per piece its rows (a list of rows is faster to index than the arrays).
     p, v, a, j = trajectory.p, trajectory.v, trajectory.a, trajectory.j
-    p, v, acc, half_a, sixth_j, half_j = (list(x) for x in (p, v, a, a / 2.0, j / 6.0, j / 2.0))
+    p, v, half_a, sixth_j = (list(x) for x in (p, v, a / 2.0, j / 6.0))
     duration, last = float(trajectory.duration), np.asarray(trajectory.waypoints[-1], dtype=float)
-    rest = np.full(len(last), 1e-12)
 
-    def sample(t: float) -> tuple[np.ndarray, np.ndarray]:
+    def sample(t: float) -> tuple[np.ndarray, float]:
         if t >= duration:
-            return last, rest
+            return last, t
         i = max(bisect.bisect_right(knots, t) - 1, 0)
         dt = t - knots[i]
-        q = p[i] + dt * (v[i] + dt * (half_a[i] + dt * sixth_j[i]))
-        qd = np.abs(v[i] + dt * (acc[i] + dt * half_j[i]))
-        qd += 1e-12
-        return q, np.minimum(qd, vmax, out=qd)
+        return p[i] + dt * (v[i] + dt * (half_a[i] + dt * sixth_j[i])), t
 
     masks = [(0.0, checker.pair_mask())] + [(float(t), checker.pair_mask(names)) for t, names in allow]
     masks.sort(key=lambda m: m[0])
     return _advance(
         checker,
         sample,
-        _joint_steps(checker, acceleration),
+        _trajectory_steps(checker, trajectory, last, vmax, max(checker.scene.clearance - tolerance, 0.0)),
         duration,
         masks,
         tolerance,
         stop_at_first,
         None,
     )
+
+
+#: Evenly spaced times per trajectory that :func:`_trajectory_steps` adds to its grid.
+GRID_POINTS = 16
+
+
+def _trajectory_grid(trajectory, last: np.ndarray, vmax: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Times ``t`` over a trajectory between which every joint moves one way at a speed moving one way.
+
+    The knots, each piece's interior extrema of position and velocity, and :data:`GRID_POINTS`
+    evenly spaced times. Returns ``t`` (G,), ``C`` (G, dof): each joint's travel (total
+    variation) from 0 to ``t[k]`` (``|q(t[k+1]) - q(t[k])|`` summed: exact as the joint does not
+    turn back in between), and ``top`` (G - 1, dof): each joint's largest speed in each
+    interval (the larger of its ends', as the speed is monotone there, plus the largest jump
+    of a joint's speed from one piece to the next: rounding).
+    """
+    knots = np.asarray(trajectory.knots, dtype=float)
+    p, v, a, j = (np.asarray(x, dtype=float) for x in (trajectory.p, trajectory.v, trajectory.a, trajectory.j))
+    duration = float(trajectory.duration)
+    h = np.append(np.diff(knots), duration - knots[-1])[:, None]
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+        # Velocity extrema (a = 0), position extrema (v = 0) of each piece's cubic (and more
+        # where a root is not one: a time more does no harm).
+        sq = np.sqrt(np.maximum(a * a - 2.0 * j * v, 0.0))
+        roots = np.concatenate([-a / j, (-a + sq) / j, (-a - sq) / j, -v / a])
+    inside = (roots > 0.0) & (roots < np.tile(h, (4, 1)))
+    at = np.tile(knots, 4)[:, None] + roots
+    t = np.unique(np.concatenate([knots, [duration], np.linspace(0.0, duration, GRID_POINTS), at[inside]]))
+    t = t[: np.searchsorted(t, duration, side="right")]
+    idx = np.maximum(np.searchsorted(knots, t, side="right") - 1, 0)
+    dt = (t - knots[idx])[:, None]
+    vi, ai, ji = v[idx], a[idx], j[idx]
+    q = p[idx] + dt * (vi + dt * (ai / 2.0 + dt * (ji / 6.0)))
+    qd = np.abs(vi + dt * (ai + dt * (ji / 2.0)))
+    travel = np.abs(np.diff(q, axis=0))
+    if len(travel):
+        # The motion ends at the last waypoint exactly (the polynomial there to rounding).
+        travel[-1] += np.abs(last - q[-1])
+    travel *= 1.0 + 1e-9
+    c = np.zeros_like(q)
+    np.cumsum(travel, axis=0, out=c[1:])
+    hk = h[:-1]
+    jump = np.abs(v[:-1] + hk * (a[:-1] + hk * (j[:-1] / 2.0)) - v[1:]).max(axis=0, initial=0.0)
+    top = np.minimum(np.maximum(qd[:-1], qd[1:]) * (1.0 + 1e-9) + (jump + 1e-12), vmax)
+    return t, c, top
+
+
+_RATES: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
+#: Up to how many due pairs :func:`_trajectory_steps` computes pair by pair.
+_FEW = 8
+#: A pair's three rooms (its own, its own, the turn cap) as ``room * _ROOMS + _TURN`` (less a slack).
+_ROOMS, _TURN = np.array([1.0, 1.0, 0.0]), np.array([0.0, 0.0, NEAR_TURN])
+
+
+def _step_rates(checker: CollisionChecker, floor: float) -> tuple[np.ndarray, list[bool]]:
+    """:func:`_trajectory_steps`'s weights: per pair three rows, shape (3 pairs, dof); per pair whether they differ.
+
+    A pair's first bound, its near-body bound and its turn; a pair where the near-body bound
+    cannot be the longer has its first bound in all three rows (its step with the turn's room
+    is then at most the step with its own: the first bound's step holds).
+    """
+    held = _RATES.setdefault(checker, {})
+    out = held.get(floor)
+    if out is None:
+        weights, near = pair_weights(checker), near_bounds(checker)
+        finite = np.isfinite(near.radius)
+        factor = _NEAR_GROWTH / (1.0 - _NEAR_GROWTH * NEAR_TURN)
+        ball = np.where(finite, near.radius, 0.0) + floor
+        turn = near.joints.astype(float)
+        lever = factor * (ball[:, None] * turn + near.offsets)
+        # The near-body bound can only be the longer where some joint's weight is below r_j.
+        useful = (finite & np.any(near.joints & (lever < weights), axis=1))[:, None]
+        rates = np.stack([weights, np.where(useful, lever, weights), np.where(useful, turn, weights)], axis=1)
+        if len(held) >= 8:
+            held.clear()
+        out = held[floor] = (rates.reshape(-1, weights.shape[1]), useful[:, 0].tolist())
+    return out
+
+
+def _trajectory_steps(
+    checker: CollisionChecker, trajectory, last: np.ndarray, vmax: np.ndarray, floor: float
+) -> Callable:
+    """The step rule of a timed trajectory: per pair, up to where its joints' travel uses its room.
+
+    With ``W_p(t) = sum_j r_j C_j(t)`` (``C_j`` joint ``j``'s travel from the start, ``r_j``
+    from :func:`pair_weights`) a pair approaches by at most ``W_p(t) - W_p(x)`` from ``x`` to
+    ``t``: its step is the longest with that at most its room ``m``. The near-body bound of the
+    module docstring in the same form: with ``d <= m + floor`` (`floor` the clearance less the
+    tolerance, at least 0) and ``T <= NEAR_TURN`` it holds while
+    ``K ((R + floor) T + sum_j D_j Q_j) <= m``, ``K = e^NEAR_TURN / (1 - e^NEAR_TURN NEAR_TURN)``:
+    weights ``K ((R + floor) [j between] + D_j)`` on the travels, and ``T`` itself (weights 1
+    on the joints between) at most :data:`NEAR_TURN`. A pair takes the longer of the two steps.
+
+    Computed on the grid of :func:`_trajectory_grid`: from the check to the next grid time
+    and within the last interval from the interval's largest speeds, in between from ``W_p``
+    at the grid times. `steps` takes the time of the check as its state.
+    """
+    rates, useful = _step_rates(checker, floor)
+    t, c, top = _trajectory_grid(trajectory, last, vmax)
+    g = len(t)
+    if g < 2:
+        return lambda x, due, d, room: np.full(len(due), np.inf)
+    # Per row and grid time, flattened: W plus an offset per row that keeps the whole ascending
+    # (one search for every row), per interval its largest rate and the inverse, its start
+    # time and length. Every room is made smaller by `slack` (a nanometre and the offsets'
+    # rounding) against rounding.
+    w = rates @ c.T
+    offsets = np.arange(len(rates)) * (float(w[:, -1].max(initial=0.0)) + 1.0)
+    flat = (w + offsets[:, None]).ravel()
+    slack = 1e-9 + 1e-15 * float(flat[-1] if flat.size else 0.0)
+    turn_room = _TURN - slack
+    speed = np.zeros((len(rates), g))
+    speed[:, :-1] = rates @ top.T
+    inverse = (1.0 / np.maximum(speed, 1e-300)).ravel()
+    speed = speed.ravel()
+    start = np.tile(t, len(rates))
+    width = np.tile(np.append(np.diff(t), np.inf), len(rates))
+    rows = np.array([0, g, 2 * g])  # a pair's three rows, from its first entry
+    per_pair = 3 * g
+    times = t.tolist()
+    end = times[-1]
+
+    def row_step(a: int, room: float, x: float, ahead: float, last: int) -> float:
+        """One row's step, `a` its entry at the check's interval: the same arithmetic as below."""
+        first = speed[a] * ahead
+        if room < first:
+            return float(room * inverse[a])
+        target = flat[a + 1] + room - first
+        j = bisect.bisect_right(flat, target, a + 1, last + 1) - 1
+        return float(min((target - flat[j]) * inverse[j], width[j]) + start[j] - x)
+
+    def steps(x: float, due: np.ndarray, d: np.ndarray, room: np.ndarray) -> np.ndarray:
+        if x >= end:
+            return np.full(len(due), np.inf)
+        k0 = min(bisect.bisect_right(times, x) - 1, g - 2)
+        if len(due) <= _FEW:
+            # Pair by pair in Python: fewer calls than the whole-array operations below.
+            ahead, out, cap = times[k0 + 1] - x, [], NEAR_TURN - slack
+            for p, r in zip(due.tolist(), (room - slack).tolist()):
+                a = p * per_pair + k0
+                end_of = a + g - 1 - k0  # the row's last entry
+                step = row_step(a, r, x, ahead, end_of)
+                if useful[p]:
+                    near = row_step(a + g, r, x, ahead, end_of + g)
+                    step = max(step, min(near, row_step(a + 2 * g, cap, x, ahead, end_of + 2 * g)))
+                out.append(step)
+            return np.array(out)
+        at = due * per_pair
+        at += k0
+        at = at[:, None] + rows
+        rooms = room[:, None] * _ROOMS
+        rooms += turn_room
+        s0 = speed[at]
+        first = s0 * (times[k0 + 1] - x)  # the most the row grows until the next grid time
+        target = flat[at + 1]
+        target += rooms
+        target -= first
+        j = flat.searchsorted(target, side="right")
+        j -= 1
+        np.minimum(j, at + (g - 1 - k0), out=j)  # the row's last entry at most
+        until = target - flat[j]
+        until *= inverse[j]
+        np.minimum(until, width[j], out=until)
+        until += start[j]
+        until -= x
+        # Where the room ends before the next grid time (the search's answer is then meaningless).
+        until = np.where(rooms < first, rooms * inverse[at], until)
+        return np.maximum(until[:, 0], np.minimum(until[:, 1], until[:, 2]))
+
+    return steps
