@@ -21,8 +21,10 @@ chooses the state (velocity and acceleration) at every via waypoint itself:
    on its own: scaling time by 1/x multiplies velocities by x and accelerations by x^2, so
    candidates ``(x v, x^2 a)`` of the slope blend (each joint saturating at its limits) are
    tried on a grid and refined by golden-section search, minimising the duration of the two
-   segments next to the waypoint. A second search moves joints that turn round at the
-   waypoint towards a time-optimal turn: at rest, still braking at full deceleration. Each
+   segments next to the waypoint. Then every joint takes its best state among those tried,
+   or a time-optimal turn where it reverses at the waypoint (at rest, still braking at full
+   deceleration): a segment lasts as long as its slowest joint needs and each joint's time
+   depends on its own states only, so one solve per state tells every joint's options. Each
    search keeps the current state unless a candidate is faster; resting at the via (scale
    0) is on the grid.
 3. **Range repair.** A non-zero via state can carry a joint past its range inside a segment.

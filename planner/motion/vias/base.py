@@ -19,7 +19,7 @@ import numpy as np
 from planner.motion.limits import JointLimits, admissible_acceleration
 from planner.motion.segments import SegmentSolver
 
-__all__ = ["SEARCH_HALVINGS", "ViaChain", "ViaStrategy"]
+__all__ = ["SEARCH_HALVINGS", "ViaChain", "ViaStrategy", "best_choice"]
 
 #: How often a candidate via state that carries a joint out of its range is halved (the last
 #: two times to rest) before it counts as infeasible.
@@ -145,6 +145,54 @@ class ViaChain:
             return halved(cv, ca)
 
         return pair
+
+
+def best_choice(t1: np.ndarray, t2: np.ndarray) -> tuple[float, np.ndarray | None]:
+    """Per joint one of K options so that ``max t1 + max t2`` over the joints is smallest.
+
+    Option 0 is the joint's current state; a joint leaves it only where it has to (where its
+    current times exceed the best choice's segment durations). The first segment's duration
+    d1 is swept upwards over the options' t1; per joint the smallest t2 among its options
+    with ``t1 <= d1`` is kept as the sweep goes (plain floats: K and dof are small).
+
+    Args:
+        t1: Per option and joint, the joint's time in the first segment, shape (K, dof) [s]
+            (inf: the option is not allowed).
+        t2: Likewise in the second segment.
+
+    Returns:
+        The best ``max t1 + max t2`` [s] and per joint the option to take, shape (dof,), or
+        the current value and None where no choice is better.
+    """
+    dof = t1.shape[1]
+    best = float(t1[0].max() + t2[0].max())
+    order = np.argsort(t1, axis=None, kind="stable")
+    times1, times2 = t1.ravel()[order].tolist(), t2.ravel()[order].tolist()
+    joints = (order % dof).tolist()
+    low = [math.inf] * dof
+    missing = dof
+    found = None
+    last = len(times1) - 1
+    for e, d1 in enumerate(times1):
+        if d1 >= best:
+            break
+        j, b = joints[e], times2[e]
+        if low[j] == math.inf:
+            missing -= 1
+        if b < low[j]:
+            low[j] = b
+        if missing or (e < last and times1[e + 1] == d1):
+            continue  # not every joint has an option yet, or more options share this d1
+        d2 = max(low)
+        if d1 + d2 < best:
+            best, found = d1 + d2, (d1, d2)
+    if found is None:
+        return best, None
+    d1, d2 = found
+    allowed = t1 <= d1
+    pick = np.argmin(np.where(allowed, t2, math.inf), axis=0)
+    keep = allowed[0] & (t2[0] <= d2)
+    return best, np.where(keep, 0, pick)
 
 
 def _admissible(v: np.ndarray, a: np.ndarray, limits: JointLimits) -> bool:

@@ -8,10 +8,14 @@ by golden-section search, to minimise the chained Ruckig durations. Then each vi
 its own: scaling time by 1/x multiplies velocities by x and accelerations by x^2, so candidates
 ``(x v, x^2 a)`` of the slope blend (each joint saturating at its limits) are tried on a grid
 and refined by golden-section search, minimising the duration of the two segments next to the
-waypoint. A second search moves joints that turn round at the waypoint towards a time-optimal
-turn: at rest, still braking at full deceleration. Each search keeps the current state unless
-a candidate is faster; resting at the via (scale 0) is on the grid. Candidates that carry a
-joint out of its range (by Ruckig's extrema) have that joint's state halved.
+waypoint. A segment lasts as long as its slowest joint needs, and each joint's time depends on
+its own states only: so every joint then takes its best state among those tried, or a
+time-optimal turn where it reverses at the waypoint (at rest, still braking at full
+deceleration), each pick known from one solve per state and confirmed by one more. Each search
+keeps the current state unless a candidate is faster; resting at the via (scale 0) is on the
+grid. Candidates that carry a joint out of its range (by Ruckig's extrema) have that joint's
+state halved, and the state kept at a via turns no joint beyond its range inside a phase of
+zero jerk (which Ruckig's extrema miss and the planner's range repair would halve at any cost).
 """
 
 from __future__ import annotations
@@ -23,7 +27,7 @@ from collections.abc import Callable, Sequence
 import numpy as np
 
 from planner.motion.limits import admissible_acceleration
-from planner.motion.vias.base import ViaChain, ViaStrategy
+from planner.motion.vias.base import SEARCH_HALVINGS, ViaChain, ViaStrategy, best_choice
 from planner.motion.vias.heuristic import via_directions
 
 #: Largest time scale searched: keeps x * x finite where a via component is tiny (x * 0 is then
@@ -42,15 +46,16 @@ __all__ = ["OptimizedStrategy", "golden_minimum", "golden_points", "spline_via_s
 _GRID = (0.0, 0.5, 1.0, 1.4, 2.0, 3.0)
 _GRID_START = 1.4
 _REFINE_MARGIN = 0.03
-_GOLDEN_STEPS = 1
+_GOLDEN_STEPS = 0
 # Spline stage: range of the common log time-scale of the segment durations searched, and
 # golden-section evaluations (a simplex over every duration gained nothing on top).
 _SPLINE_SCALE = (-0.5, 0.1)
-_SPLINE_SCALE_EVALS = 6
+_SPLINE_SCALE_EVALS = 4
 # A segment whose Ruckig extrema leave the range counts this much longer in the search.
 _SPLINE_PENALTY = 1.5
-_TURN_GRID = (0.0, 0.5, 1.0)
-_TURN_STEPS = 1
+# How many of the fastest states tried at a via that turn beyond the range are halved in turn
+# (as the search halves states that leave it) before slower ones that fit are taken.
+_TURN_HALVED = 2
 # Rounds of halving the via states that leave the range before the search.
 _SETTLE_HALVINGS = 24
 
@@ -171,14 +176,14 @@ class OptimizedStrategy(ViaStrategy):
         for a, b in zip(fixed[:-1], fixed[1:]):
             if b - a >= 2:
                 self.search_spline(chain, a, b, durations)
-        # Then one sweep: the slope blend from the durations, time-scaled per via, and the
-        # turn search (more sweeps or per-joint refinement gained about 1 % in tests).
+        # Then one sweep: the slope blend from the durations, time-scaled per via, then every
+        # joint's best state among those tried and a time-optimal turn (more sweeps or a
+        # per-joint pattern search gained about 1 % in tests, at twice the time or more).
         durations = chain.durations()
         for i in free:
             u, w = via_directions(chain.q, i, durations, chain.limits, chain.stop)
-            if u.any() or w.any():
-                self.search_via(chain, i, u, w)
-            self.search_turn(chain, i)
+            tried = self.search_via(chain, i, u, w) if u.any() or w.any() else []
+            self.combine_joints(chain, i, tried)
             durations[i - 1] = chain.seg.solve(i - 1, chain.v[i - 1], chain.acc[i - 1], chain.v[i], chain.acc[i])[0]
             durations[i] = chain.seg.solve(i, chain.v[i], chain.acc[i], chain.v[i + 1], chain.acc[i + 1])[0]
 
@@ -191,7 +196,7 @@ class OptimizedStrategy(ViaStrategy):
         grid: Sequence[float] = _GRID,
         steps: int = _GOLDEN_STEPS,
         start: float = 0.0,
-    ) -> None:
+    ) -> list[tuple[float, np.ndarray, np.ndarray]]:
         """Minimise the pair cost over a scalar parameter in [0, top] (grid, then golden section).
 
         The grid is walked from `start` upwards while the duration falls, else downwards;
@@ -199,6 +204,10 @@ class OptimizedStrategy(ViaStrategy):
         :data:`_REFINE_MARGIN` slower than the current state, which is kept unless beaten.
         `make` maps parameters, shape (G,), to admissible via states, shapes (G, dof); the
         chain's current via state is admissible too (every strategy step keeps it so).
+
+        Returns:
+            Every state tried, the current one first, each as (pair duration, velocities,
+            accelerations) after the halving of :meth:`ViaChain.pair_cost`.
         """
         pair = chain.pair_coster(i)
         cache: dict[float, tuple[float, np.ndarray, np.ndarray]] = {}
@@ -249,12 +258,18 @@ class OptimizedStrategy(ViaStrategy):
             if found[0] < current[0]:
                 best = found
         _, chain.v[i], chain.acc[i] = best
+        return [current, *cache.values()]
 
-    def search_via(self, chain: ViaChain, i: int, u: np.ndarray, w: np.ndarray) -> None:
+    def search_via(
+        self, chain: ViaChain, i: int, u: np.ndarray, w: np.ndarray
+    ) -> list[tuple[float, np.ndarray, np.ndarray]]:
         """Time-scale the spline-like via state (u, w) at via i to minimise its segments' time.
 
         Scaling a trajectory's time by 1/x multiplies velocities by x and accelerations by
         x^2, so the candidates are ``(x u, x^2 w)``, each joint saturating at its limits.
+
+        Returns:
+            The states tried (see :meth:`_line_search`).
         """
         lim = chain.limits
         mag, wmag = np.abs(u), np.abs(w)
@@ -274,7 +289,7 @@ class OptimizedStrategy(ViaStrategy):
             cv = su * np.minimum(lim.velocity, x * mag)
             return cv, admissible_acceleration(cv, sw * np.minimum(lim.acceleration, x * x * wmag), lim)
 
-        self._line_search(chain, i, candidates, min(max(tops), _MAX_SCALE), start=_GRID_START)
+        return self._line_search(chain, i, candidates, min(max(tops), _MAX_SCALE), start=_GRID_START)
 
     def _settle(self, chain: ViaChain, free: list[int]) -> None:
         """Halve the via states of joints that (by Ruckig's extrema) leave their range.
@@ -357,30 +372,82 @@ class OptimizedStrategy(ViaStrategy):
         if best[0] < current:
             chain.v[a + 1 : b], chain.acc[a + 1 : b] = best[1], best[2]
 
-    def search_turn(self, chain: ViaChain, i: int) -> None:
-        """Let joints that turn round at via i pass it at rest but still braking.
+    def combine_joints(self, chain: ViaChain, i: int, tried: list[tuple[float, np.ndarray, np.ndarray]]) -> None:
+        """Give every joint at via i its best state among those tried, and a time-optimal turn.
 
-        A joint at its time limit turns fastest at rest with full deceleration (a bang-bang
-        turn); the slope blend gives it a small speed and acceleration instead. Candidates
-        move the turning joints from their current state towards that one.
+        A segment lasts as long as its slowest joint needs (Ruckig's independent minimum
+        durations, up to its blocked intervals), and each joint's time depends only on its own
+        states. So the states already solved, plus one that turns the joints that reverse at
+        the via time-optimally (at rest, still braking at full deceleration), give each joint
+        several options whose best pick (:func:`best_choice`) is known without solving again;
+        that pick is solved once. The fastest of these states is kept whose joints do not turn
+        round beyond their range inside a phase of zero jerk (``SegmentSolver.turns_beyond``:
+        the range repair would halve such a state at whatever cost); the offending joints of
+        the fastest ones are halved as the search halves joints that leave the range.
+
+        Args:
+            chain: The chain.
+            i: The via.
+            tried: States tried at via i, (pair duration, velocities, accelerations) each.
         """
+        lim = chain.limits
+        pair = chain.pair_coster(i)
+        current = pair(chain.v[i], chain.acc[i])
+        states = [current, *tried]
         # On plain floats (a few joints): the same differences and products as on arrays.
         rows = chain.seg.rows
         dp = [x - w for w, x in zip(rows[i - 1], rows[i])]
         flags = [d * (y - x) < 0 for d, x, y in zip(dp, rows[i], rows[i + 1])]
-        if True not in flags:
-            return
         turning = np.array(flags)
-        if not chain.limited_by(i, turning):
-            return
-        lim = chain.limits
-        v_now, a_now = chain.v[i].copy(), chain.acc[i].copy()
-        # Full deceleration against the incoming motion (used where the joint turns, dp != 0).
-        a_turn = np.array([-a if d > 0 else a for d, a in zip(dp, lim.ruckig_limits[1])])
-
-        def make(y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-            y = y[:, None]
-            cv = np.where(turning, (1.0 - y) * v_now, v_now)
-            return cv, admissible_acceleration(cv, np.where(turning, (1.0 - y) * a_now + y * a_turn, a_now), lim)
-
-        self._line_search(chain, i, make, 1.0, grid=_TURN_GRID, steps=_TURN_STEPS)
+        if True in flags and chain.limited_by(i, turning):
+            a_turn = [-a if d > 0 else a for d, a in zip(dp, lim.ruckig_limits[1])]
+            cv = np.where(turning, 0.0, current[1])
+            states.append(pair(cv, admissible_acceleration(cv, np.where(turning, a_turn, current[2]), lim)))
+        both = chain.seg.around(i, chain.v[i - 1], chain.acc[i - 1], chain.v[i + 1], chain.acc[i + 1])
+        t1s, t2s, options = [], [], []
+        for state in states:
+            if not state[0] < math.inf:
+                continue
+            (_, _, traj1), (_, _, traj2) = both(state[1], state[2])  # within the range: no joint masked
+            t1s.append(traj1.independent_min_durations)
+            t2s.append(traj2.independent_min_durations)
+            options.append(state)
+        if len(options) > 1:
+            _, choice = best_choice(np.array(t1s), np.array(t2s))
+            if choice is not None:
+                picks = choice.tolist()
+                cv = np.array([options[g][1][j] for j, g in enumerate(picks)])
+                ca = np.array([options[g][2][j] for j, g in enumerate(picks)])
+                found = pair(cv, ca)
+                if found[0] < math.inf:
+                    options.append(found)
+        # The fastest state whose joints turn nowhere beyond their range: Ruckig's extrema
+        # miss a turn inside a phase of zero jerk, which the range repair would find and halve
+        # (at any cost). A faster state that turns beyond has those joints halved here instead,
+        # as the search halves joints that leave the range.
+        seg, lim = chain.seg, chain.limits
+        pool, halve = [], _TURN_HALVED
+        for state in sorted(options, key=lambda c: c[0]):
+            (_, _, traj1), (_, _, traj2) = both(state[1], state[2])
+            out = seg.turns_beyond(i - 1, traj1) + seg.turns_beyond(i, traj2)
+            if not out:
+                pool.append(state)
+                break  # every later state is slower
+            if not halve:
+                continue
+            halve -= 1
+            for _ in range(SEARCH_HALVINGS):
+                cv, ca = state[1].copy(), state[2].copy()
+                cv[out] *= 0.5
+                ca[out] *= 0.5
+                state = pair(cv, admissible_acceleration(cv, ca, lim))
+                if not state[0] < math.inf:
+                    break
+                (_, _, traj1), (_, _, traj2) = both(state[1], state[2])
+                out = seg.turns_beyond(i - 1, traj1) + seg.turns_beyond(i, traj2)
+                if not out:
+                    pool.append(state)
+                    break
+        best = min(pool, key=lambda c: c[0], default=None)
+        if best is not None:
+            _, chain.v[i], chain.acc[i] = best
