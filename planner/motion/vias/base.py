@@ -11,7 +11,7 @@ from __future__ import annotations
 import functools
 import math
 from abc import ABC, abstractmethod
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from typing import ClassVar
 
 import numpy as np
@@ -147,7 +147,9 @@ class ViaChain:
         return pair
 
 
-def best_choice(t1: np.ndarray, t2: np.ndarray) -> tuple[float, np.ndarray | None]:
+def best_choice(
+    t1: np.ndarray | Sequence[Sequence[float]], t2: np.ndarray | Sequence[Sequence[float]]
+) -> tuple[float, np.ndarray | None]:
     """Per joint one of K options so that ``max t1 + max t2`` over the joints is smallest.
 
     Option 0 is the joint's current state; a joint leaves it only where it has to (where its
@@ -157,31 +159,34 @@ def best_choice(t1: np.ndarray, t2: np.ndarray) -> tuple[float, np.ndarray | Non
 
     Args:
         t1: Per option and joint, the joint's time in the first segment, shape (K, dof) [s]
-            (inf: the option is not allowed).
+            (inf: the option is not allowed); an array or K rows of floats.
         t2: Likewise in the second segment.
 
     Returns:
         The best ``max t1 + max t2`` [s] and per joint the option to take, shape (dof,), or
         the current value and None where no choice is better.
     """
-    dof = t1.shape[1]
-    best = float(t1[0].max() + t2[0].max())
-    order = np.argsort(t1, axis=None, kind="stable")
-    times1, times2 = t1.ravel()[order].tolist(), t2.ravel()[order].tolist()
-    joints = (order % dof).tolist()
+    rows1 = t1.tolist() if isinstance(t1, np.ndarray) else t1
+    rows2 = t2.tolist() if isinstance(t2, np.ndarray) else t2
+    dof = len(rows1[0])
+    best = max(rows1[0]) + max(rows2[0])
+    flat1 = [x for row in rows1 for x in row]
+    flat2 = [x for row in rows2 for x in row]
+    order = sorted(range(len(flat1)), key=flat1.__getitem__)  # stable, as np.argsort(kind="stable")
     low = [math.inf] * dof
     missing = dof
     found = None
-    last = len(times1) - 1
-    for e, d1 in enumerate(times1):
+    last = len(order) - 1
+    for e, index in enumerate(order):
+        d1 = flat1[index]
         if d1 >= best:
             break
-        j, b = joints[e], times2[e]
+        j, b = index % dof, flat2[index]
         if low[j] == math.inf:
             missing -= 1
         if b < low[j]:
             low[j] = b
-        if missing or (e < last and times1[e + 1] == d1):
+        if missing or (e < last and flat1[order[e + 1]] == d1):
             continue  # not every joint has an option yet, or more options share this d1
         d2 = max(low)
         if d1 + d2 < best:
@@ -189,10 +194,17 @@ def best_choice(t1: np.ndarray, t2: np.ndarray) -> tuple[float, np.ndarray | Non
     if found is None:
         return best, None
     d1, d2 = found
-    allowed = t1 <= d1
-    pick = np.argmin(np.where(allowed, t2, math.inf), axis=0)
-    keep = allowed[0] & (t2[0] <= d2)
-    return best, np.where(keep, 0, pick)
+    choice = []
+    for j in range(dof):
+        if rows1[0][j] <= d1 and rows2[0][j] <= d2:
+            choice.append(0)
+            continue
+        pick, smallest = 0, math.inf  # the first smallest t2 among the allowed options
+        for k, (row1, row2) in enumerate(zip(rows1, rows2)):
+            if row1[j] <= d1 and row2[j] < smallest:
+                pick, smallest = k, row2[j]
+        choice.append(pick)
+    return best, np.array(choice)
 
 
 def _admissible(v: np.ndarray, a: np.ndarray, limits: JointLimits) -> bool:

@@ -413,7 +413,7 @@ class OptimizedStrategy(ViaStrategy):
             t2s.append(traj2.independent_min_durations)
             options.append(state)
         if len(options) > 1:
-            _, choice = best_choice(np.array(t1s), np.array(t2s))
+            _, choice = best_choice(t1s, t2s)
             if choice is not None:
                 picks = choice.tolist()
                 cv = np.array([options[g][1][j] for j, g in enumerate(picks)])
