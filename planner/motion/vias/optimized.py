@@ -6,16 +6,16 @@ consistent with all the others (a joint with time to spare may pass its waypoint
 and turn just beyond it, as a spline does); the durations are scaled by a common factor, found
 by golden-section search, to minimise the chained Ruckig durations. Then each via is refined on
 its own: scaling time by 1/x multiplies velocities by x and accelerations by x^2, so candidates
-``(x v, x^2 a)`` of the slope blend (each joint saturating at its limits) are tried on a grid
-and refined by golden-section search, minimising the duration of the two segments next to the
-waypoint. A segment lasts as long as its slowest joint needs, and each joint's time depends on
-its own states only: so every joint then takes its best state among those tried, or a
-time-optimal turn where it reverses at the waypoint (at rest, still braking at full
-deceleration), each pick known from one solve per state and confirmed by one more. Each search
-keeps the current state unless a candidate is faster; resting at the via (scale 0) is on the
-grid. Candidates that carry a joint out of its range (by Ruckig's extrema) have that joint's
-state halved, and the state kept at a via turns no joint beyond its range inside a phase of
-zero jerk (which Ruckig's extrema miss and the planner's range repair would halve at any cost).
+``(x v, x^2 a)`` of the slope blend (each joint saturating at its limits) are tried on a grid,
+minimising the duration of the two segments next to the waypoint. A segment lasts as long as
+its slowest joint needs, and each joint's time depends on its own states only: so every joint
+then takes its best state among those tried, or a time-optimal turn where it reverses at the
+waypoint (at rest, still braking at full deceleration), each pick known from one solve per
+state and confirmed by one more. Each search keeps the current state unless a candidate is
+faster; resting at the via (scale 0) is on the grid. Candidates that carry a joint out of its
+range (by Ruckig's extrema) have that joint's state halved, and the state kept at a via turns
+no joint beyond its range inside a phase of zero jerk (which Ruckig's extrema miss and the
+planner's range repair would halve at any cost).
 """
 
 from __future__ import annotations
@@ -37,15 +37,12 @@ _MAX_SCALE = 1e100
 __all__ = ["OptimizedStrategy", "golden_minimum", "golden_points", "spline_via_states"]
 
 # Scale factors of the slope blend for each via state (1 = the blend itself): the grid is walked
-# from _GRID_START (the most frequent best) up while the duration falls, else down; then the
-# midpoint towards the better neighbour of the best point is tried unless that point is more than
-# _REFINE_MARGIN slower than the current state. Every joint then picks its best among the states
-# tried (combine_joints), which makes the grid's points count per joint: on bench_trajectory's
-# 800 paths one midpoint instead of a golden-section step of two points saves 8 of 76 Ruckig
-# solves per 6-dof plan for +0.01 % duration on average (none: 14 solves, +0.05 %).
+# from _GRID_START (the most frequent best) up while the duration falls, else down. Every joint
+# then picks its best among the states tried (combine_joints), which makes the grid's points count
+# per joint: on bench_trajectory's 800 paths, no golden-section step between them (two points)
+# saves 14 of 76 Ruckig solves per 6-dof plan for +0.05 % duration on average.
 _GRID = (0.0, 0.5, 1.0, 1.4, 2.0, 3.0)
 _GRID_START = 1.4
-_REFINE_MARGIN = 0.03
 # Spline stage: range of the common log time-scale of the segment durations searched, and
 # golden-section evaluations (a simplex over every duration gained nothing on top).
 _SPLINE_SCALE = (-0.5, 0.1)
@@ -195,12 +192,11 @@ class OptimizedStrategy(ViaStrategy):
         grid: Sequence[float] = _GRID,
         start: float = 0.0,
     ) -> list[tuple[float, np.ndarray, np.ndarray]]:
-        """Minimise the pair cost over a scalar parameter in [0, top] (grid, then one midpoint).
+        """Minimise the pair cost over a scalar parameter in [0, top] on a grid.
 
         The grid is walked from `start` upwards while the duration falls, else downwards; the
-        midpoint between the best point and its better neighbour is tried too unless the best
-        is more than :data:`_REFINE_MARGIN` slower than the current state, which is kept unless
-        beaten.
+        best point is kept if it is faster than the current state. (No refinement between the
+        grid points: the joint choice that follows picks among them per joint.)
         `make` maps parameters, shape (G,), to admissible via states, shapes (G, dof); the
         chain's current via state is admissible too (every strategy step keeps it so).
 
@@ -209,56 +205,34 @@ class OptimizedStrategy(ViaStrategy):
             accelerations) after the halving of :meth:`ViaChain.pair_cost`.
         """
         pair = chain.pair_coster(i)
-        cache: dict[float, tuple[float, np.ndarray, np.ndarray]] = {}
         current = pair(chain.v[i], chain.acc[i])
         grid = sorted({min(g, top) for g in grid} | {top})
         if not math.isfinite(current[0]) and 0.0 not in grid:
             grid.insert(0, 0.0)  # resting at the via: the fallback where the current state has no profile
         n = len(grid)
-        # The grid and the midpoints between its points, made in one batch (the refinement
-        # runs after most grid walks).
-        points = [(lo + hi) / 2.0 for lo, hi in zip(grid, grid[1:])]
-        cvs, cas = make(np.array(grid + points))
-        rows = {x: r for r, x in enumerate(points, n)}
-        values = [math.inf] * n
-
-        def cost(x: float) -> float:
-            if x not in cache:
-                r = rows[x]
-                cache[x] = pair(cvs[r], cas[r])
-            return cache[x][0]
+        cvs, cas = make(np.array(grid))  # in one batch
+        tried: list[tuple[float, np.ndarray, np.ndarray] | None] = [None] * n
 
         def at(g: int) -> float:
-            cache[grid[g]] = pair(cvs[g], cas[g])
-            values[g] = cache[grid[g]][0]
-            return values[g]
+            tried[g] = pair(cvs[g], cas[g])
+            return tried[g][0]
 
         # Walk the grid from `start` upwards while the duration falls, else downwards: the
         # duration is mostly unimodal in the parameter.
         g0 = next((g for g, x in enumerate(grid) if x >= start), n - 1)
         g = g0
-        at(g)
-        while g + 1 < n and at(g + 1) <= values[g]:
-            g += 1
-        if g == g0 or not math.isfinite(values[g]):
+        value = at(g)
+        while g + 1 < n and (step := at(g + 1)) <= value:
+            g, value = g + 1, step
+        if g == g0 or not math.isfinite(value):
             g = g0
-            while g > 0 and at(g - 1) <= values[g]:
-                g -= 1
-        b = min(range(n), key=values.__getitem__)  # the first smallest, as np.argmin
-        best = current
-        if values[b] < current[0] * (1.0 + _REFINE_MARGIN):  # a grid point near or beyond the current state
-            # The midpoint towards the better neighbour (the first one tried, if neither was).
-            below = values[b - 1] if b > 0 else math.inf
-            above = values[b + 1] if b + 1 < n else math.inf
-            if b + 1 < n and (above < below or b == 0):
-                cost(points[b])
-            elif b > 0:
-                cost(points[b - 1])
-            found = min(cache.values(), key=lambda c: c[0])
-            if found[0] < current[0]:
-                best = found
+            value = tried[g][0]
+            while g > 0 and (step := at(g - 1)) <= value:
+                g, value = g - 1, step
+        states = [current, *(t for t in tried if t is not None)]
+        best = min(states, key=lambda c: c[0])  # the first smallest: the current state unless beaten
         _, chain.v[i], chain.acc[i] = best
-        return [current, *cache.values()]
+        return states
 
     def search_via(
         self, chain: ViaChain, i: int, u: np.ndarray, w: np.ndarray
