@@ -15,7 +15,7 @@ repair makes. The search starts from the ``"optimized"`` states brought within t
 the range repair's own rules (:meth:`RefinedStrategy.fit_range`, which then gives the
 ``"optimized"`` plan bit for bit), so the plan is never slower than that one.
 
-It costs about three times the plan time of ``"optimized"`` (``benchmarks/bench_refined.py``),
+It costs about four times the plan time of ``"optimized"`` (``benchmarks/bench_refined.py``),
 which is why it is an option and not the default.
 """
 
