@@ -226,6 +226,35 @@ def _turn_reach(slack: float, jerk: float, duration: float) -> float:
     return 2.0 * slack + 2.0 * (slack * slack * jerk) ** (1.0 / 3.0) * duration
 
 
+def _turn_beyond(prof, end: float, upper: bool) -> bool:
+    """Whether a profile turns round inside a phase of zero jerk beyond a range end.
+
+    Ruckig's extrema miss such a turn; it is computed as :func:`merge_segment` does (see
+    :func:`_plain_missed_turns`), so that the searches reject what the range repair would.
+
+    Args:
+        prof: One joint's Ruckig profile.
+        end: The range end [rad or m].
+        upper: Whether it is the upper end.
+    """
+    v = prof.v
+    if not min(v) < 0.0 < max(v):  # no sign change, no turn (the common case)
+        return False
+    jerk = None
+    for i in range(len(v) - 1):
+        v0 = v[i]
+        if v0 * v[i + 1] < 0.0:
+            if jerk is None:
+                jerk = prof.j
+            if jerk[i] == 0.0:
+                a0 = prof.a[i]
+                tz = -v0 / a0
+                turn = prof.p[i] + tz * (v0 + tz * a0 / 2.0)
+                if turn > end if upper else turn < end:
+                    return True
+    return False
+
+
 def _missed_turn(traj: RuckigTrajectory) -> bool:
     """Whether a profile turns round inside a phase of zero jerk (Ruckig's extrema miss it)."""
     for prof in traj.profiles[0]:
@@ -560,6 +589,41 @@ class SegmentSolver:
                         return duration, self._outside_mask(extrema), traj
             return duration, None, traj
         return traj.duration, None, traj
+
+    def turns_beyond(self, k: int, traj: RuckigTrajectory) -> list[int]:
+        """The joints of segment k that turn round beyond their range inside a phase of zero jerk.
+
+        Ruckig's extrema (which :meth:`solve` checks) miss such a turn; the planner's range
+        repair finds it and halves the joint's via states, which can cost much time: the
+        searches check their final choice with this (checking every candidate costs about
+        a quarter of the plan time). Only the range ends a joint can reach within the
+        duration are looked at (see :meth:`_watch_ends`).
+
+        Args:
+            k: The segment.
+            traj: Its trajectory, as :meth:`solve` gives it (not None).
+
+        Returns:
+            The joints, in no order (empty for none).
+        """
+        if not self.bounded:
+            return []
+        duration = traj.duration
+        watch = self._watch[k]
+        if watch is None:
+            watch = [
+                (0.0, j, upper, end)
+                for j, ends in enumerate(zip(self._lows, self._highs))
+                for upper, end in ((False, ends[0]), (True, ends[1]))
+            ]
+        profiles = traj.profiles[0]
+        out = []
+        for reach, j, upper, end in watch:
+            if reach >= duration:
+                break
+            if _turn_beyond(profiles[j], end, upper):
+                out.append(j)
+        return out
 
     def _outside_mask(self, extrema: list) -> np.ndarray:
         """The joints whose Ruckig extrema lie outside their range (bool mask)."""

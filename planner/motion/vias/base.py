@@ -11,7 +11,7 @@ from __future__ import annotations
 import functools
 import math
 from abc import ABC, abstractmethod
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from typing import ClassVar
 
 import numpy as np
@@ -19,7 +19,7 @@ import numpy as np
 from planner.motion.limits import JointLimits, admissible_acceleration
 from planner.motion.segments import SegmentSolver
 
-__all__ = ["SEARCH_HALVINGS", "ViaChain", "ViaStrategy"]
+__all__ = ["SEARCH_HALVINGS", "ViaChain", "ViaStrategy", "best_choice"]
 
 #: How often a candidate via state that carries a joint out of its range is halved (the last
 #: two times to rest) before it counts as infeasible.
@@ -145,6 +145,66 @@ class ViaChain:
             return halved(cv, ca)
 
         return pair
+
+
+def best_choice(
+    t1: np.ndarray | Sequence[Sequence[float]], t2: np.ndarray | Sequence[Sequence[float]]
+) -> tuple[float, np.ndarray | None]:
+    """Per joint one of K options so that ``max t1 + max t2`` over the joints is smallest.
+
+    Option 0 is the joint's current state; a joint leaves it only where it has to (where its
+    current times exceed the best choice's segment durations). The first segment's duration
+    d1 is swept upwards over the options' t1; per joint the smallest t2 among its options
+    with ``t1 <= d1`` is kept as the sweep goes (plain floats: K and dof are small).
+
+    Args:
+        t1: Per option and joint, the joint's time in the first segment, shape (K, dof) [s]
+            (inf: the option is not allowed); an array or K rows of floats.
+        t2: Likewise in the second segment.
+
+    Returns:
+        The best ``max t1 + max t2`` [s] and per joint the option to take, shape (dof,), or
+        the current value and None where no choice is better.
+    """
+    rows1 = t1.tolist() if isinstance(t1, np.ndarray) else t1
+    rows2 = t2.tolist() if isinstance(t2, np.ndarray) else t2
+    dof = len(rows1[0])
+    best = max(rows1[0]) + max(rows2[0])
+    flat1 = [x for row in rows1 for x in row]
+    flat2 = [x for row in rows2 for x in row]
+    order = sorted(range(len(flat1)), key=flat1.__getitem__)  # stable, as np.argsort(kind="stable")
+    low = [math.inf] * dof
+    missing = dof
+    found = None
+    last = len(order) - 1
+    for e, index in enumerate(order):
+        d1 = flat1[index]
+        if d1 >= best:
+            break
+        j, b = index % dof, flat2[index]
+        if low[j] == math.inf:
+            missing -= 1
+        if b < low[j]:
+            low[j] = b
+        if missing or (e < last and flat1[order[e + 1]] == d1):
+            continue  # not every joint has an option yet, or more options share this d1
+        d2 = max(low)
+        if d1 + d2 < best:
+            best, found = d1 + d2, (d1, d2)
+    if found is None:
+        return best, None
+    d1, d2 = found
+    choice = []
+    for j in range(dof):
+        if rows1[0][j] <= d1 and rows2[0][j] <= d2:
+            choice.append(0)
+            continue
+        pick, smallest = 0, math.inf  # the first smallest t2 among the allowed options
+        for k, (row1, row2) in enumerate(zip(rows1, rows2)):
+            if row1[j] <= d1 and row2[j] < smallest:
+                pick, smallest = k, row2[j]
+        choice.append(pick)
+    return best, np.array(choice)
 
 
 def _admissible(v: np.ndarray, a: np.ndarray, limits: JointLimits) -> bool:

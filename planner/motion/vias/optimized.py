@@ -6,12 +6,16 @@ consistent with all the others (a joint with time to spare may pass its waypoint
 and turn just beyond it, as a spline does); the durations are scaled by a common factor, found
 by golden-section search, to minimise the chained Ruckig durations. Then each via is refined on
 its own: scaling time by 1/x multiplies velocities by x and accelerations by x^2, so candidates
-``(x v, x^2 a)`` of the slope blend (each joint saturating at its limits) are tried on a grid
-and refined by golden-section search, minimising the duration of the two segments next to the
-waypoint. A second search moves joints that turn round at the waypoint towards a time-optimal
-turn: at rest, still braking at full deceleration. Each search keeps the current state unless
-a candidate is faster; resting at the via (scale 0) is on the grid. Candidates that carry a
-joint out of its range (by Ruckig's extrema) have that joint's state halved.
+``(x v, x^2 a)`` of the slope blend (each joint saturating at its limits) are tried on a grid,
+minimising the duration of the two segments next to the waypoint. A segment lasts as long as
+its slowest joint needs, and each joint's time depends on its own states only: so every joint
+then takes its best state among those tried, or a time-optimal turn where it reverses at the
+waypoint (at rest, still braking at full deceleration), each pick known from one solve per
+state and confirmed by one more. Each search keeps the current state unless a candidate is
+faster; resting at the via (scale 0) is on the grid. Candidates that carry a joint out of its
+range (by Ruckig's extrema) have that joint's state halved, and the state kept at a via turns
+no joint beyond its range inside a phase of zero jerk (which Ruckig's extrema miss and the
+planner's range repair would halve at any cost).
 """
 
 from __future__ import annotations
@@ -23,7 +27,7 @@ from collections.abc import Callable, Sequence
 import numpy as np
 
 from planner.motion.limits import admissible_acceleration
-from planner.motion.vias.base import ViaChain, ViaStrategy
+from planner.motion.vias.base import SEARCH_HALVINGS, ViaChain, ViaStrategy, best_choice
 from planner.motion.vias.heuristic import via_directions
 
 #: Largest time scale searched: keeps x * x finite where a via component is tiny (x * 0 is then
@@ -33,24 +37,21 @@ _MAX_SCALE = 1e100
 __all__ = ["OptimizedStrategy", "golden_minimum", "golden_points", "spline_via_states"]
 
 # Scale factors of the slope blend for each via state (1 = the blend itself): the grid is walked
-# from _GRID_START (the most frequent best) up while the duration falls, else down; then one
-# golden-section step refines around the best point unless it is more than _REFINE_MARGIN slower
-# than the current state. On 480 random 5-waypoint paths of eight arms this takes 35 % fewer Ruckig
-# solves per plan than evaluating the whole grid with two golden steps always (with the turn search
-# likewise), for the same durations (mean +0.004 %, median per path 0); refining only where the
-# grid beats the current state saved 20 % more solves but cost +0.13 % on average.
+# from _GRID_START (the most frequent best) up while the duration falls, else down. Every joint
+# then picks its best among the states tried (combine_joints), which makes the grid's points count
+# per joint: on bench_trajectory's 800 paths, no golden-section step between them (two points)
+# saves 14 of 76 Ruckig solves per 6-dof plan for +0.05 % duration on average.
 _GRID = (0.0, 0.5, 1.0, 1.4, 2.0, 3.0)
 _GRID_START = 1.4
-_REFINE_MARGIN = 0.03
-_GOLDEN_STEPS = 1
 # Spline stage: range of the common log time-scale of the segment durations searched, and
 # golden-section evaluations (a simplex over every duration gained nothing on top).
 _SPLINE_SCALE = (-0.5, 0.1)
-_SPLINE_SCALE_EVALS = 6
+_SPLINE_SCALE_EVALS = 4
 # A segment whose Ruckig extrema leave the range counts this much longer in the search.
 _SPLINE_PENALTY = 1.5
-_TURN_GRID = (0.0, 0.5, 1.0)
-_TURN_STEPS = 1
+# How many of the fastest states tried at a via that turn beyond the range are halved in turn
+# (as the search halves states that leave it) before slower ones that fit are taken.
+_TURN_HALVED = 2
 # Rounds of halving the via states that leave the range before the search.
 _SETTLE_HALVINGS = 24
 
@@ -171,14 +172,14 @@ class OptimizedStrategy(ViaStrategy):
         for a, b in zip(fixed[:-1], fixed[1:]):
             if b - a >= 2:
                 self.search_spline(chain, a, b, durations)
-        # Then one sweep: the slope blend from the durations, time-scaled per via, and the
-        # turn search (more sweeps or per-joint refinement gained about 1 % in tests).
+        # Then one sweep: the slope blend from the durations, time-scaled per via, then every
+        # joint's best state among those tried and a time-optimal turn (more sweeps or a
+        # per-joint pattern search gained about 1 % in tests, at twice the time or more).
         durations = chain.durations()
         for i in free:
             u, w = via_directions(chain.q, i, durations, chain.limits, chain.stop)
-            if u.any() or w.any():
-                self.search_via(chain, i, u, w)
-            self.search_turn(chain, i)
+            tried = self.search_via(chain, i, u, w) if u.any() or w.any() else []
+            self.combine_joints(chain, i, tried)
             durations[i - 1] = chain.seg.solve(i - 1, chain.v[i - 1], chain.acc[i - 1], chain.v[i], chain.acc[i])[0]
             durations[i] = chain.seg.solve(i, chain.v[i], chain.acc[i], chain.v[i + 1], chain.acc[i + 1])[0]
 
@@ -189,72 +190,60 @@ class OptimizedStrategy(ViaStrategy):
         make: Callable[[np.ndarray], tuple[np.ndarray, np.ndarray]],
         top: float,
         grid: Sequence[float] = _GRID,
-        steps: int = _GOLDEN_STEPS,
         start: float = 0.0,
-    ) -> None:
-        """Minimise the pair cost over a scalar parameter in [0, top] (grid, then golden section).
+    ) -> list[tuple[float, np.ndarray, np.ndarray]]:
+        """Minimise the pair cost over a scalar parameter in [0, top] on a grid.
 
-        The grid is walked from `start` upwards while the duration falls, else downwards;
-        golden-section steps then refine around the best point unless it is more than
-        :data:`_REFINE_MARGIN` slower than the current state, which is kept unless beaten.
+        The grid is walked from `start` upwards while the duration falls, else downwards; the
+        best point is kept if it is faster than the current state. (No refinement between the
+        grid points: the joint choice that follows picks among them per joint.)
         `make` maps parameters, shape (G,), to admissible via states, shapes (G, dof); the
         chain's current via state is admissible too (every strategy step keeps it so).
+
+        Returns:
+            Every state tried, the current one first, each as (pair duration, velocities,
+            accelerations) after the halving of :meth:`ViaChain.pair_cost`.
         """
         pair = chain.pair_coster(i)
-        cache: dict[float, tuple[float, np.ndarray, np.ndarray]] = {}
         current = pair(chain.v[i], chain.acc[i])
         grid = sorted({min(g, top) for g in grid} | {top})
         if not math.isfinite(current[0]) and 0.0 not in grid:
             grid.insert(0, 0.0)  # resting at the via: the fallback where the current state has no profile
         n = len(grid)
-        # The grid and every point the golden section may ask for around any grid point, made
-        # in one batch (the refinement runs after most grid walks).
-        brackets = dict.fromkeys((grid[max(b - 1, 0)], grid[min(b + 1, n - 1)]) for b in range(n))
-        points = [x for lo, hi in brackets for x in _sorted_golden_points(lo, hi, steps + 2)]
-        cvs, cas = make(np.array(grid + points))
-        rows = {x: r for r, x in enumerate(points, n)}
-        values = [math.inf] * n
-
-        def cost(x: float) -> float:
-            if x not in cache:
-                r = rows.get(x)
-                if r is None:
-                    cv, ca = make(np.array([x]))
-                    cache[x] = pair(cv[0], ca[0])
-                else:
-                    cache[x] = pair(cvs[r], cas[r])
-            return cache[x][0]
+        cvs, cas = make(np.array(grid))  # in one batch
+        tried: list[tuple[float, np.ndarray, np.ndarray] | None] = [None] * n
 
         def at(g: int) -> float:
-            cache[grid[g]] = pair(cvs[g], cas[g])
-            values[g] = cache[grid[g]][0]
-            return values[g]
+            tried[g] = pair(cvs[g], cas[g])
+            return tried[g][0]
 
         # Walk the grid from `start` upwards while the duration falls, else downwards: the
         # duration is mostly unimodal in the parameter.
         g0 = next((g for g, x in enumerate(grid) if x >= start), n - 1)
         g = g0
-        at(g)
-        while g + 1 < n and at(g + 1) <= values[g]:
-            g += 1
-        if g == g0 or not math.isfinite(values[g]):
+        value = at(g)
+        while g + 1 < n and (step := at(g + 1)) <= value:
+            g, value = g + 1, step
+        if g == g0 or not math.isfinite(value):
             g = g0
-            while g > 0 and at(g - 1) <= values[g]:
-                g -= 1
-        b = min(range(n), key=values.__getitem__)  # the first smallest, as np.argmin
-        best = current
-        if values[b] < current[0] * (1.0 + _REFINE_MARGIN):  # a grid point near or beyond the current state
-            golden_minimum(cost, grid[max(b - 1, 0)], grid[min(b + 1, n - 1)], steps + 2)  # fills the cache
-            found = min(cache.values(), key=lambda c: c[0])
-            if found[0] < current[0]:
-                best = found
+            value = tried[g][0]
+            while g > 0 and (step := at(g - 1)) <= value:
+                g, value = g - 1, step
+        states = [current, *(t for t in tried if t is not None)]
+        best = min(states, key=lambda c: c[0])  # the first smallest: the current state unless beaten
         _, chain.v[i], chain.acc[i] = best
+        return states
 
-    def search_via(self, chain: ViaChain, i: int, u: np.ndarray, w: np.ndarray) -> None:
+    def search_via(
+        self, chain: ViaChain, i: int, u: np.ndarray, w: np.ndarray
+    ) -> list[tuple[float, np.ndarray, np.ndarray]]:
         """Time-scale the spline-like via state (u, w) at via i to minimise its segments' time.
 
         Scaling a trajectory's time by 1/x multiplies velocities by x and accelerations by
         x^2, so the candidates are ``(x u, x^2 w)``, each joint saturating at its limits.
+
+        Returns:
+            The states tried (see :meth:`_line_search`).
         """
         lim = chain.limits
         mag, wmag = np.abs(u), np.abs(w)
@@ -274,7 +263,7 @@ class OptimizedStrategy(ViaStrategy):
             cv = su * np.minimum(lim.velocity, x * mag)
             return cv, admissible_acceleration(cv, sw * np.minimum(lim.acceleration, x * x * wmag), lim)
 
-        self._line_search(chain, i, candidates, min(max(tops), _MAX_SCALE), start=_GRID_START)
+        return self._line_search(chain, i, candidates, min(max(tops), _MAX_SCALE), start=_GRID_START)
 
     def _settle(self, chain: ViaChain, free: list[int]) -> None:
         """Halve the via states of joints that (by Ruckig's extrema) leave their range.
@@ -357,30 +346,82 @@ class OptimizedStrategy(ViaStrategy):
         if best[0] < current:
             chain.v[a + 1 : b], chain.acc[a + 1 : b] = best[1], best[2]
 
-    def search_turn(self, chain: ViaChain, i: int) -> None:
-        """Let joints that turn round at via i pass it at rest but still braking.
+    def combine_joints(self, chain: ViaChain, i: int, tried: list[tuple[float, np.ndarray, np.ndarray]]) -> None:
+        """Give every joint at via i its best state among those tried, and a time-optimal turn.
 
-        A joint at its time limit turns fastest at rest with full deceleration (a bang-bang
-        turn); the slope blend gives it a small speed and acceleration instead. Candidates
-        move the turning joints from their current state towards that one.
+        A segment lasts as long as its slowest joint needs (Ruckig's independent minimum
+        durations, up to its blocked intervals), and each joint's time depends only on its own
+        states. So the states already solved, plus one that turns the joints that reverse at
+        the via time-optimally (at rest, still braking at full deceleration), give each joint
+        several options whose best pick (:func:`best_choice`) is known without solving again;
+        that pick is solved once. The fastest of these states is kept whose joints do not turn
+        round beyond their range inside a phase of zero jerk (``SegmentSolver.turns_beyond``:
+        the range repair would halve such a state at whatever cost); the offending joints of
+        the fastest ones are halved as the search halves joints that leave the range.
+
+        Args:
+            chain: The chain.
+            i: The via.
+            tried: States tried at via i, (pair duration, velocities, accelerations) each.
         """
+        lim = chain.limits
+        pair = chain.pair_coster(i)
+        current = pair(chain.v[i], chain.acc[i])
+        states = [current, *tried]
         # On plain floats (a few joints): the same differences and products as on arrays.
         rows = chain.seg.rows
         dp = [x - w for w, x in zip(rows[i - 1], rows[i])]
         flags = [d * (y - x) < 0 for d, x, y in zip(dp, rows[i], rows[i + 1])]
-        if True not in flags:
-            return
         turning = np.array(flags)
-        if not chain.limited_by(i, turning):
-            return
-        lim = chain.limits
-        v_now, a_now = chain.v[i].copy(), chain.acc[i].copy()
-        # Full deceleration against the incoming motion (used where the joint turns, dp != 0).
-        a_turn = np.array([-a if d > 0 else a for d, a in zip(dp, lim.ruckig_limits[1])])
-
-        def make(y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-            y = y[:, None]
-            cv = np.where(turning, (1.0 - y) * v_now, v_now)
-            return cv, admissible_acceleration(cv, np.where(turning, (1.0 - y) * a_now + y * a_turn, a_now), lim)
-
-        self._line_search(chain, i, make, 1.0, grid=_TURN_GRID, steps=_TURN_STEPS)
+        if True in flags and chain.limited_by(i, turning):
+            a_turn = [-a if d > 0 else a for d, a in zip(dp, lim.ruckig_limits[1])]
+            cv = np.where(turning, 0.0, current[1])
+            states.append(pair(cv, admissible_acceleration(cv, np.where(turning, a_turn, current[2]), lim)))
+        both = chain.seg.around(i, chain.v[i - 1], chain.acc[i - 1], chain.v[i + 1], chain.acc[i + 1])
+        t1s, t2s, options = [], [], []
+        for state in states:
+            if not state[0] < math.inf:
+                continue
+            (_, _, traj1), (_, _, traj2) = both(state[1], state[2])  # within the range: no joint masked
+            t1s.append(traj1.independent_min_durations)
+            t2s.append(traj2.independent_min_durations)
+            options.append(state)
+        if len(options) > 1:
+            _, choice = best_choice(t1s, t2s)
+            if choice is not None:
+                picks = choice.tolist()
+                cv = np.array([options[g][1][j] for j, g in enumerate(picks)])
+                ca = np.array([options[g][2][j] for j, g in enumerate(picks)])
+                found = pair(cv, ca)
+                if found[0] < math.inf:
+                    options.append(found)
+        # The fastest state whose joints turn nowhere beyond their range: Ruckig's extrema
+        # miss a turn inside a phase of zero jerk, which the range repair would find and halve
+        # (at any cost). A faster state that turns beyond has those joints halved here instead,
+        # as the search halves joints that leave the range.
+        seg, lim = chain.seg, chain.limits
+        pool, halve = [], _TURN_HALVED
+        for state in sorted(options, key=lambda c: c[0]):
+            (_, _, traj1), (_, _, traj2) = both(state[1], state[2])
+            out = seg.turns_beyond(i - 1, traj1) + seg.turns_beyond(i, traj2)
+            if not out:
+                pool.append(state)
+                break  # every later state is slower
+            if not halve:
+                continue
+            halve -= 1
+            for _ in range(SEARCH_HALVINGS):
+                cv, ca = state[1].copy(), state[2].copy()
+                cv[out] *= 0.5
+                ca[out] *= 0.5
+                state = pair(cv, admissible_acceleration(cv, ca, lim))
+                if not state[0] < math.inf:
+                    break
+                (_, _, traj1), (_, _, traj2) = both(state[1], state[2])
+                out = seg.turns_beyond(i - 1, traj1) + seg.turns_beyond(i, traj2)
+                if not out:
+                    pool.append(state)
+                    break
+        best = min(pool, key=lambda c: c[0], default=None)
+        if best is not None:
+            _, chain.v[i], chain.acc[i] = best

@@ -15,7 +15,7 @@ repair makes. The search starts from the ``"optimized"`` states brought within t
 the range repair's own rules (:meth:`RefinedStrategy.fit_range`, which then gives the
 ``"optimized"`` plan bit for bit), so the plan is never slower than that one.
 
-It costs about three times the plan time of ``"optimized"`` (``benchmarks/bench_refined.py``),
+It costs about four times the plan time of ``"optimized"`` (``benchmarks/bench_refined.py``),
 which is why it is an option and not the default.
 """
 
@@ -28,7 +28,7 @@ import numpy as np
 from planner.exceptions import InvalidArgumentError
 from planner.motion.limits import admissible_acceleration
 from planner.motion.segments import merge_segment, segment_position_range
-from planner.motion.vias.base import ViaChain
+from planner.motion.vias.base import ViaChain, best_choice
 from planner.motion.vias.optimized import OptimizedStrategy
 
 __all__ = ["RefinedStrategy", "best_choice"]
@@ -37,54 +37,6 @@ __all__ = ["RefinedStrategy", "best_choice"]
 _FIT_HALVINGS = 6
 #: Directions tried per joint in the (velocity, acceleration) plane, in units of the step.
 _DIRECTIONS = np.array([[1.0, 0.0], [-1.0, 0.0], [0.0, 1.0], [0.0, -1.0]])
-
-
-def best_choice(t1: np.ndarray, t2: np.ndarray) -> tuple[float, np.ndarray | None]:
-    """Per joint one of K options so that ``max t1 + max t2`` over the joints is smallest.
-
-    Option 0 is the joint's current state; a joint leaves it only where it has to (where its
-    current times exceed the best choice's segment durations). The first segment's duration
-    d1 is swept upwards over the options' t1; per joint the smallest t2 among its options
-    with ``t1 <= d1`` is kept as the sweep goes (plain floats: K and dof are small).
-
-    Args:
-        t1: Per option and joint, the joint's time in the first segment, shape (K, dof) [s]
-            (inf: the option is not allowed).
-        t2: Likewise in the second segment.
-
-    Returns:
-        The best ``max t1 + max t2`` [s] and per joint the option to take, shape (dof,), or
-        the current value and None where no choice is better.
-    """
-    dof = t1.shape[1]
-    best = float(t1[0].max() + t2[0].max())
-    order = np.argsort(t1, axis=None, kind="stable")
-    times1, times2 = t1.ravel()[order].tolist(), t2.ravel()[order].tolist()
-    joints = (order % dof).tolist()
-    low = [math.inf] * dof
-    missing = dof
-    found = None
-    last = len(times1) - 1
-    for e, d1 in enumerate(times1):
-        if d1 >= best:
-            break
-        j, b = joints[e], times2[e]
-        if low[j] == math.inf:
-            missing -= 1
-        if b < low[j]:
-            low[j] = b
-        if missing or (e < last and times1[e + 1] == d1):
-            continue  # not every joint has an option yet, or more options share this d1
-        d2 = max(low)
-        if d1 + d2 < best:
-            best, found = d1 + d2, (d1, d2)
-    if found is None:
-        return best, None
-    d1, d2 = found
-    allowed = t1 <= d1
-    pick = np.argmin(np.where(allowed, t2, math.inf), axis=0)
-    keep = allowed[0] & (t2[0] <= d2)
-    return best, np.where(keep, 0, pick)
 
 
 class RefinedStrategy(OptimizedStrategy):
