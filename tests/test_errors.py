@@ -113,25 +113,30 @@ def test_messages_show_plain_numbers():
         assert "np." not in str(info.value) and "float64" not in str(info.value), str(info.value)
 
 
-# A robot whose tip only fixed joints lead to has no joints; Ruckig divided by zero (SIGFPE,
-# the process killed) when asked for such a trajectory. Run apart so a crash fails the test.
+# A robot whose tip only fixed joints lead to had no joints: Ruckig divided by zero (SIGFPE, the
+# process killed) when asked for its trajectory, and the path search raised ValueError. Such a
+# robot is refused, as are limits for no joints. Run apart so a crash fails the test.
 _NO_JOINTS = """
 import numpy as np, planner
 urdf = ('<robot name="r"><link name="base"/><link name="flange"/><link name="arm"/>'
         '<joint name="bolt" type="fixed"><parent link="base"/><child link="flange"/></joint>'
         '<joint name="j" type="revolute"><parent link="flange"/><child link="arm"/><axis xyz="0 0 1"/>'
         '<limit lower="-1" upper="1" effort="1" velocity="1"/></joint></robot>')
-robot = planner.Robot(urdf, tip="flange")
-for make in (lambda: planner.JointLimits.from_robot(robot),
-             lambda: planner.JointLimits(velocity=[], acceleration=[], jerk=[], lower=[], upper=[])):
-    try:
-        planner.plan_trajectory(np.zeros((2, 0)), make())
-    except planner.InvalidLimitsError as exc:
-        print("refused:", exc)
+try:
+    planner.Robot(urdf, tip="flange")
+except planner.InvalidArgumentError as exc:
+    print("refused:", exc)
+try:
+    empty = planner.JointLimits(velocity=[], acceleration=[], jerk=[], lower=[], upper=[])
+    planner.plan_trajectory(np.zeros((2, 0)), empty)
+except planner.InvalidLimitsError as exc:
+    print("refused:", exc)
 """
 
 
-def test_limits_without_joints_are_refused_not_a_crash():
+def test_a_tip_no_joint_moves_and_limits_without_joints_are_refused_not_a_crash():
     proc = subprocess.run([sys.executable, "-c", _NO_JOINTS], capture_output=True, text=True, timeout=120)
     assert proc.returncode == 0, proc.stderr[-2000:]
-    assert proc.stdout.count("refused: ") == 2 and "at least one joint" in proc.stdout
+    robot, limits = proc.stdout.splitlines()
+    assert "no joint moves the tip frame 'flange'" in robot and "arm" in robot
+    assert "at least one joint" in limits
