@@ -9,6 +9,7 @@ from hypothesis import given
 from hypothesis import strategies as st
 
 import planner.motion.singularity as singularity
+from planner import InvalidArgumentError
 from planner.core.certificates import LARGEST, cholesky_certificates, rayleigh_bounds
 
 
@@ -72,3 +73,16 @@ def test_larger_matrices_and_empty_batches():
 def monkeypatch_module():
     with pytest.MonkeyPatch.context() as patch:
         yield patch
+
+
+def test_batches_of_the_wrong_shape_are_refused_not_read_past_their_end():
+    # The C loops read N k^2 matrix entries and N shifts: a short shift or a non-square matrix
+    # was read past its end.
+    eyes = np.eye(3)[None].repeat(4, axis=0)
+    with pytest.raises(InvalidArgumentError, match=r"shift must have shape \(4,\)"):
+        cholesky_certificates(eyes, np.zeros(1))
+    for gram in (np.zeros((4, 3, 2)), np.zeros((3, 3))):
+        with pytest.raises(InvalidArgumentError, match=r"gram must have shape \(N, k, k\)"):
+            cholesky_certificates(gram, np.zeros(len(gram)))
+        with pytest.raises(InvalidArgumentError, match=r"gram must have shape \(N, k, k\)"):
+            rayleigh_bounds(gram)

@@ -3,6 +3,8 @@
 from __future__ import annotations
 
 import math
+import subprocess
+import sys
 
 import numpy as np
 import pytest
@@ -109,3 +111,56 @@ def test_messages_show_plain_numbers():
         with pytest.raises(planner.PlannerError) as info:
             case()
         assert "np." not in str(info.value) and "float64" not in str(info.value), str(info.value)
+
+
+# A robot whose tip only fixed joints lead to had no joints: Ruckig divided by zero (SIGFPE, the
+# process killed) when asked for its trajectory, and the path search raised ValueError. Such a
+# robot is refused, as are limits for no joints. Run apart so a crash fails the test.
+_NO_JOINTS = """
+import numpy as np, planner
+urdf = ('<robot name="r"><link name="base"/><link name="flange"/><link name="arm"/>'
+        '<joint name="bolt" type="fixed"><parent link="base"/><child link="flange"/></joint>'
+        '<joint name="j" type="revolute"><parent link="flange"/><child link="arm"/><axis xyz="0 0 1"/>'
+        '<limit lower="-1" upper="1" effort="1" velocity="1"/></joint></robot>')
+try:
+    planner.Robot(urdf, tip="flange")
+except planner.InvalidArgumentError as exc:
+    print("refused:", exc)
+try:
+    empty = planner.JointLimits(velocity=[], acceleration=[], jerk=[], lower=[], upper=[])
+    planner.plan_trajectory(np.zeros((2, 0)), empty)
+except planner.InvalidLimitsError as exc:
+    print("refused:", exc)
+"""
+
+
+def test_a_tip_no_joint_moves_and_limits_without_joints_are_refused_not_a_crash():
+    proc = subprocess.run([sys.executable, "-c", _NO_JOINTS], capture_output=True, text=True, timeout=120)
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    robot, limits = proc.stdout.splitlines()
+    assert "no joint moves the tip frame 'flange'" in robot and "arm" in robot
+    assert "at least one joint" in limits
+
+
+# With a scene, plan_motion swept the straight move between joint waypoints (points every
+# 0.05 rad) before the timing checked their ranges: a waypoint at 1e9 asked for 2e10 points
+# (memory without bound). Run apart under a memory cap so the old behaviour fails, not the machine.
+_FAR_WAYPOINT = """
+import resource
+resource.setrlimit(resource.RLIMIT_AS, (3 << 30, 3 << 30))
+import planner
+from planner.app.motion_plan import plan_motion
+from planner.app.plan_file import parse_motion_request
+robot = planner.load_robot("three_joint")
+request = {"waypoints": [[0.0, 1.0, 0.5, 0.5], [1e9] * 4], "scene": {"obstacles": []}}
+try:
+    plan_motion(robot, parse_motion_request(request))
+except planner.JointLimitError as exc:
+    print("refused:", exc)
+"""
+
+
+def test_a_waypoint_far_outside_its_range_is_refused_before_the_scene_sweeps_it():
+    proc = subprocess.run([sys.executable, "-c", _FAR_WAYPOINT], capture_output=True, text=True, timeout=120)
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    assert "refused: waypoint 1: joint 'yaw' value 1e+09 is outside its range" in proc.stdout

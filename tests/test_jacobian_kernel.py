@@ -11,6 +11,7 @@ from hypothesis import strategies as st
 from test_casadi_kinematics import mixed_robot
 
 import planner.motion.singularity as singularity
+from planner import InvalidArgumentError
 from planner.core.native import load_library
 from planner.geometry.jacobian_kernel import jacobian_kernel
 from planner.motion.singularity import bounded_conditioning, inverse_condition_threshold
@@ -120,3 +121,13 @@ def test_a_copied_robot_keeps_a_working_kernel():
     del robot
     gc.collect()
     np.testing.assert_array_equal(jacobian_kernel(twin)(q), want)
+
+
+def test_a_batch_of_the_wrong_shape_is_refused_not_read_past_its_end():
+    # The C loop reads n * dof values: a single configuration (dof,) was read as dof rows, and
+    # rows of too few joints past the buffer's end (garbage values, or a crash).
+    robot = get_robot("dh3")
+    kernel = jacobian_kernel(robot)
+    for q in (np.zeros(robot.dof), np.zeros((2, robot.dof - 1)), np.zeros((2, robot.dof, 1))):
+        with pytest.raises(InvalidArgumentError, match=rf"q must have shape \(n, {robot.dof}\)"):
+            kernel(q)

@@ -880,3 +880,16 @@ def test_a_pickled_or_copied_trajectory_is_the_same_motion(strategy):
             a, b = twin.sample(t * traj.duration), traj.sample(t * traj.duration)
             for name in ("q", "qd", "qdd", "qddd"):
                 np.testing.assert_array_equal(getattr(a, name), getattr(b, name))
+
+
+@pytest.mark.parametrize("strategy", ["optimized", "stop"])
+def test_a_move_longer_than_ruckig_can_time_is_a_planning_error(strategy):
+    # Ruckig refuses a profile longer than 7e3 s with result -101, which its Python binding
+    # has no Result member for: plan_trajectory leaked "ValueError: -101 is not a valid Result".
+    from planner import PlanningError, load_robot
+
+    robot = load_robot("al5c")
+    middle, half = (robot.lower + robot.upper) / 2.0, 0.9 * (robot.upper - robot.lower) / 2.0
+    waypoints = np.array([middle - half, middle + half, middle - half])
+    with pytest.raises(PlanningError):
+        plan_trajectory(waypoints, JointLimits.from_robot(robot, velocity=1e-4), strategy=strategy)

@@ -532,6 +532,11 @@ def plan_motion(
         halves.update({(k, e), (k, e + 1)})
 
     if checker is not None:
+        if request.joints is not None:
+            # Before the scene's sweeps: one from a waypoint far outside its range (1e9) took
+            # memory without bound (points every 0.05 rad); the timing would refuse it anyway.
+            for k, q in enumerate(q_user):
+                robot.check_limits(q, context=f"waypoint {k}")
         _check_against_scene(checker, request, q_user, paths, cartesian, labels, allow)
         for k in range(1, n):
             # A free move whose straight segment is plainly blocked is routed before timing.

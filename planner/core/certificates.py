@@ -16,6 +16,7 @@ import ctypes
 import numpy as np
 
 from planner.core.native import load_library
+from planner.exceptions import InvalidArgumentError
 
 __all__ = ["LARGEST", "cholesky_certificates", "rayleigh_bounds"]
 
@@ -141,13 +142,17 @@ def cholesky_certificates(gram: np.ndarray, shift: np.ndarray) -> tuple[np.ndarr
     Returns:
         The mask (N,) and the product of the pivots (0 where the mask is False), or None
         without the compiled library or for k above :data:`LARGEST`.
+
+    Raises:
+        InvalidArgumentError: If `gram` is not of shape (N, k, k) or `shift` not of shape (N,).
     """
-    lib = _library()
+    gram, shift = _square_batch(gram), np.ascontiguousarray(shift, dtype=float)
     n, k = gram.shape[0], gram.shape[1]
+    if shift.shape != (n,):
+        raise InvalidArgumentError(f"shift must have shape ({n},), got {shift.shape}")
+    lib = _library()
     if lib is None or k > LARGEST:
         return None
-    gram = np.ascontiguousarray(gram, dtype=float)
-    shift = np.ascontiguousarray(shift, dtype=float)
     ok, product = np.empty(n, dtype=np.int64), np.empty(n)
     if n:
         lib.cholesky_certificates(n, k, gram.ctypes.data, shift.ctypes.data, ok.ctypes.data, product.ctypes.data)
@@ -169,13 +174,24 @@ def rayleigh_bounds(gram: np.ndarray) -> tuple[np.ndarray, np.ndarray] | None:
     Returns:
         ``(upper bounds of the smallest eigenvalues, lower bounds of the largest)``, each (N,),
         or None without the compiled library or for k above :data:`LARGEST`.
+
+    Raises:
+        InvalidArgumentError: If `gram` is not of shape (N, k, k).
     """
-    lib = _library()
+    gram = _square_batch(gram)
     n, k = gram.shape[0], gram.shape[1]
+    lib = _library()
     if lib is None or k > LARGEST:
         return None
-    gram = np.ascontiguousarray(gram, dtype=float)
     smallest, largest = np.empty(n), np.empty(n)
     if n:
         lib.rayleigh_bounds(n, k, gram.ctypes.data, smallest.ctypes.data, largest.ctypes.data)
     return smallest, largest
+
+
+def _square_batch(gram: np.ndarray) -> np.ndarray:
+    """`gram` as a C-contiguous float array, checked to be of shape (N, k, k) (the C loops read N k^2 values)."""
+    gram = np.ascontiguousarray(gram, dtype=float)
+    if gram.ndim != 3 or gram.shape[1] != gram.shape[2]:
+        raise InvalidArgumentError(f"gram must have shape (N, k, k), got {gram.shape}")
+    return gram

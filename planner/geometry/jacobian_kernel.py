@@ -21,7 +21,7 @@ import ctypes
 import numpy as np
 
 from planner.core.native import load_library
-from planner.exceptions import UnsupportedChainError
+from planner.exceptions import InvalidArgumentError, UnsupportedChainError
 from planner.geometry.chain import kinematic_chain
 from planner.model.robot import Robot
 
@@ -166,8 +166,16 @@ class JacobianKernel:
         return self
 
     def __call__(self, q: np.ndarray) -> np.ndarray:
-        """The tip Jacobians at configurations `q` (n, dof) [rad or m], unchecked: shape (n, 6, dof)."""
+        """The tip Jacobians at configurations `q` (n, dof) [rad or m]: shape (n, 6, dof).
+
+        Only the shape is checked (the C loop reads ``n * dof`` values); NaN gives NaN.
+
+        Raises:
+            InvalidArgumentError: If `q` is not of shape (n, dof).
+        """
         q = np.ascontiguousarray(q, dtype=float)
+        if q.ndim != 2 or q.shape[1] != self.dof:
+            raise InvalidArgumentError(f"q must have shape (n, {self.dof}), got {q.shape}")
         out = np.empty((len(q), 6, self.dof))
         if len(q):
             self._function(len(q), self.dof, q.ctypes.data, *self._chain, out.ctypes.data)

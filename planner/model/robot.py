@@ -199,6 +199,7 @@ class Robot:
             URDFError: If the URDF is malformed or has unsupported joints on the chain.
             InvalidLimitsError: If a joint has lower > upper, a NaN or a negative speed.
             UnknownFrameError: If `tip` is not a frame of the model.
+            InvalidArgumentError: If no joint moves the tip frame, or on bad `locked` values.
         """
         if validate:
             _validate_urdf(urdf, source)
@@ -215,6 +216,12 @@ class Robot:
         if tip_full is None:
             raise UnknownFrameError(tip, [f.name for f in full.frames if f.name != "universe"])
         chain = set(full.supports[full.frames[tip_full].parentJoint])
+        if chain <= {0}:  # no joint moves the tip: nothing to plan (Ruckig fails on zero joints)
+            moved = [f.name for f in full.frames if f.parentJoint > 0 and f.name != "universe"]
+            raise InvalidArgumentError(
+                f"no joint moves the tip frame {tip!r} (only fixed joints lead to it); frames a joint moves: "
+                f"{', '.join(moved) or 'none'}"
+            )
         locked = dict(locked or {})
         unknown = sorted(set(locked) - set(full.names[1:]))
         if unknown:

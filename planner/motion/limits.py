@@ -90,6 +90,8 @@ class JointLimits:
         # The joints are those of the position range (or of the names, when given).
         dof = np.size(self.lower) if np.ndim(self.lower) else np.size(self.velocity)
         names = tuple(self.joint_names) or tuple(f"joint{k}" for k in range(dof))
+        if not names:  # Ruckig divides by the joint count (SIGFPE)
+            raise InvalidLimitsError("limits need at least one joint, got none (a tip no joint moves?)")
         object.__setattr__(self, "joint_names", names)
         for attr, what, unit in (
             ("velocity", "velocity", "rad/s or m/s"),

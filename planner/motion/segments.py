@@ -136,7 +136,7 @@ def rest_to_rest_segments(
         try:
             if calculate(inp, traj) not in _SOLVED:
                 return None
-        except RuckigError:
+        except (RuckigError, ValueError):  # ValueError: see _solve
             return None
         duration = traj.duration
         # Where the chain would correct the end (see SegmentSolver._unsynchronise_missed): at_time
@@ -565,7 +565,9 @@ class SegmentSolver:
         traj = RuckigTrajectory(self.dof)
         try:
             result = self.otg.calculate(inp, traj)
-        except RuckigError:  # Ruckig's own failure on an input it accepts: no profile from it
+        # Ruckig's own failure on an input it accepts: no profile from it. ValueError: a result
+        # code the binding has no Result member for (-101: longer than Ruckig's 7e3 s).
+        except (RuckigError, ValueError):
             return math.inf, None, None
         if result not in _SOLVED:
             return math.inf, None, None
@@ -697,7 +699,7 @@ class SegmentSolver:
         inp.per_dof_synchronization = [Synchronization.No if m else Synchronization.Time for m in missed]
         try:
             result = self.otg.calculate(inp, out)
-        except RuckigError:  # its step 2 can fail on such tiny moves beside moving joints
+        except (RuckigError, ValueError):  # its step 2 can fail on such tiny moves beside moving joints
             result = None
         finally:
             inp.per_dof_synchronization = None
