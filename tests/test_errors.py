@@ -164,3 +164,53 @@ def test_a_waypoint_far_outside_its_range_is_refused_before_the_scene_sweeps_it(
     proc = subprocess.run([sys.executable, "-c", _FAR_WAYPOINT], capture_output=True, text=True, timeout=120)
     assert proc.returncode == 0, proc.stderr[-2000:]
     assert "refused: waypoint 1: joint 'yaw' value 1e+09 is outside its range" in proc.stdout
+
+
+# A continuous joint has no range to refuse a waypoint a million radians away: with a scene,
+# plan_motion swept that move (points every 0.05 rad, 2e7 of them) for minutes, and at 1e9 ran
+# out of memory. No segment can time such a move (Ruckig plans at most 7e3 s): it is refused
+# first, naming the joint. Run apart under a memory cap and a timeout.
+_LONG_TURN = """
+import resource, sys
+resource.setrlimit(resource.RLIMIT_AS, (3 << 30, 3 << 30))
+sys.path.insert(0, {tests!r})
+import planner
+from planner.app.motion_plan import plan_motion
+from planner.app.plan_file import parse_motion_request
+from test_casadi_kinematics import mixed_robot
+robot = mixed_robot()
+for turn in (1e6, 1e9):
+    request = {{
+        "limits": {{"velocity": 1.0}},
+        "waypoints": [[0.0] * 5, [0.0, turn, 0.0, 0.0, 0.0]],
+        "scene": {{"obstacles": [{{"name": "b", "box": [0.01, 0.01, 0.01], "position": [5, 5, 5]}}]}},
+    }}
+    try:
+        plan_motion(robot, parse_motion_request(request))
+    except planner.PlanningError as exc:
+        print("refused:", exc)
+"""
+
+
+def test_a_move_no_segment_can_time_is_refused_before_the_scene_sweeps_it():
+    from pathlib import Path
+
+    code = _LONG_TURN.format(tests=str(Path(__file__).parent))
+    proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    lines = proc.stdout.splitlines()
+    assert len(lines) == 2, proc.stdout
+    for line in lines:
+        assert line.startswith("refused: waypoint 0 -> waypoint 1: joint ") and "at most 7000 s" in line
+
+
+def test_plan_trajectory_names_the_joint_of_a_move_longer_than_ruckig_times():
+    from planner import PlanningError, load_robot
+    from planner.motion.limits import JointLimits
+    from planner.motion.plan import plan_trajectory
+
+    robot = load_robot("al5c")
+    middle, half = (robot.lower + robot.upper) / 2.0, 0.9 * (robot.upper - robot.lower) / 2.0
+    waypoints = np.array([middle - half, middle + half])
+    with pytest.raises(PlanningError, match=r"waypoint 0 -> waypoint 1: joint \S+ moves .* at most 7000 s"):
+        plan_trajectory(waypoints, JointLimits.from_robot(robot, velocity=1e-4))

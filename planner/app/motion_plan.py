@@ -531,12 +531,14 @@ def plan_motion(
         edge_lines.update(lines)
         halves.update({(k, e), (k, e + 1)})
 
+    if request.joints is not None:
+        # Before the scene's sweeps: one from a waypoint far outside its range (1e9) took
+        # memory without bound (points every 0.05 rad); the timing would refuse it anyway.
+        for k, q in enumerate(q_user):
+            robot.check_limits(q, context=f"waypoint {k}")
+    # So is a move no segment can time (a continuous joint told to turn a million radians).
+    limits.check_move_durations(q_user, labels)
     if checker is not None:
-        if request.joints is not None:
-            # Before the scene's sweeps: one from a waypoint far outside its range (1e9) took
-            # memory without bound (points every 0.05 rad); the timing would refuse it anyway.
-            for k, q in enumerate(q_user):
-                robot.check_limits(q, context=f"waypoint {k}")
         _check_against_scene(checker, request, q_user, paths, cartesian, labels, allow)
         for k in range(1, n):
             # A free move whose straight segment is plainly blocked is routed before timing.

@@ -17,14 +17,16 @@ import math
 from collections.abc import Sequence
 
 import numpy as np
-from ruckig import InputParameter, Result, Ruckig
+from ruckig import InputParameter, Result, Ruckig, RuckigError
 from ruckig import Trajectory as RuckigTrajectory
 
 from planner.collision.checker import CollisionChecker
 from planner.collision.rrt import PathOptions, PathResult, find_clear_path
 from planner.core.arrays import read_only
+from planner.core.text import plain
+from planner.exceptions import PlanningError
 from planner.model.robot import Robot
-from planner.motion.limits import JointLimits, admissible_acceleration
+from planner.motion.limits import MAX_SEGMENT_DURATION, JointLimits, admissible_acceleration
 from planner.motion.line import LinePath
 from planner.motion.line_timing import LineTiming, time_line
 from planner.motion.segments import SegmentSolver
@@ -69,8 +71,15 @@ def _proportional_states(
     inp.target_position, inp.target_velocity, inp.target_acceleration = [1.0], [0.0], [0.0]
     inp.max_velocity, inp.max_acceleration, inp.max_jerk = [v], [a], [j]
     traj = RuckigTrajectory(1)
-    result = otg.calculate(inp, traj)
-    assert result in (Result.Working, Result.Finished), result  # rest to rest always has a profile
+    try:
+        result = otg.calculate(inp, traj)
+    except (RuckigError, ValueError):  # ValueError: a code the binding has no member for (-101)
+        result = None
+    if result not in (Result.Working, Result.Finished):  # rest to rest has one, up to Ruckig's 7e3 s
+        raise PlanningError(
+            f"the straight joint move of {plain(float(np.max(dq[moving])))} cannot be timed from rest to rest "
+            f"(Ruckig plans at most {MAX_SEGMENT_DURATION:g} s): add waypoints or raise the limits"
+        )
     t, sd, sdd = np.zeros(m), np.zeros(m), np.zeros(m)
     for k in range(1, m):
         local = traj.get_first_time_at_position(0, float(s[k])) if k < m - 1 else traj.duration

@@ -18,12 +18,12 @@ import numpy as np
 from planner.core.arrays import read_only
 from planner.core.text import plain
 from planner.core.units import servo_speed_to_velocity
-from planner.exceptions import InvalidLimitsError
+from planner.exceptions import InvalidLimitsError, PlanningError
 
 if TYPE_CHECKING:
     from planner.model.robot import Robot
 
-__all__ = ["RANGE_TOLERANCE", "JointLimits", "admissible_acceleration", "per_joint_limit"]
+__all__ = ["MAX_SEGMENT_DURATION", "RANGE_TOLERANCE", "JointLimits", "admissible_acceleration", "per_joint_limit"]
 
 #: Relative slack of the position-range checks [rad or m per unit of max(1, |bound|)]: a joint
 #: counts as leaving its range only beyond it, so that rounding at a range end is no overshoot.
@@ -64,6 +64,10 @@ def per_joint_limit(
                 f"{what} limit of joint {name!r} must be positive and finite [{unit}], got {x:.6g}", joint=name, value=x
             )
     return read_only(arr)
+
+
+#: Ruckig's longest trajectory [s]: beyond it, it returns no profile (result -101).
+MAX_SEGMENT_DURATION = 7e3
 
 
 @dataclass(frozen=True)
@@ -177,6 +181,35 @@ class JointLimits:
     def max_jerk(self) -> float:
         """The largest jerk limit [rad/s^3 or m/s^3]."""
         return float(np.max(self.jerk))
+
+    def check_move_durations(self, waypoints: np.ndarray, labels: Sequence[str] | None = None) -> None:
+        """Refuse a move between consecutive `waypoints` longer than :data:`MAX_SEGMENT_DURATION`.
+
+        A joint moving ``d`` at velocity limit ``v`` needs at least ``d / v``; Ruckig plans no
+        segment longer than its 7e3 s (its result -101), and sweeps along such a move (a
+        continuous joint told to turn a million radians) would sample it without bound.
+
+        Args:
+            waypoints: Shape (N, dof), SI units.
+            labels: Names of the waypoints for the message (default ``waypoint k``).
+
+        Raises:
+            PlanningError: Naming the two waypoints, the joint, its move and the time it needs.
+        """
+        q = np.asarray(waypoints, dtype=float)
+        if len(q) < 2:
+            return
+        with np.errstate(invalid="ignore", over="ignore"):
+            need = np.abs(np.diff(q, axis=0)) / self.velocity
+        worst = np.nanmax(np.where(np.isfinite(need), need, np.inf), axis=1)
+        for k in np.nonzero(worst > MAX_SEGMENT_DURATION)[0].tolist():
+            j = int(np.argmax(np.where(np.isfinite(need[k]), need[k], np.inf)))
+            a, b = (labels[k], labels[k + 1]) if labels is not None else (f"waypoint {k}", f"waypoint {k + 1}")
+            raise PlanningError(
+                f"{a} -> {b}: joint {self.joint_names[j]} moves {plain(abs(q[k + 1, j] - q[k, j]))}, at least "
+                f"{plain(float(need[k, j]))} s at its velocity limit {plain(float(self.velocity[j]))}; a segment "
+                f"can last at most {MAX_SEGMENT_DURATION:g} s (Ruckig's limit): add waypoints between them"
+            )
 
     @classmethod
     def from_robot(

@@ -15,7 +15,7 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-from ruckig import InputParameter, Result, Ruckig
+from ruckig import InputParameter, Result, Ruckig, RuckigError
 from ruckig import Trajectory as RuckigTrajectory
 
 from planner.core.arrays import read_only
@@ -188,7 +188,11 @@ def _zone_profiles(
         inp.target_position, inp.target_velocity, inp.target_acceleration = [sigma[e]], [w[b + 1]], [0.0]
         inp.max_velocity, inp.max_acceleration, inp.max_jerk = [v], [a], [j]
         traj = RuckigTrajectory(1)
-        if otg.calculate(inp, traj) not in (Result.Working, Result.Finished):  # pragma: no cover - passes fit
+        try:
+            result = otg.calculate(inp, traj)
+        except (RuckigError, ValueError):  # ValueError: a code the binding has no member for (-101: > 7e3 s)
+            return None
+        if result not in (Result.Working, Result.Finished):  # pragma: no cover - passes fit
             return None
         total += traj.duration
         trajs.append(traj)

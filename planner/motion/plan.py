@@ -259,11 +259,14 @@ def plan_trajectory_request(request: TrajectoryRequest) -> JointTrajectory:
     Raises:
         InvalidArgumentError: If a given start state runs a joint out of its range even when
             braking at once.
+        PlanningError: If a move between two waypoints needs longer than Ruckig plans
+            (:data:`~planner.motion.limits.MAX_SEGMENT_DURATION`).
     """
     if not isinstance(request, TrajectoryRequest):
         raise InvalidArgumentError(f"request must be a TrajectoryRequest, got {type(request).__name__}")
     chooser = via_strategy(request.strategy)
     limits = request.limits
+    limits.check_move_durations(request.waypoints)
     moving = request.moving_start
     q, v0, a0, dw = request.waypoints, request.start_velocity, request.start_acceleration, request.dwell
     dwelling = any(dw.tolist())

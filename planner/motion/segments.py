@@ -186,7 +186,11 @@ def rest_to_rest_trajectory(start: np.ndarray, goal: np.ndarray, limits: JointLi
     inp.max_velocity, inp.max_acceleration, inp.max_jerk = limits.ruckig_limits
     inp.current_position, inp.target_position = start.tolist(), goal.tolist()
     traj = RuckigTrajectory(dof)
-    if _thread_solver(dof)[0].calculate(inp, traj) not in _SOLVED:  # pragma: no cover - solved before
+    try:
+        result = _thread_solver(dof)[0].calculate(inp, traj)
+    except (RuckigError, ValueError):  # pragma: no cover - solved before; ValueError: -101 (> 7e3 s)
+        result = None
+    if result not in _SOLVED:  # pragma: no cover - solved before
         raise PlanningError("Ruckig found no rest-to-rest profile between two waypoints")
     return traj
 
@@ -1027,9 +1031,12 @@ def brake_segment(
     inp.max_acceleration = limits.acceleration.tolist()
     inp.max_jerk = limits.jerk.tolist()
     traj = RuckigTrajectory(dof)
-    result = Ruckig(dof).calculate(inp, traj)
-    if result not in (Result.Working, Result.Finished):  # pragma: no cover - braking always has a profile
-        raise InvalidArgumentError(f"cannot brake from the start state (Ruckig: {result})")
+    try:
+        result = Ruckig(dof).calculate(inp, traj)
+    except (RuckigError, ValueError) as exc:  # ValueError: -101, braking would take over 7e3 s
+        result = exc
+    if result not in (Result.Working, Result.Finished):  # braking has a profile within Ruckig's 7e3 s
+        raise InvalidArgumentError(f"cannot brake from the start state within the limits (Ruckig: {result})")
     duration = float(traj.duration)
     rest = np.array([prof.p[-1] for prof in traj.profiles[0]])
     merged = merge_segment(traj, duration, (q0, v0, a0))
