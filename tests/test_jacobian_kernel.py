@@ -131,3 +131,16 @@ def test_a_batch_of_the_wrong_shape_is_refused_not_read_past_its_end():
     for q in (np.zeros(robot.dof), np.zeros((2, robot.dof - 1)), np.zeros((2, robot.dof, 1))):
         with pytest.raises(InvalidArgumentError, match=rf"q must have shape \(n, {robot.dof}\)"):
             kernel(q)
+
+
+def test_a_compiler_command_with_arguments_builds(tmp_path, monkeypatch):
+    # $CC may be a command with arguments (as "ccache gcc"); it was looked up whole on the PATH,
+    # not found, and the compiled loops were skipped without a word.
+    import shutil
+
+    if shutil.which("gcc") is None or shutil.which("env") is None:
+        pytest.skip("needs gcc and env")
+    monkeypatch.setenv("PLANNER_CACHE_DIR", str(tmp_path))
+    monkeypatch.setenv("CC", "env gcc")
+    lib = load_library("int planner_answer(void) { return 42; }", "with_arguments")
+    assert lib is not None and lib.planner_answer() == 42

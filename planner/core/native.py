@@ -16,6 +16,7 @@ from __future__ import annotations
 import ctypes
 import hashlib
 import os
+import shlex
 import shutil
 import subprocess
 import tempfile
@@ -47,10 +48,19 @@ def native_cache_dir() -> Path:
 
 
 def find_compiler() -> str | None:
-    """The C compiler to build with (``$CC``, else ``gcc``); None without one or with ``PLANNER_JIT=0``."""
+    """The C compiler command to build with (``$CC``, else ``gcc``); None without one or with ``PLANNER_JIT=0``.
+
+    ``$CC`` may hold a command with arguments (``ccache gcc``): its first word is looked up on
+    the ``PATH`` and replaced by its full path.
+    """
     if os.environ.get("PLANNER_JIT", "1").strip().lower() in ("0", "false", "no", "off"):
         return None
-    return shutil.which(os.environ.get("CC") or "gcc")
+    try:
+        words = shlex.split(os.environ.get("CC") or "gcc")
+    except ValueError:  # unbalanced quotes
+        return None
+    found = shutil.which(words[0]) if words else None
+    return None if found is None else shlex.join([found, *words[1:]])
 
 
 def build_library(
@@ -74,7 +84,10 @@ def build_library(
         path.write_text(source)
         built = Path(tmp) / library.name
         proc = subprocess.run(
-            [compiler, *flags, "-o", str(built), str(path), "-lm"], capture_output=True, text=True, timeout=timeout
+            [*shlex.split(compiler), *flags, "-o", str(built), str(path), "-lm"],
+            capture_output=True,
+            text=True,
+            timeout=timeout,
         )
         if proc.returncode != 0:
             raise RuntimeError(f"{compiler} failed: {proc.stderr.strip()[:500]}")
