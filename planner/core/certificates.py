@@ -15,7 +15,7 @@ import ctypes
 
 import numpy as np
 
-from planner.core.native import load_library
+from planner.core.native import load_functions
 from planner.exceptions import InvalidArgumentError
 
 __all__ = ["LARGEST", "cholesky_certificates", "rayleigh_bounds"]
@@ -113,19 +113,14 @@ void rayleigh_bounds(long n, long k, const double *g, double *smallest, double *
 }
 """
 
-_LIBRARY: list[ctypes.CDLL | None] = []
+_SIGNATURES = {
+    "cholesky_certificates": [ctypes.c_long, ctypes.c_long, *[ctypes.c_void_p] * 4],
+    "rayleigh_bounds": [ctypes.c_long, ctypes.c_long, *[ctypes.c_void_p] * 3],
+}
 
 
 def _library() -> ctypes.CDLL | None:
-    if not _LIBRARY:
-        lib = load_library(_SOURCE, "certificates")
-        if lib is not None:
-            lib.cholesky_certificates.restype = None
-            lib.cholesky_certificates.argtypes = [ctypes.c_long, ctypes.c_long] + [ctypes.c_void_p] * 4
-            lib.rayleigh_bounds.restype = None
-            lib.rayleigh_bounds.argtypes = [ctypes.c_long, ctypes.c_long] + [ctypes.c_void_p] * 3
-        _LIBRARY.append(lib)
-    return _LIBRARY[0]
+    return load_functions(_SOURCE, "certificates", _SIGNATURES)
 
 
 def cholesky_certificates(gram: np.ndarray, shift: np.ndarray) -> tuple[np.ndarray, np.ndarray] | None:

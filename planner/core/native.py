@@ -21,10 +21,10 @@ import shutil
 import subprocess
 import tempfile
 import warnings
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from pathlib import Path
 
-__all__ = ["FLAGS", "build_library", "cache_dir", "find_compiler", "load_library", "native_cache_dir"]
+__all__ = ["FLAGS", "build_library", "cache_dir", "find_compiler", "load_functions", "load_library", "native_cache_dir"]
 
 #: Compiler flags: optimised without value-changing shortcuts (no -ffast-math), a shared library.
 FLAGS = ("-O2", "-fPIC", "-shared")
@@ -118,3 +118,29 @@ def load_library(source: str, name: str) -> ctypes.CDLL | None:
             f"planner: cannot build the C library {name!r} ({exc}); using the slower path", RuntimeWarning, stacklevel=2
         )
         return None
+
+
+_LOADED: dict[tuple[str, str], ctypes.CDLL | None] = {}
+
+
+def load_functions(source: str, name: str, signatures: Mapping[str, Sequence]) -> ctypes.CDLL | None:
+    """:func:`load_library` once per process and source, with its functions' argument types set.
+
+    Args:
+        source: C source text.
+        name: A short name for the library file.
+        signatures: Per function of the source that returns nothing, its ctypes argument types.
+
+    Returns:
+        The library (the same object on every call), or None where it cannot be built (then
+        the callers take their slower path for the rest of the process).
+    """
+    key = (name, source)
+    if key not in _LOADED:
+        lib = load_library(source, name)
+        if lib is not None:
+            for function, argtypes in signatures.items():
+                getattr(lib, function).restype = None
+                getattr(lib, function).argtypes = list(argtypes)
+        _LOADED[key] = lib
+    return _LOADED[key]

@@ -20,7 +20,7 @@ import ctypes
 
 import numpy as np
 
-from planner.core.native import load_library
+from planner.core.native import load_functions
 from planner.exceptions import InvalidArgumentError, UnsupportedChainError
 from planner.geometry.chain import kinematic_chain
 from planner.model.robot import Robot
@@ -103,25 +103,14 @@ void chain_jacobians(long n, long dof, const double *q, const long *parent, cons
 }
 """
 
-_LIBRARY: list[ctypes.CDLL | None] = []
+#: The C function's argument types: n, dof, then eight arrays, the tip's parent and two arrays.
+_SIGNATURES = {
+    "chain_jacobians": [ctypes.c_long, ctypes.c_long, *[ctypes.c_void_p] * 8, ctypes.c_long, *[ctypes.c_void_p] * 2]
+}
 
 
 def _library() -> ctypes.CDLL | None:
-    if not _LIBRARY:
-        lib = load_library(_SOURCE, "chain_jacobians")
-        if lib is not None:
-            lib.chain_jacobians.restype = None
-            lib.chain_jacobians.argtypes = (
-                [ctypes.c_long, ctypes.c_long]
-                + [ctypes.c_void_p] * 8
-                + [
-                    ctypes.c_long,
-                    ctypes.c_void_p,
-                    ctypes.c_void_p,
-                ]
-            )
-        _LIBRARY.append(lib)
-    return _LIBRARY[0]
+    return load_functions(_SOURCE, "chain_jacobians", _SIGNATURES)
 
 
 class JacobianKernel:
