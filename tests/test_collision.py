@@ -454,6 +454,78 @@ def test_a_timed_step_keeps_each_pair_within_its_room_by_its_joints_travel(name)
                 assert turn <= cc.NEAR_TURN * (1 + 1e-9) and lever <= r * (1 + 1e-9) + 1e-12, (p, r, turn, lever)
 
 
+@pytest.mark.parametrize("name", ["al5c", pytest.param("panda", marks=needs_example_robot_data)])
+def test_the_compiled_bookkeeping_takes_the_python_steps(name):
+    """_NativeSteps: per due pair the Python rule's step (until, early), then the least until and the pairs due."""
+    import planner.collision.continuous as cc
+
+    if cc._native_library() is None:
+        pytest.skip("no C compiler (PLANNER_JIT=0): the Python steps only")
+    robot = get_robot(name)
+    block = Obstacle("block", Box((0.06, 0.06, 0.25)), np.array([0.23, 0.0, 0.125]))
+    checker = CollisionChecker(robot, Scene(floor=-0.01, clearance=0.005, obstacles=(block,)))
+    limits = JointLimits.from_robot(robot)
+    rng = np.random.default_rng(5)
+    n = checker.pair_count
+    for _ in range(3):
+        traj = plan_trajectory(robot.random_configurations(rng, 3), limits)
+        last = np.asarray(traj.waypoints[-1], dtype=float)
+        floor = 0.005 - cc.DEFAULT_TOLERANCE
+        rule = cc._trajectory_steps(checker, traj, last, np.asarray(limits.velocity) * (1 + 1e-6), floor)
+        for x in [0.0, *rng.uniform(0.0, traj.duration, 8), traj.duration]:
+            due = np.flatnonzero(rng.random(n) < 0.5)
+            if not due.size:
+                continue
+            d = rng.uniform(-0.002, 0.3, len(due))
+            room = np.maximum(d - 0.005 + cc.DEFAULT_TOLERANCE, cc.DEFAULT_TOLERANCE / 2)
+            coarse = float(rng.choice([0.0, 0.01]))
+            want = np.maximum(rule(float(x), due, d, room), coarse)
+            until, early = rng.uniform(x, x + 1.0, n), rng.uniform(x, x + 1.0, n)
+            bound = float(rng.uniform(x, traj.duration + 1.0))
+            got_x, got_due = rule.native(float(x), due, d, 0.005, cc.DEFAULT_TOLERANCE, coarse, until, early, bound)
+            np.testing.assert_allclose(until[due] - x, want, rtol=1e-9, atol=1e-15)
+            np.testing.assert_allclose(early[due] - x, 0.5 * want, rtol=1e-9, atol=1e-15)
+            after = min(float(until.min()), bound)
+            assert got_x == min(after if after > x else np.nextafter(x, np.inf), traj.duration)
+            np.testing.assert_array_equal(got_due, np.flatnonzero(early <= got_x))
+
+
+@pytest.mark.parametrize("name", ["al5c", pytest.param("panda", marks=needs_example_robot_data)])
+def test_timed_checks_give_the_same_results_without_the_compiled_bookkeeping(name, monkeypatch):
+    """check_trajectory with _NativeSteps and with the Python steps: the same verdicts, hits and checks."""
+    import planner.collision.continuous as cc
+
+    robot = get_robot(name)
+    limits = JointLimits.from_robot(robot)
+    rng = np.random.default_rng(8)
+    blocks = [
+        Obstacle(f"block{k}", Box((0.04, 0.04, 0.1)), np.array([x, 0.25, 0.05])) for k, x in enumerate([0.0, 0.25])
+    ]
+    checker = CollisionChecker(robot, Scene(floor=-0.01, clearance=0.005, obstacles=tuple(blocks)))
+    cases = []
+    while len(cases) < 12:
+        k = len(cases) // 2
+        waypoints = robot.random_configurations(rng, 3)
+        if any(checker.in_collision(q) for q in waypoints):
+            continue
+        traj = plan_trajectory(waypoints, limits)
+        allow = [(0.3 * traj.duration, ["block0"]), (0.6 * traj.duration, [])] if k % 2 else []
+        cases += [(traj, allow, stop) for stop in (False, True)]
+
+    def run():
+        return [check_trajectory(checker, traj, allow=allow, stop_at_first=stop) for traj, allow, stop in cases]
+
+    compiled = run()
+    monkeypatch.setattr(cc, "_native_library", lambda: None)
+    plain = run()
+    assert any(not r.clear for r in plain) and any(r.clear for r in plain)
+    for a, b in zip(compiled, plain):
+        assert (a.clear, a.checks, a.closest.bodies) == (b.clear, b.checks, b.closest.bodies)
+        assert a.first_hit == pytest.approx(b.first_hit, abs=1e-12)
+        assert a.where == pytest.approx(b.where, abs=1e-12)
+        assert a.closest.distance == pytest.approx(b.closest.distance, abs=1e-9)
+
+
 def test_a_clear_certificate_holds_between_checks():
     robot = get_robot("dh3")
     scene = Scene(floor=-0.01, clearance=0.004, obstacles=(Obstacle("ball", Sphere(0.02), np.array([0.1, 0.1, 0.12])),))

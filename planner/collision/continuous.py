@@ -43,6 +43,7 @@ longer of the two steps.
 from __future__ import annotations
 
 import bisect
+import ctypes
 import weakref
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
@@ -52,6 +53,7 @@ import numpy as np
 from planner.collision.arm import box_corners, hull_points
 from planner.collision.checker import Clearance, CollisionChecker
 from planner.core.arrays import read_only
+from planner.core.native import load_functions
 from planner.exceptions import InvalidArgumentError
 
 __all__ = [
@@ -502,8 +504,14 @@ def _advance(
     tolerance: float,
     stop_at_first: bool,
     clearance: float | None,
+    native: Callable | None = None,
 ) -> MotionClearance:
-    """Conservative advancement pair by pair: `sample` gives q and a speed state, `steps` each due pair's step."""
+    """Conservative advancement pair by pair: `sample` gives q and a speed state, `steps` each due pair's step.
+
+    `native`, where given, replaces the steps and the bookkeeping after a check
+    (:class:`_NativeSteps`): ``native(x, due, d, clearance, tolerance, coarse, until, early,
+    bound)`` updates `until` and `early` and returns the next x and the pairs due there.
+    """
     if not (tolerance > 0 and np.isfinite(tolerance)):
         raise InvalidArgumentError(f"tolerance must be a positive distance [m], got {tolerance!r}")
     c = checker.scene.clearance if clearance is None else float(clearance)
@@ -522,14 +530,17 @@ def _advance(
     hit: Clearance | None = None
     coarse = end / 2000.0  # past a hit: coarse steps, only to find the worst
     half = tolerance / 2.0
+    due: np.ndarray | None = None
     while True:
         while k_mask + 1 < len(masks) and masks[k_mask + 1][0] <= x:
             k_mask += 1
+            due = None
             was, mask = (None if k_mask == 0 else masks[k_mask - 1][1]), masks[k_mask][1]
             on = mask if was is None else mask & ~was
             until[on], early[on] = -np.inf, -np.inf
             until[~mask], early[~mask] = np.inf, np.inf
-        due = (early <= x).nonzero()[0]
+        if due is None:
+            due = (early <= x).nonzero()[0]
         if due.size:
             q, speed = sample(x)
             if checks == 0 or due.size == n_pairs:
@@ -548,6 +559,14 @@ def _advance(
                 hit = checker.clearance_of(checker.pair_distances(q, mask))
                 if stop_at_first:
                     break
+            if native is not None:
+                if x >= end:
+                    break
+                # The same steps and bookkeeping in one compiled call: it also moves on to the
+                # next x (at most the next change of mask) and finds the pairs due there.
+                bound = masks[k_mask + 1][0] if k_mask + 1 < len(masks) else end
+                x, due = native(x, due, d, c, tolerance, coarse if first_hit is not None else 0.0, until, early, bound)
+                continue
             room = d - c
             room += tolerance
             np.maximum(room, half, out=room)
@@ -562,6 +581,7 @@ def _advance(
         if k_mask + 1 < len(masks):
             x_next = min(x_next, masks[k_mask + 1][0])  # a change of mask: check at the boundary
         x = min(x_next if x_next > x else float(np.nextafter(x, np.inf)), end)
+        due = None
     if best[2] is not None:
         closest = best[2]
     elif np.isfinite(best[0]):
@@ -683,15 +703,9 @@ def check_trajectory(
 
     masks = [(0.0, checker.pair_mask())] + [(float(t), checker.pair_mask(names)) for t, names in allow]
     masks.sort(key=lambda m: m[0])
+    steps = _trajectory_steps(checker, trajectory, last, vmax, max(checker.scene.clearance - tolerance, 0.0))
     return _advance(
-        checker,
-        sample,
-        _trajectory_steps(checker, trajectory, last, vmax, max(checker.scene.clearance - tolerance, 0.0)),
-        duration,
-        masks,
-        tolerance,
-        stop_at_first,
-        None,
+        checker, sample, steps, duration, masks, tolerance, stop_at_first, None, getattr(steps, "native", None)
     )
 
 
@@ -862,4 +876,134 @@ def _trajectory_steps(
         until = np.where(rooms < first, rooms * inverse[at], until)
         return np.maximum(until[:, 0], np.minimum(until[:, 1], until[:, 2]))
 
+    lib = _native_library()
+    if lib is not None:
+        tables = (
+            flat,
+            speed,
+            inverse,
+            start,
+            width,
+            np.asarray(times, dtype=float),
+            np.asarray(useful, dtype=np.uint8),
+        )
+        steps.native = _NativeSteps(lib, tables, g, slack, checker.pair_count)  # type: ignore[attr-defined]
     return steps
+
+
+_NATIVE_SOURCE = r"""
+#include <math.h>
+
+static long bisect_right(const double *a, double v, long lo, long hi) {
+    while (lo < hi) {
+        long mid = lo + (hi - lo) / 2;
+        if (v < a[mid]) hi = mid; else lo = mid + 1;
+    }
+    return lo;
+}
+
+/* One row's step from x: the arithmetic of row_step in _trajectory_steps. */
+static double row_step(const double *flat, const double *speed, const double *inverse, const double *start,
+                       const double *width, long a, double room, double x, double ahead, long last) {
+    double first = speed[a] * ahead;
+    if (room < first) return room * inverse[a];
+    double target = flat[a + 1] + room - first;
+    long j = bisect_right(flat, target, a + 1, last + 1) - 1;
+    double until = (target - flat[j]) * inverse[j];
+    if (width[j] < until) until = width[j];
+    return until + start[j] - x;
+}
+
+/* After a check at x of the n pairs `due` (distances d): each one's step (from its room
+   max(d - c + tolerance, tolerance / 2), at least `coarse`), until = x + step, early = x + step / 2;
+   then the next x (the least until, at most `bound`, past x, at most the end) in out[0] and the
+   pairs due there (early <= next x) written to `due`, their number in out[1]. */
+void trajectory_update(const double *flat, const double *speed, const double *inverse, const double *start,
+                       const double *width, const double *times, const unsigned char *useful, long g, double slack,
+                       double cap, long npairs, double x, long *due, long n, const double *d, double c,
+                       double tolerance, double coarse, double *until, double *early, double bound, double *out) {
+    double end = times[g - 1];
+    long k0 = bisect_right(times, x, 0, g) - 1;
+    if (k0 > g - 2) k0 = g - 2;
+    double ahead = times[k0 + 1] - x;
+    long per_pair = 3 * g;
+    for (long i = 0; i < n; ++i) {
+        long p = due[i];
+        double step;
+        if (x >= end) {
+            step = INFINITY;
+        } else {
+            double room = d[i] - c;
+            room += tolerance;
+            if (room < tolerance / 2.0) room = tolerance / 2.0;
+            double r = room - slack;
+            long a = p * per_pair + k0;
+            long last = a + g - 1 - k0;
+            step = row_step(flat, speed, inverse, start, width, a, r, x, ahead, last);
+            if (useful[p]) {
+                double near = row_step(flat, speed, inverse, start, width, a + g, r, x, ahead, last + g);
+                double turn = row_step(flat, speed, inverse, start, width, a + 2 * g, cap, x, ahead, last + 2 * g);
+                double m = turn < near ? turn : near;
+                if (m > step) step = m;
+            }
+        }
+        if (step < coarse) step = coarse;
+        until[p] = x + step;
+        early[p] = x + 0.5 * step;
+    }
+    double next = end;
+    if (npairs > 0) {
+        next = until[0];
+        for (long k = 1; k < npairs; ++k)
+            if (until[k] < next) next = until[k];
+    }
+    if (bound < next) next = bound;
+    next = next > x ? next : nextafter(x, INFINITY);
+    if (end < next) next = end;
+    long m = 0;
+    for (long k = 0; k < npairs; ++k)
+        if (early[k] <= next) due[m++] = k;
+    out[0] = next;
+    out[1] = (double)m;
+}
+"""
+_P, _L, _D = ctypes.c_void_p, ctypes.c_long, ctypes.c_double
+_NATIVE_SIGNATURES = {
+    "trajectory_update": [_P] * 7 + [_L, _D, _D, _L, _D, _P, _L, _P, _D, _D, _D, _P, _P, _D, _P],
+}
+
+
+def _native_library():
+    """The compiled :func:`_trajectory_steps` bookkeeping, or None (``PLANNER_JIT=0``, no compiler)."""
+    return load_functions(_NATIVE_SOURCE, "continuous", _NATIVE_SIGNATURES)
+
+
+class _NativeSteps:
+    """:func:`_advance`'s step and bookkeeping after a check of a timed trajectory, in one compiled call.
+
+    The same arithmetic as :func:`_trajectory_steps`'s steps (the pair-by-pair `row_step`) and
+    :func:`_advance`'s loop; the pairs due next are written into a buffer of this object.
+    """
+
+    def __init__(self, lib, tables: tuple[np.ndarray, ...], g: int, slack: float, n_pairs: int) -> None:
+        self.tables = tuple(np.ascontiguousarray(t) for t in tables)  # kept alive: C reads them
+        self.function = lib.trajectory_update
+        self.head = (*(t.ctypes.data for t in self.tables), g, slack, NEAR_TURN - slack, n_pairs)
+        size = max(n_pairs, 1)
+        self.due, self.distances, self.out = np.zeros(size, dtype=np.int64), np.zeros(size), np.zeros(2)
+        self.at = (self.due.ctypes.data, self.distances.ctypes.data, self.out.ctypes.data)
+        self.arrays: tuple[np.ndarray | None, ...] = (None, None)
+        self.arrays_at = (0, 0)
+
+    def __call__(self, x, due, d, c, tolerance, coarse, until, early, bound) -> tuple[float, np.ndarray]:
+        n = len(due)
+        buffer = self.due
+        if due.base is not buffer:
+            buffer[:n] = due
+        self.distances[:n] = d
+        if self.arrays[0] is not until or self.arrays[1] is not early:
+            self.arrays, self.arrays_at = (until, early), (until.ctypes.data, early.ctypes.data)
+        due_at, d_at, out_at = self.at
+        self.function(*self.head, x, due_at, n, d_at, c, tolerance, coarse, *self.arrays_at, bound, out_at)
+        out = self.out
+        return float(out[0]), buffer[: int(out[1])]
