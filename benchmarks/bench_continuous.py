@@ -6,10 +6,12 @@ makes on bench_collision.py's start/goal pairs (its table-and-box scene, seed 0;
 checker finds collision-free) are recorded once with the first tree, then replayed by each tree
 in turn (a subprocess per tree and round, ``PYTHONPATH`` set to the tree), so that the trees
 check the very same trajectories on the same machine under the same load. Per plan: CPU time of
-its checks (the least of ``--reps`` repetitions), configurations checked and pair distances
-computed; medians over the straight plans and the routed ones apart. Each replay also compares
-its results with the recorded ones: the same verdicts, first hits within 1 ms, closest
-distances within 2 mm (the checks fall at other instants).
+its checks (the least of ``--reps`` repetitions), configurations checked, pair distances
+computed (all of them, a check of every pair too) and bounding pairs' distances
+(:class:`~planner.collision.checker.BoundingPairs`); medians over the straight plans and the
+routed ones apart. Each replay also compares its results with the recorded ones: the same
+verdicts, first hits within 1 ms, closest distances within 2 mm (the checks fall at other
+instants).
 
     python benchmarks/bench_continuous.py --trees /work/main . [--paths 30] [--rounds 3] [--reps 5]
 
@@ -85,6 +87,37 @@ def record(path: str, paths: int) -> None:
     Path(path).write_bytes(pickle.dumps(out))
 
 
+def _count_distances(checker, computed: list[int]) -> None:
+    """Count in `computed` the pair distances the checker computes, and its bounding pairs' (trees without them: 0).
+
+    Every distance counts, those of a check's every pair too (:meth:`pair_distances`, the pairs
+    on its mask). Trees with ``placed_distances`` compute through it (``distances_of`` too).
+    """
+    wrap = "placed_distances" if hasattr(checker, "placed_distances") else "distances_of"
+    inner = getattr(checker, wrap)
+    whole = checker.pair_distances
+
+    def counted(*args):
+        computed[0] += len(args[-1])
+        return inner(*args)
+
+    def counted_all(q, mask):
+        computed[0] += int(mask.sum())
+        return whole(q, mask)
+
+    setattr(checker, wrap, counted)
+    checker.pair_distances = counted_all
+    if hasattr(checker, "bounding_pairs"):
+        bounds = checker.bounding_pairs()
+        bounded = bounds.placed_distances
+
+        def counted_bounds(pairs):
+            computed[1] += len(pairs)
+            return bounded(pairs)
+
+        bounds.placed_distances = counted_bounds
+
+
 def replay(path: str, reps: int) -> dict:
     """Per arm, the medians of the recorded plans' checks replayed by the tree on ``sys.path``."""
     from planner import load_robot
@@ -98,14 +131,8 @@ def replay(path: str, reps: int) -> dict:
     summary: dict = {}
     for name, plans in recorded.items():
         checker = CollisionChecker(load_robot(name), parse_scene(SCENE))
-        computed = [0]
-        distances_of = checker.distances_of
-
-        def counted(q, pairs, distances_of=distances_of, computed=computed):
-            computed[0] += len(pairs)
-            return distances_of(q, pairs)
-
-        checker.distances_of = counted
+        computed = [0, 0]
+        _count_distances(checker, computed)
 
         def run(call, checker=checker):
             kind, what, kw, _ = call
@@ -128,9 +155,10 @@ def replay(path: str, reps: int) -> dict:
                 for call in calls:
                     run(call)
                 best = min(best, time.process_time() - c0)
-            before = computed[0]
+            before = list(computed)
             checks = sum(run(call).checks for call in calls)
-            rows["routed" if routed else "straight"].append((best * 1e3, checks, computed[0] - before))
+            pairs, bounding = computed[0] - before[0], computed[1] - before[1]
+            rows["routed" if routed else "straight"].append((best * 1e3, checks, pairs, bounding))
         summary[name] = {"differ": differ}
         for kind, values in rows.items():
             if values:
@@ -140,6 +168,7 @@ def replay(path: str, reps: int) -> dict:
                     "cpu_ms": float(np.median(a[:, 0])),
                     "checks": float(np.median(a[:, 1])),
                     "pair_distances": float(np.median(a[:, 2])),
+                    "bounding_distances": float(np.median(a[:, 3])),
                 }
     return summary
 
@@ -174,8 +203,9 @@ def main(argv: list[str] | None = None) -> int:
             for t in trees:
                 runs[t].append(json.loads(child(t, "--replay", calls, "--reps", str(args.reps))))
     lines = [
-        "| tree | arm | plans | CPU ms per plan (median of rounds) | checks | pair distances | results differing |",
-        "|---|---|---|---|---|---|---|",
+        "| tree | arm | plans | CPU ms per plan (median of rounds) | checks | pair distances | bounding distances "
+        "| results differing |",
+        "|---|---|---|---|---|---|---|---|",
     ]
     record_out: dict = {"paths": args.paths, "rounds": args.rounds, "reps": args.reps, "trees": {}}
     for t in trees:
@@ -188,7 +218,8 @@ def main(argv: list[str] | None = None) -> int:
                 cpu = float(np.median([g["cpu_ms"] for g in got]))
                 lines.append(
                     f"| {t} | {name} {kind} | {got[0]['plans']} | {cpu:.2f} | {got[0]['checks']:.0f} | "
-                    f"{got[0]['pair_distances']:.0f} | {max(r[name]['differ'] for r in runs[t])} |"
+                    f"{got[0]['pair_distances']:.0f} | {got[0].get('bounding_distances', 0):.0f} | "
+                    f"{max(r[name]['differ'] for r in runs[t])} |"
                 )
     table = "\n".join(lines)
     print(table)

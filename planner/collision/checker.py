@@ -18,12 +18,12 @@ import coal
 import numpy as np
 import pinocchio as pin
 
-from planner.collision.arm import arm_collision_model
+from planner.collision.arm import arm_collision_model, hull_points
 from planner.collision.scene import FLOOR, Box, Cylinder, Obstacle, Scene, Sphere
 from planner.exceptions import InvalidArgumentError
 from planner.model.robot import Robot
 
-__all__ = ["Clearance", "CollisionChecker", "shared_checker"]
+__all__ = ["BoundingPairs", "Clearance", "CollisionChecker", "shared_checker"]
 
 _FLOAT = np.dtype(float)
 _update, _distance = pin.updateGeometryPlacements, pin.computeDistance
@@ -144,6 +144,7 @@ class CollisionChecker:
         self._active_now: np.ndarray | None = None
         self._everything = self._mask(())
         self._near: dict[tuple, _CloserThan] = {}
+        self._bounding: BoundingPairs | None = None
 
     def forget_guesses(self) -> None:
         """Start GJK from its default direction again (as a new checker does).
@@ -222,9 +223,23 @@ class CollisionChecker:
         Only those pairs are computed (after the arm's placements at `q`): cheaper than
         :meth:`pair_distances` when few pairs are wanted.
         """
+        self.place(q)
+        return self.placed_distances(pairs)
+
+    def place(self, q: np.ndarray) -> None:
+        """Place the arm's objects at `q` (unchecked) for :meth:`placed_distances` and :meth:`bounding_pairs`."""
+        _update(self.robot.model, self._data, self.geometry, self._gdata, self._to_pinocchio(q))
+
+    def placed_distances(self, pairs: np.ndarray) -> np.ndarray:
+        """Distance [m] of the pairs with indices `pairs` at the configuration last placed (:meth:`place`)."""
         geom, gdata = self.geometry, self._gdata
-        _update(self.robot.model, self._data, geom, gdata, self._to_pinocchio(q))
         return np.array([_distance(geom, gdata, k).min_distance for k in pairs.tolist()], dtype=float)
+
+    def bounding_pairs(self) -> BoundingPairs:
+        """The :class:`BoundingPairs` of this checker (built once)."""
+        if self._bounding is None:
+            self._bounding = BoundingPairs(self)
+        return self._bounding
 
     def pair_clearance(self, k: int, distance: float) -> Clearance:
         """The :class:`Clearance` of pair `k` at `distance` [m] found at the last configuration computed.
@@ -326,6 +341,86 @@ class CollisionChecker:
     def pair_mask(self, allow: Iterable[str] = ()) -> np.ndarray:
         """The pairs checked when `allow` is allowed, for :meth:`distance_at`."""
         return self._mask(tuple(allow))
+
+
+#: Fewest objects on one joint for :class:`BoundingPairs` to bound them together (measured: with
+#: two, the hull's longer reach costs more checks than it saves distances).
+MIN_MEMBERS = 3
+
+
+def _exact_points(obj: pin.GeometryObject) -> bool:
+    """Whether :func:`~planner.collision.arm.hull_points` are the object's own corners (a polytope or a box).
+
+    Of other shapes they are a bounding box's corners: a hull of those is far larger than the
+    shapes (and distances to capsules and spheres are cheap anyway).
+    """
+    g = obj.geometry
+    return isinstance(g, coal.Box) or (isinstance(g, coal.Convex) and g.getSweptSphereRadius() == 0.0)
+
+
+class BoundingPairs:
+    """Pairs whose one distance bounds several checked pairs' distances from below.
+
+    Per joint that carries :data:`MIN_MEMBERS` or more of the arm's objects, each a polytope
+    or a box, the convex hull of them all (of their :func:`~planner.collision.arm.hull_points`,
+    so it contains each), paired with each object that every one of them is checked against:
+    the hull's distance to it is at most each member pair's. One distance instead of several
+    where the hull is far from the object (a hand and its fingers far from a box).
+
+    Attributes:
+        members: Per bounding pair, the indices of the checker's pairs it bounds.
+        objects: Per bounding pair, the checker's object its hull is checked against.
+    """
+
+    def __init__(self, checker: CollisionChecker) -> None:
+        self.checker = checker
+        geometry = checker.geometry
+        objects = list(geometry.geometryObjects)
+        n_arm = len(checker.arm.link_of)
+        by_joint: dict[int, list[int]] = {}
+        for k in range(n_arm):
+            joint = objects[k].parentJoint
+            if joint > 0:
+                by_joint.setdefault(joint, []).append(k)
+        index = {(int(a), int(b)): k for k, (a, b) in enumerate(checker._pairs)}
+        index.update({(b, a): k for (a, b), k in list(index.items())})
+        model = pin.GeometryModel()
+        for obj in objects:
+            model.addGeometryObject(obj)
+        self.members: list[np.ndarray] = []
+        self.objects: list[int] = []
+        for joint, group in by_joint.items():
+            if len(group) < MIN_MEMBERS or not all(_exact_points(objects[m]) for m in group):
+                continue
+            others = [o for o in range(len(objects)) if all((m, o) in index for m in group)]
+            if not others:
+                continue
+            points = np.vstack(
+                [
+                    hull_points(objects[m]) @ objects[m].placement.rotation.T + objects[m].placement.translation
+                    for m in group
+                ]
+            )
+            vertices = coal.StdVec_Vec3s()
+            for p in points:
+                vertices.append(p)
+            hull = coal.Convex.convexHull(vertices, True, "Qt")
+            hid = model.addGeometryObject(pin.GeometryObject(f"hull_{joint}", joint, 0, pin.SE3.Identity(), hull))
+            for o in others:
+                model.addCollisionPair(pin.CollisionPair(hid, o))
+                self.members.append(np.array([index[(m, o)] for m in group], dtype=int))
+                self.objects.append(o)
+        self.geometry = model
+        self._gdata = pin.GeometryData(model)
+
+    def __len__(self) -> int:
+        return len(self.members)
+
+    def placed_distances(self, pairs: np.ndarray) -> np.ndarray:
+        """Distance [m] of the bounding pairs `pairs` at the configuration the checker last placed."""
+        checker, geom, gdata = self.checker, self.geometry, self._gdata
+        pin.updateGeometryPlacements(checker.robot.model, checker._data, geom, gdata)
+        return np.array([_distance(geom, gdata, k).min_distance for k in pairs.tolist()], dtype=float)
 
 
 class _CloserThan:

@@ -51,12 +51,13 @@ from dataclasses import dataclass
 import numpy as np
 
 from planner.collision.arm import box_corners, hull_points
-from planner.collision.checker import Clearance, CollisionChecker
+from planner.collision.checker import BoundingPairs, Clearance, CollisionChecker
 from planner.core.arrays import read_only
 from planner.core.native import load_functions
 from planner.exceptions import InvalidArgumentError
 
 __all__ = [
+    "BOUND_MARGIN",
     "DEFAULT_TOLERANCE",
     "NEAR_TURN",
     "SWEEP_RESOLUTION",
@@ -505,27 +506,42 @@ def _advance(
     stop_at_first: bool,
     clearance: float | None,
     native: Callable | None = None,
+    bounds: BoundingPairs | None = None,
 ) -> MotionClearance:
     """Conservative advancement pair by pair: `sample` gives q and a speed state, `steps` each due pair's step.
 
     `native`, where given, replaces the steps and the bookkeeping after a check
     (:class:`_NativeSteps`): ``native(x, due, d, clearance, tolerance, coarse, until, early,
     bound)`` updates `until` and `early` and returns the next x and the pairs due there.
+
+    `bounds` (whose pairs `steps` takes as pairs ``pair_count + k``) stand for their members
+    while their distance keeps :data:`BOUND_MARGIN` beyond the clearance: the members are then
+    not computed (a member's distance is at least its bounding pair's, so the bounding pair's
+    steps hold for it). Where one comes closer its members are computed from then on, and it
+    is tried again when its distance could have grown back.
     """
     if not (tolerance > 0 and np.isfinite(tolerance)):
         raise InvalidArgumentError(f"tolerance must be a positive distance [m], got {tolerance!r}")
     c = checker.scene.clearance if clearance is None else float(clearance)
     masks = list(masks) if masks else [(0.0, checker.pair_mask())]
     n_pairs = checker.pair_count
+    n_bounds = len(bounds) if bounds is not None else 0
+    members = bounds.members if bounds is not None else []
+    firsts = np.array([m[0] for m in members], dtype=int)
+    threshold = c + BOUND_MARGIN
     # Per pair, the x up to which it is certified, and from which it is computed with the
     # pairs due then (halfway through its last step: one more pair costs far less than one
-    # more configuration); -inf: due now (as after it is switched on), inf: off the mask.
-    until = np.full(n_pairs, -np.inf)
-    early = np.full(n_pairs, -np.inf)
+    # more configuration); -inf: due now (as after it is switched on), inf: off the mask or
+    # stood for by a bounding pair (`covered`).
+    until = np.full(n_pairs + n_bounds, -np.inf)
+    early = np.full(n_pairs + n_bounds, -np.inf)
+    covered = np.zeros(n_pairs, dtype=bool)
+    standing = np.zeros(n_bounds, dtype=bool)  # bounding pairs that stand for their members
     x, checks, k_mask = 0.0, 0, -1
     mask = masks[0][1]
     best: tuple[float, float, Clearance | None] = (np.inf, 0.0, None)
     best_pair = -1
+    best_bound = (np.inf, 0.0, -1)
     first_hit: float | None = None
     hit: Clearance | None = None
     coarse = end / 2000.0  # past a hit: coarse steps, only to find the worst
@@ -536,29 +552,45 @@ def _advance(
             k_mask += 1
             due = None
             was, mask = (None if k_mask == 0 else masks[k_mask - 1][1]), masks[k_mask][1]
-            on = mask if was is None else mask & ~was
+            full = np.concatenate([mask, mask[firsts]])  # a bounding pair is on with its members
+            on = full if was is None else full & ~np.concatenate([was, was[firsts]])
             until[on], early[on] = -np.inf, -np.inf
-            until[~mask], early[~mask] = np.inf, np.inf
+            until[~full], early[~full] = np.inf, np.inf
+            if n_bounds:
+                # Bounding pairs switched on are tried at once; their members are due now too.
+                standing &= full[n_pairs:]
+                covered[:] = False
+                for k in np.flatnonzero(standing):
+                    covered[members[k]] = True
         if due is None:
             due = (early <= x).nonzero()[0]
         if due.size:
             q, speed = sample(x)
-            if checks == 0 or due.size == n_pairs:
+            if n_bounds:
+                d, d_bounds, due, due_bounds, x_best = _check_bounds(
+                    checker, bounds, q, due, until, early, covered, standing, threshold, c, tolerance
+                )
+                if x_best is not None and x_best[0] < best_bound[0]:
+                    best_bound = (x_best[0], x, x_best[1])
+            elif checks == 0 or due.size == n_pairs:
                 d = checker.pair_distances(q, mask)[due]
             else:
                 d = checker.distances_of(q, due)
             checks += 1
-            i = int(d.argmin())
-            dmin = float(d[i])
-            if dmin < best[0]:
-                best = (dmin, x, checker.pair_clearance(int(due[i]), dmin) if dmin <= 0.0 else None)
-                best_pair = int(due[i])
-            if dmin < c and first_hit is None:
-                first_hit = x
-                # The closest pair of all at this instant (not only of those due).
-                hit = checker.clearance_of(checker.pair_distances(q, mask))
-                if stop_at_first:
-                    break
+            if d.size:
+                i = int(d.argmin())
+                dmin = float(d[i])
+                if dmin < best[0]:
+                    best = (dmin, x, checker.pair_clearance(int(due[i]), dmin) if dmin <= 0.0 else None)
+                    best_pair = int(due[i])
+                if dmin < c and first_hit is None:
+                    first_hit = x
+                    # The closest pair of all at this instant (not only of those due).
+                    hit = checker.clearance_of(checker.pair_distances(q, mask))
+                    if stop_at_first:
+                        break
+            if n_bounds and due_bounds.size:
+                due, d = np.concatenate([due, due_bounds]), np.concatenate([d, d_bounds])
             if native is not None:
                 if x >= end:
                     break
@@ -582,6 +614,13 @@ def _advance(
             x_next = min(x_next, masks[k_mask + 1][0])  # a change of mask: check at the boundary
         x = min(x_next if x_next > x else float(np.nextafter(x, np.inf)), end)
         due = None
+    if best_bound[0] < best[0]:
+        # A bounding pair came closer than every pair computed: its members where it did.
+        checker.place(sample(best_bound[1])[0])
+        pairs = members[best_bound[2]]
+        dm = checker.placed_distances(pairs)
+        if float(dm.min()) < best[0]:
+            best, best_pair = (float(dm.min()), best_bound[1], None), int(pairs[int(dm.argmin())])
     if best[2] is not None:
         closest = best[2]
     elif np.isfinite(best[0]):
@@ -589,6 +628,59 @@ def _advance(
     else:
         closest = checker.clearance_of(np.zeros(0))
     return MotionClearance(first_hit is None, closest, best[1], first_hit, hit, checks)
+
+
+_NONE, _NONE_DUE = np.zeros(0), np.zeros(0, dtype=int)
+
+
+def _check_bounds(
+    checker: CollisionChecker,
+    bounds: BoundingPairs,
+    q: np.ndarray,
+    due: np.ndarray,
+    until: np.ndarray,
+    early: np.ndarray,
+    covered: np.ndarray,
+    standing: np.ndarray,
+    threshold: float,
+    c: float,
+    tolerance: float,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, tuple[float, int] | None]:
+    """One check of :func:`_advance` with bounding pairs: the bounding pairs due first, then the pairs.
+
+    A bounding pair at least `threshold` away stands for its members (they are taken off the
+    schedule); one closer hands them back (due now) and is tried again when its distance could
+    have grown to `threshold` (its distance is passed on as the one that gives that room).
+    Returns the pairs' distances, the bounding pairs' (as passed on), the pairs computed, the
+    bounding pairs (indices past the pairs) and the closest bounding pair (distance, index).
+    """
+    n_pairs = len(covered)
+    split = int(np.searchsorted(due, n_pairs))
+    checker.place(q)
+    if split == due.size:
+        return checker.placed_distances(due), _NONE, due, _NONE_DUE, None
+    due_bounds = due[split:]
+    due = due[:split]
+    local = due_bounds - n_pairs
+    d_bounds = bounds.placed_distances(local)
+    far = d_bounds >= threshold
+    for k, ok in zip(local.tolist(), far.tolist()):
+        pairs = bounds.members[k]
+        if ok and not standing[k]:
+            standing[k] = True
+            covered[pairs] = True
+            until[pairs], early[pairs] = np.inf, np.inf
+        elif not ok and standing[k]:
+            standing[k] = False
+            covered[pairs] = False
+            until[pairs], early[pairs] = -np.inf, -np.inf
+            due = np.union1d(due, pairs)
+    i = int(d_bounds.argmin())
+    closest = (float(d_bounds[i]), int(local[i]))
+    # Not standing: tried again when its distance could have grown a margin past the threshold.
+    d_bounds = np.where(far, d_bounds, c - tolerance + (threshold + BOUND_MARGIN - d_bounds))
+    due = due[~covered[due]]
+    return checker.placed_distances(due), d_bounds, due, due_bounds, closest
 
 
 def check_segment(
@@ -705,7 +797,16 @@ def check_trajectory(
     masks.sort(key=lambda m: m[0])
     steps = _trajectory_steps(checker, trajectory, last, vmax, max(checker.scene.clearance - tolerance, 0.0))
     return _advance(
-        checker, sample, steps, duration, masks, tolerance, stop_at_first, None, getattr(steps, "native", None)
+        checker,
+        sample,
+        steps,
+        duration,
+        masks,
+        tolerance,
+        stop_at_first,
+        None,
+        getattr(steps, "native", None),
+        checker.bounding_pairs(),
     )
 
 
@@ -780,10 +881,29 @@ def _step_rates(checker: CollisionChecker, floor: float) -> tuple[np.ndarray, li
         # The near-body bound can only be the longer where some joint's weight is below r_j.
         useful = (finite & np.any(near.joints & (lever < weights), axis=1))[:, None]
         rates = np.stack([weights, np.where(useful, lever, weights), np.where(useful, turn, weights)], axis=1)
+        bound = np.repeat(_bound_weights(checker), 3, axis=0)
         if len(held) >= 8:
             held.clear()
-        out = held[floor] = (rates.reshape(-1, weights.shape[1]), useful[:, 0].tolist())
+        rows = np.vstack([rates.reshape(-1, weights.shape[1]), bound])
+        out = held[floor] = (rows, useful[:, 0].tolist() + [False] * (len(bound) // 3))
     return out
+
+
+#: How far beyond the clearance a :class:`~planner.collision.checker.BoundingPairs` hull must be
+#: for its one distance to stand for its member pairs' [m].
+BOUND_MARGIN = 0.05
+
+
+def _bound_weights(checker: CollisionChecker) -> np.ndarray:
+    """Per bounding pair of the checker, :func:`pair_weights`'s row: the largest of its members' rows.
+
+    The members hang from the same joint and are checked against the same object: the same
+    joints count for each, and each ``r_j`` bounds a convex function of the points (their
+    distance from an axis or a point), largest on the hull at one of its members' points.
+    """
+    weights = pair_weights(checker)
+    bounds = checker.bounding_pairs()
+    return np.array([weights[m].max(axis=0) for m in bounds.members], dtype=float).reshape(-1, weights.shape[1])
 
 
 def _trajectory_steps(
@@ -812,18 +932,25 @@ def _trajectory_steps(
     # Per row and grid time, flattened: W plus an offset per row that keeps the whole ascending
     # (one search for every row), per interval its largest rate and the inverse, its start
     # time and length. Every room is made smaller by `slack` (a nanometre and the offsets'
-    # rounding) against rounding.
-    w = rates @ c.T
-    offsets = np.arange(len(rates)) * (float(w[:, -1].max(initial=0.0)) + 1.0)
-    flat = (w + offsets[:, None]).ravel()
-    slack = 1e-9 + 1e-15 * float(flat[-1] if flat.size else 0.0)
+    # rounding) against rounding. The compiled path evaluates W and the rates where it
+    # searches them: the tables are built only for the Python steps, when first called.
+    w_end = rates @ c[-1]
+    offset = float(w_end.max(initial=0.0)) + 1.0
+    slack = 1e-9 + 1e-15 * (float(w_end[-1]) + (len(rates) - 1) * offset if len(rates) else 0.0)
     turn_room = _TURN - slack
-    speed = np.zeros((len(rates), g))
-    speed[:, :-1] = rates @ top.T
-    inverse = (1.0 / np.maximum(speed, 1e-300)).ravel()
-    speed = speed.ravel()
-    start = np.tile(t, len(rates))
-    width = np.tile(np.append(np.diff(t), np.inf), len(rates))
+    tables: list[np.ndarray] = []
+
+    def build() -> list[np.ndarray]:
+        w = rates @ c.T
+        flat = (w + (np.arange(len(rates)) * offset)[:, None]).ravel()
+        speed = np.zeros((len(rates), g))
+        speed[:, :-1] = rates @ top.T
+        inverse = (1.0 / np.maximum(speed, 1e-300)).ravel()
+        start = np.tile(t, len(rates))
+        width = np.tile(np.append(np.diff(t), np.inf), len(rates))
+        tables.extend([flat, speed.ravel(), inverse, start, width])
+        return tables
+
     rows = np.array([0, g, 2 * g])  # a pair's three rows, from its first entry
     per_pair = 3 * g
     times = t.tolist()
@@ -831,6 +958,7 @@ def _trajectory_steps(
 
     def row_step(a: int, room: float, x: float, ahead: float, last: int) -> float:
         """One row's step, `a` its entry at the check's interval: the same arithmetic as below."""
+        flat, speed, inverse, start, width = tables
         first = speed[a] * ahead
         if room < first:
             return float(room * inverse[a])
@@ -841,6 +969,7 @@ def _trajectory_steps(
     def steps(x: float, due: np.ndarray, d: np.ndarray, room: np.ndarray) -> np.ndarray:
         if x >= end:
             return np.full(len(due), np.inf)
+        flat, speed, inverse, start, width = tables or build()
         k0 = min(bisect.bisect_right(times, x) - 1, g - 2)
         if len(due) <= _FEW:
             # Pair by pair in Python: fewer calls than the whole-array operations below.
@@ -878,71 +1007,75 @@ def _trajectory_steps(
 
     lib = _native_library()
     if lib is not None:
-        tables = (
-            flat,
-            speed,
-            inverse,
-            start,
-            width,
-            np.asarray(times, dtype=float),
-            np.asarray(useful, dtype=np.uint8),
-        )
-        steps.native = _NativeSteps(lib, tables, g, slack, checker.pair_count)  # type: ignore[attr-defined]
+        arrays = (rates, c, top, t, np.asarray(useful, dtype=np.uint8))
+        steps.native = _NativeSteps(lib, arrays, g, c.shape[1], slack, len(useful))  # type: ignore[attr-defined]
     return steps
 
 
 _NATIVE_SOURCE = r"""
 #include <math.h>
 
-static long bisect_right(const double *a, double v, long lo, long hi) {
-    while (lo < hi) {
-        long mid = lo + (hi - lo) / 2;
-        if (v < a[mid]) hi = mid; else lo = mid + 1;
-    }
-    return lo;
+/* Row `rate` (dof weights) times row k of a (rows, dof) matrix. */
+static double dot(const double *rate, const double *m, long k, long dof) {
+    double s = 0.0;
+    for (long i = 0; i < dof; ++i) s += rate[i] * m[k * dof + i];
+    return s;
 }
 
-/* One row's step from x: the arithmetic of row_step in _trajectory_steps. */
-static double row_step(const double *flat, const double *speed, const double *inverse, const double *start,
-                       const double *width, long a, double room, double x, double ahead, long last) {
-    double first = speed[a] * ahead;
-    if (room < first) return room * inverse[a];
-    double target = flat[a + 1] + room - first;
-    long j = bisect_right(flat, target, a + 1, last + 1) - 1;
-    double until = (target - flat[j]) * inverse[j];
-    if (width[j] < until) until = width[j];
-    return until + start[j] - x;
+/* One row's step from x in grid interval k0: row_step of _trajectory_steps, with W = rate . c
+   and the interval's rate bound rate . top evaluated where they are needed. */
+static double row_step(const double *rate, const double *c, const double *top, const double *t, long g, long dof,
+                       long k0, double room, double x, double ahead) {
+    double speed = dot(rate, top, k0, dof);
+    double first = speed * ahead;
+    if (room < first) return room * (1.0 / (speed > 1e-300 ? speed : 1e-300));
+    double target = dot(rate, c, k0 + 1, dof) + room - first;
+    long lo = k0 + 1, hi = g; /* the last grid time with W <= target, from k0 + 1 on */
+    while (lo < hi) {
+        long mid = lo + (hi - lo) / 2;
+        if (target < dot(rate, c, mid, dof)) hi = mid; else lo = mid + 1;
+    }
+    long j = lo - 1;
+    double rate_j = j < g - 1 ? dot(rate, top, j, dof) : 0.0;
+    double width = j < g - 1 ? t[j + 1] - t[j] : INFINITY;
+    double until = (target - dot(rate, c, j, dof)) * (1.0 / (rate_j > 1e-300 ? rate_j : 1e-300));
+    if (width < until) until = width;
+    return until + t[j] - x;
 }
 
 /* After a check at x of the n pairs `due` (distances d): each one's step (from its room
-   max(d - c + tolerance, tolerance / 2), at least `coarse`), until = x + step, early = x + step / 2;
+   max(d - cl + tolerance, tolerance / 2), at least `coarse`), until = x + step, early = x + step / 2;
    then the next x (the least until, at most `bound`, past x, at most the end) in out[0] and the
-   pairs due there (early <= next x) written to `due`, their number in out[1]. */
-void trajectory_update(const double *flat, const double *speed, const double *inverse, const double *start,
-                       const double *width, const double *times, const unsigned char *useful, long g, double slack,
-                       double cap, long npairs, double x, long *due, long n, const double *d, double c,
-                       double tolerance, double coarse, double *until, double *early, double bound, double *out) {
-    double end = times[g - 1];
-    long k0 = bisect_right(times, x, 0, g) - 1;
+   pairs due there (early <= next x) written to `due`, their number in out[1]. `rates` holds
+   three rows per pair (_step_rates), c and top the grid of _trajectory_grid at the times t. */
+void trajectory_update(const double *rates, const double *c, const double *top, const double *t,
+                       const unsigned char *useful, long g, long dof, double slack, double cap, long npairs, double x,
+                       long *due, long n, const double *d, double cl, double tolerance, double coarse, double *until,
+                       double *early, double bound, double *out) {
+    double end = t[g - 1];
+    long lo = 0, hi = g;
+    while (lo < hi) {
+        long mid = lo + (hi - lo) / 2;
+        if (x < t[mid]) hi = mid; else lo = mid + 1;
+    }
+    long k0 = lo - 1;
     if (k0 > g - 2) k0 = g - 2;
-    double ahead = times[k0 + 1] - x;
-    long per_pair = 3 * g;
+    double ahead = t[k0 + 1] - x;
     for (long i = 0; i < n; ++i) {
         long p = due[i];
         double step;
         if (x >= end) {
             step = INFINITY;
         } else {
-            double room = d[i] - c;
+            double room = d[i] - cl;
             room += tolerance;
             if (room < tolerance / 2.0) room = tolerance / 2.0;
             double r = room - slack;
-            long a = p * per_pair + k0;
-            long last = a + g - 1 - k0;
-            step = row_step(flat, speed, inverse, start, width, a, r, x, ahead, last);
+            const double *rate = rates + 3 * p * dof;
+            step = row_step(rate, c, top, t, g, dof, k0, r, x, ahead);
             if (useful[p]) {
-                double near = row_step(flat, speed, inverse, start, width, a + g, r, x, ahead, last + g);
-                double turn = row_step(flat, speed, inverse, start, width, a + 2 * g, cap, x, ahead, last + 2 * g);
+                double near = row_step(rate + dof, c, top, t, g, dof, k0, r, x, ahead);
+                double turn = row_step(rate + 2 * dof, c, top, t, g, dof, k0, cap, x, ahead);
                 double m = turn < near ? turn : near;
                 if (m > step) step = m;
             }
@@ -969,7 +1102,7 @@ void trajectory_update(const double *flat, const double *speed, const double *in
 """
 _P, _L, _D = ctypes.c_void_p, ctypes.c_long, ctypes.c_double
 _NATIVE_SIGNATURES = {
-    "trajectory_update": [_P] * 7 + [_L, _D, _D, _L, _D, _P, _L, _P, _D, _D, _D, _P, _P, _D, _P],
+    "trajectory_update": [_P] * 5 + [_L, _L, _D, _D, _L, _D, _P, _L, _P, _D, _D, _D, _P, _P, _D, _P],
 }
 
 
@@ -985,10 +1118,11 @@ class _NativeSteps:
     :func:`_advance`'s loop; the pairs due next are written into a buffer of this object.
     """
 
-    def __init__(self, lib, tables: tuple[np.ndarray, ...], g: int, slack: float, n_pairs: int) -> None:
-        self.tables = tuple(np.ascontiguousarray(t) for t in tables)  # kept alive: C reads them
+    def __init__(self, lib, arrays: tuple[np.ndarray, ...], g: int, dof: int, slack: float, n_pairs: int) -> None:
+        self.kept = tuple(np.ascontiguousarray(a) for a in arrays)  # kept alive: C reads them
         self.function = lib.trajectory_update
-        self.head = (*(t.ctypes.data for t in self.tables), g, slack, NEAR_TURN - slack, n_pairs)
+        self.size = n_pairs  # the pairs and bounding pairs it schedules
+        self.head = (*(a.ctypes.data for a in self.kept), g, dof, slack, NEAR_TURN - slack, n_pairs)
         size = max(n_pairs, 1)
         self.due, self.distances, self.out = np.zeros(size, dtype=np.int64), np.zeros(size), np.zeros(2)
         self.at = (self.due.ctypes.data, self.distances.ctypes.data, self.out.ctypes.data)
