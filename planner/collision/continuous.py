@@ -664,22 +664,20 @@ def _check_bounds(
     local = due_bounds - n_pairs
     d_bounds = bounds.placed_distances(local)
     far = d_bounds >= threshold
-    for k, ok in zip(local.tolist(), far.tolist()):
-        pairs = bounds.members[k]
-        if ok and not standing[k]:
-            standing[k] = True
-            covered[pairs] = True
-            until[pairs], early[pairs] = np.inf, np.inf
-        elif not ok and standing[k]:
-            standing[k] = False
-            covered[pairs] = False
-            until[pairs], early[pairs] = -np.inf, -np.inf
-            due = np.union1d(due, pairs)
+    changed = far != standing[local]
+    if changed.any():
+        for k, ok in zip(local[changed].tolist(), far[changed].tolist()):
+            pairs = bounds.members[k]
+            standing[k] = covered[pairs] = ok
+            until[pairs] = early[pairs] = np.inf if ok else -np.inf
+            if not ok:
+                due = np.union1d(due, pairs)
+        due = due[~covered[due]]
     i = int(d_bounds.argmin())
     closest = (float(d_bounds[i]), int(local[i]))
-    # Not standing: tried again when its distance could have grown a margin past the threshold.
-    d_bounds = np.where(far, d_bounds, c - tolerance + (threshold + BOUND_MARGIN - d_bounds))
-    due = due[~covered[due]]
+    if not far.all():
+        # Not standing: tried again when its distance could have grown a margin past the threshold.
+        d_bounds = np.where(far, d_bounds, c - tolerance + (threshold + BOUND_MARGIN - d_bounds))
     return checker.placed_distances(due), d_bounds, due, due_bounds, closest
 
 
