@@ -495,6 +495,27 @@ def test_the_compiled_bookkeeping_takes_the_python_steps(name):
             np.testing.assert_array_equal(got_due, np.flatnonzero(early <= got_x))
 
 
+@pytest.mark.parametrize("name", ["al5c", "dh3", pytest.param("panda", marks=needs_example_robot_data)])
+def test_the_compiled_grid_is_numpys(name):
+    """_trajectory_grid's compiled loop: the NumPy grid's times, travels and speeds, to the last bit."""
+    import planner.collision.continuous as cc
+
+    if cc._native_library() is None:
+        pytest.skip("no C compiler (PLANNER_JIT=0): the NumPy grid only")
+    robot = get_robot(name)
+    limits = JointLimits.from_robot(robot)
+    rng = np.random.default_rng(9)
+    for count in (2, 2, 3, 5):
+        waypoints = robot.random_configurations(rng, count)
+        if count == 2:
+            waypoints[1] = waypoints[0] + 0.01 * (waypoints[1] - waypoints[0])  # a short move too
+        traj = plan_trajectory(waypoints, limits)
+        last, vmax = np.asarray(traj.waypoints[-1], dtype=float), np.asarray(limits.velocity) * (1 + 1e-6)
+        for got, want in zip(cc._trajectory_grid(traj, last, vmax), cc._numpy_grid(traj, last, vmax)):
+            assert got.shape == want.shape
+            np.testing.assert_array_equal(got, want)
+
+
 @pytest.mark.parametrize("name", ["al5c", pytest.param("panda", marks=needs_example_robot_data)])
 def test_timed_checks_give_the_same_results_without_the_compiled_bookkeeping(name, monkeypatch):
     """check_trajectory with _NativeSteps and with the Python steps: the same verdicts, hits and checks."""

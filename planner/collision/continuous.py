@@ -815,6 +815,32 @@ GRID_POINTS = 16
 def _trajectory_grid(trajectory, last: np.ndarray, vmax: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Times ``t`` over a trajectory between which every joint moves one way at a speed moving one way.
 
+    See :func:`_numpy_grid`; the compiled ``trajectory_grid`` does the same arithmetic where
+    it can be built.
+    """
+    lib = _native_library()
+    if lib is None:
+        return _numpy_grid(trajectory, last, vmax)
+    knots = np.ascontiguousarray(trajectory.knots, dtype=float)
+    p, v, a, j = (
+        np.ascontiguousarray(x, dtype=float) for x in (trajectory.p, trajectory.v, trajectory.a, trajectory.j)
+    )
+    k, dof = p.shape
+    size = k + 1 + GRID_POINTS + 4 * k * dof
+    t, c, top = np.empty(size), np.empty((size, dof)), np.empty((size, dof))
+    last = np.ascontiguousarray(last, dtype=float)
+    vmax = np.ascontiguousarray(vmax, dtype=float)
+    count = np.zeros(1, dtype=np.int64)
+    arrays = (knots, p, v, a, j, last, vmax, t, c, top, count)
+    address = [x.ctypes.data for x in arrays]
+    lib.trajectory_grid(*address[:5], k, dof, float(trajectory.duration), *address[5:7], GRID_POINTS, *address[7:])
+    g = int(count[0])
+    return t[:g].copy(), c[:g].copy(), top[: max(g - 1, 0)].copy()
+
+
+def _numpy_grid(trajectory, last: np.ndarray, vmax: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """:func:`_trajectory_grid` in NumPy.
+
     The knots, each piece's interior extrema of position and velocity, and :data:`GRID_POINTS`
     evenly spaced times. Returns ``t`` (G,), ``C`` (G, dof): each joint's travel (total
     variation) from 0 to ``t[k]`` (``|q(t[k+1]) - q(t[k])|`` summed: exact as the joint does not
@@ -1012,6 +1038,80 @@ def _trajectory_steps(
 
 _NATIVE_SOURCE = r"""
 #include <math.h>
+#include <stdlib.h>
+
+static int ascending(const void *a, const void *b) {
+    double x = *(const double *)a, y = *(const double *)b;
+    return (x > y) - (x < y);
+}
+
+/* _numpy_grid's times, travel c and interval speeds top (rows of dof), their number in count[0]:
+   the same arithmetic. t has room for k + 1 + points + 4 k dof times, c and top as many rows. */
+void trajectory_grid(const double *knots, const double *p, const double *v, const double *a, const double *j, long k,
+                     long dof, double duration, const double *last, const double *vmax, long points, double *t,
+                     double *c, double *top, long *count) {
+    long n = 0;
+    for (long i = 0; i < k; ++i) t[n++] = knots[i];
+    t[n++] = duration;
+    double step = duration / (double)(points - 1);
+    for (long i = 0; i < points; ++i) t[n++] = i == points - 1 ? duration : (double)i * step;
+    for (long i = 0; i < k; ++i) {
+        double h = i + 1 < k ? knots[i + 1] - knots[i] : duration - knots[i];
+        for (long d = 0; d < dof; ++d) {
+            double ai = a[i * dof + d], vi = v[i * dof + d], ji = j[i * dof + d];
+            double disc = ai * ai - 2.0 * ji * vi;
+            double sq = sqrt(disc > 0.0 ? disc : 0.0);
+            double roots[4] = {-ai / ji, (-ai + sq) / ji, (-ai - sq) / ji, -vi / ai};
+            for (int r = 0; r < 4; ++r)
+                if (roots[r] > 0.0 && roots[r] < h) t[n++] = knots[i] + roots[r];
+        }
+    }
+    qsort(t, n, sizeof(double), ascending);
+    long g = 0;
+    for (long i = 0; i < n; ++i) {
+        if (t[i] > duration) break;
+        if (g == 0 || t[i] != t[g - 1]) t[g++] = t[i];
+    }
+    for (long m = 0; m < g; ++m) {
+        long lo = 0, hi = k;
+        while (lo < hi) {
+            long mid = lo + (hi - lo) / 2;
+            if (t[m] < knots[mid]) hi = mid; else lo = mid + 1;
+        }
+        long i = lo - 1 > 0 ? lo - 1 : 0;
+        double dt = t[m] - knots[i];
+        for (long d = 0; d < dof; ++d) {
+            long e = i * dof + d;
+            /* q in c (turned into the travel below), |qd| in top */
+            c[m * dof + d] = p[e] + dt * (v[e] + dt * (a[e] / 2.0 + dt * (j[e] / 6.0)));
+            top[m * dof + d] = fabs(v[e] + dt * (a[e] + dt * (j[e] / 2.0)));
+        }
+    }
+    for (long d = 0; d < dof; ++d) {
+        double jump = 0.0;
+        for (long i = 0; i + 1 < k; ++i) {
+            double h = knots[i + 1] - knots[i];
+            long e = i * dof + d;
+            double gap = fabs(v[e] + h * (a[e] + h * (j[e] / 2.0)) - v[e + dof]);
+            if (gap > jump) jump = gap;
+        }
+        double previous = c[d], total = 0.0;
+        for (long m = 0; m + 1 < g; ++m) {
+            double q = c[(m + 1) * dof + d];
+            double travel = fabs(q - previous);
+            if (m + 2 == g) travel += fabs(last[d] - q);
+            travel *= 1.0 + 1e-9;
+            previous = q;
+            c[m * dof + d] = total; /* row m's travel, written after its q was read */
+            total += travel;
+            double fast = top[m * dof + d] > top[(m + 1) * dof + d] ? top[m * dof + d] : top[(m + 1) * dof + d];
+            double bound = fast * (1.0 + 1e-9) + (jump + 1e-12);
+            top[m * dof + d] = bound < vmax[d] ? bound : vmax[d];
+        }
+        c[(g - 1) * dof + d] = total;
+    }
+    count[0] = g;
+}
 
 /* Row `rate` (dof weights) times row k of a (rows, dof) matrix. */
 static double dot(const double *rate, const double *m, long k, long dof) {
@@ -1100,6 +1200,7 @@ void trajectory_update(const double *rates, const double *c, const double *top, 
 """
 _P, _L, _D = ctypes.c_void_p, ctypes.c_long, ctypes.c_double
 _NATIVE_SIGNATURES = {
+    "trajectory_grid": [_P] * 5 + [_L, _L, _D, _P, _P, _L, _P, _P, _P, _P],
     "trajectory_update": [_P] * 5 + [_L, _L, _D, _D, _L, _D, _P, _L, _P, _D, _D, _D, _P, _P, _D, _P],
 }
 
