@@ -456,7 +456,7 @@ def test_a_timed_step_keeps_each_pair_within_its_room_by_its_joints_travel(name)
 
 @pytest.mark.parametrize("name", ["al5c", pytest.param("panda", marks=needs_example_robot_data)])
 def test_the_compiled_bookkeeping_takes_the_python_steps(name):
-    """_NativeSteps: per due pair the Python rule's step (until, early), then the least until and the pairs due."""
+    """_NativeSteps: per due pair the Python rule's step (until, early), then the least until, pairs due, q there."""
     import planner.collision.continuous as cc
 
     if cc._native_library() is None:
@@ -483,7 +483,14 @@ def test_the_compiled_bookkeeping_takes_the_python_steps(name):
             want = np.maximum(rule(float(x), due, d, room), coarse)
             until, early = rng.uniform(x, x + 1.0, n), rng.uniform(x, x + 1.0, n)
             bound = float(rng.uniform(x, traj.duration + 1.0))
-            got_x, got_due = rule.native(float(x), due, d, 0.005, cc.DEFAULT_TOLERANCE, coarse, until, early, bound)
+            got_x, got_due, got_q = rule.native(
+                float(x), due, d, 0.005, cc.DEFAULT_TOLERANCE, coarse, until, early, bound
+            )
+            # The configuration there: check_trajectory's sample (the pieces' polynomial, the last waypoint at the end).
+            i = max(int(np.searchsorted(traj.knots, got_x, side="right")) - 1, 0)
+            dt = got_x - traj.knots[i]
+            polynomial = traj.p[i] + dt * (traj.v[i] + dt * (traj.a[i] / 2.0 + dt * (traj.j[i] / 6.0)))
+            np.testing.assert_array_equal(got_q, last if got_x >= traj.duration else polynomial)
             # (W to rounding: the Python rows carry offsets; steps past the end are only "never".)
             big = 1e6 * traj.duration
             np.testing.assert_allclose(np.minimum(until[due] - x, big), np.minimum(want, big), rtol=1e-9, atol=1e-12)

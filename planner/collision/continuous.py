@@ -512,7 +512,9 @@ def _advance(
 
     `native`, where given, replaces the steps and the bookkeeping after a check
     (:class:`_NativeSteps`): ``native(x, due, d, clearance, tolerance, coarse, until, early,
-    bound)`` updates `until` and `early` and returns the next x and the pairs due there.
+    bound)`` updates `until` and `early` and returns the next x, the pairs due there and the
+    configuration there (``sample(x)[0]``; ``sample(x)[1]`` is taken to be x, as in a timed
+    trajectory).
 
     `bounds` (whose pairs `steps` takes as pairs ``pair_count + k``) stand for their members
     while their distance keeps :data:`BOUND_MARGIN` beyond the clearance: the members are then
@@ -547,6 +549,7 @@ def _advance(
     coarse = end / 2000.0  # past a hit: coarse steps, only to find the worst
     half = tolerance / 2.0
     due: np.ndarray | None = None
+    q_next: np.ndarray | None = None  # the configuration at x where `native` gave it
     while True:
         while k_mask + 1 < len(masks) and masks[k_mask + 1][0] <= x:
             k_mask += 1
@@ -565,7 +568,7 @@ def _advance(
         if due is None:
             due = (early <= x).nonzero()[0]
         if due.size:
-            q, speed = sample(x)
+            q, speed = (q_next, x) if q_next is not None else sample(x)
             if n_bounds:
                 d, d_bounds, due, due_bounds, x_best = _check_bounds(
                     checker, bounds, q, due, until, early, covered, standing, threshold, c, tolerance
@@ -597,7 +600,9 @@ def _advance(
                 # The same steps and bookkeeping in one compiled call: it also moves on to the
                 # next x (at most the next change of mask) and finds the pairs due there.
                 bound = masks[k_mask + 1][0] if k_mask + 1 < len(masks) else end
-                x, due = native(x, due, d, c, tolerance, coarse if first_hit is not None else 0.0, until, early, bound)
+                x, due, q_next = native(
+                    x, due, d, c, tolerance, coarse if first_hit is not None else 0.0, until, early, bound
+                )
                 continue
             room = d - c
             room += tolerance
@@ -613,7 +618,7 @@ def _advance(
         if k_mask + 1 < len(masks):
             x_next = min(x_next, masks[k_mask + 1][0])  # a change of mask: check at the boundary
         x = min(x_next if x_next > x else float(np.nextafter(x, np.inf)), end)
-        due = None
+        due, q_next = None, None
     if best_bound[0] < best[0]:
         # A bounding pair came closer than every pair computed: its members where it did.
         checker.place(sample(best_bound[1])[0])
@@ -1032,7 +1037,8 @@ def _trajectory_steps(
     lib = _native_library()
     if lib is not None:
         arrays = (rates, c, top, t, np.asarray(useful, dtype=np.uint8))
-        steps.native = _NativeSteps(lib, arrays, g, c.shape[1], slack, len(useful))  # type: ignore[attr-defined]
+        native = _NativeSteps(lib, arrays, g, c.shape[1], slack, len(useful), trajectory, last)
+        steps.native = native  # type: ignore[attr-defined]
     return steps
 
 
@@ -1147,9 +1153,11 @@ static double row_step(const double *rate, const double *c, const double *top, c
    pairs due there (early <= next x) written to `due`, their number in out[1]. `rates` holds
    three rows per pair (_step_rates), c and top the grid of _trajectory_grid at the times t. */
 void trajectory_update(const double *rates, const double *c, const double *top, const double *t,
-                       const unsigned char *useful, long g, long dof, double slack, double cap, long npairs, double x,
-                       long *due, long n, const double *d, double cl, double tolerance, double coarse, double *until,
-                       double *early, double bound, double *out) {
+                       const unsigned char *useful, long g, long dof, double slack, double cap, long npairs,
+                       const double *knots, long k, const double *p, const double *v, const double *half_a,
+                       const double *sixth_j, const double *last, double *q, double x, long *due, long n,
+                       const double *d, double cl, double tolerance, double coarse, double *until, double *early,
+                       double bound, double *out) {
     double end = t[g - 1];
     long lo = 0, hi = g;
     while (lo < hi) {
@@ -1185,23 +1193,42 @@ void trajectory_update(const double *rates, const double *c, const double *top, 
     double next = end;
     if (npairs > 0) {
         next = until[0];
-        for (long k = 1; k < npairs; ++k)
-            if (until[k] < next) next = until[k];
+        for (long i = 1; i < npairs; ++i)
+            if (until[i] < next) next = until[i];
     }
     if (bound < next) next = bound;
     next = next > x ? next : nextafter(x, INFINITY);
     if (end < next) next = end;
     long m = 0;
-    for (long k = 0; k < npairs; ++k)
-        if (early[k] <= next) due[m++] = k;
+    for (long i = 0; i < npairs; ++i)
+        if (early[i] <= next) due[m++] = i;
     out[0] = next;
     out[1] = (double)m;
+    /* The configuration at the next x: check_trajectory's sample. */
+    if (next >= end) {
+        for (long i = 0; i < dof; ++i) q[i] = last[i];
+        return;
+    }
+    long a = 0, b = k;
+    while (a < b) {
+        long mid = a + (b - a) / 2;
+        if (next < knots[mid]) b = mid; else a = mid + 1;
+    }
+    long i = a - 1 > 0 ? a - 1 : 0;
+    double dt = next - knots[i];
+    for (long e = 0; e < dof; ++e) {
+        long r = i * dof + e;
+        q[e] = p[r] + dt * (v[r] + dt * (half_a[r] + dt * sixth_j[r]));
+    }
 }
 """
 _P, _L, _D = ctypes.c_void_p, ctypes.c_long, ctypes.c_double
 _NATIVE_SIGNATURES = {
     "trajectory_grid": [_P] * 5 + [_L, _L, _D, _P, _P, _L, _P, _P, _P, _P],
-    "trajectory_update": [_P] * 5 + [_L, _L, _D, _D, _L, _D, _P, _L, _P, _D, _D, _D, _P, _P, _D, _P],
+    "trajectory_update": [_P] * 5
+    + [_L, _L, _D, _D, _L, _P, _L]
+    + [_P] * 6
+    + [_D, _P, _L, _P, _D, _D, _D, _P, _P, _D, _P],
 }
 
 
@@ -1214,21 +1241,39 @@ class _NativeSteps:
     """:func:`_advance`'s step and bookkeeping after a check of a timed trajectory, in one compiled call.
 
     The same arithmetic as :func:`_trajectory_steps`'s steps (the pair-by-pair `row_step`) and
-    :func:`_advance`'s loop; the pairs due next are written into a buffer of this object.
+    :func:`_advance`'s loop; the pairs due next are written into a buffer of this object, and
+    the configuration at the next x (:func:`check_trajectory`'s sample) into another.
     """
 
-    def __init__(self, lib, arrays: tuple[np.ndarray, ...], g: int, dof: int, slack: float, n_pairs: int) -> None:
+    def __init__(
+        self, lib, arrays: tuple[np.ndarray, ...], g: int, dof: int, slack: float, n_pairs: int, trajectory, last
+    ) -> None:
+        knots = np.ascontiguousarray(trajectory.knots, dtype=float)
+        pieces = (trajectory.p, trajectory.v, trajectory.a / 2.0, trajectory.j / 6.0, last)
+        self.q = np.zeros(dof)
         self.kept = tuple(np.ascontiguousarray(a) for a in arrays)  # kept alive: C reads them
+        self.pieces = (knots, *(np.ascontiguousarray(x, dtype=float) for x in pieces), self.q)
         self.function = lib.trajectory_update
         self.size = n_pairs  # the pairs and bounding pairs it schedules
-        self.head = (*(a.ctypes.data for a in self.kept), g, dof, slack, NEAR_TURN - slack, n_pairs)
+        at = [x.ctypes.data for x in self.pieces]
+        self.head = (
+            *(a.ctypes.data for a in self.kept),
+            g,
+            dof,
+            slack,
+            NEAR_TURN - slack,
+            n_pairs,
+            at[0],
+            len(knots),
+            *at[1:],
+        )
         size = max(n_pairs, 1)
         self.due, self.distances, self.out = np.zeros(size, dtype=np.int64), np.zeros(size), np.zeros(2)
         self.at = (self.due.ctypes.data, self.distances.ctypes.data, self.out.ctypes.data)
         self.arrays: tuple[np.ndarray | None, ...] = (None, None)
         self.arrays_at = (0, 0)
 
-    def __call__(self, x, due, d, c, tolerance, coarse, until, early, bound) -> tuple[float, np.ndarray]:
+    def __call__(self, x, due, d, c, tolerance, coarse, until, early, bound) -> tuple[float, np.ndarray, np.ndarray]:
         n = len(due)
         buffer = self.due
         if due.base is not buffer:
@@ -1239,4 +1284,4 @@ class _NativeSteps:
         due_at, d_at, out_at = self.at
         self.function(*self.head, x, due_at, n, d_at, c, tolerance, coarse, *self.arrays_at, bound, out_at)
         out = self.out
-        return float(out[0]), buffer[: int(out[1])]
+        return float(out[0]), buffer[: int(out[1])], self.q
