@@ -1044,6 +1044,7 @@ def _trajectory_steps(
 
 _NATIVE_SOURCE = r"""
 #include <math.h>
+#include <stdint.h>
 #include <stdlib.h>
 
 static int ascending(const void *a, const void *b) {
@@ -1055,7 +1056,7 @@ static int ascending(const void *a, const void *b) {
    the same arithmetic. t has room for k + 1 + points + 4 k dof times, c and top as many rows. */
 void trajectory_grid(const double *knots, const double *p, const double *v, const double *a, const double *j, long k,
                      long dof, double duration, const double *last, const double *vmax, long points, double *t,
-                     double *c, double *top, long *count) {
+                     double *c, double *top, int64_t *count) {
     long n = 0;
     for (long i = 0; i < k; ++i) t[n++] = knots[i];
     t[n++] = duration;
@@ -1152,12 +1153,22 @@ static double row_step(const double *rate, const double *c, const double *top, c
    then the next x (the least until, at most `bound`, past x, at most the end) in out[0] and the
    pairs due there (early <= next x) written to `due`, their number in out[1]. `rates` holds
    three rows per pair (_step_rates), c and top the grid of _trajectory_grid at the times t. */
-void trajectory_update(const double *rates, const double *c, const double *top, const double *t,
-                       const unsigned char *useful, long g, long dof, double slack, double cap, long npairs,
-                       const double *knots, long k, const double *p, const double *v, const double *half_a,
-                       const double *sixth_j, const double *last, double *q, double x, long *due, long n,
-                       const double *d, double cl, double tolerance, double coarse, double *until, double *early,
-                       double bound, double *out) {
+void trajectory_update(const int64_t *head, double x, long n, double cl, double tolerance, double coarse,
+                       double bound) {
+    /* The tables and buffers (addresses) and sizes of _NativeSteps.head, in its order. */
+    const double *rates = (const double *)(intptr_t)head[0], *c = (const double *)(intptr_t)head[1];
+    const double *top = (const double *)(intptr_t)head[2], *t = (const double *)(intptr_t)head[3];
+    const unsigned char *useful = (const unsigned char *)(intptr_t)head[4];
+    long g = (long)head[5], dof = (long)head[6], npairs = (long)head[7], k = (long)head[9];
+    const double *knots = (const double *)(intptr_t)head[8], *p = (const double *)(intptr_t)head[10];
+    const double *v = (const double *)(intptr_t)head[11], *half_a = (const double *)(intptr_t)head[12];
+    const double *sixth_j = (const double *)(intptr_t)head[13], *last = (const double *)(intptr_t)head[14];
+    double *q = (double *)(intptr_t)head[15];
+    int64_t *due = (int64_t *)(intptr_t)head[16];
+    const double *d = (const double *)(intptr_t)head[17];
+    double *until = (double *)(intptr_t)head[18], *early = (double *)(intptr_t)head[19];
+    double *out = (double *)(intptr_t)head[20];
+    double slack = out[2], cap = out[3];
     double end = t[g - 1];
     long lo = 0, hi = g;
     while (lo < hi) {
@@ -1225,10 +1236,7 @@ void trajectory_update(const double *rates, const double *c, const double *top, 
 _P, _L, _D = ctypes.c_void_p, ctypes.c_long, ctypes.c_double
 _NATIVE_SIGNATURES = {
     "trajectory_grid": [_P] * 5 + [_L, _L, _D, _P, _P, _L, _P, _P, _P, _P],
-    "trajectory_update": [_P] * 5
-    + [_L, _L, _D, _D, _L, _P, _L]
-    + [_P] * 6
-    + [_D, _P, _L, _P, _D, _D, _D, _P, _P, _D, _P],
+    "trajectory_update": [_P, _D, _L, _D, _D, _D, _D],
 }
 
 
@@ -1250,28 +1258,24 @@ class _NativeSteps:
     ) -> None:
         knots = np.ascontiguousarray(trajectory.knots, dtype=float)
         pieces = (trajectory.p, trajectory.v, trajectory.a / 2.0, trajectory.j / 6.0, last)
+        size = max(n_pairs, 1)
         self.q = np.zeros(dof)
-        self.kept = tuple(np.ascontiguousarray(a) for a in arrays)  # kept alive: C reads them
-        self.pieces = (knots, *(np.ascontiguousarray(x, dtype=float) for x in pieces), self.q)
+        self.due, self.distances = np.zeros(size, dtype=np.int64), np.zeros(size)
+        self.out = np.array([0.0, 0.0, slack, NEAR_TURN - slack])  # next x, pairs due; the slack, the turn cap
+        # Kept alive here: C reads them through the addresses in `head`.
+        self.kept = tuple(np.ascontiguousarray(a) for a in arrays)
+        self.pieces = (knots, *(np.ascontiguousarray(x, dtype=float) for x in pieces))
         self.function = lib.trajectory_update
         self.size = n_pairs  # the pairs and bounding pairs it schedules
         at = [x.ctypes.data for x in self.pieces]
-        self.head = (
-            *(a.ctypes.data for a in self.kept),
-            g,
-            dof,
-            slack,
-            NEAR_TURN - slack,
-            n_pairs,
-            at[0],
-            len(knots),
-            *at[1:],
+        buffers = [x.ctypes.data for x in (self.q, self.due, self.distances)]
+        self.head = np.array(
+            [*(a.ctypes.data for a in self.kept), g, dof, n_pairs, at[0], len(knots), *at[1:], *buffers, 0, 0]
+            + [self.out.ctypes.data],
+            dtype=np.int64,
         )
-        size = max(n_pairs, 1)
-        self.due, self.distances, self.out = np.zeros(size, dtype=np.int64), np.zeros(size), np.zeros(2)
-        self.at = (self.due.ctypes.data, self.distances.ctypes.data, self.out.ctypes.data)
+        self.head_at = self.head.ctypes.data
         self.arrays: tuple[np.ndarray | None, ...] = (None, None)
-        self.arrays_at = (0, 0)
 
     def __call__(self, x, due, d, c, tolerance, coarse, until, early, bound) -> tuple[float, np.ndarray, np.ndarray]:
         n = len(due)
@@ -1280,8 +1284,8 @@ class _NativeSteps:
             buffer[:n] = due
         self.distances[:n] = d
         if self.arrays[0] is not until or self.arrays[1] is not early:
-            self.arrays, self.arrays_at = (until, early), (until.ctypes.data, early.ctypes.data)
-        due_at, d_at, out_at = self.at
-        self.function(*self.head, x, due_at, n, d_at, c, tolerance, coarse, *self.arrays_at, bound, out_at)
+            self.arrays = (until, early)
+            self.head[18], self.head[19] = until.ctypes.data, early.ctypes.data
+        self.function(self.head_at, x, n, c, tolerance, coarse, bound)
         out = self.out
         return float(out[0]), buffer[: int(out[1])], self.q
