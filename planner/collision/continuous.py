@@ -28,6 +28,15 @@ Each pair is advanced on its own: it is certified up to its own next x, and a ch
 only the pairs due then (and those due within half their last step), so a pair far from
 everything is computed rarely however often a close one needs it.
 
+Along a timed trajectory several pairs can be advanced by one distance: the convex hull of
+the objects one joint carries (a hand and its fingers,
+:class:`~planner.collision.checker.BoundingPairs`) is no farther from an object than any of
+them, and moves no faster than the fastest of them (the largest of their ``r_j``): while it
+keeps :data:`BOUND_MARGIN` beyond the clearance, its steps hold for all its member pairs,
+which are not computed. The steps and bookkeeping after each check (and the trajectory's
+grid) run in a small compiled loop (:mod:`planner.core.native`) where a C compiler is found;
+NumPy does the same arithmetic otherwise.
+
 A second bound (the *near-body* bound) serves a small body ``A`` close to the joints that
 move a long body ``B`` below it (a base beside a long upper arm): the first bound must let
 the far end of ``B`` swing, the second only the points near ``A``. With ``A`` in a ball of
