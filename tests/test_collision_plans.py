@@ -469,3 +469,27 @@ def test_a_path_without_certificates_has_every_node_tested():
     assert result.found
     mask = checker.pair_mask(())
     assert all(checker.distance_at(q, mask).distance >= 0.0 for q in result.path)
+
+
+@pytest.mark.parametrize("gap", [0.003, 0.006, 0.02])
+def test_a_joint_waypoint_is_refused_exactly_when_it_is_closer_than_the_clearance(gap):
+    # The waypoints are checked with one proximity test at clearance + 2 margin, and a distance
+    # only when that fails: a waypoint between the two (0.006) is planned, a nearer one refused.
+    robot = get_robot("al5c")
+    q = [0.0, 1.2, -1.4, -0.8, 0.0]
+    tip = robot.fk(np.array(q))[:3, 3]
+    # A 20 mm ball under the wrist: the distance is the gap (measured below, not assumed).
+    scene = {
+        "clearance": 0.005,
+        "obstacles": [{"name": "ball", "sphere": 0.02, "position": (tip - [0.0, 0.0, 0.032 + gap]).tolist()}],
+    }
+    request = parse_motion_request({"waypoints": [q, [0.0, 1.0, -1.0, -0.8, 0.0]], "scene": scene})
+    distance = CollisionChecker(robot, request.scene).clearance(q).distance
+    assert distance == pytest.approx(gap, abs=2e-4)
+    if distance < 0.005:
+        with pytest.raises(PlanningError, match=r"waypoint 0 does not keep the clearance \(5 mm\).*ball"):
+            plan_motion(robot, request)
+    else:
+        plan = plan_motion(robot, request)
+        assert plan.collision_free
+        independent_check(robot, plan, 0.005)

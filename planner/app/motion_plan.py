@@ -223,7 +223,12 @@ def _check_against_scene(
         PlanningError: If a waypoint or a Cartesian line collides (naming the bodies).
     """
     n = len(q_user)
+    # A waypoint farther than the path search's end test (one proximity test, the search's own)
+    # keeps the clearance; only a nearer one needs its distance.
+    wide = checker.scene.clearance + 2.0 * request.path_options.margin
     for k in range(n):
+        if not checker.closer_than(wide, allow[k])(q_user[k]):
+            continue
         c = checker.distance_at(q_user[k], checker.pair_mask(allow[k]))
         if not c.clear:
             raise PlanningError(
@@ -279,8 +284,10 @@ def _route(
         result = certify_path(checker, found, options=options, allow=names)
     else:
         if not blocked:
+            # As the search does: an end beyond clearance + 2 margin needs no distance.
             mask = checker.pair_mask(names)
-            end = min(checker.distance_at(q_user[k - 1], mask).distance, checker.distance_at(q_user[k], mask).distance)
+            far = checker.closer_than(checker.scene.clearance + 2.0 * options.margin, names)
+            end = min([math.inf] + [checker.distance_at(q, mask).distance for q in q_user[k - 1 : k + 1] if far(q)])
             margin = path_margin(checker.scene.clearance, end, options.margin)
             if segment_is_clear(checker, q_user[k - 1], q_user[k], allow=names, margin=margin):
                 return [q_user[k - 1], q_user[k]], True, None
