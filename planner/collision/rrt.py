@@ -35,6 +35,7 @@ from collections.abc import Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
+import pinocchio as pin
 
 from planner.collision.checker import CollisionChecker
 from planner.collision.continuous import check_segment, segment_is_clear, sweep_order
@@ -201,10 +202,28 @@ def segment_looks_clear(
     the certificate). A segment this finds blocked is blocked.
     """
     a, b = np.asarray(q_start, dtype=float), np.asarray(q_end, dtype=float)
-    near = checker.closer_than(checker.scene.clearance, allow)
+    near = _direct(checker, checker.closer_than(checker.scene.clearance, allow))
     d = b - a
     n = max(1, int(np.ceil(float(np.abs(d).max()) / resolution)))
     return not near(a) and not any(map(near, a + sweep_order(n)[:, None] * d))
+
+
+def _direct(checker: CollisionChecker, test):
+    """`test` (from :meth:`CollisionChecker.closer_than`) as one call of Pinocchio's collision test.
+
+    For an arm without continuous joints (Pinocchio's configuration is the joint vector), the
+    search's float vectors go to Pinocchio as they are: the same test, the same verdicts,
+    without the wrapper's conversion (about 0.3 us of a 4.5 us test). Otherwise `test` itself.
+    """
+    model, data, manager = (getattr(test, k, None) for k in ("model", "data", "broadphase"))
+    if manager is None or model is not checker.robot.model or model.nq != checker.robot.dof or not test.any:
+        return test
+    compute = pin.computeCollisions
+
+    def near(q: np.ndarray) -> bool:
+        return compute(model, data, manager, q, True)
+
+    return near
 
 
 def path_margin(clearance: float, end_distance: float, margin: float) -> float:
@@ -313,7 +332,7 @@ def find_clear_path(
 
 def _edge_tests(checker: CollisionChecker, need: float, allow: Sequence[str], resolution: float) -> tuple:
     """The search's tests at distance `need` [m]: a configuration's, two cheap ones of edges, an edge's certificate."""
-    near = checker.closer_than(need, allow)
+    near = _direct(checker, checker.closer_than(need, allow))
     # Where an edge was last found blocked: the point of a new edge nearest it is tested first
     # (an obstacle that blocked one edge likely blocks the next one tried there), then the rest
     # in bisection order. The same points, the same verdicts.
