@@ -252,6 +252,15 @@ def _check_against_scene(
                 )
 
 
+#: Largest joint change [rad or m] between the points that decide, before timing, that a free
+#: move's straight segment is blocked (and the move is routed at once). Not a certificate: one
+#: blocked between them is found by the continuous check of the timed motion and routed then,
+#: into the same plan (the same search), only later. Measured on 1000 random moves among a
+#: table and a box: 0.05 rad finds 5 of panda's 762 clear-looking ones blocked that 0.2 rad
+#: does not (none of ur5's 129), for a quarter of the tests on every clear move.
+_PLAINLY_BLOCKED = 0.2
+
+
 def _route(
     checker: CollisionChecker,
     request: MotionRequest,
@@ -550,7 +559,9 @@ def plan_motion(
         for k in range(1, n):
             # A free move whose straight segment is plainly blocked is routed before timing.
             names = tuple(set(allow[k - 1]) | set(allow[k]))
-            if not cartesian[k] and not segment_looks_clear(checker, q_user[k - 1], q_user[k], allow=names):
+            if not cartesian[k] and not segment_looks_clear(
+                checker, q_user[k - 1], q_user[k], allow=names, resolution=_PLAINLY_BLOCKED
+            ):
                 route(k, blocked=True)
 
     timings: dict[int, Any] = {}  # line timing per LinePath (by id), kept across re-plans
