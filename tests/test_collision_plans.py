@@ -493,3 +493,18 @@ def test_a_joint_waypoint_is_refused_exactly_when_it_is_closer_than_the_clearanc
         plan = plan_motion(robot, request)
         assert plan.collision_free
         independent_check(robot, plan, 0.005)
+
+
+def test_a_blocked_move_the_quick_look_misses_is_routed_into_the_same_plan(monkeypatch):
+    # plan_motion routes a move before timing where points every 0.2 rad of its straight segment
+    # find it blocked; one blocked only between them is caught by the continuous check of the
+    # timed motion and routed then, with the same search: the same plan, only later.
+    import planner.app.motion_plan as motion_plan
+
+    robot = get_robot("al5c")
+    first = plan_with_scene(robot, BLOCK_PLAN)
+    monkeypatch.setattr(motion_plan, "_PLAINLY_BLOCKED", 100.0)  # only the ends: never blocked
+    late = plan_with_scene(robot, BLOCK_PLAN)
+    assert first.routes == late.routes == (0,) and late.collision_free
+    np.testing.assert_array_equal(first.trajectory.p, late.trajectory.p)
+    independent_check(robot, late, 0.005)
