@@ -975,3 +975,29 @@ def test_swept_reach_bounds_the_body_turned_by_forward_kinematics(name):
         assert bound <= farthest + 0.01, (name, obj.name, farthest, bound)
         tested += 1
     assert tested > 0
+
+
+@pytest.mark.parametrize("name", [*MIXED_ARMS, "mixed"])
+def test_the_path_search_test_gives_closer_thans_verdicts(name):
+    """The search's own proximity test (no contact details, Pinocchio called directly) decides as closer_than's."""
+    from planner.collision.rrt import _proximity_test
+
+    if name == "mixed":
+        from test_casadi_kinematics import mixed_robot
+
+        robot = mixed_robot()  # a continuous joint: cosine and sine in Pinocchio's configuration
+        assert robot.model.nq > robot.dof
+    else:
+        robot = get_robot(name)
+    scene = parse_scene({**_TABLE_AND_BOX, "floor": -0.02})
+    checker = CollisionChecker(robot, scene)
+    qs = robot.random_configurations(np.random.default_rng(23), 400)
+    hits = 0
+    for allow in ((), ("box",), ("table", "box", FLOOR)):
+        for distance in (0.0, 0.002, 0.02, 0.1):
+            ours, theirs = _proximity_test(checker, distance, allow), checker.closer_than(distance, allow)
+            assert _proximity_test(checker, distance, list(allow)[::-1]) is ours  # kept per distance and set
+            verdicts = [ours(q) for q in qs]
+            assert verdicts == [theirs(q) for q in qs]
+            hits += sum(verdicts)
+    assert 0 < hits < 12 * len(qs)
