@@ -586,7 +586,18 @@ def test_an_edge_is_tested_first_where_the_last_one_was_blocked():
     assert tested == [(0.5, 1.0)]  # nearest (0.5, 0): before the end, which bisection tests first
     tested.clear()
     assert quick(np.array([0.0, 2.0]), np.array([0.3, 2.0]))  # clear: its 3 points and its start
-    assert len(tested) == 5 and len(set(tested)) == 4  # and first the point nearest the blocker
+    xs = [round(x, 9) for x, _ in tested]
+    assert xs[0] == 0.3 and sorted(xs) == [0.0, 0.1, 0.2, 0.3]  # the point nearest the blocker first, once
+    tested.clear()
+    assert quick(np.array([0.0, 3.0]), np.array([0.4, 3.0]))
+    xs = [round(x, 9) for x, _ in tested]
+    assert xs[0] == 0.4 and sorted(xs) == [0.0, 0.1, 0.2, 0.3, 0.4]
+    tested.clear()  # blocked again at x = 0.5; nearest it on the next edge: its start, tested first and once
+    assert not between(np.array([0.3, 0.0]), np.array([0.7, 0.0]))
+    tested.clear()
+    assert quick(np.array([0.6, 0.0]), np.array([0.9, 0.0]))
+    xs = [round(x, 9) for x, _ in tested]
+    assert xs[0] == 0.6 and xs[-1] != 0.6 and len(set(xs)) == len(xs) and max(xs) == 0.9
 
 
 def test_the_path_search_can_skip_its_straight_test(monkeypatch):

@@ -372,20 +372,27 @@ def _edge_tests(checker: CollisionChecker, need: float, allow: Sequence[str], re
     # in bisection order. The same points, the same verdicts.
     blocker: list[np.ndarray] = []
 
-    def blocked(a: np.ndarray, d: np.ndarray, n: int, first: int, last: int, order: np.ndarray) -> bool:
-        """Whether a point ``a + k / n d`` (k from `first` to `last`; `order` their sweep) is too close."""
+    def blocked(a: np.ndarray, d: np.ndarray, n: int, first: int, last: int, order: np.ndarray, skip: list) -> int:
+        """Whether a point ``a + k / n d`` (k from `first` to `last`; `order` their sweep) is too close.
+
+        Returns -2 where one is, else the k tested first (-1: none); ``skip[k]`` is where k / n
+        comes in `order` (``len(order)`` where not), so that it is not tested twice.
+        """
+        at = -1
         if blocker and first <= last:
             dd = float(d @ d)
-            k = min(max(round(float((blocker[0] - a) @ d) * n / dd), first), last) if dd > 0.0 else first
-            q = a + (k / n) * d
+            at = min(max(round(float((blocker[0] - a) @ d) * n / dd), first), last) if dd > 0.0 else first
+            q = a + (at / n) * d
             if near(q):
                 blocker[:] = [q]
-                return True
-        for q in a + order[:, None] * d:
+                return -2
+        points = a + order[:, None] * d
+        i = skip[at] if at >= 0 else len(points)
+        for q in itertools.chain(points[:i], points[i + 1 :]):
             if near(q):
                 blocker[:] = [q]
-                return True
-        return False
+                return -2
+        return at
 
     def quick(a: np.ndarray, b: np.ndarray) -> bool:
         """Proximity checks every `resolution` along the edge, end first, start last: not a certificate.
@@ -394,19 +401,39 @@ def _edge_tests(checker: CollisionChecker, need: float, allow: Sequence[str], re
         """
         d = b - a
         n = max(1, math.ceil(max(map(abs, d.tolist())) / resolution))
-        return not blocked(a, d, n, 0, n, sweep_order(n)) and not near(a)
+        order, skip, _ = _sweep(n)
+        first = blocked(a, d, n, 0, n, order, skip)
+        return first != -2 and (first == 0 or not near(a))
 
     def between(a: np.ndarray, b: np.ndarray) -> bool:
         """`quick` without the end (a tree's node, tested when it was added)."""
         d = b - a
         n = max(1, math.ceil(max(map(abs, d.tolist())) / resolution))
-        return not blocked(a, d, n, 1, n - 1, sweep_order(n)[1:])
+        order, _, skip = _sweep(n)
+        return blocked(a, d, n, 1, n - 1, order[1:], skip) != -2
 
     def certify(a: np.ndarray, b: np.ndarray) -> bool:
         """The certificate of an edge `quick` has passed (its sweep would repeat quick's tests)."""
         return check_segment(checker, a, b, allow=allow, clearance=need).clear
 
     return near, quick, between, certify
+
+
+_SWEEPS: dict[int, tuple[np.ndarray, list[int], list[int]]] = {}
+
+
+def _sweep(n: int) -> tuple[np.ndarray, list[int], list[int]]:
+    """:func:`sweep_order` of `n` points, and per k where k / n comes in it and in it without its first (the end)."""
+    out = _SWEEPS.get(n)
+    if out is None:
+        order = sweep_order(n)
+        where = [n] * (n + 1)  # k = 0 (the start) is not in the sweep
+        for i, k in enumerate(np.rint(order * n).astype(int).tolist()):
+            where[k] = i
+        out = (order, where, [i - 1 for i in where])
+        if len(_SWEEPS) < 4096:
+            _SWEEPS[n] = out
+    return out
 
 
 def certify_path(
