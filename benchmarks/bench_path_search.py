@@ -3,10 +3,11 @@
 The start/goal pairs of ``bench_collision.py`` (its scene, seed and pair draw; pairs roboplan
 finds in collision are skipped when roboplan is installed, as there) whose straight joint
 segment is blocked (:func:`segment_looks_clear`, as :func:`plan_motion` decides to route),
-searched the way :func:`plan_motion` searches: ``segment_looks_clear`` then
+searched the way :func:`plan_motion` searches: ``segment_looks_clear`` (at the tree's
+plan_motion step) then
 ``find_clear_path(..., try_straight=False, certify=False)`` with the avoidance seed of the
 pair. Each tree runs in its own process, alternating in blocks; per pair the median CPU time
-over the rounds, then the median over pairs. Collision tests (``closer_than``'s test) and
+over the rounds, then the median over pairs. Collision tests (the search's proximity tests) and
 certificates per search are counted in a separate, untimed pass; the route's joint-space
 length and whether :func:`certify_path` keeps it are compared per pair.
 
@@ -67,6 +68,7 @@ def worker(name: str, pairs: list, count: bool) -> list[dict]:
     sys.path.insert(0, str(Path(__file__).resolve().parent))
     import bench_collision as bc
 
+    import planner.app.motion_plan as motion_plan
     import planner.collision.rrt as rrt
     from planner import load_robot
     from planner.collision import parse_scene
@@ -76,10 +78,14 @@ def worker(name: str, pairs: list, count: bool) -> list[dict]:
     scene = parse_scene(bc.SCENE)
     counts = {"tests": 0, "certificates": 0}
     if count:
-        real_closer, real_check = rrt.CollisionChecker.closer_than, rrt.check_segment
+        # The search's proximity tests: its own (rrt._proximity_test) where the tree has one,
+        # else closer_than's (a reference tree from before).
+        patched = hasattr(rrt, "_proximity_test")
+        real_test = rrt._proximity_test if patched else rrt.CollisionChecker.closer_than
+        real_check = rrt.check_segment
 
         def closer_than(self, distance, allow=()):
-            test = real_closer(self, distance, allow)
+            test = real_test(self, distance, allow)
 
             def counted(q):
                 counts["tests"] += 1
@@ -91,8 +97,13 @@ def worker(name: str, pairs: list, count: bool) -> list[dict]:
             counts["certificates"] += 1
             return real_check(*args, **kwargs)
 
-        rrt.CollisionChecker.closer_than = closer_than
+        if patched:
+            rrt._proximity_test = closer_than
+        else:
+            rrt.CollisionChecker.closer_than = closer_than
         rrt.check_segment = check_segment
+    # The points plan_motion decides with that a straight segment is blocked, in that tree.
+    look = getattr(motion_plan, "_PLAINLY_BLOCKED", 0.05)
     rows = []
     for qa, qb, seed in pairs:
         qa, qb = np.array(qa), np.array(qb)
@@ -100,7 +111,7 @@ def worker(name: str, pairs: list, count: bool) -> list[dict]:
         options = rrt.PathOptions(seed=seed, time_budget=bc.BUDGET)
         counts.update(tests=0, certificates=0)
         c0 = time.process_time()
-        rrt.segment_looks_clear(checker, qa, qb)
+        rrt.segment_looks_clear(checker, qa, qb, resolution=look)
         found = rrt.find_clear_path(checker, qa, qb, options=options, try_straight=False, certify=False)
         cpu = time.process_time() - c0
         row: dict = {"cpu": cpu, "found": found.found, "iterations": found.iterations}

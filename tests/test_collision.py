@@ -741,7 +741,18 @@ def test_an_edge_is_tested_first_where_the_last_one_was_blocked():
     assert tested == [(0.5, 1.0)]  # nearest (0.5, 0): before the end, which bisection tests first
     tested.clear()
     assert quick(np.array([0.0, 2.0]), np.array([0.3, 2.0]))  # clear: its 3 points and its start
-    assert len(tested) == 5 and len(set(tested)) == 4  # and first the point nearest the blocker
+    xs = [round(x, 9) for x, _ in tested]
+    assert xs[0] == 0.3 and sorted(xs) == [0.0, 0.1, 0.2, 0.3]  # the point nearest the blocker first, once
+    tested.clear()
+    assert quick(np.array([0.0, 3.0]), np.array([0.4, 3.0]))
+    xs = [round(x, 9) for x, _ in tested]
+    assert xs[0] == 0.4 and sorted(xs) == [0.0, 0.1, 0.2, 0.3, 0.4]
+    tested.clear()  # blocked again at x = 0.5; nearest it on the next edge: its start, tested first and once
+    assert not between(np.array([0.3, 0.0]), np.array([0.7, 0.0]))
+    tested.clear()
+    assert quick(np.array([0.6, 0.0]), np.array([0.9, 0.0]))
+    xs = [round(x, 9) for x, _ in tested]
+    assert xs[0] == 0.6 and xs[-1] != 0.6 and len(set(xs)) == len(xs) and max(xs) == 0.9
 
 
 def test_the_path_search_can_skip_its_straight_test(monkeypatch):
@@ -1130,3 +1141,29 @@ def test_swept_reach_bounds_the_body_turned_by_forward_kinematics(name):
         assert bound <= farthest + 0.01, (name, obj.name, farthest, bound)
         tested += 1
     assert tested > 0
+
+
+@pytest.mark.parametrize("name", [*MIXED_ARMS, "mixed"])
+def test_the_path_search_test_gives_closer_thans_verdicts(name):
+    """The search's own proximity test (no contact details, Pinocchio called directly) decides as closer_than's."""
+    from planner.collision.rrt import _proximity_test
+
+    if name == "mixed":
+        from test_casadi_kinematics import mixed_robot
+
+        robot = mixed_robot()  # a continuous joint: cosine and sine in Pinocchio's configuration
+        assert robot.model.nq > robot.dof
+    else:
+        robot = get_robot(name)
+    scene = parse_scene({**_TABLE_AND_BOX, "floor": -0.02})
+    checker = CollisionChecker(robot, scene)
+    qs = robot.random_configurations(np.random.default_rng(23), 400)
+    hits = 0
+    for allow in ((), ("box",), ("table", "box", FLOOR)):
+        for distance in (0.0, 0.002, 0.02, 0.1):
+            ours, theirs = _proximity_test(checker, distance, allow), checker.closer_than(distance, allow)
+            assert _proximity_test(checker, distance, list(allow)[::-1]) is ours  # kept per distance and set
+            verdicts = [ours(q) for q in qs]
+            assert verdicts == [theirs(q) for q in qs]
+            hits += sum(verdicts)
+    assert 0 < hits < 12 * len(qs)

@@ -469,3 +469,42 @@ def test_a_path_without_certificates_has_every_node_tested():
     assert result.found
     mask = checker.pair_mask(())
     assert all(checker.distance_at(q, mask).distance >= 0.0 for q in result.path)
+
+
+@pytest.mark.parametrize("gap", [0.003, 0.006, 0.02])
+def test_a_joint_waypoint_is_refused_exactly_when_it_is_closer_than_the_clearance(gap):
+    # The waypoints are checked with one proximity test at clearance + 2 margin, and a distance
+    # only when that fails: a waypoint between the two (0.006) is planned, a nearer one refused.
+    robot = get_robot("al5c")
+    q = [0.0, 1.2, -1.4, -0.8, 0.0]
+    tip = robot.fk(np.array(q))[:3, 3]
+    # A 20 mm ball under the wrist: the distance is the gap (measured below, not assumed).
+    scene = {
+        "clearance": 0.005,
+        "obstacles": [{"name": "ball", "sphere": 0.02, "position": (tip - [0.0, 0.0, 0.032 + gap]).tolist()}],
+    }
+    request = parse_motion_request({"waypoints": [q, [0.0, 1.0, -1.0, -0.8, 0.0]], "scene": scene})
+    distance = CollisionChecker(robot, request.scene).clearance(q).distance
+    assert distance == pytest.approx(gap, abs=2e-4)
+    if distance < 0.005:
+        with pytest.raises(PlanningError, match=r"waypoint 0 does not keep the clearance \(5 mm\).*ball"):
+            plan_motion(robot, request)
+    else:
+        plan = plan_motion(robot, request)
+        assert plan.collision_free
+        independent_check(robot, plan, 0.005)
+
+
+def test_a_blocked_move_the_quick_look_misses_is_routed_into_the_same_plan(monkeypatch):
+    # plan_motion routes a move before timing where points every 0.2 rad of its straight segment
+    # find it blocked; one blocked only between them is caught by the continuous check of the
+    # timed motion and routed then, with the same search: the same plan, only later.
+    import planner.app.motion_plan as motion_plan
+
+    robot = get_robot("al5c")
+    first = plan_with_scene(robot, BLOCK_PLAN)
+    monkeypatch.setattr(motion_plan, "_PLAINLY_BLOCKED", 100.0)  # only the ends: never blocked
+    late = plan_with_scene(robot, BLOCK_PLAN)
+    assert first.routes == late.routes == (0,) and late.collision_free
+    np.testing.assert_array_equal(first.trajectory.p, late.trajectory.p)
+    independent_check(robot, late, 0.005)

@@ -223,7 +223,12 @@ def _check_against_scene(
         PlanningError: If a waypoint or a Cartesian line collides (naming the bodies).
     """
     n = len(q_user)
+    # A waypoint farther than the path search's end test (one proximity test, the search's own)
+    # keeps the clearance; only a nearer one needs its distance.
+    wide = checker.scene.clearance + 2.0 * request.path_options.margin
     for k in range(n):
+        if not checker.closer_than(wide, allow[k])(q_user[k]):
+            continue
         c = checker.distance_at(q_user[k], checker.pair_mask(allow[k]))
         if not c.clear:
             raise PlanningError(
@@ -245,6 +250,15 @@ def _check_against_scene(
                     f"{request.source}: the straight line into {labels[k]} {what} {where:.0f} % of the way: "
                     f"{result.hit}; move the line or the obstacle, or drop `line: true` so the arm may go around"
                 )
+
+
+#: Largest joint change [rad or m] between the points that decide, before timing, that a free
+#: move's straight segment is blocked (and the move is routed at once). Not a certificate: one
+#: blocked between them is found by the continuous check of the timed motion and routed then,
+#: into the same plan (the same search), only later. Measured on 1000 random moves among a
+#: table and a box: 0.05 rad finds 5 of panda's 762 clear-looking ones blocked that 0.2 rad
+#: does not (none of ur5's 129), for a quarter of the tests on every clear move.
+_PLAINLY_BLOCKED = 0.2
 
 
 def _route(
@@ -279,8 +293,10 @@ def _route(
         result = certify_path(checker, found, options=options, allow=names)
     else:
         if not blocked:
+            # As the search does: an end beyond clearance + 2 margin needs no distance.
             mask = checker.pair_mask(names)
-            end = min(checker.distance_at(q_user[k - 1], mask).distance, checker.distance_at(q_user[k], mask).distance)
+            far = checker.closer_than(checker.scene.clearance + 2.0 * options.margin, names)
+            end = min([math.inf] + [checker.distance_at(q, mask).distance for q in q_user[k - 1 : k + 1] if far(q)])
             margin = path_margin(checker.scene.clearance, end, options.margin)
             if segment_is_clear(checker, q_user[k - 1], q_user[k], allow=names, margin=margin):
                 return [q_user[k - 1], q_user[k]], True, None
@@ -543,7 +559,9 @@ def plan_motion(
         for k in range(1, n):
             # A free move whose straight segment is plainly blocked is routed before timing.
             names = tuple(set(allow[k - 1]) | set(allow[k]))
-            if not cartesian[k] and not segment_looks_clear(checker, q_user[k - 1], q_user[k], allow=names):
+            if not cartesian[k] and not segment_looks_clear(
+                checker, q_user[k - 1], q_user[k], allow=names, resolution=_PLAINLY_BLOCKED
+            ):
                 route(k, blocked=True)
 
     timings: dict[int, Any] = {}  # line timing per LinePath (by id), kept across re-plans
