@@ -263,7 +263,7 @@ def tip_errors(
 ) -> tuple[float, float]:
     """Position [m] and orientation [rad] errors of a tip pose (see :func:`target_errors`)."""
     (x, y, z), (tx, ty, tz) = position.tolist(), target.position.tolist()
-    position_error = math.sqrt((x - tx) ** 2 + (y - ty) ** 2 + (z - tz) ** 2)
+    position_error = math.hypot(x - tx, y - ty, z - tz)
     if target.rotation is not None:
         # rotation_error's formula (atan2 of the antisymmetric part and the trace of R^T R_target,
         # accurate near 0) on Python floats: a third of the time of indexing the array.

@@ -300,7 +300,7 @@ class Planar2IK(AnalyticIK):
             th1, th12 = s1 * v0, s1 * v0 + s2 * v1
             fx = bx + r1 * math.cos(th1 + g1) + r2 * math.cos(th12 + g2)
             fy = by + r1 * math.sin(th1 + g1) + r2 * math.sin(th12 + g2)
-            perr = math.sqrt((fx - px) ** 2 + (fy - py) ** 2 + (height - pz) ** 2)
+            perr = math.hypot(fx - px, fy - py, height - pz)
             oerr = None if position_only else self._orientation_error_scalar(th12, target)
             v0 = v0 + 0.0 if lo0 <= v0 <= hi0 and -PI <= v0 - ref0 <= PI else wrap_scalar(v0, lo0, hi0, ref0)
             v1 = v1 + 0.0 if lo1 <= v1 <= hi1 and -PI <= v1 - ref1 <= PI else wrap_scalar(v1, lo1, hi1, ref1)

@@ -1,0 +1,36 @@
+"""Public entry points on inputs a user can give them: found by the review's random search
+(hypothesis, not derandomized), kept here as fixed cases (derandomized where generated).
+"""
+
+from __future__ import annotations
+
+import warnings
+
+import numpy as np
+import pytest
+
+import planner
+
+from conftest import get_robot
+
+METHODS = ("auto", "analytic", "nlp")
+
+
+@pytest.mark.parametrize("name", ["shelley", "al5c", "dh3", "three_joint"])
+@pytest.mark.parametrize("kind", ["position", "pitch", "pose"])
+def test_a_target_astronomically_far_is_unreachable_not_an_overflow(name, kind):
+    # A coordinate of 1e160 m squared overflows Python floats: solve_ik raised OverflowError
+    # from the error and reach computations. It is a target beyond reach like any other.
+    robot = get_robot(name)
+    position = [1e160, -1e160, 0.1]
+    target = {
+        "position": planner.Target(position),
+        "pitch": planner.Target(position, pitch=0.3),
+        "pose": planner.Target(position, rotation=np.eye(3)),
+    }[kind]
+    for method in METHODS:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", RuntimeWarning)
+            result = planner.solve_ik(robot, target, method=method, options=planner.IKOptions(time_budget=0.01))
+        assert not result.success
+        assert result.reason
