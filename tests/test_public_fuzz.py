@@ -34,3 +34,14 @@ def test_a_target_astronomically_far_is_unreachable_not_an_overflow(name, kind):
             result = planner.solve_ik(robot, target, method=method, options=planner.IKOptions(time_budget=0.01))
         assert not result.success
         assert result.reason
+
+
+def test_a_huge_manipulability_floor_is_a_result_not_an_overflow():
+    # IKOptions accepts any positive finite floor; 1e300 raised OverflowError from squaring it
+    # for the NLP's polish (and near the largest float Ipopt met NaN, with a flood of warnings).
+    robot = get_robot("al5c")
+    for floor in (1e160, 1e300):
+        options = planner.IKOptions(manipulability_floor=floor, time_budget=0.01)
+        result = planner.solve_ik(robot, [0.2, 0.0, 0.1], method="nlp", options=options)
+        assert result.status == planner.IKStatus.BELOW_MANIPULABILITY_FLOOR
+        assert f"{floor:g}" in result.reason
