@@ -45,3 +45,18 @@ def test_a_huge_manipulability_floor_is_a_result_not_an_overflow():
         result = planner.solve_ik(robot, [0.2, 0.0, 0.1], method="nlp", options=options)
         assert result.status == planner.IKStatus.BELOW_MANIPULABILITY_FLOOR
         assert f"{floor:g}" in result.reason
+
+
+@pytest.mark.parametrize("scale", [1e-6, 1.0, 1e200, 1e308])
+def test_a_quaternion_means_its_direction_at_any_scale(scale):
+    # (1, 1, 1, 1) x 1e308 became the identity (its norm overflowed to inf): a wrong target
+    # without a word. 120 deg about (1, 1, 1) maps x to y.
+    rotation = planner.quaternion_to_matrix([scale] * 4)
+    np.testing.assert_allclose(rotation @ [1.0, 0.0, 0.0], [0.0, 1.0, 0.0], atol=1e-12)
+    target = planner.Target.from_quaternion([0.1, 0.0, 0.1], [scale] * 4)
+    np.testing.assert_allclose(target.rotation, rotation)
+
+
+def test_a_zero_quaternion_is_refused_with_plain_numbers():
+    with pytest.raises(planner.InvalidArgumentError, match=r"has zero norm: \[0\.0, 0\.0, 0\.0, 0\.0\]$"):
+        planner.quaternion_to_matrix([0, 0, 0, 0])
