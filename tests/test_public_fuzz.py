@@ -60,3 +60,16 @@ def test_a_quaternion_means_its_direction_at_any_scale(scale):
 def test_a_zero_quaternion_is_refused_with_plain_numbers():
     with pytest.raises(planner.InvalidArgumentError, match=r"has zero norm: \[0\.0, 0\.0, 0\.0, 0\.0\]$"):
         planner.quaternion_to_matrix([0, 0, 0, 0])
+
+
+def test_a_negative_rng_seed_is_refused_when_the_options_are_made():
+    # It reached numpy.random.default_rng inside solve_ik: ValueError "expected non-negative integer".
+    with pytest.raises(planner.InvalidArgumentError, match=r"rng: an int seed must be >= 0 .*, got -1"):
+        planner.IKOptions(rng=-1)
+    assert planner.IKOptions(rng=0).generator() is not None
+
+
+@pytest.mark.parametrize("pose", ["x", [[1, 2], [3]], {"a": 1}])
+def test_target_from_pose_refuses_what_is_not_numbers(pose):
+    with pytest.raises(planner.InvalidArgumentError, match=r"pose must be a 4x4 array of numbers"):
+        planner.Target.from_pose(pose)

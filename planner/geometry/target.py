@@ -221,7 +221,10 @@ class Target:
     @classmethod
     def from_pose(cls, pose: np.ndarray) -> Target:
         """Target from a 4x4 homogeneous transform [m]."""
-        arr = np.asarray(pose, dtype=float)
+        try:
+            arr = np.asarray(pose, dtype=float)
+        except (TypeError, ValueError) as exc:
+            raise InvalidArgumentError(f"pose must be a 4x4 array of numbers, got {pose!r}") from exc
         if arr.shape != (4, 4):
             raise InvalidArgumentError(f"pose must have shape (4, 4), got {arr.shape}")
         return cls(arr[:3, 3], rotation=arr[:3, :3])
