@@ -4,12 +4,14 @@
 
 from __future__ import annotations
 
+import re
 import warnings
 
 import numpy as np
 import pytest
 
 import planner
+from planner.app.cli import main as cli_main
 
 from conftest import get_robot
 
@@ -73,3 +75,36 @@ def test_a_negative_rng_seed_is_refused_when_the_options_are_made():
 def test_target_from_pose_refuses_what_is_not_numbers(pose):
     with pytest.raises(planner.InvalidArgumentError, match=r"pose must be a 4x4 array of numbers"):
         planner.Target.from_pose(pose)
+
+
+def cli_error(capsys, *argv: str) -> str:
+    """The one line a failing command prints on stderr (its exit status checked to be 1)."""
+    assert cli_main(list(argv)) == 1
+    lines = capsys.readouterr().err.strip().splitlines()
+    assert len(lines) == 1, lines
+    return lines[0]
+
+
+@pytest.mark.parametrize(
+    ("text", "message"),
+    [
+        ("waypoints: [[0, 1]\n", r"expected ',' or ']', but got '<stream end>' at line 2, column 1$"),
+        ("a: 1\n\tb: 2\n", r"found character '\\t' that cannot start any token at line 2, column 1$"),
+    ],
+)
+def test_a_plan_file_that_does_not_parse_is_one_line(tmp_path, capsys, text, message):
+    # YAML's own message runs over five lines (its excerpt and a caret).
+    path = tmp_path / "plan.yaml"
+    path.write_text(text)
+    for command in ("plan", "check"):
+        assert re.search(message, cli_error(capsys, command, "dh3", str(path)))
+
+
+def test_a_plan_file_that_is_not_text_is_refused(tmp_path, capsys):
+    # UnicodeDecodeError (a ValueError) left read_data_file: a traceback.
+    path = tmp_path / "plan.yaml"
+    path.write_bytes(b"waypoints: [[0, 1], [\xff\xfe, 2]]\n")
+    line = cli_error(capsys, "plan", "dh3", str(path))
+    assert line.endswith("plan.yaml': not UTF-8 text (byte 0xff at offset 21)")
+    with pytest.raises(planner.InvalidArgumentError, match="not UTF-8 text"):
+        planner.load_motion_request(path)

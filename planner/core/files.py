@@ -51,9 +51,13 @@ def read_data_file(path: str | Path, what: str) -> Any:
     """
     p = Path(path)
     try:
-        text = p.read_text()
+        text = p.read_text(encoding="utf-8")
     except OSError as exc:
         raise InvalidArgumentError(f"cannot read {what} {str(p)!r}: {exc.strerror}") from exc
+    except UnicodeDecodeError as exc:
+        raise InvalidArgumentError(
+            f"cannot read {what} {str(p)!r}: not UTF-8 text (byte {exc.object[exc.start]:#04x} at offset {exc.start})"
+        ) from exc
     try:
         if p.suffix.lower() == ".json":
             return json.loads(text)
@@ -61,7 +65,15 @@ def read_data_file(path: str | Path, what: str) -> Any:
 
         return yaml.safe_load(text)
     except Exception as exc:  # yaml and json raise several unrelated types
-        raise InvalidArgumentError(f"cannot parse {what} {str(p)!r}: {exc}") from exc
+        raise InvalidArgumentError(f"cannot parse {what} {str(p)!r}: {_one_line(exc)}") from exc
+
+
+def _one_line(exc: Exception) -> str:
+    """A parser's error in one line: YAML's problem and where, without its quoted excerpt."""
+    problem, mark = getattr(exc, "problem", None), getattr(exc, "problem_mark", None)
+    if problem and mark is not None:
+        return f"{problem} at line {mark.line + 1}, column {mark.column + 1}"
+    return " ".join(str(exc).split())
 
 
 def input_error(source: str | None, message: str) -> InvalidArgumentError:
