@@ -108,3 +108,17 @@ def test_a_plan_file_that_is_not_text_is_refused(tmp_path, capsys):
     assert line.endswith("plan.yaml': not UTF-8 text (byte 0xff at offset 21)")
     with pytest.raises(planner.InvalidArgumentError, match="not UTF-8 text"):
         planner.load_motion_request(path)
+
+
+DH3_PLAN = "units: {length: cm, angle: deg}\ntargets: [{position: [17, 0, 3]}, {position: [11, 0, 9]}]\n"
+
+
+def test_an_animation_into_a_folder_that_cannot_be_made_is_one_line(tmp_path, capsys):
+    # FileExistsError from creating the GIF's folder (a file stood there): a traceback.
+    pytest.importorskip("matplotlib")
+    plan = tmp_path / "plan.yaml"
+    plan.write_text(DH3_PLAN)
+    blocker = tmp_path / "taken"
+    blocker.write_text("")
+    line = cli_error(capsys, "plan", "dh3", str(plan), "--animate", str(blocker / "a.gif"))
+    assert line == f"planner plan: error: cannot write {blocker / 'a.gif'}: File exists"

@@ -250,9 +250,9 @@ def animate_plan(
     canvas = fig.canvas
     canvas.draw()
     background = canvas.copy_from_bbox(fig.bbox)
-    out.parent.mkdir(parents=True, exist_ok=True)
     writer = _canvas_pillow_writer()(fps=fps)
     try:
+        out.parent.mkdir(parents=True, exist_ok=True)
         with writer.saving(fig, str(out), DPI):
             for k in range(len(times)):
                 canvas.restore_region(background)
