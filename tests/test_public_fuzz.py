@@ -122,3 +122,15 @@ def test_an_animation_into_a_folder_that_cannot_be_made_is_one_line(tmp_path, ca
     blocker.write_text("")
     line = cli_error(capsys, "plan", "dh3", str(plan), "--animate", str(blocker / "a.gif"))
     assert line == f"planner plan: error: cannot write {blocker / 'a.gif'}: File exists"
+
+
+@pytest.mark.parametrize("where", ["folder", "under_a_file"])
+def test_ik_batch_out_that_cannot_be_written_is_one_line(tmp_path, capsys, where):
+    # IsADirectoryError / FileExistsError tracebacks, after solving every target.
+    targets = tmp_path / "targets.csv"
+    targets.write_text("x,y,z\n0.2,0,0.1\n")
+    (tmp_path / "taken").write_text("")
+    out = tmp_path if where == "folder" else tmp_path / "taken" / "answers.csv"
+    line = cli_error(capsys, "ik", "al5c", "--batch", str(targets), "--out", str(out))
+    reason = "Is a directory" if where == "folder" else "File exists"
+    assert line == f"planner ik: error: cannot write --out {str(out)!r}: {reason}"

@@ -659,9 +659,12 @@ def _run_ik_batch(args: argparse.Namespace, robot: Robot) -> int:
     if args.out is None:
         write_answers(sys.stdout, robot, result, deg=args.deg)
         return 0
-    args.out.parent.mkdir(parents=True, exist_ok=True)
-    with args.out.open("w", newline="") as stream:
-        write_answers(stream, robot, result, deg=args.deg)
+    try:
+        args.out.parent.mkdir(parents=True, exist_ok=True)
+        with args.out.open("w", newline="") as stream:
+            write_answers(stream, robot, result, deg=args.deg)
+    except OSError as exc:
+        raise InvalidArgumentError(f"cannot write --out {str(args.out)!r}: {exc.strerror or exc}") from exc
     solved = int(np.sum(result.success))
     print(f"{robot.name}: {solved} of {len(result)} targets solved in {result.wall_time:.3g} s; wrote {args.out}")
     return 0
