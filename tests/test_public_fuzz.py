@@ -134,3 +134,15 @@ def test_ik_batch_out_that_cannot_be_written_is_one_line(tmp_path, capsys, where
     line = cli_error(capsys, "ik", "al5c", "--batch", str(targets), "--out", str(out))
     reason = "Is a directory" if where == "folder" else "File exists"
     assert line == f"planner ik: error: cannot write --out {str(out)!r}: {reason}"
+
+
+def test_plan_out_and_bench_out_that_cannot_be_written_are_one_line(tmp_path, capsys):
+    # A folder where plan --out writes trajectory.csv, a file where bench --out makes its folder:
+    # IsADirectoryError / FileExistsError tracebacks.
+    plan = tmp_path / "plan.yaml"
+    plan.write_text(DH3_PLAN)
+    (tmp_path / "out" / "trajectory.csv").mkdir(parents=True)
+    line = cli_error(capsys, "plan", "dh3", str(plan), "--out", str(tmp_path / "out"))
+    assert line == f"planner plan: error: {str(tmp_path / 'out' / 'trajectory.csv')!r}: Is a directory"
+    line = cli_error(capsys, "bench", "dh3", "--n", "1", "--out", str(plan))
+    assert line == f"planner bench: error: {str(plan)!r}: File exists"

@@ -766,6 +766,10 @@ def main(argv: Sequence[str] | None = None) -> int:
         return 1
     except BrokenPipeError:
         return 0
+    except OSError as exc:  # a file the command writes: a folder in its place, no room, no permission
+        where = f"{exc.filename!r}: " if exc.filename else ""
+        print(f"planner {args.command}: error: {where}{exc.strerror or exc}", file=sys.stderr)
+        return 1
     except KeyboardInterrupt:  # e.g. Ctrl-C while planning; a stream handles its own and stops the servos
         print(f"planner {args.command}: interrupted", file=sys.stderr)
         return 130
