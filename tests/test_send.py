@@ -293,3 +293,31 @@ def test_scs_series_streams_high_byte_first(tmp_path):
     first = bytes.fromhex(out.getvalue().splitlines()[2].split(None, 1)[1])
     ticks = round(512 + 195.6 * np.radians(0))
     assert first[7:10] == bytes([1]) + ticks.to_bytes(2, "big")
+
+
+class FeetechBusThatFallsSilent(FakeFeetechBus):
+    """Answers the first `reads` position reads, then none (a servo unplugged after the start check)."""
+
+    def __init__(self, positions, reads):
+        super().__init__(positions)
+        self.reads_left = reads
+
+    def handle(self, pkt, now):
+        if pkt[4] == 0x02:
+            if self.reads_left <= 0:
+                return
+            self.reads_left -= 1
+        super().handle(pkt, now)
+
+
+def test_a_stream_stopped_before_its_first_command_says_so_in_plain_words(tmp_path):
+    # The message read "stopped at before the plan's first command of 0.241 s (command 0 of 14)".
+    path, plan, _, start = _feetech_send("dh3", DH3_PLAN, tmp_path)
+    with FeetechBusThatFallsSilent(start, reads=3) as fake:  # the start check's reads, not begin's
+        result = send_plan(get_robot("dh3"), path, port=fake.port, controller="feetech")
+    assert result.status is SendStatus.LINK_ERROR and result.commands_sent == 0
+    total, duration = result.commands_total, plan.trajectory.duration
+    assert result.message == (
+        f"stopped before the {duration:.3f} s plan began (command 0 of {total}): servo id 1 does not answer on "
+        f"{fake.port}: check its id, the baud rate and the bus power; no servo answered; ids 1, 2, 3 did not answer"
+    )

@@ -254,6 +254,6 @@ def run_stream(
             f"{lateness * 1000:.1f} ms after its deadline"
         )
     else:
-        reached = f"t = {plan_time:.3f} s" if sent else "before the plan's first command"
-        message = f"stopped at {reached} of {duration:.3f} s (command {sent} of {total}): {why}; {stop}"
+        reached = f"at t = {plan_time:.3f} s of {duration:.3f} s" if sent else f"before the {duration:.3f} s plan began"
+        message = f"stopped {reached} (command {sent} of {total}): {why}; {stop}"
     return SendResult(status, sent, total, plan_time, duration, start_q, kind, stop, lateness, message)
