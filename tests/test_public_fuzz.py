@@ -146,3 +146,13 @@ def test_plan_out_and_bench_out_that_cannot_be_written_are_one_line(tmp_path, ca
     assert line == f"planner plan: error: {str(tmp_path / 'out' / 'trajectory.csv')!r}: Is a directory"
     line = cli_error(capsys, "bench", "dh3", "--n", "1", "--out", str(plan))
     assert line == f"planner bench: error: {str(plan)!r}: File exists"
+
+
+@pytest.mark.parametrize("rate", ["1e300", "2e5", "nan", "0"])
+def test_plan_rate_beyond_what_memory_holds_is_refused_first(tmp_path, capsys, rate):
+    # --rate 1e300 raised ValueError (Maximum allowed size exceeded), 1e7 ran out of memory in
+    # the singularity check, before anything was said.
+    plan = tmp_path / "plan.yaml"
+    plan.write_text(DH3_PLAN)
+    line = cli_error(capsys, "plan", "dh3", str(plan), "--rate", rate)
+    assert line == f"planner plan: error: --rate must be a number in (0, 100000] [Hz], got {float(rate):g}"

@@ -252,13 +252,18 @@ def _add_plan(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--animate-view", choices=("side-top", "3d"), default="side-top", help="--animate: the view")
 
 
+#: Highest --rate [Hz]: every check and the CSV sample the plan at it, and 1e7 samples of a
+#: 100 s plan already take gigabytes (1e7 Hz ran out of memory inside the singularity check).
+MAX_RATE = 1e5
+
+
 def _run_plan(args: argparse.Namespace) -> int:
     from planner.app.motion_plan import plan_motion
     from planner.app.plan_file import load_motion_request
     from planner.export.formats.ssc32 import Ssc32
 
-    if not (np.isfinite(args.rate) and args.rate > 0):
-        raise InvalidArgumentError(f"--rate must be a positive number [Hz], got {args.rate}")
+    if not (np.isfinite(args.rate) and 0 < args.rate <= MAX_RATE):
+        raise InvalidArgumentError(f"--rate must be a number in (0, {MAX_RATE:g}] [Hz], got {args.rate:g}")
     robot = load_robot(args.robot)
     request = load_motion_request(args.waypoints_file)
     plan = plan_motion(robot, request, rate=args.rate, controller=args.controller, calibration=args.calibration)
