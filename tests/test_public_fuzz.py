@@ -156,3 +156,26 @@ def test_plan_rate_beyond_what_memory_holds_is_refused_first(tmp_path, capsys, r
     plan.write_text(DH3_PLAN)
     line = cli_error(capsys, "plan", "dh3", str(plan), "--rate", rate)
     assert line == f"planner plan: error: --rate must be a number in (0, 100000] [Hz], got {float(rate):g}"
+
+
+BOM = b"\xef\xbb\xbf"
+
+
+def test_a_target_file_saved_with_a_byte_order_mark_reads(tmp_path, capsys):
+    # A spreadsheet's "CSV UTF-8" starts with a BOM: "column '\ufeffx': unknown column".
+    from planner.app.target_file import read_targets
+
+    path = tmp_path / "targets.csv"
+    path.write_bytes(BOM + b"x,y,z\n0.1,0,0.1\n")
+    np.testing.assert_array_equal(read_targets(path).positions, [[0.1, 0.0, 0.1]])
+    assert cli_main(["ik", "dh3", "--batch", str(path)]) == 0
+    assert capsys.readouterr().out.splitlines()[1].startswith("1,solved,")
+
+
+@pytest.mark.parametrize("name", ["plan.json", "plan.yaml"])
+def test_a_plan_file_saved_with_a_byte_order_mark_reads(tmp_path, name):
+    # JSON refused it: "Unexpected UTF-8 BOM (decode using utf-8-sig)".
+    path = tmp_path / name
+    path.write_bytes(BOM + b'{"waypoints": [[0, 0, 0], [0.1, 0.1, 0.1]]}')
+    request = planner.load_motion_request(path)
+    np.testing.assert_array_equal(request.joints, [[0, 0, 0], [0.1, 0.1, 0.1]])

@@ -93,7 +93,7 @@ def read_targets(source: str | Path | TextIO, *, deg: bool = False) -> BatchTarg
     if isinstance(source, (str, Path)):
         name = str(source)
         try:
-            text = Path(source).read_text()
+            text = Path(source).read_text(encoding="utf-8")
         except (OSError, UnicodeDecodeError) as exc:
             raise TargetFileError(f"cannot read the target file: {exc}", path=name) from exc
         stream: TextIO = io.StringIO(text)
@@ -107,7 +107,8 @@ def read_targets(source: str | Path | TextIO, *, deg: bool = False) -> BatchTarg
     if not lines:
         raise TargetFileError(f"no header line; the first line names the columns ({_VALID})", path=name)
     header_line, header = lines[0]
-    columns = [cell.strip().lower() for cell in header]
+    # A byte-order mark (spreadsheets' "CSV UTF-8") is no part of the first column's name.
+    columns = [cell.strip().lower() for cell in [header[0].lstrip("\ufeff"), *header[1:]]]
     for column in columns:
         if column not in _VALID.split(", "):
             raise TargetFileError(f"unknown column; valid: {_VALID}", path=name, line=header_line, column=column)

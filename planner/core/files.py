@@ -51,7 +51,7 @@ def read_data_file(path: str | Path, what: str) -> Any:
     """
     p = Path(path)
     try:
-        text = p.read_text(encoding="utf-8")
+        text = p.read_text(encoding="utf-8-sig")  # a byte-order mark (Windows editors) is not JSON
     except OSError as exc:
         raise InvalidArgumentError(f"cannot read {what} {str(p)!r}: {exc.strerror}") from exc
     except UnicodeDecodeError as exc:
