@@ -179,3 +179,32 @@ def test_a_plan_file_saved_with_a_byte_order_mark_reads(tmp_path, name):
     path.write_bytes(BOM + b'{"waypoints": [[0, 0, 0], [0.1, 0.1, 0.1]]}')
     request = planner.load_motion_request(path)
     np.testing.assert_array_equal(request.joints, [[0, 0, 0], [0.1, 0.1, 0.1]])
+
+
+@pytest.mark.parametrize(
+    ("obstacle", "message"),
+    [
+        (
+            {"box": [1, 1, 1], "position": [1e200, 0, 0]},
+            r"position must lie within 1e\+06 m of the base, got \[1e\+200",
+        ),
+        ({"sphere": 1e200, "position": [0, 0, -1e200]}, r"sphere radius must be at most 1e\+06 m, got 1e\+200 m"),
+        ({"cylinder": {"radius": 0.1, "length": 1e7}, "position": [0, 0, 0]}, r"cylinder length must be at most"),
+        ({"box": [1, 2e6, 1], "position": [0, 0, 0]}, r"box size must be at most 1e\+06 m, got 2000000.0 m"),
+    ],
+)
+def test_an_obstacle_beyond_a_million_metres_is_refused(obstacle, message):
+    # planner plan / check never returned: a 1 m box at 1e200 m (or a sphere of radius 1e200 m)
+    # made the continuous check's distance bounds overflow to NaN, and its loop never advanced.
+    data = {"waypoints": [[0, 0.5, -0.5], [0.5, 0.6, -0.4]], "scene": {"obstacles": [{"name": "b", **obstacle}]}}
+    with pytest.raises(planner.InvalidArgumentError, match=r"scene\.obstacles\[0\]: .*" + message):
+        planner.parse_motion_request(data)
+
+
+def test_an_obstacle_a_thousand_kilometres_away_still_plans():
+    data = {
+        "waypoints": [[0, 0.5, -0.5], [0.5, 0.6, -0.4]],
+        "scene": {"obstacles": [{"name": "b", "box": [1, 1, 1], "position": [1e6, 0, 0]}]},
+    }
+    plan = planner.plan_motion(get_robot("dh3"), planner.parse_motion_request(data))
+    assert plan.summary()["collision"]["clear"]
