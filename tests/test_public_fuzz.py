@@ -208,3 +208,13 @@ def test_an_obstacle_a_thousand_kilometres_away_still_plans():
     }
     plan = planner.plan_motion(get_robot("dh3"), planner.parse_motion_request(data))
     assert plan.summary()["collision"]["clear"]
+
+
+@pytest.mark.parametrize("key", ["units", "tool", "base"])
+@pytest.mark.parametrize("value", ["cm", [1, 2], 3])
+def test_an_arm_description_section_that_is_not_a_mapping_is_refused(key, value):
+    # `tool: gripper` (or units: cm, base: [..]) raised AttributeError: 'str' object has no attribute 'get'.
+    row = {"theta": 0, "d": 0.1, "a": 0.1, "alpha": 0, "lower": -1, "upper": 1, "velocity": 1}
+    description = {"dh": [row], key: value}
+    with pytest.raises(planner.InvalidArgumentError, match=rf"^`{key}` must be a mapping such as {{.*}}, got "):
+        planner.urdf_from_dh(description)
