@@ -218,3 +218,26 @@ def test_an_arm_description_section_that_is_not_a_mapping_is_refused(key, value)
     description = {"dh": [row], key: value}
     with pytest.raises(planner.InvalidArgumentError, match=rf"^`{key}` must be a mapping such as {{.*}}, got "):
         planner.urdf_from_dh(description)
+
+
+@pytest.mark.parametrize(
+    ("options", "message"),
+    [
+        ({"fps": 1e-9}, r"^fps must be in \[0\.01, 60\] frames per second, got 1e-09$"),
+        ({"fps": True}, r"^fps must be in \[0\.01, 60\] frames per second, got True$"),
+        ({"speed": 1e-9}, r"^1\.3\d+e\+10 frames for a 0\.9 s plan at 15 fps and speed 1e-09; at most 3000 "),
+        ({"speed": 1e-300}, r"^inf frames for a 0\.9 s plan at 15 fps and speed 1e-300; at most 3000 "),
+    ],
+)
+def test_animation_rates_that_cannot_be_drawn_are_refused_first(tmp_path, options, message):
+    # fps=1e-9 raised PIL's OverflowError (a frame delay past the GIF's 16 bits) after drawing;
+    # speed=1e-9 asked NumPy for 98 GiB of frame times (MemoryError) before the frame-count check.
+    pytest.importorskip("matplotlib")
+    from planner.app.animation import animate_plan
+
+    robot = get_robot("dh3")
+    request = planner.parse_motion_request({"targets": [{"position": [0.14, 0, -0.04]}, {"position": [0, 0.14, 0.09]}]})
+    plan = planner.plan_motion(robot, request)
+    assert 0.85 < plan.trajectory.duration < 0.95
+    with pytest.raises(planner.InvalidArgumentError, match=message):
+        animate_plan(tmp_path / "a.gif", robot, plan, **options)
