@@ -241,3 +241,13 @@ def test_animation_rates_that_cannot_be_drawn_are_refused_first(tmp_path, option
     assert 0.85 < plan.trajectory.duration < 0.95
     with pytest.raises(planner.InvalidArgumentError, match=message):
         animate_plan(tmp_path / "a.gif", robot, plan, **options)
+
+
+def test_a_servo_rating_that_makes_an_infinite_speed_is_refused():
+    # 1e-320 s per 60 deg returned inf [rad/s] (a limit every check then divides by); a string
+    # raised TypeError from math.isfinite.
+    with pytest.raises(planner.InvalidLimitsError, match=r"^servo speed 1e-320 s per 60\.0 deg is an infinite joint"):
+        planner.servo_speed_to_velocity(1e-320)
+    with pytest.raises(planner.InvalidLimitsError, match=r"^servo speed time must be a number \[s\], got 'x'$"):
+        planner.servo_speed_to_velocity("x")
+    assert planner.servo_speed_to_velocity(0.2) == pytest.approx(np.radians(60) / 0.2)
