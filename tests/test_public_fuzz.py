@@ -251,3 +251,35 @@ def test_a_servo_rating_that_makes_an_infinite_speed_is_refused():
     with pytest.raises(planner.InvalidLimitsError, match=r"^servo speed time must be a number \[s\], got 'x'$"):
         planner.servo_speed_to_velocity("x")
     assert planner.servo_speed_to_velocity(0.2) == pytest.approx(np.radians(60) / 0.2)
+
+
+def test_servo_conversions_refuse_what_is_not_numbers():
+    # Each raised NumPy's ValueError ("could not convert string to float") or math's TypeError.
+    calibration = planner.ServoCalibration(channel=0)
+    cases = [
+        (lambda: calibration.pulse("x"), r"angle for joint '' \(channel 0\) must be a number or an array of numbers"),
+        (lambda: calibration.angle("x"), r"^pulse must be a number or an array of numbers, got 'x'$"),
+        (lambda: planner.angle_to_steps("x", 1.6, 100), r"^angle must be a number or an array of numbers"),
+        (lambda: planner.steps_to_angle("x", 1.6, 100), r"^steps must be a number or an array of numbers"),
+        (lambda: planner.angle_to_steps(1.0, "x", 100), r"^max_rotation must be a number \[rad\], got 'x'$"),
+        (lambda: planner.range_bearing_to_base("x", 0.0, [0, 0, 0]), r"^distance must be a number or an array"),
+        (lambda: planner.range_bearing_to_base(1.0, 0.0, "x"), r"^sensor_pose must be a number or an array"),
+    ]
+    for call, message in cases:
+        with pytest.raises(planner.InvalidArgumentError, match=message):
+            call()
+
+
+def test_a_step_count_past_2_to_the_53_is_refused_not_wrapped():
+    # 2**70 steps gave angle_to_steps(1.0, 3.14, 2**70) == -9223372036854775808 (int64 wrapped).
+    with pytest.raises(planner.InvalidArgumentError, match=r"^max_steps must be an integer in \[1, 2\*\*53\], got"):
+        planner.angle_to_steps(1.0, 3.14, 2**70)
+    assert planner.angle_to_steps(1.0, 2.0, 2**53) == 2**52
+
+
+def test_a_wild_pulse_is_shown_in_a_few_digits():
+    calibration = planner.ServoCalibration(channel=0, us_per_rad=1e308)
+    with pytest.raises(
+        planner.InvalidArgumentError, match=r"angle 1 rad needs pulse 1e\+308 us, outside \[500, 2500\]"
+    ):
+        calibration.pulse(1.0)
