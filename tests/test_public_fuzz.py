@@ -283,3 +283,16 @@ def test_a_wild_pulse_is_shown_in_a_few_digits():
         planner.InvalidArgumentError, match=r"angle 1 rad needs pulse 1e\+308 us, outside \[500, 2500\]"
     ):
         calibration.pulse(1.0)
+
+
+@pytest.mark.parametrize(
+    ("flags", "message"),
+    [
+        (["--seed", "-1"], r"the seed must be an integer >= 0 \(NumPy's seeds are\), got -1$"),
+        (["--n", "100000000000"], r"the number of targets must be an integer in \[1, 1000000\], got 100000000000$"),
+    ],
+)
+def test_bench_refuses_a_negative_seed_and_a_count_no_memory_holds(capsys, flags, message):
+    # --seed -1: NumPy's ValueError (expected non-negative integer); --n 1e11: MemoryError (2 TiB).
+    line = cli_error(capsys, "bench", "dh3", *(["--n", "2"] if "--n" not in flags else []), *flags)
+    assert re.search("^planner bench: error: " + message, line)
