@@ -296,3 +296,19 @@ def test_bench_refuses_a_negative_seed_and_a_count_no_memory_holds(capsys, flags
     # --seed -1: NumPy's ValueError (expected non-negative integer); --n 1e11: MemoryError (2 TiB).
     line = cli_error(capsys, "bench", "dh3", *(["--n", "2"] if "--n" not in flags else []), *flags)
     assert re.search("^planner bench: error: " + message, line)
+
+
+def test_yaml_numbers_in_exponent_notation_read_as_numbers(tmp_path):
+    # PyYAML reads YAML 1.1, whose floats need a dot and a signed exponent: "dwell: 2e-1" and
+    # "velocity: 1e3" came back as strings and were refused ("must be a number, got '2e-1'").
+    path = tmp_path / "plan.yaml"
+    path.write_text(
+        "waypoints:\n  - {q: [0, 0, 0], dwell: 2e-1}\n  - [1E-1, 0.1, 1.5e-1]\nlimits: {velocity: 1e1, jerk: +2.5E3}\n"
+    )
+    request = planner.load_motion_request(path)
+    np.testing.assert_array_equal(request.dwell, [0.2, 0.0])
+    np.testing.assert_array_equal(request.joints[1], [0.1, 0.1, 0.15])
+    assert request.limits == {"velocity": 10.0, "jerk": 2500.0}
+    path.write_text("waypoints: [[e5, 0, 0], [1e, 0, 0]]\n")  # not numbers: still strings
+    with pytest.raises(planner.InvalidArgumentError, match=r"waypoints\[0\]\[0\] must be a number, got 'e5'"):
+        planner.load_motion_request(path)

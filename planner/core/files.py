@@ -7,8 +7,10 @@ input came from when a `source` is given.
 
 from __future__ import annotations
 
+import functools
 import json
 import math
+import re
 from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
@@ -63,9 +65,26 @@ def read_data_file(path: str | Path, what: str) -> Any:
             return json.loads(text)
         import yaml
 
-        return yaml.safe_load(text)
+        return yaml.load(text, Loader=_yaml_loader())  # noqa: S506 - a SafeLoader subclass
     except Exception as exc:  # yaml and json raise several unrelated types
         raise InvalidArgumentError(f"cannot parse {what} {str(p)!r}: {_one_line(exc)}") from exc
+
+
+@functools.cache
+def _yaml_loader() -> type:
+    """PyYAML's safe loader that also reads ``1e-3`` and ``2E5`` as numbers (YAML 1.2 floats).
+
+    PyYAML follows YAML 1.1, whose floats need a dot (``1.0e-3``): ``velocity: 1e3`` came back
+    as the string ``'1e3'`` and was refused as "must be a number".
+    """
+    import yaml
+
+    class Loader(yaml.SafeLoader):
+        pass
+
+    exponent = re.compile(r"^[-+]?(?:[0-9][0-9_]*(?:\.[0-9_]*)?|\.[0-9][0-9_]*)[eE][-+]?[0-9]+$")
+    Loader.add_implicit_resolver("tag:yaml.org,2002:float", exponent, list("-+0123456789."))
+    return Loader
 
 
 def _one_line(exc: Exception) -> str:
