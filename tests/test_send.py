@@ -295,6 +295,21 @@ def test_scs_series_streams_high_byte_first(tmp_path):
     assert first[7:10] == bytes([1]) + ticks.to_bytes(2, "big")
 
 
+def test_from_current_with_a_reading_outside_the_range_names_the_reading(al5c_plan):
+    # It said "waypoint 0: joint 'base_yaw' value 1.64939 is outside its range": the plan's
+    # waypoint 0 was fine; the arm's reading (2550 us, beyond the calibration) was not.
+    path, plan = al5c_plan
+    pulses = _first_pulses(plan)
+    pulses[0] = 2550
+    with FakeSsc32(pulses) as fake:
+        with pytest.raises(
+            StartPositionError, match=r"^the ssc32 reads joint 'base_yaw' at 1\.6\d+ rad, outside its range"
+        ) as info:
+            send_plan(get_robot("al5c"), path, port=fake.port, options=SendOptions(from_current=True))
+    assert info.value.joint == "base_yaw" and fake.moves == []
+    assert info.value.expected == pytest.approx(plan.trajectory.waypoints[0][0])
+
+
 class FeetechBusThatFallsSilent(FakeFeetechBus):
     """Answers the first `reads` position reads, then none (a servo unplugged after the start check)."""
 
