@@ -312,3 +312,17 @@ def test_yaml_numbers_in_exponent_notation_read_as_numbers(tmp_path):
     path.write_text("waypoints: [[e5, 0, 0], [1e, 0, 0]]\n")  # not numbers: still strings
     with pytest.raises(planner.InvalidArgumentError, match=r"waypoints\[0\]\[0\] must be a number, got 'e5'"):
         planner.load_motion_request(path)
+
+
+def test_a_target_file_quaternion_means_its_direction_at_any_scale(tmp_path):
+    # qx..qw = 1e200 each became the identity (the norm overflowed to inf, the quaternion to 0).
+    from planner.app.target_file import read_targets
+
+    path = tmp_path / "targets.csv"
+    path.write_text("x,y,z,qx,qy,qz,qw\n0.1,0,0.1,1,1,1,1\n0.1,0,0.1,1e200,1e200,1e200,1e200\n0.1,0,0.1,0,0,0,0\n")
+    with pytest.raises(planner.TargetFileError, match="line 4.*zero norm"):
+        read_targets(path)
+    path.write_text("x,y,z,qx,qy,qz,qw\n0.1,0,0.1,1,1,1,1\n0.1,0,0.1,1e200,1e200,1e200,1e200\n")
+    rotations = read_targets(path).rotations
+    np.testing.assert_allclose(rotations[1], rotations[0], atol=1e-15)
+    np.testing.assert_allclose(rotations[0] @ [1.0, 0.0, 0.0], [0.0, 1.0, 0.0], atol=1e-12)
