@@ -326,3 +326,26 @@ def test_a_target_file_quaternion_means_its_direction_at_any_scale(tmp_path):
     rotations = read_targets(path).rotations
     np.testing.assert_allclose(rotations[1], rotations[0], atol=1e-15)
     np.testing.assert_allclose(rotations[0] @ [1.0, 0.0, 0.0], [0.0, 1.0, 0.0], atol=1e-12)
+
+
+def test_shelley_reaches_the_approach_pitch_of_its_own_configurations():
+    # Target(FK(q) position, pitch=approach_pitch(q)) is reached by q (its pitch error is 0), yet
+    # shelley's closed form (and "auto") answered orientation_not_achievable for every such target:
+    # it asked for the one radial direction, where a pitch leaves the azimuth within the outward
+    # half plane to the arm (planner.geometry.target). The NLP solved them all.
+    robot = get_robot("shelley")
+    solver = planner.closed_form_solver(robot)
+    q_all = robot.random_configurations(np.random.default_rng(3), 40)
+    positions = robot.fk(q_all)[:, :3, 3]
+    pitches = planner.approach_pitch(robot, q_all)
+    for position, pitch in zip(positions, pitches):
+        for method in ("analytic", "auto"):
+            result = planner.solve_ik(robot, planner.Target(position, pitch=pitch), method=method)
+            assert result.success, result.reason
+            axis = robot.fk(result.q)[:3, :3] @ robot.approach_axis
+            assert planner.pitch_error(axis, position, pitch) < 1e-9
+            assert np.linalg.norm(robot.fk(result.q)[:3, 3] - position) < 1e-9
+    batch = solver.solve_batch(positions, pitch=pitches)
+    assert batch.within_limits.any(axis=1).all()
+    up = planner.solve_ik(robot, planner.Target(positions[0], pitch=0.5), method="analytic")
+    assert up.status == planner.IKStatus.ORIENTATION_NOT_ACHIEVABLE and "stays at 0.00 deg" in up.reason
