@@ -81,8 +81,8 @@ def test_plan_animate_flags(tmp_path):
     ("kwargs", "message"),
     [
         ({"path": "a.png"}, "the file name must end in .gif"),
-        ({"fps": 0}, "fps must be in (0, 60] frames per second, got 0"),
-        ({"fps": float("nan")}, "fps must be in (0, 60]"),
+        ({"fps": 0}, "fps must be in [0.01, 60] frames per second, got 0"),
+        ({"fps": float("nan")}, "fps must be in [0.01, 60]"),
         ({"speed": -1.0}, "speed must be a positive number (plan seconds per second), got -1.0"),
         ({"size": (10, 400)}, "size must be between 64 and 4096 pixels each way, got 10x400"),
         ({"size": "big"}, "size must be (width, height) in pixels"),
@@ -109,4 +109,4 @@ def test_animation_of_a_plan_for_another_arm_is_refused(dh3_plan, tmp_path):
 def test_plan_animate_bad_flag_is_one_line_error(tmp_path):
     result = run_cli("plan", "dh3", str(EXAMPLE), "--animate", str(tmp_path / "a.gif"), "--fps", "-3")
     assert result.returncode == 1
-    assert result.stderr.strip() == "planner plan: error: fps must be in (0, 60] frames per second, got -3.0"
+    assert result.stderr.strip() == "planner plan: error: fps must be in [0.01, 60] frames per second, got -3.0"

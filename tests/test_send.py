@@ -293,3 +293,46 @@ def test_scs_series_streams_high_byte_first(tmp_path):
     first = bytes.fromhex(out.getvalue().splitlines()[2].split(None, 1)[1])
     ticks = round(512 + 195.6 * np.radians(0))
     assert first[7:10] == bytes([1]) + ticks.to_bytes(2, "big")
+
+
+def test_from_current_with_a_reading_outside_the_range_names_the_reading(al5c_plan):
+    # It said "waypoint 0: joint 'base_yaw' value 1.64939 is outside its range": the plan's
+    # waypoint 0 was fine; the arm's reading (2550 us, beyond the calibration) was not.
+    path, plan = al5c_plan
+    pulses = _first_pulses(plan)
+    pulses[0] = 2550
+    with FakeSsc32(pulses) as fake:
+        with pytest.raises(
+            StartPositionError, match=r"^the ssc32 reads joint 'base_yaw' at 1\.6\d+ rad, outside its range"
+        ) as info:
+            send_plan(get_robot("al5c"), path, port=fake.port, options=SendOptions(from_current=True))
+    assert info.value.joint == "base_yaw" and fake.moves == []
+    assert info.value.expected == pytest.approx(plan.trajectory.waypoints[0][0])
+
+
+class FeetechBusThatFallsSilent(FakeFeetechBus):
+    """Answers the first `reads` position reads, then none (a servo unplugged after the start check)."""
+
+    def __init__(self, positions, reads):
+        super().__init__(positions)
+        self.reads_left = reads
+
+    def handle(self, pkt, now):
+        if pkt[4] == 0x02:
+            if self.reads_left <= 0:
+                return
+            self.reads_left -= 1
+        super().handle(pkt, now)
+
+
+def test_a_stream_stopped_before_its_first_command_says_so_in_plain_words(tmp_path):
+    # The message read "stopped at before the plan's first command of 0.241 s (command 0 of 14)".
+    path, plan, _, start = _feetech_send("dh3", DH3_PLAN, tmp_path)
+    with FeetechBusThatFallsSilent(start, reads=3) as fake:  # the start check's reads, not begin's
+        result = send_plan(get_robot("dh3"), path, port=fake.port, controller="feetech")
+    assert result.status is SendStatus.LINK_ERROR and result.commands_sent == 0
+    total, duration = result.commands_total, plan.trajectory.duration
+    assert result.message == (
+        f"stopped before the {duration:.3f} s plan began (command 0 of {total}): servo id 1 does not answer on "
+        f"{fake.port}: check its id, the baud rate and the bus power; no servo answered; ids 1, 2, 3 did not answer"
+    )

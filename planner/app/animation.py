@@ -29,6 +29,8 @@ __all__ = ["ANIMATION_VIEWS", "animate_plan", "frame_times"]
 ANIMATION_VIEWS: tuple[str, ...] = ("side-top", "3d")
 DPI = 80
 MAX_FRAMES = 3000
+#: Lowest fps: a GIF stores a frame's delay in 1/100 s in 16 bits (at most 655.35 s).
+MIN_FPS = 0.01
 
 ARM = "#ff6e00"
 PATH = "#2870dc"
@@ -83,9 +85,9 @@ def frame_times(duration: float, fps: float, speed: float = 1.0) -> np.ndarray:
 def _check(fps: float, speed: float, size: Sequence[int], view: str, duration: float, path: Path) -> tuple[int, int]:
     if path.suffix.lower() != ".gif":
         raise InvalidArgumentError(f"an animation is written as a GIF: the file name must end in .gif, got {path}")
-    if not (isinstance(fps, (int, float)) and math.isfinite(fps) and 0 < fps <= 60):
-        raise InvalidArgumentError(f"fps must be in (0, 60] frames per second, got {fps}")
-    if not (isinstance(speed, (int, float)) and math.isfinite(speed) and speed > 0):
+    if isinstance(fps, bool) or not (isinstance(fps, (int, float)) and math.isfinite(fps) and MIN_FPS <= fps <= 60):
+        raise InvalidArgumentError(f"fps must be in [{MIN_FPS:g}, 60] frames per second, got {fps}")
+    if isinstance(speed, bool) or not (isinstance(speed, (int, float)) and math.isfinite(speed) and speed > 0):
         raise InvalidArgumentError(f"speed must be a positive number (plan seconds per second), got {speed}")
     if view not in ANIMATION_VIEWS:
         raise InvalidArgumentError(f"unknown view {view!r}; valid: {', '.join(ANIMATION_VIEWS)}")
@@ -95,10 +97,11 @@ def _check(fps: float, speed: float, size: Sequence[int], view: str, duration: f
         raise InvalidArgumentError(f"size must be (width, height) in pixels, got {size!r}") from exc
     if not (64 <= width <= 4096 and 64 <= height <= 4096):
         raise InvalidArgumentError(f"size must be between 64 and 4096 pixels each way, got {width}x{height}")
-    frames = len(frame_times(duration, fps, speed))
+    # Counted before frame_times makes them: a tiny speed asked for billions (out of memory).
+    frames = max(math.ceil(duration * fps / speed - 1e-9), 1) + 1 if duration * fps / speed < 1e15 else math.inf
     if frames > MAX_FRAMES:
         raise InvalidArgumentError(
-            f"{frames} frames for a {duration:.1f} s plan at {fps:g} fps and speed {speed:g}; at most {MAX_FRAMES} "
+            f"{frames:g} frames for a {duration:.1f} s plan at {fps:g} fps and speed {speed:g}; at most {MAX_FRAMES} "
             "(lower the fps or raise the speed)"
         )
     return width, height
@@ -250,9 +253,9 @@ def animate_plan(
     canvas = fig.canvas
     canvas.draw()
     background = canvas.copy_from_bbox(fig.bbox)
-    out.parent.mkdir(parents=True, exist_ok=True)
     writer = _canvas_pillow_writer()(fps=fps)
     try:
+        out.parent.mkdir(parents=True, exist_ok=True)
         with writer.saving(fig, str(out), DPI):
             for k in range(len(times)):
                 canvas.restore_region(background)

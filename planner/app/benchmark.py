@@ -27,6 +27,7 @@ import numpy as np
 
 from planner.app.progress import progress
 from planner.core.rotations import rotation_error
+from planner.exceptions import InvalidArgumentError
 from planner.geometry.target import Target, approach_pitch, target_errors
 from planner.ik.cross_check import compare
 from planner.ik.numeric.kinematics import CasadiKinematics
@@ -45,6 +46,8 @@ BUNDLED_KINDS = {"shelley": "position", "dh3": "position", "three_joint": "pitch
 #: Target kinds benchmarked per robot: its own kind, and for the 5-dof so101 (a servo arm of
 #: the source papers' family) the position + approach pitch targets a user of such an arm would give.
 KINDS = {**{name: (kind,) for name, kind in BUNDLED_KINDS.items()}, "so101": ("pose", "pitch")}
+#: Most random targets per robot (each is an NLP solve of up to the time budget).
+MAX_TARGETS = 1_000_000
 
 
 def make_target(robot, kind: str, q: np.ndarray) -> Target:
@@ -149,7 +152,14 @@ def bench_robot(
 
     Returns:
         One summary mapping per method (see :func:`summarise`).
+
+    Raises:
+        InvalidArgumentError: If `n` is not an integer in [1, MAX_TARGETS] or `seed` not one >= 0.
     """
+    if isinstance(n, bool) or not isinstance(n, (int, np.integer)) or not 1 <= n <= MAX_TARGETS:
+        raise InvalidArgumentError(f"the number of targets must be an integer in [1, {MAX_TARGETS}], got {n!r}")
+    if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
+        raise InvalidArgumentError(f"the seed must be an integer >= 0 (NumPy's seeds are), got {seed!r}")
     robot = load_robot(name)
     kind = kind or KINDS.get(name, ("pose",))[0]
     # Streams apart from the NLP's fixed restart pool (drawn from default_rng(0)): targets drawn

@@ -252,13 +252,18 @@ def _add_plan(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--animate-view", choices=("side-top", "3d"), default="side-top", help="--animate: the view")
 
 
+#: Highest --rate [Hz]: every check and the CSV sample the plan at it, and 1e7 samples of a
+#: 100 s plan already take gigabytes (1e7 Hz ran out of memory inside the singularity check).
+MAX_RATE = 1e5
+
+
 def _run_plan(args: argparse.Namespace) -> int:
     from planner.app.motion_plan import plan_motion
     from planner.app.plan_file import load_motion_request
     from planner.export.formats.ssc32 import Ssc32
 
-    if not (np.isfinite(args.rate) and args.rate > 0):
-        raise InvalidArgumentError(f"--rate must be a positive number [Hz], got {args.rate}")
+    if not (np.isfinite(args.rate) and 0 < args.rate <= MAX_RATE):
+        raise InvalidArgumentError(f"--rate must be a number in (0, {MAX_RATE:g}] [Hz], got {args.rate:g}")
     robot = load_robot(args.robot)
     request = load_motion_request(args.waypoints_file)
     plan = plan_motion(robot, request, rate=args.rate, controller=args.controller, calibration=args.calibration)
@@ -659,9 +664,12 @@ def _run_ik_batch(args: argparse.Namespace, robot: Robot) -> int:
     if args.out is None:
         write_answers(sys.stdout, robot, result, deg=args.deg)
         return 0
-    args.out.parent.mkdir(parents=True, exist_ok=True)
-    with args.out.open("w", newline="") as stream:
-        write_answers(stream, robot, result, deg=args.deg)
+    try:
+        args.out.parent.mkdir(parents=True, exist_ok=True)
+        with args.out.open("w", newline="") as stream:
+            write_answers(stream, robot, result, deg=args.deg)
+    except OSError as exc:
+        raise InvalidArgumentError(f"cannot write --out {str(args.out)!r}: {exc.strerror or exc}") from exc
     solved = int(np.sum(result.success))
     print(f"{robot.name}: {solved} of {len(result)} targets solved in {result.wall_time:.3g} s; wrote {args.out}")
     return 0
@@ -763,6 +771,10 @@ def main(argv: Sequence[str] | None = None) -> int:
         return 1
     except BrokenPipeError:
         return 0
+    except OSError as exc:  # a file the command writes: a folder in its place, no room, no permission
+        where = f"{exc.filename!r}: " if exc.filename else ""
+        print(f"planner {args.command}: error: {where}{exc.strerror or exc}", file=sys.stderr)
+        return 1
     except KeyboardInterrupt:  # e.g. Ctrl-C while planning; a stream handles its own and stops the servos
         print(f"planner {args.command}: interrupted", file=sys.stderr)
         return 130

@@ -93,7 +93,7 @@ def read_targets(source: str | Path | TextIO, *, deg: bool = False) -> BatchTarg
     if isinstance(source, (str, Path)):
         name = str(source)
         try:
-            text = Path(source).read_text()
+            text = Path(source).read_text(encoding="utf-8")
         except (OSError, UnicodeDecodeError) as exc:
             raise TargetFileError(f"cannot read the target file: {exc}", path=name) from exc
         stream: TextIO = io.StringIO(text)
@@ -107,7 +107,8 @@ def read_targets(source: str | Path | TextIO, *, deg: bool = False) -> BatchTarg
     if not lines:
         raise TargetFileError(f"no header line; the first line names the columns ({_VALID})", path=name)
     header_line, header = lines[0]
-    columns = [cell.strip().lower() for cell in header]
+    # A byte-order mark (spreadsheets' "CSV UTF-8") is no part of the first column's name.
+    columns = [cell.strip().lower() for cell in [header[0].lstrip("\ufeff"), *header[1:]]]
     for column in columns:
         if column not in _VALID.split(", "):
             raise TargetFileError(f"unknown column; valid: {_VALID}", path=name, line=header_line, column=column)
@@ -164,11 +165,14 @@ def read_targets(source: str | Path | TextIO, *, deg: bool = False) -> BatchTarg
         rpy = np.radians(values[:, 3:6]) if deg else values[:, 3:6]
         rotations, kind = _rpy_matrices(rpy), "pose"
     elif group == "quaternion":
-        norm = np.linalg.norm(values[:, 3:7], axis=1)
-        if np.any(norm < 1e-12):
-            k = int(np.argmax(norm < 1e-12))
+        # Scaled by the largest component first: squares of components past 1e154 overflow.
+        largest = np.max(np.abs(values[:, 3:7]), axis=1)
+        scaled = values[:, 3:7] / np.where(largest > 0, largest, 1.0)[:, None]
+        norm = np.linalg.norm(scaled, axis=1)
+        if np.any(largest * norm < 1e-12):
+            k = int(np.argmax(largest * norm < 1e-12))
             raise TargetFileError("the quaternion (qx, qy, qz, qw) has zero norm", path=name, line=rows[k][0])
-        rotations, kind = _quaternion_matrices(values[:, 3:7] / norm[:, None]), "pose"
+        rotations, kind = _quaternion_matrices(scaled / norm[:, None]), "pose"
     elif group == "approach_pitch":
         pitches = np.radians(values[:, 3]) if deg else values[:, 3]
         kind = "pitch"

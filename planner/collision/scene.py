@@ -30,10 +30,21 @@ from planner.core.rotations import rpy_to_matrix
 from planner.core.text import plain
 from planner.exceptions import InvalidArgumentError
 
-__all__ = ["FLOOR", "Box", "Cylinder", "Obstacle", "Scene", "Shape", "Sphere", "parse_scene"]
+__all__ = ["FLOOR", "MAX_EXTENT", "Box", "Cylinder", "Obstacle", "Scene", "Shape", "Sphere", "parse_scene"]
 
 #: The name the floor goes by in reports.
 FLOOR = "floor"
+
+#: Largest obstacle size and distance from the base [m]. Anything farther is a units mistake, and
+#: the distance bounds square these numbers: an obstacle at 1e200 m stalled the continuous check.
+MAX_EXTENT = 1e6
+
+
+def _extent(value: Any, what: str) -> float:
+    x = positive_number(value, what)
+    if x > MAX_EXTENT:
+        raise InvalidArgumentError(f"{what} must be at most {MAX_EXTENT:g} m, got {plain(value)} m")
+    return x
 
 
 @dataclass(frozen=True)
@@ -45,7 +56,7 @@ class Box:
     def __post_init__(self) -> None:
         if not isinstance(self.size, Sequence) or len(self.size) != 3:
             raise InvalidArgumentError(f"a box needs three sizes [x, y, z], got {plain(self.size)}")
-        object.__setattr__(self, "size", tuple(positive_number(v, "box size") for v in self.size))
+        object.__setattr__(self, "size", tuple(_extent(v, "box size") for v in self.size))
 
 
 @dataclass(frozen=True)
@@ -55,7 +66,7 @@ class Sphere:
     radius: float
 
     def __post_init__(self) -> None:
-        object.__setattr__(self, "radius", positive_number(self.radius, "sphere radius"))
+        object.__setattr__(self, "radius", _extent(self.radius, "sphere radius"))
 
 
 @dataclass(frozen=True)
@@ -66,8 +77,8 @@ class Cylinder:
     length: float
 
     def __post_init__(self) -> None:
-        object.__setattr__(self, "radius", positive_number(self.radius, "cylinder radius"))
-        object.__setattr__(self, "length", positive_number(self.length, "cylinder length"))
+        object.__setattr__(self, "radius", _extent(self.radius, "cylinder radius"))
+        object.__setattr__(self, "length", _extent(self.length, "cylinder length"))
 
 
 Shape = Box | Sphere | Cylinder
@@ -97,6 +108,10 @@ class Obstacle:
         p = np.asarray(self.position, dtype=float).reshape(-1)
         if p.shape != (3,) or not np.all(np.isfinite(p)):
             raise InvalidArgumentError(f"obstacle {self.name!r}: position must be 3 finite numbers, got {plain(p)}")
+        if np.max(np.abs(p)) > MAX_EXTENT:
+            raise InvalidArgumentError(
+                f"obstacle {self.name!r}: position must lie within {MAX_EXTENT:g} m of the base, got {plain(p)} m"
+            )
         r = np.asarray(self.rotation, dtype=float)
         if r.shape != (3, 3) or not np.allclose(r @ r.T, np.eye(3), atol=1e-9) or np.linalg.det(r) < 0:
             raise InvalidArgumentError(f"obstacle {self.name!r}: rotation must be a 3x3 rotation matrix")
@@ -242,7 +257,10 @@ def parse_scene(
             raise InvalidArgumentError(f"{where} ({name!r}) needs a position")
         position = _numbers(entry["position"], f"{where}: position", 3) * length_scale
         rpy = _numbers(entry.get("rpy", [0, 0, 0]), f"{where}: rpy", 3) * angle_scale
-        shape = _shape(entry, where, length_scale)
+        try:
+            shape = _shape(entry, where, length_scale)
+        except InvalidArgumentError as exc:
+            raise InvalidArgumentError(str(exc) if str(exc).startswith(where) else f"{where}: {exc}") from exc
         try:
             obstacles.append(Obstacle(str(name), shape, position, rpy_to_matrix(rpy)))
         except InvalidArgumentError as exc:

@@ -1,10 +1,27 @@
-"""Read-only arrays: results and stored limits are frozen copies, never views of caller data."""
+"""Arrays from callers: frozen copies of results and stored limits, floats checked to be numbers."""
 
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
 
-__all__ = ["read_only"]
+from planner.core.text import plain
+from planner.exceptions import InvalidArgumentError
+
+__all__ = ["float_array", "read_only"]
+
+
+def float_array(value: Any, what: str) -> np.ndarray:
+    """``np.asarray(value, dtype=float)``, or an error naming `what` when it holds no numbers.
+
+    Raises:
+        InvalidArgumentError: If NumPy cannot read `value` as floats (a string, a ragged list).
+    """
+    try:
+        return np.asarray(value, dtype=float)
+    except (TypeError, ValueError) as exc:
+        raise InvalidArgumentError(f"{what} must be a number or an array of numbers, got {plain(value)}") from exc
 
 
 def read_only(value: np.ndarray, dtype: type | None = float) -> np.ndarray:

@@ -7,8 +7,10 @@ input came from when a `source` is given.
 
 from __future__ import annotations
 
+import functools
 import json
 import math
+import re
 from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
@@ -51,17 +53,46 @@ def read_data_file(path: str | Path, what: str) -> Any:
     """
     p = Path(path)
     try:
-        text = p.read_text()
+        text = p.read_text(encoding="utf-8-sig")  # a byte-order mark (Windows editors) is not JSON
     except OSError as exc:
         raise InvalidArgumentError(f"cannot read {what} {str(p)!r}: {exc.strerror}") from exc
+    except UnicodeDecodeError as exc:
+        raise InvalidArgumentError(
+            f"cannot read {what} {str(p)!r}: not UTF-8 text (byte {exc.object[exc.start]:#04x} at offset {exc.start})"
+        ) from exc
     try:
         if p.suffix.lower() == ".json":
             return json.loads(text)
         import yaml
 
-        return yaml.safe_load(text)
+        return yaml.load(text, Loader=_yaml_loader())  # noqa: S506 - a SafeLoader subclass
     except Exception as exc:  # yaml and json raise several unrelated types
-        raise InvalidArgumentError(f"cannot parse {what} {str(p)!r}: {exc}") from exc
+        raise InvalidArgumentError(f"cannot parse {what} {str(p)!r}: {_one_line(exc)}") from exc
+
+
+@functools.cache
+def _yaml_loader() -> type:
+    """PyYAML's safe loader that also reads ``1e-3`` and ``2E5`` as numbers (YAML 1.2 floats).
+
+    PyYAML follows YAML 1.1, whose floats need a dot (``1.0e-3``): ``velocity: 1e3`` came back
+    as the string ``'1e3'`` and was refused as "must be a number".
+    """
+    import yaml
+
+    class Loader(yaml.SafeLoader):
+        pass
+
+    exponent = re.compile(r"^[-+]?(?:[0-9][0-9_]*(?:\.[0-9_]*)?|\.[0-9][0-9_]*)[eE][-+]?[0-9]+$")
+    Loader.add_implicit_resolver("tag:yaml.org,2002:float", exponent, list("-+0123456789."))
+    return Loader
+
+
+def _one_line(exc: Exception) -> str:
+    """A parser's error in one line: YAML's problem and where, without its quoted excerpt."""
+    problem, mark = getattr(exc, "problem", None), getattr(exc, "problem_mark", None)
+    if problem and mark is not None:
+        return f"{problem} at line {mark.line + 1}, column {mark.column + 1}"
+    return " ".join(str(exc).split())
 
 
 def input_error(source: str | None, message: str) -> InvalidArgumentError:

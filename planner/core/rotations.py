@@ -67,11 +67,14 @@ def quaternion_to_matrix(quaternion: Sequence[float] | np.ndarray) -> np.ndarray
     Raises:
         InvalidArgumentError: If the quaternion is NaN or has (near) zero norm.
     """
-    x, y, z, w = finite_vector(quaternion, 4, "quaternion (x, y, z, w)")
-    quat = pin.Quaternion(w, x, y, z)
-    if quat.norm() < 1e-12:
-        raise InvalidArgumentError(f"quaternion (x, y, z, w) has zero norm: {[x, y, z, w]}")
-    return np.array(quat.normalized().matrix())
+    arr = finite_vector(quaternion, 4, "quaternion (x, y, z, w)")
+    # Scaled by its largest component first: the squares of components past 1e154 overflow, and
+    # Pinocchio then normalises to the identity.
+    largest = float(np.max(np.abs(arr)))
+    if largest == 0.0 or largest * float(np.linalg.norm(arr / largest)) < 1e-12:
+        raise InvalidArgumentError(f"quaternion (x, y, z, w) has zero norm: {arr.tolist()}")
+    x, y, z, w = arr / largest
+    return np.array(pin.Quaternion(w, x, y, z).normalized().matrix())
 
 
 def check_rotation(rotation: Sequence[Sequence[float]] | np.ndarray) -> np.ndarray:

@@ -7,6 +7,8 @@ from __future__ import annotations
 
 import math
 
+import numpy as np
+
 from planner.core.text import plain
 from planner.exceptions import InvalidLimitsError
 
@@ -31,10 +33,16 @@ def servo_speed_to_velocity(seconds: float, degrees: float = 60.0) -> float:
     Raises:
         InvalidLimitsError: If either number is not finite and positive.
     """
-    if not (math.isfinite(seconds) and seconds > 0.0):
-        raise InvalidLimitsError(f"servo speed time must be positive and finite, got {plain(seconds)} s", value=seconds)
-    if not (math.isfinite(degrees) and degrees > 0.0):
+    for value, what, unit in ((seconds, "time", "s"), (degrees, "travel", "deg")):
+        if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)):
+            raise InvalidLimitsError(f"servo speed {what} must be a number [{unit}], got {plain(value)}", value=value)
+        if not (math.isfinite(value) and value > 0.0):
+            raise InvalidLimitsError(
+                f"servo speed {what} must be positive and finite, got {plain(value)} {unit}", value=value
+            )
+    velocity = math.radians(degrees) / seconds
+    if not math.isfinite(velocity):
         raise InvalidLimitsError(
-            f"servo speed travel must be positive and finite, got {plain(degrees)} deg", value=degrees
+            f"servo speed {plain(seconds)} s per {plain(degrees)} deg is an infinite joint speed", value=seconds
         )
-    return math.radians(degrees) / seconds
+    return velocity

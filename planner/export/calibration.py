@@ -15,6 +15,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from planner.core.arrays import float_array
 from planner.core.files import positive_number
 from planner.core.text import plain
 from planner.exceptions import InvalidArgumentError
@@ -37,11 +38,17 @@ __all__ = [
 SSC32_US_PER_RAD = 1000.0 / (math.pi / 2.0)
 
 
+#: Largest step count: counts above 2**53 are not exact as floats (and overflowed int64 silently).
+MAX_STEPS = 2**53
+
+
 def _check_span(max_rotation: float, max_steps: int) -> None:
+    if isinstance(max_rotation, bool) or not isinstance(max_rotation, (int, float, np.integer, np.floating)):
+        raise InvalidArgumentError(f"max_rotation must be a number [rad], got {plain(max_rotation)}")
     if not (math.isfinite(max_rotation) and max_rotation > 0):
         raise InvalidArgumentError(f"max_rotation must be positive and finite [rad], got {plain(max_rotation)}")
-    if isinstance(max_steps, bool) or not isinstance(max_steps, (int, np.integer)) or max_steps <= 0:
-        raise InvalidArgumentError(f"max_steps must be a positive integer, got {plain(max_steps)}")
+    if isinstance(max_steps, bool) or not isinstance(max_steps, (int, np.integer)) or not 0 < max_steps <= MAX_STEPS:
+        raise InvalidArgumentError(f"max_steps must be an integer in [1, 2**53], got {plain(max_steps)}")
 
 
 def angle_to_steps(angle: float | np.ndarray, max_rotation: float, max_steps: int) -> np.ndarray | int:
@@ -63,7 +70,7 @@ def angle_to_steps(angle: float | np.ndarray, max_rotation: float, max_steps: in
             or the span is not positive.
     """
     _check_span(max_rotation, max_steps)
-    a = np.asarray(angle, dtype=float)
+    a = float_array(angle, "angle")
     if not np.all(np.isfinite(a)):
         raise InvalidArgumentError(f"angle must be finite, got {plain(angle)}")
     beyond = np.abs(a) > max_rotation * (1 + 1e-12)
@@ -79,7 +86,7 @@ def angle_to_steps(angle: float | np.ndarray, max_rotation: float, max_steps: in
 def steps_to_angle(steps: int | np.ndarray, max_rotation: float, max_steps: int) -> np.ndarray | float:
     """Controller steps back to the joint angle [rad]; the inverse of :func:`angle_to_steps`."""
     _check_span(max_rotation, max_steps)
-    s = np.asarray(steps, dtype=float)
+    s = float_array(steps, "steps")
     a = s / max_steps * max_rotation
     return float(a) if a.ndim == 0 else a
 
@@ -105,7 +112,7 @@ def linear_units(
     Raises:
         InvalidArgumentError: If an angle is NaN or needs a value outside `valid` (naming both).
     """
-    a = np.asarray(angle, dtype=float)
+    a = float_array(angle, f"angle for {who}")
     if not np.all(np.isfinite(a)):
         raise InvalidArgumentError(f"angle for {who} must be finite, got {plain(angle)}")
     p = at_zero + per_rad * a
@@ -114,8 +121,9 @@ def linear_units(
     if np.any(out):
         k = np.argmax(out.reshape(-1))
         bad_a, bad_p = float(a.reshape(-1)[k]), float(p.reshape(-1)[k])
+        shown = f"{bad_p:.1f}" if abs(bad_p) < 1e9 else f"{bad_p:.6g}"  # not 300 digits of a wild calibration
         raise InvalidArgumentError(
-            f"{who} angle {bad_a:.6g} rad needs {unit[0]} {bad_p:.1f} {unit[1]}, "
+            f"{who} angle {bad_a:.6g} rad needs {unit[0]} {shown} {unit[1]}, "
             f"outside [{lo:g}, {hi:g}] {unit[1]}; adjust its calibration"
         )
     return float(p) if p.ndim == 0 else p
@@ -205,7 +213,7 @@ class ServoCalibration:
 
     def angle(self, pulse: float | np.ndarray) -> float | np.ndarray:
         """Joint angle [rad] for pulse width(s) [us]; the inverse of :meth:`pulse`."""
-        a = (np.asarray(pulse, dtype=float) - self.pulse_at_zero) / (self.direction * self.us_per_rad)
+        a = (float_array(pulse, "pulse") - self.pulse_at_zero) / (self.direction * self.us_per_rad)
         return float(a) if a.ndim == 0 else a
 
     def value(self, angle: float | np.ndarray) -> float | np.ndarray:

@@ -6,6 +6,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
+from planner.core.arrays import float_array
 from planner.core.rotations import check_rotation, homogeneous, rpy_to_matrix
 from planner.core.text import plain
 from planner.exceptions import InvalidArgumentError
@@ -15,7 +16,7 @@ __all__ = ["range_bearing_to_base"]
 
 def _pose_matrix(sensor_pose: Sequence[float] | np.ndarray) -> np.ndarray:
     """The sensor pose as a 4x4 transform in the base frame [m]."""
-    arr = np.asarray(sensor_pose, dtype=float)
+    arr = float_array(sensor_pose, "sensor_pose")
     if arr.shape == (4, 4):
         if not np.all(np.isfinite(arr)):
             raise InvalidArgumentError("sensor_pose holds NaN or infinite values")
@@ -60,8 +61,8 @@ def range_bearing_to_base(
     Raises:
         InvalidArgumentError: On NaN, a negative distance, or a malformed pose.
     """
-    d = np.asarray(distance, dtype=float)
-    b = np.asarray(bearing, dtype=float)
+    d = float_array(distance, "distance")
+    b = float_array(bearing, "bearing")
     if not (np.all(np.isfinite(d)) and np.all(np.isfinite(b))):
         raise InvalidArgumentError(f"distance and bearing must be finite, got {plain(distance)}, {plain(bearing)}")
     if np.any(d < 0):

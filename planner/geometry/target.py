@@ -221,7 +221,10 @@ class Target:
     @classmethod
     def from_pose(cls, pose: np.ndarray) -> Target:
         """Target from a 4x4 homogeneous transform [m]."""
-        arr = np.asarray(pose, dtype=float)
+        try:
+            arr = np.asarray(pose, dtype=float)
+        except (TypeError, ValueError) as exc:
+            raise InvalidArgumentError(f"pose must be a 4x4 array of numbers, got {pose!r}") from exc
         if arr.shape != (4, 4):
             raise InvalidArgumentError(f"pose must have shape (4, 4), got {arr.shape}")
         return cls(arr[:3, 3], rotation=arr[:3, :3])
@@ -263,7 +266,7 @@ def tip_errors(
 ) -> tuple[float, float]:
     """Position [m] and orientation [rad] errors of a tip pose (see :func:`target_errors`)."""
     (x, y, z), (tx, ty, tz) = position.tolist(), target.position.tolist()
-    position_error = math.sqrt((x - tx) ** 2 + (y - ty) ** 2 + (z - tz) ** 2)
+    position_error = math.hypot(x - tx, y - ty, z - tz)
     if target.rotation is not None:
         # rotation_error's formula (atan2 of the antisymmetric part and the trace of R^T R_target,
         # accurate near 0) on Python floats: a third of the time of indexing the array.

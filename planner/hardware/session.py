@@ -18,7 +18,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from planner.core.text import plain
-from planner.exceptions import ControllerError, InvalidArgumentError, StartPositionError
+from planner.exceptions import ControllerError, InvalidArgumentError, JointLimitError, StartPositionError
 from planner.export.formats.base import check_period_ms
 from planner.hardware.link import Clock
 
@@ -176,7 +176,17 @@ def _prelude(
 
         if limits is None:
             raise InvalidArgumentError("from_current needs the plan's joint limits")
-        first = plan_trajectory(np.array([q, q0]), limits)
+        try:
+            first = plan_trajectory(np.array([q, q0]), limits)
+        except JointLimitError as exc:  # the reading, not the plan's waypoint 0, is out of range
+            raise StartPositionError(
+                f"the {driver.name} reads joint {exc.joint!r} at {exc.value:.6g} rad, outside its range "
+                f"[{exc.lower:.6g}, {exc.upper:.6g}]: nothing was sent; no move from there can be planned (move the "
+                "joint into its range, or give --approach-time S for one timed move to the first waypoint)",
+                joint=exc.joint,
+                value=exc.value,
+                expected=float(q0[names.index(exc.joint)]) if exc.joint in names else float("nan"),
+            ) from exc
         commands = driver.commands(first, int(round(stream.period * 1000)))
         offsets = [i * stream.period for i in range(len(commands))]
         return q, "from current", list(zip(offsets, commands)), len(commands) * stream.period
@@ -254,6 +264,6 @@ def run_stream(
             f"{lateness * 1000:.1f} ms after its deadline"
         )
     else:
-        reached = f"t = {plan_time:.3f} s" if sent else "before the plan's first command"
-        message = f"stopped at {reached} of {duration:.3f} s (command {sent} of {total}): {why}; {stop}"
+        reached = f"at t = {plan_time:.3f} s of {duration:.3f} s" if sent else f"before the {duration:.3f} s plan began"
+        message = f"stopped {reached} (command {sent} of {total}): {why}; {stop}"
     return SendResult(status, sent, total, plan_time, duration, start_q, kind, stop, lateness, message)

@@ -50,7 +50,7 @@ class IKOptions:
 
     Raises:
         InvalidArgumentError: On a tolerance, budget or floor that is not a positive number, a
-            bad attempt cap, an unknown task, or an rng that is neither an int nor a generator.
+            bad attempt cap, an unknown task, or an rng that is neither an int >= 0 nor a generator.
     """
 
     position_tolerance: float = 1e-6
@@ -87,6 +87,8 @@ class IKOptions:
             raise InvalidArgumentError(
                 f"rng must be an int seed, a numpy.random.Generator or None, got {type(self.rng).__name__}"
             )
+        if isinstance(self.rng, (int, np.integer)) and not isinstance(self.rng, bool) and self.rng < 0:
+            raise InvalidArgumentError(f"rng: an int seed must be >= 0 (NumPy's seeds are), got {self.rng}")
 
     def generator(self) -> np.random.Generator | None:
         """The generator of the random starts: a new one from an int seed, the given one, or None."""

@@ -260,7 +260,7 @@ class _TipCheck:
             placement = pin.updateFramePlacement(self.model, self.data, self.frame)
             if target.rotation is None and target.pitch is None:
                 (x, y, z), (tx, ty, tz) = placement.translation.tolist(), target.position.tolist()
-                return math.sqrt((x - tx) ** 2 + (y - ty) ** 2 + (z - tz) ** 2), 0.0
+                return math.hypot(x - tx, y - ty, z - tz), 0.0
             return tip_errors(target, placement.translation, placement.rotation, self.axis)
         position, rotation = self.robot.tip_pose(q)
         return tip_errors(target, position, rotation, self.axis)

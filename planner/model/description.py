@@ -43,6 +43,7 @@ import numpy as np
 
 from planner.core.files import parse_number, parse_numbers, parse_units, read_data_file
 from planner.core.rotations import homogeneous, matrix_to_rpy, rpy_to_matrix
+from planner.core.text import plain
 from planner.core.units import servo_speed_to_velocity
 from planner.exceptions import InvalidArgumentError, InvalidLimitsError
 
@@ -267,6 +268,14 @@ def _origin_xml(t: np.ndarray) -> str:
     return f'<origin xyz="{xyz}" rpy="{rpy}"/>'
 
 
+def _section(desc: Mapping[str, Any], key: str, example: str) -> Mapping[str, Any]:
+    """An optional mapping of the description (empty when absent or null)."""
+    value = desc.get(key) or {}
+    if not isinstance(value, Mapping):
+        raise InvalidArgumentError(f"`{key}` must be a mapping such as {example}, got {plain(value)}")
+    return value
+
+
 def urdf_from_dh(description: Mapping[str, Any] | str | Path) -> str:
     """Build a URDF from a compact arm description (DH table or joint list).
 
@@ -287,11 +296,11 @@ def urdf_from_dh(description: Mapping[str, Any] | str | Path) -> str:
     if not isinstance(desc, Mapping):
         raise InvalidArgumentError(f"an arm description must be a mapping, got {type(desc).__name__}")
     name = str(desc.get("name", "arm"))
-    units = desc.get("units", {}) or {}
+    units = _section(desc, "units", "{length: cm, angle: deg}")
     length, angle = parse_units(str(units.get("length", "m")), str(units.get("angle", "rad")))
 
     joints, last_fixed = _parse_joints(desc, length, angle)
-    tool = desc.get("tool", {}) or {}
+    tool = _section(desc, "tool", "{name: tool, xyz: [0, 0, 0.05]}")
     tip = str(tool.get("name", "tool"))
     link_names = ["base_link", *(f"{j.name}_link" for j in joints), tip]
     if len(set(link_names)) != len(link_names) or not _NAME.match(tip):
@@ -302,7 +311,7 @@ def urdf_from_dh(description: Mapping[str, Any] | str | Path) -> str:
     tool_pose = _pose(
         _vector(tool.get("xyz", [0, 0, 0]), "tool xyz", length), _vector(tool.get("rpy", [0, 0, 0]), "tool rpy", angle)
     )
-    base = desc.get("base", {}) or {}
+    base = _section(desc, "base", "{xyz: [0, 0, 0.1], rpy: [0, 0, 0]}")
     base_pose = _pose(
         _vector(base.get("xyz", [0, 0, 0]), "base xyz", length), _vector(base.get("rpy", [0, 0, 0]), "base rpy", angle)
     )

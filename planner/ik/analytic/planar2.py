@@ -28,7 +28,7 @@ import numpy as np
 
 from planner.core.rotations import rotation_error
 from planner.geometry.chain import ChainAtZero, describe_violation, poe_fk, wrap_array, wrap_scalar
-from planner.geometry.target import Target
+from planner.geometry.target import Target, pitch_error, pitch_error_scalar
 from planner.ik.analytic.base import (
     FAMILY_ANGLE_TOL,
     FLOAT64,
@@ -242,8 +242,10 @@ class Planar2IK(AnalyticIK):
                 (),
                 False,
             )
-        if target.rotation is not None or target.pitch is not None:
-            heading, why = self._heading_scalar(target, h, k, dd)
+        if target.pitch is not None and (why := self._pitch_elevation_mismatch(target.pitch)):
+            return AnalyticResult(STATUS_ORIENTATION_NOT_ACHIEVABLE, why, (), False)
+        if target.rotation is not None:
+            heading, why = self._heading_scalar(target)
             if heading is None:
                 return AnalyticResult(STATUS_ORIENTATION_NOT_ACHIEVABLE, why, (), False)
             # The heading fixes the second link: the elbow is the tip minus it (one solution).
@@ -286,8 +288,14 @@ class Planar2IK(AnalyticIK):
         solutions = []
         keys = []
         any_within = False
+        pitch_misses = []
         for name, a1, e in branches:
             v0, v1 = s1 * (a1 - g1), s2 * (e - self._delta)
+            if target.pitch is not None:  # the position fixes the heading: keep the branches whose axis fits
+                pitch_err = self._orientation_error_scalar(s1 * v0 + s2 * v1, target)
+                if pitch_err > ORIENTATION_TOL:
+                    pitch_misses.append(f"{name} {math.degrees(pitch_err):.2f} deg")
+                    continue
             if lean:  # unchecked: solve_ik checks the one it answers with by Pinocchio FK
                 # wrap_scalar, which within the range and pi of the reference adds 0.0.
                 v0 = v0 + 0.0 if lo0 <= v0 <= hi0 and -PI <= v0 - ref0 <= PI else wrap_scalar(v0, lo0, hi0, ref0)
@@ -300,7 +308,7 @@ class Planar2IK(AnalyticIK):
             th1, th12 = s1 * v0, s1 * v0 + s2 * v1
             fx = bx + r1 * math.cos(th1 + g1) + r2 * math.cos(th12 + g2)
             fy = by + r1 * math.sin(th1 + g1) + r2 * math.sin(th12 + g2)
-            perr = math.sqrt((fx - px) ** 2 + (fy - py) ** 2 + (height - pz) ** 2)
+            perr = math.hypot(fx - px, fy - py, height - pz)
             oerr = None if position_only else self._orientation_error_scalar(th12, target)
             v0 = v0 + 0.0 if lo0 <= v0 <= hi0 and -PI <= v0 - ref0 <= PI else wrap_scalar(v0, lo0, hi0, ref0)
             v1 = v1 + 0.0 if lo1 <= v1 <= hi1 and -PI <= v1 - ref1 <= PI else wrap_scalar(v1, lo1, hi1, ref1)
@@ -311,6 +319,14 @@ class Planar2IK(AnalyticIK):
             q = np.array((v0, v1))
             q.setflags(write=False)
             solutions.append(AnalyticSolution(q, within, name, singular, perr, oerr))
+        if not solutions and pitch_misses:
+            return AnalyticResult(
+                STATUS_ORIENTATION_NOT_ACHIEVABLE,
+                f"{self.robot.name} has 2 joints: the position fixes the tip's heading, and no branch's approach "
+                f"axis has approach pitch {math.degrees(target.pitch):.2f} deg here (off by {', '.join(pitch_misses)})",
+                (),
+                False,
+            )
         if lean:
             return nearest_entry(solutions, qc) if any_within else None
         if qc is not None and len(solutions) > 1:
@@ -344,34 +360,29 @@ class Planar2IK(AnalyticIK):
             reason = "no branch within the joint limits: " + " | ".join(parts)
         return AnalyticResult(status, reason, tuple(solutions), singular)
 
-    def _heading_scalar(self, target: Target, h: float, k: float, dd: float) -> tuple[float | None, str]:
-        """Tip heading (the turn about z of the whole arm from q = 0) an orientation asks for."""
-        if target.rotation is not None:
-            m = target.rotation @ self._rot0.T
-            heading = math.atan2(m[1, 0], m[0, 0])
-            c, s = math.cos(heading), math.sin(heading)
-            rz = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
-            residual = float(rotation_error(rz, m))
-            if residual > ORIENTATION_TOL:
-                return None, (
-                    f"{self.robot.name} turns its tip about the vertical only; the orientation is {residual:.3g} rad "
-                    "from any such turn"
-                )
-            return heading, ""
-        want = self._want_direction(target.pitch, h, k, dd)
-        a0 = self._a0
-        horiz = math.hypot(a0[0], a0[1])
-        if abs(a0[2] - want[2]) > ORIENTATION_TOL or horiz < 1e-12:
+    def _heading_scalar(self, target: Target) -> tuple[float | None, str]:
+        """Tip heading (the turn about z of the whole arm from q = 0) a rotation asks for."""
+        m = target.rotation @ self._rot0.T
+        heading = math.atan2(m[1, 0], m[0, 0])
+        c, s = math.cos(heading), math.sin(heading)
+        rz = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+        residual = float(rotation_error(rz, m))
+        if residual > ORIENTATION_TOL:
             return None, (
-                f"{self.robot.name}'s approach axis stays at {math.degrees(math.asin(max(-1.0, min(1.0, a0[2])))):.2f} "
-                f"deg from the horizontal; approach pitch {math.degrees(target.pitch):.2f} deg is not achievable"
+                f"{self.robot.name} turns its tip about the vertical only; the orientation is {residual:.3g} rad "
+                "from any such turn"
             )
-        return math.atan2(want[1], want[0]) - math.atan2(a0[1], a0[0]), ""
+        return heading, ""
 
-    def _want_direction(self, pitch: float, h: float, k: float, dd: float) -> tuple[float, float, float]:
-        """The approach direction of an approach pitch, radial from the first joint's axis."""
-        ch, sh = (h / dd, k / dd) if dd > 0.0 else (1.0, 0.0)
-        return math.cos(pitch) * ch, math.cos(pitch) * sh, math.sin(pitch)
+    def _pitch_elevation_mismatch(self, pitch: float) -> str:
+        """Why no configuration has this approach pitch's elevation ("" when the arm's axis has it)."""
+        a0 = self._a0
+        if abs(a0[2] - math.sin(pitch)) > ORIENTATION_TOL:
+            return (
+                f"{self.robot.name}'s approach axis stays at {math.degrees(math.asin(max(-1.0, min(1.0, a0[2])))):.2f} "
+                f"deg from the horizontal; approach pitch {math.degrees(pitch):.2f} deg is not achievable"
+            )
+        return ""
 
     def _orientation_error_scalar(self, th12: float, target: Target) -> float | None:
         if target.rotation is None and target.pitch is None:
@@ -380,10 +391,10 @@ class Planar2IK(AnalyticIK):
         rz = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
         if target.rotation is not None:
             return float(rotation_error(rz @ self._rot0, target.rotation))
-        h, k = target.position[0] - self._bx, target.position[1] - self._by
-        want = np.array(self._want_direction(target.pitch, h, k, math.hypot(h, k)))
-        got = rz @ self._a0
-        return float(math.atan2(np.linalg.norm(np.cross(got, want)), float(got @ want)))
+        ax, ay, az = (rz @ self._a0).tolist()
+        px, py = target.position[0], target.position[1]
+        cos_p, sin_p = math.cos(target.pitch), math.sin(target.pitch)
+        return pitch_error_scalar(ax, ay, az, px, py, cos_p, sin_p, math.atan2(sin_p, abs(cos_p)))
 
     # ------------------------------------------------------------------ batch
     def solve_batch(
@@ -405,7 +416,7 @@ class Planar2IK(AnalyticIK):
         inside = dd < abs(r1 - r2) - self._len_tol
         geo = ~(off_plane | beyond | inside)
         orient_fail = np.zeros(n, dtype=bool)
-        if rot is None and pit is None:
+        if rot is None:
             c = np.clip((dd * dd - r1 * r1 - r2 * r2) / (2.0 * r1 * r2), -1.0, 1.0)
             s = np.sqrt(1.0 - c * c)
             singular = s < SINGULAR_TOL
@@ -417,22 +428,30 @@ class Planar2IK(AnalyticIK):
             base = np.arctan2(k, h)
             a1 = np.stack([base + half, base - half], axis=1)
             valid = np.stack([geo, geo & ~singular], axis=1)
+            if pit is not None:  # the position fixes the heading: keep the branches whose axis fits
+                heading = a1 - self._g1 + e - self._delta  # th12 of each branch
+                a0 = self._a0
+                axes = np.stack(
+                    [
+                        np.cos(heading) * a0[0] - np.sin(heading) * a0[1],
+                        np.sin(heading) * a0[0] + np.cos(heading) * a0[1],
+                        np.full_like(heading, a0[2]),
+                    ],
+                    axis=-1,
+                )
+                pitches = np.broadcast_to(np.asarray(pit, dtype=float).reshape(-1, 1), heading.shape)
+                errors = pitch_error(axes.reshape(-1, 3), np.repeat(pos, 2, axis=0), pitches.reshape(-1))
+                fits = np.asarray(errors).reshape(n, 2) <= ORIENTATION_TOL
+                orient_fail = geo & ~(valid & fits).any(axis=1)
+                valid &= fits
         else:
             # The orientation fixes the heading, hence the second link: one solution per target.
-            if rot is not None:
-                m = rot @ self._rot0.T
-                heading = np.arctan2(m[:, 1, 0], m[:, 0, 0])
-                c_h, s_h = np.cos(heading), np.sin(heading)
-                rz = np.zeros((n, 3, 3))
-                rz[:, 0, 0], rz[:, 0, 1], rz[:, 1, 0], rz[:, 1, 1], rz[:, 2, 2] = c_h, -s_h, s_h, c_h, 1.0
-                orient_ok = np.asarray(rotation_error(rz, m)) <= ORIENTATION_TOL
-            else:
-                safe = np.where(dd > 0, dd, 1.0)
-                ch, sh = np.where(dd > 0, h / safe, 1.0), np.where(dd > 0, k / safe, 0.0)
-                want_x, want_y = np.cos(pit) * ch, np.cos(pit) * sh
-                a0 = self._a0
-                heading = np.arctan2(want_y, want_x) - math.atan2(a0[1], a0[0])
-                orient_ok = (np.abs(np.sin(pit) - a0[2]) <= ORIENTATION_TOL) & (math.hypot(a0[0], a0[1]) > 1e-12)
+            m = rot @ self._rot0.T
+            heading = np.arctan2(m[:, 1, 0], m[:, 0, 0])
+            c_h, s_h = np.cos(heading), np.sin(heading)
+            rz = np.zeros((n, 3, 3))
+            rz[:, 0, 0], rz[:, 0, 1], rz[:, 1, 0], rz[:, 1, 1], rz[:, 2, 2] = c_h, -s_h, s_h, c_h, 1.0
+            orient_ok = np.asarray(rotation_error(rz, m)) <= ORIENTATION_TOL
             ex = h - r2 * np.cos(heading + self._g2)
             ey = k - r2 * np.sin(heading + self._g2)
             orient_ok &= np.abs(np.hypot(ex, ey) - r1) <= self._consistency_tol

@@ -23,6 +23,9 @@ from planner.model.robot import Task
 
 __all__ = ["Polisher"]
 
+#: Cap on the squared floor: floor**2 overflows past 1e154 and Ipopt meets NaN near the largest
+#: float; no arm comes near det(J J^T) = 1e200, and answers are checked against the floor itself.
+_FLOOR_SQUARED_CAP = 1e200
 _EQUALITIES = {"position": 3, "pose": 6, "pitch": 4, "pitch_vertical": 5}
 _IPOPT_OPTIONS = {
     "print_time": False,
@@ -99,7 +102,7 @@ class Polisher:
             ubg = np.append(ubg, np.inf)
         par[19 : 19 + n] = q_ref
         if floor is not None:
-            par[19 + n] = floor**2
+            par[19 + n] = min(floor * floor, _FLOOR_SQUARED_CAP)
             lbg, ubg = np.append(lbg, 0.0), np.append(ubg, np.inf)
         solver = self._solver(kind, task, floor is not None)
         out = solver(x0=q_start, p=par, lbx=self._lower, ubx=self._upper, lbg=lbg, ubg=ubg)

@@ -119,7 +119,8 @@ def end_distance(arm: ArmGeometry, target: Target) -> float:
     """Distance [m] from the shoulder axis to the target in the arm's (front) plane."""
     px, py, pz = target.position.tolist()
     d = arm.lateral_offset
-    u = math.sqrt(max((px - arm.bx) ** 2 + (py - arm.by) ** 2 - d * d, 0.0))
+    h = math.hypot(px - arm.bx, py - arm.by)
+    u = math.sqrt(max((h - d) * (h + d), 0.0))
     return math.hypot(u - arm.su, pz - arm.sz)
 
 
