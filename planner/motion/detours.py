@@ -331,7 +331,7 @@ def plan_clear_of_singularities(
             if _det_sign(robot, nodes[s][0], t_task) * _det_sign(robot, nodes[s + 1][0], t_task) < 0:
                 given_up.add(seg)
                 continue
-            q_new, f_new = _ascend(robot, traj.sample(t[k]).q, limits, margin * thr, t_task)
+            q_new, f_new = _ascend(robot, traj.positions(t[k]), limits, margin * thr, t_task)
             if f_new < thr:
                 given_up.add(seg)
                 continue

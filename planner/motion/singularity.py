@@ -672,7 +672,7 @@ def measure_singularities(
         :func:`bounded_conditioning`).
     """
     t = _sample_times(trajectory, rate)
-    q = trajectory.sample(t).q
+    q = trajectory.positions(t)
     w_idx = np.searchsorted(t, trajectory.waypoint_times)
     inv, man = bounded_conditioning(robot, q, task, threshold, w_idx)
     w_inv, w_man = inv[w_idx], man[w_idx]
