@@ -38,7 +38,7 @@ from types import MappingProxyType
 import numpy as np
 
 from planner.core.arrays import read_only
-from planner.core.certificates import cholesky_certificates, rayleigh_bounds
+from planner.core.certificates import cholesky_certificates, extreme_bounds, grams
 from planner.core.text import plain
 from planner.exceptions import InvalidArgumentError
 from planner.geometry.jacobian_kernel import jacobian_kernel
@@ -270,49 +270,37 @@ def _cholesky(gram: np.ndarray, shift: np.ndarray) -> tuple[np.ndarray, np.ndarr
     return ok, np.where(ok, np.prod(np.where(ok, pivots, 0.0), axis=0), 0.0), low
 
 
-def _rayleigh_bounds(gram: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """An upper bound of the smallest and a lower bound of the largest eigenvalue of each `gram`.
+def _extreme_bounds(gram: np.ndarray) -> np.ndarray:
+    """Bounds of the extreme eigenvalues and of the determinant of each positive semi-definite `gram`.
 
-    Rayleigh quotients ``x^T G x / x^T x``, which lie between the extreme eigenvalues for any
-    ``x``: for the smallest, ``x`` after two steps of inverse iteration (solves with the Cholesky
-    factor `low` of `gram`, (k, k, N) from :func:`_positive_definite` with no shift), for the
-    largest after three steps of power iteration; the rounding of the quotients (below
-    ``k eps tr(G)``) is covered by ``1e-12 tr(G)``.
+    Those of :func:`planner.core.certificates.extreme_bounds` (compiled), else NumPy's
+    eigenvalues moved by ``1e-11 tr(G)`` (far above their rounding: LAPACK's symmetric
+    eigenvalues are those of ``G + E`` with ``||E||`` a small multiple of ``eps ||G||``).
 
     Returns:
-        ``(upper bound of the smallest eigenvalue, lower bound of the largest)``, each (N,).
+        Shape (N, 5): ``(smallest lower, smallest upper, largest lower, largest upper, product
+        lower)`` per matrix.
     """
-    compiled = rayleigh_bounds(gram)
+    compiled = extreme_bounds(gram)
     if compiled is not None:
         return compiled
-    low = _cholesky(gram, np.zeros(len(gram)))[2]
-    k = gram.shape[1]
-    g = np.ascontiguousarray(gram.transpose(1, 2, 0))
-    margin = 1e-12 * np.trace(g)
-
-    def quotient(x: np.ndarray) -> np.ndarray:
-        return (x * (g * x).sum(axis=1)).sum(axis=0) / (x * x).sum(axis=0)
-
-    x = np.ones((k, len(gram)))
-    for _ in range(2):
-        y = np.empty_like(x)
-        for i in range(k):  # L y = x
-            y[i] = (x[i] - (low[i, :i] * y[:i]).sum(axis=0)) / low[i, i]
-        for i in reversed(range(k)):  # L^T x = y
-            x[i] = (y[i] - (low[i + 1 :, i] * x[i + 1 :]).sum(axis=0)) / low[i, i]
-        x /= np.sqrt((x * x).sum(axis=0))
-    smallest = quotient(x) + margin
-    x = np.repeat(1.0 + 0.1 * np.arange(k)[:, None], len(gram), axis=1)
-    for _ in range(3):
-        x = (g * x).sum(axis=1)
-        norm = np.sqrt((x * x).sum(axis=0))
-        x /= np.where(norm > 0.0, norm, 1.0)
-    largest = quotient(x) - margin
-    return smallest, largest
+    values = np.linalg.eigvalsh(gram)
+    spread = 1e-11 * np.abs(np.trace(gram, axis1=1, axis2=2))
+    low = values - spread[:, None]
+    product = np.where(np.all(low > 0.0, axis=1), np.prod(np.maximum(low, 0.0), axis=1), 0.0)
+    return np.stack(
+        [np.maximum(low[:, 0], 0.0), values[:, 0] + spread, low[:, -1], values[:, -1] + spread, product], axis=1
+    )
 
 
 def _gram(scaled: np.ndarray) -> np.ndarray:
-    """``S S^T`` of each matrix of `scaled` (or ``S^T S`` for tall ones): eigenvalues ``s_i^2``."""
+    """``S S^T`` of each matrix of `scaled` (or ``S^T S`` for tall ones): eigenvalues ``s_i^2``.
+
+    In the compiled loop of :func:`planner.core.certificates.grams`, else NumPy's.
+    """
+    compiled = grams(scaled)
+    if compiled is not None:
+        return compiled
     if scaled.shape[1] <= scaled.shape[2]:
         return scaled @ scaled.transpose(0, 2, 1)
     return scaled.transpose(0, 2, 1) @ scaled
@@ -403,7 +391,9 @@ def _interval_bounds(
 
     Returns:
         Per row of `rows`: the lower bounds of the inverse condition number and of the product of
-        the singular values.
+        the singular values, and an upper bound of the inverse condition number (first order in
+        the interval's length: ``(s_min + d / 2 + e) / (s_max - d / 2 - e)`` from the ends' mean
+        singular values, Weyl's inequality along the interpolation).
     """
     rho, angular = bounds
     k = s.shape[1]
@@ -431,8 +421,14 @@ def _interval_bounds(
         det_factor = np.where(m2 > c, np.maximum(1.0 - c / m2, 0.0), 0.0) ** (0.5 * k)
         shrink = np.where(sigma > err, np.maximum(1.0 - err / sigma, 0.0), 0.0) ** k
     man = product * det_factor * shrink
+    # From above: s_min(J_lam) <= min(s_min(a) + lam d, s_min(b) + (1 - lam) d) <= (s_min(a) +
+    # s_min(b) + d) / 2 and s_max(J_lam) >= (s_max(a) + s_max(b) - d) / 2 (Weyl), each moved by e.
+    with np.errstate(divide="ignore", invalid="ignore"):
+        top_low = 0.5 * (s[a, 0] + s[b, 0] - d) - margin - err
+        upper = (0.5 * (s[a, -1] + s[b, -1] + d) + margin + err) / top_low * (1.0 + 1e-9)
+    upper = np.where(top_low > 0.0, upper, np.inf)
     counts = np.diff(np.append(starts, len(rows)))
-    return np.repeat(inv, counts), np.repeat(man, counts)
+    return np.repeat(inv, counts), np.repeat(man, counts), np.repeat(upper, counts)
 
 
 def bounded_conditioning(
@@ -469,13 +465,11 @@ def bounded_conditioning(
        when that is larger). There every ``s_i(J_lam) > f``, so ``s_i - e >= s_i (1 - e / f)``
        and the manipulability is at least the root of ``det(J_lam J_lam^T)`` (at least the
        product of the pivots) times ``(1 - e / f)^k``.
-    3. The row's own Jacobian: the bounds of step 1 with ``e = ||J - J_a||_F`` to both
-       neighbours, then the certificate of step 2 with ``J`` itself and ``s_max`` bounded by
-       Weyl's inequality from the neighbours; the manipulability from the factorisation of
-       ``J J^T`` itself. Below the threshold: Rayleigh quotients of ``J J^T``
-       (:func:`_rayleigh_bounds`) bound its smallest eigenvalue from above and its largest from
-       below, so the inverse condition number from above; and the certificate at the stretch's
-       smallest exact value bounds it from below.
+    3. The row's own Jacobian (the compiled one of :mod:`planner.geometry.jacobian_kernel`,
+       equal to Pinocchio's to rounding): :func:`_extreme_bounds` brackets the smallest and the
+       largest eigenvalue of ``J J^T`` (the squared extreme singular values) and bounds its
+       determinant from below, so the inverse condition number from both sides and the
+       manipulability from below; a bracket under the threshold shows the row below it.
     4. The row is measured exactly.
 
     In the end the rows `keep`, the row of each minimum (inverse condition number and
@@ -545,10 +539,8 @@ def bounded_conditioning(
     np.minimum.at(least, of_end, inv[ends])
     np.minimum.at(least, np.clip(np.searchsorted(bounds_of, bounds_of) - 1, 0, None), inv[bounds_of])
     least = least[stretch]
-    lifted_least = least * (1.0 + 1e-9)
     lo_inv, lo_man = np.zeros(len(rows)), np.zeros(len(rows))
     below = np.zeros(len(rows), dtype=bool)  # shown below the threshold
-    s_cap = np.full(len(rows), np.inf)  # upper bounds of the largest singular value
 
     def weyl(take: np.ndarray, a: np.ndarray, e: np.ndarray, e_man: np.ndarray) -> None:
         # Rounding of the SVDs and norms: a margin far above it.
@@ -581,7 +573,8 @@ def bounded_conditioning(
     if change is not None:
         rho, angular, raw_angular = change
         if divisor is not None:
-            lo_inv[:], lo_man[:] = _interval_bounds(q, rows, left, right, scaled_all, s_inv, (rho, angular))
+            lo_inv[:], lo_man[:], upper = _interval_bounds(q, rows, left, right, scaled_all, s_inv, (rho, angular))
+            below[:] = upper < threshold
             lo_inv *= 1.0 - 1e-9
             lo_man *= scale * (1.0 - 1e-9)
         else:
@@ -597,11 +590,10 @@ def bounded_conditioning(
             s_lam = (1.0 - lam) * s_inv[left[take], 0] + lam * s_inv[right[take], 0]
             # Rounding of the interpolation and of the singular values: a margin far above it.
             err = err * (1.0 + 1e-9) + 1e-9 * (s_lam + 1.0)
-            s_cap[take] = s_lam + err
             interpolated = (1.0 - lam)[:, None, None] * scaled_all[left[take]] + lam[:, None, None] * scaled_all[
                 right[take]
             ]
-            certify(take, _gram(interpolated), s_cap[take], err)
+            certify(take, _gram(interpolated), s_lam + err, err)
     take = np.nonzero(~settled())[0]
     if len(take):
         # For bounds only (the rows measured exactly in the end take Pinocchio's Jacobians again).
@@ -610,39 +602,25 @@ def bounded_conditioning(
             raw, scaled = robot.task_jacobians(q[rows[take]], task)
         else:
             raw, scaled = robot.task_rows(kernel(q[rows[take]]), task)
-        s_up = np.minimum(np.linalg.norm(scaled, axis=(1, 2)), s_cap[take])
-        for a in (left[take], right[take]):
-            e = np.linalg.norm(scaled - scaled_all[a], axis=(1, 2))
-            weyl(take, a, e, e if divisor is not None else np.linalg.norm(raw - raw_all[a], axis=(1, 2)))
-            s_up = np.minimum(s_up, s_inv[a, 0] + e + 1e-9 * (s_inv[a, 0] + 1.0))
-        s_up *= 1.0 + 1e-9
-        own = _gram(scaled)
-        trying = ~hopeless(take) & (lo_inv[take] <= level)
-        if trying.any():
-            certify(take[trying], own[trying], s_up[trying], np.zeros(int(trying.sum())))
-        # The rest: its own Gram matrix. The manipulability is the root of its determinant (at
-        # least that of the product of the pivots); below the threshold when a Rayleigh quotient
-        # shows the smallest singular value below threshold times (a lower bound of) the largest,
-        # and above its stretch's smallest exact value by a certificate at that level.
-        short = ~settled()[take]
-        if short.any():
-            gram = own[short]
-            ok, det = _positive_definite(gram, np.zeros(len(gram)))
-            if divisor is None:
-                det = _positive_definite(_gram(raw[short]), np.zeros(len(gram)))[1]
-            idx = take[short]
-            lo_man[idx] = np.maximum(lo_man[idx], np.sqrt(det) * (scale * (1.0 - 1e-9)))
-            dip = ok & (lo_inv[idx] <= level)
-            if dip.any():
-                smallest, largest = _rayleigh_bounds(gram[dip])
-                with np.errstate(invalid="ignore", divide="ignore"):
-                    ratio = np.sqrt(np.maximum(smallest, 0.0) / largest) * (1.0 + 1e-9)
-                shown = (largest > 0.0) & (ratio < threshold * (1.0 - 1e-9))
-                at = idx[dip][shown]
-                below[at] = True
-                floor = lifted_least[at] * s_up[short][dip][shown]
-                above_least = _positive_definite(gram[dip][shown], floor * floor)[0]
-                lo_inv[at[above_least]] = np.maximum(lo_inv[at[above_least]], lifted_least[at[above_least]])
+        gram = _gram(scaled)
+        # The inverse condition number from both sides where it is not settled yet; the
+        # manipulability alone from the factorisation elsewhere.
+        open_inv = ~((lo_inv > level) | (below & (lo_inv > least)))[take]
+        product = np.zeros(len(take))
+        if open_inv.any():
+            low_min, high_min, low_max, high_max, product[open_inv] = _extreme_bounds(gram[open_inv]).T
+            with np.errstate(invalid="ignore", divide="ignore"):
+                floor = np.sqrt(np.maximum(low_min, 0.0) / high_max) * (1.0 - 1e-9)
+                ceiling = np.sqrt(high_min / low_max) * (1.0 + 1e-9)
+            at = take[open_inv]
+            lo_inv[at] = np.maximum(lo_inv[at], np.where(high_max > 0.0, floor, 0.0))
+            below[at] |= (low_max > 0.0) & (ceiling < threshold)
+        if divisor is None:
+            product = _positive_definite(_gram(raw), np.zeros(len(take)))[1]
+        else:
+            open_man = ~open_inv & ~(lo_man[take] > level_man)
+            product[open_man] = _positive_definite(gram[open_man], np.zeros(int(open_man.sum())))[1]
+        lo_man[take] = np.maximum(lo_man[take], np.sqrt(np.maximum(product, 0.0)) * (scale * (1.0 - 1e-9)))
         rest = ~settled()[take]
         if rest.any():
             measure(rows[take[rest]], *((raw[rest], scaled[rest]) if kernel is None else ()))
