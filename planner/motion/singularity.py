@@ -449,22 +449,25 @@ def bounded_conditioning(
        values): :func:`_interval_bounds` bounds the inverse condition number and that product
        from below over every row of the interval, to second order in its length (the
        interpolated Gram matrix, concavity of its smallest eigenvalue, log-concavity of its
-       determinant). Far from a singularity this settles most rows with a few operations per
-       interval (about 70 % of them on bench_collision's ur5 and panda plans).
+       determinant), and the inverse condition number from above, to first order (a whole
+       interval under the threshold shows its rows below it). Far from a singularity this settles
+       most rows with a few operations per interval (about 70 % of them on bench_collision's ur5
+       and panda plans).
     1. Where step 0 does not apply, joint changes alone: a singular value moves by at most the spectral norm (below the
        Frobenius norm) of the change of the matrix (Weyl's inequality), and
        :func:`jacobian_change_bound` bounds ``e >= ||J - J_a||_F`` from the nearer exact row
        ``a``: the inverse condition number is at least ``(s_min(J_a) - e) / (s_max(J_a) + e)``
        and the manipulability its fixed factor times the product of ``max(s_i - e, 0)``.
-    2. The exact neighbours' Jacobians: the row's Jacobian is their interpolation ``J_lam`` up to
-       ``e`` (:func:`_interpolation_error`, second order in the spacing); the largest singular
-       value is at most ``s_up = (1 - lam) s_max(J_left) + lam s_max(J_right) + e`` (the spectral
-       norm is convex) and the others at least those of ``J_lam`` less ``e``, so ``J_lam J_lam^T
-       - f^2 I`` positive definite (:func:`_positive_definite`) for ``f = level s_up + e`` shows
-       the inverse condition number above ``level`` (the threshold, or the smallest exact value
-       when that is larger). There every ``s_i(J_lam) > f``, so ``s_i - e >= s_i (1 - e / f)``
-       and the manipulability is at least the root of ``det(J_lam J_lam^T)`` (at least the
-       product of the pivots) times ``(1 - e / f)^k``.
+    2. Where the inverse condition number is still open, the exact neighbours' Jacobians: the
+       row's Jacobian is their interpolation ``J_lam`` up to ``e`` (:func:`_interpolation_error`,
+       second order in the spacing); the largest singular value is at most ``s_up = (1 - lam)
+       s_max(J_left) + lam s_max(J_right) + e`` (the spectral norm is convex) and the others at
+       least those of ``J_lam`` less ``e``, so ``J_lam J_lam^T - f^2 I`` positive definite
+       (:func:`_positive_definite`) for ``f = level s_up + e`` shows the inverse condition number
+       above ``level`` (the threshold, or the smallest exact value when that is larger). There
+       every ``s_i(J_lam) > f``, so ``s_i - e >= s_i (1 - e / f)`` and the manipulability is at
+       least the root of ``det(J_lam J_lam^T)`` (at least the product of the pivots) times
+       ``(1 - e / f)^k``.
     3. The row's own Jacobian (the compiled one of :mod:`planner.geometry.jacobian_kernel`,
        equal to Pinocchio's to rounding): :func:`_extreme_bounds` brackets the smallest and the
        largest eigenvalue of ``J J^T`` (the squared extreme singular values) and bounds its
@@ -550,10 +553,11 @@ def bounded_conditioning(
         low = np.prod(np.maximum(s_man[a] - e_man[:, None], 0.0), axis=1) * (scale * (1.0 - 1e-9))
         lo_man[take] = np.maximum(lo_man[take], low)
 
+    def settled_inv() -> np.ndarray:
+        return (lo_inv > level) | (below & (lo_inv > least))
+
     def settled() -> np.ndarray:
-        above = lo_inv > level
-        dip = below & (lo_inv > least)
-        return (above | dip) & (lo_man > level_man)
+        return settled_inv() & (lo_man > level_man)
 
     def hopeless(take: np.ndarray) -> np.ndarray:
         # Both neighbours below the level: the certificate above it will not hold (saves the attempt).
@@ -584,7 +588,9 @@ def bounded_conditioning(
             e = jacobian_change_bound(du, rho, angular)
             weyl(take, near, e, e if divisor is not None else jacobian_change_bound(du, rho, raw_angular))
         take = np.nonzero(~settled())[0]
-        take = take[~hopeless(take)]
+        # Rows whose inverse condition number is settled (the manipulability is not) go to step
+        # 3 directly: there its bound comes from one cheap factorisation, tight.
+        take = take[~hopeless(take) & ~settled_inv()[take]]
         if len(take):
             lam, err = _interpolation_error(q, rows[take], left[take], right[take], (rho, angular))
             s_lam = (1.0 - lam) * s_inv[left[take], 0] + lam * s_inv[right[take], 0]
@@ -605,7 +611,7 @@ def bounded_conditioning(
         gram = _gram(scaled)
         # The inverse condition number from both sides where it is not settled yet; the
         # manipulability alone from the factorisation elsewhere.
-        open_inv = ~((lo_inv > level) | (below & (lo_inv > least)))[take]
+        open_inv = ~settled_inv()[take]
         product = np.zeros(len(take))
         if open_inv.any():
             low_min, high_min, low_max, high_max, product[open_inv] = _extreme_bounds(gram[open_inv]).T
