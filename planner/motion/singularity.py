@@ -34,6 +34,7 @@ from __future__ import annotations
 from collections.abc import Mapping
 from dataclasses import dataclass
 from types import MappingProxyType
+from typing import NamedTuple
 
 import numpy as np
 
@@ -353,15 +354,43 @@ class _RowStore:
         return self.data[self.slot[key]]
 
 
+class _Ends(NamedTuple):
+    """Bounds at the rows that end intervals, each of shape (n,) (valid at those rows).
+
+    Attributes:
+        top: Upper bounds of the largest singular value.
+        bottom: Lower bounds of the smallest.
+        product: Lower bounds of the product of the singular values.
+        min_up: Upper bounds of the smallest singular value.
+        max_low: Lower bounds of the largest.
+    """
+
+    top: np.ndarray
+    bottom: np.ndarray
+    product: np.ndarray
+    min_up: np.ndarray
+    max_low: np.ndarray
+
+    @classmethod
+    def exact(cls, s: np.ndarray | _RowStore, n: int, at: np.ndarray) -> _Ends:
+        """From the singular values `s` (largest first) at rows `at` of `n`."""
+        ends = cls(*(np.zeros(n) for _ in range(5)))
+        values = s[at]
+        ends.top[at] = ends.max_low[at] = values[:, 0]
+        ends.bottom[at] = ends.min_up[at] = values[:, -1]
+        ends.product[at] = np.prod(values, axis=1)
+        return ends
+
+
 def _interval_bounds(
     q: np.ndarray,
     rows: np.ndarray,
     left: np.ndarray,
     right: np.ndarray,
     scaled: np.ndarray | _RowStore,
-    s: np.ndarray | _RowStore,
+    s: np.ndarray | _RowStore | _Ends,
     bounds: tuple[np.ndarray, float],
-) -> tuple[np.ndarray, np.ndarray]:
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Lower bounds of ``s_min / s_max`` and of ``prod(s)`` over every row between two exact rows.
 
     One bound per interval between exact neighbours (step 0 of :func:`bounded_conditioning`),
@@ -386,7 +415,8 @@ def _interval_bounds(
         left: The exact row before each of `rows` (n_rows,).
         right: The exact row after each of `rows` (n_rows,).
         scaled: Scaled Jacobians, valid at the exact rows, shape (n, m, dof).
-        s: Their singular values, largest first, valid at the exact rows, shape (n, k).
+        s: Their singular values, largest first, valid at the exact rows, shape (n, k); or bounds
+            of them (:class:`_Ends`).
         bounds: ``(rho, angular)`` of :func:`jacobian_change_bounds`.
 
     Returns:
@@ -396,7 +426,9 @@ def _interval_bounds(
         singular values, Weyl's inequality along the interpolation).
     """
     rho, angular = bounds
-    k = s.shape[1]
+    k = min(scaled.shape[1:])
+    if not isinstance(s, _Ends):
+        s = _Ends.exact(s, len(q), np.unique(np.concatenate([left, right])))
     starts = np.flatnonzero(np.concatenate([[True], left[1:] != left[:-1]]))
     a, b = left[starts], right[starts]
     # The rows a..b deviate from the straight line between q_a and q_b by at most h L^2 / 8,
@@ -404,28 +436,27 @@ def _interval_bounds(
     bend = np.diff(q, 2, axis=0)
     bend = np.maximum.reduceat(np.abs(bend, out=bend), a, axis=0)
     deviation = bend * (0.125 * (b - a) ** 2)[:, None] * (1.0 + 1e-9)
-    top = np.maximum(s[a, 0], s[b, 0])
+    top = np.maximum(s.top[a], s.top[b])
     margin = 1e-9 * (top + 1.0)
     err = jacobian_change_bound(deviation, rho, angular) + 0.125 * jacobian_curvature_bound(q[b] - q[a], rho, angular)
     err = err * (1.0 + 1e-9) + margin
     d = np.linalg.norm(scaled[b] - scaled[a], axis=(1, 2)) * (1.0 + 1e-9)
-    smallest = np.maximum(np.minimum(s[a, -1], s[b, -1]) - margin, 0.0)
+    smallest = np.maximum(np.minimum(s.bottom[a], s.bottom[b]) - margin, 0.0)
     m2, c = smallest * smallest, 0.25 * d * d
     with np.errstate(divide="ignore", invalid="ignore"):
         sigma = np.sqrt(np.maximum(m2 - c, 0.0))
         inv = np.maximum(sigma - err, 0.0) / (top + margin + err)
-        product = np.minimum(
-            np.prod(np.maximum(s[a] - margin[:, None], 0.0), axis=1),
-            np.prod(np.maximum(s[b] - margin[:, None], 0.0), axis=1),
-        )
+        # prod(s_i - margin) >= prod(s_i) (1 - margin / s_min)^k.
+        shift = np.where(smallest > 0.0, np.maximum(1.0 - margin / (smallest + margin), 0.0), 0.0) ** k
+        product = np.minimum(s.product[a], s.product[b]) * shift
         det_factor = np.where(m2 > c, np.maximum(1.0 - c / m2, 0.0), 0.0) ** (0.5 * k)
         shrink = np.where(sigma > err, np.maximum(1.0 - err / sigma, 0.0), 0.0) ** k
     man = product * det_factor * shrink
     # From above: s_min(J_lam) <= min(s_min(a) + lam d, s_min(b) + (1 - lam) d) <= (s_min(a) +
     # s_min(b) + d) / 2 and s_max(J_lam) >= (s_max(a) + s_max(b) - d) / 2 (Weyl), each moved by e.
     with np.errstate(divide="ignore", invalid="ignore"):
-        top_low = 0.5 * (s[a, 0] + s[b, 0] - d) - margin - err
-        upper = (0.5 * (s[a, -1] + s[b, -1] + d) + margin + err) / top_low * (1.0 + 1e-9)
+        top_low = 0.5 * (s.max_low[a] + s.max_low[b] - d) - margin - err
+        upper = (0.5 * (s.min_up[a] + s.min_up[b] + d) + margin + err) / top_low * (1.0 + 1e-9)
     upper = np.where(top_low > 0.0, upper, np.inf)
     counts = np.diff(np.append(starts, len(rows)))
     return np.repeat(inv, counts), np.repeat(man, counts), np.repeat(upper, counts)
@@ -436,15 +467,19 @@ def bounded_conditioning(
 ) -> tuple[np.ndarray, np.ndarray]:
     """:meth:`Robot.conditioning` of a dense sequence of configurations, exact only where it matters.
 
-    Every :data:`ANCHOR_SPACING`-th row, the first, the last and the rows `keep` are measured
-    exactly (their singular values). `keep` cuts the rows into stretches (ends included). Every
-    other row is then shown either above the threshold and above the smallest exact value so far
-    (inverse condition number), or below the threshold and above the smallest exact value so far
-    in its stretch, and in both cases its manipulability above the smallest exact one; or else it
-    is measured exactly too. The smallest exact values only fall as rows are added, so a row shown
-    above them stays above the final minima. Each row goes through these steps until one shows it:
+    The first, the last and the rows `keep` are measured exactly (their singular values), and
+    so is every :data:`ANCHOR_SPACING`-th row (an *anchor*), except where step 0 applies and the
+    compiled Jacobian is at hand: there an anchor's extreme singular values and the product of
+    all of them are bracketed from its Gram matrix (:func:`_extreme_bounds`, and the pivots of
+    ``G + 1e-12 tr(G) I`` for the product from above), and it is measured exactly only where
+    that does not show it as below. `keep` cuts the rows into stretches (ends included). Every
+    other row is then shown either above the threshold and above an upper bound of an anchor's
+    value (inverse condition number), or below the threshold and above such a bound in its
+    stretch, and in both cases its manipulability above an upper bound of an anchor's; or else
+    it is measured exactly too. An anchor's value is at least the final minimum, so a row shown
+    above it is not the minimum. Each row goes through these steps until one shows it:
 
-    0. Each interval between two exact rows at once (arms where step 1 applies and the
+    0. Each interval between two anchors at once (arms where step 1 applies and the
        manipulability is a fixed factor times the product of the scaled Jacobian's singular
        values): :func:`_interval_bounds` bounds the inverse condition number and that product
        from below over every row of the interval, to second order in its length (the
@@ -524,24 +559,52 @@ def bounded_conditioning(
         exact[idx] = True
 
     bounds_of = np.unique(np.concatenate([[0, n - 1], [] if keep is None else np.asarray(keep)]).astype(int))
-    first = np.concatenate([np.arange(0, n, ANCHOR_SPACING), bounds_of])
-    measure(np.unique(first.astype(int)))
-    rows = np.nonzero(~exact)[0]
-    if not len(rows):
+    anchors = np.unique(np.concatenate([np.arange(0, n, ANCHOR_SPACING), bounds_of]).astype(int))
+    change = robot.derived.get(_ChangeBounds, lambda: _ChangeBounds(robot)).of(task)
+    kernel = jacobian_kernel(robot)
+    # The anchors other than the rows `keep`: their extreme singular values bracketed from the
+    # compiled Jacobian (where step 0 applies), measured exactly only if that settles nothing.
+    bracketed = change is not None and divisor is not None and kernel is not None
+    loose = np.setdiff1d(anchors, bounds_of) if bracketed else anchors[:0]
+    measure(np.setdiff1d(anchors, loose))
+    ends_at = _Ends.exact(s_inv, n, np.nonzero(exact)[0])
+    value_up = inv.copy()  # at the anchors: an upper bound of the inverse condition number
+    if len(loose):
+        scaled_all[loose] = robot.task_rows(kernel(q[loose]), task)[1]
+        gram = _gram(scaled_all[loose])
+        l_min, h_min, l_max, h_max, l_product = _extreme_bounds(gram).T
+        # The determinant from above: the pivots of G + 1e-12 tr(G) I (the factorisation's
+        # rounding, far below that shift, keeps the factored matrix above G).
+        trace = np.trace(gram, axis1=1, axis2=2)
+        ok, h_product = _positive_definite(gram, -2e-12 * trace)
+        man_up = np.where(ok, np.sqrt(h_product) * (1.0 + 1e-9) * scale, np.inf)
+        ends_at.top[loose], ends_at.min_up[loose] = np.sqrt(h_max), np.sqrt(h_min)
+        ends_at.bottom[loose], ends_at.max_low[loose] = np.sqrt(np.maximum(l_min, 0.0)), np.sqrt(np.maximum(l_max, 0.0))
+        ends_at.product[loose] = np.sqrt(np.maximum(l_product, 0.0))
+        with np.errstate(invalid="ignore", divide="ignore"):
+            loose_low = np.sqrt(np.maximum(l_min, 0.0) / h_max) * (1.0 - 1e-9)
+            loose_up = np.sqrt(h_min / l_max) * (1.0 + 1e-9)
+        loose_low = np.where(h_max > 0.0, loose_low, 0.0)
+        value_up[loose] = np.where((l_max > 0.0) & np.isfinite(loose_up), loose_up, np.inf)
+    is_anchor = np.zeros(n, dtype=bool)
+    is_anchor[anchors] = True
+    rows = np.nonzero(~is_anchor)[0]
+    if not len(rows) and not len(loose):
         return inv, man
-    level = max(threshold, float(np.min(inv[exact])))
-    level_man = float(np.min(man[exact]))
+    # Every row shown above these is above an exact value (the final minimum is no larger).
+    level = max(threshold, float(np.min(value_up[anchors])))
+    level_man = min(float(np.min(man[exact])), float(np.min(man_up, initial=np.inf)) if len(loose) else np.inf)
     lifted = level * (1.0 + 1e-9)  # what a certificate shows the rows to be above
-    ends = np.nonzero(exact)[0]
+    ends = anchors
     right = np.searchsorted(ends, rows)
-    left, right = ends[right - 1], ends[right]  # the exact neighbours of each row
+    left, right = ends[right - 1], ends[right]  # the anchors on either side of each row
     # The stretches between the rows `keep`: the smallest exact value in each (ends included).
     stretch = np.searchsorted(bounds_of, rows) - 1
     of_end = np.clip(np.searchsorted(bounds_of, ends, side="right") - 1, 0, len(bounds_of) - 2)
-    least = np.full(len(bounds_of) - 1, np.inf)
-    np.minimum.at(least, of_end, inv[ends])
-    np.minimum.at(least, np.clip(np.searchsorted(bounds_of, bounds_of) - 1, 0, None), inv[bounds_of])
-    least = least[stretch]
+    least_of = np.full(len(bounds_of) - 1, np.inf)
+    np.minimum.at(least_of, of_end, value_up[ends])
+    np.minimum.at(least_of, np.clip(np.searchsorted(bounds_of, bounds_of) - 1, 0, None), inv[bounds_of])
+    least = least_of[stretch]
     lo_inv, lo_man = np.zeros(len(rows)), np.zeros(len(rows))
     below = np.zeros(len(rows), dtype=bool)  # shown below the threshold
 
@@ -561,7 +624,7 @@ def bounded_conditioning(
 
     def hopeless(take: np.ndarray) -> np.ndarray:
         # Both neighbours below the level: the certificate above it will not hold (saves the attempt).
-        return (inv[left[take]] <= level) & (inv[right[take]] <= level)
+        return (value_up[left[take]] <= level) & (value_up[right[take]] <= level)
 
     def certify(take: np.ndarray, gram: np.ndarray, s_up: np.ndarray, err: np.ndarray) -> None:
         floor = lifted * s_up + err
@@ -573,11 +636,10 @@ def bounded_conditioning(
             shrink = np.maximum(1.0 - ratio, 0.0) ** k
             lo_man[take[ok]] = np.maximum(lo_man[take[ok]], np.sqrt(det[ok]) * shrink * (scale * (1.0 - 1e-9)))
 
-    change = robot.derived.get(_ChangeBounds, lambda: _ChangeBounds(robot)).of(task)
     if change is not None:
         rho, angular, raw_angular = change
         if divisor is not None:
-            lo_inv[:], lo_man[:], upper = _interval_bounds(q, rows, left, right, scaled_all, s_inv, (rho, angular))
+            lo_inv[:], lo_man[:], upper = _interval_bounds(q, rows, left, right, scaled_all, ends_at, (rho, angular))
             below[:] = upper < threshold
             lo_inv *= 1.0 - 1e-9
             lo_man *= scale * (1.0 - 1e-9)
@@ -593,7 +655,7 @@ def bounded_conditioning(
         take = take[~hopeless(take) & ~settled_inv()[take]]
         if len(take):
             lam, err = _interpolation_error(q, rows[take], left[take], right[take], (rho, angular))
-            s_lam = (1.0 - lam) * s_inv[left[take], 0] + lam * s_inv[right[take], 0]
+            s_lam = (1.0 - lam) * ends_at.top[left[take]] + lam * ends_at.top[right[take]]
             # Rounding of the interpolation and of the singular values: a margin far above it.
             err = err * (1.0 + 1e-9) + 1e-9 * (s_lam + 1.0)
             interpolated = (1.0 - lam)[:, None, None] * scaled_all[left[take]] + lam[:, None, None] * scaled_all[
@@ -603,7 +665,6 @@ def bounded_conditioning(
     take = np.nonzero(~settled())[0]
     if len(take):
         # For bounds only (the rows measured exactly in the end take Pinocchio's Jacobians again).
-        kernel = jacobian_kernel(robot)
         if kernel is None:
             raw, scaled = robot.task_jacobians(q[rows[take]], task)
         else:
@@ -630,6 +691,14 @@ def bounded_conditioning(
         rest = ~settled()[take]
         if rest.any():
             measure(rows[take[rest]], *((raw[rest], scaled[rest]) if kernel is None else ()))
+    if len(loose):
+        # The bracketed anchors, settled as the rows are, or measured exactly.
+        loose_man = ends_at.product[loose] * (scale * (1.0 - 1e-9))
+        dip = (value_up[loose] < threshold) & (loose_low > least_of[np.searchsorted(bounds_of, loose) - 1])
+        shown = ((loose_low > level) | dip) & (loose_man > level_man)
+        inv[loose[shown]], man[loose[shown]] = loose_low[shown], loose_man[shown]
+        if not shown.all():
+            measure(loose[~shown])
     free = ~exact[rows]
     inv[rows[free]], man[rows[free]] = lo_inv[free], lo_man[free]
     return inv, man
