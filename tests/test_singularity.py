@@ -409,7 +409,7 @@ def test_default_thresholds_follow_the_task():
         check_singularities(ur5, plan_trajectory([UR5_HOME, UR5_HOME], JointLimits.from_robot(ur5)), threshold=2)
 
 
-def _ascend_one_by_one(robot, q, limits, target, task):
+def _ascend_one_by_one(robot, q, limits, target, task, clear=0.0):
     """The detour ascent as first written: the probes and each candidate measured apart."""
     lo = np.where(np.isfinite(limits.lower), limits.lower, -np.inf)
     hi = np.where(np.isfinite(limits.upper), limits.upper, np.inf)
@@ -418,9 +418,12 @@ def _ascend_one_by_one(robot, q, limits, target, task):
     x = np.clip(q, lo, hi)
     f = float(robot.conditioning(x, task)[0])
     step, h = 0.05, 1e-5
+    since_clear = 0
     for _ in range(200):
-        if f >= target:
+        if f >= target or since_clear >= 30:
             break
+        if f >= clear:
+            since_clear += 1
         probes = x + np.diag(np.where(x + h <= hi, h, -h))
         grad = np.array([float(robot.conditioning(p, task)[0]) - f for p in probes]) / (probes.diagonal() - x)
         norm = float(np.linalg.norm(grad))

@@ -276,7 +276,7 @@ def test_the_interval_bounds_hold_at_every_row_between_exact_rows(name, task):
     rng = np.random.default_rng(37)
     starts = robot.random_configurations(rng, 3)
     starts[0] = np.clip(np.zeros(robot.dof), robot.lower, robot.upper)  # a straight arm: singular
-    useful = 0
+    useful = below = 0
     for q0 in starts:
         for speed in (3e-4, 3e-3, 3e-2):
             # Smooth walks: random jerks integrated three times, like a jerk-limited trajectory.
@@ -292,11 +292,14 @@ def test_the_interval_bounds_hold_at_every_row_between_exact_rows(name, task):
                 rows = np.setdiff1d(np.arange(len(walk)), ends)
                 right = np.searchsorted(ends, rows)
                 left, right = ends[right - 1], ends[right]
-                lo_inv, lo_product = _interval_bounds(walk, rows, left, right, scaled, s, (rho, angular))
+                lo_inv, lo_product, hi_inv = _interval_bounds(walk, rows, left, right, scaled, s, (rho, angular))
                 assert np.all(lo_inv <= inv_all[rows]), (name, task, speed)
+                assert np.all(hi_inv >= inv_all[rows]), (name, task, speed)
+                below += int(np.sum(hi_inv < 2.0 * inv_all[rows]))
                 assert np.all(lo_product <= product[rows]), (name, task, speed)
                 useful += int(np.sum(lo_inv > 0.5 * inv_all[rows]))
     assert useful > 0.2 * 3 * 3 * 2 * 1900, (name, task, useful)  # not vacuous: tight on many rows
+    assert below > 0.1 * 3 * 3 * 2 * 1900, (name, task, below)
 
 
 @pytest.mark.parametrize("compiled", [True, False])
@@ -304,11 +307,11 @@ def test_the_cholesky_certificate_agrees_with_the_eigenvalues(compiled, monkeypa
     # Gram matrices with a known spectrum, shifted just below and above their smallest eigenvalue,
     # through the compiled loops and through NumPy.
     import planner.motion.singularity as singularity
-    from planner.motion.singularity import _positive_definite, _rayleigh_bounds
+    from planner.motion.singularity import _extreme_bounds, _positive_definite
 
     if not compiled:
         monkeypatch.setattr(singularity, "cholesky_certificates", lambda gram, shift: None)
-        monkeypatch.setattr(singularity, "rayleigh_bounds", lambda gram: None)
+        monkeypatch.setattr(singularity, "extreme_bounds", lambda gram: None)
     rng = np.random.default_rng(23)
     for k in (2, 3, 6):
         basis = np.linalg.qr(rng.normal(size=(400, k, k)))[0]
@@ -323,11 +326,13 @@ def test_the_cholesky_certificate_agrees_with_the_eigenvalues(compiled, monkeypa
         assert np.all(product[ok] <= np.prod(values[ok] - below[ok, None], axis=1) * (1 + 1e-6))
         ok_above, product_above = _positive_definite(gram, values[:, 0] * (1 + 1e-6))
         assert not ok_above.any() and not product_above.any()
-        # The Rayleigh quotients bracket the extreme eigenvalues, tightly after a few iterations.
-        ok = _positive_definite(gram, np.zeros(len(gram)))[0]
-        smallest, largest = _rayleigh_bounds(gram[ok])
-        assert np.all(smallest >= values[ok, 0]) and np.all(largest <= values[ok, -1])
-        assert np.median(smallest / values[ok, 0]) < 1 + 1e-3 and np.median(largest / values[ok, -1]) > 0.9
+        # The extreme eigenvalues and the determinant are bracketed, tightly on most matrices.
+        low_min, high_min, low_max, high_max, product = _extreme_bounds(gram).T
+        assert np.all(low_min <= values[:, 0]) and np.all(high_min >= values[:, 0])
+        assert np.all(low_max <= values[:, -1]) and np.all(high_max >= values[:, -1])
+        assert np.all(product <= np.prod(values, axis=1) * (1 + 1e-9))
+        assert np.median(low_min / values[:, 0]) > 1 - 1e-3 and np.median(high_min / values[:, 0]) < 1 + 1e-3
+        assert np.median(low_max / values[:, -1]) > 1 - 1e-3 and np.median(high_max / values[:, -1]) < 1 + 1e-3
 
 
 @pytest.mark.parametrize("name", ARMS)

@@ -294,6 +294,25 @@ def test_sample_shapes_and_csv(tmp_path):
         traj.times(0.0)
 
 
+@given(seed=st.integers(0, 2**32 - 1), clamp=st.booleans())
+@settings(max_examples=25, deadline=None)
+def test_positions_are_the_sampled_positions(seed, clamp):
+    # positions() computes q as sample() does, bit for bit, with the same checks and shapes.
+    rng = np.random.default_rng(seed)
+    limits = JointLimits([1.0, 2.0, 1.5], [2.0, 3.0, 2.5], [20.0, 30.0, 25.0], [-2, -2, -2], [2, 2, 2])
+    traj = plan_trajectory(rng.uniform(-2, 2, (int(rng.integers(2, 5)), 3)), limits)
+    lo, hi = (-0.5, traj.duration + 0.5) if clamp else (0.0, traj.duration)
+    t = np.concatenate([rng.uniform(lo, hi, 40), traj.waypoint_times, [traj.duration]])
+    assert np.array_equal(traj.positions(t, clamp=clamp), traj.sample(t, clamp=clamp).q)
+    assert np.array_equal(traj.positions(t[3], clamp=clamp), traj.sample(t[3], clamp=clamp).q)
+    grid = t[:40].reshape(4, 10)
+    assert np.array_equal(traj.positions(grid, clamp=clamp), traj.sample(grid, clamp=clamp).q)
+    with pytest.raises(InvalidArgumentError, match="outside the trajectory"):
+        traj.positions(traj.duration + 1.0)
+    with pytest.raises(InvalidArgumentError, match="not a finite number"):
+        traj.positions([0.0, float("nan")], clamp=clamp)
+
+
 def test_limits_from_robot_defaults_and_servo_speed():
     robot = get_robot("dh3")
     lim = JointLimits.from_robot(robot)

@@ -118,13 +118,23 @@ class SingularityAwarePlan:
         return tuple(int(k) for k in np.nonzero(w < self.report.threshold)[0])
 
 
-def _ascend(robot: Robot, q: np.ndarray, limits: JointLimits, target: float, task: Task) -> tuple[np.ndarray, float]:
+#: Steps the detour ascent takes at most, and at most after it has cleared the threshold.
+ASCENT_STEPS, ASCENT_STEPS_CLEAR = 200, 30
+
+
+def _ascend(
+    robot: Robot, q: np.ndarray, limits: JointLimits, target: float, task: Task, clear: float = 0.0
+) -> tuple[np.ndarray, float]:
     """Push q up the (finite-difference) gradient of the inverse condition number.
 
-    Gradient steps whose length grows by 1.5 after a gain and halves after a loss. Each batch
-    of measurements holds a candidate step and the forward-difference probes around it, as it
-    becomes the next point when it gains: one batch per step instead of two, with the same
-    values as measured one by one; after a loss the gradient at the unchanged point is kept.
+    Gradient steps whose length grows by 1.5 after a gain and halves after a loss, until the
+    value reaches `target`, at most :data:`ASCENT_STEPS` steps and at most
+    :data:`ASCENT_STEPS_CLEAR` once it is at or above `clear` (the threshold: the target's margin
+    above it is a preference; on a ridge the steps zig-zag and gain a few 1e-5 each, and 200 of
+    them cost some 10 ms). Each batch of measurements holds a candidate step and the
+    forward-difference probes around it, as it becomes the next point when it gains: one batch
+    per step instead of two, with the same values as measured one by one; after a loss the
+    gradient at the unchanged point is kept.
     """
     lo = np.where(np.isfinite(limits.lower), limits.lower, -np.inf)
     hi = np.where(np.isfinite(limits.upper), limits.upper, np.inf)
@@ -147,9 +157,11 @@ def _ascend(robot: Robot, q: np.ndarray, limits: JointLimits, target: float, tas
     x = np.minimum(np.maximum(q, lo), hi)
     f, grad = measure_with_probes(x)
     step = 0.05
-    for _ in range(200):
-        if f >= target:
+    since_clear = 0
+    for _ in range(ASCENT_STEPS):
+        if f >= target or since_clear >= ASCENT_STEPS_CLEAR:
             break
+        since_clear += f >= clear
         norm = math.sqrt(float(grad @ grad))
         if norm == 0.0 or not math.isfinite(norm):
             break
@@ -331,7 +343,7 @@ def plan_clear_of_singularities(
             if _det_sign(robot, nodes[s][0], t_task) * _det_sign(robot, nodes[s + 1][0], t_task) < 0:
                 given_up.add(seg)
                 continue
-            q_new, f_new = _ascend(robot, traj.sample(t[k]).q, limits, margin * thr, t_task)
+            q_new, f_new = _ascend(robot, traj.positions(t[k]), limits, margin * thr, t_task, thr)
             if f_new < thr:
                 given_up.add(seg)
                 continue

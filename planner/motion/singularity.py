@@ -34,11 +34,12 @@ from __future__ import annotations
 from collections.abc import Mapping
 from dataclasses import dataclass
 from types import MappingProxyType
+from typing import NamedTuple
 
 import numpy as np
 
 from planner.core.arrays import read_only
-from planner.core.certificates import cholesky_certificates, rayleigh_bounds
+from planner.core.certificates import cholesky_certificates, extreme_bounds, grams
 from planner.core.text import plain
 from planner.exceptions import InvalidArgumentError
 from planner.geometry.jacobian_kernel import jacobian_kernel
@@ -270,49 +271,37 @@ def _cholesky(gram: np.ndarray, shift: np.ndarray) -> tuple[np.ndarray, np.ndarr
     return ok, np.where(ok, np.prod(np.where(ok, pivots, 0.0), axis=0), 0.0), low
 
 
-def _rayleigh_bounds(gram: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """An upper bound of the smallest and a lower bound of the largest eigenvalue of each `gram`.
+def _extreme_bounds(gram: np.ndarray) -> np.ndarray:
+    """Bounds of the extreme eigenvalues and of the determinant of each positive semi-definite `gram`.
 
-    Rayleigh quotients ``x^T G x / x^T x``, which lie between the extreme eigenvalues for any
-    ``x``: for the smallest, ``x`` after two steps of inverse iteration (solves with the Cholesky
-    factor `low` of `gram`, (k, k, N) from :func:`_positive_definite` with no shift), for the
-    largest after three steps of power iteration; the rounding of the quotients (below
-    ``k eps tr(G)``) is covered by ``1e-12 tr(G)``.
+    Those of :func:`planner.core.certificates.extreme_bounds` (compiled), else NumPy's
+    eigenvalues moved by ``1e-11 tr(G)`` (far above their rounding: LAPACK's symmetric
+    eigenvalues are those of ``G + E`` with ``||E||`` a small multiple of ``eps ||G||``).
 
     Returns:
-        ``(upper bound of the smallest eigenvalue, lower bound of the largest)``, each (N,).
+        Shape (N, 5): ``(smallest lower, smallest upper, largest lower, largest upper, product
+        lower)`` per matrix.
     """
-    compiled = rayleigh_bounds(gram)
+    compiled = extreme_bounds(gram)
     if compiled is not None:
         return compiled
-    low = _cholesky(gram, np.zeros(len(gram)))[2]
-    k = gram.shape[1]
-    g = np.ascontiguousarray(gram.transpose(1, 2, 0))
-    margin = 1e-12 * np.trace(g)
-
-    def quotient(x: np.ndarray) -> np.ndarray:
-        return (x * (g * x).sum(axis=1)).sum(axis=0) / (x * x).sum(axis=0)
-
-    x = np.ones((k, len(gram)))
-    for _ in range(2):
-        y = np.empty_like(x)
-        for i in range(k):  # L y = x
-            y[i] = (x[i] - (low[i, :i] * y[:i]).sum(axis=0)) / low[i, i]
-        for i in reversed(range(k)):  # L^T x = y
-            x[i] = (y[i] - (low[i + 1 :, i] * x[i + 1 :]).sum(axis=0)) / low[i, i]
-        x /= np.sqrt((x * x).sum(axis=0))
-    smallest = quotient(x) + margin
-    x = np.repeat(1.0 + 0.1 * np.arange(k)[:, None], len(gram), axis=1)
-    for _ in range(3):
-        x = (g * x).sum(axis=1)
-        norm = np.sqrt((x * x).sum(axis=0))
-        x /= np.where(norm > 0.0, norm, 1.0)
-    largest = quotient(x) - margin
-    return smallest, largest
+    values = np.linalg.eigvalsh(gram)
+    spread = 1e-11 * np.abs(np.trace(gram, axis1=1, axis2=2))
+    low = values - spread[:, None]
+    product = np.where(np.all(low > 0.0, axis=1), np.prod(np.maximum(low, 0.0), axis=1), 0.0)
+    return np.stack(
+        [np.maximum(low[:, 0], 0.0), values[:, 0] + spread, low[:, -1], values[:, -1] + spread, product], axis=1
+    )
 
 
 def _gram(scaled: np.ndarray) -> np.ndarray:
-    """``S S^T`` of each matrix of `scaled` (or ``S^T S`` for tall ones): eigenvalues ``s_i^2``."""
+    """``S S^T`` of each matrix of `scaled` (or ``S^T S`` for tall ones): eigenvalues ``s_i^2``.
+
+    In the compiled loop of :func:`planner.core.certificates.grams`, else NumPy's.
+    """
+    compiled = grams(scaled)
+    if compiled is not None:
+        return compiled
     if scaled.shape[1] <= scaled.shape[2]:
         return scaled @ scaled.transpose(0, 2, 1)
     return scaled.transpose(0, 2, 1) @ scaled
@@ -365,15 +354,43 @@ class _RowStore:
         return self.data[self.slot[key]]
 
 
+class _Ends(NamedTuple):
+    """Bounds at the rows that end intervals, each of shape (n,) (valid at those rows).
+
+    Attributes:
+        top: Upper bounds of the largest singular value.
+        bottom: Lower bounds of the smallest.
+        product: Lower bounds of the product of the singular values.
+        min_up: Upper bounds of the smallest singular value.
+        max_low: Lower bounds of the largest.
+    """
+
+    top: np.ndarray
+    bottom: np.ndarray
+    product: np.ndarray
+    min_up: np.ndarray
+    max_low: np.ndarray
+
+    @classmethod
+    def exact(cls, s: np.ndarray | _RowStore, n: int, at: np.ndarray) -> _Ends:
+        """From the singular values `s` (largest first) at rows `at` of `n`."""
+        ends = cls(*(np.zeros(n) for _ in range(5)))
+        values = s[at]
+        ends.top[at] = ends.max_low[at] = values[:, 0]
+        ends.bottom[at] = ends.min_up[at] = values[:, -1]
+        ends.product[at] = np.prod(values, axis=1)
+        return ends
+
+
 def _interval_bounds(
     q: np.ndarray,
     rows: np.ndarray,
     left: np.ndarray,
     right: np.ndarray,
     scaled: np.ndarray | _RowStore,
-    s: np.ndarray | _RowStore,
+    s: np.ndarray | _RowStore | _Ends,
     bounds: tuple[np.ndarray, float],
-) -> tuple[np.ndarray, np.ndarray]:
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Lower bounds of ``s_min / s_max`` and of ``prod(s)`` over every row between two exact rows.
 
     One bound per interval between exact neighbours (step 0 of :func:`bounded_conditioning`),
@@ -398,15 +415,20 @@ def _interval_bounds(
         left: The exact row before each of `rows` (n_rows,).
         right: The exact row after each of `rows` (n_rows,).
         scaled: Scaled Jacobians, valid at the exact rows, shape (n, m, dof).
-        s: Their singular values, largest first, valid at the exact rows, shape (n, k).
+        s: Their singular values, largest first, valid at the exact rows, shape (n, k); or bounds
+            of them (:class:`_Ends`).
         bounds: ``(rho, angular)`` of :func:`jacobian_change_bounds`.
 
     Returns:
         Per row of `rows`: the lower bounds of the inverse condition number and of the product of
-        the singular values.
+        the singular values, and an upper bound of the inverse condition number (first order in
+        the interval's length: ``(s_min + d / 2 + e) / (s_max - d / 2 - e)`` from the ends' mean
+        singular values, Weyl's inequality along the interpolation).
     """
     rho, angular = bounds
-    k = s.shape[1]
+    k = min(scaled.shape[1:])
+    if not isinstance(s, _Ends):
+        s = _Ends.exact(s, len(q), np.unique(np.concatenate([left, right])))
     starts = np.flatnonzero(np.concatenate([[True], left[1:] != left[:-1]]))
     a, b = left[starts], right[starts]
     # The rows a..b deviate from the straight line between q_a and q_b by at most h L^2 / 8,
@@ -414,25 +436,30 @@ def _interval_bounds(
     bend = np.diff(q, 2, axis=0)
     bend = np.maximum.reduceat(np.abs(bend, out=bend), a, axis=0)
     deviation = bend * (0.125 * (b - a) ** 2)[:, None] * (1.0 + 1e-9)
-    top = np.maximum(s[a, 0], s[b, 0])
+    top = np.maximum(s.top[a], s.top[b])
     margin = 1e-9 * (top + 1.0)
     err = jacobian_change_bound(deviation, rho, angular) + 0.125 * jacobian_curvature_bound(q[b] - q[a], rho, angular)
     err = err * (1.0 + 1e-9) + margin
     d = np.linalg.norm(scaled[b] - scaled[a], axis=(1, 2)) * (1.0 + 1e-9)
-    smallest = np.maximum(np.minimum(s[a, -1], s[b, -1]) - margin, 0.0)
+    smallest = np.maximum(np.minimum(s.bottom[a], s.bottom[b]) - margin, 0.0)
     m2, c = smallest * smallest, 0.25 * d * d
     with np.errstate(divide="ignore", invalid="ignore"):
         sigma = np.sqrt(np.maximum(m2 - c, 0.0))
         inv = np.maximum(sigma - err, 0.0) / (top + margin + err)
-        product = np.minimum(
-            np.prod(np.maximum(s[a] - margin[:, None], 0.0), axis=1),
-            np.prod(np.maximum(s[b] - margin[:, None], 0.0), axis=1),
-        )
+        # prod(s_i - margin) >= prod(s_i) (1 - margin / s_min)^k.
+        shift = np.where(smallest > 0.0, np.maximum(1.0 - margin / (smallest + margin), 0.0), 0.0) ** k
+        product = np.minimum(s.product[a], s.product[b]) * shift
         det_factor = np.where(m2 > c, np.maximum(1.0 - c / m2, 0.0), 0.0) ** (0.5 * k)
         shrink = np.where(sigma > err, np.maximum(1.0 - err / sigma, 0.0), 0.0) ** k
     man = product * det_factor * shrink
+    # From above: s_min(J_lam) <= min(s_min(a) + lam d, s_min(b) + (1 - lam) d) <= (s_min(a) +
+    # s_min(b) + d) / 2 and s_max(J_lam) >= (s_max(a) + s_max(b) - d) / 2 (Weyl), each moved by e.
+    with np.errstate(divide="ignore", invalid="ignore"):
+        top_low = 0.5 * (s.max_low[a] + s.max_low[b] - d) - margin - err
+        upper = (0.5 * (s.min_up[a] + s.min_up[b] + d) + margin + err) / top_low * (1.0 + 1e-9)
+    upper = np.where(top_low > 0.0, upper, np.inf)
     counts = np.diff(np.append(starts, len(rows)))
-    return np.repeat(inv, counts), np.repeat(man, counts)
+    return np.repeat(inv, counts), np.repeat(man, counts), np.repeat(upper, counts)
 
 
 def bounded_conditioning(
@@ -440,42 +467,47 @@ def bounded_conditioning(
 ) -> tuple[np.ndarray, np.ndarray]:
     """:meth:`Robot.conditioning` of a dense sequence of configurations, exact only where it matters.
 
-    Every :data:`ANCHOR_SPACING`-th row, the first, the last and the rows `keep` are measured
-    exactly (their singular values). `keep` cuts the rows into stretches (ends included). Every
-    other row is then shown either above the threshold and above the smallest exact value so far
-    (inverse condition number), or below the threshold and above the smallest exact value so far
-    in its stretch, and in both cases its manipulability above the smallest exact one; or else it
-    is measured exactly too. The smallest exact values only fall as rows are added, so a row shown
-    above them stays above the final minima. Each row goes through these steps until one shows it:
+    The first, the last and the rows `keep` are measured exactly (their singular values), and
+    so is every :data:`ANCHOR_SPACING`-th row (an *anchor*), except where step 0 applies and the
+    compiled Jacobian is at hand: there an anchor's extreme singular values and the product of
+    all of them are bracketed from its Gram matrix (:func:`_extreme_bounds`, and the pivots of
+    ``G + 1e-12 tr(G) I`` for the product from above), and it is measured exactly only where
+    that does not show it as below. `keep` cuts the rows into stretches (ends included). Every
+    other row is then shown either above the threshold and above an upper bound of an anchor's
+    value (inverse condition number), or below the threshold and above such a bound in its
+    stretch, and in both cases its manipulability above an upper bound of an anchor's; or else
+    it is measured exactly too. An anchor's value is at least the final minimum, so a row shown
+    above it is not the minimum. Each row goes through these steps until one shows it:
 
-    0. Each interval between two exact rows at once (arms where step 1 applies and the
+    0. Each interval between two anchors at once (arms where step 1 applies and the
        manipulability is a fixed factor times the product of the scaled Jacobian's singular
        values): :func:`_interval_bounds` bounds the inverse condition number and that product
        from below over every row of the interval, to second order in its length (the
        interpolated Gram matrix, concavity of its smallest eigenvalue, log-concavity of its
-       determinant). Far from a singularity this settles most rows with a few operations per
-       interval (about 70 % of them on bench_collision's ur5 and panda plans).
+       determinant), and the inverse condition number from above, to first order (a whole
+       interval under the threshold shows its rows below it). Far from a singularity this settles
+       most rows with a few operations per interval (about 70 % of them on bench_collision's ur5
+       and panda plans).
     1. Where step 0 does not apply, joint changes alone: a singular value moves by at most the spectral norm (below the
        Frobenius norm) of the change of the matrix (Weyl's inequality), and
        :func:`jacobian_change_bound` bounds ``e >= ||J - J_a||_F`` from the nearer exact row
        ``a``: the inverse condition number is at least ``(s_min(J_a) - e) / (s_max(J_a) + e)``
        and the manipulability its fixed factor times the product of ``max(s_i - e, 0)``.
-    2. The exact neighbours' Jacobians: the row's Jacobian is their interpolation ``J_lam`` up to
-       ``e`` (:func:`_interpolation_error`, second order in the spacing); the largest singular
-       value is at most ``s_up = (1 - lam) s_max(J_left) + lam s_max(J_right) + e`` (the spectral
-       norm is convex) and the others at least those of ``J_lam`` less ``e``, so ``J_lam J_lam^T
-       - f^2 I`` positive definite (:func:`_positive_definite`) for ``f = level s_up + e`` shows
-       the inverse condition number above ``level`` (the threshold, or the smallest exact value
-       when that is larger). There every ``s_i(J_lam) > f``, so ``s_i - e >= s_i (1 - e / f)``
-       and the manipulability is at least the root of ``det(J_lam J_lam^T)`` (at least the
-       product of the pivots) times ``(1 - e / f)^k``.
-    3. The row's own Jacobian: the bounds of step 1 with ``e = ||J - J_a||_F`` to both
-       neighbours, then the certificate of step 2 with ``J`` itself and ``s_max`` bounded by
-       Weyl's inequality from the neighbours; the manipulability from the factorisation of
-       ``J J^T`` itself. Below the threshold: Rayleigh quotients of ``J J^T``
-       (:func:`_rayleigh_bounds`) bound its smallest eigenvalue from above and its largest from
-       below, so the inverse condition number from above; and the certificate at the stretch's
-       smallest exact value bounds it from below.
+    2. Where the inverse condition number is still open, the exact neighbours' Jacobians: the
+       row's Jacobian is their interpolation ``J_lam`` up to ``e`` (:func:`_interpolation_error`,
+       second order in the spacing); the largest singular value is at most ``s_up = (1 - lam)
+       s_max(J_left) + lam s_max(J_right) + e`` (the spectral norm is convex) and the others at
+       least those of ``J_lam`` less ``e``, so ``J_lam J_lam^T - f^2 I`` positive definite
+       (:func:`_positive_definite`) for ``f = level s_up + e`` shows the inverse condition number
+       above ``level`` (the threshold, or the smallest exact value when that is larger). There
+       every ``s_i(J_lam) > f``, so ``s_i - e >= s_i (1 - e / f)`` and the manipulability is at
+       least the root of ``det(J_lam J_lam^T)`` (at least the product of the pivots) times
+       ``(1 - e / f)^k``.
+    3. The row's own Jacobian (the compiled one of :mod:`planner.geometry.jacobian_kernel`,
+       equal to Pinocchio's to rounding): :func:`_extreme_bounds` brackets the smallest and the
+       largest eigenvalue of ``J J^T`` (the squared extreme singular values) and bounds its
+       determinant from below, so the inverse condition number from both sides and the
+       manipulability from below; a bracket under the threshold shows the row below it.
     4. The row is measured exactly.
 
     In the end the rows `keep`, the row of each minimum (inverse condition number and
@@ -527,28 +559,54 @@ def bounded_conditioning(
         exact[idx] = True
 
     bounds_of = np.unique(np.concatenate([[0, n - 1], [] if keep is None else np.asarray(keep)]).astype(int))
-    first = np.concatenate([np.arange(0, n, ANCHOR_SPACING), bounds_of])
-    measure(np.unique(first.astype(int)))
-    rows = np.nonzero(~exact)[0]
-    if not len(rows):
+    anchors = np.unique(np.concatenate([np.arange(0, n, ANCHOR_SPACING), bounds_of]).astype(int))
+    change = robot.derived.get(_ChangeBounds, lambda: _ChangeBounds(robot)).of(task)
+    kernel = jacobian_kernel(robot)
+    # The anchors other than the rows `keep`: their extreme singular values bracketed from the
+    # compiled Jacobian (where step 0 applies), measured exactly only if that settles nothing.
+    bracketed = change is not None and divisor is not None and kernel is not None
+    loose = np.setdiff1d(anchors, bounds_of) if bracketed else anchors[:0]
+    measure(np.setdiff1d(anchors, loose))
+    ends_at = _Ends.exact(s_inv, n, np.nonzero(exact)[0])
+    value_up = inv.copy()  # at the anchors: an upper bound of the inverse condition number
+    if len(loose):
+        scaled_all[loose] = robot.task_rows(kernel(q[loose]), task)[1]
+        gram = _gram(scaled_all[loose])
+        l_min, h_min, l_max, h_max, l_product = _extreme_bounds(gram).T
+        # The determinant from above: the pivots of G + 1e-12 tr(G) I (the factorisation's
+        # rounding, far below that shift, keeps the factored matrix above G).
+        trace = np.trace(gram, axis1=1, axis2=2)
+        ok, h_product = _positive_definite(gram, -2e-12 * trace)
+        man_up = np.where(ok, np.sqrt(h_product) * (1.0 + 1e-9) * scale, np.inf)
+        ends_at.top[loose], ends_at.min_up[loose] = np.sqrt(h_max), np.sqrt(h_min)
+        ends_at.bottom[loose], ends_at.max_low[loose] = np.sqrt(np.maximum(l_min, 0.0)), np.sqrt(np.maximum(l_max, 0.0))
+        ends_at.product[loose] = np.sqrt(np.maximum(l_product, 0.0))
+        with np.errstate(invalid="ignore", divide="ignore"):
+            loose_low = np.sqrt(np.maximum(l_min, 0.0) / h_max) * (1.0 - 1e-9)
+            loose_up = np.sqrt(h_min / l_max) * (1.0 + 1e-9)
+        loose_low = np.where(h_max > 0.0, loose_low, 0.0)
+        value_up[loose] = np.where((l_max > 0.0) & np.isfinite(loose_up), loose_up, np.inf)
+    is_anchor = np.zeros(n, dtype=bool)
+    is_anchor[anchors] = True
+    rows = np.nonzero(~is_anchor)[0]
+    if not len(rows) and not len(loose):
         return inv, man
-    level = max(threshold, float(np.min(inv[exact])))
-    level_man = float(np.min(man[exact]))
+    # Every row shown above these is above an exact value (the final minimum is no larger).
+    level = max(threshold, float(np.min(value_up[anchors])))
+    level_man = min(float(np.min(man[exact])), float(np.min(man_up, initial=np.inf)) if len(loose) else np.inf)
     lifted = level * (1.0 + 1e-9)  # what a certificate shows the rows to be above
-    ends = np.nonzero(exact)[0]
+    ends = anchors
     right = np.searchsorted(ends, rows)
-    left, right = ends[right - 1], ends[right]  # the exact neighbours of each row
+    left, right = ends[right - 1], ends[right]  # the anchors on either side of each row
     # The stretches between the rows `keep`: the smallest exact value in each (ends included).
     stretch = np.searchsorted(bounds_of, rows) - 1
     of_end = np.clip(np.searchsorted(bounds_of, ends, side="right") - 1, 0, len(bounds_of) - 2)
-    least = np.full(len(bounds_of) - 1, np.inf)
-    np.minimum.at(least, of_end, inv[ends])
-    np.minimum.at(least, np.clip(np.searchsorted(bounds_of, bounds_of) - 1, 0, None), inv[bounds_of])
-    least = least[stretch]
-    lifted_least = least * (1.0 + 1e-9)
+    least_of = np.full(len(bounds_of) - 1, np.inf)
+    np.minimum.at(least_of, of_end, value_up[ends])
+    np.minimum.at(least_of, np.clip(np.searchsorted(bounds_of, bounds_of) - 1, 0, None), inv[bounds_of])
+    least = least_of[stretch]
     lo_inv, lo_man = np.zeros(len(rows)), np.zeros(len(rows))
     below = np.zeros(len(rows), dtype=bool)  # shown below the threshold
-    s_cap = np.full(len(rows), np.inf)  # upper bounds of the largest singular value
 
     def weyl(take: np.ndarray, a: np.ndarray, e: np.ndarray, e_man: np.ndarray) -> None:
         # Rounding of the SVDs and norms: a margin far above it.
@@ -558,14 +616,15 @@ def bounded_conditioning(
         low = np.prod(np.maximum(s_man[a] - e_man[:, None], 0.0), axis=1) * (scale * (1.0 - 1e-9))
         lo_man[take] = np.maximum(lo_man[take], low)
 
+    def settled_inv() -> np.ndarray:
+        return (lo_inv > level) | (below & (lo_inv > least))
+
     def settled() -> np.ndarray:
-        above = lo_inv > level
-        dip = below & (lo_inv > least)
-        return (above | dip) & (lo_man > level_man)
+        return settled_inv() & (lo_man > level_man)
 
     def hopeless(take: np.ndarray) -> np.ndarray:
         # Both neighbours below the level: the certificate above it will not hold (saves the attempt).
-        return (inv[left[take]] <= level) & (inv[right[take]] <= level)
+        return (value_up[left[take]] <= level) & (value_up[right[take]] <= level)
 
     def certify(take: np.ndarray, gram: np.ndarray, s_up: np.ndarray, err: np.ndarray) -> None:
         floor = lifted * s_up + err
@@ -577,11 +636,11 @@ def bounded_conditioning(
             shrink = np.maximum(1.0 - ratio, 0.0) ** k
             lo_man[take[ok]] = np.maximum(lo_man[take[ok]], np.sqrt(det[ok]) * shrink * (scale * (1.0 - 1e-9)))
 
-    change = robot.derived.get(_ChangeBounds, lambda: _ChangeBounds(robot)).of(task)
     if change is not None:
         rho, angular, raw_angular = change
         if divisor is not None:
-            lo_inv[:], lo_man[:] = _interval_bounds(q, rows, left, right, scaled_all, s_inv, (rho, angular))
+            lo_inv[:], lo_man[:], upper = _interval_bounds(q, rows, left, right, scaled_all, ends_at, (rho, angular))
+            below[:] = upper < threshold
             lo_inv *= 1.0 - 1e-9
             lo_man *= scale * (1.0 - 1e-9)
         else:
@@ -591,61 +650,55 @@ def bounded_conditioning(
             e = jacobian_change_bound(du, rho, angular)
             weyl(take, near, e, e if divisor is not None else jacobian_change_bound(du, rho, raw_angular))
         take = np.nonzero(~settled())[0]
-        take = take[~hopeless(take)]
+        # Rows whose inverse condition number is settled (the manipulability is not) go to step
+        # 3 directly: there its bound comes from one cheap factorisation, tight.
+        take = take[~hopeless(take) & ~settled_inv()[take]]
         if len(take):
             lam, err = _interpolation_error(q, rows[take], left[take], right[take], (rho, angular))
-            s_lam = (1.0 - lam) * s_inv[left[take], 0] + lam * s_inv[right[take], 0]
+            s_lam = (1.0 - lam) * ends_at.top[left[take]] + lam * ends_at.top[right[take]]
             # Rounding of the interpolation and of the singular values: a margin far above it.
             err = err * (1.0 + 1e-9) + 1e-9 * (s_lam + 1.0)
-            s_cap[take] = s_lam + err
             interpolated = (1.0 - lam)[:, None, None] * scaled_all[left[take]] + lam[:, None, None] * scaled_all[
                 right[take]
             ]
-            certify(take, _gram(interpolated), s_cap[take], err)
+            certify(take, _gram(interpolated), s_lam + err, err)
     take = np.nonzero(~settled())[0]
     if len(take):
         # For bounds only (the rows measured exactly in the end take Pinocchio's Jacobians again).
-        kernel = jacobian_kernel(robot)
         if kernel is None:
             raw, scaled = robot.task_jacobians(q[rows[take]], task)
         else:
             raw, scaled = robot.task_rows(kernel(q[rows[take]]), task)
-        s_up = np.minimum(np.linalg.norm(scaled, axis=(1, 2)), s_cap[take])
-        for a in (left[take], right[take]):
-            e = np.linalg.norm(scaled - scaled_all[a], axis=(1, 2))
-            weyl(take, a, e, e if divisor is not None else np.linalg.norm(raw - raw_all[a], axis=(1, 2)))
-            s_up = np.minimum(s_up, s_inv[a, 0] + e + 1e-9 * (s_inv[a, 0] + 1.0))
-        s_up *= 1.0 + 1e-9
-        own = _gram(scaled)
-        trying = ~hopeless(take) & (lo_inv[take] <= level)
-        if trying.any():
-            certify(take[trying], own[trying], s_up[trying], np.zeros(int(trying.sum())))
-        # The rest: its own Gram matrix. The manipulability is the root of its determinant (at
-        # least that of the product of the pivots); below the threshold when a Rayleigh quotient
-        # shows the smallest singular value below threshold times (a lower bound of) the largest,
-        # and above its stretch's smallest exact value by a certificate at that level.
-        short = ~settled()[take]
-        if short.any():
-            gram = own[short]
-            ok, det = _positive_definite(gram, np.zeros(len(gram)))
-            if divisor is None:
-                det = _positive_definite(_gram(raw[short]), np.zeros(len(gram)))[1]
-            idx = take[short]
-            lo_man[idx] = np.maximum(lo_man[idx], np.sqrt(det) * (scale * (1.0 - 1e-9)))
-            dip = ok & (lo_inv[idx] <= level)
-            if dip.any():
-                smallest, largest = _rayleigh_bounds(gram[dip])
-                with np.errstate(invalid="ignore", divide="ignore"):
-                    ratio = np.sqrt(np.maximum(smallest, 0.0) / largest) * (1.0 + 1e-9)
-                shown = (largest > 0.0) & (ratio < threshold * (1.0 - 1e-9))
-                at = idx[dip][shown]
-                below[at] = True
-                floor = lifted_least[at] * s_up[short][dip][shown]
-                above_least = _positive_definite(gram[dip][shown], floor * floor)[0]
-                lo_inv[at[above_least]] = np.maximum(lo_inv[at[above_least]], lifted_least[at[above_least]])
+        gram = _gram(scaled)
+        # The inverse condition number from both sides where it is not settled yet; the
+        # manipulability alone from the factorisation elsewhere.
+        open_inv = ~settled_inv()[take]
+        product = np.zeros(len(take))
+        if open_inv.any():
+            low_min, high_min, low_max, high_max, product[open_inv] = _extreme_bounds(gram[open_inv]).T
+            with np.errstate(invalid="ignore", divide="ignore"):
+                floor = np.sqrt(np.maximum(low_min, 0.0) / high_max) * (1.0 - 1e-9)
+                ceiling = np.sqrt(high_min / low_max) * (1.0 + 1e-9)
+            at = take[open_inv]
+            lo_inv[at] = np.maximum(lo_inv[at], np.where(high_max > 0.0, floor, 0.0))
+            below[at] |= (low_max > 0.0) & (ceiling < threshold)
+        if divisor is None:
+            product = _positive_definite(_gram(raw), np.zeros(len(take)))[1]
+        else:
+            open_man = ~open_inv & ~(lo_man[take] > level_man)
+            product[open_man] = _positive_definite(gram[open_man], np.zeros(int(open_man.sum())))[1]
+        lo_man[take] = np.maximum(lo_man[take], np.sqrt(np.maximum(product, 0.0)) * (scale * (1.0 - 1e-9)))
         rest = ~settled()[take]
         if rest.any():
             measure(rows[take[rest]], *((raw[rest], scaled[rest]) if kernel is None else ()))
+    if len(loose):
+        # The bracketed anchors, settled as the rows are, or measured exactly.
+        loose_man = ends_at.product[loose] * (scale * (1.0 - 1e-9))
+        dip = (value_up[loose] < threshold) & (loose_low > least_of[np.searchsorted(bounds_of, loose) - 1])
+        shown = ((loose_low > level) | dip) & (loose_man > level_man)
+        inv[loose[shown]], man[loose[shown]] = loose_low[shown], loose_man[shown]
+        if not shown.all():
+            measure(loose[~shown])
     free = ~exact[rows]
     inv[rows[free]], man[rows[free]] = lo_inv[free], lo_man[free]
     return inv, man
@@ -672,7 +725,7 @@ def measure_singularities(
         :func:`bounded_conditioning`).
     """
     t = _sample_times(trajectory, rate)
-    q = trajectory.sample(t).q
+    q = trajectory.positions(t)
     w_idx = np.searchsorted(t, trajectory.waypoint_times)
     inv, man = bounded_conditioning(robot, q, task, threshold, w_idx)
     w_inv, w_man = inv[w_idx], man[w_idx]

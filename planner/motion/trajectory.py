@@ -165,6 +165,58 @@ class JointTrajectory:
             f"dof={self.dof}, strategy={self.strategy!r})"
         )
 
+    def _checked_times(self, t: float | Sequence[float] | np.ndarray, clamp: bool) -> tuple[np.ndarray, ...]:
+        """`t` as an array, flattened, and flattened within [0, duration] (clamped or checked)."""
+        tt = np.asarray(t, dtype=float)
+        asked = tt.reshape(-1)
+        if asked.size and not np.all(np.isfinite(asked)):
+            bad = asked[~np.isfinite(asked)][0]
+            raise InvalidArgumentError(f"time {plain(bad)} s is not a finite number")
+        flat = np.clip(asked, 0.0, self.duration) if clamp else asked
+        if flat.size and (flat.min() < 0.0 or flat.max() > self.duration * (1 + 1e-12)):
+            bad = flat[(flat < 0) | (flat > self.duration * (1 + 1e-12))][0]
+            raise InvalidArgumentError(
+                f"time {plain(bad)} s is outside the trajectory [0, {self.duration:.6g}] s "
+                "(clamp=True holds the end states)"
+            )
+        return tt, asked, flat
+
+    def positions(self, t: float | Sequence[float] | np.ndarray, *, clamp: bool = False) -> np.ndarray:
+        """Positions at time(s) `t`: ``sample(t, clamp=clamp).q`` (the same values), without the other states.
+
+        Returns:
+            Shape (dof,) for a scalar `t`, else ``t.shape + (dof,)`` [rad or m].
+
+        Raises:
+            InvalidArgumentError: As :meth:`sample`.
+        """
+        tt, _, flat = self._checked_times(t, clamp)
+        idx = np.clip(np.searchsorted(self.knots, flat, side="right") - 1, 0, len(self.knots) - 1)
+        q = self._positions_at(flat, idx)
+        return q[0] if tt.ndim == 0 else q.reshape(tt.shape + (self.dof,))
+
+    def _positions_at(self, flat: np.ndarray, idx: np.ndarray) -> np.ndarray:
+        """``p + dt (v + dt (a / 2 + dt j / 6))`` at times `flat` in intervals `idx`, the end at rest.
+
+        Written in place, operation by operation as the expression reads (the same values), a
+        few times faster than with a temporary array per operation.
+        """
+        dt = (flat - self.knots[idx])[:, None]
+        q = self.j[idx]
+        q *= dt
+        q /= 6.0
+        half = self.a[idx]
+        half /= 2.0
+        q += half
+        q *= dt
+        q += self.v[idx]
+        q *= dt
+        q += self.p[idx]
+        end = flat >= self.duration
+        if end.any():
+            q[end] = self.waypoints[-1]
+        return q
+
     def sample(self, t: float | Sequence[float] | np.ndarray, *, clamp: bool = False) -> TrajectorySample:
         """State at time(s) `t`.
 
@@ -179,29 +231,18 @@ class JointTrajectory:
         Raises:
             InvalidArgumentError: If a time is NaN, or outside [0, duration] without `clamp`.
         """
-        tt = np.asarray(t, dtype=float)
+        tt, asked, flat = self._checked_times(t, clamp)
         scalar = tt.ndim == 0
-        asked = tt.reshape(-1)
-        if asked.size and not np.all(np.isfinite(asked)):
-            bad = asked[~np.isfinite(asked)][0]
-            raise InvalidArgumentError(f"time {plain(bad)} s is not a finite number")
-        flat = np.clip(asked, 0.0, self.duration) if clamp else asked
-        if flat.size and (flat.min() < 0.0 or flat.max() > self.duration * (1 + 1e-12)):
-            bad = flat[(flat < 0) | (flat > self.duration * (1 + 1e-12))][0]
-            raise InvalidArgumentError(
-                f"time {plain(bad)} s is outside the trajectory [0, {self.duration:.6g}] s "
-                "(clamp=True holds the end states)"
-            )
         idx = np.clip(np.searchsorted(self.knots, flat, side="right") - 1, 0, len(self.knots) - 1)
         dt = (flat - self.knots[idx])[:, None]
-        p, v, a, j = self.p[idx], self.v[idx], self.a[idx], self.j[idx]
-        q = p + dt * (v + dt * (a / 2.0 + dt * j / 6.0))
+        v, a, j = self.v[idx], self.a[idx], self.j[idx]
+        q = self._positions_at(flat, idx)
         qd = v + dt * (a + dt * j / 2.0)
         qdd = a + dt * j
         qddd = j.copy()
         end = flat >= self.duration
         if end.any():
-            q[end], qd[end], qdd[end], qddd[end] = self.waypoints[-1], 0.0, 0.0, 0.0
+            qd[end], qdd[end], qddd[end] = 0.0, 0.0, 0.0
         if scalar:
             return TrajectorySample(tt.copy(), q[0], qd[0], qdd[0], qddd[0])
         shape = tt.shape + (self.dof,)
