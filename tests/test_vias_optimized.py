@@ -94,3 +94,55 @@ def test_six_dof_arms_hold_every_limit_at_1khz_and_pass_their_waypoints(name, se
     assert_within_limits(traj, rate=1000.0)
     assert_passes_waypoints(traj, q)
     assert traj.duration <= plan_trajectory(q, limits, strategy="stop").duration * (1 + 1e-12)
+
+
+class _Given(OptimizedStrategy):
+    """The via states of a plan found by a search, set as they are."""
+
+    name = "given"
+
+    def __init__(self, v: np.ndarray, acc: np.ndarray):
+        self.v, self.acc = v, acc
+
+    def choose(self, chain: ViaChain) -> None:
+        chain.v[1:-1], chain.acc[1:-1] = self.v, self.acc
+
+
+def test_a_synchronised_profile_that_overshoots_the_speed_limit_is_repaired():
+    # Ruckig 0.19 slows a joint that does not set the segment's time with a smaller jerk: from
+    # an admissible start state still accelerating (|v| + a^2 / (2 j_max) <= v_max) its speed then
+    # peaks at v + a^2 / (2 j) beyond v_max (0.66 % here, joint 2 of the middle segment; a via
+    # state a search reached on dh3). The repair halves such a joint's via state.
+    limits = JointLimits(
+        np.full(3, 5.23598775598299),
+        np.full(3, 10.47197551196598),
+        np.full(3, 104.7197551196598),
+        np.full(3, -math.pi),
+        np.full(3, math.pi),
+        ("a", "b", "c"),
+    )
+    q = np.array(
+        [
+            [0.0, -2.0, -1.5],
+            [0.46268151635662047, -2.0769777037336987, -0.5295226621914773],
+            [-0.8339215718214388, -1.6483949420639816, 1.4907081945128002],
+            [-0.8, -1.0, 2.0],
+        ]
+    )
+    v = np.array(
+        [
+            [-1.208868156963451, -1.8217782803157871, 4.72928041982788],
+            [-1.5749470958167573, 3.4866726093029654, 1.6338919888129404],
+        ]
+    )
+    acc = np.array(
+        [
+            [-6.4049499911413275, 10.47197551196598, 10.30167637361742],
+            [6.019201632367009, 10.316835134010928, -10.47197551196598],
+        ]
+    )
+    assert np.array_equal(admissible_acceleration(v, acc, limits), acc)
+    traj = plan_trajectory(q, limits, strategy=_Given(v, acc))
+    assert_within_limits(traj, rate=1000.0)
+    assert traj.peak_ratios(None)["velocity"] <= 1.0 + 1e-9
+    assert traj.repaired[2, 2]

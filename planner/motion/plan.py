@@ -66,6 +66,7 @@ from planner.motion.segments import (
     rest_to_rest_segments,
     rest_to_rest_trajectory,
     segment_position_range,
+    speed_overshoots,
 )
 from planner.motion.trajectory import JointTrajectory
 from planner.motion.vias import StopStrategy, ViaChain, ViaStrategy, via_strategy
@@ -81,11 +82,13 @@ class _StartOvershoot(Exception):
 
 
 def _repair_range(chain: ViaChain) -> list[tuple[float, SegmentPieces]]:
-    """Lower via velocities until no segment carries a joint outside its range.
+    """Lower via velocities until no segment carries a joint outside its range or beyond its speed.
 
     Every segment is checked exactly (:func:`planner.motion.segments.segment_position_range`);
-    where a joint leaves its range, its via state at the segment's free ends is halved (after
-    a few halvings set to rest) and the chain is solved again. Sets ``chain.repaired``.
+    where a joint leaves its range, or Ruckig's profile takes it beyond its speed limit
+    (:func:`planner.motion.segments.speed_overshoots`), its via state at the segment's free ends
+    is halved (after a few halvings set to rest) and the chain is solved again. Sets
+    ``chain.repaired``.
 
     Args:
         chain: The chain with its chosen via states (changed in place).
@@ -100,9 +103,12 @@ def _repair_range(chain: ViaChain) -> list[tuple[float, SegmentPieces]]:
     halved = np.zeros(chain.v.shape, dtype=int)
     # Row views (live: every change below is in place) and the range bounds as floats.
     q_rows, v_rows, acc_rows = list(chain.q), list(chain.v), list(chain.acc)
-    lows, highs = chain.limits.checked_floats
+    limits = chain.limits
+    lows, highs = limits.checked_floats
     for _ in range(4 * _REPAIR_HALVINGS + chain.n):
         segments, any_bad = [], False
+        # The via states as floats, for the speed check (made again after a change).
+        v_floats, acc_floats = chain.v.tolist(), chain.acc.tolist()
         for k in range(chain.n - 1):
             start = (q_rows[k], v_rows[k], acc_rows[k])
             d, outside, traj = chain.seg.solve(k, v_rows[k], acc_rows[k], v_rows[k + 1], acc_rows[k + 1], keep=True)
@@ -131,18 +137,31 @@ def _repair_range(chain: ViaChain) -> list[tuple[float, SegmentPieces]]:
                     any_bad = True
                     continue
             segments.append((d, merged))
-            if not chain.seg.bounded or d <= 0.0:
+            if d <= 0.0:
                 continue
-            if merged.missed is None:
+            if any_bad:  # a via state changed in this pass
+                v_floats, acc_floats = chain.v.tolist(), chain.acc.tolist()
+            fast = speed_overshoots(traj, (v_floats[k], acc_floats[k]), (v_floats[k + 1], acc_floats[k + 1]), limits)
+            if not chain.seg.bounded and not fast:
+                continue
+            if not chain.seg.bounded:
+                bad = np.zeros(chain.q.shape[1], dtype=bool)
+            elif merged.missed is None:
                 lo, hi = segment_position_range(traj, merged, d)
                 bad = (lo < chain.seg.lower) | (hi > chain.seg.upper)
             else:  # segment_position_range from Ruckig's extrema, which the solver checked already
                 lo, hi = merged.missed
-                if outside is None and not (any(map(lt, lo.tolist(), lows)) or any(map(gt, hi.tolist(), highs))):
+                if (
+                    outside is None
+                    and not fast
+                    and not (any(map(lt, lo.tolist(), lows)) or any(map(gt, hi.tolist(), highs)))
+                ):
                     continue  # (the common case, on floats)
                 bad = (lo < chain.seg.lower) | (hi > chain.seg.upper)
                 if outside is not None:
                     bad |= outside
+            if fast:
+                bad[fast] = True
             if not bad.any():
                 continue
             any_bad = True

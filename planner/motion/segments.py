@@ -40,6 +40,7 @@ __all__ = [
     "rest_to_rest_segments",
     "rest_to_rest_trajectory",
     "segment_position_range",
+    "speed_overshoots",
 ]
 
 #: End-position error [rad or m per unit of max(1, |target|)] beyond which a segment is corrected.
@@ -257,6 +258,54 @@ def _turn_beyond(prof, end: float, upper: bool) -> bool:
                 if turn > end if upper else turn < end:
                     return True
     return False
+
+
+def speed_overshoots(
+    traj: RuckigTrajectory,
+    start: tuple[list[float], list[float]],
+    end: tuple[list[float], list[float]],
+    limits: JointLimits,
+) -> list[int]:
+    """The joints whose Ruckig profile exceeds the speed limit near a moving end of the segment.
+
+    Ruckig 0.19 moves a joint that does not set the segment's duration with a smaller jerk
+    than the limit; from an end state still gaining speed (or arriving after losing it) its
+    speed then peaks at ``|v + a^2 / (2 j)|`` inside the first (last) phases, beyond what an
+    admissible state (:func:`planner.motion.limits.admissible_acceleration`) allows with the full
+    jerk and beyond the limit (by 0.66 % in a case a search found). Only joints with
+    ``a v > 0`` at the start (``a v < 0`` at the end) and ``|v| + |a| T / 2`` beyond the limit
+    are looked at (the phase that reaches the peak lasts ``|a / j| <= T``; plain floats).
+
+    Args:
+        traj: The segment's Ruckig trajectory.
+        start: Velocities and accelerations at the start, as lists.
+        end: Velocities and accelerations at the end, as lists.
+        limits: The limits.
+
+    Returns:
+        The joints (in order; empty for none).
+    """
+    velocity = limits.ruckig_limits[0]
+    out = []
+    profiles = None
+    half = traj.duration / 2.0
+    for j, (v0, a0, v1, a1, v_max) in enumerate(zip(*start, *end, velocity)):
+        # A phase reaching the peak lasts |a / jerk| <= the duration: the peak is below |v| + |a| T / 2.
+        if not (
+            (a0 * v0 > 0.0 and abs(v0) + abs(a0) * half > v_max) or (a1 * v1 < 0.0 and abs(v1) + abs(a1) * half > v_max)
+        ):
+            continue
+        if profiles is None:
+            profiles = traj.profiles[0]
+        prof = profiles[j]
+        v, a, jerk = prof.v, prof.a, prof.j
+        bound = velocity[j] * (1.0 + _LIMIT_SLACK)
+        for i in range(len(jerk)):
+            # The speed peaks inside a phase where the acceleration changes sign.
+            if jerk[i] != 0.0 and a[i] * a[i + 1] < 0.0 and abs(v[i] - a[i] * a[i] / (2.0 * jerk[i])) > bound:
+                out.append(j)
+                break
+    return out
 
 
 def _missed_turn(traj: RuckigTrajectory) -> bool:

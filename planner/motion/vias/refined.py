@@ -27,7 +27,7 @@ import numpy as np
 
 from planner.exceptions import InvalidArgumentError
 from planner.motion.limits import admissible_acceleration
-from planner.motion.segments import merge_segment, segment_position_range
+from planner.motion.segments import merge_segment, segment_position_range, speed_overshoots
 from planner.motion.vias.base import ViaChain, best_choice
 from planner.motion.vias.optimized import OptimizedStrategy
 
@@ -103,7 +103,7 @@ class RefinedStrategy(OptimizedStrategy):
     def _outside_joints(
         self, chain: ViaChain, k: int, i: int = -1, v: np.ndarray | None = None, acc: np.ndarray | None = None
     ) -> np.ndarray | None:
-        """The joints that segment k carries out of range by the planner's exact check (bool mask).
+        """The joints that segment k carries out of range or past their speed by the exact checks (bool mask).
 
         With state (v, acc) at via i if given. None where the segment has no usable profile
         (none from Ruckig, or an end it misses beyond correction): the planner rests there.
@@ -120,6 +120,10 @@ class RefinedStrategy(OptimizedStrategy):
         if chain.seg.bounded and d > 0.0:
             lo, hi = segment_position_range(traj, merged, d)
             bad |= (lo < chain.seg.lower) | (hi > chain.seg.upper)
+        if d > 0.0:  # the speed check of the range repair too
+            fast = speed_overshoots(traj, (va.tolist(), aa.tolist()), (vb.tolist(), ab.tolist()), chain.limits)
+            if fast:
+                bad[fast] = True
         return bad
 
     def _exact_inside(
