@@ -349,3 +349,57 @@ def test_shelley_reaches_the_approach_pitch_of_its_own_configurations():
     assert batch.within_limits.any(axis=1).all()
     up = planner.solve_ik(robot, planner.Target(positions[0], pitch=0.5), method="analytic")
     assert up.status == planner.IKStatus.ORIENTATION_NOT_ACHIEVABLE and "stays at 0.00 deg" in up.reason
+
+
+def _short_trajectory():
+    robot = get_robot("al5c")
+    limits = planner.JointLimits.from_robot(robot)
+    q0 = (limits.lower + limits.upper) / 2
+    return planner.plan_trajectory([q0, q0 + 0.2], limits)
+
+
+def test_a_urdf_file_that_is_not_utf8_is_a_urdf_error(tmp_path):
+    # The review: Robot.from_urdf on a file with a stray byte raised UnicodeDecodeError.
+    path = tmp_path / "bin.urdf"
+    path.write_bytes(b'<robot name="x">\xff</robot>')
+    with pytest.raises(planner.URDFError, match="not UTF-8 text.*0xff"):
+        planner.Robot.from_urdf(path)
+
+
+def test_trajectory_times_that_are_not_numbers_are_an_invalid_argument():
+    traj = _short_trajectory()
+    for bad in ("x", [0.1, "y"], {"t": 1}):
+        with pytest.raises(planner.InvalidArgumentError, match="times must be numbers"):
+            traj.sample(bad)
+        with pytest.raises(planner.InvalidArgumentError, match="times must be numbers"):
+            traj.positions(bad)
+
+
+def test_sampling_more_than_max_samples_is_refused_before_allocating():
+    # The review: plan_motion(rate=1e7) and long dwells ran out of memory in the samples.
+    from planner.motion.trajectory import MAX_SAMPLES
+
+    traj = _short_trajectory()
+    assert traj.times(1000.0)[-1] == traj.duration
+    rate = 2 * MAX_SAMPLES / traj.duration
+    with pytest.raises(planner.InvalidArgumentError, match="samples; at most"):
+        traj.times(rate)
+    with pytest.raises(planner.InvalidArgumentError, match="samples; at most"):
+        traj.sampled(1e300)
+
+
+def test_to_csv_into_a_folder_is_an_invalid_argument(tmp_path):
+    traj = _short_trajectory()
+    with pytest.raises(planner.InvalidArgumentError, match="cannot write"):
+        traj.to_csv(tmp_path)
+    assert traj.to_csv(tmp_path / "t.csv").read_text().startswith("t,")
+
+
+@pytest.mark.parametrize("dwell", [7001.0, 1e4, 1e308])
+def test_a_dwell_longer_than_a_segment_can_last_is_refused(dwell):
+    # The review: a dwell of 1e4 s ran out of memory after a minute; 1e308 overflowed.
+    limits = planner.JointLimits.from_robot(get_robot("al5c"))
+    q0 = (limits.lower + limits.upper) / 2
+    with pytest.raises(planner.InvalidArgumentError, match=r"dwell at waypoint 1 is .* at most 7000 s"):
+        planner.plan_trajectory([q0, q0 + 0.1, q0], limits, dwell=[0.0, dwell, 0.0])
+    assert planner.plan_trajectory([q0, q0 + 0.1, q0], limits, dwell=[0.0, 7000.0, 0.0]).duration > 7000.0

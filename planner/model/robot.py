@@ -319,9 +319,14 @@ class Robot:
         if isinstance(urdf, Path) or (isinstance(urdf, str) and "<" not in urdf):
             path = Path(urdf)
             try:
-                text = path.read_text()
+                text = path.read_text(encoding="utf-8")
             except OSError as exc:
                 raise URDFError(f"cannot read URDF file {str(path)!r}: {exc.strerror}") from exc
+            except UnicodeDecodeError as exc:
+                byte = exc.object[exc.start]
+                raise URDFError(
+                    f"URDF file {str(path)!r} is not UTF-8 text (byte 0x{byte:02x} at offset {exc.start})"
+                ) from exc
             return cls(
                 text,
                 tip=tip,

@@ -14,7 +14,7 @@ import numpy as np
 
 from planner.core.text import plain
 from planner.exceptions import InvalidArgumentError, InvalidConfigurationError, JointLimitError
-from planner.motion.limits import JointLimits
+from planner.motion.limits import MAX_SEGMENT_DURATION, JointLimits
 
 __all__ = [
     "check_dwell",
@@ -213,7 +213,9 @@ def check_dwell(dwell: float | Sequence[float] | None, n: int) -> np.ndarray:
     """Dwell times [s] per waypoint, shape (n,), from one number, one per waypoint or None (0).
 
     Raises:
-        InvalidArgumentError: On the wrong count, a negative or non-finite time.
+        InvalidArgumentError: On the wrong count, a negative or non-finite time, or one longer than
+            :data:`~planner.motion.limits.MAX_SEGMENT_DURATION` (like a move: split longer rests
+            into separate plans).
     """
     if dwell is None:
         return np.zeros(n)
@@ -225,4 +227,10 @@ def check_dwell(dwell: float | Sequence[float] | None, n: int) -> np.ndarray:
     bad = np.nonzero(~np.isfinite(arr) | (arr < 0))[0]
     if bad.size:
         raise InvalidArgumentError(f"dwell at waypoint {int(bad[0])} must be >= 0 and finite [s], got {arr[bad[0]]}")
+    long = np.nonzero(arr > MAX_SEGMENT_DURATION)[0]
+    if long.size:
+        raise InvalidArgumentError(
+            f"dwell at waypoint {int(long[0])} is {plain(arr[long[0]])} s; a rest in a plan lasts at most "
+            f"{MAX_SEGMENT_DURATION:g} s (as a move): split a longer rest into separate plans"
+        )
     return arr

@@ -21,12 +21,15 @@ from planner.core.text import plain
 from planner.exceptions import InvalidArgumentError
 from planner.motion.limits import JointLimits
 
-__all__ = ["LIMIT_TOLERANCE", "JointTrajectory", "TrajectorySample"]
+__all__ = ["LIMIT_TOLERANCE", "MAX_SAMPLES", "JointTrajectory", "TrajectorySample"]
 
 #: Relative tolerance of the limit guarantee: a sampled |velocity|, |acceleration| or |jerk|
 #: never exceeds ``limit * (1 + LIMIT_TOLERANCE)``, a position never leaves its range by more
 #: than ``LIMIT_TOLERANCE * max(1, |bound|)`` [rad or m]. It only absorbs floating-point rounding.
 LIMIT_TOLERANCE = 1e-9
+#: Most samples :meth:`JointTrajectory.times` gives at once (10 million: 2.8 h at 1 kHz; a
+#: 7-dof sample of that many states takes about 2 GB).
+MAX_SAMPLES = 10_000_000
 
 
 @dataclass(frozen=True)
@@ -167,7 +170,10 @@ class JointTrajectory:
 
     def _checked_times(self, t: float | Sequence[float] | np.ndarray, clamp: bool) -> tuple[np.ndarray, ...]:
         """`t` as an array, flattened, and flattened within [0, duration] (clamped or checked)."""
-        tt = np.asarray(t, dtype=float)
+        try:
+            tt = np.asarray(t, dtype=float)
+        except (TypeError, ValueError) as exc:
+            raise InvalidArgumentError(f"times must be numbers [s], got {t!r:.60}") from exc
         asked = tt.reshape(-1)
         if asked.size and not np.all(np.isfinite(asked)):
             bad = asked[~np.isfinite(asked)][0]
@@ -251,10 +257,21 @@ class JointTrajectory:
         )
 
     def times(self, rate: float = 1000.0) -> np.ndarray:
-        """Sample times at `rate` [Hz] from 0, with the final time appended, shape (n,) [s]."""
+        """Sample times at `rate` [Hz] from 0, with the final time appended, shape (n,) [s].
+
+        Raises:
+            InvalidArgumentError: On a rate that is not positive and finite, or more than
+                :data:`MAX_SAMPLES` samples.
+        """
         if not (isinstance(rate, (int, float)) and math.isfinite(rate) and rate > 0):
             raise InvalidArgumentError(f"rate must be positive and finite [Hz], got {plain(rate)}")
-        n = int(math.floor(self.duration * rate + 1e-9)) + 1
+        count = self.duration * rate
+        if not count <= MAX_SAMPLES:
+            raise InvalidArgumentError(
+                f"sampling {self.duration:.6g} s at {plain(rate)} Hz gives {count:.3g} samples; at most "
+                f"{MAX_SAMPLES:.0e} are taken at once (lower the rate or sample times of your own)"
+            )
+        n = int(math.floor(count + 1e-9)) + 1
         t = np.arange(n) / rate
         if t[-1] < self.duration:
             t = np.append(t, self.duration)
@@ -352,17 +369,23 @@ class JointTrajectory:
 
         Returns:
             The path written.
+
+        Raises:
+            InvalidArgumentError: As :meth:`times`, or if the file cannot be written.
         """
         s = self.sampled(rate)
         out = Path(path)
         names = self.joint_names
         header = ["t"] + [f"{k}_{n}" for k in ("q", "qd", "qdd", "qddd") for n in names]
-        with out.open("w", newline="") as fh:
-            w = csv.writer(fh)
-            w.writerow(header)
-            data = np.hstack([s.t[:, None], s.q, s.qd, s.qdd, s.qddd])
-            for row in data:
-                w.writerow([repr(float(x)) for x in row])
+        try:
+            with out.open("w", newline="") as fh:
+                w = csv.writer(fh)
+                w.writerow(header)
+                data = np.hstack([s.t[:, None], s.q, s.qd, s.qdd, s.qddd])
+                for row in data:
+                    w.writerow([repr(float(x)) for x in row])
+        except OSError as exc:
+            raise InvalidArgumentError(f"cannot write {str(out)!r}: {exc.strerror or exc}") from exc
         return out
 
 
