@@ -6,8 +6,11 @@ import math
 
 import numpy as np
 import pytest
+from dh_arms import dh_descriptions, property_settings, robot_from_description
+from hypothesis import given
+from hypothesis import strategies as st
 
-from planner import InvalidArgumentError, Robot, urdf_from_dh
+from planner import InvalidArgumentError, PlannerError, Robot, urdf_from_dh
 from planner.collision import FLOOR, Box, CollisionChecker, Cylinder, Obstacle, Scene, Sphere, parse_scene
 from planner.collision.arm import arm_collision_model
 from planner.collision.checker import shared_checker
@@ -1130,3 +1133,88 @@ def test_swept_reach_bounds_the_body_turned_by_forward_kinematics(name):
         assert bound <= farthest + 0.01, (name, obj.name, farthest, bound)
         tested += 1
     assert tested > 0
+
+
+# ---------------------------------------------------------------------------- the compiled loop against Python
+
+
+@st.composite
+def _fuzz_cases(draw):
+    """A random DH arm (1 to 6 joints) or a one-joint stick, a random scene (maybe no pairs at
+    all), a trajectory through 2 to 4 random configurations (maybe a tiny or a zero first move)."""
+    if draw(st.booleans()):
+        robot = robot_from_description(draw(dh_descriptions(min_joints=1, max_joints=6)))
+    else:
+        robot = _one_link(length=draw(st.floats(0.05, 0.5)), speed=draw(st.floats(5.0, 200.0)))
+    size = max(robot.characteristic_length, 0.05)
+    obstacles = []
+    for k in range(draw(st.integers(0, 5))):
+        at = np.array([draw(st.floats(-1.0, 1.0)) for _ in range(3)]) * size
+        if draw(st.booleans()):
+            obstacles.append(Obstacle(f"o{k}", Sphere(draw(st.floats(0.001, 0.3)) * size), at))
+        else:
+            obstacles.append(Obstacle(f"o{k}", Box(tuple(draw(st.floats(0.002, 0.5)) * size for _ in range(3))), at))
+    floor = draw(st.sampled_from([None, -0.05, 0.0]))
+    scene = Scene(floor=floor, clearance=draw(st.sampled_from([0.0, 0.005, 0.02])), obstacles=tuple(obstacles))
+    rng = np.random.default_rng(draw(st.integers(0, 2**32 - 1)))
+    waypoints = robot.random_configurations(rng, draw(st.integers(2, 4)))
+    waypoints[1] = waypoints[0] + draw(st.sampled_from([0.0, 1e-6, 0.3, 1.0])) * (waypoints[1] - waypoints[0])
+    allow = [(draw(st.floats(0.0, 1.0)), [obstacles[0].name])] if obstacles and draw(st.booleans()) else []
+    return robot, scene, waypoints, allow, draw(st.booleans()), rng
+
+
+@given(case=_fuzz_cases())
+@property_settings(60)
+def test_random_arms_and_scenes_give_the_same_results_with_and_without_the_compiled_loop(case):
+    """check_trajectory with _NativeSteps and with the Python steps (each with a new checker: coal's
+    distance of overlapping bodies depends on what it computed before): the same verdicts and
+    checks; the steps and the pairs due next of single calls as the Python rule's."""
+    import planner.collision.continuous as cc
+
+    loader = cc._native_library
+    compiled = loader()
+    if compiled is None:
+        pytest.skip("no C compiler (PLANNER_JIT=0): the Python steps only")
+    robot, scene, waypoints, allow, stop, rng = case
+    try:
+        traj = plan_trajectory(waypoints, JointLimits.from_robot(robot))
+    except PlannerError:
+        return
+    allow = [(f * traj.duration, names) for f, names in allow]
+    results = []
+    for lib in (compiled, None):
+        cc._native_library = lambda lib=lib: lib
+        try:
+            results.append(check_trajectory(CollisionChecker(robot, scene), traj, allow=allow, stop_at_first=stop))
+        finally:
+            cc._native_library = loader
+    a, b = results
+    assert (a.clear, a.checks, a.closest.bodies) == (b.clear, b.checks, b.closest.bodies)
+    assert (a.first_hit is None) == (b.first_hit is None)
+    # (x drifts apart in the last bits over many checks: the Python rows carry offsets.)
+    slack = 1e-7 * max(traj.duration, 1.0)
+    assert abs((a.first_hit or 0.0) - (b.first_hit or 0.0)) <= slack
+    if a.closest.distance > 0:
+        # (not `where`: at a flat minimum or a tie, checks a rounding apart find the closest elsewhere)
+        assert a.closest.distance == pytest.approx(b.closest.distance, abs=1e-8)
+    checker = CollisionChecker(robot, scene)
+    last, vmax = np.asarray(traj.waypoints[-1], dtype=float), np.asarray(traj.limits.velocity) * (1 + 1e-6)
+    rule = cc._trajectory_steps(checker, traj, last, vmax, max(scene.clearance - cc.DEFAULT_TOLERANCE, 0.0))
+    if not hasattr(rule, "native"):
+        return  # a grid of one time: nothing to step
+    n = rule.native.size
+    for x in [0.0, *rng.uniform(0.0, traj.duration, 3), traj.duration]:
+        due = np.flatnonzero(rng.random(n) < 0.5)
+        d = rng.uniform(-0.002, 0.3, len(due))
+        room = np.maximum(d - scene.clearance + cc.DEFAULT_TOLERANCE, cc.DEFAULT_TOLERANCE / 2)
+        want = rule(float(x), due, d, room)
+        until, early = np.full(n, np.inf), np.full(n, np.inf)
+        got_x, got_due, got_q = rule.native(
+            float(x), due, d, scene.clearance, cc.DEFAULT_TOLERANCE, 0.0, until, early, traj.duration
+        )
+        big = 1e6 * traj.duration
+        np.testing.assert_allclose(np.minimum(until[due] - x, big), np.minimum(want, big), rtol=1e-9, atol=1e-12)
+        after = min(float(until.min(initial=np.inf)), traj.duration)
+        assert got_x == min(after if after > x else np.nextafter(x, np.inf), traj.duration)
+        np.testing.assert_array_equal(got_due, np.flatnonzero(early <= got_x))
+        assert got_q.shape == (robot.dof,) and np.all(np.isfinite(got_q))
