@@ -925,14 +925,14 @@ def _placements(checker, q):
 @pytest.mark.parametrize("name", MIXED_ARMS)
 def test_pair_bounds_never_underestimate_the_relative_motion_of_two_bodies(name):
     """Along random joint segments, densely sampled by FK: every vertex of one body's hull, seen
-    from the other body, moves no farther than pair_weights allows (how far a point moves is a
+    from the other body, moves no farther than _reach_weights (the lower body's side) allows (how far a point moves is a
     convex function of it: no point of the body moves farther than its hull's vertices)."""
     from planner.collision.arm import hull_points
-    from planner.collision.continuous import pair_weights
+    from planner.collision.continuous import _reach_weights
 
     robot = get_robot(name)
     checker = CollisionChecker(robot, parse_scene(_TABLE_AND_BOX))
-    weights = pair_weights(checker)
+    weights = _reach_weights(checker)
     geom = checker.geometry
     model = robot.model
     # Pairs of a body and one it hangs below (or a scene body): the lower one's corners, seen
@@ -1218,3 +1218,79 @@ def test_random_arms_and_scenes_give_the_same_results_with_and_without_the_compi
         assert got_x == min(after if after > x else np.nextafter(x, np.inf), traj.duration)
         np.testing.assert_array_equal(got_due, np.flatnonzero(early <= got_x))
         assert got_q.shape == (robot.dof,) and np.all(np.isfinite(got_q))
+
+
+# ---------------------------------------------------------------------------- either body's reach
+
+
+def _either_side_holds(robot, scene: Scene, rng: np.random.Generator, configurations: int) -> int:
+    """Per pair and joint moving one body against the other, at random configurations (by FK):
+    pair_weights' entry is at least the smaller of the two bodies' largest distance from the joint's
+    axis (hull points; the axis where FK puts it); returns how many entries were smaller than the
+    lower body's reach alone (_reach_weights)."""
+    import pinocchio as pin
+
+    from planner.collision.arm import hull_points
+    from planner.collision.continuous import _joint_axis_or_none, _reach_weights, pair_weights
+
+    checker = CollisionChecker(robot, scene)
+    weights, reach = pair_weights(checker), _reach_weights(checker)
+    assert np.all(weights <= reach)
+    model, data, geom = robot.model, robot.model.createData(), checker.geometry
+    axes = [_joint_axis_or_none(model, j) for j in range(model.njoints)]
+    points = [hull_points(o) if np.all(np.isfinite(hull_points(o))) else None for o in geom.geometryObjects]
+    tighter = np.flatnonzero(np.any(weights < reach, axis=1))
+    gdata = pin.GeometryData(geom)
+    for q in robot.random_configurations(rng, configurations):
+        pin.forwardKinematics(model, data, robot.pinocchio_configuration(q))
+        pin.updateGeometryPlacements(model, data, geom, gdata)
+        for k in tighter.tolist():
+            pair = geom.collisionPairs[k]
+            ends = []
+            for i in (pair.first, pair.second):
+                place = gdata.oMg[i]
+                ends.append(None if points[i] is None else points[i] @ place.rotation.T + place.translation)
+            for j in np.flatnonzero(weights[k] < reach[k]).tolist():
+                axis = axes[j + 1]
+                assert axis is not None  # the tighter entries are revolute joints'
+                at, w = data.oMi[j + 1].translation, data.oMi[j + 1].rotation @ axis
+                far = [
+                    np.inf if e is None else float(np.max(np.linalg.norm(np.cross(e - at, w), axis=1))) for e in ends
+                ]
+                assert min(far) <= weights[k, j] + 1e-9, (robot.name, k, j, far, weights[k, j])
+    return int(np.sum(weights < reach))
+
+
+@pytest.mark.parametrize("name", MIXED_ARMS)
+def test_a_pair_bound_is_either_bodys_reach_from_each_joint_axis(name):
+    robot = get_robot(name)
+    rng = np.random.default_rng(4)
+    assert _either_side_holds(robot, parse_scene(_TABLE_AND_BOX), rng, 200) > 0
+
+
+@given(description=dh_descriptions(min_joints=1, max_joints=6), seed=st.integers(0, 2**32 - 1))
+@property_settings(30)
+def test_a_pair_bound_is_either_bodys_reach_on_random_arms(description, seed):
+    robot = robot_from_description(description)
+    size = max(robot.characteristic_length, 0.05)
+    box = Obstacle("box", Box((0.3 * size, 0.2 * size, 0.4 * size)), np.array([0.5, 0.1, 0.2]) * size)
+    _either_side_holds(robot, Scene(floor=-0.05 * size, obstacles=(box,)), np.random.default_rng(seed), 40)
+
+
+@pytest.mark.parametrize("name", MIXED_ARMS)
+def test_no_pair_distance_falls_faster_than_its_bound_along_dense_segments(name):
+    """d_p(s) >= d_p(0) - pair_weights[p] . |dq| s at 400 points of random joint segments (coal distances)."""
+    from planner.collision.continuous import pair_weights
+
+    robot = get_robot(name)
+    checker = CollisionChecker(robot, parse_scene(_TABLE_AND_BOX))
+    weights, mask = pair_weights(checker), checker.pair_mask()
+    rng = np.random.default_rng(6)
+    for q0, q1 in zip(*(robot.random_configurations(rng, 4) for _ in range(2))):
+        q1 = q0 + 0.3 * (q1 - q0)
+        d0 = checker.pair_distances(q0, mask)
+        bound = weights @ np.abs(q1 - q0)
+        for s in np.linspace(0.0, 1.0, 401)[1:]:
+            d = checker.pair_distances(q0 + s * (q1 - q0), mask)
+            both = (d0 > 0) & (d > 0) & np.isfinite(d0)
+            assert np.all(d[both] >= d0[both] - s * bound[both] - 1e-7), name

@@ -8,7 +8,12 @@ together and does not count; any other joint ``j`` moves its body's points at mo
 body's points (the joint offsets down the chain plus the body's own extent, where the first
 offset may be the next joint's distance from the axis: zero in a wrist whose next joint sits on
 it; for the joint right above the body's own, the largest distance of the body's hull turned
-about its joint to every angle; 1 for a sliding joint). Along a
+about its joint to every angle; 1 for a sliding joint). Where one body hangs below the other
+(or is a scene body), ``r_j`` is at most the upper body's own distance from joint ``j``'s
+axis (``R + D_j`` of the near-body bound below): the approach speed is
+``sum_j qd_j n . (w_j x (p - o_j))`` (``w_j`` the axis through ``o_j``, ``n`` the direction
+between the closest points) for either closest point ``p``, so each joint's term is bounded
+by either body's distance from its axis. Along a
 motion known only by its speeds (:func:`check_motion`) the joint speeds a time ``h`` after a
 check are at most ``|qd_j| + a_j h`` (``a_j`` the acceleration limit), so a pair approaches by
 at most ``V h + A h^2 / 2`` with ``A = sum_j a_j r_j``; the next check comes when that reaches
@@ -254,6 +259,24 @@ def pair_weights(checker: CollisionChecker) -> np.ndarray:
 
 
 def _pair_weights(checker: CollisionChecker) -> np.ndarray:
+    """:func:`_reach_weights`, or per joint ``R + D_j`` of :func:`near_bounds` where smaller.
+
+    The approach speed of two bodies is ``n . (w x (p - o))`` summed over the joints between
+    them (``w`` a joint's axis through ``o``, ``n`` the direction between the closest points)
+    for any point ``p`` on the line through the closest points: per joint, either closest
+    point's distance from the axis bounds its term. The upper body's points lie within ``R``
+    of the ball's centre, which is within ``D_j`` of joint ``j``'s axis.
+    """
+    weights = _reach_weights(checker)
+    near = near_bounds(checker)
+    ball = np.where(np.isfinite(near.radius), near.radius, np.inf)[:, None] + near.offsets
+    weights = np.where(near.joints, np.minimum(weights, ball), weights)
+    weights.setflags(write=False)
+    return weights
+
+
+def _reach_weights(checker: CollisionChecker) -> np.ndarray:
+    """Per pair and joint, ``r_j`` of the module docstring: how far the lower body's points are from the axis."""
     robot = checker.robot
     model = robot.model
     geom = checker.geometry
@@ -317,7 +340,6 @@ def _pair_weights(checker: CollisionChecker) -> np.ndarray:
             only = [j - 1 for j in own - other]
             if only:
                 weights[k, only] += reach_of(i)[only]
-    weights.setflags(write=False)
     return weights
 
 
