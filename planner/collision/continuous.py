@@ -8,7 +8,15 @@ together and does not count; any other joint ``j`` moves its body's points at mo
 body's points (the joint offsets down the chain plus the body's own extent, where the first
 offset may be the next joint's distance from the axis: zero in a wrist whose next joint sits on
 it; for the joint right above the body's own, the largest distance of the body's hull turned
-about its joint to every angle; 1 for a sliding joint). Along a
+about its joint to every angle; 1 for a sliding joint). Where one body hangs below the other
+(or is a scene body), ``r_j`` is at most the upper body's own distance from joint ``j``'s
+axis (``R + D_j`` of the near-body bound below): the approach speed is
+``sum_j qd_j n . (w_j x (p - o_j))`` (``w_j`` the axis through ``o_j``, ``n`` the direction
+between the closest points) for either closest point ``p``, so each joint's term is bounded
+by either body's distance from its axis. Against a fixed box whose face the body always
+projects into along the face's normal ``n`` (a half-space: any body), the first joint's
+(its axis ``w`` fixed) ``r_j`` is at most ``|n x w|`` times the body's: zero for a turntable
+above a table. Along a
 motion known only by its speeds (:func:`check_motion`) the joint speeds a time ``h`` after a
 check are at most ``|qd_j| + a_j h`` (``a_j`` the acceleration limit), so a pair approaches by
 at most ``V h + A h^2 / 2`` with ``A = sum_j a_j r_j``; the next check comes when that reaches
@@ -57,6 +65,7 @@ import weakref
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
+import coal
 import numpy as np
 
 from planner.collision.arm import box_corners, hull_points
@@ -254,6 +263,80 @@ def pair_weights(checker: CollisionChecker) -> np.ndarray:
 
 
 def _pair_weights(checker: CollisionChecker) -> np.ndarray:
+    """:func:`_reach_weights`, or per joint ``R + D_j`` of :func:`near_bounds` where smaller.
+
+    The approach speed of two bodies is ``n . (w x (p - o))`` summed over the joints between
+    them (``w`` a joint's axis through ``o``, ``n`` the direction between the closest points)
+    for any point ``p`` on the line through the closest points: per joint, either closest
+    point's distance from the axis bounds its term. The upper body's points lie within ``R``
+    of the ball's centre, which is within ``D_j`` of joint ``j``'s axis.
+    """
+    reach = _reach_weights(checker)
+    near = near_bounds(checker)
+    ball = np.where(np.isfinite(near.radius), near.radius, np.inf)[:, None] + near.offsets
+    weights = np.where(near.joints, np.minimum(reach, ball), reach)
+    _face_weights(checker, reach, weights)
+    weights.setflags(write=False)
+    return weights
+
+
+def _face_weights(checker: CollisionChecker, reach: np.ndarray, weights: np.ndarray) -> None:
+    """Per pair of a fixed box (or half-space) and a body: the first joint's weight where a face is always closest.
+
+    The body stays within ``rho`` (its reach) of the first joint's axis ``w`` (fixed in the
+    world) and within ``H`` of the joint's origin. Where every such point projects along a
+    face's normal ``n`` into the face (a half-space: always), the body off the box lies
+    wholly beyond that face's plane (it is convex) and the closest points are a normal apart:
+    the joint's term ``n . (w x r)`` is at most ``|n x w| rho``; zero where the axis is normal
+    to the face (a turntable above a table). Written into `weights` where smaller.
+    """
+    model, geom = checker.robot.model, checker.geometry
+    prismatic = np.array(checker.robot.joint_kinds) == "prismatic"
+    # A bound on any arm point's distance from the first joint's origin: every offset, slide and object.
+    height = sum(float(np.linalg.norm(model.jointPlacements[j].translation)) for j in range(1, model.njoints))
+    height += float(np.sum(np.maximum(np.abs(checker.robot.lower), np.abs(checker.robot.upper))[prismatic]))
+    objects = list(geom.geometryObjects)
+    moving = [o for o in objects if o.parentJoint > 0]
+    height += max((float(np.max(np.linalg.norm(_joint_points(o), axis=1))) for o in moving), default=0.0)
+    for k, pair in enumerate(geom.collisionPairs):
+        for fixed, body in ((objects[pair.first], objects[pair.second]), (objects[pair.second], objects[pair.first])):
+            if fixed.parentJoint != 0 or body.parentJoint == 0:
+                continue
+            first = next(j for j in model.supports[body.parentJoint] if j > 0)
+            axis = _joint_axis_or_none(model, first)
+            if axis is None or model.parents[first] != 0:
+                continue
+            w = model.jointPlacements[first].rotation @ axis
+            origin = model.jointPlacements[first].translation
+            rho = float(reach[k, first - 1])
+            shape = fixed.geometry
+            if isinstance(shape, coal.Halfspace):
+                normals = [np.asarray(fixed.placement.rotation @ shape.n, dtype=float)]
+            elif isinstance(shape, coal.Box):
+                rotation, half = fixed.placement.rotation, np.asarray(shape.halfSide, dtype=float)
+                normals = []
+                for i in range(3):
+                    n = rotation[:, i]
+                    sine = float(np.linalg.norm(np.cross(n, w)))
+                    # The body's points lie within rho of the axis, at most `height` along it from
+                    # the origin: projected along n they stay within rho + height * tan of the foot.
+                    cosine = abs(float(n @ w))
+                    if cosine <= 0.5:
+                        continue
+                    spread = rho + height * sine / cosine
+                    foot = origin - fixed.placement.translation
+                    inside = all(abs(float(foot @ rotation[:, m])) + spread <= half[m] for m in range(3) if m != i)
+                    if inside:
+                        normals.append(n)
+            else:
+                continue
+            for n in normals:
+                bound = float(np.linalg.norm(np.cross(n, w))) * rho
+                weights[k, first - 1] = min(weights[k, first - 1], bound)
+
+
+def _reach_weights(checker: CollisionChecker) -> np.ndarray:
+    """Per pair and joint, ``r_j`` of the module docstring: how far the lower body's points are from the axis."""
     robot = checker.robot
     model = robot.model
     geom = checker.geometry
@@ -317,7 +400,6 @@ def _pair_weights(checker: CollisionChecker) -> np.ndarray:
             only = [j - 1 for j in own - other]
             if only:
                 weights[k, only] += reach_of(i)[only]
-    weights.setflags(write=False)
     return weights
 
 
