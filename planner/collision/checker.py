@@ -439,6 +439,7 @@ class _CloserThan:
             self.gdata.activeCollisionPairs[k] = bool(on)
         for request in self.gdata.collisionRequests:
             request.security_margin = distance
+            request.enable_contact = False  # a verdict only: no contact points or depths
         self.broadphase = pin.BroadPhaseManager_NaiveCollisionManager(robot.model, checker.geometry, self.gdata)
         self.to_pinocchio = robot.pinocchio_configuration
         self.any = bool(np.any(mask))
