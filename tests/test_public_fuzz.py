@@ -143,7 +143,7 @@ def test_plan_out_and_bench_out_that_cannot_be_written_are_one_line(tmp_path, ca
     plan.write_text(DH3_PLAN)
     (tmp_path / "out" / "trajectory.csv").mkdir(parents=True)
     line = cli_error(capsys, "plan", "dh3", str(plan), "--out", str(tmp_path / "out"))
-    assert line == f"planner plan: error: {str(tmp_path / 'out' / 'trajectory.csv')!r}: Is a directory"
+    assert line == f"planner plan: error: cannot write {str(tmp_path / 'out' / 'trajectory.csv')!r}: Is a directory"
     line = cli_error(capsys, "bench", "dh3", "--n", "1", "--out", str(plan))
     assert line == f"planner bench: error: {str(plan)!r}: File exists"
 
