@@ -1227,7 +1227,11 @@ def test_random_arms_and_scenes_give_the_same_results_with_and_without_the_compi
         finally:
             cc._native_library = loader
     a, b = results
-    assert (a.clear, a.checks, a.closest.bodies) == (b.clear, b.checks, b.closest.bodies)
+    assert (a.clear, a.checks) == (b.clear, b.checks)
+    # The closest pair, unless two pairs tie (found by CI's hypothesis: two links of a random
+    # arm 377.6 mm deep in the floor, equal to 1e-16 m, and rounding named either).
+    tie = abs(a.closest.distance - b.closest.distance) <= 1e-9
+    assert a.closest.bodies == b.closest.bodies or tie, (a.closest, b.closest)
     assert (a.first_hit is None) == (b.first_hit is None)
     # (x drifts apart in the last bits over many checks: the Python rows carry offsets.)
     slack = 1e-7 * max(traj.duration, 1.0)
@@ -1251,7 +1255,13 @@ def test_random_arms_and_scenes_give_the_same_results_with_and_without_the_compi
             float(x), due, d, scene.clearance, cc.DEFAULT_TOLERANCE, 0.0, until, early, traj.duration
         )
         big = 1e6 * traj.duration
-        np.testing.assert_allclose(np.minimum(until[due] - x, big), np.minimum(want, big), rtol=1e-9, atol=1e-12)
+        # The Python rows carry an offset per row (one search over all of them), which rounds W
+        # by up to 1e-15 of the offsets (the `slack` both paths take off every room): the steps
+        # agree to that rounding, not bit for bit (CI's hypothesis found 4e-11 s on a 1.1 s
+        # trajectory, 1.2e-9 of the step).
+        np.testing.assert_allclose(
+            np.minimum(until[due] - x, big), np.minimum(want, big), rtol=1e-9, atol=1e-9 * max(traj.duration, 1.0)
+        )
         after = min(float(until.min(initial=np.inf)), traj.duration)
         assert got_x == min(after if after > x else np.nextafter(x, np.inf), traj.duration)
         np.testing.assert_array_equal(got_due, np.flatnonzero(early <= got_x))
