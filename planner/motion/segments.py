@@ -234,8 +234,8 @@ def _turn_reach(slack: float, jerk: float, duration: float) -> float:
 def _turn_beyond(prof, end: float, upper: bool) -> bool:
     """Whether a profile turns round inside a phase of zero jerk beyond a range end.
 
-    Ruckig's extrema miss such a turn; it is computed as :func:`merge_segment` does (see
-    :func:`_plain_missed_turns`), so that the searches reject what the range repair would.
+    Ruckig's extrema miss such a turn; it is computed as :func:`merge_segment` does (by
+    :func:`_zero_jerk_turns`), so that the searches reject what the range repair would.
 
     Args:
         prof: One joint's Ruckig profile.
@@ -245,19 +245,25 @@ def _turn_beyond(prof, end: float, upper: bool) -> bool:
     v = prof.v
     if not min(v) < 0.0 < max(v):  # no sign change, no turn (the common case)
         return False
-    jerk = None
-    for i in range(len(v) - 1):
+    turns = _zero_jerk_turns(prof)
+    return any(turn > end for turn in turns) if upper else any(turn < end for turn in turns)
+
+
+def _zero_jerk_turns(prof) -> list[float]:
+    """Where one joint's Ruckig profile turns round inside phases of zero jerk [rad or m], in order.
+
+    Ruckig's extrema miss these turns; :func:`_turn_beyond` and :func:`_plain_missed_turns`
+    take them from here, so both see the same values bit for bit.
+    """
+    v, jerk = prof.v, prof.j
+    turns = []
+    for i in range(len(jerk)):
         v0 = v[i]
-        if v0 * v[i + 1] < 0.0:
-            if jerk is None:
-                jerk = prof.j
-            if jerk[i] == 0.0:
-                a0 = prof.a[i]
-                tz = -v0 / a0
-                turn = prof.p[i] + tz * (v0 + tz * a0 / 2.0)
-                if turn > end if upper else turn < end:
-                    return True
-    return False
+        if jerk[i] == 0.0 and v0 * v[i + 1] < 0.0:
+            a0 = prof.a[i]
+            tz = -v0 / a0
+            turns.append(prof.p[i] + tz * (v0 + tz * a0 / 2.0))
+    return turns
 
 
 def speed_overshoots(
@@ -889,14 +895,8 @@ def _plain_missed_turns(profiles: list, end: np.ndarray | None) -> tuple[np.ndar
             return None
         v = prof.v
         if min(v) < 0.0 < max(v):  # a sign change, often only a rounding at the end
-            j = prof.j
-            for i in range(len(j)):
-                v0 = v[i]
-                if j[i] == 0.0 and v0 * v[i + 1] < 0.0:
-                    a0 = prof.a[i]
-                    tz = -v0 / a0
-                    turn = prof.p[i] + tz * (v0 + tz * a0 / 2.0)
-                    low[k], high[k] = min(low[k], turn), max(high[k], turn)
+            for turn in _zero_jerk_turns(prof):
+                low[k], high[k] = min(low[k], turn), max(high[k], turn)
     return np.array(low), np.array(high)
 
 
