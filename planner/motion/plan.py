@@ -107,8 +107,6 @@ def _repair_range(chain: ViaChain) -> list[tuple[float, SegmentPieces]]:
     lows, highs = limits.checked_floats
     for _ in range(4 * _REPAIR_HALVINGS + chain.n):
         segments, any_bad = [], False
-        # The via states as floats, for the speed check (made again after a change).
-        v_floats, acc_floats = chain.v.tolist(), chain.acc.tolist()
         for k in range(chain.n - 1):
             start = (q_rows[k], v_rows[k], acc_rows[k])
             d, outside, traj = chain.seg.solve(k, v_rows[k], acc_rows[k], v_rows[k + 1], acc_rows[k + 1], keep=True)
@@ -139,9 +137,8 @@ def _repair_range(chain: ViaChain) -> list[tuple[float, SegmentPieces]]:
             segments.append((d, merged))
             if d <= 0.0:
                 continue
-            if any_bad:  # a via state changed in this pass
-                v_floats, acc_floats = chain.v.tolist(), chain.acc.tolist()
-            fast = speed_overshoots(traj, (v_floats[k], acc_floats[k]), (v_floats[k + 1], acc_floats[k + 1]), limits)
+            ends = (v_rows[k].tolist(), acc_rows[k].tolist()), (v_rows[k + 1].tolist(), acc_rows[k + 1].tolist())
+            fast = speed_overshoots(traj, *ends, limits)
             if not chain.seg.bounded and not fast:
                 continue
             if not chain.seg.bounded:
