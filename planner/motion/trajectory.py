@@ -197,17 +197,20 @@ class JointTrajectory:
             InvalidArgumentError: As :meth:`sample`.
         """
         tt, _, flat = self._checked_times(t, clamp)
-        idx = np.clip(np.searchsorted(self.knots, flat, side="right") - 1, 0, len(self.knots) - 1)
-        q = self._positions_at(flat, idx)
+        q = self._positions_at(*self._locate(flat))
         return q[0] if tt.ndim == 0 else q.reshape(tt.shape + (self.dof,))
 
-    def _positions_at(self, flat: np.ndarray, idx: np.ndarray) -> np.ndarray:
-        """``p + dt (v + dt (a / 2 + dt j / 6))`` at times `flat` in intervals `idx`, the end at rest.
+    def _locate(self, flat: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Per time of `flat` in [0, duration]: its interval, the time into it (n, 1) [s], whether it is the end."""
+        idx = np.clip(np.searchsorted(self.knots, flat, side="right") - 1, 0, len(self.knots) - 1)
+        return idx, (flat - self.knots[idx])[:, None], flat >= self.duration
+
+    def _positions_at(self, idx: np.ndarray, dt: np.ndarray, end: np.ndarray) -> np.ndarray:
+        """``p + dt (v + dt (a / 2 + dt j / 6))`` at times `dt` into intervals `idx`, the `end` at rest.
 
         Written in place, operation by operation as the expression reads (the same values), a
         few times faster than with a temporary array per operation.
         """
-        dt = (flat - self.knots[idx])[:, None]
         q = self.j[idx]
         q *= dt
         q /= 6.0
@@ -218,7 +221,6 @@ class JointTrajectory:
         q += self.v[idx]
         q *= dt
         q += self.p[idx]
-        end = flat >= self.duration
         if end.any():
             q[end] = self.waypoints[-1]
         return q
@@ -239,14 +241,12 @@ class JointTrajectory:
         """
         tt, asked, flat = self._checked_times(t, clamp)
         scalar = tt.ndim == 0
-        idx = np.clip(np.searchsorted(self.knots, flat, side="right") - 1, 0, len(self.knots) - 1)
-        dt = (flat - self.knots[idx])[:, None]
+        idx, dt, end = self._locate(flat)
         v, a, j = self.v[idx], self.a[idx], self.j[idx]
-        q = self._positions_at(flat, idx)
+        q = self._positions_at(idx, dt, end)
         qd = v + dt * (a + dt * j / 2.0)
         qdd = a + dt * j
         qddd = j.copy()
-        end = flat >= self.duration
         if end.any():
             qd[end], qdd[end], qddd[end] = 0.0, 0.0, 0.0
         if scalar:
