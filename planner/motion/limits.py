@@ -201,9 +201,11 @@ class JointLimits:
             return
         with np.errstate(invalid="ignore", over="ignore"):
             need = np.abs(np.diff(q, axis=0)) / self.velocity
-        worst = np.nanmax(np.where(np.isfinite(need), need, np.inf), axis=1)
-        for k in np.nonzero(worst > MAX_SEGMENT_DURATION)[0].tolist():
-            j = int(np.argmax(np.where(np.isfinite(need[k]), need[k], np.inf)))
+        worst = np.where(np.isfinite(need), need, np.inf)  # an overflow or NaN counts as too long
+        too_long = np.nonzero(worst.max(axis=1) > MAX_SEGMENT_DURATION)[0]
+        if too_long.size:
+            k = int(too_long[0])
+            j = int(np.argmax(worst[k]))
             a, b = (labels[k], labels[k + 1]) if labels is not None else (f"waypoint {k}", f"waypoint {k + 1}")
             raise PlanningError(
                 f"{a} -> {b}: joint {self.joint_names[j]} moves {plain(abs(q[k + 1, j] - q[k, j]))}, at least "
