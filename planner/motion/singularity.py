@@ -294,6 +294,23 @@ def _extreme_bounds(gram: np.ndarray) -> np.ndarray:
     )
 
 
+def _condition_bracket(bounds: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Lower and upper bounds of the inverse condition number from rows of :func:`_extreme_bounds`.
+
+    ``sqrt(lambda_min / lambda_max)`` of ``J J^T`` from its eigenvalue bounds, each widened by
+    1e-9 for the rounding of the root and the division.
+
+    Returns:
+        Per row, ``(lower bound, upper bound)``: 0 where the largest eigenvalue's upper bound is
+        not positive, inf where its lower bound is not (nothing shown).
+    """
+    l_min, h_min, l_max, h_max = bounds[:, :4].T
+    with np.errstate(invalid="ignore", divide="ignore"):
+        low = np.sqrt(np.maximum(l_min, 0.0) / h_max) * (1.0 - 1e-9)
+        up = np.sqrt(h_min / l_max) * (1.0 + 1e-9)
+    return np.where(h_max > 0.0, low, 0.0), np.where((l_max > 0.0) & np.isfinite(up), up, np.inf)
+
+
 def _gram(scaled: np.ndarray) -> np.ndarray:
     """``S S^T`` of each matrix of `scaled` (or ``S^T S`` for tall ones): eigenvalues ``s_i^2``.
 
@@ -572,7 +589,8 @@ def bounded_conditioning(
     if len(loose):
         scaled_all[loose] = robot.task_rows(kernel(q[loose]), task)[1]
         gram = _gram(scaled_all[loose])
-        l_min, h_min, l_max, h_max, l_product = _extreme_bounds(gram).T
+        brackets = _extreme_bounds(gram)
+        l_min, h_min, l_max, h_max, l_product = brackets.T
         # The determinant from above: the pivots of G + 1e-12 tr(G) I (the factorisation's
         # rounding, far below that shift, keeps the factored matrix above G).
         trace = np.trace(gram, axis1=1, axis2=2)
@@ -581,11 +599,7 @@ def bounded_conditioning(
         ends_at.top[loose], ends_at.min_up[loose] = np.sqrt(h_max), np.sqrt(h_min)
         ends_at.bottom[loose], ends_at.max_low[loose] = np.sqrt(np.maximum(l_min, 0.0)), np.sqrt(np.maximum(l_max, 0.0))
         ends_at.product[loose] = np.sqrt(np.maximum(l_product, 0.0))
-        with np.errstate(invalid="ignore", divide="ignore"):
-            loose_low = np.sqrt(np.maximum(l_min, 0.0) / h_max) * (1.0 - 1e-9)
-            loose_up = np.sqrt(h_min / l_max) * (1.0 + 1e-9)
-        loose_low = np.where(h_max > 0.0, loose_low, 0.0)
-        value_up[loose] = np.where((l_max > 0.0) & np.isfinite(loose_up), loose_up, np.inf)
+        loose_low, value_up[loose] = _condition_bracket(brackets)
     is_anchor = np.zeros(n, dtype=bool)
     is_anchor[anchors] = True
     rows = np.nonzero(~is_anchor)[0]
@@ -675,13 +689,12 @@ def bounded_conditioning(
         open_inv = ~settled_inv()[take]
         product = np.zeros(len(take))
         if open_inv.any():
-            low_min, high_min, low_max, high_max, product[open_inv] = _extreme_bounds(gram[open_inv]).T
-            with np.errstate(invalid="ignore", divide="ignore"):
-                floor = np.sqrt(np.maximum(low_min, 0.0) / high_max) * (1.0 - 1e-9)
-                ceiling = np.sqrt(high_min / low_max) * (1.0 + 1e-9)
+            brackets = _extreme_bounds(gram[open_inv])
+            product[open_inv] = brackets[:, 4]
+            floor, ceiling = _condition_bracket(brackets)
             at = take[open_inv]
-            lo_inv[at] = np.maximum(lo_inv[at], np.where(high_max > 0.0, floor, 0.0))
-            below[at] |= (low_max > 0.0) & (ceiling < threshold)
+            lo_inv[at] = np.maximum(lo_inv[at], floor)
+            below[at] |= ceiling < threshold
         if divisor is None:
             product = _positive_definite(_gram(raw), np.zeros(len(take)))[1]
         else:
