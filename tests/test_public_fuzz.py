@@ -369,9 +369,9 @@ def test_a_urdf_file_that_is_not_utf8_is_a_urdf_error(tmp_path):
 def test_trajectory_times_that_are_not_numbers_are_an_invalid_argument():
     traj = _short_trajectory()
     for bad in ("x", [0.1, "y"], {"t": 1}):
-        with pytest.raises(planner.InvalidArgumentError, match="times must be numbers"):
+        with pytest.raises(planner.InvalidArgumentError, match="time must be a number or an array of numbers"):
             traj.sample(bad)
-        with pytest.raises(planner.InvalidArgumentError, match="times must be numbers"):
+        with pytest.raises(planner.InvalidArgumentError, match="time must be a number or an array of numbers"):
             traj.positions(bad)
 
 

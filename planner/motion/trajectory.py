@@ -17,6 +17,7 @@ from pathlib import Path
 
 import numpy as np
 
+from planner.core.arrays import float_array
 from planner.core.text import plain
 from planner.exceptions import InvalidArgumentError
 from planner.motion.limits import JointLimits
@@ -170,10 +171,7 @@ class JointTrajectory:
 
     def _checked_times(self, t: float | Sequence[float] | np.ndarray, clamp: bool) -> tuple[np.ndarray, ...]:
         """`t` as an array, flattened, and flattened within [0, duration] (clamped or checked)."""
-        try:
-            tt = np.asarray(t, dtype=float)
-        except (TypeError, ValueError) as exc:
-            raise InvalidArgumentError(f"times must be numbers [s], got {t!r:.60}") from exc
+        tt = float_array(t, "time")
         asked = tt.reshape(-1)
         if asked.size and not np.all(np.isfinite(asked)):
             bad = asked[~np.isfinite(asked)][0]
