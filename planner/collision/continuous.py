@@ -273,7 +273,7 @@ def _pair_weights(checker: CollisionChecker) -> np.ndarray:
     """
     reach = _reach_weights(checker)
     near = near_bounds(checker)
-    ball = np.where(np.isfinite(near.radius), near.radius, np.inf)[:, None] + near.offsets
+    ball = near.radius[:, None] + near.offsets  # R is inf where the bound does not apply
     weights = np.where(near.joints, np.minimum(reach, ball), reach)
     _face_weights(checker, reach, weights)
     weights.setflags(write=False)
