@@ -443,6 +443,26 @@ class _CloserThan:
         self.broadphase = pin.BroadPhaseManager_NaiveCollisionManager(robot.model, checker.geometry, self.gdata)
         self.to_pinocchio = robot.pinocchio_configuration
         self.any = bool(np.any(mask))
+        # For inner loops of float vectors (the path search's): the same test as one call of
+        # Pinocchio's, the vector as it is where Pinocchio's configuration is the joint vector.
+        model, data, manager, compute, keep = self.model, self.data, self.broadphase, pin.computeCollisions, self
+        if not self.any:
+
+            def floats(q: np.ndarray) -> bool:
+                return False
+
+        elif model.nq == robot.dof:
+
+            def floats(q: np.ndarray, _keep=keep) -> bool:
+                return compute(model, data, manager, q, True)
+
+        else:
+            to_pinocchio = self.to_pinocchio
+
+            def floats(q: np.ndarray, _keep=keep) -> bool:
+                return compute(model, data, manager, to_pinocchio(q), True)
+
+        self.floats = floats
 
     def __call__(self, q: np.ndarray) -> bool:
         if not self.any:

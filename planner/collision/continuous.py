@@ -273,7 +273,7 @@ def _pair_weights(checker: CollisionChecker) -> np.ndarray:
     """
     reach = _reach_weights(checker)
     near = near_bounds(checker)
-    ball = np.where(np.isfinite(near.radius), near.radius, np.inf)[:, None] + near.offsets
+    ball = near.radius[:, None] + near.offsets  # R is inf where the bound does not apply
     weights = np.where(near.joints, np.minimum(reach, ball), reach)
     _face_weights(checker, reach, weights)
     weights.setflags(write=False)
@@ -304,17 +304,19 @@ def _face_weights(checker: CollisionChecker, reach: np.ndarray, weights: np.ndar
                 continue
             first = next(j for j in model.supports[body.parentJoint] if j > 0)
             axis = _joint_axis_or_none(model, first)
-            if axis is None or model.parents[first] != 0:
+            if axis is None:
                 continue
             w = model.jointPlacements[first].rotation @ axis
             origin = model.jointPlacements[first].translation
             rho = float(reach[k, first - 1])
             shape = fixed.geometry
             if isinstance(shape, coal.Halfspace):
-                normals = [np.asarray(fixed.placement.rotation @ shape.n, dtype=float)]
+                normal = np.asarray(fixed.placement.rotation @ shape.n, dtype=float)
+                sines = [float(np.linalg.norm(np.cross(normal, w)))]
             elif isinstance(shape, coal.Box):
                 rotation, half = fixed.placement.rotation, np.asarray(shape.halfSide, dtype=float)
-                normals = []
+                foot = origin - fixed.placement.translation
+                sines = []
                 for i in range(3):
                     n = rotation[:, i]
                     sine = float(np.linalg.norm(np.cross(n, w)))
@@ -324,15 +326,13 @@ def _face_weights(checker: CollisionChecker, reach: np.ndarray, weights: np.ndar
                     if cosine <= 0.5:
                         continue
                     spread = rho + height * sine / cosine
-                    foot = origin - fixed.placement.translation
                     inside = all(abs(float(foot @ rotation[:, m])) + spread <= half[m] for m in range(3) if m != i)
                     if inside:
-                        normals.append(n)
+                        sines.append(sine)
             else:
                 continue
-            for n in normals:
-                bound = float(np.linalg.norm(np.cross(n, w))) * rho
-                weights[k, first - 1] = min(weights[k, first - 1], bound)
+            for sine in sines:
+                weights[k, first - 1] = min(weights[k, first - 1], sine * rho)
 
 
 def _reach_weights(checker: CollisionChecker) -> np.ndarray:

@@ -31,12 +31,10 @@ import enum
 import itertools
 import math
 import time
-import weakref
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
-import pinocchio as pin
 
 from planner.collision.checker import CollisionChecker
 from planner.collision.continuous import check_segment, segment_is_clear, sweep_order
@@ -209,55 +207,16 @@ def segment_looks_clear(
     return not near(a) and not any(map(near, a + sweep_order(n)[:, None] * d))
 
 
-#: Per checker, the search's proximity tests by distance and allow set (:func:`_proximity_test`).
-_TESTS: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
-
-
 def _proximity_test(checker: CollisionChecker, distance: float, allow: Sequence[str]) -> Callable[[np.ndarray], bool]:
-    """:meth:`CollisionChecker.closer_than`'s test, as one call of Pinocchio's collision test without contact details.
+    """:meth:`CollisionChecker.closer_than`'s test, as one call of Pinocchio's collision test (its ``floats``).
 
-    The same pairs, margin and broad phase, so the same verdicts: coal's collision test with
-    `distance` as security margin, but asking only whether a pair is that close, not how deep
-    two overlapping bodies are (coal's EPA after GJK finds an overlap; 15 to 30 % of a test on
-    random ur5 and panda configurations, most of them colliding). For an arm without
-    continuous joints the search's float vectors go to Pinocchio as they are. Kept per checker,
-    distance and allow set; a stand-in checker (not a :class:`CollisionChecker`) gives its own.
+    The same pairs, margin, broad phase and test object, so the same verdicts; for an arm
+    without continuous joints the search's float vectors go to Pinocchio as they are. Kept
+    per checker, distance and allow set by :meth:`CollisionChecker.closer_than`; a stand-in
+    checker (not a :class:`CollisionChecker`) gives its own test.
     """
-    if not isinstance(checker, CollisionChecker):
-        return checker.closer_than(distance, allow)
-    held = _TESTS.setdefault(checker, {})
-    key = (float(distance), tuple(sorted(set(allow))))
-    test = held.get(key)
-    if test is None:
-        if len(held) >= 32:
-            held.clear()
-        test = held[key] = _build_test(checker, float(distance), checker.pair_mask(allow))
-    return test
-
-
-def _build_test(checker: CollisionChecker, distance: float, mask: np.ndarray) -> Callable[[np.ndarray], bool]:
-    if not mask.any():
-        return lambda q: False
-    robot, geometry = checker.robot, checker.geometry
-    model, data, gdata = robot.model, robot.model.createData(), pin.GeometryData(geometry)
-    for k, on in enumerate(mask.tolist()):
-        gdata.activeCollisionPairs[k] = on
-    for request in gdata.collisionRequests:
-        request.security_margin = distance
-        request.enable_contact = False
-    manager = pin.BroadPhaseManager_NaiveCollisionManager(model, geometry, gdata)
-    compute, to_pinocchio = pin.computeCollisions, robot.pinocchio_configuration
-    if model.nq == robot.dof:  # no continuous joint: Pinocchio's configuration is the joint vector
-
-        def near(q: np.ndarray, _keep=(gdata, geometry)) -> bool:
-            return compute(model, data, manager, q, True)
-
-    else:
-
-        def near(q: np.ndarray, _keep=(gdata, geometry)) -> bool:
-            return compute(model, data, manager, to_pinocchio(q), True)
-
-    return near
+    test = checker.closer_than(distance, allow)
+    return getattr(test, "floats", test)
 
 
 def path_margin(clearance: float, end_distance: float, margin: float) -> float:
