@@ -21,7 +21,7 @@ from planner.app.outputs import write_plan_files
 from planner.app.plan_file import MotionRequest
 from planner.collision.checker import CollisionChecker, shared_checker
 from planner.collision.continuous import MotionClearance, check_segment, check_trajectory, segment_is_clear
-from planner.collision.rrt import PathResult, certify_path, find_clear_path, path_margin, segment_looks_clear
+from planner.collision.rrt import PathResult, certify_path, ends_margin, find_clear_path, segment_looks_clear
 from planner.collision.scene import Scene
 from planner.core.arrays import read_only
 from planner.core.files import input_error, parse_number
@@ -293,11 +293,7 @@ def _route(
         result = certify_path(checker, found, options=options, allow=names)
     else:
         if not blocked:
-            # As the search does: an end beyond clearance + 2 margin needs no distance.
-            mask = checker.pair_mask(names)
-            far = checker.closer_than(checker.scene.clearance + 2.0 * options.margin, names)
-            end = min([math.inf] + [checker.distance_at(q, mask).distance for q in q_user[k - 1 : k + 1] if far(q)])
-            margin = path_margin(checker.scene.clearance, end, options.margin)
+            margin = ends_margin(checker, q_user[k - 1 : k + 1], names, options.margin)
             if segment_is_clear(checker, q_user[k - 1], q_user[k], allow=names, margin=margin):
                 return [q_user[k - 1], q_user[k]], True, None
         # The search would test the straight segment again with the same margin: it is blocked.

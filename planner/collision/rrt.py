@@ -47,6 +47,7 @@ __all__ = [
     "PathStatus",
     "certify_path",
     "find_clear_path",
+    "ends_margin",
     "path_margin",
     "segment_looks_clear",
 ]
@@ -227,6 +228,18 @@ def path_margin(clearance: float, end_distance: float, margin: float) -> float:
     beyond the clearance.
     """
     return float(min(margin, max(0.0, (end_distance - clearance) / 2.0)))
+
+
+def ends_margin(checker: CollisionChecker, ends: Sequence[np.ndarray], allow: Sequence[str], margin: float) -> float:
+    """:func:`path_margin` of a path between `ends` [m], from their distances to the scene.
+
+    An end at least ``clearance + 2 margin`` from everything (one proximity test) keeps the
+    whole margin; only a nearer one needs its distance.
+    """
+    mask = checker.pair_mask(allow)
+    near = checker.closer_than(checker.scene.clearance + 2.0 * margin, allow)
+    end = min([math.inf] + [checker.distance_at(q, mask).distance for q in ends if near(q)])
+    return path_margin(checker.scene.clearance, end, margin)
 
 
 def find_clear_path(
@@ -423,10 +436,7 @@ def certify_path(
         return found
     options = options or PathOptions()
     q0, q1 = np.array(found.path[0]), np.array(found.path[-1])
-    mask = checker.pair_mask(allow)
-    far = checker.closer_than(checker.scene.clearance + 2.0 * options.margin, allow)
-    end = min([np.inf] + [checker.distance_at(q, mask).distance for q in (q0, q1) if far(q)])
-    need = checker.scene.clearance + path_margin(checker.scene.clearance, end, options.margin)
+    need = checker.scene.clearance + ends_margin(checker, (q0, q1), allow, options.margin)
     _, _, between, certify = _edge_tests(checker, need, allow, options.resolution)
     short, path = list(found.path), list(found.tree_path)
     if all(certify(a, b) for a, b in zip(short, short[1:])):
