@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import re
 import warnings
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -364,6 +365,15 @@ def test_a_urdf_file_that_is_not_utf8_is_a_urdf_error(tmp_path):
     path.write_bytes(b'<robot name="x">\xff</robot>')
     with pytest.raises(planner.URDFError, match="not UTF-8 text.*0xff"):
         planner.Robot.from_urdf(path)
+
+
+def test_a_urdf_file_with_a_byte_order_mark_loads(tmp_path):
+    # Windows editors start UTF-8 files with a byte-order mark; plan files accept one, so do URDFs.
+    source = Path(get_robot("al5c").source)
+    path = tmp_path / "bom.urdf"
+    path.write_bytes(b"\xef\xbb\xbf" + source.read_bytes())
+    robot = planner.Robot.from_urdf(path)
+    assert robot.dof == get_robot("al5c").dof
 
 
 def test_trajectory_times_that_are_not_numbers_are_an_invalid_argument():

@@ -19,9 +19,17 @@ import numpy as np
 
 from planner.core.text import plain
 from planner.core.units import ANGLE_UNITS, LENGTH_UNITS
-from planner.exceptions import InvalidArgumentError
+from planner.exceptions import InvalidArgumentError, PlannerError
 
-__all__ = ["input_error", "parse_number", "parse_numbers", "parse_units", "positive_number", "read_data_file"]
+__all__ = [
+    "input_error",
+    "parse_number",
+    "parse_numbers",
+    "parse_units",
+    "positive_number",
+    "read_data_file",
+    "read_text_file",
+]
 
 
 def positive_number(value: Any, what: str) -> float:
@@ -38,6 +46,28 @@ def positive_number(value: Any, what: str) -> float:
     return x
 
 
+def read_text_file(path: str | Path, what: str, error: type[PlannerError] = InvalidArgumentError) -> str:
+    """A UTF-8 text file's text, without a leading byte-order mark (Windows editors write one).
+
+    Args:
+        path: The file.
+        what: What the file is, for messages (e.g. ``"URDF file"``).
+        error: The error raised.
+
+    Raises:
+        PlannerError: `error`, if the file cannot be read or is not UTF-8 text.
+    """
+    p = Path(path)
+    try:
+        return p.read_text(encoding="utf-8-sig")
+    except OSError as exc:
+        raise error(f"cannot read {what} {str(p)!r}: {exc.strerror}") from exc
+    except UnicodeDecodeError as exc:
+        raise error(
+            f"cannot read {what} {str(p)!r}: not UTF-8 text (byte {exc.object[exc.start]:#04x} at offset {exc.start})"
+        ) from exc
+
+
 def read_data_file(path: str | Path, what: str) -> Any:
     """Parse a file as JSON (``.json``) or YAML (anything else).
 
@@ -52,14 +82,7 @@ def read_data_file(path: str | Path, what: str) -> Any:
         InvalidArgumentError: If the file cannot be read or does not parse.
     """
     p = Path(path)
-    try:
-        text = p.read_text(encoding="utf-8-sig")  # a byte-order mark (Windows editors) is not JSON
-    except OSError as exc:
-        raise InvalidArgumentError(f"cannot read {what} {str(p)!r}: {exc.strerror}") from exc
-    except UnicodeDecodeError as exc:
-        raise InvalidArgumentError(
-            f"cannot read {what} {str(p)!r}: not UTF-8 text (byte {exc.object[exc.start]:#04x} at offset {exc.start})"
-        ) from exc
+    text = read_text_file(p, what)
     try:
         if p.suffix.lower() == ".json":
             return json.loads(text)

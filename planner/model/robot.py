@@ -19,6 +19,7 @@ import numpy as np
 import pinocchio as pin
 
 from planner.core.arrays import read_only
+from planner.core.files import read_text_file
 from planner.exceptions import (
     InvalidArgumentError,
     InvalidConfigurationError,
@@ -318,15 +319,7 @@ class Robot:
         """
         if isinstance(urdf, Path) or (isinstance(urdf, str) and "<" not in urdf):
             path = Path(urdf)
-            try:
-                text = path.read_text(encoding="utf-8")
-            except OSError as exc:
-                raise URDFError(f"cannot read URDF file {str(path)!r}: {exc.strerror}") from exc
-            except UnicodeDecodeError as exc:
-                byte = exc.object[exc.start]
-                raise URDFError(
-                    f"URDF file {str(path)!r} is not UTF-8 text (byte 0x{byte:02x} at offset {exc.start})"
-                ) from exc
+            text = read_text_file(path, "URDF file", URDFError)
             return cls(
                 text,
                 tip=tip,
