@@ -29,6 +29,7 @@ from typing import TextIO
 
 import numpy as np
 
+from planner.core.rotations import unit_quaternions
 from planner.exceptions import TargetFileError
 from planner.geometry.target_batch import BatchTargets
 from planner.ik.numeric.batch_result import BatchIKResult
@@ -165,14 +166,11 @@ def read_targets(source: str | Path | TextIO, *, deg: bool = False) -> BatchTarg
         rpy = np.radians(values[:, 3:6]) if deg else values[:, 3:6]
         rotations, kind = _rpy_matrices(rpy), "pose"
     elif group == "quaternion":
-        # Scaled by the largest component first: squares of components past 1e154 overflow.
-        largest = np.max(np.abs(values[:, 3:7]), axis=1)
-        scaled = values[:, 3:7] / np.where(largest > 0, largest, 1.0)[:, None]
-        norm = np.linalg.norm(scaled, axis=1)
-        if np.any(largest * norm < 1e-12):
-            k = int(np.argmax(largest * norm < 1e-12))
+        unit, zero = unit_quaternions(values[:, 3:7])
+        if np.any(zero):
+            k = int(np.argmax(zero))
             raise TargetFileError("the quaternion (qx, qy, qz, qw) has zero norm", path=name, line=rows[k][0])
-        rotations, kind = _quaternion_matrices(scaled / norm[:, None]), "pose"
+        rotations, kind = _quaternion_matrices(unit), "pose"
     elif group == "approach_pitch":
         pitches = np.radians(values[:, 3]) if deg else values[:, 3]
         kind = "pitch"

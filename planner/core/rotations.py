@@ -22,6 +22,7 @@ __all__ = [
     "quaternion_to_matrix",
     "rotation_error",
     "rpy_to_matrix",
+    "unit_quaternions",
 ]
 
 #: Largest |R^T R - I| entry accepted for a rotation matrix.
@@ -68,13 +69,29 @@ def quaternion_to_matrix(quaternion: Sequence[float] | np.ndarray) -> np.ndarray
         InvalidArgumentError: If the quaternion is NaN or has (near) zero norm.
     """
     arr = finite_vector(quaternion, 4, "quaternion (x, y, z, w)")
-    # Scaled by its largest component first: the squares of components past 1e154 overflow, and
-    # Pinocchio then normalises to the identity.
-    largest = float(np.max(np.abs(arr)))
-    if largest == 0.0 or largest * float(np.linalg.norm(arr / largest)) < 1e-12:
+    unit, zero = unit_quaternions(arr[None])
+    if zero[0]:
         raise InvalidArgumentError(f"quaternion (x, y, z, w) has zero norm: {arr.tolist()}")
-    x, y, z, w = arr / largest
+    x, y, z, w = unit[0]
     return np.array(pin.Quaternion(w, x, y, z).normalized().matrix())
+
+
+def unit_quaternions(xyzw: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Finite quaternions (N, 4) scaled to unit norm, and which of them have (near) zero norm.
+
+    Each is divided by its largest component before its norm is taken: the squares of
+    components past 1e154 overflow (and Pinocchio would then normalise to the identity).
+
+    Returns:
+        ``(unit, zero)``: the unit quaternions (N, 4) (rows of zero norm are not meaningful) and
+        a boolean mask (N,) of those whose norm is below 1e-12.
+    """
+    largest = np.max(np.abs(xyzw), axis=1)
+    scaled = xyzw / np.where(largest > 0, largest, 1.0)[:, None]
+    norm = np.linalg.norm(scaled, axis=1)
+    with np.errstate(over="ignore"):  # a norm past 1e308 is inf: not zero
+        zero = largest * norm < 1e-12
+    return scaled / np.where(zero, 1.0, norm)[:, None], zero
 
 
 def check_rotation(rotation: Sequence[Sequence[float]] | np.ndarray) -> np.ndarray:
