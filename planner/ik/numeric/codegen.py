@@ -20,12 +20,9 @@ from pathlib import Path
 
 import casadi as ca
 
-from planner.core.native import build_library, cache_dir, find_compiler
+from planner.core.native import FLAGS, build_library, cache_dir, find_compiler
 
-__all__ = ["COMPILER_FLAGS", "casadi_cache_dir", "compile_function"]
-
-#: Flags of the C compiler: optimised, position-independent, a shared library.
-COMPILER_FLAGS = ("-O2", "-fPIC", "-shared")
+__all__ = ["casadi_cache_dir", "compile_function"]
 
 
 def casadi_cache_dir() -> Path:
@@ -33,7 +30,7 @@ def casadi_cache_dir() -> Path:
     return cache_dir("casadi")
 
 
-def compile_function(function: ca.Function, *, flags: Sequence[str] = COMPILER_FLAGS) -> ca.Function:
+def compile_function(function: ca.Function, *, flags: Sequence[str] = FLAGS) -> ca.Function:
     """A compiled (C shared library) version of a CasADi function, from the cache when there.
 
     The cache key is a hash of the generated C code, CasADi's version, the compiler and the
@@ -42,7 +39,7 @@ def compile_function(function: ca.Function, *, flags: Sequence[str] = COMPILER_F
 
     Args:
         function: The function; it must support code generation.
-        flags: Compiler flags.
+        flags: Compiler flags (default: :data:`planner.core.native.FLAGS`).
 
     Returns:
         The compiled function, or `function` itself when compiling is switched off
