@@ -30,6 +30,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from planner.core.arrays import float_array
 from planner.core.rotations import check_rotation, finite_vector, quaternion_to_matrix, rpy_to_matrix
 from planner.core.text import plain
 from planner.exceptions import InvalidArgumentError
@@ -221,10 +222,7 @@ class Target:
     @classmethod
     def from_pose(cls, pose: np.ndarray) -> Target:
         """Target from a 4x4 homogeneous transform [m]."""
-        try:
-            arr = np.asarray(pose, dtype=float)
-        except (TypeError, ValueError) as exc:
-            raise InvalidArgumentError(f"pose must be a 4x4 array of numbers, got {pose!r}") from exc
+        arr = float_array(pose, "pose", "a 4x4 array of numbers")
         if arr.shape != (4, 4):
             raise InvalidArgumentError(f"pose must have shape (4, 4), got {arr.shape}")
         return cls(arr[:3, 3], rotation=arr[:3, :3])
@@ -246,12 +244,7 @@ def as_target(target: Target | Sequence[float] | np.ndarray) -> Target:
     """
     if isinstance(target, Target):
         return target
-    try:
-        arr = np.asarray(target, dtype=float)
-    except (TypeError, ValueError) as exc:
-        raise InvalidArgumentError(
-            f"target must be a planner.Target, a position (3,) or a pose (4, 4), got {target!r}"
-        ) from exc
+    arr = float_array(target, "target", "a planner.Target, a position (3,) or a pose (4, 4)")
     if arr.shape == (3,):
         return Target(arr)
     if arr.shape == (4, 4):

@@ -6,7 +6,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from planner.core.arrays import read_only
+from planner.core.arrays import float_array, read_only
 from planner.core.rotations import ORTHONORMAL_TOL
 from planner.exceptions import InvalidArgumentError, PlannerError
 from planner.geometry.target import Target, as_target
@@ -115,10 +115,7 @@ class BatchTargets:
 
     @classmethod
     def _from_array(cls, arr: np.ndarray) -> BatchTargets:
-        try:
-            arr = np.asarray(arr, dtype=float)
-        except (TypeError, ValueError) as exc:
-            raise InvalidArgumentError(f"targets must be numbers, got {arr!r}") from exc
+        arr = float_array(arr, "targets", "numbers")
         n = len(arr) if arr.ndim else 0
         if arr.ndim == 2 and arr.shape[1] == 3:
             return cls(arr, np.tile(np.eye(3), (n, 1, 1)), np.zeros(n), np.full(n, "position", dtype=object))
