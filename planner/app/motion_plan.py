@@ -208,6 +208,33 @@ def _per_joint_si(value: float | np.ndarray, scale: np.ndarray) -> np.ndarray:
     return arr  # the wrong length: JointLimits names the joints in its error
 
 
+class _PlanLimits:
+    """Per robot (in its derived cache), the limits :func:`plan_motion` made, by the values asked for.
+
+    A robot's ranges and speeds are read-only and :class:`JointLimits` is immutable: the plans
+    of requests asking for the same limits share one, with the tables it computes when first
+    used.
+    """
+
+    def __init__(self) -> None:
+        self.items: dict[tuple, JointLimits] = {}
+
+
+def _plan_limits(robot: Robot, lim_kw: dict[str, Any]) -> JointLimits:
+    """``JointLimits.from_robot(robot, **lim_kw)``, made once per robot and values (see :class:`_PlanLimits`)."""
+    try:
+        key = tuple((k, np.shape(v), np.asarray(v, dtype=float).tobytes()) for k, v in lim_kw.items())
+    except (TypeError, ValueError):  # not numbers: from_robot names the value
+        return JointLimits.from_robot(robot, **lim_kw)
+    held = robot.derived.get(_PlanLimits, _PlanLimits)
+    limits = held.items.get(key)
+    if limits is None:
+        if len(held.items) >= 8:
+            held.items.clear()
+        limits = held.items[key] = JointLimits.from_robot(robot, **lim_kw)
+    return limits
+
+
 def _check_against_scene(
     checker: CollisionChecker,
     request: MotionRequest,
@@ -426,7 +453,7 @@ def plan_motion(
             lim_kw[key] = _per_joint_si(request.limits[key], scale)
     if "servo_seconds_per_60deg" in request.limits:
         lim_kw["servo_seconds_per_60deg"] = request.limits["servo_seconds_per_60deg"]
-    limits = JointLimits.from_robot(robot, **lim_kw)
+    limits = _plan_limits(robot, lim_kw)
     cond = request.condition_number
     threshold = inverse_condition_threshold(None if cond is None else 1.0 / cond, robot.resolve_task(None))
 

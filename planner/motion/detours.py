@@ -286,6 +286,10 @@ def plan_clear_of_singularities(
     replaced: dict[int, float] = {}  # per segment, the dip its last detour replaced
 
     def plan_nodes() -> JointTrajectory:
+        if len(nodes) == n:
+            # No detour: the request's own nodes and states (a user segment whole again has its
+            # minimum duration back), already validated.
+            return plan_trajectory_request(request)
         q = np.array([nd[0] for nd in nodes])
         user_pos = [i for i, nd in enumerate(nodes) if nd[1] is not None]
         d = np.zeros(len(nodes))
