@@ -91,3 +91,55 @@ def test_plans_asking_for_the_same_limits_share_them_and_bad_limits_are_refused_
             plan({"velocity": [0.5, 0.0, 0.5]})
         with pytest.raises(PlannerError, match="velocity limit has 2 values"):
             plan({"velocity": [0.5, 0.5]})
+
+
+def _joint_plan(robot, q, **kwargs):
+    spec = {"waypoints": [list(map(float, row)) for row in q], "units": {"angle": "rad"}}
+    spec.update(kwargs)
+    return parse_motion_request(spec)
+
+
+@pytest.mark.parametrize("name", ["dh3", "al5c"])
+def test_joint_moves_plan_as_a_request_with_every_via_state_free(name):
+    # Without lines plan_motion prescribes nothing: its plan is that of a request whose via
+    # states are all free and segments without minimum, given explicitly or not.
+    robot = get_robot(name)
+    limits = JointLimits.from_robot(robot)
+    rng = np.random.default_rng(2)
+    for count in (2, 4):
+        q = robot.random_configurations(rng, count)
+        plan = plan_motion(robot, _joint_plan(robot, q))
+        explicit = TrajectoryRequest(
+            q,
+            limits,
+            via_velocities=np.full(q.shape, np.nan),
+            via_accelerations=np.zeros(q.shape),
+            min_durations=np.zeros(len(q) - 1),
+        )
+        want = plan_clear_of_singularities(robot, explicit, SingularityOptions(threshold=plan.singularity.threshold))
+        assert len(plan.detours) == len(want.detours)
+        for mine, theirs in zip(plan.detours, want.detours):
+            assert mine.inverse_condition == theirs.inverse_condition and np.array_equal(mine.q, theirs.q)
+        _assert_same(plan.trajectory, want.trajectory)
+
+
+@pytest.mark.parametrize(("name", "controller"), [("dh3", None), ("dh3", "pca9685"), ("al5c", "ssc32"), ("al5c", None)])
+def test_default_controller_setups_are_made_once_and_each_plan_gets_its_own(name, controller):
+    from planner.export.calibration_file import controller_setup
+
+    robot = get_robot(name)
+    q = robot.random_configurations(np.random.default_rng(4), 2)
+    first = plan_motion(robot, _joint_plan(robot, q), controller=controller)
+    second = plan_motion(robot, _joint_plan(robot, q), controller=controller)
+    want = controller_setup(robot, controller)
+    for plan in (first, second):
+        assert plan.setup == want and plan.calibrations == want.calibrations
+    assert first.setup is not second.setup and first.setup.settings is not second.setup.settings
+    first.setup.settings["changed"] = True  # one plan's settings are its own
+    assert "changed" not in plan_motion(robot, _joint_plan(robot, q), controller=controller).setup.settings
+    if want.source == "defaults":
+        assert first.calibrations is second.calibrations
+    # A servo list or a calibration file is read for every plan as before.
+    servos = [{"us_per_deg": 10.0} for _ in range(robot.dof)]
+    with_servos = plan_motion(robot, _joint_plan(robot, q, servos=servos), controller=None)
+    assert with_servos.setup.source == "plan servos"

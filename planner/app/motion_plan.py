@@ -235,6 +235,44 @@ def _plan_limits(robot: Robot, lim_kw: dict[str, Any]) -> JointLimits:
     return limits
 
 
+class _DefaultSetups:
+    """Per robot (in its derived cache), the default controller setups by controller name.
+
+    What :func:`controller_setup` gives where no calibration file, no servos and no travel are
+    given and it falls back to the controller's defaults: those depend only on the robot's
+    (read-only) ranges and joint names. Its calibrations are immutable and shared.
+    """
+
+    def __init__(self) -> None:
+        self.items: dict[str | None, ControllerSetup] = {}
+
+
+def _controller_setup(
+    robot: Robot,
+    controller: str | None,
+    calibration: str | Path | None,
+    servos: tuple[ServoCalibration, ...] | None,
+    travel: tuple[np.ndarray, np.ndarray] | None,
+) -> ControllerSetup:
+    """:func:`controller_setup`, its defaults made once per robot and controller (see :class:`_DefaultSetups`)."""
+    if (
+        calibration is not None
+        or servos is not None
+        or travel is not None
+        or not isinstance(controller, (str, type(None)))
+    ):
+        return controller_setup(robot, controller, calibration, servos, travel=travel)
+    held = robot.derived.get(_DefaultSetups, _DefaultSetups)
+    setup = held.items.get(controller)
+    if setup is None:
+        setup = controller_setup(robot, controller, None, None)
+        if setup.source != "defaults":  # a calibration file shipped for the arm: read each time
+            return setup
+        held.items[controller] = setup
+    # Each plan its own setup (its settings a dict of its own), the calibrations shared.
+    return ControllerSetup(setup.controller, setup.calibrations, {}, setup.source)
+
+
 def _check_against_scene(
     checker: CollisionChecker,
     request: MotionRequest,
@@ -671,6 +709,8 @@ def plan_motion(
                     if moves:
                         via_v[node], via_a[node] = end
             stops += [node for node, moves in zip((a, b), moving[i]) if not moves]
+        # Without lines nothing is prescribed: every via state free, no minimum duration.
+        prescribed = bool(line_ranges)
         trajectory_request = TrajectoryRequest(
             q_nodes,
             limits,
@@ -679,9 +719,9 @@ def plan_motion(
             stops=stops,
             dwell=dwell,
             strategy=request.strategy,
-            via_velocities=via_v,
-            via_accelerations=via_a,
-            min_durations=min_dur,
+            via_velocities=via_v if prescribed else None,
+            via_accelerations=via_a if prescribed else None,
+            min_durations=min_dur if prescribed else None,
         )
         options = SingularityOptions(
             threshold=threshold, rate=rate, max_detours=request.max_detours if request.detours else 0
@@ -783,12 +823,12 @@ def plan_motion(
     if not (np.all(np.isfinite(robot.lower)) and np.all(np.isfinite(robot.upper))):
         q_travel = traj.sample(np.append(np.arange(0.0, traj.duration, 1e-3), traj.duration)).q
         travel = (q_travel.min(axis=0) - 1e-3, q_travel.max(axis=0) + 1e-3)
-    setup = controller_setup(
+    setup = _controller_setup(
         robot,
         controller or request.controller,
         calibration if calibration is not None else request.calibration,
         None if calibration is not None else _calibrations(robot, request),
-        travel=travel,
+        travel,
     )
     return MotionPlan(
         robot=robot.name,
