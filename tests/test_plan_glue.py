@@ -143,3 +143,27 @@ def test_default_controller_setups_are_made_once_and_each_plan_gets_its_own(name
     servos = [{"us_per_deg": 10.0} for _ in range(robot.dof)]
     with_servos = plan_motion(robot, _joint_plan(robot, q, servos=servos), controller=None)
     assert with_servos.setup.source == "plan servos"
+
+
+@pytest.mark.parametrize("name", ["dh3", "al5c", "three_joint"])
+def test_unresolved_segments_are_those_the_final_plan_dips_in(name):
+    # Where no detour went in, the dips found while looking for detours are reused as the
+    # unresolved segments: they must be those the final plan's own measure shows.
+    from planner.motion.detours import dipping_segments
+    from planner.motion.singularity import measure_singularities
+
+    robot = get_robot(name)
+    limits = JointLimits.from_robot(robot)
+    rng = np.random.default_rng(8)
+    seen = 0
+    for trial in range(30):
+        q = robot.random_configurations(rng, int(rng.integers(2, 5)))
+        options = SingularityOptions(max_detours=trial % 3)
+        plan = plan_clear_of_singularities(robot, TrajectoryRequest(q, limits), options)
+        task = robot.resolve_task(None)
+        report, t, _, inv = measure_singularities(robot, plan.trajectory, plan.report.threshold, task, 1000.0)
+        segments = np.arange(len(plan.trajectory.waypoints) - 1)
+        owners = np.searchsorted(plan.waypoint_indices, segments, side="right") - 1
+        assert plan.unresolved == tuple(sorted(dipping_segments(plan.trajectory, report, t, inv, owners)))
+        seen += bool(plan.unresolved)
+    assert seen  # some plans dip
