@@ -22,7 +22,7 @@ from planner.motion.plan import plan_trajectory, plan_trajectory_request
 from planner.motion.request import TrajectoryRequest
 from planner.motion.segments import rest_to_rest_segments, rest_to_rest_trajectory
 from planner.motion.trajectory import LIMIT_TOLERANCE
-from planner.motion.vias import VIA_STRATEGIES, HeuristicStrategy, StopStrategy, ViaStrategy
+from planner.motion.vias import VIA_STRATEGIES, HeuristicStrategy, OptimizedStrategy, StopStrategy, ViaStrategy
 from planner.motion.vias.optimized import golden_minimum, golden_points, spline_via_states
 
 from conftest import get_robot, needs_example_robot_data
@@ -674,6 +674,54 @@ def test_stop_shortcut_equals_the_chain_bit_for_bit(name):
         request = plan_trajectory_request(TrajectoryRequest(q, limits, strategy="stop"))
         assert_same_plan(request, eager)
         assert_within_limits(fast)
+
+
+class _EagerOptimized(OptimizedStrategy):
+    """The optimized strategy as a caller's own type: always through the full via chain."""
+
+
+@pytest.mark.parametrize("name", ["al5c", "three_joint", "dh3", "shelley"])
+def test_two_waypoint_plans_of_every_strategy_equal_the_chain_bit_for_bit(name):
+    # Between two waypoints every registered strategy rests at both ends (no via to choose, a
+    # prescribed state there overridden): such a plan is made as the stop strategy's, and every
+    # field must be what the chain makes of it, under the request's strategy name.
+    robot = get_robot(name)
+    limits = JointLimits.from_robot(robot)
+    rng = np.random.default_rng(5)
+    for trial in range(6):
+        q = robot.random_configurations(rng, 2)
+        if trial == 0:
+            q[1] = q[0]  # a segment of zero length
+        eager = plan_trajectory_request(TrajectoryRequest(q, limits, strategy=_EagerOptimized()))
+        ends = 0.5 * limits.velocity * rng.uniform(-1.0, 1.0, q.shape)
+        for fields in (
+            {},
+            {"via_velocities": np.full(q.shape, np.nan), "via_accelerations": np.zeros(q.shape), "min_durations": [0]},
+            {"via_velocities": ends, "stops": [1]},
+        ):
+            for strategy in VIA_STRATEGIES:
+                fast = plan_trajectory_request(TrajectoryRequest(q, limits, strategy=strategy, **fields))
+                assert fast.strategy == strategy
+                assert fast.duration == eager.duration
+                for field in _TRAJECTORY_FIELDS:
+                    mine, theirs = getattr(fast, field), getattr(eager, field)
+                    assert mine.dtype == theirs.dtype and mine.shape == theirs.shape, field
+                    np.testing.assert_array_equal(mine, theirs, err_msg=field)
+                    assert not mine.flags.writeable, field
+                assert_within_limits(fast)
+
+
+def test_two_waypoint_plans_with_a_minimum_duration_or_a_dwell_still_honour_them():
+    limits = JointLimits(1.0, 2.0, 20.0, lower=[-2, -2], upper=[2, 2])
+    q = [[0.0, 0.0], [0.5, -0.5]]
+    quick = plan_trajectory(q, limits)
+    slow = plan_trajectory(q, limits, min_durations=[quick.duration + 1.0])
+    assert slow.duration == pytest.approx(quick.duration + 1.0) and slow.strategy == "optimized"
+    rest = plan_trajectory(q, limits, dwell=[0.25, 0.0])
+    assert rest.duration == pytest.approx(quick.duration + 0.25)
+    np.testing.assert_array_equal(rest.sample(0.2).q, q[0])
+    moving = plan_trajectory(q, limits, start_velocity=[0.5, 0.0])
+    np.testing.assert_allclose(moving.sample(0.0).qd, [0.5, 0.0])
 
 
 def test_stop_plans_share_zero_arrays_that_cannot_be_made_writeable():

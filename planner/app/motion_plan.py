@@ -208,6 +208,71 @@ def _per_joint_si(value: float | np.ndarray, scale: np.ndarray) -> np.ndarray:
     return arr  # the wrong length: JointLimits names the joints in its error
 
 
+class _PlanLimits:
+    """Per robot (in its derived cache), the limits :func:`plan_motion` made, by the values asked for.
+
+    A robot's ranges and speeds are read-only and :class:`JointLimits` is immutable: the plans
+    of requests asking for the same limits share one, with the tables it computes when first
+    used.
+    """
+
+    def __init__(self) -> None:
+        self.items: dict[tuple, JointLimits] = {}
+
+
+def _plan_limits(robot: Robot, lim_kw: dict[str, Any]) -> JointLimits:
+    """``JointLimits.from_robot(robot, **lim_kw)``, made once per robot and values (see :class:`_PlanLimits`)."""
+    try:
+        key = tuple((k, np.shape(v), np.asarray(v, dtype=float).tobytes()) for k, v in lim_kw.items())
+    except (TypeError, ValueError):  # not numbers: from_robot names the value
+        return JointLimits.from_robot(robot, **lim_kw)
+    held = robot.derived.get(_PlanLimits, _PlanLimits)
+    limits = held.items.get(key)
+    if limits is None:
+        if len(held.items) >= 8:
+            held.items.clear()
+        limits = held.items[key] = JointLimits.from_robot(robot, **lim_kw)
+    return limits
+
+
+class _DefaultSetups:
+    """Per robot (in its derived cache), the default controller setups by controller name.
+
+    What :func:`controller_setup` gives where no calibration file, no servos and no travel are
+    given and it falls back to the controller's defaults: those depend only on the robot's
+    (read-only) ranges and joint names. Its calibrations are immutable and shared.
+    """
+
+    def __init__(self) -> None:
+        self.items: dict[str | None, ControllerSetup] = {}
+
+
+def _controller_setup(
+    robot: Robot,
+    controller: str | None,
+    calibration: str | Path | None,
+    servos: tuple[ServoCalibration, ...] | None,
+    travel: tuple[np.ndarray, np.ndarray] | None,
+) -> ControllerSetup:
+    """:func:`controller_setup`, its defaults made once per robot and controller (see :class:`_DefaultSetups`)."""
+    if (
+        calibration is not None
+        or servos is not None
+        or travel is not None
+        or not isinstance(controller, (str, type(None)))
+    ):
+        return controller_setup(robot, controller, calibration, servos, travel=travel)
+    held = robot.derived.get(_DefaultSetups, _DefaultSetups)
+    setup = held.items.get(controller)
+    if setup is None:
+        setup = controller_setup(robot, controller, None, None)
+        if setup.source != "defaults":  # a calibration file shipped for the arm: read each time
+            return setup
+        held.items[controller] = setup
+    # Each plan its own setup (its settings a dict of its own), the calibrations shared.
+    return ControllerSetup(setup.controller, setup.calibrations, {}, setup.source)
+
+
 def _check_against_scene(
     checker: CollisionChecker,
     request: MotionRequest,
@@ -426,7 +491,7 @@ def plan_motion(
             lim_kw[key] = _per_joint_si(request.limits[key], scale)
     if "servo_seconds_per_60deg" in request.limits:
         lim_kw["servo_seconds_per_60deg"] = request.limits["servo_seconds_per_60deg"]
-    limits = JointLimits.from_robot(robot, **lim_kw)
+    limits = _plan_limits(robot, lim_kw)
     cond = request.condition_number
     threshold = inverse_condition_threshold(None if cond is None else 1.0 / cond, robot.resolve_task(None))
 
@@ -644,6 +709,8 @@ def plan_motion(
                     if moves:
                         via_v[node], via_a[node] = end
             stops += [node for node, moves in zip((a, b), moving[i]) if not moves]
+        # Without lines nothing is prescribed: every via state free, no minimum duration.
+        prescribed = bool(line_ranges)
         trajectory_request = TrajectoryRequest(
             q_nodes,
             limits,
@@ -652,9 +719,9 @@ def plan_motion(
             stops=stops,
             dwell=dwell,
             strategy=request.strategy,
-            via_velocities=via_v,
-            via_accelerations=via_a,
-            min_durations=min_dur,
+            via_velocities=via_v if prescribed else None,
+            via_accelerations=via_a if prescribed else None,
+            min_durations=min_dur if prescribed else None,
         )
         options = SingularityOptions(
             threshold=threshold, rate=rate, max_detours=request.max_detours if request.detours else 0
@@ -756,12 +823,12 @@ def plan_motion(
     if not (np.all(np.isfinite(robot.lower)) and np.all(np.isfinite(robot.upper))):
         q_travel = traj.sample(np.append(np.arange(0.0, traj.duration, 1e-3), traj.duration)).q
         travel = (q_travel.min(axis=0) - 1e-3, q_travel.max(axis=0) + 1e-3)
-    setup = controller_setup(
+    setup = _controller_setup(
         robot,
         controller or request.controller,
         calibration if calibration is not None else request.calibration,
         None if calibration is not None else _calibrations(robot, request),
-        travel=travel,
+        travel,
     )
     return MotionPlan(
         robot=robot.name,

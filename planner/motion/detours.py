@@ -222,17 +222,32 @@ def dipping_segments(
     Returns:
         The owners of the waypoint segments that dip.
     """
+    return {int(owners[s]) for _, s, _ in _segment_dips(trajectory, report, t, inverse_condition, len(owners))}
+
+
+def _segment_dips(
+    trajectory: JointTrajectory, report: SingularityReport, t: np.ndarray, inverse_condition: np.ndarray, count: int
+) -> list[tuple[float, int, int]]:
+    """Of the first `count` waypoint segments, those whose ends are clear but whose samples dip below the threshold.
+
+    Returns:
+        Per such segment: its lowest sampled value, the segment, and the index of that sample
+        (the first, where several are lowest).
+    """
     w_inv = report.waypoint_inverse_condition
     wt = trajectory.waypoint_times
     thr = report.threshold
-    still = set()
-    for s, owner in enumerate(owners):
+    found = []
+    for s in range(count):
         if w_inv[s] < thr or w_inv[s + 1] < thr:
             continue
         mask = (t >= wt[s]) & (t <= wt[s + 1])
-        if mask.any() and float(np.min(inverse_condition[mask])) < thr:
-            still.add(int(owner))
-    return still
+        if not mask.any():
+            continue
+        k = int(np.argmin(np.where(mask, inverse_condition, np.inf)))
+        if inverse_condition[k] < thr:
+            found.append((float(inverse_condition[k]), s, k))
+    return found
 
 
 def plan_clear_of_singularities(
@@ -286,6 +301,10 @@ def plan_clear_of_singularities(
     replaced: dict[int, float] = {}  # per segment, the dip its last detour replaced
 
     def plan_nodes() -> JointTrajectory:
+        if len(nodes) == n:
+            # No detour: the request's own nodes and states (a user segment whole again has its
+            # minimum duration back), already validated.
+            return plan_trajectory_request(request)
         q = np.array([nd[0] for nd in nodes])
         user_pos = [i for i, nd in enumerate(nodes) if nd[1] is not None]
         d = np.zeros(len(nodes))
@@ -319,18 +338,11 @@ def plan_clear_of_singularities(
 
     while True:
         traj, report, t, inv = plan_and_measure()
+        found = None  # the dips of this plan's segments, once looked for
         if len(detours) >= max_detours:
             break
-        w_inv = report.waypoint_inverse_condition
-        wt = traj.waypoint_times
-        dips = []
-        for s in range(len(nodes) - 1):
-            if w_inv[s] < thr or w_inv[s + 1] < thr or nodes[s][2] in given_up:
-                continue
-            mask = (t >= wt[s]) & (t <= wt[s + 1])
-            k = int(np.argmin(np.where(mask, inv, np.inf)))
-            if mask.any() and inv[k] < thr:
-                dips.append((float(inv[k]), s, k))
+        found = _segment_dips(traj, report, t, inv, len(nodes) - 1)
+        dips = [d for d in found if nodes[d[1]][2] not in given_up]
         # A segment whose deepest dip its last detour did not raise is given up: the dip moved
         # along instead of being passed (its detours are taken out below).
         for seg, before in replaced.items():
@@ -360,7 +372,8 @@ def plan_clear_of_singularities(
     def unresolved_segments() -> set[int]:
         return dipping_segments(traj, report, t, inv, [nd[2] for nd in nodes[:-1]])
 
-    still = unresolved_segments()
+    # Where no detour went in, the plan's dips are known: the segments they lie in are unresolved.
+    still = {nodes[s][2] for _, s, _ in found} if found is not None else unresolved_segments()
     # Detours that did not clear their segment only cost time: take them out again. Planning
     # again changes the via states, so a neighbour's path may dip anew: repeat until none does.
     useless = [i for i, nd in enumerate(nodes) if nd[1] is None and nd[2] in still]

@@ -69,11 +69,13 @@ from planner.motion.segments import (
     speed_overshoots,
 )
 from planner.motion.trajectory import JointTrajectory
-from planner.motion.vias import StopStrategy, ViaChain, ViaStrategy, via_strategy
+from planner.motion.vias import VIA_STRATEGIES, StopStrategy, ViaChain, ViaStrategy, via_strategy
 
 __all__ = ["plan_trajectory", "plan_trajectory_request"]
 
 _REPAIR_HALVINGS = 24
+#: The registered via strategies' types (see :data:`planner.motion.vias.VIA_STRATEGIES`).
+_REGISTERED = frozenset(VIA_STRATEGIES.values())
 _REPAIR_HALVINGS_BEFORE_REST = 6
 
 
@@ -286,11 +288,19 @@ def plan_trajectory_request(request: TrajectoryRequest) -> JointTrajectory:
     moving = request.moving_start
     q, v0, a0, dw = request.waypoints, request.start_velocity, request.start_acceleration, request.dwell
     dwelling = any(dw.tolist())
-    if type(chooser) is StopStrategy and not moving and not dwelling and not any(request.min_durations.tolist()):
-        planned = _plan_at_rest(q, limits)
+    n = len(q)
+    # At rest at every waypoint: the stop strategy's plans, and every registered strategy's
+    # between two waypoints (both ends rest, a prescribed state there is overridden and there
+    # is no via to choose; a strategy of the caller's own type goes through the chain).
+    if (
+        (type(chooser) is StopStrategy or (n == 2 and type(chooser) in _REGISTERED))
+        and not moving
+        and not dwelling
+        and not any(request.min_durations.tolist())
+    ):
+        planned = _plan_at_rest(q, limits, strategy=chooser.name)
         if planned is not None:
             return planned
-    n = len(q)
     stop = np.zeros(n, dtype=bool)
     if request.stops:
         stop[list(request.stops)] = True
@@ -386,7 +396,10 @@ def _assemble(
 
 
 def _plan_at_rest(
-    q: np.ndarray, limits: JointLimits, rows: tuple[list[list[float]], list[float], list[float]] | None = None
+    q: np.ndarray,
+    limits: JointLimits,
+    rows: tuple[list[list[float]], list[float], list[float]] | None = None,
+    strategy: str = StopStrategy.name,
 ) -> JointTrajectory | None:
     """The plan resting at every waypoint (no dwell, no start state), or None if the chain must decide.
 
@@ -399,6 +412,8 @@ def _plan_at_rest(
         limits: The limits.
         rows: `q` as rows of floats and its per-joint extremes, if at hand (see
             :func:`planner.motion.segments.rest_to_rest_segments`).
+        strategy: The name the result carries (the request's strategy: between two waypoints
+            every strategy rests at both).
     """
     durations = rest_to_rest_segments(q, limits, rows)
     if durations is None:
@@ -427,7 +442,7 @@ def _plan_at_rest(
         via_accelerations=via,
         dwell=dw,
         limits=limits,
-        strategy=StopStrategy.name,
+        strategy=strategy,
         repaired=repaired,
     )
 

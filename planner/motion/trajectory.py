@@ -207,18 +207,19 @@ class JointTrajectory:
         """``p + dt (v + dt (a / 2 + dt j / 6))`` at times `dt` into intervals `idx`, the `end` at rest.
 
         Written in place, operation by operation as the expression reads (the same values), a
-        few times faster than with a temporary array per operation.
+        few times faster than with a temporary array per operation; the rows are gathered with
+        ``take`` (the same rows as indexing with `idx`, in about half the time).
         """
-        q = self.j[idx]
+        q = self.j.take(idx, axis=0)
         q *= dt
         q /= 6.0
-        half = self.a[idx]
+        half = self.a.take(idx, axis=0)
         half /= 2.0
         q += half
         q *= dt
-        q += self.v[idx]
+        q += self.v.take(idx, axis=0)
         q *= dt
-        q += self.p[idx]
+        q += self.p.take(idx, axis=0)
         if end.any():
             q[end] = self.waypoints[-1]
         return q
@@ -240,11 +241,11 @@ class JointTrajectory:
         tt, asked, flat = self._checked_times(t, clamp)
         scalar = tt.ndim == 0
         idx, dt, end = self._locate(flat)
-        v, a, j = self.v[idx], self.a[idx], self.j[idx]
+        v, a, j = self.v.take(idx, axis=0), self.a.take(idx, axis=0), self.j.take(idx, axis=0)
         q = self._positions_at(idx, dt, end)
         qd = v + dt * (a + dt * j / 2.0)
         qdd = a + dt * j
-        qddd = j.copy()
+        qddd = j  # a new array (take copies)
         if end.any():
             qd[end], qdd[end], qddd[end] = 0.0, 0.0, 0.0
         if scalar:
