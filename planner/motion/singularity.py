@@ -39,7 +39,13 @@ from typing import NamedTuple
 import numpy as np
 
 from planner.core.arrays import read_only
-from planner.core.certificates import cholesky_certificates, extreme_bounds, grams
+from planner.core.certificates import (
+    cholesky_certificates,
+    extreme_bounds,
+    grams,
+    interval_certificates,
+    own_certificates,
+)
 from planner.core.text import plain
 from planner.exceptions import InvalidArgumentError
 from planner.geometry.jacobian_kernel import jacobian_kernel
@@ -451,7 +457,9 @@ def _interval_bounds(
     # The rows a..b deviate from the straight line between q_a and q_b by at most h L^2 / 8,
     # h their largest second difference and L = b - a (discrete maximum principle).
     bend = np.diff(q, 2, axis=0)
-    bend = np.maximum.reduceat(np.abs(bend, out=bend), a, axis=0)
+    # Those of each interval alone: second differences a .. b - 2 (the odd segments dropped).
+    cuts = np.stack([a, b - 1], axis=1).ravel()
+    bend = np.maximum.reduceat(np.abs(bend, out=bend), cuts[cuts < len(bend)], axis=0)[::2]
     deviation = bend * (0.125 * (b - a) ** 2)[:, None] * (1.0 + 1e-9)
     top = np.maximum(s.top[a], s.top[b])
     margin = 1e-9 * (top + 1.0)
@@ -640,70 +648,118 @@ def bounded_conditioning(
         # Both neighbours below the level: the certificate above it will not hold (saves the attempt).
         return (value_up[left[take]] <= level) & (value_up[right[take]] <= level)
 
-    def certify(take: np.ndarray, gram: np.ndarray, s_up: np.ndarray, err: np.ndarray) -> None:
-        floor = lifted * s_up + err
+    def interpolated(take: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        # Step 2's interpolation of the neighbours' Jacobians: its Gram matrices, s_up - e and e.
+        lam, err = _interpolation_error(q, rows[take], left[take], right[take], change[:2])
+        s_lam = (1.0 - lam) * ends_at.top[left[take]] + lam * ends_at.top[right[take]]
+        # Rounding of the interpolation and of the singular values: a margin far above it.
+        err = err * (1.0 + 1e-9) + 1e-9 * (s_lam + 1.0)
+        lam = lam[:, None, None]
+        return _gram((1.0 - lam) * scaled_all[left[take]] + lam * scaled_all[right[take]]), s_lam, err
+
+    def certify(
+        take: np.ndarray, gram: np.ndarray, s_up: np.ndarray, err: np.ndarray, lift: float | np.ndarray = lifted
+    ) -> None:
+        floor = lift * s_up + err
         ok, det = _positive_definite(gram, floor * floor)
-        lo_inv[take[ok]] = np.maximum(lo_inv[take[ok]], lifted)
+        lo_inv[take[ok]] = np.maximum(lo_inv[take[ok]], lift if np.ndim(lift) == 0 else lift[ok])
         if divisor is not None:  # the manipulability is that of the scaled Jacobian
             # A zero floor (level 0, no error) leaves the singular values as they are.
             ratio = np.divide(err[ok], floor[ok], out=np.zeros(int(ok.sum())), where=floor[ok] > 0.0)
             shrink = np.maximum(1.0 - ratio, 0.0) ** k
             lo_man[take[ok]] = np.maximum(lo_man[take[ok]], np.sqrt(det[ok]) * shrink * (scale * (1.0 - 1e-9)))
 
-    if change is not None:
-        rho, angular, raw_angular = change
-        if divisor is not None:
-            lo_inv[:], lo_man[:], upper = _interval_bounds(q, rows, left, right, scaled_all, ends_at, (rho, angular))
-            below[:] = upper < threshold
-            lo_inv *= 1.0 - 1e-9
-            lo_man *= scale * (1.0 - 1e-9)
-        else:
-            take = np.arange(len(rows))
-            near = np.where(rows[take] - left[take] <= right[take] - rows[take], left[take], right[take])
-            du = q[rows[take]] - q[near]
-            e = jacobian_change_bound(du, rho, angular)
-            weyl(take, near, e, e if divisor is not None else jacobian_change_bound(du, rho, raw_angular))
-        take = np.nonzero(~settled())[0]
-        # Rows whose inverse condition number is settled (the manipulability is not) go to step
-        # 3 directly: there its bound comes from one cheap factorisation, tight.
-        take = take[~hopeless(take) & ~settled_inv()[take]]
+    compiled = None
+    if bracketed:
+        rho, angular, _ = change
+        anchor_ends = np.stack(
+            [ends_at.top, ends_at.bottom, ends_at.product, ends_at.min_up, ends_at.max_low, value_up], axis=1
+        )[anchors]
+        of_interval = np.minimum(np.searchsorted(bounds_of, anchors[:-1], side="right") - 1, len(least_of) - 1)
+        params = (angular, threshold, level, lifted, level_man, scale)
+        compiled = interval_certificates(
+            q, anchors, scaled_all[anchors], anchor_ends, least_of[of_interval], rho, params
+        )
+    if compiled is not None:
+        # Steps 0 to 3 in compiled loops (planner.core.certificates), the same bounds.
+        lo_inv, lo_man, flags = (values[rows] for values in compiled)
+        take = np.nonzero(flags & 2)[0]
         if len(take):
-            lam, err = _interpolation_error(q, rows[take], left[take], right[take], (rho, angular))
-            s_lam = (1.0 - lam) * ends_at.top[left[take]] + lam * ends_at.top[right[take]]
-            # Rounding of the interpolation and of the singular values: a margin far above it.
-            err = err * (1.0 + 1e-9) + 1e-9 * (s_lam + 1.0)
-            interpolated = (1.0 - lam)[:, None, None] * scaled_all[left[take]] + lam[:, None, None] * scaled_all[
-                right[take]
-            ]
-            certify(take, _gram(interpolated), s_lam + err, err)
-    take = np.nonzero(~settled())[0]
-    if len(take):
-        # For bounds only (the rows measured exactly in the end take Pinocchio's Jacobians again).
-        if kernel is None:
-            raw, scaled = robot.task_jacobians(q[rows[take]], task)
-        else:
-            raw, scaled = robot.task_rows(kernel(q[rows[take]]), task)
-        gram = _gram(scaled)
-        # The inverse condition number from both sides where it is not settled yet; the
-        # manipulability alone from the factorisation elsewhere.
-        open_inv = ~settled_inv()[take]
-        product = np.zeros(len(take))
-        if open_inv.any():
-            brackets = _extreme_bounds(gram[open_inv])
-            product[open_inv] = brackets[:, 4]
-            floor, ceiling = _condition_bracket(brackets)
-            at = take[open_inv]
-            lo_inv[at] = np.maximum(lo_inv[at], floor)
-            below[at] |= ceiling < threshold
-        if divisor is None:
-            product = _positive_definite(_gram(raw), np.zeros(len(take)))[1]
-        else:
-            open_man = ~open_inv & ~(lo_man[take] > level_man)
-            product[open_man] = _positive_definite(gram[open_man], np.zeros(int(open_man.sum())))[1]
-        lo_man[take] = np.maximum(lo_man[take], np.sqrt(np.maximum(product, 0.0)) * (scale * (1.0 - 1e-9)))
-        rest = ~settled()[take]
-        if rest.any():
-            measure(rows[take[rest]], *((raw[rest], scaled[rest]) if kernel is None else ()))
+            scaled = robot.task_rows(kernel(q[rows[take]]), task)[1]
+            t_inv, t_man, t_flags = lo_inv[take], lo_man[take], flags[take]
+            if own_certificates(scaled, least[take], t_inv, t_man, t_flags, (threshold, level, level_man, scale)):
+                lo_inv[take], lo_man[take] = t_inv, t_man
+                take = take[(t_flags & 2) != 0]
+            if len(take):
+                measure(rows[take])
+    else:
+        if change is not None:
+            rho, angular, raw_angular = change
+            if divisor is not None:
+                lo_inv[:], lo_man[:], upper = _interval_bounds(
+                    q, rows, left, right, scaled_all, ends_at, (rho, angular)
+                )
+                below[:] = upper < threshold
+                lo_inv *= 1.0 - 1e-9
+                lo_man *= scale * (1.0 - 1e-9)
+            else:
+                take = np.arange(len(rows))
+                near = np.where(rows[take] - left[take] <= right[take] - rows[take], left[take], right[take])
+                du = q[rows[take]] - q[near]
+                e = jacobian_change_bound(du, rho, angular)
+                weyl(take, near, e, e if divisor is not None else jacobian_change_bound(du, rho, raw_angular))
+            take = np.nonzero(~settled())[0]
+            # Rows whose inverse condition number is settled (the manipulability is not) go to step
+            # 3 directly: there its bound comes from one cheap factorisation, tight.
+            take = take[~hopeless(take) & ~settled_inv()[take]]
+            if len(take):
+                gram, s_lam, err = interpolated(take)
+                certify(take, gram, s_lam + err, err)
+            # Shown below the threshold: above the stretch's least value suffices.
+            take = np.nonzero(below & ~settled_inv())[0]
+            if len(take):
+                gram, s_lam, err = interpolated(take)
+                certify(take, gram, s_lam + err, err, least[take] * (1.0 + 1e-9))
+            if divisor is not None:
+                # The manipulability alone where the inverse condition number is settled.
+                take = np.nonzero(settled_inv() & ~(lo_man > level_man))[0]
+                if len(take):
+                    gram, _, err = interpolated(take)
+                    guess = np.minimum(ends_at.bottom[left[take]], ends_at.bottom[right[take]])
+                    floor = np.cbrt(k * err * guess * guess)
+                    ok, det = _positive_definite(gram, floor * floor)
+                    ok &= floor > err
+                    low = np.sqrt(det[ok]) * (1.0 - err[ok] / floor[ok]) ** k * (scale * (1.0 - 1e-9))
+                    lo_man[take[ok]] = np.maximum(lo_man[take[ok]], low)
+        take = np.nonzero(~settled())[0]
+        if len(take):
+            # For bounds only (the rows measured exactly in the end take Pinocchio's Jacobians again).
+            if kernel is None:
+                raw, scaled = robot.task_jacobians(q[rows[take]], task)
+            else:
+                raw, scaled = robot.task_rows(kernel(q[rows[take]]), task)
+            gram = _gram(scaled)
+            # The inverse condition number from both sides where it is not settled yet; the
+            # manipulability alone from the factorisation elsewhere.
+            open_inv = ~settled_inv()[take]
+            product = np.zeros(len(take))
+            if open_inv.any():
+                brackets = _extreme_bounds(gram[open_inv])
+                product[open_inv] = brackets[:, 4]
+                floor, ceiling = _condition_bracket(brackets)
+                at = take[open_inv]
+                lo_inv[at] = np.maximum(lo_inv[at], floor)
+                below[at] |= ceiling < threshold
+            if divisor is None:
+                product = _positive_definite(_gram(raw), np.zeros(len(take)))[1]
+            else:
+                open_man = ~open_inv & ~(lo_man[take] > level_man)
+                product[open_man] = _positive_definite(gram[open_man], np.zeros(int(open_man.sum())))[1]
+            lo_man[take] = np.maximum(lo_man[take], np.sqrt(np.maximum(product, 0.0)) * (scale * (1.0 - 1e-9)))
+            rest = ~settled()[take]
+            if rest.any():
+                measure(rows[take[rest]], *((raw[rest], scaled[rest]) if kernel is None else ()))
+
     if len(loose):
         # The bracketed anchors, settled as the rows are, or measured exactly.
         loose_man = ends_at.product[loose] * (scale * (1.0 - 1e-9))
