@@ -108,27 +108,51 @@ static void bracket(long k, const double *G, double *o) {
     double product = 1.0;
     for (long j = 0; j < k; ++j) product *= piv[j];
     o[4] = ok ? product : 0.0;
-    /* Smallest: inverse iteration with the factor of G + 1e-10 tr I (positive definite), six
-       steps from ones; its Rayleigh quotient (+ margin) is an upper bound. */
+    /* Smallest: power iteration on M^4, M the inverse of G + 1e-10 tr I (positive definite,
+       from its factor), two steps from ones (inverse iteration, eight steps); its Rayleigh
+       quotient with G (+ margin) is an upper bound. */
     factor(k, G, -1e-10 * tr - 1e-300, L, piv);
-    double inv_d[8];
-    for (long i = 0; i < k; ++i) inv_d[i] = 1.0 / L[i * k + i];
+    double W[64], M[64], N[64];
+    for (long i = 0; i < k; ++i) {
+        W[i * k + i] = 1.0 / L[i * k + i];
+        for (long j = 0; j < i; ++j) {
+            double s = 0.0;
+            for (long l = j; l < i; ++l) s += L[i * k + l] * W[l * k + j];
+            W[i * k + j] = -s * W[i * k + i];
+        }
+    }
+    double trace_m = 0.0;
+    for (long i = 0; i < k; ++i)
+        for (long j = 0; j <= i; ++j) {
+            double s = 0.0;
+            for (long l = i; l < k; ++l) s += W[l * k + i] * W[l * k + j];
+            M[i * k + j] = M[j * k + i] = s;
+            if (i == j) trace_m += s;
+        }
+    for (int sq = 0; sq < 2; ++sq) {
+        double t2 = 0.0, scale = trace_m > 0.0 ? 1.0 / trace_m : 1.0;
+        for (long i = 0; i < k; ++i)
+            for (long j = i; j < k; ++j) {
+                double v = 0.0;
+                for (long l = 0; l < k; ++l) v += M[i * k + l] * M[j * k + l];
+                N[i * k + j] = N[j * k + i] = v * scale * scale;
+            }
+        for (long i = 0; i < k; ++i) t2 += N[i * k + i];
+        for (long i = 0; i < k * k; ++i) M[i] = N[i];
+        trace_m = t2;
+    }
     for (long i = 0; i < k; ++i) x[i] = 1.0;
-    for (int it = 0; it < 6; ++it) {
-        for (long i = 0; i < k; ++i) {
-            double s = x[i];
-            for (long j = 0; j < i; ++j) s -= L[i * k + j] * y[j];
-            y[i] = s * inv_d[i];
-        }
+    for (int it = 0; it < 2; ++it) {
         double norm = 0.0;
-        for (long i = k - 1; i >= 0; --i) {
-            double s = y[i];
-            for (long j = i + 1; j < k; ++j) s -= L[j * k + i] * x[j];
-            x[i] = s * inv_d[i];
-            norm += x[i] * x[i];
+        for (long i = 0; i < k; ++i) {
+            double v = 0.0;
+            for (long j = 0; j < k; ++j) v += M[i * k + j] * x[j];
+            y[i] = v;
+            norm += v * v;
         }
+        if (!(norm > 0.0)) break;
         norm = 1.0 / sqrt(norm);
-        for (long i = 0; i < k; ++i) x[i] *= norm;
+        for (long i = 0; i < k; ++i) x[i] = y[i] * norm;
     }
     double low = quotient(k, G, x);
     o[1] = low + margin;
@@ -320,6 +344,7 @@ void interval_certificates(long n, long dof, long m, const double *q, long na, c
     long md = m * dof, k = m < dof ? m : dof;
     double bend[dof], u[dof], dev[dof], off[dof], J[md], G[64], L[64], piv[8];
     double va_low[8], va_high[8], vb_low[8], vb_high[8];
+    long cached = -1; /* the anchor whose vectors vb_low, vb_high hold */
     (void)n;
     for (long j = 0; j + 1 < na; ++j) {
         long a = anchors[j], b = anchors[j + 1];
@@ -385,14 +410,18 @@ void interval_certificates(long n, long dof, long m, const double *q, long na, c
                     certify(k, G, lifted, s_lam + e, e, scale, L, piv, &li, &lm);
                     settled_inv = li > level || (below_r && li > least[j]);
                 }
-                if (!settled_inv && !below_r) {
+                if (!settled_inv && !below_r && li < threshold) {
                     /* From above: Rayleigh quotients of J_lam J_lam^T at the anchors' extreme
                        eigenvectors bound its extreme eigenvalues (the smallest from above, the
                        largest from below); the row's singular values are within e of J_lam's. */
-                    if (!vectors) {
-                        extreme_vectors(m, dof, Sa, va_low, va_high);
+                    if (!vectors) { /* b's vectors are the next interval's a's */
+                        if (cached == j)
+                            for (long i = 0; i < k; ++i) va_low[i] = vb_low[i], va_high[i] = vb_high[i];
+                        else
+                            extreme_vectors(m, dof, Sa, va_low, va_high);
                         extreme_vectors(m, dof, Sb, vb_low, vb_high);
                         vectors = 1;
+                        cached = j + 1;
                     }
                     double tr = 0.0;
                     for (long i = 0; i < k; ++i) tr += G[i * k + i];

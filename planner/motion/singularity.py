@@ -591,7 +591,7 @@ def bounded_conditioning(
     # compiled Jacobian (where step 0 applies), measured exactly only if that settles nothing.
     bracketed = change is not None and divisor is not None and kernel is not None
     loose = np.setdiff1d(anchors, bounds_of) if bracketed else anchors[:0]
-    measure(np.setdiff1d(anchors, loose))
+    measure(bounds_of if bracketed else anchors)  # the anchors not in `loose`
     ends_at = _Ends.exact(s_inv, n, np.nonzero(exact)[0])
     value_up = inv.copy()  # at the anchors: an upper bound of the inverse condition number
     if len(loose):
@@ -669,12 +669,10 @@ def bounded_conditioning(
             shrink = np.maximum(1.0 - ratio, 0.0) ** k
             lo_man[take[ok]] = np.maximum(lo_man[take[ok]], np.sqrt(det[ok]) * shrink * (scale * (1.0 - 1e-9)))
 
-    compiled = None
+    compiled, pending = None, rows[:0]
     if bracketed:
         rho, angular, _ = change
-        anchor_ends = np.stack(
-            [ends_at.top, ends_at.bottom, ends_at.product, ends_at.min_up, ends_at.max_low, value_up], axis=1
-        )[anchors]
+        anchor_ends = np.stack([values[anchors] for values in (*ends_at, value_up)], axis=1)
         of_interval = np.minimum(np.searchsorted(bounds_of, anchors[:-1], side="right") - 1, len(least_of) - 1)
         params = (angular, threshold, level, lifted, level_man, scale)
         compiled = interval_certificates(
@@ -690,8 +688,7 @@ def bounded_conditioning(
             if own_certificates(scaled, least[take], t_inv, t_man, t_flags, (threshold, level, level_man, scale)):
                 lo_inv[take], lo_man[take] = t_inv, t_man
                 take = take[(t_flags & 2) != 0]
-            if len(take):
-                measure(rows[take])
+            pending = rows[take]  # measured below, with the bracketed anchors left open
     else:
         if change is not None:
             rho, angular, raw_angular = change
@@ -766,8 +763,9 @@ def bounded_conditioning(
         dip = (value_up[loose] < threshold) & (loose_low > least_of[np.searchsorted(bounds_of, loose) - 1])
         shown = ((loose_low > level) | dip) & (loose_man > level_man)
         inv[loose[shown]], man[loose[shown]] = loose_low[shown], loose_man[shown]
-        if not shown.all():
-            measure(loose[~shown])
+        pending = np.concatenate([pending, loose[~shown]])
+    if len(pending):
+        measure(pending)
     free = ~exact[rows]
     inv[rows[free]], man[rows[free]] = lo_inv[free], lo_man[free]
     return inv, man
