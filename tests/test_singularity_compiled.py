@@ -20,7 +20,7 @@ from hypothesis import strategies as st
 
 import planner.motion.singularity as singularity
 from planner import InvalidArgumentError
-from planner.core.certificates import grams, interval_certificates, own_certificates
+from planner.core.certificates import anchor_bounds, grams, interval_certificates, own_certificates
 from planner.motion.limits import JointLimits
 from planner.motion.plan import plan_trajectory
 from planner.motion.singularity import bounded_conditioning, inverse_condition_threshold
@@ -44,7 +44,9 @@ def _both(robot, q, task, threshold, keep) -> tuple[tuple[np.ndarray, np.ndarray
         patch.setattr(singularity, "interval_certificates", spy)
         compiled = bounded_conditioning(robot, q, task, threshold, keep)
     with pytest.MonkeyPatch.context() as patch:
-        patch.setattr(singularity, "interval_certificates", lambda *args: None)
+        # Every compiled loop off but the Jacobian kernel (PLANNER_JIT=0 switches that off too).
+        for name in ("interval_certificates", "anchor_bounds", "extreme_bounds", "cholesky_certificates", "grams"):
+            patch.setattr(singularity, name, lambda *args: None)
         written_out = bounded_conditioning(robot, q, task, threshold, keep)
     return compiled, written_out, len(calls)
 
@@ -170,3 +172,44 @@ def test_own_certificates_refuse_arrays_they_would_write_past():
         args[[1, 2, 3][k]] = bad
         with pytest.raises(InvalidArgumentError, match="C-contiguous"):
             own_certificates(scaled, *args, (0.01, 0.01, 0.0, 1.0))
+
+
+@needs_compiler
+@given(
+    seed=st.integers(0, 2**32 - 1),
+    n=st.integers(1, 40),
+    shape=st.sampled_from([(3, 3), (3, 7), (6, 6), (6, 7), (6, 4)]),
+)
+@property_settings(40)
+def test_anchor_bounds_bracket_the_singular_values(seed, n, shape):
+    # Matrices with singular values from 1e-6 to 10 (NumPy's SVD as the reference, rounding allowed).
+    rng = np.random.default_rng(seed)
+    m, dof = shape
+    k = min(shape)
+    u = np.linalg.qr(rng.normal(size=(n, m, m)))[0][:, :, :k]
+    v = np.linalg.qr(rng.normal(size=(n, dof, dof)))[0][:, :, :k]
+    values = np.sort(10.0 ** rng.uniform(-6, 1, (n, k)), axis=1)[:, ::-1]
+    scaled = u @ (values[:, :, None] * v.transpose(0, 2, 1))
+    s = np.linalg.svd(scaled, compute_uv=False)[:, :k]
+    top, bottom, product, min_up, max_low, low, up, man_up = anchor_bounds(scaled, 0.5).T
+    slack = 1e-9
+    assert np.all(top >= s[:, 0] * (1 - slack)) and np.all(max_low <= s[:, 0] * (1 + slack))
+    assert np.all(bottom <= s[:, -1] * (1 + slack) + 1e-15) and np.all(min_up >= s[:, -1] * (1 - slack))
+    assert np.all(product <= np.prod(s, axis=1) * (1 + slack))
+    inverse = s[:, -1] / s[:, 0]
+    assert np.all(low <= inverse * (1 + slack)) and np.all(up >= inverse * (1 - slack))
+    assert np.all(man_up >= 0.5 * np.prod(s, axis=1) * (1 - slack))
+
+
+@needs_compiler
+@pytest.mark.skipif(not HAVE_EXAMPLE_ROBOT_DATA, reason="needs panda")
+def test_anchor_bounds_are_tight_on_most_jacobians():
+    # Not vacuous: panda's scaled pose Jacobians at random configurations (NumPy's SVD).
+    robot = get_robot("panda")
+    scaled = robot.task_jacobians(robot.random_configurations(np.random.default_rng(41), 500), "pose")[1]
+    s = np.linalg.svd(scaled, compute_uv=False)
+    top, bottom, product, _, _, low, up, man_up = anchor_bounds(scaled, 1.0).T
+    inverse = s[:, -1] / s[:, 0]
+    assert np.mean((low >= inverse * (1 - 1e-3)) & (up <= inverse * (1 + 1e-3))) > 0.8
+    assert np.mean(product >= np.prod(s, axis=1) * (1 - 1e-6)) > 0.8
+    assert np.mean(man_up <= np.prod(s, axis=1) * (1 + 1e-4)) > 0.8

@@ -4,9 +4,10 @@ The singularity measure (:func:`planner.motion.singularity.bounded_conditioning`
 hundred 3 x 3 to 6 x 6 Gram matrices at a time. Written out over the batch in NumPy that takes
 a few dozen array operations per call whatever the batch size; here one C loop (compiled once
 and cached by :mod:`planner.core.native`) does the same arithmetic, matrix by matrix, in the
-same order. Both functions return None where the library cannot be built (no compiler,
-``PLANNER_JIT=0``) or for matrices larger than :data:`LARGEST`; the caller then takes its
-NumPy path.
+same order. :func:`interval_certificates` and :func:`own_certificates` run the measure's steps
+0 to 3 themselves, row by row. The functions return None (False) where the library cannot be
+built (no compiler, ``PLANNER_JIT=0``) or for matrices larger than :data:`LARGEST`; the caller
+then takes its NumPy path.
 """
 
 from __future__ import annotations
@@ -20,6 +21,7 @@ from planner.exceptions import InvalidArgumentError
 
 __all__ = [
     "LARGEST",
+    "anchor_bounds",
     "cholesky_certificates",
     "extreme_bounds",
     "grams",
@@ -98,7 +100,7 @@ static int positive(long k, const double *g, double sign, double shift, double m
 /* Per matrix: bounds of the smallest eigenvalue (lower, upper), of the largest (lower, upper)
    and a lower bound of the product of the eigenvalues of one matrix G, into o[0 .. 4]. */
 static void bracket(long k, const double *G, double *o) {
-    static const double loose[3] = {1e-4, 0.05, 0.5};
+    static const double loose[4] = {1e-7, 1e-4, 0.05, 0.5};
     double L[64], piv[8], x[8], y[8];
     double tr = 0.0;
     for (long i = 0; i < k; ++i) tr += G[i * k + i];
@@ -158,7 +160,7 @@ static void bracket(long k, const double *G, double *o) {
     o[1] = low + margin;
     o[0] = 0.0;
     if (ok) /* G - margin I positive definite: the smallest eigenvalue is positive */
-        for (int t = 0; t < 3; ++t) {
+        for (int t = 0; t < 4; ++t) {
             double c = low * (1.0 - loose[t]);
             if (c > 0.0 && positive(k, G, 1.0, c, margin, L)) {
                 o[0] = c;
@@ -198,7 +200,7 @@ static void bracket(long k, const double *G, double *o) {
     double high = quotient(k, G, x);
     o[2] = high - margin;
     o[3] = tr + margin;
-    for (int t = 0; t < 3; ++t) {
+    for (int t = 0; t < 4; ++t) {
         double c = high * (1.0 + loose[t]);
         if (positive(k, G, -1.0, c, margin, L)) {
             o[3] = c < o[3] ? c : o[3];
@@ -439,7 +441,18 @@ void interval_certificates(long n, long dof, long m, const double *q, long na, c
                     settled_inv = li > least[j];
                 }
                 if (settled_inv && !(lm > level_man)) {
-                    /* The manipulability alone: every s_i(J_lam) above f = (k e guess^2)^(1/3). */
+                    /* The manipulability alone: every s_i(J_lam) above f = (2 e s_up)^(1/2), where
+                       s_i - e >= (s_i^2 - f^2)^(1/2) for s_i up to s_up. */
+                    double floor = sqrt(2.0 * e * (s_lam + e));
+                    if (floor > e && factor(k, G, floor * floor, L, piv)) {
+                        double det = 1.0;
+                        for (long i = 0; i < k; ++i) det *= piv[i];
+                        double got = sqrt(det) * (scale * (1.0 - 1e-9));
+                        lm = lm > got ? lm : got;
+                    }
+                }
+                if (settled_inv && !(lm > level_man)) {
+                    /* Else above f = (k e guess^2)^(1/3), less (1 - e / f) per singular value. */
                     double floor = cbrt(k * e * guess * guess);
                     if (factor(k, G, floor * floor, L, piv) && floor > e) {
                         double det = 1.0;
@@ -453,6 +466,34 @@ void interval_certificates(long n, long dof, long m, const double *q, long na, c
             lo_man[r] = lm;
             flags[r] = below_r | (settled_inv && lm > level_man ? 0 : 2) | (settled_inv ? 0 : 4);
         }
+    }
+}
+
+/* The bracketed anchors of bounded_conditioning, (t, m, dof) scaled Jacobians: per anchor into
+   out (t, 8) the largest singular value's upper bound, the smallest's lower bound, the product's
+   lower bound, the smallest's upper bound, the largest's lower bound, the inverse condition
+   number's lower and upper bounds and the manipulability's upper bound (times scale). */
+void anchor_bounds(long t, long m, long dof, const double *S, double scale, double *out) {
+    long md = m * dof, k = m < dof ? m : dof;
+    double G[64], L[64], piv[8], o[5];
+    for (long r = 0; r < t; ++r) {
+        double *w = out + 8 * r;
+        gram_one(m, dof, S + r * md, G);
+        bracket(k, G, o);
+        double tr = 0.0, product = 1.0;
+        for (long i = 0; i < k; ++i) tr += G[i * k + i];
+        int ok = factor(k, G, -2e-12 * tr, L, piv);
+        for (long i = 0; i < k; ++i) product *= piv[i];
+        double l_min = o[0] > 0.0 ? o[0] : 0.0, l_max = o[2] > 0.0 ? o[2] : 0.0;
+        w[0] = sqrt(o[3]);
+        w[1] = sqrt(l_min);
+        w[2] = sqrt(o[4] > 0.0 ? o[4] : 0.0);
+        w[3] = sqrt(o[1]);
+        w[4] = sqrt(l_max);
+        w[5] = o[3] > 0.0 ? sqrt(l_min / o[3]) * (1.0 - 1e-9) : 0.0;
+        double up = sqrt(o[1] / o[2]) * (1.0 + 1e-9);
+        w[6] = o[2] > 0.0 && isfinite(up) ? up : INFINITY;
+        w[7] = ok ? sqrt(product) * (1.0 + 1e-9) * scale : INFINITY;
     }
 }
 
@@ -500,6 +541,7 @@ _SIGNATURES = {
     "grams": [ctypes.c_long, ctypes.c_long, ctypes.c_long, *[ctypes.c_void_p] * 2],
     "interval_certificates": [*[ctypes.c_long] * 3, ctypes.c_void_p, ctypes.c_long, *[ctypes.c_void_p] * 9],
     "own_certificates": [*[ctypes.c_long] * 3, *[ctypes.c_void_p] * 6],
+    "anchor_bounds": [*[ctypes.c_long] * 3, ctypes.c_void_p, ctypes.c_double, ctypes.c_void_p],
 }
 
 
@@ -542,7 +584,8 @@ def extreme_bounds(gram: np.ndarray) -> np.ndarray | None:
     """Bounds of the smallest and the largest eigenvalue of each symmetric positive semi-definite `gram`.
 
     The smallest: an upper bound from the Rayleigh quotient ``x^T G x / x^T x`` (at least the
-    smallest eigenvalue for any ``x``) after six steps of inverse iteration, and a lower bound
+    smallest eigenvalue for any ``x``) after two power steps on ``M^4``, ``M`` the inverse of
+    ``G + 1e-10 tr(G) I`` (inverse iteration, eight steps), and a lower bound
     ``c`` where ``G - c I`` is shown positive definite by :func:`cholesky_certificates`' test at
     ``c`` 1e-4 below the quotient, else 5 % or 50 % below, else 0. The largest: a lower bound
     from the quotient after three steps of power iteration on ``G^32`` (five squarings), and an
@@ -611,10 +654,16 @@ def interval_certificates(
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
     """Steps 0 and 2 of :func:`planner.motion.singularity.bounded_conditioning` in one compiled loop.
 
-    The same bounds as its NumPy path (:func:`~planner.motion.singularity._interval_bounds`, then
-    the certificate of the interpolated Jacobian where the inverse condition number is open and
-    not both anchors are at or below the level), interval by interval; the second differences of
-    each interval are taken over that interval alone.
+    The same bounds as its NumPy path, interval by interval and row by row: step 0's bounds of
+    the interval, then the certificates of the interpolated Jacobian ``J_lam`` (above the level
+    where not both anchors are at or below it; above the stretch's least value where the row is
+    shown below the threshold; the manipulability alone where the inverse condition number is
+    settled). Compiled only: where step 0 does not show a row below the threshold (and its
+    lower bound is under it), the Rayleigh quotients of ``J_lam J_lam^T`` at the two anchors'
+    estimated eigenvectors of their smallest and largest eigenvalues (a few steps of inverse and
+    power iteration) bound its extreme eigenvalues from above and from below (any unit vector
+    does; ``2e-12 tr`` covers their rounding), and ``e`` more or less those of the row (Weyl):
+    a quotient under the threshold shows the row below it.
 
     Args:
         q: Configurations, shape (n, dof).
@@ -658,6 +707,40 @@ def interval_certificates(
         flags.ctypes.data,
     )
     return lo_inv, lo_man, flags
+
+
+def anchor_bounds(scaled: np.ndarray, scale: float) -> np.ndarray | None:
+    """Bounds of the singular values of scaled Jacobians from their Gram matrices, in one compiled loop.
+
+    For the anchors :func:`planner.motion.singularity.bounded_conditioning` brackets: the square
+    roots of :func:`extreme_bounds` (negative lower bounds taken as 0), the inverse condition
+    number bracketed from them (each side widened by 1e-9; 0 and inf where nothing is shown) and
+    the manipulability from above (the root of the pivots' product of ``G + 1e-12 tr(G) I``,
+    widened by 1e-9, times `scale`; inf where that factorisation fails).
+
+    Args:
+        scaled: Matrices, shape (t, m, dof).
+        scale: The manipulability over the product of the singular values.
+
+    Returns:
+        Shape (t, 8): per matrix ``(s_max upper, s_min lower, product lower, s_min upper, s_max
+        lower, inverse condition lower, inverse condition upper, manipulability upper)``, or
+        None without the compiled library or for k above :data:`LARGEST`.
+
+    Raises:
+        InvalidArgumentError: If `scaled` is not of shape (t, m, dof).
+    """
+    scaled = np.ascontiguousarray(scaled, dtype=float)
+    if scaled.ndim != 3:
+        raise InvalidArgumentError(f"scaled must have shape (t, m, dof), got {scaled.shape}")
+    t, m, dof = scaled.shape
+    lib = _library()
+    if lib is None or min(m, dof) > LARGEST:
+        return None
+    out = np.empty((t, 8))
+    if t:
+        lib.anchor_bounds(t, m, dof, scaled.ctypes.data, float(scale), out.ctypes.data)
+    return out
 
 
 def own_certificates(

@@ -40,6 +40,7 @@ import numpy as np
 
 from planner.core.arrays import read_only
 from planner.core.certificates import (
+    anchor_bounds,
     cholesky_certificates,
     extreme_bounds,
     grams,
@@ -526,14 +527,28 @@ def bounded_conditioning(
        (:func:`_positive_definite`) for ``f = level s_up + e`` shows the inverse condition number
        above ``level`` (the threshold, or the smallest exact value when that is larger). There
        every ``s_i(J_lam) > f``, so ``s_i - e >= s_i (1 - e / f)`` and the manipulability is at
-       least the root of ``det(J_lam J_lam^T)`` (at least the product of the pivots) times
-       ``(1 - e / f)^k``.
+       least the root of ``det(J_lam J_lam^T - f^2 I)`` (at least the product of the pivots)
+       times ``(1 - e / f)^k``. A row shown below the threshold is certified the same way above
+       its stretch's smallest value (``f = least s_up + e``). Where the inverse condition number
+       is settled and the manipulability is not, the same certificate with ``f = (k e s^2)^(1/3)``
+       (``s`` the neighbours' smallest singular value: a small loss from both factors) bounds
+       the manipulability alone.
     3. The row's own Jacobian (the compiled one of :mod:`planner.geometry.jacobian_kernel`,
        equal to Pinocchio's to rounding): :func:`_extreme_bounds` brackets the smallest and the
        largest eigenvalue of ``J J^T`` (the squared extreme singular values) and bounds its
        determinant from below, so the inverse condition number from both sides and the
        manipulability from below; a bracket under the threshold shows the row below it.
     4. The row is measured exactly.
+
+    Where step 0 applies and C can be compiled, steps 0 to 3 run in the loops of
+    :func:`planner.core.certificates.interval_certificates` and
+    :func:`~planner.core.certificates.own_certificates` (the same bounds; step 0's second
+    differences are taken over each interval alone, as here), and step 2 also bounds the
+    inverse condition number from above where step 0 did not show a row below: the Rayleigh
+    quotients of ``J_lam J_lam^T`` at the neighbours' estimated extreme eigenvectors bound its
+    smallest eigenvalue from above and its largest from below, and the row's singular values
+    are within ``e`` of ``J_lam``'s (Weyl), so fewer rows in a dip below the threshold need
+    their own Jacobian.
 
     In the end the rows `keep`, the row of each minimum (inverse condition number and
     manipulability) and the row of the minimum of every stretch that dips below the threshold
@@ -584,18 +599,32 @@ def bounded_conditioning(
         exact[idx] = True
 
     bounds_of = np.unique(np.concatenate([[0, n - 1], [] if keep is None else np.asarray(keep)]).astype(int))
-    anchors = np.unique(np.concatenate([np.arange(0, n, ANCHOR_SPACING), bounds_of]).astype(int))
+    is_anchor = np.zeros(n, dtype=bool)
+    is_anchor[::ANCHOR_SPACING] = True
+    is_anchor[bounds_of] = True
+    anchors = np.flatnonzero(is_anchor)
     change = robot.derived.get(_ChangeBounds, lambda: _ChangeBounds(robot)).of(task)
     kernel = jacobian_kernel(robot)
     # The anchors other than the rows `keep`: their extreme singular values bracketed from the
     # compiled Jacobian (where step 0 applies), measured exactly only if that settles nothing.
     bracketed = change is not None and divisor is not None and kernel is not None
-    loose = np.setdiff1d(anchors, bounds_of) if bracketed else anchors[:0]
+    if bracketed:
+        is_loose = is_anchor.copy()
+        is_loose[bounds_of] = False
+        loose = np.flatnonzero(is_loose)
+    else:
+        loose = anchors[:0]
     measure(bounds_of if bracketed else anchors)  # the anchors not in `loose`
     ends_at = _Ends.exact(s_inv, n, np.nonzero(exact)[0])
     value_up = inv.copy()  # at the anchors: an upper bound of the inverse condition number
     if len(loose):
         scaled_all[loose] = robot.task_rows(kernel(q[loose]), task)[1]
+    bracketed_anchors = anchor_bounds(scaled_all[loose], scale) if len(loose) else None
+    if bracketed_anchors is not None:
+        top, bottom, product, min_up, max_low, loose_low, value_up[loose], man_up = bracketed_anchors.T
+        ends_at.top[loose], ends_at.bottom[loose], ends_at.product[loose] = top, bottom, product
+        ends_at.min_up[loose], ends_at.max_low[loose] = min_up, max_low
+    elif len(loose):
         gram = _gram(scaled_all[loose])
         brackets = _extreme_bounds(gram)
         l_min, h_min, l_max, h_max, l_product = brackets.T
@@ -608,9 +637,7 @@ def bounded_conditioning(
         ends_at.bottom[loose], ends_at.max_low[loose] = np.sqrt(np.maximum(l_min, 0.0)), np.sqrt(np.maximum(l_max, 0.0))
         ends_at.product[loose] = np.sqrt(np.maximum(l_product, 0.0))
         loose_low, value_up[loose] = _condition_bracket(brackets)
-    is_anchor = np.zeros(n, dtype=bool)
-    is_anchor[anchors] = True
-    rows = np.nonzero(~is_anchor)[0]
+    rows = np.flatnonzero(~is_anchor)
     if not len(rows) and not len(loose):
         return inv, man
     # Every row shown above these is above an exact value (the final minimum is no larger).
@@ -622,10 +649,9 @@ def bounded_conditioning(
     left, right = ends[right - 1], ends[right]  # the anchors on either side of each row
     # The stretches between the rows `keep`: the smallest exact value in each (ends included).
     stretch = np.searchsorted(bounds_of, rows) - 1
-    of_end = np.clip(np.searchsorted(bounds_of, ends, side="right") - 1, 0, len(bounds_of) - 2)
-    least_of = np.full(len(bounds_of) - 1, np.inf)
-    np.minimum.at(least_of, of_end, value_up[ends])
-    np.minimum.at(least_of, np.clip(np.searchsorted(bounds_of, bounds_of) - 1, 0, None), inv[bounds_of])
+    # Over the anchors from one row of `keep` to the next (the rows `keep` are anchors).
+    at_ends, values = np.searchsorted(ends, bounds_of), value_up[ends]
+    least_of = np.minimum(np.minimum.reduceat(values, at_ends[:-1]), values[at_ends[1:]])
     least = least_of[stretch]
     lo_inv, lo_man = np.zeros(len(rows)), np.zeros(len(rows))
     below = np.zeros(len(rows), dtype=bool)  # shown below the threshold
@@ -721,6 +747,15 @@ def bounded_conditioning(
                 # The manipulability alone where the inverse condition number is settled.
                 take = np.nonzero(settled_inv() & ~(lo_man > level_man))[0]
                 if len(take):
+                    # Every s_i(J_lam) above f = (2 e s_up)^(1/2): s_i - e >= (s_i^2 - f^2)^(1/2).
+                    gram, s_lam, err = interpolated(take)
+                    floor = np.sqrt(2.0 * err * (s_lam + err))
+                    ok, det = _positive_definite(gram, floor * floor)
+                    ok &= floor > err
+                    lo_man[take[ok]] = np.maximum(lo_man[take[ok]], np.sqrt(det[ok]) * (scale * (1.0 - 1e-9)))
+                take = np.nonzero(settled_inv() & ~(lo_man > level_man))[0]
+                if len(take):
+                    # Else above f = (k e s^2)^(1/3), less (1 - e / f) per singular value.
                     gram, _, err = interpolated(take)
                     guess = np.minimum(ends_at.bottom[left[take]], ends_at.bottom[right[take]])
                     floor = np.cbrt(k * err * guess * guess)
