@@ -150,6 +150,10 @@ def _intervals(t: np.ndarray, low: np.ndarray) -> tuple[tuple[float, float], ...
 #: Samples between the first rows :func:`bounded_conditioning` measures exactly.
 ANCHOR_SPACING = 16
 
+#: Samples between those rows where they are bracketed from the compiled Jacobian instead (cheaper
+#: than an exact measure: closer together, so that fewer rows between them need their own).
+BRACKETED_SPACING = 12
+
 
 def jacobian_change_bounds(robot: Robot, task: Task) -> tuple[np.ndarray, float, float] | None:
     """Constants of a bound on how far the task Jacobian moves with the joints, or None.
@@ -495,8 +499,9 @@ def bounded_conditioning(
 
     The first, the last and the rows `keep` are measured exactly (their singular values), and
     so is every :data:`ANCHOR_SPACING`-th row (an *anchor*), except where step 0 applies and the
-    compiled Jacobian is at hand: there an anchor's extreme singular values and the product of
-    all of them are bracketed from its Gram matrix (:func:`_extreme_bounds`, and the pivots of
+    compiled Jacobian is at hand: there every :data:`BRACKETED_SPACING`-th row is an anchor, and
+    an anchor's extreme singular values and the product of all of them are bracketed from its
+    Gram matrix (:func:`_extreme_bounds`, and the pivots of
     ``G + 1e-12 tr(G) I`` for the product from above), and it is measured exactly only where
     that does not show it as below. `keep` cuts the rows into stretches (ends included). Every
     other row is then shown either above the threshold and above an upper bound of an anchor's
@@ -599,15 +604,15 @@ def bounded_conditioning(
         exact[idx] = True
 
     bounds_of = np.unique(np.concatenate([[0, n - 1], [] if keep is None else np.asarray(keep)]).astype(int))
-    is_anchor = np.zeros(n, dtype=bool)
-    is_anchor[::ANCHOR_SPACING] = True
-    is_anchor[bounds_of] = True
-    anchors = np.flatnonzero(is_anchor)
     change = robot.derived.get(_ChangeBounds, lambda: _ChangeBounds(robot)).of(task)
     kernel = jacobian_kernel(robot)
     # The anchors other than the rows `keep`: their extreme singular values bracketed from the
     # compiled Jacobian (where step 0 applies), measured exactly only if that settles nothing.
     bracketed = change is not None and divisor is not None and kernel is not None
+    is_anchor = np.zeros(n, dtype=bool)
+    is_anchor[:: BRACKETED_SPACING if bracketed else ANCHOR_SPACING] = True
+    is_anchor[bounds_of] = True
+    anchors = np.flatnonzero(is_anchor)
     if bracketed:
         is_loose = is_anchor.copy()
         is_loose[bounds_of] = False
