@@ -213,3 +213,27 @@ def test_anchor_bounds_are_tight_on_most_jacobians():
     assert np.mean((low >= inverse * (1 - 1e-3)) & (up <= inverse * (1 + 1e-3))) > 0.8
     assert np.mean(product >= np.prod(s, axis=1) * (1 - 1e-6)) > 0.8
     assert np.mean(man_up <= np.prod(s, axis=1) * (1 + 1e-4)) > 0.8
+
+
+@pytest.mark.parametrize(
+    "change",
+    ["anchors past the end", "anchors out of order", "scaled rows", "ends columns", "least length", "rho length"],
+)
+def test_interval_certificates_refuse_arrays_they_would_read_past(change):
+    n, dof, m = 30, 3, 3
+    q, anchors = np.zeros((n, dof)), np.array([0, 12, 24, 29])
+    scaled, ends, least, rho = np.zeros((4, m, dof)), np.zeros((4, 6)), np.zeros(3), np.ones(dof)
+    if change == "anchors past the end":
+        anchors = np.array([0, 12, 24, 30])
+    elif change == "anchors out of order":
+        anchors = np.array([0, 24, 12, 29])
+    elif change == "scaled rows":
+        scaled = np.zeros((3, m, dof))
+    elif change == "ends columns":
+        ends = np.zeros((4, 5))
+    elif change == "least length":
+        least = np.zeros(4)
+    else:
+        rho = np.ones(dof + 1)
+    with pytest.raises(InvalidArgumentError, match="interval_certificates"):
+        interval_certificates(q, anchors, scaled, ends, least, rho, (0.0,) * 6)

@@ -679,15 +679,28 @@ def interval_certificates(
         threshold, 2: not settled, 4: the inverse condition number not settled); None without
         the compiled library or for k above :data:`LARGEST`.
     """
-    lib = _library()
-    n, dof = q.shape
-    m = scaled.shape[1]
-    if lib is None or min(m, dof) > LARGEST:
-        return None
     q = np.ascontiguousarray(q, dtype=float)
     anchors = np.ascontiguousarray(anchors, dtype=np.int64)
     scaled, ends = np.ascontiguousarray(scaled, dtype=float), np.ascontiguousarray(ends, dtype=float)
     least, rho = np.ascontiguousarray(least, dtype=float), np.ascontiguousarray(rho, dtype=float)
+    if q.ndim != 2 or scaled.ndim != 3:
+        raise InvalidArgumentError(f"q must have shape (n, dof) and scaled (na, m, dof), got {q.shape}, {scaled.shape}")
+    (n, dof), na, m = q.shape, len(anchors), scaled.shape[1]
+    if (
+        anchors.ndim != 1
+        or scaled.shape != (na, m, dof)
+        or ends.shape != (na, 6)
+        or least.shape != (max(na - 1, 0),)
+        or rho.shape != (dof,)
+        or len(params) != 6
+        or (na and (anchors[0] < 0 or anchors[-1] >= n or np.any(np.diff(anchors) <= 0)))
+    ):
+        raise InvalidArgumentError(
+            "interval_certificates: arrays of mismatched shapes or anchors not rows of q in order"
+        )
+    lib = _library()
+    if lib is None or min(m, dof) > LARGEST:
+        return None
     values = np.array(params, dtype=float)
     lo_inv, lo_man, flags = np.zeros(n), np.zeros(n), np.zeros(n, dtype=np.int64)
     lib.interval_certificates(
@@ -768,10 +781,14 @@ def own_certificates(
     Returns:
         False (nothing changed) without the compiled library or for k above :data:`LARGEST`.
     """
+    if np.ndim(scaled) != 3 or len(params) != 4:
+        raise InvalidArgumentError(f"scaled must have shape (t, m, dof) and params 4 values, got {np.shape(scaled)}")
     lib = _library()
     t, m, dof = scaled.shape
     if lib is None or min(m, dof) > LARGEST:
         return False
+    if np.shape(least) != (t,):
+        raise InvalidArgumentError(f"least must have shape ({t},), got {np.shape(least)}")
     for array, kind in ((lo_inv, np.float64), (lo_man, np.float64), (flags, np.int64)):
         if array.dtype != kind or not array.flags.c_contiguous or array.shape != (t,):
             raise InvalidArgumentError(f"own_certificates needs C-contiguous {kind.__name__} arrays of shape ({t},)")
