@@ -9,6 +9,8 @@ subprocess per tree; each pair's figure is its smallest over the rounds). Per pl
 - **singularity side**: :func:`plan_clear_of_singularities` less the trajectory planning inside
   it (``plan_trajectory_request``): the measures, the detour searches and their bookkeeping;
 - **measure**: :func:`measure_singularities` alone (all its calls in the plan);
+- **bounded**: :func:`bounded_conditioning` alone (the measure less sampling the trajectory and
+  building the report);
 - **plan**: the whole ``plan_motion`` call.
 
 Printed per arm, straight and routed plans apart: the median and mean of each, per tree, and the
@@ -41,6 +43,7 @@ def worker(arm: str, paths: int, seed: int) -> list[dict]:
     """Plan every pair with the planner on ``sys.path`` and time its singularity side."""
     import planner.app.motion_plan as motion_plan
     import planner.motion.detours as detours
+    import planner.motion.singularity as singularity
     from planner import load_robot
     from planner.app.plan_file import parse_motion_request
     from planner.collision import CollisionChecker, parse_scene
@@ -75,6 +78,7 @@ def worker(arm: str, paths: int, seed: int) -> list[dict]:
     timed(detours, "plan_trajectory_request", "timing")
     timed(detours, "measure_singularities", "measure")
     timed(motion_plan, "measure_singularities", "measure")
+    timed(singularity, "bounded_conditioning", "bounded")
     rows = []
     warm = pairs[0]
     motion_plan.plan_motion(robot, parse_motion_request({"waypoints": [w.tolist() for w in warm], "scene": SCENE}))
@@ -101,6 +105,7 @@ def worker(arm: str, paths: int, seed: int) -> list[dict]:
                 "plan": total,
                 "side": spent.get("detours", 0.0) - spent.get("timing", 0.0),
                 "measure": spent.get("measure", 0.0),
+                "bounded": spent.get("bounded", 0.0),
                 "duration": plan.trajectory.duration,
                 "minimum": plan.singularity.min_inverse_condition,
                 "detours": len(plan.detours),
@@ -131,7 +136,10 @@ def summary(arm: str, trees: list[str], blocks: list[list[list[dict]]]) -> dict:
     for t in range(len(trees)):
         rounds = [b[t] for b in blocks]
         best.append(
-            [rounds[0][i] | {k: min(r[i][k] for r in rounds) for k in ("plan", "side", "measure")} for i in kept]
+            [
+                rounds[0][i] | {k: min(r[i][k] for r in rounds) for k in ("plan", "side", "measure", "bounded")}
+                for i in kept
+            ]
         )
     out: dict = {"arm": arm, "pairs": len(best[0]), "failed": n - len(kept)}
     same = [
@@ -149,7 +157,7 @@ def summary(arm: str, trees: list[str], blocks: list[list[list[dict]]]) -> dict:
         ]
         part: dict = {"plans": len(idx)}
         if idx:
-            for key in ("side", "measure", "plan"):
+            for key in ("side", "measure", "bounded", "plan"):
                 values = [np.array([best[t][i][key] for i in idx]) * 1e3 for t in range(len(trees))]
                 part[key] = {
                     "median_ms": [float(np.median(v)) for v in values],
@@ -169,7 +177,12 @@ def table(rows: list[dict], trees: list[str]) -> str:
     for r in rows:
         for kind in ("straight", "routed"):
             part = r[kind]
-            for key, label in (("side", "singularity side"), ("measure", "measure"), ("plan", "whole plan")):
+            for key, label in (
+                ("side", "singularity side"),
+                ("measure", "measure"),
+                ("bounded", "bounded_conditioning"),
+                ("plan", "whole plan"),
+            ):
                 if key not in part:
                     continue
                 p = part[key]

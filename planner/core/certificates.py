@@ -4,9 +4,10 @@ The singularity measure (:func:`planner.motion.singularity.bounded_conditioning`
 hundred 3 x 3 to 6 x 6 Gram matrices at a time. Written out over the batch in NumPy that takes
 a few dozen array operations per call whatever the batch size; here one C loop (compiled once
 and cached by :mod:`planner.core.native`) does the same arithmetic, matrix by matrix, in the
-same order. Both functions return None where the library cannot be built (no compiler,
-``PLANNER_JIT=0``) or for matrices larger than :data:`LARGEST`; the caller then takes its
-NumPy path.
+same order. :func:`interval_certificates` and :func:`own_certificates` run the measure's steps
+0 to 3 themselves, row by row. The functions return None (False) where the library cannot be
+built (no compiler, ``PLANNER_JIT=0``) or for matrices larger than :data:`LARGEST`; the caller
+then takes its NumPy path.
 """
 
 from __future__ import annotations
@@ -18,7 +19,15 @@ import numpy as np
 from planner.core.native import load_functions
 from planner.exceptions import InvalidArgumentError
 
-__all__ = ["LARGEST", "cholesky_certificates", "extreme_bounds", "grams"]
+__all__ = [
+    "LARGEST",
+    "anchor_bounds",
+    "cholesky_certificates",
+    "extreme_bounds",
+    "grams",
+    "interval_certificates",
+    "own_certificates",
+]
 
 #: Largest matrix size the compiled loops take.
 LARGEST = 8
@@ -89,95 +98,119 @@ static int positive(long k, const double *g, double sign, double shift, double m
 }
 
 /* Per matrix: bounds of the smallest eigenvalue (lower, upper), of the largest (lower, upper)
-   and a lower bound of the product of the eigenvalues, into out[5 m .. 5 m + 4]. */
-void extreme_bounds(long n, long k, const double *g, double *out) {
-    static const double loose[3] = {1e-4, 0.05, 0.5};
+   and a lower bound of the product of the eigenvalues of one matrix G, into o[0 .. 4]. */
+static void bracket(long k, const double *G, double *o) {
+    static const double loose[4] = {1e-7, 1e-4, 0.05, 0.5};
     double L[64], piv[8], x[8], y[8];
-    for (long m = 0; m < n; ++m) {
-        const double *G = g + m * k * k;
-        double *o = out + 5 * m;
-        double tr = 0.0;
-        for (long i = 0; i < k; ++i) tr += G[i * k + i];
-        double margin = 1e-12 * tr;
-        /* The product: pivots of G - margin I (zero unless all positive). */
-        int ok = factor(k, G, 0.0, L, piv);
-        double product = 1.0;
-        for (long j = 0; j < k; ++j) product *= piv[j];
-        o[4] = ok ? product : 0.0;
-        /* Smallest: inverse iteration with the factor of G + 1e-10 tr I (positive definite), six
-           steps from ones; its Rayleigh quotient (+ margin) is an upper bound. */
-        factor(k, G, -1e-10 * tr - 1e-300, L, piv);
-        double inv_d[8];
-        for (long i = 0; i < k; ++i) inv_d[i] = 1.0 / L[i * k + i];
-        for (long i = 0; i < k; ++i) x[i] = 1.0;
-        for (int it = 0; it < 6; ++it) {
-            for (long i = 0; i < k; ++i) {
-                double s = x[i];
-                for (long j = 0; j < i; ++j) s -= L[i * k + j] * y[j];
-                y[i] = s * inv_d[i];
-            }
-            double norm = 0.0;
-            for (long i = k - 1; i >= 0; --i) {
-                double s = y[i];
-                for (long j = i + 1; j < k; ++j) s -= L[j * k + i] * x[j];
-                x[i] = s * inv_d[i];
-                norm += x[i] * x[i];
-            }
-            norm = 1.0 / sqrt(norm);
-            for (long i = 0; i < k; ++i) x[i] *= norm;
+    double tr = 0.0;
+    for (long i = 0; i < k; ++i) tr += G[i * k + i];
+    double margin = 1e-12 * tr;
+    /* The product: pivots of G - margin I (zero unless all positive). */
+    int ok = factor(k, G, 0.0, L, piv);
+    double product = 1.0;
+    for (long j = 0; j < k; ++j) product *= piv[j];
+    o[4] = ok ? product : 0.0;
+    /* Smallest: power iteration on M^4, M the inverse of G + 1e-10 tr I (positive definite,
+       from its factor), two steps from ones (inverse iteration, eight steps); its Rayleigh
+       quotient with G (+ margin) is an upper bound. */
+    factor(k, G, -1e-10 * tr - 1e-300, L, piv);
+    double W[64], M[64], N[64];
+    for (long i = 0; i < k; ++i) {
+        W[i * k + i] = 1.0 / L[i * k + i];
+        for (long j = 0; j < i; ++j) {
+            double s = 0.0;
+            for (long l = j; l < i; ++l) s += L[i * k + l] * W[l * k + j];
+            W[i * k + j] = -s * W[i * k + i];
         }
-        double low = quotient(k, G, x);
-        o[1] = low + margin;
-        o[0] = 0.0;
-        if (ok) /* G - margin I positive definite: the smallest eigenvalue is positive */
-            for (int t = 0; t < 3; ++t) {
-                double c = low * (1.0 - loose[t]);
-                if (c > 0.0 && positive(k, G, 1.0, c, margin, L)) {
-                    o[0] = c;
-                    break;
-                }
-            }
-        /* Largest: power iteration on G^32 (five squarings of G / tr G, each scaled by its trace),
-           three steps from 1 + 0.1 i: its quotient with G (- margin) is a lower bound, and c I - G
-           positive definite an upper bound c (else the trace). */
-        double P[64], Q[64];
-        for (long i = 0; i < k * k; ++i) P[i] = tr > 0.0 ? G[i] / tr : 0.0;
-        for (int sq = 0; sq < 5; ++sq) {
-            double t2 = 0.0;
-            for (long i = 0; i < k; ++i)
-                for (long j = i; j < k; ++j) {
-                    double v = 0.0;
-                    for (long l = 0; l < k; ++l) v += P[i * k + l] * P[j * k + l];
-                    Q[i * k + j] = Q[j * k + i] = v;
-                }
-            for (long i = 0; i < k; ++i) t2 += Q[i * k + i];
-            double scale = t2 > 0.0 ? 1.0 / t2 : 1.0;
-            for (long i = 0; i < k * k; ++i) P[i] = Q[i] * scale;
+    }
+    double trace_m = 0.0;
+    for (long i = 0; i < k; ++i)
+        for (long j = 0; j <= i; ++j) {
+            double s = 0.0;
+            for (long l = i; l < k; ++l) s += W[l * k + i] * W[l * k + j];
+            M[i * k + j] = M[j * k + i] = s;
+            if (i == j) trace_m += s;
         }
-        for (long i = 0; i < k; ++i) x[i] = 1.0 + 0.1 * (double)i;
-        for (int it = 0; it < 3; ++it) {
-            double norm = 0.0;
-            for (long i = 0; i < k; ++i) {
-                double s = 0.0;
-                for (long j = 0; j < k; ++j) s += P[i * k + j] * x[j];
-                y[i] = s;
-                norm += s * s;
+    for (int sq = 0; sq < 2; ++sq) {
+        double t2 = 0.0, scale = trace_m > 0.0 ? 1.0 / trace_m : 1.0;
+        for (long i = 0; i < k; ++i)
+            for (long j = i; j < k; ++j) {
+                double v = 0.0;
+                for (long l = 0; l < k; ++l) v += M[i * k + l] * M[j * k + l];
+                N[i * k + j] = N[j * k + i] = v * scale * scale;
             }
-            if (!(norm > 0.0)) break; /* P x = 0: x stays */
-            norm = sqrt(norm);
-            for (long i = 0; i < k; ++i) x[i] = y[i] / norm;
+        for (long i = 0; i < k; ++i) t2 += N[i * k + i];
+        for (long i = 0; i < k * k; ++i) M[i] = N[i];
+        trace_m = t2;
+    }
+    for (long i = 0; i < k; ++i) x[i] = 1.0;
+    for (int it = 0; it < 2; ++it) {
+        double norm = 0.0;
+        for (long i = 0; i < k; ++i) {
+            double v = 0.0;
+            for (long j = 0; j < k; ++j) v += M[i * k + j] * x[j];
+            y[i] = v;
+            norm += v * v;
         }
-        double high = quotient(k, G, x);
-        o[2] = high - margin;
-        o[3] = tr + margin;
-        for (int t = 0; t < 3; ++t) {
-            double c = high * (1.0 + loose[t]);
-            if (positive(k, G, -1.0, c, margin, L)) {
-                o[3] = c < o[3] ? c : o[3];
+        if (!(norm > 0.0)) break;
+        norm = 1.0 / sqrt(norm);
+        for (long i = 0; i < k; ++i) x[i] = y[i] * norm;
+    }
+    double low = quotient(k, G, x);
+    o[1] = low + margin;
+    o[0] = 0.0;
+    if (ok) /* G - margin I positive definite: the smallest eigenvalue is positive */
+        for (int t = 0; t < 4; ++t) {
+            double c = low * (1.0 - loose[t]);
+            if (c > 0.0 && positive(k, G, 1.0, c, margin, L)) {
+                o[0] = c;
                 break;
             }
         }
+    /* Largest: power iteration on G^32 (five squarings of G / tr G, each scaled by its trace),
+       three steps from 1 + 0.1 i: its quotient with G (- margin) is a lower bound, and c I - G
+       positive definite an upper bound c (else the trace). */
+    double P[64], Q[64];
+    for (long i = 0; i < k * k; ++i) P[i] = tr > 0.0 ? G[i] / tr : 0.0;
+    for (int sq = 0; sq < 5; ++sq) {
+        double t2 = 0.0;
+        for (long i = 0; i < k; ++i)
+            for (long j = i; j < k; ++j) {
+                double v = 0.0;
+                for (long l = 0; l < k; ++l) v += P[i * k + l] * P[j * k + l];
+                Q[i * k + j] = Q[j * k + i] = v;
+            }
+        for (long i = 0; i < k; ++i) t2 += Q[i * k + i];
+        double scale = t2 > 0.0 ? 1.0 / t2 : 1.0;
+        for (long i = 0; i < k * k; ++i) P[i] = Q[i] * scale;
     }
+    for (long i = 0; i < k; ++i) x[i] = 1.0 + 0.1 * (double)i;
+    for (int it = 0; it < 3; ++it) {
+        double norm = 0.0;
+        for (long i = 0; i < k; ++i) {
+            double s = 0.0;
+            for (long j = 0; j < k; ++j) s += P[i * k + j] * x[j];
+            y[i] = s;
+            norm += s * s;
+        }
+        if (!(norm > 0.0)) break; /* P x = 0: x stays */
+        norm = sqrt(norm);
+        for (long i = 0; i < k; ++i) x[i] = y[i] / norm;
+    }
+    double high = quotient(k, G, x);
+    o[2] = high - margin;
+    o[3] = tr + margin;
+    for (int t = 0; t < 4; ++t) {
+        double c = high * (1.0 + loose[t]);
+        if (positive(k, G, -1.0, c, margin, L)) {
+            o[3] = c < o[3] ? c : o[3];
+            break;
+        }
+    }
+}
+
+void extreme_bounds(long n, long k, const double *g, double *out) {
+    for (long m = 0; m < n; ++m) bracket(k, g + m * k * k, out + 5 * m);
 }
 
 /* Gram matrices of (n, r, c) matrices: S S^T (r x r) when r <= c, else S^T S (c x c). */
@@ -197,12 +230,318 @@ void grams(long n, long r, long c, const double *S, double *out) {
             }
     }
 }
+
+static void gram_one(long r, long c, const double *A, double *G) {
+    grams(1, r, c, A, G);
+}
+
+/* jacobian_change_bound of one joint change u (dof). */
+static double change_bound(long dof, const double *u, const double *rho, double angular) {
+    double before[dof], after[dof], sum = 0.0, a2 = 0.0, b2 = 0.0;
+    for (long i = 0; i < dof; ++i) {
+        before[i] = sum;
+        sum += fabs(u[i]);
+    }
+    sum = 0.0;
+    for (long i = dof - 1; i >= 0; --i) {
+        sum += rho[i] * fabs(u[i]);
+        after[i] = sum;
+    }
+    for (long i = 0; i < dof; ++i) {
+        double a = rho[i] * before[i] + after[i];
+        a2 += a * a;
+        b2 += before[i] * before[i];
+    }
+    return sqrt(a2 + angular * angular * b2);
+}
+
+/* jacobian_curvature_bound of one joint change u (dof). */
+static double curvature_bound(long dof, const double *u, const double *rho, double angular) {
+    double before[dof], turn[dof], a[dof], sum = 0.0, t = 0.0, c2 = 0.0, g2 = 0.0;
+    for (long i = 0; i < dof; ++i) {
+        double ui = fabs(u[i]);
+        before[i] = sum;
+        turn[i] = t;
+        t += sum * ui;
+        sum += ui;
+    }
+    sum = 0.0;
+    for (long i = dof - 1; i >= 0; --i) {
+        sum += rho[i] * fabs(u[i]);
+        a[i] = rho[i] * before[i] + sum;
+    }
+    double tail = 0.0;
+    for (long i = dof - 1; i >= 0; --i) {
+        tail += (before[i] * rho[i] + a[i]) * fabs(u[i]);
+        double g = turn[i] + before[i] * before[i];
+        double c = g * rho[i] + 3.0 * before[i] * a[i] + turn[i] * rho[i] + tail;
+        c2 += c * c;
+        g2 += g * g;
+    }
+    return sqrt(c2 + angular * angular * g2);
+}
+
+/* Whether J_lam J_lam^T - f^2 I is positive definite for f = lift s_up + e (then every row
+   within e of J_lam is above lift): raises *li to lift and *lm to the manipulability shown. */
+static void certify(long k, const double *G, double lift, double s_up, double e, double scale, double *L,
+                    double *piv, double *li, double *lm) {
+    double floor = lift * s_up + e;
+    if (!factor(k, G, floor * floor, L, piv)) return;
+    double det = 1.0;
+    for (long i = 0; i < k; ++i) det *= piv[i];
+    *li = *li > lift ? *li : lift;
+    double ratio = floor > 0.0 ? e / floor : 0.0;
+    double got = sqrt(det) * pow(1.0 - ratio > 0.0 ? 1.0 - ratio : 0.0, (double)k) * (scale * (1.0 - 1e-9));
+    *lm = *lm > got ? *lm : got;
+}
+
+/* Unit estimates of the eigenvectors of the smallest and the largest eigenvalue of S S^T (or S^T S):
+   inverse iteration (the factor of G + 1e-10 tr I) and power iteration, a few steps each. */
+static void extreme_vectors(long m, long dof, const double *S, double *low, double *high) {
+    long k = m < dof ? m : dof;
+    double G[64], L[64], piv[8], y[8], tr = 0.0, norm;
+    gram_one(m, dof, S, G);
+    for (long i = 0; i < k; ++i) tr += G[i * k + i];
+    factor(k, G, -1e-10 * tr - 1e-300, L, piv);
+    for (long i = 0; i < k; ++i) low[i] = 1.0, high[i] = 1.0 + 0.1 * (double)i;
+    for (int it = 0; it < 4; ++it) {
+        for (long i = 0; i < k; ++i) {
+            double v = low[i];
+            for (long j = 0; j < i; ++j) v -= L[i * k + j] * y[j];
+            y[i] = v / L[i * k + i];
+        }
+        norm = 0.0;
+        for (long i = k - 1; i >= 0; --i) {
+            double v = y[i];
+            for (long j = i + 1; j < k; ++j) v -= L[j * k + i] * low[j];
+            low[i] = v / L[i * k + i];
+            norm += low[i] * low[i];
+        }
+        norm = 1.0 / sqrt(norm);
+        for (long i = 0; i < k; ++i) low[i] *= norm;
+    }
+    for (int it = 0; it < 6; ++it) {
+        norm = 0.0;
+        for (long i = 0; i < k; ++i) {
+            double v = 0.0;
+            for (long j = 0; j < k; ++j) v += G[i * k + j] * high[j];
+            y[i] = v;
+            norm += v * v;
+        }
+        if (!(norm > 0.0)) break;
+        norm = 1.0 / sqrt(norm);
+        for (long i = 0; i < k; ++i) high[i] = y[i] * norm;
+    }
+}
+
+/* Steps 0 and 2 of bounded_conditioning over the rows between consecutive anchors.
+   ends (na, 6) per anchor: top, bottom, product, min_up, max_low, value_up; least (na - 1) per
+   interval; params: angular, threshold, level, lifted, level_man, scale. Per row between anchors:
+   lo_inv, lo_man and flags (1 below, 2 not settled, 4 inverse condition number not settled). */
+void interval_certificates(long n, long dof, long m, const double *q, long na, const long *anchors,
+                           const double *S, const double *ends, const double *least, const double *rho,
+                           const double *params, double *lo_inv, double *lo_man, long *flags) {
+    double angular = params[0], threshold = params[1], level = params[2], lifted = params[3];
+    double level_man = params[4], scale = params[5];
+    long md = m * dof, k = m < dof ? m : dof;
+    double bend[dof], u[dof], dev[dof], off[dof], J[md], G[64], L[64], piv[8];
+    double va_low[8], va_high[8], vb_low[8], vb_high[8];
+    long cached = -1; /* the anchor whose vectors vb_low, vb_high hold */
+    (void)n;
+    for (long j = 0; j + 1 < na; ++j) {
+        long a = anchors[j], b = anchors[j + 1];
+        if (b - a < 2) continue;
+        const double *ea = ends + 6 * j, *eb = ends + 6 * (j + 1);
+        const double *Sa = S + j * md, *Sb = S + (j + 1) * md;
+        const double *qa = q + a * dof, *qb = q + b * dof;
+        /* Step 0: the rows a..b off the line from q_a to q_b by at most h (b - a)^2 / 8. */
+        for (long i = 0; i < dof; ++i) bend[i] = 0.0;
+        for (long r = a; r + 2 <= b; ++r) {
+            const double *q0 = q + r * dof;
+            for (long i = 0; i < dof; ++i) {
+                double h = fabs((q0[2 * dof + i] - q0[dof + i]) - (q0[dof + i] - q0[i]));
+                if (h > bend[i]) bend[i] = h;
+            }
+        }
+        double span = (double)(b - a);
+        for (long i = 0; i < dof; ++i) {
+            dev[i] = bend[i] * (0.125 * span * span) * (1.0 + 1e-9);
+            u[i] = qb[i] - qa[i];
+        }
+        double top = ea[0] > eb[0] ? ea[0] : eb[0];
+        double margin = 1e-9 * (top + 1.0);
+        double curvature = curvature_bound(dof, u, rho, angular);
+        double err = (change_bound(dof, dev, rho, angular) + 0.125 * curvature) * (1.0 + 1e-9) + margin;
+        double d = 0.0;
+        for (long i = 0; i < md; ++i) d += (Sb[i] - Sa[i]) * (Sb[i] - Sa[i]);
+        d = sqrt(d) * (1.0 + 1e-9);
+        double smallest = (ea[1] < eb[1] ? ea[1] : eb[1]) - margin;
+        smallest = smallest > 0.0 ? smallest : 0.0;
+        double m2 = smallest * smallest, c = 0.25 * d * d;
+        double sigma = sqrt(m2 - c > 0.0 ? m2 - c : 0.0);
+        double inv0 = (sigma - err > 0.0 ? sigma - err : 0.0) / (top + margin + err);
+        double shift = smallest > 0.0 ? 1.0 - margin / (smallest + margin) : 0.0;
+        shift = pow(shift > 0.0 ? shift : 0.0, (double)k);
+        double product = (ea[2] < eb[2] ? ea[2] : eb[2]) * shift;
+        double det_factor = m2 > c ? pow(1.0 - c / m2 > 0.0 ? 1.0 - c / m2 : 0.0, 0.5 * k) : 0.0;
+        double shrink = sigma > err ? pow(1.0 - err / sigma > 0.0 ? 1.0 - err / sigma : 0.0, (double)k) : 0.0;
+        double man0 = product * det_factor * shrink;
+        double top_low = 0.5 * (ea[4] + eb[4] - d) - margin - err;
+        double upper = top_low > 0.0 ? (0.5 * (ea[3] + eb[3] + d) + margin + err) / top_low * (1.0 + 1e-9) : INFINITY;
+        int below = upper < threshold;
+        int hopeless = ea[5] <= level && eb[5] <= level;
+        double row_inv = inv0 * (1.0 - 1e-9), row_man = man0 * (scale * (1.0 - 1e-9));
+        double guess = ea[1] < eb[1] ? ea[1] : eb[1];
+        int vectors = 0;
+        for (long r = a + 1; r < b; ++r) {
+            double li = row_inv, lm = row_man;
+            int below_r = below;
+            int settled_inv = li > level || (below && li > least[j]);
+            int need_inv = !settled_inv && !hopeless;
+            if (!settled_inv || !(lm > level_man)) {
+                /* Step 2: the interpolation of the anchors' Jacobians, up to e. */
+                double lam = (double)(r - a) / span;
+                const double *qr = q + r * dof;
+                for (long i = 0; i < dof; ++i) off[i] = qr[i] - (qa[i] + lam * u[i]);
+                double e = change_bound(dof, off, rho, angular) + 0.5 * lam * (1.0 - lam) * curvature;
+                double s_lam = (1.0 - lam) * ea[0] + lam * eb[0];
+                e = e * (1.0 + 1e-9) + 1e-9 * (s_lam + 1.0);
+                for (long i = 0; i < md; ++i) J[i] = (1.0 - lam) * Sa[i] + lam * Sb[i];
+                gram_one(m, dof, J, G);
+                if (need_inv) {
+                    certify(k, G, lifted, s_lam + e, e, scale, L, piv, &li, &lm);
+                    settled_inv = li > level || (below_r && li > least[j]);
+                }
+                if (!settled_inv && !below_r && li < threshold) {
+                    /* From above: Rayleigh quotients of J_lam J_lam^T at the anchors' extreme
+                       eigenvectors bound its extreme eigenvalues (the smallest from above, the
+                       largest from below); the row's singular values are within e of J_lam's. */
+                    if (!vectors) { /* b's vectors are the next interval's a's */
+                        if (cached == j)
+                            for (long i = 0; i < k; ++i) va_low[i] = vb_low[i], va_high[i] = vb_high[i];
+                        else
+                            extreme_vectors(m, dof, Sa, va_low, va_high);
+                        extreme_vectors(m, dof, Sb, vb_low, vb_high);
+                        vectors = 1;
+                        cached = j + 1;
+                    }
+                    double tr = 0.0;
+                    for (long i = 0; i < k; ++i) tr += G[i * k + i];
+                    double q_low = quotient(k, G, va_low), q_low_b = quotient(k, G, vb_low);
+                    double q_high = quotient(k, G, va_high), q_high_b = quotient(k, G, vb_high);
+                    q_low = (q_low < q_low_b ? q_low : q_low_b) + 2e-12 * tr;
+                    q_high = (q_high > q_high_b ? q_high : q_high_b) - 2e-12 * tr;
+                    double top_low = sqrt(q_high > 0.0 ? q_high : 0.0) - e;
+                    double up = (sqrt(q_low > 0.0 ? q_low : 0.0) + e) / top_low * (1.0 + 1e-9);
+                    below_r = top_low > 0.0 && up < threshold;
+                }
+                if (!settled_inv && below_r) {
+                    /* Shown below the threshold: above the stretch's least value suffices. */
+                    certify(k, G, least[j] * (1.0 + 1e-9), s_lam + e, e, scale, L, piv, &li, &lm);
+                    settled_inv = li > least[j];
+                }
+                if (settled_inv && !(lm > level_man)) {
+                    /* The manipulability alone: every s_i(J_lam) above f = (2 e s_up)^(1/2), where
+                       s_i - e >= (s_i^2 - f^2)^(1/2) for s_i up to s_up. */
+                    double floor = sqrt(2.0 * e * (s_lam + e));
+                    if (floor > e && factor(k, G, floor * floor, L, piv)) {
+                        double det = 1.0;
+                        for (long i = 0; i < k; ++i) det *= piv[i];
+                        double got = sqrt(det) * (scale * (1.0 - 1e-9));
+                        lm = lm > got ? lm : got;
+                    }
+                }
+                if (settled_inv && !(lm > level_man)) {
+                    /* Else above f = (k e guess^2)^(1/3), less (1 - e / f) per singular value. */
+                    double floor = cbrt(k * e * guess * guess);
+                    if (factor(k, G, floor * floor, L, piv) && floor > e) {
+                        double det = 1.0;
+                        for (long i = 0; i < k; ++i) det *= piv[i];
+                        double got = sqrt(det) * pow(1.0 - e / floor, (double)k) * (scale * (1.0 - 1e-9));
+                        lm = lm > got ? lm : got;
+                    }
+                }
+            }
+            lo_inv[r] = li;
+            lo_man[r] = lm;
+            flags[r] = below_r | (settled_inv && lm > level_man ? 0 : 2) | (settled_inv ? 0 : 4);
+        }
+    }
+}
+
+/* The bracketed anchors of bounded_conditioning, (t, m, dof) scaled Jacobians: per anchor into
+   out (t, 8) the largest singular value's upper bound, the smallest's lower bound, the product's
+   lower bound, the smallest's upper bound, the largest's lower bound, the inverse condition
+   number's lower and upper bounds and the manipulability's upper bound (times scale). */
+void anchor_bounds(long t, long m, long dof, const double *S, double scale, double *out) {
+    long md = m * dof, k = m < dof ? m : dof;
+    double G[64], L[64], piv[8], o[5];
+    for (long r = 0; r < t; ++r) {
+        double *w = out + 8 * r;
+        gram_one(m, dof, S + r * md, G);
+        bracket(k, G, o);
+        double tr = 0.0, product = 1.0;
+        for (long i = 0; i < k; ++i) tr += G[i * k + i];
+        int ok = factor(k, G, -2e-12 * tr, L, piv);
+        for (long i = 0; i < k; ++i) product *= piv[i];
+        double l_min = o[0] > 0.0 ? o[0] : 0.0, l_max = o[2] > 0.0 ? o[2] : 0.0;
+        w[0] = sqrt(o[3]);
+        w[1] = sqrt(l_min);
+        w[2] = sqrt(o[4] > 0.0 ? o[4] : 0.0);
+        w[3] = sqrt(o[1]);
+        w[4] = sqrt(l_max);
+        w[5] = o[3] > 0.0 ? sqrt(l_min / o[3]) * (1.0 - 1e-9) : 0.0;
+        double up = sqrt(o[1] / o[2]) * (1.0 + 1e-9);
+        w[6] = o[2] > 0.0 && isfinite(up) ? up : INFINITY;
+        w[7] = ok ? sqrt(product) * (1.0 + 1e-9) * scale : INFINITY;
+    }
+}
+
+/* Step 3 of bounded_conditioning: rows (t, m, dof) of their own scaled Jacobians; lo_inv, lo_man
+   and flags (as interval_certificates gives them) updated; least (t) per row; params: threshold,
+   level, level_man, scale. */
+void own_certificates(long t, long m, long dof, const double *S, const double *least, const double *params,
+                      double *lo_inv, double *lo_man, long *flags) {
+    double threshold = params[0], level = params[1], level_man = params[2], scale = params[3];
+    long md = m * dof, k = m < dof ? m : dof;
+    double G[64], L[64], piv[8], o[5];
+    for (long r = 0; r < t; ++r) {
+        int below = flags[r] & 1;
+        double li = lo_inv[r], lm = lo_man[r], product = 0.0;
+        int open_inv = !(li > level || (below && li > least[r]));
+        gram_one(m, dof, S + r * md, G);
+        if (open_inv) {
+            bracket(k, G, o);
+            product = o[4];
+            double l_min = o[0] > 0.0 ? o[0] : 0.0;
+            double low = o[3] > 0.0 ? sqrt(l_min / o[3]) * (1.0 - 1e-9) : 0.0;
+            double up = sqrt(o[1] / o[2]) * (1.0 + 1e-9);
+            if (!(o[2] > 0.0 && isfinite(up))) up = INFINITY;
+            li = li > low ? li : low;
+            if (up < threshold) below = 1;
+        } else if (!(lm > level_man)) {
+            int ok = factor(k, G, 0.0, L, piv);
+            product = 1.0;
+            for (long i = 0; i < k; ++i) product *= ok ? piv[i] : 0.0;
+            product = ok ? product : 0.0;
+        }
+        double got = sqrt(product > 0.0 ? product : 0.0) * (scale * (1.0 - 1e-9));
+        lm = lm > got ? lm : got;
+        int settled_inv = li > level || (below && li > least[r]);
+        lo_inv[r] = li;
+        lo_man[r] = lm;
+        flags[r] = below | (settled_inv && lm > level_man ? 0 : 2) | (settled_inv ? 0 : 4);
+    }
+}
 """
 
 _SIGNATURES = {
     "cholesky_certificates": [ctypes.c_long, ctypes.c_long, *[ctypes.c_void_p] * 4],
     "extreme_bounds": [ctypes.c_long, ctypes.c_long, *[ctypes.c_void_p] * 2],
     "grams": [ctypes.c_long, ctypes.c_long, ctypes.c_long, *[ctypes.c_void_p] * 2],
+    "interval_certificates": [*[ctypes.c_long] * 3, ctypes.c_void_p, ctypes.c_long, *[ctypes.c_void_p] * 9],
+    "own_certificates": [*[ctypes.c_long] * 3, *[ctypes.c_void_p] * 6],
+    "anchor_bounds": [*[ctypes.c_long] * 3, ctypes.c_void_p, ctypes.c_double, ctypes.c_void_p],
 }
 
 
@@ -245,7 +584,8 @@ def extreme_bounds(gram: np.ndarray) -> np.ndarray | None:
     """Bounds of the smallest and the largest eigenvalue of each symmetric positive semi-definite `gram`.
 
     The smallest: an upper bound from the Rayleigh quotient ``x^T G x / x^T x`` (at least the
-    smallest eigenvalue for any ``x``) after six steps of inverse iteration, and a lower bound
+    smallest eigenvalue for any ``x``) after two power steps on ``M^4``, ``M`` the inverse of
+    ``G + 1e-10 tr(G) I`` (inverse iteration, eight steps), and a lower bound
     ``c`` where ``G - c I`` is shown positive definite by :func:`cholesky_certificates`' test at
     ``c`` 1e-4 below the quotient, else 5 % or 50 % below, else 0. The largest: a lower bound
     from the quotient after three steps of power iteration on ``G^32`` (five squarings), and an
@@ -301,6 +641,172 @@ def grams(matrices: np.ndarray) -> np.ndarray | None:
     if n and k:
         lib.grams(n, r, c, matrices.ctypes.data, out.ctypes.data)
     return out
+
+
+def interval_certificates(
+    q: np.ndarray,
+    anchors: np.ndarray,
+    scaled: np.ndarray,
+    ends: np.ndarray,
+    least: np.ndarray,
+    rho: np.ndarray,
+    params: tuple[float, float, float, float, float, float],
+) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
+    """Steps 0 and 2 of :func:`planner.motion.singularity.bounded_conditioning` in one compiled loop.
+
+    The same bounds as its NumPy path, interval by interval and row by row: step 0's bounds of
+    the interval, then the certificates of the interpolated Jacobian ``J_lam`` (above the level
+    where not both anchors are at or below it; above the stretch's least value where the row is
+    shown below the threshold; the manipulability alone where the inverse condition number is
+    settled). Compiled only: where step 0 does not show a row below the threshold (and its
+    lower bound is under it), the Rayleigh quotients of ``J_lam J_lam^T`` at the two anchors'
+    estimated eigenvectors of their smallest and largest eigenvalues (a few steps of inverse and
+    power iteration) bound its extreme eigenvalues from above and from below (any unit vector
+    does; ``2e-12 tr`` covers their rounding), and ``e`` more or less those of the row (Weyl):
+    a quotient under the threshold shows the row below it.
+
+    Args:
+        q: Configurations, shape (n, dof).
+        anchors: Sorted rows with known Jacobians, shape (na,), first 0 and last n - 1.
+        scaled: Their scaled Jacobians, shape (na, m, dof).
+        ends: Per anchor ``(top, bottom, product, min_up, max_low, value_up)``, shape (na, 6).
+        least: Per interval between anchors, the least value of its stretch, shape (na - 1,).
+        rho: Per joint, the chain lengths of :func:`~planner.motion.singularity.jacobian_change_bounds`.
+        params: ``(angular, threshold, level, lifted, level_man, scale)``.
+
+    Returns:
+        Per row (n,), valid between anchors: ``lo_inv``, ``lo_man`` and flags (1: shown below the
+        threshold, 2: not settled, 4: the inverse condition number not settled); None without
+        the compiled library or for k above :data:`LARGEST`.
+    """
+    q = np.ascontiguousarray(q, dtype=float)
+    anchors = np.ascontiguousarray(anchors, dtype=np.int64)
+    scaled, ends = np.ascontiguousarray(scaled, dtype=float), np.ascontiguousarray(ends, dtype=float)
+    least, rho = np.ascontiguousarray(least, dtype=float), np.ascontiguousarray(rho, dtype=float)
+    if q.ndim != 2 or scaled.ndim != 3:
+        raise InvalidArgumentError(f"q must have shape (n, dof) and scaled (na, m, dof), got {q.shape}, {scaled.shape}")
+    (n, dof), na, m = q.shape, len(anchors), scaled.shape[1]
+    if (
+        anchors.ndim != 1
+        or scaled.shape != (na, m, dof)
+        or ends.shape != (na, 6)
+        or least.shape != (max(na - 1, 0),)
+        or rho.shape != (dof,)
+        or len(params) != 6
+        or (na and (anchors[0] < 0 or anchors[-1] >= n or np.any(np.diff(anchors) <= 0)))
+    ):
+        raise InvalidArgumentError(
+            "interval_certificates: arrays of mismatched shapes or anchors not rows of q in order"
+        )
+    lib = _library()
+    if lib is None or min(m, dof) > LARGEST:
+        return None
+    values = np.array(params, dtype=float)
+    lo_inv, lo_man, flags = np.zeros(n), np.zeros(n), np.zeros(n, dtype=np.int64)
+    lib.interval_certificates(
+        n,
+        dof,
+        m,
+        q.ctypes.data,
+        len(anchors),
+        anchors.ctypes.data,
+        scaled.ctypes.data,
+        ends.ctypes.data,
+        least.ctypes.data,
+        rho.ctypes.data,
+        values.ctypes.data,
+        lo_inv.ctypes.data,
+        lo_man.ctypes.data,
+        flags.ctypes.data,
+    )
+    return lo_inv, lo_man, flags
+
+
+def anchor_bounds(scaled: np.ndarray, scale: float) -> np.ndarray | None:
+    """Bounds of the singular values of scaled Jacobians from their Gram matrices, in one compiled loop.
+
+    For the anchors :func:`planner.motion.singularity.bounded_conditioning` brackets: the square
+    roots of :func:`extreme_bounds` (negative lower bounds taken as 0), the inverse condition
+    number bracketed from them (each side widened by 1e-9; 0 and inf where nothing is shown) and
+    the manipulability from above (the root of the pivots' product of ``G + 1e-12 tr(G) I``,
+    widened by 1e-9, times `scale`; inf where that factorisation fails).
+
+    Args:
+        scaled: Matrices, shape (t, m, dof).
+        scale: The manipulability over the product of the singular values.
+
+    Returns:
+        Shape (t, 8): per matrix ``(s_max upper, s_min lower, product lower, s_min upper, s_max
+        lower, inverse condition lower, inverse condition upper, manipulability upper)``, or
+        None without the compiled library or for k above :data:`LARGEST`.
+
+    Raises:
+        InvalidArgumentError: If `scaled` is not of shape (t, m, dof).
+    """
+    scaled = np.ascontiguousarray(scaled, dtype=float)
+    if scaled.ndim != 3:
+        raise InvalidArgumentError(f"scaled must have shape (t, m, dof), got {scaled.shape}")
+    t, m, dof = scaled.shape
+    lib = _library()
+    if lib is None or min(m, dof) > LARGEST:
+        return None
+    out = np.empty((t, 8))
+    if t:
+        lib.anchor_bounds(t, m, dof, scaled.ctypes.data, float(scale), out.ctypes.data)
+    return out
+
+
+def own_certificates(
+    scaled: np.ndarray,
+    least: np.ndarray,
+    lo_inv: np.ndarray,
+    lo_man: np.ndarray,
+    flags: np.ndarray,
+    params: tuple[float, float, float, float],
+) -> bool:
+    """Step 3 of :func:`planner.motion.singularity.bounded_conditioning` in one compiled loop, in place.
+
+    Per row, from its own scaled Jacobian's Gram matrix: the inverse condition number bracketed
+    (:func:`extreme_bounds`) where it is open, else the manipulability's factorisation where that
+    is open, as the NumPy path does.
+
+    Args:
+        scaled: The rows' scaled Jacobians, shape (t, m, dof).
+        least: Per row, the least value of its stretch, shape (t,).
+        lo_inv: Lower bounds of the inverse condition number (t,), raised in place.
+        lo_man: Lower bounds of the manipulability (t,), raised in place.
+        flags: As :func:`interval_certificates` gives them (t,) (int64), updated in place.
+        params: ``(threshold, level, level_man, scale)``.
+
+    Returns:
+        False (nothing changed) without the compiled library or for k above :data:`LARGEST`.
+    """
+    if np.ndim(scaled) != 3 or len(params) != 4:
+        raise InvalidArgumentError(f"scaled must have shape (t, m, dof) and params 4 values, got {np.shape(scaled)}")
+    lib = _library()
+    t, m, dof = scaled.shape
+    if lib is None or min(m, dof) > LARGEST:
+        return False
+    if np.shape(least) != (t,):
+        raise InvalidArgumentError(f"least must have shape ({t},), got {np.shape(least)}")
+    for array, kind in ((lo_inv, np.float64), (lo_man, np.float64), (flags, np.int64)):
+        if array.dtype != kind or not array.flags.c_contiguous or array.shape != (t,):
+            raise InvalidArgumentError(f"own_certificates needs C-contiguous {kind.__name__} arrays of shape ({t},)")
+    scaled, least = np.ascontiguousarray(scaled, dtype=float), np.ascontiguousarray(least, dtype=float)
+    values = np.array(params, dtype=float)
+    if t:
+        lib.own_certificates(
+            t,
+            m,
+            dof,
+            scaled.ctypes.data,
+            least.ctypes.data,
+            values.ctypes.data,
+            lo_inv.ctypes.data,
+            lo_man.ctypes.data,
+            flags.ctypes.data,
+        )
+    return True
 
 
 def _square_batch(gram: np.ndarray) -> np.ndarray:

@@ -39,7 +39,14 @@ from typing import NamedTuple
 import numpy as np
 
 from planner.core.arrays import read_only
-from planner.core.certificates import cholesky_certificates, extreme_bounds, grams
+from planner.core.certificates import (
+    anchor_bounds,
+    cholesky_certificates,
+    extreme_bounds,
+    grams,
+    interval_certificates,
+    own_certificates,
+)
 from planner.core.text import plain
 from planner.exceptions import InvalidArgumentError
 from planner.geometry.jacobian_kernel import jacobian_kernel
@@ -142,6 +149,10 @@ def _intervals(t: np.ndarray, low: np.ndarray) -> tuple[tuple[float, float], ...
 
 #: Samples between the first rows :func:`bounded_conditioning` measures exactly.
 ANCHOR_SPACING = 16
+
+#: Samples between those rows where they are bracketed from the compiled Jacobian instead (cheaper
+#: than an exact measure: closer together, so that fewer rows between them need their own).
+BRACKETED_SPACING = 12
 
 
 def jacobian_change_bounds(robot: Robot, task: Task) -> tuple[np.ndarray, float, float] | None:
@@ -451,7 +462,9 @@ def _interval_bounds(
     # The rows a..b deviate from the straight line between q_a and q_b by at most h L^2 / 8,
     # h their largest second difference and L = b - a (discrete maximum principle).
     bend = np.diff(q, 2, axis=0)
-    bend = np.maximum.reduceat(np.abs(bend, out=bend), a, axis=0)
+    # Those of each interval alone: second differences a .. b - 2 (the odd segments dropped).
+    cuts = np.stack([a, b - 1], axis=1).ravel()
+    bend = np.maximum.reduceat(np.abs(bend, out=bend), cuts[cuts < len(bend)], axis=0)[::2]
     deviation = bend * (0.125 * (b - a) ** 2)[:, None] * (1.0 + 1e-9)
     top = np.maximum(s.top[a], s.top[b])
     margin = 1e-9 * (top + 1.0)
@@ -486,8 +499,9 @@ def bounded_conditioning(
 
     The first, the last and the rows `keep` are measured exactly (their singular values), and
     so is every :data:`ANCHOR_SPACING`-th row (an *anchor*), except where step 0 applies and the
-    compiled Jacobian is at hand: there an anchor's extreme singular values and the product of
-    all of them are bracketed from its Gram matrix (:func:`_extreme_bounds`, and the pivots of
+    compiled Jacobian is at hand: there every :data:`BRACKETED_SPACING`-th row is an anchor, and
+    an anchor's extreme singular values and the product of all of them are bracketed from its
+    Gram matrix (:func:`_extreme_bounds`, and the pivots of
     ``G + 1e-12 tr(G) I`` for the product from above), and it is measured exactly only where
     that does not show it as below. `keep` cuts the rows into stretches (ends included). Every
     other row is then shown either above the threshold and above an upper bound of an anchor's
@@ -518,14 +532,28 @@ def bounded_conditioning(
        (:func:`_positive_definite`) for ``f = level s_up + e`` shows the inverse condition number
        above ``level`` (the threshold, or the smallest exact value when that is larger). There
        every ``s_i(J_lam) > f``, so ``s_i - e >= s_i (1 - e / f)`` and the manipulability is at
-       least the root of ``det(J_lam J_lam^T)`` (at least the product of the pivots) times
-       ``(1 - e / f)^k``.
+       least the root of ``det(J_lam J_lam^T - f^2 I)`` (at least the product of the pivots)
+       times ``(1 - e / f)^k``. A row shown below the threshold is certified the same way above
+       its stretch's smallest value (``f = least s_up + e``). Where the inverse condition number
+       is settled and the manipulability is not, the same certificate with ``f = (k e s^2)^(1/3)``
+       (``s`` the neighbours' smallest singular value: a small loss from both factors) bounds
+       the manipulability alone.
     3. The row's own Jacobian (the compiled one of :mod:`planner.geometry.jacobian_kernel`,
        equal to Pinocchio's to rounding): :func:`_extreme_bounds` brackets the smallest and the
        largest eigenvalue of ``J J^T`` (the squared extreme singular values) and bounds its
        determinant from below, so the inverse condition number from both sides and the
        manipulability from below; a bracket under the threshold shows the row below it.
     4. The row is measured exactly.
+
+    Where step 0 applies and C can be compiled, steps 0 to 3 run in the loops of
+    :func:`planner.core.certificates.interval_certificates` and
+    :func:`~planner.core.certificates.own_certificates` (the same bounds; step 0's second
+    differences are taken over each interval alone, as here), and step 2 also bounds the
+    inverse condition number from above where step 0 did not show a row below: the Rayleigh
+    quotients of ``J_lam J_lam^T`` at the neighbours' estimated extreme eigenvectors bound its
+    smallest eigenvalue from above and its largest from below, and the row's singular values
+    are within ``e`` of ``J_lam``'s (Weyl), so fewer rows in a dip below the threshold need
+    their own Jacobian.
 
     In the end the rows `keep`, the row of each minimum (inverse condition number and
     manipulability) and the row of the minimum of every stretch that dips below the threshold
@@ -576,18 +604,32 @@ def bounded_conditioning(
         exact[idx] = True
 
     bounds_of = np.unique(np.concatenate([[0, n - 1], [] if keep is None else np.asarray(keep)]).astype(int))
-    anchors = np.unique(np.concatenate([np.arange(0, n, ANCHOR_SPACING), bounds_of]).astype(int))
     change = robot.derived.get(_ChangeBounds, lambda: _ChangeBounds(robot)).of(task)
     kernel = jacobian_kernel(robot)
     # The anchors other than the rows `keep`: their extreme singular values bracketed from the
     # compiled Jacobian (where step 0 applies), measured exactly only if that settles nothing.
     bracketed = change is not None and divisor is not None and kernel is not None
-    loose = np.setdiff1d(anchors, bounds_of) if bracketed else anchors[:0]
-    measure(np.setdiff1d(anchors, loose))
+    is_anchor = np.zeros(n, dtype=bool)
+    is_anchor[:: BRACKETED_SPACING if bracketed else ANCHOR_SPACING] = True
+    is_anchor[bounds_of] = True
+    anchors = np.flatnonzero(is_anchor)
+    if bracketed:
+        is_loose = is_anchor.copy()
+        is_loose[bounds_of] = False
+        loose = np.flatnonzero(is_loose)
+    else:
+        loose = anchors[:0]
+    measure(bounds_of if bracketed else anchors)  # the anchors not in `loose`
     ends_at = _Ends.exact(s_inv, n, np.nonzero(exact)[0])
     value_up = inv.copy()  # at the anchors: an upper bound of the inverse condition number
     if len(loose):
         scaled_all[loose] = robot.task_rows(kernel(q[loose]), task)[1]
+    bracketed_anchors = anchor_bounds(scaled_all[loose], scale) if len(loose) else None
+    if bracketed_anchors is not None:
+        top, bottom, product, min_up, max_low, loose_low, value_up[loose], man_up = bracketed_anchors.T
+        ends_at.top[loose], ends_at.bottom[loose], ends_at.product[loose] = top, bottom, product
+        ends_at.min_up[loose], ends_at.max_low[loose] = min_up, max_low
+    elif len(loose):
         gram = _gram(scaled_all[loose])
         brackets = _extreme_bounds(gram)
         l_min, h_min, l_max, h_max, l_product = brackets.T
@@ -600,9 +642,7 @@ def bounded_conditioning(
         ends_at.bottom[loose], ends_at.max_low[loose] = np.sqrt(np.maximum(l_min, 0.0)), np.sqrt(np.maximum(l_max, 0.0))
         ends_at.product[loose] = np.sqrt(np.maximum(l_product, 0.0))
         loose_low, value_up[loose] = _condition_bracket(brackets)
-    is_anchor = np.zeros(n, dtype=bool)
-    is_anchor[anchors] = True
-    rows = np.nonzero(~is_anchor)[0]
+    rows = np.flatnonzero(~is_anchor)
     if not len(rows) and not len(loose):
         return inv, man
     # Every row shown above these is above an exact value (the final minimum is no larger).
@@ -614,10 +654,9 @@ def bounded_conditioning(
     left, right = ends[right - 1], ends[right]  # the anchors on either side of each row
     # The stretches between the rows `keep`: the smallest exact value in each (ends included).
     stretch = np.searchsorted(bounds_of, rows) - 1
-    of_end = np.clip(np.searchsorted(bounds_of, ends, side="right") - 1, 0, len(bounds_of) - 2)
-    least_of = np.full(len(bounds_of) - 1, np.inf)
-    np.minimum.at(least_of, of_end, value_up[ends])
-    np.minimum.at(least_of, np.clip(np.searchsorted(bounds_of, bounds_of) - 1, 0, None), inv[bounds_of])
+    # Over the anchors from one row of `keep` to the next (the rows `keep` are anchors).
+    at_ends, values = np.searchsorted(ends, bounds_of), value_up[ends]
+    least_of = np.minimum(np.minimum.reduceat(values, at_ends[:-1]), values[at_ends[1:]])
     least = least_of[stretch]
     lo_inv, lo_man = np.zeros(len(rows)), np.zeros(len(rows))
     below = np.zeros(len(rows), dtype=bool)  # shown below the threshold
@@ -640,78 +679,133 @@ def bounded_conditioning(
         # Both neighbours below the level: the certificate above it will not hold (saves the attempt).
         return (value_up[left[take]] <= level) & (value_up[right[take]] <= level)
 
-    def certify(take: np.ndarray, gram: np.ndarray, s_up: np.ndarray, err: np.ndarray) -> None:
-        floor = lifted * s_up + err
+    def interpolated(take: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        # Step 2's interpolation of the neighbours' Jacobians: its Gram matrices, s_up - e and e.
+        lam, err = _interpolation_error(q, rows[take], left[take], right[take], change[:2])
+        s_lam = (1.0 - lam) * ends_at.top[left[take]] + lam * ends_at.top[right[take]]
+        # Rounding of the interpolation and of the singular values: a margin far above it.
+        err = err * (1.0 + 1e-9) + 1e-9 * (s_lam + 1.0)
+        lam = lam[:, None, None]
+        return _gram((1.0 - lam) * scaled_all[left[take]] + lam * scaled_all[right[take]]), s_lam, err
+
+    def certify(
+        take: np.ndarray, gram: np.ndarray, s_up: np.ndarray, err: np.ndarray, lift: float | np.ndarray = lifted
+    ) -> None:
+        floor = lift * s_up + err
         ok, det = _positive_definite(gram, floor * floor)
-        lo_inv[take[ok]] = np.maximum(lo_inv[take[ok]], lifted)
+        lo_inv[take[ok]] = np.maximum(lo_inv[take[ok]], lift if np.ndim(lift) == 0 else lift[ok])
         if divisor is not None:  # the manipulability is that of the scaled Jacobian
             # A zero floor (level 0, no error) leaves the singular values as they are.
             ratio = np.divide(err[ok], floor[ok], out=np.zeros(int(ok.sum())), where=floor[ok] > 0.0)
             shrink = np.maximum(1.0 - ratio, 0.0) ** k
             lo_man[take[ok]] = np.maximum(lo_man[take[ok]], np.sqrt(det[ok]) * shrink * (scale * (1.0 - 1e-9)))
 
-    if change is not None:
-        rho, angular, raw_angular = change
-        if divisor is not None:
-            lo_inv[:], lo_man[:], upper = _interval_bounds(q, rows, left, right, scaled_all, ends_at, (rho, angular))
-            below[:] = upper < threshold
-            lo_inv *= 1.0 - 1e-9
-            lo_man *= scale * (1.0 - 1e-9)
-        else:
-            take = np.arange(len(rows))
-            near = np.where(rows[take] - left[take] <= right[take] - rows[take], left[take], right[take])
-            du = q[rows[take]] - q[near]
-            e = jacobian_change_bound(du, rho, angular)
-            weyl(take, near, e, e if divisor is not None else jacobian_change_bound(du, rho, raw_angular))
-        take = np.nonzero(~settled())[0]
-        # Rows whose inverse condition number is settled (the manipulability is not) go to step
-        # 3 directly: there its bound comes from one cheap factorisation, tight.
-        take = take[~hopeless(take) & ~settled_inv()[take]]
+    compiled, pending = None, rows[:0]
+    if bracketed:
+        rho, angular, _ = change
+        anchor_ends = np.stack([values[anchors] for values in (*ends_at, value_up)], axis=1)
+        of_interval = np.minimum(np.searchsorted(bounds_of, anchors[:-1], side="right") - 1, len(least_of) - 1)
+        params = (angular, threshold, level, lifted, level_man, scale)
+        compiled = interval_certificates(
+            q, anchors, scaled_all[anchors], anchor_ends, least_of[of_interval], rho, params
+        )
+    if compiled is not None:
+        # Steps 0 to 3 in compiled loops (planner.core.certificates), the same bounds.
+        lo_inv, lo_man, flags = (values[rows] for values in compiled)
+        take = np.nonzero(flags & 2)[0]
         if len(take):
-            lam, err = _interpolation_error(q, rows[take], left[take], right[take], (rho, angular))
-            s_lam = (1.0 - lam) * ends_at.top[left[take]] + lam * ends_at.top[right[take]]
-            # Rounding of the interpolation and of the singular values: a margin far above it.
-            err = err * (1.0 + 1e-9) + 1e-9 * (s_lam + 1.0)
-            interpolated = (1.0 - lam)[:, None, None] * scaled_all[left[take]] + lam[:, None, None] * scaled_all[
-                right[take]
-            ]
-            certify(take, _gram(interpolated), s_lam + err, err)
-    take = np.nonzero(~settled())[0]
-    if len(take):
-        # For bounds only (the rows measured exactly in the end take Pinocchio's Jacobians again).
-        if kernel is None:
-            raw, scaled = robot.task_jacobians(q[rows[take]], task)
-        else:
-            raw, scaled = robot.task_rows(kernel(q[rows[take]]), task)
-        gram = _gram(scaled)
-        # The inverse condition number from both sides where it is not settled yet; the
-        # manipulability alone from the factorisation elsewhere.
-        open_inv = ~settled_inv()[take]
-        product = np.zeros(len(take))
-        if open_inv.any():
-            brackets = _extreme_bounds(gram[open_inv])
-            product[open_inv] = brackets[:, 4]
-            floor, ceiling = _condition_bracket(brackets)
-            at = take[open_inv]
-            lo_inv[at] = np.maximum(lo_inv[at], floor)
-            below[at] |= ceiling < threshold
-        if divisor is None:
-            product = _positive_definite(_gram(raw), np.zeros(len(take)))[1]
-        else:
-            open_man = ~open_inv & ~(lo_man[take] > level_man)
-            product[open_man] = _positive_definite(gram[open_man], np.zeros(int(open_man.sum())))[1]
-        lo_man[take] = np.maximum(lo_man[take], np.sqrt(np.maximum(product, 0.0)) * (scale * (1.0 - 1e-9)))
-        rest = ~settled()[take]
-        if rest.any():
-            measure(rows[take[rest]], *((raw[rest], scaled[rest]) if kernel is None else ()))
+            scaled = robot.task_rows(kernel(q[rows[take]]), task)[1]
+            t_inv, t_man, t_flags = lo_inv[take], lo_man[take], flags[take]
+            if own_certificates(scaled, least[take], t_inv, t_man, t_flags, (threshold, level, level_man, scale)):
+                lo_inv[take], lo_man[take] = t_inv, t_man
+                take = take[(t_flags & 2) != 0]
+            pending = rows[take]  # measured below, with the bracketed anchors left open
+    else:
+        if change is not None:
+            rho, angular, raw_angular = change
+            if divisor is not None:
+                lo_inv[:], lo_man[:], upper = _interval_bounds(
+                    q, rows, left, right, scaled_all, ends_at, (rho, angular)
+                )
+                below[:] = upper < threshold
+                lo_inv *= 1.0 - 1e-9
+                lo_man *= scale * (1.0 - 1e-9)
+            else:
+                take = np.arange(len(rows))
+                near = np.where(rows[take] - left[take] <= right[take] - rows[take], left[take], right[take])
+                du = q[rows[take]] - q[near]
+                e = jacobian_change_bound(du, rho, angular)
+                weyl(take, near, e, e if divisor is not None else jacobian_change_bound(du, rho, raw_angular))
+            take = np.nonzero(~settled())[0]
+            # Rows whose inverse condition number is settled (the manipulability is not) go to step
+            # 3 directly: there its bound comes from one cheap factorisation, tight.
+            take = take[~hopeless(take) & ~settled_inv()[take]]
+            if len(take):
+                gram, s_lam, err = interpolated(take)
+                certify(take, gram, s_lam + err, err)
+            # Shown below the threshold: above the stretch's least value suffices.
+            take = np.nonzero(below & ~settled_inv())[0]
+            if len(take):
+                gram, s_lam, err = interpolated(take)
+                certify(take, gram, s_lam + err, err, least[take] * (1.0 + 1e-9))
+            if divisor is not None:
+                # The manipulability alone where the inverse condition number is settled.
+                take = np.nonzero(settled_inv() & ~(lo_man > level_man))[0]
+                if len(take):
+                    # Every s_i(J_lam) above f = (2 e s_up)^(1/2): s_i - e >= (s_i^2 - f^2)^(1/2).
+                    gram, s_lam, err = interpolated(take)
+                    floor = np.sqrt(2.0 * err * (s_lam + err))
+                    ok, det = _positive_definite(gram, floor * floor)
+                    ok &= floor > err
+                    lo_man[take[ok]] = np.maximum(lo_man[take[ok]], np.sqrt(det[ok]) * (scale * (1.0 - 1e-9)))
+                take = np.nonzero(settled_inv() & ~(lo_man > level_man))[0]
+                if len(take):
+                    # Else above f = (k e s^2)^(1/3), less (1 - e / f) per singular value.
+                    gram, _, err = interpolated(take)
+                    guess = np.minimum(ends_at.bottom[left[take]], ends_at.bottom[right[take]])
+                    floor = np.cbrt(k * err * guess * guess)
+                    ok, det = _positive_definite(gram, floor * floor)
+                    ok &= floor > err
+                    low = np.sqrt(det[ok]) * (1.0 - err[ok] / floor[ok]) ** k * (scale * (1.0 - 1e-9))
+                    lo_man[take[ok]] = np.maximum(lo_man[take[ok]], low)
+        take = np.nonzero(~settled())[0]
+        if len(take):
+            # For bounds only (the rows measured exactly in the end take Pinocchio's Jacobians again).
+            if kernel is None:
+                raw, scaled = robot.task_jacobians(q[rows[take]], task)
+            else:
+                raw, scaled = robot.task_rows(kernel(q[rows[take]]), task)
+            gram = _gram(scaled)
+            # The inverse condition number from both sides where it is not settled yet; the
+            # manipulability alone from the factorisation elsewhere.
+            open_inv = ~settled_inv()[take]
+            product = np.zeros(len(take))
+            if open_inv.any():
+                brackets = _extreme_bounds(gram[open_inv])
+                product[open_inv] = brackets[:, 4]
+                floor, ceiling = _condition_bracket(brackets)
+                at = take[open_inv]
+                lo_inv[at] = np.maximum(lo_inv[at], floor)
+                below[at] |= ceiling < threshold
+            if divisor is None:
+                product = _positive_definite(_gram(raw), np.zeros(len(take)))[1]
+            else:
+                open_man = ~open_inv & ~(lo_man[take] > level_man)
+                product[open_man] = _positive_definite(gram[open_man], np.zeros(int(open_man.sum())))[1]
+            lo_man[take] = np.maximum(lo_man[take], np.sqrt(np.maximum(product, 0.0)) * (scale * (1.0 - 1e-9)))
+            rest = ~settled()[take]
+            if rest.any():
+                measure(rows[take[rest]], *((raw[rest], scaled[rest]) if kernel is None else ()))
+
     if len(loose):
         # The bracketed anchors, settled as the rows are, or measured exactly.
         loose_man = ends_at.product[loose] * (scale * (1.0 - 1e-9))
         dip = (value_up[loose] < threshold) & (loose_low > least_of[np.searchsorted(bounds_of, loose) - 1])
         shown = ((loose_low > level) | dip) & (loose_man > level_man)
         inv[loose[shown]], man[loose[shown]] = loose_low[shown], loose_man[shown]
-        if not shown.all():
-            measure(loose[~shown])
+        pending = np.concatenate([pending, loose[~shown]])
+    if len(pending):
+        measure(pending)
     free = ~exact[rows]
     inv[rows[free]], man[rows[free]] = lo_inv[free], lo_man[free]
     return inv, man
