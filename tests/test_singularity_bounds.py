@@ -302,6 +302,42 @@ def test_the_interval_bounds_hold_at_every_row_between_exact_rows(name, task):
     assert below > 0.1 * 3 * 3 * 2 * 1900, (name, task, below)
 
 
+@given(
+    seed=st.integers(0, 2**32 - 1),
+    shape=st.sampled_from([(3, 3), (3, 6), (6, 6), (6, 7), (7, 6)]),
+    size=st.floats(1e-7, 0.3),
+)
+@property_settings(40)
+def test_the_manipulability_alone_certificate_holds_within_e(seed, shape, size):
+    """Step 2's bound of the manipulability alone (see _inverse_trace): every matrix within e of
+    J_lam in the Frobenius norm has a product of singular values of at least sqrt(det(G - f^2 I))
+    (1 - e^2 / f^2)^(k / 2), G = J_lam's Gram matrix, f^2 = e (k / tr(G^-1))^(1/2); against
+    NumPy's SVD, the change random and the one that lowers J_lam's smallest singular value by e."""
+    from planner.motion.singularity import _inverse_trace
+
+    rng = np.random.default_rng(seed)
+    k = min(shape)
+    j_lam = rng.normal(size=(300, *shape)) * 10.0 ** rng.uniform(-2, 0, (300, 1, shape[1]))
+    u, s, vt = np.linalg.svd(j_lam)
+    shift = size * np.sqrt(k / _inverse_trace(j_lam))
+    shown = (s[:, -1] ** 2 > shift) & (shift > size * size)
+    bound = np.sqrt(np.prod(np.maximum(s * s - shift[:, None], 0.0), axis=1)) * np.maximum(
+        1 - size * size / shift, 0.0
+    ) ** (k / 2)
+    random = rng.normal(size=j_lam.shape)
+    random *= size / np.linalg.norm(random, axis=(1, 2))[:, None, None]
+    lowest = -size * u[:, :, k - 1 : k] @ vt[:, k - 1 : k, :]
+    for change in (random, lowest):
+        product = np.prod(np.linalg.svd(j_lam + change, compute_uv=False), axis=1)
+        assert np.all(product[shown] >= bound[shown] * (1 - 1e-9)), float(np.min(product[shown] / bound[shown]))
+    # Not vacuous: shown on many matrices where e is small, and tight where it is small beside the
+    # smallest singular value.
+    assert shown.sum() > 30 or size > 1e-3
+    small = shown & (size < 1e-3 * s[:, -1])
+    if small.any():
+        assert np.median(bound[small] / np.prod(s[small], axis=1)) > 0.98
+
+
 @pytest.mark.parametrize("compiled", [True, False])
 def test_the_cholesky_certificate_agrees_with_the_eigenvalues(compiled, monkeypatch):
     # Gram matrices with a known spectrum, shifted just below and above their smallest eigenvalue,

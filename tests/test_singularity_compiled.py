@@ -164,6 +164,31 @@ def test_the_compiled_steps_run_and_leave_few_rows_to_measure(name, monkeypatch)
 
 
 @needs_compiler
+@pytest.mark.skipif(not HAVE_EXAMPLE_ROBOT_DATA, reason="needs panda")
+@pytest.mark.parametrize("seed", [5, 6])
+def test_step_two_settles_the_manipulability_of_most_rows(seed, monkeypatch):
+    # Step 2's bound of the manipulability alone (f^2 = e (k / tr(G^-1))^(1/2)) is tight enough
+    # that few rows whose inverse condition number it settles need their own Jacobian for the
+    # manipulability (the earlier (k e s^2)^(1/3) shift left 11 % and 24 % of these rows open).
+    robot = get_robot("panda")
+    q, keep = _planned(robot, seed, 3)
+    got = []
+
+    def spy(*args):
+        got.append((args[1], interval_certificates(*args)))
+        return got[-1][1]
+
+    threshold = inverse_condition_threshold(None, "pose")
+    monkeypatch.setattr(singularity, "interval_certificates", spy)
+    inv, man = bounded_conditioning(robot, q, "pose", threshold, keep)
+    _check_contract(inv, man, *robot.conditioning(q, "pose"), threshold, keep)
+    (anchors, (_, _, flags)), rows = got[0], np.ones(len(q), dtype=bool)
+    rows[anchors] = False
+    manipulability_open = ((flags[rows] & 2) != 0) & ((flags[rows] & 4) == 0)
+    assert manipulability_open.sum() < 0.06 * rows.sum()
+
+
+@needs_compiler
 def test_own_certificates_refuse_arrays_they_would_write_past():
     scaled = np.zeros((4, 6, 7))
     good = (np.zeros(4), np.zeros(4), np.zeros(4), np.zeros(4, dtype=np.int64))

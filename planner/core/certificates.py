@@ -290,9 +290,44 @@ static void certify(long k, const double *G, double lift, double s_up, double e,
     double det = 1.0;
     for (long i = 0; i < k; ++i) det *= piv[i];
     *li = *li > lift ? *li : lift;
-    double ratio = floor > 0.0 ? e / floor : 0.0;
-    double got = sqrt(det) * pow(1.0 - ratio > 0.0 ? 1.0 - ratio : 0.0, (double)k) * (scale * (1.0 - 1e-9));
+    double ratio = floor > 0.0 ? e / floor : 0.0; /* s_i - e >= (s_i^2 - f^2)^(1/2) (1 - ratio^2)^(1/2) */
+    double loss = 1.0 - ratio * ratio;
+    double got = sqrt(det) * pow(loss > 0.0 ? loss : 0.0, 0.5 * (double)k) * (scale * (1.0 - 1e-9));
     *lm = *lm > got ? *lm : got;
+}
+
+/* tr(G^-1) of G = S S^T (or S^T S) for (m, dof) S: the squared Frobenius norm of the inverse of
+   G's factor (inf where the factorisation fails). */
+static double inverse_trace(long m, long dof, const double *S) {
+    long k = m < dof ? m : dof;
+    double G[64], L[64], W[64], piv[8], sum = 0.0;
+    gram_one(m, dof, S, G);
+    if (!factor(k, G, 0.0, L, piv)) return INFINITY;
+    for (long i = 0; i < k; ++i) {
+        W[i * k + i] = 1.0 / L[i * k + i];
+        sum += W[i * k + i] * W[i * k + i];
+        for (long j = 0; j < i; ++j) {
+            double s = 0.0;
+            for (long l = j; l < i; ++l) s += L[i * k + l] * W[l * k + j];
+            W[i * k + j] = -s * W[i * k + i];
+            sum += W[i * k + j] * W[i * k + j];
+        }
+    }
+    return sum;
+}
+
+/* A lower bound of prod(s_i - e) over the singular values s_i of a matrix with Gram matrix G, or 0:
+   where G - f^2 I is positive definite (f > e), every s_i > f and s_i - e >= (s_i^2 - f^2)^(1/2)
+   (1 - e^2 / f^2)^(1/2) (the square of the left side less that of the right is (f - s_i e / f)^2),
+   so the product is at least the root of the pivots' product times (1 - e^2 / f^2)^(k / 2). The
+   relative loss, about f^2 tr(G^-1) / 2 + k e^2 / (2 f^2), is least at f^2 = e (k / tr(G^-1))^(1/2);
+   `inverse` estimates tr(G^-1) (any value gives a bound). */
+static double manipulability_alone(long k, const double *G, double e, double inverse, double *L, double *piv) {
+    double shift = e * sqrt((double)k / inverse);
+    if (!(shift > e * e) || !factor(k, G, shift, L, piv)) return 0.0;
+    double det = 1.0;
+    for (long i = 0; i < k; ++i) det *= piv[i];
+    return sqrt(det) * pow(1.0 - e * e / shift, 0.5 * (double)k);
 }
 
 /* Unit estimates of the eigenvectors of the smallest and the largest eigenvalue of S S^T (or S^T S):
@@ -347,6 +382,8 @@ void interval_certificates(long n, long dof, long m, const double *q, long na, c
     double bend[dof], u[dof], dev[dof], off[dof], J[md], G[64], L[64], piv[8];
     double va_low[8], va_high[8], vb_low[8], vb_high[8];
     long cached = -1; /* the anchor whose vectors vb_low, vb_high hold */
+    long inverse_at = -1; /* the interval whose anchors' tr(G^-1) `inverse` holds */
+    double inverse = INFINITY;
     (void)n;
     for (long j = 0; j + 1 < na; ++j) {
         long a = anchors[j], b = anchors[j + 1];
@@ -391,7 +428,6 @@ void interval_certificates(long n, long dof, long m, const double *q, long na, c
         int below = upper < threshold;
         int hopeless = ea[5] <= level && eb[5] <= level;
         double row_inv = inv0 * (1.0 - 1e-9), row_man = man0 * (scale * (1.0 - 1e-9));
-        double guess = ea[1] < eb[1] ? ea[1] : eb[1];
         int vectors = 0;
         for (long r = a + 1; r < b; ++r) {
             double li = row_inv, lm = row_man;
@@ -441,25 +477,16 @@ void interval_certificates(long n, long dof, long m, const double *q, long na, c
                     settled_inv = li > least[j];
                 }
                 if (settled_inv && !(lm > level_man)) {
-                    /* The manipulability alone: every s_i(J_lam) above f = (2 e s_up)^(1/2), where
-                       s_i - e >= (s_i^2 - f^2)^(1/2) for s_i up to s_up. */
-                    double floor = sqrt(2.0 * e * (s_lam + e));
-                    if (floor > e && factor(k, G, floor * floor, L, piv)) {
-                        double det = 1.0;
-                        for (long i = 0; i < k; ++i) det *= piv[i];
-                        double got = sqrt(det) * (scale * (1.0 - 1e-9));
-                        lm = lm > got ? lm : got;
+                    /* The manipulability alone (manipulability_alone; tr(G^-1) estimated by the
+                       anchors' larger). */
+                    if (inverse_at != j) {
+                        inverse = inverse_trace(m, dof, Sa);
+                        double at_b = inverse_trace(m, dof, Sb);
+                        inverse = inverse > at_b ? inverse : at_b;
+                        inverse_at = j;
                     }
-                }
-                if (settled_inv && !(lm > level_man)) {
-                    /* Else above f = (k e guess^2)^(1/3), less (1 - e / f) per singular value. */
-                    double floor = cbrt(k * e * guess * guess);
-                    if (factor(k, G, floor * floor, L, piv) && floor > e) {
-                        double det = 1.0;
-                        for (long i = 0; i < k; ++i) det *= piv[i];
-                        double got = sqrt(det) * pow(1.0 - e / floor, (double)k) * (scale * (1.0 - 1e-9));
-                        lm = lm > got ? lm : got;
-                    }
+                    double got = manipulability_alone(k, G, e, inverse, L, piv) * (scale * (1.0 - 1e-9));
+                    lm = lm > got ? lm : got;
                 }
             }
             lo_inv[r] = li;

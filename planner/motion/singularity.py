@@ -335,6 +335,22 @@ def _gram(scaled: np.ndarray) -> np.ndarray:
     return scaled.transpose(0, 2, 1) @ scaled
 
 
+def _inverse_trace(scaled: np.ndarray) -> np.ndarray:
+    """``tr(G^-1)`` of the Gram matrix of each matrix of `scaled` (inf where one is not positive definite).
+
+    Step 2's bound of the manipulability alone (see :func:`bounded_conditioning`): where ``G -
+    f^2 I`` is positive definite for the Gram matrix ``G`` of ``J_lam`` and ``f > e``, every
+    singular value ``s_i`` of ``J_lam`` exceeds ``f`` and ``s_i - e >= (s_i^2 - f^2)^(1/2) (1 -
+    e^2 / f^2)^(1/2)`` (the squares differ by ``(f - s_i e / f)^2``), so the row's product of singular
+    values is at least the root of ``det(G - f^2 I)`` times ``(1 - e^2 / f^2)^(k / 2)``. The relative
+    loss, about ``f^2 tr(G^-1) / 2 + k e^2 / (2 f^2)``, is least at ``f^2 = e (k / tr(G^-1))^(1/2)``;
+    ``tr(G^-1)`` is estimated by the neighbours' larger (any estimate gives a bound).
+    """
+    values = np.linalg.eigvalsh(_gram(scaled))
+    with np.errstate(divide="ignore"):
+        return np.where(np.all(values > 0.0, axis=1), np.sum(1.0 / values, axis=1), np.inf)
+
+
 def _interpolation_error(
     q: np.ndarray, rows: np.ndarray, left: np.ndarray, right: np.ndarray, bounds: tuple[np.ndarray, float]
 ) -> tuple[np.ndarray, np.ndarray]:
@@ -531,13 +547,13 @@ def bounded_conditioning(
        least those of ``J_lam`` less ``e``, so ``J_lam J_lam^T - f^2 I`` positive definite
        (:func:`_positive_definite`) for ``f = level s_up + e`` shows the inverse condition number
        above ``level`` (the threshold, or the smallest exact value when that is larger). There
-       every ``s_i(J_lam) > f``, so ``s_i - e >= s_i (1 - e / f)`` and the manipulability is at
-       least the root of ``det(J_lam J_lam^T - f^2 I)`` (at least the product of the pivots)
-       times ``(1 - e / f)^k``. A row shown below the threshold is certified the same way above
-       its stretch's smallest value (``f = least s_up + e``). Where the inverse condition number
-       is settled and the manipulability is not, the same certificate with ``f = (k e s^2)^(1/3)``
-       (``s`` the neighbours' smallest singular value: a small loss from both factors) bounds
-       the manipulability alone.
+       every ``s_i(J_lam) > f``, so ``s_i - e >= (s_i^2 - f^2)^(1/2) (1 - e^2 / f^2)^(1/2)`` and
+       the manipulability is at least the root of ``det(J_lam J_lam^T - f^2 I)`` (at least the
+       product of the pivots) times ``(1 - e^2 / f^2)^(k / 2)``. A row shown below the threshold
+       is certified the same way above its stretch's smallest value (``f = least s_up + e``).
+       Where the inverse condition number is settled and the manipulability is not, the same
+       certificate with ``f^2 = e (k / tr(G^-1))^(1/2)`` (the loss's least, ``tr(G^-1)`` the
+       neighbours' larger: :func:`_inverse_trace`) bounds the manipulability alone.
     3. The row's own Jacobian (the compiled one of :mod:`planner.geometry.jacobian_kernel`,
        equal to Pinocchio's to rounding): :func:`_extreme_bounds` brackets the smallest and the
        largest eigenvalue of ``J J^T`` (the squared extreme singular values) and bounds its
@@ -697,7 +713,7 @@ def bounded_conditioning(
         if divisor is not None:  # the manipulability is that of the scaled Jacobian
             # A zero floor (level 0, no error) leaves the singular values as they are.
             ratio = np.divide(err[ok], floor[ok], out=np.zeros(int(ok.sum())), where=floor[ok] > 0.0)
-            shrink = np.maximum(1.0 - ratio, 0.0) ** k
+            shrink = np.maximum(1.0 - ratio * ratio, 0.0) ** (0.5 * k)  # see _inverse_trace
             lo_man[take[ok]] = np.maximum(lo_man[take[ok]], np.sqrt(det[ok]) * shrink * (scale * (1.0 - 1e-9)))
 
     compiled, pending = None, rows[:0]
@@ -752,22 +768,13 @@ def bounded_conditioning(
                 # The manipulability alone where the inverse condition number is settled.
                 take = np.nonzero(settled_inv() & ~(lo_man > level_man))[0]
                 if len(take):
-                    # Every s_i(J_lam) above f = (2 e s_up)^(1/2): s_i - e >= (s_i^2 - f^2)^(1/2).
-                    gram, s_lam, err = interpolated(take)
-                    floor = np.sqrt(2.0 * err * (s_lam + err))
-                    ok, det = _positive_definite(gram, floor * floor)
-                    ok &= floor > err
-                    lo_man[take[ok]] = np.maximum(lo_man[take[ok]], np.sqrt(det[ok]) * (scale * (1.0 - 1e-9)))
-                take = np.nonzero(settled_inv() & ~(lo_man > level_man))[0]
-                if len(take):
-                    # Else above f = (k e s^2)^(1/3), less (1 - e / f) per singular value.
                     gram, _, err = interpolated(take)
-                    guess = np.minimum(ends_at.bottom[left[take]], ends_at.bottom[right[take]])
-                    floor = np.cbrt(k * err * guess * guess)
-                    ok, det = _positive_definite(gram, floor * floor)
-                    ok &= floor > err
-                    low = np.sqrt(det[ok]) * (1.0 - err[ok] / floor[ok]) ** k * (scale * (1.0 - 1e-9))
-                    lo_man[take[ok]] = np.maximum(lo_man[take[ok]], low)
+                    inverse = np.maximum(*(_inverse_trace(scaled_all[at[take]]) for at in (left, right)))
+                    shift = err * np.sqrt(k / inverse)
+                    ok, det = _positive_definite(gram, shift)
+                    ok &= shift > err * err
+                    loss = (1.0 - err[ok] ** 2 / shift[ok]) ** (0.5 * k)
+                    lo_man[take[ok]] = np.maximum(lo_man[take[ok]], np.sqrt(det[ok]) * loss * (scale * (1.0 - 1e-9)))
         take = np.nonzero(~settled())[0]
         if len(take):
             # For bounds only (the rows measured exactly in the end take Pinocchio's Jacobians again).
