@@ -313,6 +313,34 @@ def test_positions_are_the_sampled_positions(seed, clamp):
         traj.positions([0.0, float("nan")], clamp=clamp)
 
 
+@given(seed=st.integers(0, 2**32 - 1), points=st.integers(2, 5))
+@settings(max_examples=25, deadline=None)
+def test_compiled_positions_equal_the_numpy_ones_bit_for_bit(seed, points):
+    # Many times at once go through one compiled loop (as the singularity measure samples at 1 kHz):
+    # the same values as the NumPy path (taken without the compiled library, as with PLANNER_JIT=0),
+    # at the knots themselves (the interval that starts there), between them and at the end.
+    import planner.motion.trajectory as trajectory_module
+    from planner.core.certificates import grams
+
+    rng = np.random.default_rng(seed)
+    dof = int(rng.integers(1, 8))
+    limits = JointLimits(
+        rng.uniform(0.5, 3, dof), rng.uniform(1, 10, dof), rng.uniform(5, 50, dof), [-3] * dof, [3] * dof
+    )
+    traj = plan_trajectory(rng.uniform(-2, 2, (points, dof)), limits)
+    t = np.concatenate([traj.times(1000.0), traj.knots, traj.waypoint_times, rng.uniform(0, traj.duration, 50)])
+    compiled = traj.positions(t)
+    if grams(np.zeros((1, 1, 1))) is not None:  # a compiler: the compiled loop runs
+        assert traj._compiled_positions(t) is not None
+    with pytest.MonkeyPatch.context() as patch:
+        patch.setattr(trajectory_module, "load_functions", lambda *args: None)
+        assert traj._compiled_positions(t) is None
+        written_out = traj.positions(t)
+    assert compiled.tobytes() == written_out.tobytes()
+    assert compiled.tobytes() == traj.sample(t).q.tobytes()
+    np.testing.assert_array_equal(traj.positions(traj.waypoint_times), traj.waypoints)
+
+
 def test_limits_from_robot_defaults_and_servo_speed():
     robot = get_robot("dh3")
     lim = JointLimits.from_robot(robot)

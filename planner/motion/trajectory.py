@@ -8,6 +8,7 @@ limits, and writes itself as CSV. :data:`LIMIT_TOLERANCE` states the limit guara
 from __future__ import annotations
 
 import csv
+import ctypes
 import dataclasses
 import math
 import threading
@@ -18,6 +19,7 @@ from pathlib import Path
 import numpy as np
 
 from planner.core.arrays import float_array
+from planner.core.native import load_functions
 from planner.core.text import plain
 from planner.exceptions import InvalidArgumentError
 from planner.motion.limits import JointLimits
@@ -54,6 +56,52 @@ class TrajectorySample:
 
 
 _BUILD_LOCK = threading.Lock()
+
+_SOURCE = r"""
+/* JointTrajectory._positions_at after its _locate, one time at a time: the interval of each time
+   (numpy.searchsorted(knots, t, side="right") - 1, clipped to [0, K - 1]) by bisection, then
+   p + dt (v + dt (a / 2 + dt j / 6)) operation by operation as the NumPy path does them (the same
+   values: -O2 without -ffast-math contracts nothing), the final waypoint at and after the end. */
+void positions(long n, long dof, long count, const double *t, const double *knots, const double *p,
+               const double *v, const double *a, const double *j, double duration, const double *last,
+               double *out) {
+    for (long r = 0; r < n; ++r) {
+        double time = t[r], *o = out + r * dof;
+        if (time >= duration) {
+            for (long i = 0; i < dof; ++i) o[i] = last[i];
+            continue;
+        }
+        long lo = 0, hi = count;
+        while (lo < hi) {
+            long mid = lo + (hi - lo) / 2;
+            if (knots[mid] <= time) lo = mid + 1;
+            else hi = mid;
+        }
+        long k = lo > 0 ? lo - 1 : 0;
+        double dt = time - knots[k];
+        const double *pk = p + k * dof, *vk = v + k * dof, *ak = a + k * dof, *jk = j + k * dof;
+        for (long i = 0; i < dof; ++i) {
+            double x = jk[i] * dt;
+            x /= 6.0;
+            x += ak[i] / 2.0;
+            x *= dt;
+            x += vk[i];
+            x *= dt;
+            x += pk[i];
+            o[i] = x;
+        }
+    }
+}
+"""
+
+_SIGNATURES = {
+    "positions": [
+        *[ctypes.c_long] * 3,
+        *[ctypes.c_void_p] * 6,
+        ctypes.c_double,
+        *[ctypes.c_void_p] * 2,
+    ]
+}
 
 
 class _Pieces:
@@ -195,8 +243,37 @@ class JointTrajectory:
             InvalidArgumentError: As :meth:`sample`.
         """
         tt, _, flat = self._checked_times(t, clamp)
-        q = self._positions_at(*self._locate(flat))
+        q = self._compiled_positions(flat)
+        if q is None:
+            q = self._positions_at(*self._locate(flat))
         return q[0] if tt.ndim == 0 else q.reshape(tt.shape + (self.dof,))
+
+    def _compiled_positions(self, flat: np.ndarray) -> np.ndarray | None:
+        """:meth:`_positions_at` of :meth:`_locate` in one compiled loop (the same values), or None.
+
+        None for a few times (the NumPy path is as fast there), without the compiled library
+        (no compiler, ``PLANNER_JIT=0``) or without pieces.
+        """
+        if len(flat) < 16 or not len(self.knots):
+            return None
+        lib = load_functions(_SOURCE, "trajectory", _SIGNATURES)
+        if lib is None:
+            return None
+        flat = np.ascontiguousarray(flat, dtype=float)
+        pieces = [np.ascontiguousarray(x, dtype=float) for x in (self.knots, self.p, self.v, self.a, self.j)]
+        last = np.ascontiguousarray(self.waypoints[-1], dtype=float)
+        out = np.empty((len(flat), self.dof))
+        lib.positions(
+            len(flat),
+            self.dof,
+            len(pieces[0]),
+            flat.ctypes.data,
+            *(x.ctypes.data for x in pieces),
+            float(self.duration),
+            last.ctypes.data,
+            out.ctypes.data,
+        )
+        return out
 
     def _locate(self, flat: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Per time of `flat` in [0, duration]: its interval, the time into it (n, 1) [s], whether it is the end."""
