@@ -683,18 +683,20 @@ def _advance(
                     hit = checker.clearance_of(checker.pair_distances(q, mask))
                     if stop_at_first:
                         break
-            if n_bounds and due_bounds.size:
-                due, d = np.concatenate([due, due_bounds]), np.concatenate([d, d_bounds])
             if native is not None:
                 if x >= end:
                     break
                 # The same steps and bookkeeping in one compiled call: it also moves on to the
                 # next x (at most the next change of mask) and finds the pairs due there.
                 bound = masks[k_mask + 1][0] if k_mask + 1 < len(masks) else end
+                if n_bounds and due_bounds.size:
+                    native.take(due_bounds, d_bounds, len(due))
                 x, due, q_next = native(
                     x, due, d, c, tolerance, coarse if first_hit is not None else 0.0, until, early, bound
                 )
                 continue
+            if n_bounds and due_bounds.size:
+                due, d = np.concatenate([due, due_bounds]), np.concatenate([d, d_bounds])
             room = d - c
             room += tolerance
             np.maximum(room, half, out=room)
@@ -751,7 +753,7 @@ def _check_bounds(
     bounding pairs (indices past the pairs) and the closest bounding pair (distance, index).
     """
     n_pairs = len(covered)
-    split = int(np.searchsorted(due, n_pairs))
+    split = int(due.searchsorted(n_pairs))
     checker.place(q)
     if split == due.size:
         return checker.placed_distances(due), _NONE, due, _NONE_DUE, None
@@ -761,7 +763,7 @@ def _check_bounds(
     d_bounds = bounds.placed_distances(local)
     far = d_bounds >= threshold
     changed = far != standing[local]
-    if changed.any():
+    if True in changed.tolist():  # a handful of bounding pairs: faster than changed.any()
         for k, ok in zip(local[changed].tolist(), far[changed].tolist()):
             pairs = bounds.members[k]
             standing[k] = covered[pairs] = ok
@@ -771,7 +773,7 @@ def _check_bounds(
         due = due[~covered[due]]
     i = int(d_bounds.argmin())
     closest = (float(d_bounds[i]), int(local[i]))
-    if not far.all():
+    if False in far.tolist():
         # Not standing: tried again when its distance could have grown a margin past the threshold.
         d_bounds = np.where(far, d_bounds, c - tolerance + (threshold + BOUND_MARGIN - d_bounds))
     return checker.placed_distances(due), d_bounds, due, due_bounds, closest
@@ -1367,6 +1369,14 @@ class _NativeSteps:
         )
         self.head_at = self.head.ctypes.data
         self.arrays: tuple[np.ndarray | None, ...] = (None, None)
+        self.extra = 0
+
+    def take(self, due: np.ndarray, d: np.ndarray, at: int) -> None:
+        """Put pairs `due` (distances `d`) in the buffers from `at` on: :meth:`__call__`'s next pairs after its own."""
+        n = at + len(due)
+        self.due[at:n] = due
+        self.distances[at:n] = d
+        self.extra = len(due)
 
     def __call__(self, x, due, d, c, tolerance, coarse, until, early, bound) -> tuple[float, np.ndarray, np.ndarray]:
         n = len(due)
@@ -1374,6 +1384,9 @@ class _NativeSteps:
         if due.base is not buffer:
             buffer[:n] = due
         self.distances[:n] = d
+        if self.extra:
+            n += self.extra  # the pairs :meth:`take` put after them
+            self.extra = 0
         if self.arrays[0] is not until or self.arrays[1] is not early:
             self.arrays = (until, early)
             self.head[18], self.head[19] = until.ctypes.data, early.ctypes.data
