@@ -505,6 +505,52 @@ def test_the_compiled_bookkeeping_takes_the_python_steps(name):
             np.testing.assert_array_equal(got_due, np.flatnonzero(early <= got_x))
 
 
+@needs_example_robot_data
+def test_bounding_pairs_due_with_pairs_take_the_same_steps_compiled_and_in_python():
+    """check_trajectory on panda near a block (its hand's bounding pairs due at checks with pairs, handed to
+    the compiled loop in its buffers): the same checks, verdict, first hit and closest pair as the Python steps."""
+    import planner.collision.continuous as cc
+
+    loader = cc._native_library
+    compiled = loader()
+    if compiled is None:
+        pytest.skip("no C compiler (PLANNER_JIT=0): the Python steps only")
+    robot = get_robot("panda")
+    block = Obstacle("block", Box((0.1, 0.1, 0.5)), np.array([0.45, 0.0, 0.25]))
+    scene = Scene(floor=-0.01, clearance=0.005, obstacles=(block,))
+    limits = JointLimits.from_robot(robot)
+    rng = np.random.default_rng(3)
+    mixed = 0
+    for _ in range(4):
+        traj = plan_trajectory(robot.random_configurations(rng, 3), limits)
+        results, counts = [], []
+        for lib in (compiled, None):
+            cc._native_library = lambda lib=lib: lib
+            try:
+                checker = CollisionChecker(robot, scene)
+                bounds, seen = checker.bounding_pairs(), [0]
+                inner = bounds.placed_distances
+
+                def counted(pairs, inner=inner, seen=seen):
+                    seen[0] += len(pairs)
+                    return inner(pairs)
+
+                bounds.placed_distances = counted
+                results.append(check_trajectory(checker, traj))
+                counts.append(seen[0])
+            finally:
+                cc._native_library = loader
+        a, b = results
+        assert (a.clear, a.checks, a.first_hit is None) == (b.clear, b.checks, b.first_hit is None)
+        assert abs((a.first_hit or 0.0) - (b.first_hit or 0.0)) <= 1e-7 * max(traj.duration, 1.0)
+        assert a.closest.bodies == b.closest.bodies and a.closest.distance == pytest.approx(
+            b.closest.distance, abs=1e-9
+        )
+        assert counts[0] == counts[1]
+        mixed += counts[0] > 0
+    assert mixed  # bounding pairs were computed
+
+
 @pytest.mark.parametrize("name", ["al5c", "dh3", pytest.param("panda", marks=needs_example_robot_data)])
 def test_the_compiled_grid_is_numpys(name):
     """_trajectory_grid's compiled loop: the NumPy grid's times, travels and speeds, to the last bit."""

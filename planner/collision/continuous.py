@@ -683,18 +683,20 @@ def _advance(
                     hit = checker.clearance_of(checker.pair_distances(q, mask))
                     if stop_at_first:
                         break
-            if n_bounds and due_bounds.size:
-                due, d = np.concatenate([due, due_bounds]), np.concatenate([d, d_bounds])
             if native is not None:
                 if x >= end:
                     break
                 # The same steps and bookkeeping in one compiled call: it also moves on to the
                 # next x (at most the next change of mask) and finds the pairs due there.
                 bound = masks[k_mask + 1][0] if k_mask + 1 < len(masks) else end
+                if n_bounds and due_bounds.size:
+                    native.take(due_bounds, d_bounds, len(due))
                 x, due, q_next = native(
                     x, due, d, c, tolerance, coarse if first_hit is not None else 0.0, until, early, bound
                 )
                 continue
+            if n_bounds and due_bounds.size:
+                due, d = np.concatenate([due, due_bounds]), np.concatenate([d, d_bounds])
             room = d - c
             room += tolerance
             np.maximum(room, half, out=room)
@@ -751,7 +753,7 @@ def _check_bounds(
     bounding pairs (indices past the pairs) and the closest bounding pair (distance, index).
     """
     n_pairs = len(covered)
-    split = int(np.searchsorted(due, n_pairs))
+    split = int(due.searchsorted(n_pairs))
     checker.place(q)
     if split == due.size:
         return checker.placed_distances(due), _NONE, due, _NONE_DUE, None
@@ -761,7 +763,7 @@ def _check_bounds(
     d_bounds = bounds.placed_distances(local)
     far = d_bounds >= threshold
     changed = far != standing[local]
-    if changed.any():
+    if True in changed.tolist():  # a handful of bounding pairs: faster than changed.any()
         for k, ok in zip(local[changed].tolist(), far[changed].tolist()):
             pairs = bounds.members[k]
             standing[k] = covered[pairs] = ok
@@ -771,7 +773,7 @@ def _check_bounds(
         due = due[~covered[due]]
     i = int(d_bounds.argmin())
     closest = (float(d_bounds[i]), int(local[i]))
-    if not far.all():
+    if False in far.tolist():
         # Not standing: tried again when its distance could have grown a margin past the threshold.
         d_bounds = np.where(far, d_bounds, c - tolerance + (threshold + BOUND_MARGIN - d_bounds))
     return checker.placed_distances(due), d_bounds, due, due_bounds, closest
@@ -917,21 +919,40 @@ def _trajectory_grid(trajectory, last: np.ndarray, vmax: np.ndarray) -> tuple[np
     lib = _native_library()
     if lib is None:
         return _numpy_grid(trajectory, last, vmax)
-    knots = np.ascontiguousarray(trajectory.knots, dtype=float)
-    p, v, a, j = (
-        np.ascontiguousarray(x, dtype=float) for x in (trajectory.p, trajectory.v, trajectory.a, trajectory.j)
-    )
-    k, dof = p.shape
+    k, dof = np.shape(trajectory.p)
+    # The inputs in one block and the outputs in another (an array's address costs more than
+    # copying a few pieces): knots, p, v, a, j, last, vmax; then t, c, top and the count.
+    inputs, at = _packed([trajectory.knots, trajectory.p, trajectory.v, trajectory.a, trajectory.j, last, vmax])
     size = k + 1 + GRID_POINTS + 4 * k * dof
-    t, c, top = np.empty(size), np.empty((size, dof)), np.empty((size, dof))
-    last = np.ascontiguousarray(last, dtype=float)
-    vmax = np.ascontiguousarray(vmax, dtype=float)
-    count = np.zeros(1, dtype=np.int64)
-    arrays = (knots, p, v, a, j, last, vmax, t, c, top, count)
-    address = [x.ctypes.data for x in arrays]
-    lib.trajectory_grid(*address[:5], k, dof, float(trajectory.duration), *address[5:7], GRID_POINTS, *address[7:])
+    out = np.empty(size * (1 + 2 * dof) + 1)
+    base = out.ctypes.data
+    t, c = out[:size], out[size : size * (1 + dof)].reshape(size, dof)
+    top = out[size * (1 + dof) : size * (1 + 2 * dof)].reshape(size, dof)
+    count = out[-1:].view(np.int64)
+    lib.trajectory_grid(
+        *at[:5],
+        k,
+        dof,
+        float(trajectory.duration),
+        *at[5:7],
+        GRID_POINTS,
+        base,
+        *(base + 8 * size * m for m in (1, 1 + dof, 1 + 2 * dof)),
+    )
     g = int(count[0])
-    return t[:g].copy(), c[:g].copy(), top[: max(g - 1, 0)].copy()
+    return t[:g], c[:g], top[: max(g - 1, 0)]
+
+
+def _packed(arrays: Sequence) -> tuple[np.ndarray, list[int]]:
+    """`arrays` as floats one after another in one block (each C order), and each one's address in it."""
+    sizes = [np.size(x) for x in arrays]
+    block = np.empty(sum(sizes))
+    base, at, o = block.ctypes.data, [], 0
+    for x, n in zip(arrays, sizes):
+        block[o : o + n] = np.ravel(x)
+        at.append(base + 8 * o)
+        o += n
+    return block, at
 
 
 def _numpy_grid(trajectory, last: np.ndarray, vmax: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -1007,6 +1028,17 @@ def _step_rates(checker: CollisionChecker, floor: float) -> tuple[np.ndarray, li
         rows = np.vstack([rates.reshape(-1, weights.shape[1]), bound])
         out = held[floor] = (rows, useful[:, 0].tolist() + [False] * (len(bound) // 3))
     return out
+
+
+def _native_rates(checker: CollisionChecker, floor: float, rates: np.ndarray, useful: list[bool]) -> tuple:
+    """:func:`_step_rates`'s rows (C order) and flags as bytes, and their addresses (kept with them)."""
+    held = _RATES.setdefault(checker, {})
+    key = (floor, "native")
+    out = held.get(key)
+    if out is None or out[0] is not rates:
+        rows, flags = np.ascontiguousarray(rates), np.asarray(useful, dtype=np.uint8)
+        out = held[key] = (rates, rows, flags, (rows.ctypes.data, flags.ctypes.data))
+    return out[1:]
 
 
 #: How far beyond the clearance a :class:`~planner.collision.checker.BoundingPairs` hull must be
@@ -1127,8 +1159,9 @@ def _trajectory_steps(
 
     lib = _native_library()
     if lib is not None:
-        arrays = (rates, c, top, t, np.asarray(useful, dtype=np.uint8))
-        native = _NativeSteps(lib, arrays, g, c.shape[1], slack, len(useful), trajectory, last)
+        ordered, flags, addresses = _native_rates(checker, floor, rates, useful)
+        arrays = (c, top, t, ordered, flags)
+        native = _NativeSteps(lib, arrays, addresses, g, c.shape[1], slack, len(useful), trajectory, last)
         steps.native = native  # type: ignore[attr-defined]
     return steps
 
@@ -1345,28 +1378,46 @@ class _NativeSteps:
     """
 
     def __init__(
-        self, lib, arrays: tuple[np.ndarray, ...], g: int, dof: int, slack: float, n_pairs: int, trajectory, last
+        self,
+        lib,
+        arrays: tuple[np.ndarray, ...],
+        addresses: tuple[int, int],
+        g: int,
+        dof: int,
+        slack: float,
+        n_pairs: int,
+        trajectory,
+        last,
     ) -> None:
-        knots = np.ascontiguousarray(trajectory.knots, dtype=float)
-        pieces = (trajectory.p, trajectory.v, trajectory.a / 2.0, trajectory.j / 6.0, last)
+        k = len(trajectory.knots)
+        pieces = [trajectory.knots, trajectory.p, trajectory.v, trajectory.a / 2.0, trajectory.j / 6.0, last]
         size = max(n_pairs, 1)
-        self.q = np.zeros(dof)
-        self.due, self.distances = np.zeros(size, dtype=np.int64), np.zeros(size)
-        self.out = np.array([0.0, 0.0, slack, NEAR_TURN - slack])  # next x, pairs due; the slack, the turn cap
+        # q, the distances and out (next x, pairs due; the slack, the turn cap) in one block.
+        floats = np.zeros(dof + size + 4)
+        self.q, self.distances, self.out = floats[:dof], floats[dof : dof + size], floats[dof + size :]
+        self.out[2:] = slack, NEAR_TURN - slack
+        self.due = np.zeros(size, dtype=np.int64)
+        self.pieces, at = _packed(pieces)
         # Kept alive here: C reads them through the addresses in `head`.
         self.kept = tuple(np.ascontiguousarray(a) for a in arrays)
-        self.pieces = (knots, *(np.ascontiguousarray(x, dtype=float) for x in pieces))
         self.function = lib.trajectory_update
         self.size = n_pairs  # the pairs and bounding pairs it schedules
-        at = [x.ctypes.data for x in self.pieces]
-        buffers = [x.ctypes.data for x in (self.q, self.due, self.distances)]
+        base = floats.ctypes.data
+        buffers = [base, self.due.ctypes.data, base + 8 * dof]
+        kept = [addresses[0], *(a.ctypes.data for a in self.kept[:3]), addresses[1]]  # rates, c, top, t, flags
         self.head = np.array(
-            [*(a.ctypes.data for a in self.kept), g, dof, n_pairs, at[0], len(knots), *at[1:], *buffers, 0, 0]
-            + [self.out.ctypes.data],
-            dtype=np.int64,
+            [*kept, g, dof, n_pairs, at[0], k, *at[1:], *buffers, 0, 0, base + 8 * (dof + size)], dtype=np.int64
         )
         self.head_at = self.head.ctypes.data
         self.arrays: tuple[np.ndarray | None, ...] = (None, None)
+        self.extra = 0
+
+    def take(self, due: np.ndarray, d: np.ndarray, at: int) -> None:
+        """Put pairs `due` (distances `d`) in the buffers from `at` on: :meth:`__call__`'s next pairs after its own."""
+        n = at + len(due)
+        self.due[at:n] = due
+        self.distances[at:n] = d
+        self.extra = len(due)
 
     def __call__(self, x, due, d, c, tolerance, coarse, until, early, bound) -> tuple[float, np.ndarray, np.ndarray]:
         n = len(due)
@@ -1374,6 +1425,9 @@ class _NativeSteps:
         if due.base is not buffer:
             buffer[:n] = due
         self.distances[:n] = d
+        if self.extra:
+            n += self.extra  # the pairs :meth:`take` put after them
+            self.extra = 0
         if self.arrays[0] is not until or self.arrays[1] is not early:
             self.arrays = (until, early)
             self.head[18], self.head[19] = until.ctypes.data, early.ctypes.data
