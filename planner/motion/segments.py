@@ -376,6 +376,22 @@ def _thread_solver(dof: int) -> list:
     return entry
 
 
+def _thread_prober(n: int) -> tuple[Ruckig, InputParameter, RuckigTrajectory]:
+    """This thread's unsynchronised Ruckig for `n` degrees of freedom, an input and a trajectory (for probes).
+
+    The caller sets every field of the input it uses (positions, limits and states) each time.
+    """
+    probers = getattr(_LOCAL, "probers", None)
+    if probers is None:
+        probers = _LOCAL.probers = {}
+    entry = probers.get(n)
+    if entry is None:
+        inp = InputParameter(n)
+        inp.synchronization = Synchronization.No
+        entry = probers[n] = (Ruckig(n), inp, RuckigTrajectory(n))
+    return entry
+
+
 class SegmentSolver:
     """Ruckig state-to-state segments between fixed positions, with position-range checks.
 
@@ -412,6 +428,7 @@ class SegmentSolver:
         )
         self.dof = q.shape[1]
         self.lower, self.upper = range_with_tolerance(limits)
+        self.limits = limits
         self._lows, self._highs = limits.checked_floats
         self.bounded = limits.bounded
         self.otg = _thread_solver(self.dof)[0]
@@ -428,11 +445,15 @@ class SegmentSolver:
             for a, b in zip(rows, rows[1:])
         ]
         self._cache: dict[tuple, tuple[float, np.ndarray | None, RuckigTrajectory | None]] = {}
+        # Per (waypoint, joints, candidates), the positions and limits of probe_around's input.
+        self._probes: dict[tuple, tuple[list[float], ...]] = {}
         # Per segment, the range ends a joint could reach, in the order of the time it needs
         # to (see _watch_ends): (time, joint, whether the upper end, the end); None: check all.
         self._watch: list[list[tuple[float, int, bool, float]] | None] = [None] * (len(q) - 1)
         if self.bounded and admissible is not None and any(admissible):
             self._watch_ends(limits, admissible)
+        # Per segment and joint, the least time in which it can reach a range end (see _reach_times).
+        self._reach: list[list[float]] | None = None
 
     def _watch_ends(self, limits: JointLimits, admissible: Sequence[bool]) -> None:
         """Fill :attr:`_watch` for the admissible segments.
@@ -569,6 +590,126 @@ class SegmentSolver:
 
         return both
 
+    def probe_around(
+        self,
+        i: int,
+        start: tuple[list[float], list[float]],
+        end: tuple[list[float], list[float]],
+        joints: tuple[int, ...],
+        candidates: Sequence[tuple[list[float], list[float]]],
+    ) -> tuple[list[float], list[float]] | None:
+        """Per-joint minimum times of segments i-1 and i for candidate states at waypoint i, in one Ruckig call.
+
+        A segment lasts at least as long as each joint alone needs (Ruckig's
+        ``independent_min_durations``, which depend on that joint's end states only). Every
+        (candidate, joint, segment) is one degree of freedom of a single unsynchronised Ruckig
+        calculate: Ruckig's first step only, and one call from Python for all of them. A probe
+        is an estimate for a search: the synchronised segment can last longer (Ruckig's blocked
+        intervals), and the joint's own time-optimal profile is not the synchronised one; the
+        search solves what it keeps (:meth:`solve`). An entry whose own profile leaves the range
+        by Ruckig's extrema (looked at only where the joint could reach a range end, see
+        :meth:`_watch_ends`), or where Ruckig 0.19 would fail on a joint going out and back on
+        one parabola (:meth:`_on_one_parabola`, not solved), gets inf.
+
+        Args:
+            i: The waypoint, 0 < i < N-1.
+            start: Velocities and accelerations at waypoint i-1, lists over all joints.
+            end: Velocities and accelerations at waypoint i+1, likewise.
+            joints: The joints probed (ascending indices).
+            candidates: Velocities and accelerations at waypoint i, lists over `joints`, each
+                admissible (see :func:`planner.motion.limits.admissible_acceleration`).
+
+        Returns:
+            The times in segment i-1 and in segment i [s], flat lists with the entry of
+            candidate c and the m-th joint at ``c * len(joints) + m``; None where Ruckig fails.
+        """
+        if not joints or not candidates:
+            return [], []
+        key = (i, joints, len(candidates))
+        fixed = self._probes.get(key)
+        if fixed is None:
+            fixed = self._probes[key] = self._probe_fixed(i, joints, len(candidates))
+        otg, inp, traj = _thread_prober(len(fixed[0]))
+        inp.current_position, inp.target_position, inp.max_velocity, inp.max_acceleration, inp.max_jerk = fixed
+        count = len(joints)
+        va, aa = [start[0][j] for j in joints], [start[1][j] for j in joints]
+        vb, ab = [end[0][j] for j in joints], [end[1][j] for j in joints]
+        v0, v1, a0, a1 = [], [], [], []
+        skipped = []
+        still1, still2 = self._still[i - 1], self._still[i]
+        if still1 is not None or still2 is not None:
+            for c, (cv, ca) in enumerate(candidates):
+                for m, j in enumerate(joints):
+                    if (still1 is not None and j in still1 and _parabola(va[m], aa[m], cv[m], ca[m])) or (
+                        still2 is not None and j in still2 and _parabola(cv[m], ca[m], vb[m], ab[m])
+                    ):
+                        skipped.append(c * count + m)
+                        cv, ca = list(cv), list(ca)
+                        cv[m] = ca[m] = 0.0
+                        candidates = [*candidates[:c], (cv, ca), *candidates[c + 1 :]]
+        for cv, ca in candidates:
+            for x, y, v, a, z, w in zip(va, aa, cv, ca, vb, ab):
+                v0 += (x, v)
+                a0 += (y, a)
+                v1 += (v, z)
+                a1 += (a, w)
+        inp.current_velocity, inp.current_acceleration = v0, a0
+        inp.target_velocity, inp.target_acceleration = v1, a1
+        try:
+            result = otg.calculate(inp, traj)
+        except (RuckigError, ValueError):  # see _solve
+            return None
+        if result not in _SOLVED:
+            return None
+        times = traj.independent_min_durations
+        first, second = times[0::2], times[1::2]
+        for e in skipped:
+            first[e] = second[e] = math.inf
+        if self.bounded:
+            # Only a profile that lasts longer than the joint needs to reach a range end can leave the range.
+            reach = self._reach
+            if reach is None:
+                reach = self._reach = self._reach_times()
+            reach1 = [reach[i - 1][j] for j in joints] * len(candidates)
+            reach2 = [reach[i][j] for j in joints] * len(candidates)
+            check = [e for e, (x, y, r1, r2) in enumerate(zip(first, second, reach1, reach2)) if x > r1 or y > r2]
+            if check:
+                extrema = traj.position_extrema
+                lows, highs = self._lows, self._highs
+                for e in check:
+                    j = joints[e % count]
+                    low, high = extrema[2 * e], extrema[2 * e + 1]
+                    if min(low.min, high.min) < lows[j] or max(low.max, high.max) > highs[j]:
+                        first[e] = second[e] = math.inf
+        return first, second
+
+    def _reach_times(self) -> list[list[float]]:
+        """Per segment and joint, the least time in which it can reach a range end [s] (0 where unknown)."""
+        out = []
+        for watch in self._watch:
+            if watch is None:
+                out.append([0.0] * self.dof)
+                continue
+            reach = [math.inf] * self.dof
+            for time, j, _, _ in watch:
+                if time < reach[j]:
+                    reach[j] = time
+            out.append(reach)
+        return out
+
+    def _probe_fixed(self, i: int, joints: tuple[int, ...], count: int) -> tuple[list[float], ...]:
+        """The positions and limits of :meth:`probe_around`'s Ruckig input (start, target, v, a, j)."""
+        velocity, acceleration, jerk = self._limits
+        before, at, after = self.rows[i - 1], self.rows[i], self.rows[i + 1]
+        p0, p1, vm, am, jm = [], [], [], [], []
+        for j in joints:
+            p0 += (before[j], at[j])
+            p1 += (at[j], after[j])
+            vm += (velocity[j], velocity[j])
+            am += (acceleration[j], acceleration[j])
+            jm += (jerk[j], jerk[j])
+        return p0 * count, p1 * count, vm * count, am * count, jm * count
+
     def _input(
         self, k: int, va: np.ndarray, aa: np.ndarray, vb: np.ndarray, ab: np.ndarray, key: tuple | None = None
     ) -> InputParameter:
@@ -651,6 +792,25 @@ class SegmentSolver:
             return duration, None, traj
         return traj.duration, None, traj
 
+    def misses_end(self, k: int, va: np.ndarray, aa: np.ndarray, vb: np.ndarray, ab: np.ndarray) -> bool:
+        """Whether segment k between the given states ends where the planner rests its free ends.
+
+        That is where Ruckig finds no profile, or a joint's profile misses its target by more
+        than :data:`END_TOLERANCE` and :func:`merge_segment` cannot correct it within the
+        limits (Ruckig's time synchronisation loses precision on a joint whose move is tiny
+        next to the segment's): the range repair then sets the via states at the segment's free
+        ends to rest, whatever that costs. Ruckig's end positions are read first (one call);
+        only a miss is merged.
+        """
+        duration, _, traj = self.solve(k, va, aa, vb, ab)
+        if traj is None:
+            return True
+        if math.dist(traj.at_time(duration)[0], self.rows[k + 1]) <= _END_DISTANCE:
+            return False
+        duration, _, traj = self.solve(k, va, aa, vb, ab, keep=True)
+        merged = merge_segment(traj, duration, (self.q[k], va, aa), self.q[k + 1], self.limits)
+        return bool(merged.residual.any())
+
     def turns_beyond(self, k: int, traj: RuckigTrajectory) -> list[int]:
         """The joints of segment k that turn round beyond their range inside a phase of zero jerk.
 
@@ -716,13 +876,7 @@ class SegmentSolver:
             vb: End velocities, shape (dof,).
             ab: End accelerations, shape (dof,).
         """
-        for j in still:
-            a = aa[j]
-            if a != 0.0 and a == ab[j] and va[j] * vb[j] < 0.0:
-                t = (vb[j] - va[j]) / a
-                if t > 0.0 and abs(t * (va[j] + t * a / 2.0)) <= 1e-9 * max(1.0, abs(va[j]) * t):
-                    return True
-        return False
+        return any(_parabola(va[j], aa[j], vb[j], ab[j]) for j in still)
 
     def _unsynchronise_missed(
         self,
@@ -765,6 +919,14 @@ class SegmentSolver:
         if result not in _SOLVED or out.duration != duration:
             return solved  # keep the synchronised profile; merge_segment corrects it
         return duration, self._outside(out), out
+
+
+def _parabola(va: float, aa: float, vb: float, ab: float) -> bool:
+    """Whether one joint that ends where it starts goes out and back on one parabola (see ``_on_one_parabola``)."""
+    if aa != 0.0 and aa == ab and va * vb < 0.0:
+        t = (vb - va) / aa
+        return t > 0.0 and abs(t * (va + t * aa / 2.0)) <= 1e-9 * max(1.0, abs(va) * t)
+    return False
 
 
 class SegmentPieces:

@@ -173,22 +173,29 @@ def best_choice(
     flat1 = [x for row in rows1 for x in row]
     flat2 = [x for row in rows2 for x in row]
     order = sorted(range(len(flat1)), key=flat1.__getitem__)  # stable, as np.argsort(kind="stable")
+    # The second segment lasts at least as long as any joint's fastest option there: past
+    # d1 = best - floor, no choice is better (the sweep stops there).
+    floor = max(map(min, zip(*rows2)))
     low = [math.inf] * dof
     missing = dof
     found = None
     last = len(order) - 1
+    d2 = math.inf
     for e, index in enumerate(order):
         d1 = flat1[index]
-        if d1 >= best:
+        if d1 + floor >= best:
             break
         j, b = index % dof, flat2[index]
         if low[j] == math.inf:
             missing -= 1
         if b < low[j]:
+            if low[j] == d2:
+                d2 = math.nan  # the largest one fell: found again below
             low[j] = b
         if missing or (e < last and flat1[order[e + 1]] == d1):
             continue  # not every joint has an option yet, or more options share this d1
-        d2 = max(low)
+        if not d2 < math.inf:
+            d2 = max(low)
         if d1 + d2 < best:
             best, found = d1 + d2, (d1, d2)
     if found is None:
