@@ -11,6 +11,7 @@ files this review does not own (described in their reasons).
 from __future__ import annotations
 
 import copy
+import dataclasses
 import math
 import pickle
 import subprocess
@@ -254,6 +255,17 @@ def test_a_copied_or_pickled_robot_plans_as_the_original():
         assert again.setup.calibrations == plan.setup.calibrations
         for field in ("velocity", "acceleration", "jerk"):
             np.testing.assert_array_equal(getattr(again.limits, field), getattr(plan.limits, field))
+
+
+@pytest.mark.parametrize("value", ["fast", [1.0, "x", 2.0], {"a": 1}, None])
+def test_a_request_made_in_code_with_limits_that_are_not_numbers_is_refused_with_a_planner_error(value):
+    # A MotionRequest is a dataclass: one made or replaced in code is not checked as a file is.
+    # Its limits reach JointLimits, which names the bad value (was: NumPy's ValueError/TypeError).
+    robot = planner.load_robot("dh3")
+    request = parse_motion_request({"waypoints": [[0.0, 0.5, 1.0], [1.0, 0.5, 1.0]], "units": {"angle": "rad"}})
+    for key in ("velocity", "acceleration", "jerk"):
+        with pytest.raises(PlannerError, match=key):
+            planner.plan_motion(robot, dataclasses.replace(request, limits={key: value}))
 
 
 def _two_link_continuous() -> planner.Robot:
