@@ -202,7 +202,10 @@ def _joint_scale(robot: Robot, request: MotionRequest) -> np.ndarray:
 
 def _per_joint_si(value: float | np.ndarray, scale: np.ndarray) -> np.ndarray:
     """A limit in the file's units (one number or one per joint) in SI, per joint."""
-    arr = np.asarray(value, dtype=float)
+    try:
+        arr = np.asarray(value, dtype=float)
+    except (TypeError, ValueError):  # not numbers: JointLimits names the value in its error
+        return value
     if arr.ndim == 0 or arr.shape == scale.shape:
         return arr * scale
     return arr  # the wrong length: JointLimits names the joints in its error
