@@ -97,6 +97,22 @@ static int positive(long k, const double *g, double sign, double shift, double m
     return 1;
 }
 
+/* `iterations` steps of the power method x <- M x / |M x| (y: work space); x stays where M x = 0. */
+static void power_steps(long k, const double *M, double *x, double *y, int iterations) {
+    for (int it = 0; it < iterations; ++it) {
+        double norm = 0.0;
+        for (long i = 0; i < k; ++i) {
+            double v = 0.0;
+            for (long j = 0; j < k; ++j) v += M[i * k + j] * x[j];
+            y[i] = v;
+            norm += v * v;
+        }
+        if (!(norm > 0.0)) break;
+        norm = 1.0 / sqrt(norm);
+        for (long i = 0; i < k; ++i) x[i] = y[i] * norm;
+    }
+}
+
 /* Per matrix: bounds of the smallest eigenvalue (lower, upper), of the largest (lower, upper)
    and a lower bound of the product of the eigenvalues of one matrix G, into o[0 .. 4]. */
 static void bracket(long k, const double *G, double *o) {
@@ -144,18 +160,7 @@ static void bracket(long k, const double *G, double *o) {
         trace_m = t2;
     }
     for (long i = 0; i < k; ++i) x[i] = 1.0;
-    for (int it = 0; it < 2; ++it) {
-        double norm = 0.0;
-        for (long i = 0; i < k; ++i) {
-            double v = 0.0;
-            for (long j = 0; j < k; ++j) v += M[i * k + j] * x[j];
-            y[i] = v;
-            norm += v * v;
-        }
-        if (!(norm > 0.0)) break;
-        norm = 1.0 / sqrt(norm);
-        for (long i = 0; i < k; ++i) x[i] = y[i] * norm;
-    }
+    power_steps(k, M, x, y, 2);
     double low = quotient(k, G, x);
     o[1] = low + margin;
     o[0] = 0.0;
@@ -355,18 +360,7 @@ static void extreme_vectors(long m, long dof, const double *S, double *low, doub
         norm = 1.0 / sqrt(norm);
         for (long i = 0; i < k; ++i) low[i] *= norm;
     }
-    for (int it = 0; it < 6; ++it) {
-        norm = 0.0;
-        for (long i = 0; i < k; ++i) {
-            double v = 0.0;
-            for (long j = 0; j < k; ++j) v += G[i * k + j] * high[j];
-            y[i] = v;
-            norm += v * v;
-        }
-        if (!(norm > 0.0)) break;
-        norm = 1.0 / sqrt(norm);
-        for (long i = 0; i < k; ++i) high[i] = y[i] * norm;
-    }
+    power_steps(k, G, high, y, 6);
 }
 
 /* Steps 0 and 2 of bounded_conditioning over the rows between consecutive anchors.
