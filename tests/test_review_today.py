@@ -4,8 +4,8 @@ Random DH arms of 1 to 7 joints mixing revolute, prismatic and continuous joints
 without ends), planned and measured through the public API, against Pinocchio's Jacobian and
 NumPy's SVD (:meth:`Robot.conditioning`) at every sampled row; two-waypoint plans of every
 registered strategy against the stop strategy's; plan_motion's per-robot caches (limits,
-default controller setups) against what is made afresh. The tests marked xfail show bugs in
-files this review does not own (described in their reasons).
+default controller setups) against what is made afresh; the rounding of huge continuous joint
+angles and joint counts too large for the compiled loops' stack arrays.
 """
 
 from __future__ import annotations
@@ -275,13 +275,6 @@ def _two_link_continuous() -> planner.Robot:
     return planner.Robot(planner.urdf_from_dh(description), tip="tool")
 
 
-@pytest.mark.xfail(
-    strict=True,
-    reason="singularity.py _interpolation_error and certificates.py interval_certificates: the "
-    "row's offset from the anchors' line, q_r - (q_a + lam u), is rounded to the spacing of q "
-    "(0.125 rad at 1e15), which no margin covers: rows of a continuous joint at huge angles are "
-    "shown above the threshold while the exact measure is below it",
-)
 def test_check_singularities_sorts_the_rows_of_huge_continuous_joint_angles_as_the_exact_measure():
     robot = _two_link_continuous()
     x0 = 1000000000000041.9  # sin(x0) = 0.0024: the elbow near straight
@@ -293,12 +286,6 @@ def test_check_singularities_sorts_the_rows_of_huge_continuous_joint_angles_as_t
     assert report.below_threshold[0][1] == t[np.flatnonzero(below)[-1]]  # 0.304 s; reported: 0.3 s
 
 
-@pytest.mark.xfail(
-    strict=True,
-    reason="the same rounding at 1e9 rad (spacing 1.2e-7): a row equal to the first (below the "
-    "threshold) is certified above it from the interpolation of its anchors; compiled and NumPy "
-    "paths alike (found down to 1e8 rad)",
-)
 def test_the_measure_sorts_rows_a_few_spacings_apart_at_1e9_rad_as_the_exact_measure():
     robot = _two_link_continuous()
     x = 1e9
@@ -314,13 +301,6 @@ def test_the_measure_sorts_rows_a_few_spacings_apart_at_1e9_rad_as_the_exact_mea
 
 
 @pytest.mark.skipif(not COMPILED, reason="no C compiler (or PLANNER_JIT=0)")
-@pytest.mark.xfail(
-    strict=True,
-    reason="certificates.py interval_certificates keeps per-joint arrays on the C stack (variable "
-    "length arrays bend[dof] .. J[m dof], change_bound's, curvature_bound's): about 56-104 bytes "
-    "a joint, so some 1.5e5 joints overflow an 8 MB stack (far fewer in a thread) and the process "
-    "dies (SIGSEGV) instead of refusing the shape",
-)
 def test_interval_certificates_refuse_or_take_any_joint_count_without_crashing():
     code = textwrap.dedent(
         """

@@ -21,6 +21,7 @@ from planner.exceptions import InvalidArgumentError
 
 __all__ = [
     "LARGEST",
+    "MOST_JOINTS",
     "anchor_bounds",
     "cholesky_certificates",
     "extreme_bounds",
@@ -32,8 +33,13 @@ __all__ = [
 #: Largest matrix size the compiled loops take.
 LARGEST = 8
 
+#: Most joints :func:`interval_certificates` takes (its per-joint arrays live on the C stack);
+#: longer chains take the NumPy path.
+MOST_JOINTS = 256
+
 _SOURCE = r"""
 #include <math.h>
+#include <float.h>
 
 /* Cholesky factor L (row-major, lower) of g - (shift + 1e-12 tr g) I and its pivots; 1 if all > 0. */
 static int factor(long k, const double *g, double shift, double *L, double *piv) {
@@ -390,7 +396,9 @@ void interval_certificates(long n, long dof, long m, const double *q, long na, c
         for (long r = a; r + 2 <= b; ++r) {
             const double *q0 = q + r * dof;
             for (long i = 0; i < dof; ++i) {
-                double h = fabs((q0[2 * dof + i] - q0[dof + i]) - (q0[dof + i] - q0[i]));
+                /* Plus the rounding of the differences (a spacing of q at huge angles). */
+                double h = fabs((q0[2 * dof + i] - q0[dof + i]) - (q0[dof + i] - q0[i]))
+                           + 2.0 * DBL_EPSILON * (fabs(q0[i]) + 2.0 * fabs(q0[dof + i]) + fabs(q0[2 * dof + i]));
                 if (h > bend[i]) bend[i] = h;
             }
         }
@@ -432,7 +440,9 @@ void interval_certificates(long n, long dof, long m, const double *q, long na, c
                 /* Step 2: the interpolation of the anchors' Jacobians, up to e. */
                 double lam = (double)(r - a) / span;
                 const double *qr = q + r * dof;
-                for (long i = 0; i < dof; ++i) off[i] = qr[i] - (qa[i] + lam * u[i]);
+                for (long i = 0; i < dof; ++i)
+                    off[i] = fabs(qr[i] - (qa[i] + lam * u[i]))
+                             + 2.0 * DBL_EPSILON * (fabs(qa[i]) + fabs(qb[i]) + fabs(qr[i]));
                 double e = change_bound(dof, off, rho, angular) + 0.5 * lam * (1.0 - lam) * curvature;
                 double s_lam = (1.0 - lam) * ea[0] + lam * eb[0];
                 e = e * (1.0 + 1e-9) + 1e-9 * (s_lam + 1.0);
@@ -698,7 +708,8 @@ def interval_certificates(
     Returns:
         Per row (n,), valid between anchors: ``lo_inv``, ``lo_man`` and flags (1: shown below the
         threshold, 2: not settled, 4: the inverse condition number not settled); None without
-        the compiled library or for k above :data:`LARGEST`.
+        the compiled library, for k above :data:`LARGEST` or more than :data:`MOST_JOINTS`
+        joints or task rows.
     """
     q = np.ascontiguousarray(q, dtype=float)
     anchors = np.ascontiguousarray(anchors, dtype=np.int64)
@@ -720,7 +731,7 @@ def interval_certificates(
             "interval_certificates: arrays of mismatched shapes or anchors not rows of q in order"
         )
     lib = _library()
-    if lib is None or min(m, dof) > LARGEST:
+    if lib is None or min(m, dof) > LARGEST or dof > MOST_JOINTS or m > MOST_JOINTS:
         return None
     values = np.array(params, dtype=float)
     lo_inv, lo_man, flags = np.zeros(n), np.zeros(n), np.zeros(n, dtype=np.int64)

@@ -53,6 +53,8 @@ from planner.geometry.jacobian_kernel import jacobian_kernel
 from planner.model.robot import Robot, Task
 from planner.motion.trajectory import JointTrajectory
 
+_EPS = float(np.finfo(float).eps)
+
 __all__ = [
     "DEFAULT_CONDITION_NUMBER",
     "DEFAULT_CONDITION_NUMBERS",
@@ -370,7 +372,9 @@ def _interpolation_error(
     counts = np.diff(np.append(starts, len(rows)))
     u = q[right[starts]] - q[left[starts]]
     curvature = np.repeat(jacobian_curvature_bound(u, rho, angular), counts)
-    off = q[rows] - (q[left] + lam[:, None] * np.repeat(u, counts, axis=0))
+    off = np.abs(q[rows] - (q[left] + lam[:, None] * np.repeat(u, counts, axis=0)))
+    # Plus the rounding of that difference (a spacing of q at huge angles on continuous joints).
+    off += 2.0 * _EPS * (np.abs(q[rows]) + np.abs(q[left]) + np.abs(q[right]))
     err = jacobian_change_bound(off, rho, angular) + 0.5 * lam * (1.0 - lam) * curvature
     return lam, err
 
@@ -477,10 +481,12 @@ def _interval_bounds(
     a, b = left[starts], right[starts]
     # The rows a..b deviate from the straight line between q_a and q_b by at most h L^2 / 8,
     # h their largest second difference and L = b - a (discrete maximum principle).
-    bend = np.diff(q, 2, axis=0)
+    bend = np.abs(np.diff(q, 2, axis=0))
+    # Plus the rounding of the differences.
+    bend += 2.0 * _EPS * (np.abs(q[:-2]) + 2.0 * np.abs(q[1:-1]) + np.abs(q[2:]))
     # Those of each interval alone: second differences a .. b - 2 (the odd segments dropped).
     cuts = np.stack([a, b - 1], axis=1).ravel()
-    bend = np.maximum.reduceat(np.abs(bend, out=bend), cuts[cuts < len(bend)], axis=0)[::2]
+    bend = np.maximum.reduceat(bend, cuts[cuts < len(bend)], axis=0)[::2]
     deviation = bend * (0.125 * (b - a) ** 2)[:, None] * (1.0 + 1e-9)
     top = np.maximum(s.top[a], s.top[b])
     margin = 1e-9 * (top + 1.0)
