@@ -182,35 +182,53 @@ class JointLimits:
         """The largest jerk limit [rad/s^3 or m/s^3]."""
         return float(np.max(self.jerk))
 
-    def check_move_durations(self, waypoints: np.ndarray, labels: Sequence[str] | None = None) -> None:
+    def check_move_durations(
+        self, waypoints: np.ndarray, labels: Sequence[str] | None = None, *, from_rest: bool = True
+    ) -> None:
         """Refuse a move between consecutive `waypoints` longer than :data:`MAX_SEGMENT_DURATION`.
 
-        A joint moving ``d`` at velocity limit ``v`` needs at least ``d / v``; Ruckig plans no
-        segment longer than its 7e3 s (its result -101), and sweeps along such a move (a
-        continuous joint told to turn a million radians) would sample it without bound.
+        A joint moving ``d`` at velocity limit ``v`` needs at least ``d / v``; the first move
+        (when it starts at rest) and the last (a plan ends at rest) at least
+        :func:`~planner.motion.segments.reach_time` within the velocity and acceleration limits.
+        Ruckig plans no segment longer than its 7e3 s (its result -101), and sweeps along such a
+        move (a continuous joint told to turn a million radians) would sample it without bound.
 
         Args:
             waypoints: Shape (N, dof), SI units.
             labels: Names of the waypoints for the message (default ``waypoint k``).
+            from_rest: Whether the first move starts at rest.
 
         Raises:
-            PlanningError: Naming the two waypoints, the joint, its move and the time it needs.
+            PlanningError: Naming the two waypoints, the joint, its move, the time it needs and
+                the limits that make it so.
         """
         q = np.asarray(waypoints, dtype=float)
         if len(q) < 2:
             return
-        with np.errstate(invalid="ignore", over="ignore"):
-            need = np.abs(np.diff(q, axis=0)) / self.velocity
+        with np.errstate(invalid="ignore", over="ignore", divide="ignore"):
+            d = np.abs(np.diff(q, axis=0))
+            need = d / self.velocity
+            # From or to rest: a t^2 / 2 up to t = v / a, then v t - v^2 / (2 a).
+            knee = self.velocity * self.velocity / (2.0 * self.acceleration)
+            rest = np.where(d <= knee, np.sqrt(2.0 * d / self.acceleration), (d + knee) / self.velocity)
+        ends = [len(d) - 1] + ([0] if from_rest else [])
+        need[ends] = np.fmax(need[ends], rest[ends])
         worst = np.where(np.isfinite(need), need, np.inf)  # an overflow or NaN counts as too long
         too_long = np.nonzero(worst.max(axis=1) > MAX_SEGMENT_DURATION)[0]
         if too_long.size:
             k = int(too_long[0])
             j = int(np.argmax(worst[k]))
             a, b = (labels[k], labels[k + 1]) if labels is not None else (f"waypoint {k}", f"waypoint {k + 1}")
+            by = f"at its velocity limit {plain(float(self.velocity[j]))}"
+            if k in ends and not need[k, j] <= d[k, j] / self.velocity[j]:
+                by = (
+                    f"{'from' if k == 0 and from_rest else 'to'} rest within its velocity limit "
+                    f"{plain(float(self.velocity[j]))} and acceleration limit {plain(float(self.acceleration[j]))}"
+                )
             raise PlanningError(
-                f"{a} -> {b}: joint {self.joint_names[j]} moves {plain(abs(q[k + 1, j] - q[k, j]))}, at least "
-                f"{plain(float(need[k, j]))} s at its velocity limit {plain(float(self.velocity[j]))}; a segment "
-                f"can last at most {MAX_SEGMENT_DURATION:g} s (Ruckig's limit): add waypoints between them"
+                f"{a} -> {b}: joint {self.joint_names[j]} moves {plain(float(d[k, j]))}, at least "
+                f"{plain(float(need[k, j]))} s {by}; a segment can last at most {MAX_SEGMENT_DURATION:g} s "
+                "(Ruckig's limit): add waypoints between them or raise the limits"
             )
 
     @classmethod
