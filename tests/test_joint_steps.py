@@ -1,0 +1,166 @@
+"""The second pass over the via states: per-joint velocity steps of the joints that set a segment's time."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+from test_trajectory import assert_passes_waypoints, assert_within_limits, problems
+from test_vias_optimized import _random_chain
+
+from planner.motion.limits import JointLimits, admissible_acceleration
+from planner.motion.plan import plan_trajectory
+from planner.motion.vias import OptimizedStrategy
+from planner.motion.vias.joint_steps import STEPS, resweep_via, step_binding_joints, step_candidates
+
+from conftest import get_robot, needs_example_robot_data
+
+SETTINGS = settings(max_examples=60, deadline=None, derandomize=True, suppress_health_check=[HealthCheck.too_slow])
+# Many random chains have a first pair without a profile or nothing to step: more examples.
+MORE = settings(SETTINGS, max_examples=200)
+
+
+@SETTINGS
+@given(problems(), st.integers(0, 2**32 - 1), st.lists(st.floats(0.0, 2.5), min_size=1, max_size=3))
+def test_step_candidates_are_the_moved_velocities_with_admissible_accelerations(problem, seed, steps):
+    # Reference: the velocity moved and clipped with NumPy, the acceleration limited by
+    # admissible_acceleration (the rule every via state follows).
+    q, limits = problem
+    chain = _random_chain(q, limits, seed) if len(q) >= 3 else None
+    rng = np.random.default_rng(seed)
+    v = rng.uniform(-1.0, 1.0, q.shape[1]) * limits.velocity if chain is None else chain.v[1]
+    a = rng.uniform(-1.0, 1.0, q.shape[1]) * limits.acceleration if chain is None else chain.acc[1]
+    joints = sorted(rng.choice(q.shape[1], size=int(rng.integers(1, q.shape[1] + 1)), replace=False).tolist())
+    velocity, acceleration, _ = limits.ruckig_limits
+    out = step_candidates((velocity, acceleration, limits.twice_jerk.tolist()), (v.tolist(), a.tolist()), joints, steps)
+    moves = [-s for s in steps] + list(steps)
+    assert len(out) == len(moves)
+    for move, (nv, na) in zip(moves, out):
+        expected_v = np.clip(
+            v[joints] + move * limits.velocity[joints], -limits.velocity[joints], limits.velocity[joints]
+        )
+        full_v, full_a = v.copy(), a.copy()
+        full_v[joints] = expected_v
+        expected_a = admissible_acceleration(full_v, full_a, limits)[joints]
+        np.testing.assert_array_equal(nv, expected_v)
+        np.testing.assert_array_equal(na, expected_a)  # the same operations, on floats
+        full_a[joints] = na
+        assert np.all(np.abs(full_v) <= limits.velocity)
+
+
+@MORE
+@given(problems(), st.integers(0, 2**32 - 1))
+def test_a_step_moves_only_binding_joints_and_takes_their_probed_times(problem, seed):
+    # The joints moved are ones that set a segment's time; their new times are what a Ruckig
+    # solve of the two segments gives each joint alone (its independent minimum duration), and
+    # the pair's estimate max t1 + max t2 is below the one before.
+    q, limits = problem
+    if len(q) < 3:
+        return
+    chain = _random_chain(q, limits, seed)
+    i = 1
+    (_, bad1, traj1), (_, bad2, traj2) = chain.seg.solve_around(
+        i, chain.v[i - 1], chain.acc[i - 1], chain.v[i], chain.acc[i], chain.v[i + 1], chain.acc[i + 1]
+    )
+    if traj1 is None or traj2 is None:
+        return
+    c1, c2 = traj1.independent_min_durations, traj2.independent_min_durations
+    before = (list(c1), list(c2))
+    state = (chain.v[i].tolist(), chain.acc[i].tolist())
+    old = (list(state[0]), list(state[1]))
+    if not step_binding_joints(chain, i, state, (c1, c2)):
+        assert state == old and (c1, c2) == before
+        return
+    moved = [j for j in range(q.shape[1]) if (state[0][j], state[1][j]) != (old[0][j], old[1][j])]
+    for j in moved:
+        assert before[0][j] >= 0.98 * max(before[0]) or before[1][j] >= 0.98 * max(before[1])
+    assert max(c1) + max(c2) < max(before[0]) + max(before[1])
+    cv, ca = np.array(state[0]), np.array(state[1])
+    assert np.all(np.abs(cv) <= limits.velocity)
+    assert np.array_equal(admissible_acceleration(cv, ca, limits), ca)
+    (_, _, new1), (_, _, new2) = chain.seg.solve_around(
+        i, chain.v[i - 1], chain.acc[i - 1], cv, ca, chain.v[i + 1], chain.acc[i + 1]
+    )
+    for j in range(q.shape[1]):
+        if j in moved:
+            assert c1[j] == new1.independent_min_durations[j] and c2[j] == new2.independent_min_durations[j]
+        else:
+            assert c1[j] == before[0][j] and c2[j] == before[1][j]
+
+
+@MORE
+@given(problems(), st.integers(0, 2**32 - 1))
+def test_the_second_pass_keeps_a_state_only_where_its_pair_is_faster_and_fits(problem, seed):
+    q, limits = problem
+    if len(q) < 3:
+        return
+    chain = _random_chain(q, limits, seed)
+    seg = chain.seg
+    i = int(np.random.default_rng(seed).integers(1, chain.n - 1))
+    v0, a0 = chain.v[i].copy(), chain.acc[i].copy()
+    around = seg.around(i, chain.v[i - 1], chain.acc[i - 1], chain.v[i + 1], chain.acc[i + 1])
+    (d1, _, _), (d2, _, _) = around(v0, a0)
+    changed = resweep_via(chain, i)
+    if not changed:
+        assert np.array_equal(chain.v[i], v0) and np.array_equal(chain.acc[i], a0)
+        return
+    (e1, bad1, traj1), (e2, bad2, traj2) = around(chain.v[i], chain.acc[i])
+    assert e1 + e2 < d1 + d2
+    assert bad1 is None and bad2 is None
+    assert not seg.turns_beyond(i - 1, traj1) and not seg.turns_beyond(i, traj2)
+    assert np.all(np.abs(chain.v[i]) <= limits.velocity)
+    assert np.array_equal(admissible_acceleration(chain.v[i], chain.acc[i], limits), chain.acc[i])
+
+
+class _FirstVia(OptimizedStrategy):
+    """The "optimized" search with the second pass over the first via of each run."""
+
+    resweep_vias = 1
+
+
+class _EveryVia(OptimizedStrategy):
+    """The "optimized" search with the second pass over every via."""
+
+    resweep_vias = None
+
+
+@SETTINGS
+@given(problems(max_points=6))
+def test_plans_with_the_second_pass_over_every_via_hold_every_limit(problem):
+    q, limits = problem
+    traj = plan_trajectory(q, limits, strategy=_EveryVia())
+    assert_within_limits(traj)
+    assert_passes_waypoints(traj, q)
+
+
+@pytest.mark.parametrize("strategy", [_FirstVia(), _EveryVia()], ids=["first via", "every via"])
+@pytest.mark.parametrize("name", ["dh3", "al5c", pytest.param("ur5", marks=needs_example_robot_data)])
+def test_the_second_pass_shortens_plans_through_five_waypoints_on_average(name, strategy):
+    # As benchmarks/bench_trajectory.py plans them (5 random waypoints, v from the URDF, a = 2 v,
+    # j = 10 a): the second pass makes the plans shorter on average, and never breaks a limit.
+    robot = get_robot(name)
+    limits = JointLimits.from_robot(robot)
+    rng = np.random.default_rng(1)
+    ratios = []
+    for _ in range(30):
+        q = robot.random_configurations(rng, 5)
+        traj = plan_trajectory(q, limits, strategy=strategy)
+        ratios.append(traj.duration / plan_trajectory(q, limits).duration)
+        assert_within_limits(traj, rate=1000.0)
+        assert_passes_waypoints(traj, q)
+    assert np.mean(ratios) < 1.0
+    assert np.median(ratios) <= 1.0
+    assert all(math.isfinite(r) for r in ratios)
+
+
+def test_the_second_pass_is_off_by_default_and_its_steps_are_shares_of_the_speed_limit():
+    assert all(0.0 < s < 1.0 for s in STEPS)
+    assert OptimizedStrategy.resweep_steps == STEPS and OptimizedStrategy.resweep_vias == 0
+    q = np.array([[0.0, 0.0], [0.5, -0.3], [0.9, 0.2], [0.4, 0.6], [0.0, 0.0]])
+    limits = JointLimits(np.ones(2), 2 * np.ones(2), 20 * np.ones(2), -np.ones(2), np.ones(2))
+    off = _FirstVia()
+    off.resweep_steps = ()
+    assert plan_trajectory(q, limits).duration == plan_trajectory(q, limits, strategy=off).duration
