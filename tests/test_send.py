@@ -34,6 +34,16 @@ DH3_PLAN = "units: {angle: deg}\nwaypoints:\n  - [0, 20, 40]\n  - [40, 50, 70]\n
 SO101_PLAN = "units: {angle: deg}\nwaypoints:\n  - [0, 0, 0, 0, 0]\n  - [30, -20, 25, 10, 40]\n"
 
 
+@pytest.fixture(autouse=True)
+def _patient_ssc32_queries(monkeypatch):
+    # The fake SSC-32 answers from a thread of this process: on a loaded machine that thread can
+    # wait longer than a board's 0.2 s query timeout (a flaky "no answer to 'QP 0'"). No test here
+    # relies on a query timing out.
+    import planner.hardware.ssc32 as ssc32
+
+    monkeypatch.setattr(ssc32, "QUERY_TIMEOUT", 2.0)
+
+
 @pytest.fixture(scope="module")
 def al5c_plan(tmp_path_factory):
     path = tmp_path_factory.mktemp("send") / "al5c.yaml"
