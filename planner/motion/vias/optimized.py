@@ -142,30 +142,36 @@ def spline_via_states(
     Returns:
         Velocities and accelerations at ``q[1:m]``, shapes (m-1, dof).
     """
-    m = len(h)
-    slope = (q[1:] - q[:-1]) / h[:, None]  # (m, dof)
-    inv = 1.0 / h
+    # On plain floats (a few vias and joints: faster than NumPy), row by row the operations the
+    # array form (``slope = diff(q) / h``, ``rhs = 3 (slope[:-1] inv[:-1] + slope[1:] inv[1:])``, ...) has.
+    rows, hs = q.tolist(), h.tolist()
+    m = len(hs)
+    inv = [1.0 / x for x in hs]
+    slope = [[(y - x) / span for x, y in zip(r0, r1)] for r0, r1, span in zip(rows, rows[1:], hs)]
     # Tridiagonal system for v_1 .. v_{m-1} (Thomas algorithm, one right-hand side per joint).
-    diag = (2.0 * (inv[:-1] + inv[1:])).tolist()
-    rhs = 3.0 * (slope[:-1] * inv[:-1, None] + slope[1:] * inv[1:, None])
-    inv_list = inv.tolist()
-    rhs[0] -= inv_list[0] * v_start
-    rhs[-1] -= inv_list[-1] * v_end
-    c = [inv_list[1] / diag[0]]
-    d = np.empty_like(rhs)
-    d[0] = rhs[0] / diag[0]
+    rhs = [[3.0 * (x * i0 + y * i1) for x, y in zip(s0, s1)] for s0, s1, i0, i1 in zip(slope, slope[1:], inv, inv[1:])]
+    first, last = inv[0], inv[-1]
+    rhs[0] = [x - first * y for x, y in zip(rhs[0], v_start.tolist())]
+    end = v_end.tolist()
+    rhs[-1] = [x - last * y for x, y in zip(rhs[-1], end)]
+    diag = [2.0 * (x + y) for x, y in zip(inv, inv[1:])]
+    c = [inv[1] / diag[0]]
+    den = diag[0]
+    d = [[x / den for x in rhs[0]]]
     for r in range(1, m - 1):
-        den = diag[r] - inv_list[r] * c[r - 1]
-        c.append(inv_list[r + 1] / den)
-        d[r] = (rhs[r] - inv_list[r] * d[r - 1]) / den
-    v = np.empty_like(rhs)
-    v[-1] = d[-1]
+        den = diag[r] - inv[r] * c[r - 1]
+        c.append(inv[r + 1] / den)
+        ir = inv[r]
+        d.append([(x - ir * y) / den for x, y in zip(rhs[r], d[r - 1])])
+    v = d[:]
     for r in range(m - 3, -1, -1):
-        v[r] = d[r] - c[r] * v[r + 1]
-    v_next = np.empty_like(v)
-    v_next[:-1], v_next[-1] = v[1:], v_end
-    acc = (6.0 * slope[1:] - 4.0 * v - 2.0 * v_next) * inv[1:, None]
-    return v, acc
+        cr = c[r]
+        v[r] = [x - cr * y for x, y in zip(d[r], v[r + 1])]
+    acc = [
+        [(6.0 * s - 4.0 * x - 2.0 * y) * i for s, x, y in zip(sr, vr, nr)]
+        for sr, vr, nr, i in zip(slope[1:], v, [*v[1:], end], inv[1:])
+    ]
+    return np.array(v), np.array(acc)
 
 
 class OptimizedStrategy(ViaStrategy):
