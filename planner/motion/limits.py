@@ -182,6 +182,11 @@ class JointLimits:
         """The largest jerk limit [rad/s^3 or m/s^3]."""
         return float(np.max(self.jerk))
 
+    @cached_property
+    def _half_move(self) -> tuple[float, ...]:
+        """Half the distance each joint covers in :data:`MAX_SEGMENT_DURATION` at its velocity limit [rad or m]."""
+        return tuple((0.5 * MAX_SEGMENT_DURATION * self.velocity).tolist())
+
     def check_move_durations(self, waypoints: np.ndarray, labels: Sequence[str] | None = None) -> None:
         """Refuse a move between consecutive `waypoints` longer than :data:`MAX_SEGMENT_DURATION`.
 
@@ -198,6 +203,14 @@ class JointLimits:
         """
         q = np.asarray(waypoints, dtype=float)
         if len(q) < 2:
+            return
+        # At once (plain floats) where no joint's waypoints span half of what it covers in that time.
+        half_move = self._half_move
+        if (
+            q.ndim == 2
+            and q.shape[1] == len(half_move)
+            and all(max(col) - min(col) <= half for col, half in zip(zip(*q.tolist()), half_move))
+        ):
             return
         with np.errstate(invalid="ignore", over="ignore"):
             need = np.abs(np.diff(q, axis=0)) / self.velocity

@@ -431,7 +431,12 @@ class SegmentSolver:
         # Per segment, the joints that do not move: only they can go out and back on one
         # parabola, which Ruckig 0.19 cannot take (see _on_one_parabola).
         self._still = [
-            [j for j, (x, y) in enumerate(zip(a, b)) if abs(y - x) <= 1e-9 * max(1.0, abs(y))] or None
+            [
+                j
+                for j, (x, y) in enumerate(zip(a, b))
+                if abs(y - x) <= 1e-9 * (y if y > 1.0 else -y if y < -1.0 else 1.0)
+            ]
+            or None
             for a, b in zip(rows, rows[1:])
         ]
         self._cache: dict[tuple, tuple[float, np.ndarray | None, RuckigTrajectory | None]] = {}
