@@ -86,7 +86,7 @@ class ViaChain:
             self.acc[rest] = 0.0
         # The range checks may skip joints that cannot reach a range end where every state is
         # admissible: the strategies' via states are, a given start state need not be.
-        start_ok = not (v0.any() or a0.any()) or _admissible(v0, a0, limits)
+        start_ok = not (any(v0.tolist()) or any(a0.tolist())) or _admissible(v0, a0, limits)
         given_ok = given is None or bool(np.all(np.abs(self.v) <= limits.velocity))
         admissible = [start_ok and given_ok] + [given_ok] * (self.n - 2)
         self.seg = SegmentSolver(q, limits, min_durations, admissible)

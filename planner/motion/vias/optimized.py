@@ -28,7 +28,7 @@ from collections.abc import Callable, Sequence
 
 import numpy as np
 
-from planner.motion.limits import admissible_acceleration
+from planner.motion.limits import JointLimits, admissible_acceleration
 from planner.motion.vias.base import SEARCH_HALVINGS, ViaChain, ViaStrategy, best_choice
 from planner.motion.vias.heuristic import via_directions
 
@@ -174,6 +174,28 @@ def spline_via_states(
     return np.array(v), np.array(acc)
 
 
+def _scaled_states(
+    x: np.ndarray, su: np.ndarray, mag: np.ndarray, sw: np.ndarray, wmag: np.ndarray, limits: JointLimits
+) -> tuple[np.ndarray, np.ndarray]:
+    """The via states ``(x u, x^2 w)`` of :meth:`OptimizedStrategy.search_via`, shapes (G, dof).
+
+    Per scale x (shape (G,)) the velocity ``sign(u) min(v_max, x |u|)`` and the acceleration
+    ``sign(w) min(a_max, x^2 |w|)`` made admissible: :func:`admissible_acceleration` with
+    ``|cv|`` at hand (bit for bit the same values; its ``max(v_max - |cv|, 0)`` is a no-op here).
+    """
+    x = x[:, None]
+    speed = np.minimum(limits.velocity, x * mag)  # |cv|, bit for bit
+    cv = su * speed
+    ca = sw * np.minimum(limits.acceleration, x * x * wmag)
+    amax = np.subtract(limits.velocity, speed, out=speed)
+    np.multiply(limits.twice_jerk, amax, out=amax)
+    np.sqrt(amax, out=amax)
+    amax *= 1.0 - 1e-9
+    np.minimum(limits.acceleration, amax, out=amax)
+    np.minimum(ca, amax, out=ca)
+    return cv, np.maximum(ca, np.negative(amax, out=amax), out=ca)
+
+
 class OptimizedStrategy(ViaStrategy):
     """Via states chosen by a spline search per run, then a duration search per via waypoint."""
 
@@ -200,7 +222,7 @@ class OptimizedStrategy(ViaStrategy):
         durations = chain.durations()
         for i in free:
             u, w = via_directions(chain.q, i, durations, chain.limits, chain.stop)
-            tried = self.search_via(chain, i, u, w) if u.any() or w.any() else []
+            tried = self.search_via(chain, i, u, w) if any(u.tolist()) or any(w.tolist()) else []
             self.combine_joints(chain, i, tried)
             durations[i - 1] = chain.seg.solve(i - 1, chain.v[i - 1], chain.acc[i - 1], chain.v[i], chain.acc[i])[0]
             durations[i] = chain.seg.solve(i, chain.v[i], chain.acc[i], chain.v[i + 1], chain.acc[i + 1])[0]
@@ -281,9 +303,7 @@ class OptimizedStrategy(ViaStrategy):
             tops.append(math.sqrt(max(scales)))
 
         def candidates(x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-            x = x[:, None]
-            cv = su * np.minimum(lim.velocity, x * mag)
-            return cv, admissible_acceleration(cv, sw * np.minimum(lim.acceleration, x * x * wmag), lim)
+            return _scaled_states(x, su, mag, sw, wmag, lim)
 
         return self._line_search(chain, i, candidates, min(max(tops), _MAX_SCALE), start=_GRID_START)
 
@@ -328,7 +348,7 @@ class OptimizedStrategy(ViaStrategy):
         # one spline at the durations h0 gives the via states at every scale.
         zero = np.zeros_like(v_a)
         v_q, acc_q = spline_via_states(q_run, h0, zero, zero)
-        moving_ends = bool(v_a.any() or v_b.any())
+        moving_ends = any(v_a.tolist()) or any(v_b.tolist())
         if moving_ends:
             v_e, acc_e = spline_via_states(q_run, h0, v_a, v_b)
             v_e, acc_e = v_e - v_q, acc_e - acc_q
