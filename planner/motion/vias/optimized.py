@@ -224,8 +224,9 @@ class OptimizedStrategy(ViaStrategy):
             u, w = via_directions(chain.q, i, durations, chain.limits, chain.stop)
             tried = self.search_via(chain, i, u, w) if any(u.tolist()) or any(w.tolist()) else []
             self.combine_joints(chain, i, tried)
-            durations[i - 1] = chain.seg.solve(i - 1, chain.v[i - 1], chain.acc[i - 1], chain.v[i], chain.acc[i])[0]
-            durations[i] = chain.seg.solve(i, chain.v[i], chain.acc[i], chain.v[i + 1], chain.acc[i + 1])[0]
+            v, acc = chain.state_rows()
+            durations[i - 1] = chain.seg.solve(i - 1, v[i - 1], acc[i - 1], v[i], acc[i])[0]
+            durations[i] = chain.seg.solve(i, v[i], acc[i], v[i + 1], acc[i + 1])[0]
 
     def _line_search(
         self,
@@ -312,10 +313,11 @@ class OptimizedStrategy(ViaStrategy):
 
         Done before the search, so that each via is searched next to neighbours that fit.
         """
+        v, acc = chain.state_rows()
         for _ in range(_SETTLE_HALVINGS):
             changed = False
             for k in range(chain.n - 1):
-                bad = chain.seg.solve(k, chain.v[k], chain.acc[k], chain.v[k + 1], chain.acc[k + 1])[1]
+                bad = chain.seg.solve(k, v[k], acc[k], v[k + 1], acc[k + 1])[1]
                 if bad is None:
                     continue
                 for idx in (k, k + 1):
@@ -362,7 +364,8 @@ class OptimizedStrategy(ViaStrategy):
         accs = admissible_acceleration(vs, accs, lim)
         index = _SPLINE_INDEX
 
-        solve, start, end = chain.seg.solve, (chain.v[a], chain.acc[a]), (chain.v[b], chain.acc[b])
+        rows_v, rows_acc = chain.state_rows()
+        solve, start, end = chain.seg.solve, (rows_v[a], rows_acc[a]), (rows_v[b], rows_acc[b])
 
         def cost(x: float) -> float:
             v, acc = vs[index[x]], accs[index[x]]
@@ -382,7 +385,7 @@ class OptimizedStrategy(ViaStrategy):
 
         current = 0.0
         for k in range(a, b):
-            d, bad, _ = chain.seg.solve(k, chain.v[k], chain.acc[k], chain.v[k + 1], chain.acc[k + 1])
+            d, bad, _ = solve(k, rows_v[k], rows_acc[k], rows_v[k + 1], rows_acc[k + 1])
             current += math.inf if bad is not None else d
         golden_minimum(cost, *_SPLINE_SCALE, _SPLINE_SCALE_EVALS)
         if best[0] < current:
