@@ -25,6 +25,7 @@ from __future__ import annotations
 import functools
 import math
 from collections.abc import Callable, Sequence
+from operator import itemgetter
 
 import numpy as np
 
@@ -251,7 +252,10 @@ class OptimizedStrategy(ViaStrategy):
         """
         pair = chain.pair_coster(i)
         current = pair(chain.v[i], chain.acc[i])
-        grid = sorted({min(g, top) for g in grid} | {top})
+        if grid is _GRID and top > _GRID[-1]:
+            grid = [*_GRID, top]  # (the common case of the line below: the grid is sorted)
+        else:
+            grid = sorted({min(g, top) for g in grid} | {top})
         if not math.isfinite(current[0]) and 0.0 not in grid:
             grid.insert(0, 0.0)  # resting at the via: the fallback where the current state has no profile
         n = len(grid)
@@ -274,8 +278,8 @@ class OptimizedStrategy(ViaStrategy):
             value = tried[g][0]
             while g > 0 and (step := at(g - 1)) <= value:
                 g, value = g - 1, step
-        states = [current, *(t for t in tried if t is not None)]
-        best = min(states, key=lambda c: c[0])  # the first smallest: the current state unless beaten
+        states = [current, *[t for t in tried if t is not None]]
+        best = min(states, key=itemgetter(0))  # the first smallest: the current state unless beaten
         _, chain.v[i], chain.acc[i] = best
         return states
 
