@@ -8,6 +8,9 @@ checkout and a branch), in subprocesses with ``PYTHONPATH`` set to the tree.
 - Same plans: per plan a hash of its duration, waypoint times, via velocities and
   accelerations, repair flags and pieces (knots, p, v, a, j); prints per arm how many agree
   (and the duration ratios second / first where they do not).
+  With ``--mixed N``, also N varied requests per arm (waypoints near the range ends, moving
+  start states, stops, dwell, prescribed via velocities, minimum durations; seed 5), a
+  failure hashed by its message.
 - Speed: ``--rounds`` rounds, each one subprocess per tree in turn (the order alternating),
   timing every plan of the 6-dof arms (ur5, z1) ``--reps`` times (thread CPU time, the least
   counts). Prints per tree the median over rounds of the median plan time and the ratio of
@@ -68,7 +71,48 @@ def plan_hash(traj) -> str:
     return h.hexdigest()[:16]
 
 
-def worker(mode: str, paths: int, seed: int, strategy: str, reps: int) -> dict:
+def mixed_hashes(count: int, strategy: str) -> dict[str, list[str]]:
+    """Per arm, the hashes of `count` varied requests (see the module docstring)."""
+    from planner import available_robots, load_robot
+    from planner.exceptions import PlannerError
+    from planner.motion.limits import JointLimits
+    from planner.motion.plan import plan_trajectory
+
+    rng = np.random.default_rng(5)
+    out = {}
+    for name in available_robots():
+        robot = load_robot(name)
+        limits = JointLimits.from_robot(robot)
+        upper = np.where(np.isfinite(limits.upper), limits.upper, 3.0)
+        lower = np.where(np.isfinite(limits.lower), limits.lower, -3.0)
+        hashes = []
+        for _ in range(count):
+            n = int(rng.integers(2, 8))
+            q = robot.random_configurations(rng, n)
+            options: dict = {"strategy": strategy}
+            if rng.random() < 0.3:  # some waypoints near the upper range ends
+                q = np.where(rng.random(q.shape) < 0.3, upper - rng.uniform(0, 0.05, q.shape) * (upper - lower), q)
+            if rng.random() < 0.2:
+                options["start_velocity"] = rng.uniform(-0.3, 0.3, robot.dof) * limits.velocity
+            if rng.random() < 0.2 and n > 2:
+                options["stops"] = [int(rng.integers(1, n - 1))]
+            if rng.random() < 0.1:
+                options["dwell"] = 0.1
+            if rng.random() < 0.15 and n > 2:
+                given = np.full((n, robot.dof), np.nan)
+                given[1] = rng.uniform(-0.5, 0.5, robot.dof) * limits.velocity
+                options["via_velocities"] = given
+            if rng.random() < 0.1:
+                options["min_durations"] = rng.uniform(0, 2, n - 1)
+            try:
+                hashes.append(plan_hash(plan_trajectory(q, limits, **options)))
+            except PlannerError as exc:
+                hashes.append(hashlib.sha256(f"failed: {exc}".encode()).hexdigest()[:16])
+        out[name] = hashes
+    return out
+
+
+def worker(mode: str, paths: int, seed: int, strategy: str, reps: int, mixed: int = 0) -> dict:
     """Hash (mode "hash") or time (mode "time") the plans of the planner on ``sys.path``."""
     from planner.motion.plan import plan_trajectory
 
@@ -78,6 +122,8 @@ def worker(mode: str, paths: int, seed: int, strategy: str, reps: int) -> dict:
         for name, (limits, qs) in data.items():
             plans = [plan_trajectory(q, limits, strategy=strategy) for q in qs]
             out[name] = [(plan_hash(p), p.duration) for p in plans]
+        if mixed:
+            out["mixed"] = mixed_hashes(mixed, strategy)
         return out
     clock = time.thread_time
     times = {}
@@ -105,10 +151,11 @@ def main() -> None:
     parser.add_argument("--rounds", type=int, default=6, help="timing rounds (0: only compare the plans)")
     parser.add_argument("--reps", type=int, default=3, help="timings per plan in a round (the least counts)")
     parser.add_argument("--no-hash", action="store_true", help="only time")
+    parser.add_argument("--mixed", type=int, default=0, help="varied requests per arm to compare as well")
     parser.add_argument("--worker", choices=("hash", "time"), help=argparse.SUPPRESS)
     args = parser.parse_args()
     if args.worker:
-        print(json.dumps(worker(args.worker, args.paths, args.seed, args.strategy, args.reps)))
+        print(json.dumps(worker(args.worker, args.paths, args.seed, args.strategy, args.reps, args.mixed)))
         return
     if not args.trees:
         parser.error("--trees is required")
@@ -117,12 +164,20 @@ def main() -> None:
     def child(tree: str, mode: str) -> dict:
         env = dict(os.environ, PYTHONPATH=tree, OPENBLAS_NUM_THREADS="1")
         cmd = [sys.executable, str(HERE), "--worker", mode, "--paths", str(args.paths), "--seed", str(args.seed)]
-        cmd += ["--strategy", args.strategy, "--reps", str(args.reps)]
+        cmd += ["--strategy", args.strategy, "--reps", str(args.reps), "--mixed", str(args.mixed)]
         proc = subprocess.run(cmd, env=env, capture_output=True, text=True, check=True)
         return json.loads(proc.stdout.strip().splitlines()[-1])
 
     if not args.no_hash:
         first, second = (child(t, "hash") for t in trees)
+        mixed = first.pop("mixed", {}), second.pop("mixed", {})
+        for arm in mixed[0]:
+            a, b = mixed[0][arm], mixed[1][arm]
+            differ = [i for i, (x, y) in enumerate(zip(a, b)) if x != y]
+            print(
+                f"{arm} (varied requests): {len(a) - len(differ)}/{len(a)} plans identical"
+                + (f"; differ: {differ}" if differ else "")
+            )
         for arm in first:
             a, b = first[arm], second[arm]
             differ = [i for i, (x, y) in enumerate(zip(a, b)) if x[0] != y[0]]
