@@ -79,7 +79,12 @@ RATE = 1000.0
 PHASES = {
     "path search": ("find_clear_path", "segment_is_clear", "segment_looks_clear"),
     "continuous check": ("check_trajectory", "check_segment"),
-    "singularity measure and timing": ("plan_clear_of_singularities", "measure_singularities", "smooth_lines"),
+    "singularity measure and timing": (
+        "plan_clear_of_singularities",
+        "plan_trajectory_request",
+        "measure_singularities",
+        "smooth_lines",
+    ),
 }
 
 

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import math
 
+import coal
 import numpy as np
 import pytest
 from dh_arms import dh_descriptions, property_settings, robot_from_description
@@ -1154,6 +1155,31 @@ def test_a_shared_checker_is_reused_per_scene_and_answers_as_a_new_one(name, siz
         assert again.clearance(row) == fresh.clearance(row)
     with pytest.raises(InvalidArgumentError):
         shared_checker(robot, "table")
+
+
+def test_only_in_collision_leaves_gjk_guesses_to_forget():
+    """forget_guesses skips a checker in_collision has not run on since: nothing else moves its guesses."""
+    robot = get_robot("al5c")
+    scene = Scene(floor=0.0, clearance=0.005, obstacles=(Obstacle("box", Box((0.05, 0.05, 0.1)), [0.09, 0.0, 0.05]),))
+    checker = CollisionChecker(robot, scene)
+    fresh = coal.CollisionRequest().cached_gjk_guess
+
+    def guesses_fresh() -> bool:
+        return all(np.array_equal(r.cached_gjk_guess, fresh) for r in checker._gdata.collisionRequests)
+
+    q = robot.random_configurations(np.random.default_rng(4), 100)
+    for row in q:  # distances, proximity tests and path checks leave the guesses alone
+        checker.clearance(row)
+        checker.closer_than(0.02)(row)
+    assert guesses_fresh()
+    checker.forget_guesses()  # nothing to forget: a no-op
+    assert guesses_fresh()
+    for row in q:
+        checker.in_collision(row)
+    checker.forget_guesses()
+    assert guesses_fresh()
+    new = CollisionChecker(robot, scene)
+    assert [checker.in_collision(row) for row in q] == [new.in_collision(row) for row in q]
 
 
 @pytest.mark.parametrize("name", MIXED_ARMS)

@@ -214,3 +214,28 @@ def test_plan_trajectory_names_the_joint_of_a_move_longer_than_ruckig_times():
     waypoints = np.array([middle - half, middle + half])
     with pytest.raises(PlanningError, match=r"waypoint 0 -> waypoint 1: joint \S+ moves .* at most 7000 s"):
         plan_trajectory(waypoints, JointLimits.from_robot(robot, velocity=1e-4))
+
+
+@pytest.mark.parametrize("acceleration", [1e-10, 1e-9])
+def test_a_first_or_last_move_too_slow_for_its_acceleration_names_the_acceleration(acceleration):
+    # Before: "the via states could not be brought within the joint ranges" (Ruckig's -101 deep inside).
+    from planner import PlanningError, load_robot
+    from planner.motion.limits import JointLimits
+    from planner.motion.plan import plan_trajectory
+
+    robot = load_robot("dh3")
+    limits = JointLimits.from_robot(robot, acceleration=acceleration)
+    waypoints = np.array([[0.0, 0.3, 0.2], [0.4, 0.5, 0.1], [0.1, 0.1, 0.1]])
+    with pytest.raises(
+        PlanningError, match=r"waypoint 0 -> waypoint 1: joint \S+ moves .* s from rest .* acceleration limit"
+    ):
+        plan_trajectory(waypoints, limits)
+    creep = np.array([[0.0, 0.0, 0.0], [1e-12, 0.0, 0.0], [0.4, 0.0, 0.0]])
+    with pytest.raises(
+        PlanningError, match=r"waypoint 1 -> waypoint 2: joint base_yaw moves .* s to rest .* acceleration limit"
+    ):
+        plan_trajectory(creep, limits)
+    # Where the bound from rest stays under Ruckig's limit, the plan is made and lasts at least that bound.
+    gentle = JointLimits.from_robot(robot, acceleration=1e-6)
+    traj = plan_trajectory(waypoints, gentle)
+    assert traj.duration >= np.sqrt(2.0 * 0.4 / 1e-6)

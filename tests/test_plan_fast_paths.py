@@ -17,7 +17,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from planner.exceptions import PlanningError
-from planner.motion.limits import MAX_SEGMENT_DURATION, JointLimits, admissible_acceleration
+from planner.motion.limits import JointLimits, admissible_acceleration
 from planner.motion.plan import plan_trajectory
 from planner.motion.segments import (
     _END_MISS,
@@ -173,27 +173,40 @@ def test_via_directions_equal_the_clipped_slope_blend(rows, tp, tn):
         assert a.tobytes() == b.tobytes()
 
 
-@settings(max_examples=200, deadline=None)
+def refusal(limits: JointLimits, q: np.ndarray, from_rest: bool) -> str | None:
+    """check_move_durations' message, or None where it accepts."""
+    try:
+        limits.check_move_durations(q, from_rest=from_rest)
+    except PlanningError as exc:
+        return str(exc)
+    return None
+
+
+@settings(max_examples=300, deadline=None)
 @given(
     st.lists(
         st.lists(st.one_of(st.floats(-1e7, 1e7), st.floats(-1e308, 1e308)), min_size=2, max_size=2),
         min_size=2,
         max_size=5,
-    )
+    ),
+    st.floats(1e-6, 1e3),
+    st.booleans(),
 )
-def test_move_duration_check_refuses_exactly_the_moves_longer_than_ruckig_plans(rows):
-    limits = JointLimits(
-        np.array([0.5, 2.0]), np.array([1.0, 4.0]), np.array([10.0, 40.0]), np.full(2, -np.inf), np.full(2, np.inf)
-    )
+def test_move_duration_check_accepts_at_once_only_what_the_full_check_accepts(rows, acceleration, from_rest):
+    # The quick accept (plain floats) must give what the full check gives (its message too).
+    def limits():
+        return JointLimits(
+            np.array([0.5, 2.0]),
+            np.array([acceleration, 4.0]),
+            np.array([10.0, 40.0]),
+            np.full(2, -np.inf),
+            np.full(2, np.inf),
+        )
+
     q = np.array(rows)
-    with np.errstate(over="ignore"):
-        need = np.abs(np.diff(q, axis=0)) / limits.velocity
-    too_long = bool(np.any(~(need <= MAX_SEGMENT_DURATION)))
-    if too_long:
-        with pytest.raises(PlanningError, match="at most"):
-            limits.check_move_durations(q)
-    else:
-        limits.check_move_durations(q)
+    full = limits()
+    full.__dict__["_quick_move"] = (-1.0, -1.0)  # no quick accept
+    assert refusal(limits(), q, from_rest) == refusal(full, q, from_rest)
 
 
 @pytest.mark.parametrize("name", ["ur5", "z1", "panda"])

@@ -413,3 +413,16 @@ def test_a_dwell_longer_than_a_segment_can_last_is_refused(dwell):
     with pytest.raises(planner.InvalidArgumentError, match=r"dwell at waypoint 1 is .* at most 7000 s"):
         planner.plan_trajectory([q0, q0 + 0.1, q0], limits, dwell=[0.0, dwell, 0.0])
     assert planner.plan_trajectory([q0, q0 + 0.1, q0], limits, dwell=[0.0, 7000.0, 0.0]).duration > 7000.0
+
+
+@pytest.mark.parametrize("rate", [True, False])
+def test_a_boolean_rate_is_refused_not_read_as_one_hertz(rate):
+    from planner.app.plan_file import parse_motion_request
+
+    traj = _short_trajectory()
+    for call in (traj.times, traj.sampled, traj.peak_ratios):
+        with pytest.raises(planner.InvalidArgumentError, match="rate must be positive and finite"):
+            call(rate)
+    request = parse_motion_request({"waypoints": [[0.0, 0.5, 1.0], [1.0, 0.5, 1.0]], "units": {"angle": "rad"}})
+    with pytest.raises(planner.InvalidArgumentError, match="rate must be positive and finite"):
+        planner.plan_motion(get_robot("dh3"), request, rate=rate)

@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -33,6 +33,7 @@ from planner.model.robot import Robot
 from planner.motion.avoid import joint_line, time_joint_line
 from planner.motion.detours import (
     Detour,
+    SingularityAwarePlan,
     SingularityOptions,
     dipping_segments,
     must_cross_singularity,
@@ -41,6 +42,7 @@ from planner.motion.detours import (
 from planner.motion.limits import JointLimits
 from planner.motion.line import LinePath
 from planner.motion.line_smoothing import line_end_states, smooth_lines
+from planner.motion.plan import plan_trajectory_request
 from planner.motion.request import TrajectoryRequest
 from planner.motion.singularity import SingularityReport, inverse_condition_threshold, measure_singularities
 from planner.motion.trajectory import JointTrajectory
@@ -676,7 +678,18 @@ def plan_motion(
             user_pos.append(len(nodes) - 1)
         return np.array(nodes), user_pos, line_ranges, line_timing, owner
 
-    def plan_once(paths: list[list[LinePath] | None], blend: bool = True, merge: bool = True) -> tuple:
+    # The measure of the last plan made without it (plan_once with measure False): a function
+    # giving the measured plan.
+    pending: list[Callable[[], SingularityAwarePlan]] = []
+
+    def plan_once(
+        paths: list[list[LinePath] | None], blend: bool = True, merge: bool = True, measure: bool = True
+    ) -> tuple:
+        """The plan through `paths`.
+
+        Without `measure`, a motion without lines (none to smooth) is only timed: its plan has
+        no report (None) until ``pending``'s function measures it (from the same timing).
+        """
         q_nodes, user_pos, line_ranges, line_timing, owner = build(paths)
         m = len(q_nodes)
         dwell = np.zeros(m)
@@ -729,6 +742,16 @@ def plan_motion(
         options = SingularityOptions(
             threshold=threshold, rate=rate, max_detours=request.max_detours if request.detours else 0
         )
+        if not measure and not line_ranges:
+            timed = plan_trajectory_request(trajectory_request)
+            pending[:] = [
+                lambda: plan_clear_of_singularities(
+                    robot, trajectory_request, options, keep_segments=sorted(keep), timed=timed
+                )
+            ]
+            # What plan_clear_of_singularities gives where it inserts no detour, not yet measured.
+            plan = SingularityAwarePlan(timed, None, read_only(np.arange(m), None), (), ())  # type: ignore[arg-type]
+            return plan, user_pos, line_ranges, m, owner
         plan = plan_clear_of_singularities(robot, trajectory_request, options, keep_segments=sorted(keep))
         if line_ranges:
             # Each line as smooth pieces between its corners, not a chain of bang-bang segments.
@@ -756,7 +779,11 @@ def plan_motion(
                 plan = dataclasses.replace(plan, trajectory=smooth, report=report, unresolved=tuple(sorted(still)))
         return plan, user_pos, line_ranges, m, owner
 
-    plan, user_pos, line_ranges, m, owner = plan_once(paths)
+    # With a scene, a motion without lines is checked for collisions before its singularity
+    # measure: a round the check sends back (to route a move, halve or follow an edge) is
+    # not measured at all. The motion the check passes is measured then (from the same
+    # timing); where that inserts detours, the detoured motion is checked in turn.
+    plan, user_pos, line_ranges, m, owner = plan_once(paths, measure=checker is None)
     collision = None
     if checker is not None:
         # Check the timed motion continuously. Where a free move comes too close, it follows
@@ -770,11 +797,26 @@ def plan_motion(
             times = plan.trajectory.waypoint_times[plan.waypoint_indices[user_pos]]
             windows = [(float(times[k - 1]), tuple(set(allow[k - 1]) | set(allow[k]))) for k in range(1, n)]
             collision = check_trajectory(checker, plan.trajectory, allow=windows, stop_at_first=True)
-            if collision.clear:
+            k, edge = -1, None
+            if not collision.clear:
+                node_times = plan.trajectory.waypoint_times[plan.waypoint_indices]
+                i = int(np.searchsorted(node_times, collision.first_hit, side="right")) - 1
+                k, edge = owner[min(max(i, 0), m - 2)]
+            settled = collision.clear or not (
+                (k in unproven and edge is not None)
+                or (k in routes and edge is not None and (k, edge) not in dense)
+                or (k not in routes and paths[k] is None)
+            )
+            if settled:
+                if plan.report is None:
+                    checked = plan.trajectory
+                    plan = pending.pop()()
+                    if plan.trajectory is not checked:
+                        continue  # detoured: that motion is checked
+                if not collision.clear:
+                    # Already along clear lines: reported as it is, with the closest pair throughout.
+                    collision = check_trajectory(checker, plan.trajectory, allow=windows)
                 break
-            node_times = plan.trajectory.waypoint_times[plan.waypoint_indices]
-            i = int(np.searchsorted(node_times, collision.first_hit, side="right")) - 1
-            k, edge = owner[min(max(i, 0), m - 2)]
             if k in unproven and edge is not None:
                 # The same search (same seed) again, its edges certified: the same route where
                 # they pass, whose edge is then followed along its line.
@@ -790,13 +832,9 @@ def plan_motion(
                     dense -= {(k, e) for e in range(len(before))}
             elif k in routes and edge is not None and (k, edge) not in dense:
                 follow(k, edge)
-            elif k not in routes and paths[k] is None:
-                route(k)
             else:
-                # Already along clear lines: reported as it is, with the closest pair throughout.
-                collision = check_trajectory(checker, plan.trajectory, allow=windows)
-                break
-            plan, user_pos, line_ranges, m, owner = plan_once(paths)
+                route(k)
+            plan, user_pos, line_ranges, m, owner = plan_once(paths, measure=False)
 
     traj = plan.trajectory
     node_idx = plan.waypoint_indices

@@ -140,6 +140,7 @@ class CollisionChecker:
             # GJK starts from the pair's last separating direction (links keep their relative
             # poses roughly): 6 to 30 % faster on ur5 and panda; a verdict does not depend on it.
             request.gjk_initial_guess = coal.GJKInitialGuess.CachedGuess
+        self._guessed = False  # whether in_collision has run since the guesses were last forgotten
         self._active: dict[tuple[str, ...], np.ndarray] = {}
         self._active_now: np.ndarray | None = None
         self._everything = self._mask(())
@@ -151,8 +152,12 @@ class CollisionChecker:
 
         :meth:`in_collision` starts each pair's GJK from the direction of its last call; a
         checker used again for a new request forgets them, so that its answers do not depend
-        on what it checked before (the distances never use them).
+        on what it checked before (the distances never use them). Only :meth:`in_collision`
+        leaves guesses: a checker it has not run on since has none to forget.
         """
+        if not self._guessed:
+            return
+        self._guessed = False
         fresh = coal.CollisionRequest()
         guess, support = fresh.cached_gjk_guess, fresh.cached_support_func_guess
         for request in self._gdata.collisionRequests:
@@ -314,6 +319,7 @@ class CollisionChecker:
             if not mask.any():
                 return False
             self._set_active(mask)
+        self._guessed = True
         return pin.computeCollisions(
             self.robot.model, self._data, self._broadphase, self.robot.pinocchio_configuration(q), True
         )

@@ -256,6 +256,7 @@ def plan_clear_of_singularities(
     options: SingularityOptions | None = None,
     *,
     keep_segments: Sequence[int] = (),
+    timed: JointTrajectory | None = None,
 ) -> SingularityAwarePlan:
     """Plan a trajectory request, detouring around singularities a segment would pass.
 
@@ -267,13 +268,17 @@ def plan_clear_of_singularities(
         options: Threshold, task, sampling rate, detour count and margin; None is the defaults.
         keep_segments: Segments of the request (k: from waypoint k to k+1) that must not get
             detours, e.g. samples of a straight Cartesian line.
+        timed: The request's own trajectory (``plan_trajectory_request(request)``), where the
+            caller has made it already (to check it for collisions before it is measured): used
+            instead of planning it again. The plan is the same.
 
     Returns:
         The plan with its report, detours and unresolved segments.
 
     Raises:
-        InvalidArgumentError: If the request is for another number of joints, or on a start
-            state the planner cannot brake from.
+        InvalidArgumentError: If the request is for another number of joints, on a start
+            state the planner cannot brake from, or if `timed` is not a trajectory through
+            the request's waypoints.
     """
     opts = SingularityOptions() if options is None else options
     t_task = robot.resolve_task(opts.task)
@@ -284,6 +289,8 @@ def plan_clear_of_singularities(
         raise InvalidArgumentError(f"the limits are for {limits.dof} joints; {robot.name} has {robot.dof}")
     user = request.waypoints
     n = len(user)
+    if timed is not None and (not isinstance(timed, JointTrajectory) or not np.array_equal(timed.waypoints, user)):
+        raise InvalidArgumentError("timed must be the JointTrajectory planned from the request (its waypoints)")
     # Per augmented waypoint: prescribed (velocity, acceleration), and the minimum duration of
     # the segment that starts there (detours split a segment and drop its minimum).
     states: list[tuple[np.ndarray, np.ndarray, float]] = [
@@ -304,7 +311,7 @@ def plan_clear_of_singularities(
         if len(nodes) == n:
             # No detour: the request's own nodes and states (a user segment whole again has its
             # minimum duration back), already validated.
-            return plan_trajectory_request(request)
+            return timed if timed is not None else plan_trajectory_request(request)
         q = np.array([nd[0] for nd in nodes])
         user_pos = [i for i, nd in enumerate(nodes) if nd[1] is not None]
         d = np.zeros(len(nodes))

@@ -183,47 +183,75 @@ class JointLimits:
         return float(np.max(self.jerk))
 
     @cached_property
-    def _half_move(self) -> tuple[float, ...]:
-        """Half the distance each joint covers in :data:`MAX_SEGMENT_DURATION` at its velocity limit [rad or m]."""
-        return tuple((0.5 * MAX_SEGMENT_DURATION * self.velocity).tolist())
+    def _quick_move(self) -> tuple[float, ...]:
+        """Per joint, a move [rad or m] that surely lasts less than :data:`MAX_SEGMENT_DURATION`, or -1.
 
-    def check_move_durations(self, waypoints: np.ndarray, labels: Sequence[str] | None = None) -> None:
+        Half the distance the joint covers in that time at its velocity limit, where reaching the
+        limit from rest takes at most a quarter of it (then such a move lasts at most 5/8 of it,
+        from or to rest too); -1 (no move) otherwise.
+        """
+        v, a = self.velocity.tolist(), self.acceleration.tolist()
+        return tuple(
+            0.5 * MAX_SEGMENT_DURATION * x if x <= 0.25 * MAX_SEGMENT_DURATION * y else -1.0 for x, y in zip(v, a)
+        )
+
+    def check_move_durations(
+        self, waypoints: np.ndarray, labels: Sequence[str] | None = None, *, from_rest: bool = True
+    ) -> None:
         """Refuse a move between consecutive `waypoints` longer than :data:`MAX_SEGMENT_DURATION`.
 
-        A joint moving ``d`` at velocity limit ``v`` needs at least ``d / v``; Ruckig plans no
-        segment longer than its 7e3 s (its result -101), and sweeps along such a move (a
-        continuous joint told to turn a million radians) would sample it without bound.
+        A joint moving ``d`` at velocity limit ``v`` needs at least ``d / v``; the first move
+        (when it starts at rest) and the last (a plan ends at rest) at least
+        :func:`~planner.motion.segments.reach_time` within the velocity and acceleration limits.
+        Ruckig plans no segment longer than its 7e3 s (its result -101), and sweeps along such a
+        move (a continuous joint told to turn a million radians) would sample it without bound.
 
         Args:
             waypoints: Shape (N, dof), SI units.
             labels: Names of the waypoints for the message (default ``waypoint k``).
+            from_rest: Whether the first move starts at rest.
 
         Raises:
-            PlanningError: Naming the two waypoints, the joint, its move and the time it needs.
+            PlanningError: Naming the two waypoints, the joint, its move, the time it needs and
+                the limits that make it so.
         """
         q = np.asarray(waypoints, dtype=float)
         if len(q) < 2:
             return
-        # At once (plain floats) where no joint's waypoints span half of what it covers in that time.
-        half_move = self._half_move
+        # At once (plain floats) where no joint's waypoints span more than such a move.
+        quick = self._quick_move
         if (
             q.ndim == 2
-            and q.shape[1] == len(half_move)
-            and all(max(col) - min(col) <= half for col, half in zip(zip(*q.tolist()), half_move))
+            and q.shape[1] == len(quick)
+            and all(max(col) - min(col) <= most for col, most in zip(zip(*q.tolist()), quick))
         ):
             return
-        with np.errstate(invalid="ignore", over="ignore"):
-            need = np.abs(np.diff(q, axis=0)) / self.velocity
+        with np.errstate(invalid="ignore", over="ignore", divide="ignore"):
+            d = np.abs(np.diff(q, axis=0))
+            need = d / self.velocity
+            # From or to rest: a t^2 / 2 up to t = v / a, then v t - v^2 / (2 a).
+            knee = self.velocity * self.velocity / (2.0 * self.acceleration)
+            rest = np.where(d <= knee, np.sqrt(2.0 * d / self.acceleration), (d + knee) / self.velocity)
+        ends = [len(d) - 1] + ([0] if from_rest else [])
+        need[ends] = np.fmax(need[ends], rest[ends])
         worst = np.where(np.isfinite(need), need, np.inf)  # an overflow or NaN counts as too long
         too_long = np.nonzero(worst.max(axis=1) > MAX_SEGMENT_DURATION)[0]
         if too_long.size:
             k = int(too_long[0])
             j = int(np.argmax(worst[k]))
             a, b = (labels[k], labels[k + 1]) if labels is not None else (f"waypoint {k}", f"waypoint {k + 1}")
+            by = f"at its velocity limit {plain(float(self.velocity[j]))}"
+            with np.errstate(over="ignore"):  # a move of 1e308 rad: inf
+                by_velocity = d[k, j] / self.velocity[j]
+            if k in ends and not need[k, j] <= by_velocity:
+                by = (
+                    f"{'from' if k == 0 and from_rest else 'to'} rest within its velocity limit "
+                    f"{plain(float(self.velocity[j]))} and acceleration limit {plain(float(self.acceleration[j]))}"
+                )
             raise PlanningError(
-                f"{a} -> {b}: joint {self.joint_names[j]} moves {plain(abs(q[k + 1, j] - q[k, j]))}, at least "
-                f"{plain(float(need[k, j]))} s at its velocity limit {plain(float(self.velocity[j]))}; a segment "
-                f"can last at most {MAX_SEGMENT_DURATION:g} s (Ruckig's limit): add waypoints between them"
+                f"{a} -> {b}: joint {self.joint_names[j]} moves {plain(float(d[k, j]))}, at least "
+                f"{plain(float(need[k, j]))} s {by}; a segment can last at most {MAX_SEGMENT_DURATION:g} s "
+                "(Ruckig's limit): add waypoints between them or raise the limits"
             )
 
     @classmethod

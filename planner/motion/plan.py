@@ -293,8 +293,8 @@ def plan_trajectory_request(request: TrajectoryRequest) -> JointTrajectory:
         raise InvalidArgumentError(f"request must be a TrajectoryRequest, got {type(request).__name__}")
     chooser = via_strategy(request.strategy)
     limits = request.limits
-    limits.check_move_durations(request.waypoints)
     moving = request.moving_start
+    limits.check_move_durations(request.waypoints, from_rest=not moving)
     q, v0, a0, dw = request.waypoints, request.start_velocity, request.start_acceleration, request.dwell
     dwelling = any(dw.tolist())
     n = len(q)

@@ -339,7 +339,7 @@ class JointTrajectory:
             InvalidArgumentError: On a rate that is not positive and finite, or more than
                 :data:`MAX_SAMPLES` samples.
         """
-        if not (isinstance(rate, (int, float)) and math.isfinite(rate) and rate > 0):
+        if isinstance(rate, bool) or not (isinstance(rate, (int, float)) and math.isfinite(rate) and rate > 0):
             raise InvalidArgumentError(f"rate must be positive and finite [Hz], got {plain(rate)}")
         count = self.duration * rate
         if not count <= MAX_SAMPLES:
@@ -401,7 +401,7 @@ class JointTrajectory:
         Raises:
             InvalidArgumentError: On a rate that is not positive and finite.
         """
-        if not (isinstance(rate, (int, float)) and math.isfinite(rate) and rate > 0):
+        if isinstance(rate, bool) or not (isinstance(rate, (int, float)) and math.isfinite(rate) and rate > 0):
             raise InvalidArgumentError(f"rate must be positive and finite [Hz], got {plain(rate)}")
         end = self.duration if t1 is None else float(t1)
         s = self.sample(np.arange(float(t0), end, 1.0 / rate), clamp=True)
