@@ -182,6 +182,19 @@ class JointLimits:
         """The largest jerk limit [rad/s^3 or m/s^3]."""
         return float(np.max(self.jerk))
 
+    @cached_property
+    def _quick_move(self) -> tuple[float, ...]:
+        """Per joint, a move [rad or m] that surely lasts less than :data:`MAX_SEGMENT_DURATION`, or -1.
+
+        Half the distance the joint covers in that time at its velocity limit, where reaching the
+        limit from rest takes at most a quarter of it (then such a move lasts at most 5/8 of it,
+        from or to rest too); -1 (no move) otherwise.
+        """
+        v, a = self.velocity.tolist(), self.acceleration.tolist()
+        return tuple(
+            0.5 * MAX_SEGMENT_DURATION * x if x <= 0.25 * MAX_SEGMENT_DURATION * y else -1.0 for x, y in zip(v, a)
+        )
+
     def check_move_durations(
         self, waypoints: np.ndarray, labels: Sequence[str] | None = None, *, from_rest: bool = True
     ) -> None:
@@ -205,6 +218,14 @@ class JointLimits:
         q = np.asarray(waypoints, dtype=float)
         if len(q) < 2:
             return
+        # At once (plain floats) where no joint's waypoints span more than such a move.
+        quick = self._quick_move
+        if (
+            q.ndim == 2
+            and q.shape[1] == len(quick)
+            and all(max(col) - min(col) <= most for col, most in zip(zip(*q.tolist()), quick))
+        ):
+            return
         with np.errstate(invalid="ignore", over="ignore", divide="ignore"):
             d = np.abs(np.diff(q, axis=0))
             need = d / self.velocity
@@ -220,7 +241,9 @@ class JointLimits:
             j = int(np.argmax(worst[k]))
             a, b = (labels[k], labels[k + 1]) if labels is not None else (f"waypoint {k}", f"waypoint {k + 1}")
             by = f"at its velocity limit {plain(float(self.velocity[j]))}"
-            if k in ends and not need[k, j] <= d[k, j] / self.velocity[j]:
+            with np.errstate(over="ignore"):  # a move of 1e308 rad: inf
+                by_velocity = d[k, j] / self.velocity[j]
+            if k in ends and not need[k, j] <= by_velocity:
                 by = (
                     f"{'from' if k == 0 and from_rest else 'to'} rest within its velocity limit "
                     f"{plain(float(self.velocity[j]))} and acceleration limit {plain(float(self.acceleration[j]))}"

@@ -145,6 +145,15 @@ def _repair_range(chain: ViaChain) -> list[tuple[float, SegmentPieces]]:
                 continue
             if not chain.seg.bounded:
                 bad = np.zeros(chain.q.shape[1], dtype=bool)
+            elif merged.plain:
+                # Ruckig's extrema (which the solver checked) and the turns inside phases of zero
+                # jerk they miss, where a joint can reach a range end (its merged.missed, compared
+                # with the range, only where it can matter).
+                turns = chain.seg.turns_beyond(k, traj)
+                if outside is None and not fast and not turns:
+                    continue  # (the common case)
+                bad = np.zeros(chain.q.shape[1], dtype=bool) if outside is None else outside.copy()
+                bad[turns] = True
             elif merged.missed is None:
                 lo, hi = segment_position_range(traj, merged, d)
                 bad = (lo < chain.seg.lower) | (hi > chain.seg.upper)

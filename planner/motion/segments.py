@@ -231,38 +231,28 @@ def _turn_reach(slack: float, jerk: float, duration: float) -> float:
     return 2.0 * slack + 2.0 * (slack * slack * jerk) ** (1.0 / 3.0) * duration
 
 
-def _turn_beyond(prof, end: float, upper: bool) -> bool:
-    """Whether a profile turns round inside a phase of zero jerk beyond a range end.
+def _zero_jerk_turns(prof, v: list[float] | None = None) -> list[float]:
+    """Where one joint's Ruckig profile turns round inside phases of zero jerk [rad or m], in order.
 
-    Ruckig's extrema miss such a turn; it is computed as :func:`merge_segment` does (by
-    :func:`_zero_jerk_turns`), so that the searches reject what the range repair would.
+    Ruckig's extrema miss these turns; :meth:`SegmentSolver.turns_beyond` and
+    :func:`_profile_turns` take them from here, so both see the same values bit for bit.
 
     Args:
         prof: One joint's Ruckig profile.
-        end: The range end [rad or m].
-        upper: Whether it is the upper end.
+        v: Its velocities ``prof.v`` if already read.
     """
-    v = prof.v
-    if not min(v) < 0.0 < max(v):  # no sign change, no turn (the common case)
-        return False
-    turns = _zero_jerk_turns(prof)
-    return any(turn > end for turn in turns) if upper else any(turn < end for turn in turns)
-
-
-def _zero_jerk_turns(prof) -> list[float]:
-    """Where one joint's Ruckig profile turns round inside phases of zero jerk [rad or m], in order.
-
-    Ruckig's extrema miss these turns; :func:`_turn_beyond` and :func:`_plain_missed_turns`
-    take them from here, so both see the same values bit for bit.
-    """
-    v, jerk = prof.v, prof.j
+    if v is None:
+        v = prof.v
     turns = []
-    for i in range(len(jerk)):
+    acc = pos = None
+    for i, jerk in enumerate(prof.j):
         v0 = v[i]
-        if jerk[i] == 0.0 and v0 * v[i + 1] < 0.0:
-            a0 = prof.a[i]
+        if jerk == 0.0 and v0 * v[i + 1] < 0.0:
+            if acc is None:
+                acc, pos = prof.a, prof.p
+            a0 = acc[i]
             tz = -v0 / a0
-            turns.append(prof.p[i] + tz * (v0 + tz * a0 / 2.0))
+            turns.append(pos[i] + tz * (v0 + tz * a0 / 2.0))
     return turns
 
 
@@ -441,10 +431,17 @@ class SegmentSolver:
         # Per segment, the joints that do not move: only they can go out and back on one
         # parabola, which Ruckig 0.19 cannot take (see _on_one_parabola).
         self._still = [
-            [j for j, (x, y) in enumerate(zip(a, b)) if abs(y - x) <= 1e-9 * max(1.0, abs(y))] or None
+            [
+                j
+                for j, (x, y) in enumerate(zip(a, b))
+                if abs(y - x) <= 1e-9 * (y if y > 1.0 else -y if y < -1.0 else 1.0)
+            ]
+            or None
             for a, b in zip(rows, rows[1:])
         ]
         self._cache: dict[tuple, tuple[float, np.ndarray | None, RuckigTrajectory | None]] = {}
+        # Per (segment, trajectory), what turns_beyond found.
+        self._turns_beyond: dict[tuple[int, RuckigTrajectory], list[int]] = {}
         # Per (waypoint, joints, candidates), the positions and limits of probe_around's input.
         self._probes: dict[tuple, tuple[list[float], ...]] = {}
         # Per segment, the range ends a joint could reach, in the order of the time it needs
@@ -468,34 +465,36 @@ class SegmentSolver:
         reach times of a range end cannot get there. The limits are taken
         :data:`_LIMIT_SLACK` larger (Ruckig accepts 1e-12 beyond them), the range ends of the
         checks :data:`_POSITION_SLACK` nearer (rounding of Ruckig's extrema), and the end
-        position missed by up to :data:`_END_MISS`. On plain floats (a few joints and segments).
+        position missed by up to :data:`_END_MISS`.
         """
         grow = 1.0 + _LIMIT_SLACK
-        joints = [
-            (
-                j,
-                v * grow,
-                a * grow,
-                lo,
-                hi,
-                lo + _POSITION_SLACK * max(1.0, abs(lo)),
-                hi - _POSITION_SLACK * max(1.0, abs(hi)),
-            )
-            for j, (v, a, lo, hi) in enumerate(zip(*limits.ruckig_limits[:2], self._lows, self._highs))
-        ]
+        # Per joint and range end: the limits, the end, where the checks put it, and reach_time's knee.
+        uppers, lowers = [], []
+        for j, (v, a, lo, hi) in enumerate(zip(*limits.ruckig_limits[:2], self._lows, self._highs)):
+            v, a = v * grow, a * grow
+            knee = v * v / (2.0 * a)
+            if hi < math.inf:
+                uppers.append((j, v, a, knee, hi, hi - _POSITION_SLACK * max(1.0, abs(hi))))
+            if lo > -math.inf:
+                lowers.append((j, v, a, knee, lo, lo + _POSITION_SLACK * max(1.0, abs(lo))))
         rows = self.rows
+        sqrt = math.sqrt
         for k, ok in enumerate(admissible):
             if not ok:
                 continue
+            before, after = rows[k], rows[k + 1]
             ends = []
-            for j, v, a, lo, hi, low, high in joints:
-                start, end = rows[k][j], rows[k + 1][j]
-                if hi < math.inf:
-                    ends.append(
-                        (reach_time(high - start, v, a) + reach_time(high - end - _END_MISS, v, a), j, True, hi)
-                    )
-                if lo > -math.inf:
-                    ends.append((reach_time(start - low, v, a) + reach_time(end - _END_MISS - low, v, a), j, False, lo))
+            # reach_time written out (the same operations): the time to the end and back.
+            for j, v, a, knee, hi, high in uppers:
+                d, e = high - before[j], high - after[j] - _END_MISS
+                t = -math.inf if d < 0.0 else sqrt(2.0 * d / a) if d <= knee else (d + knee) / v
+                t += -math.inf if e < 0.0 else sqrt(2.0 * e / a) if e <= knee else (e + knee) / v
+                ends.append((t, j, True, hi))
+            for j, v, a, knee, lo, low in lowers:
+                d, e = before[j] - low, after[j] - _END_MISS - low
+                t = -math.inf if d < 0.0 else sqrt(2.0 * d / a) if d <= knee else (d + knee) / v
+                t += -math.inf if e < 0.0 else sqrt(2.0 * e / a) if e <= knee else (e + knee) / v
+                ends.append((t, j, False, lo))
             ends.sort()
             self._watch[k] = ends
 
@@ -829,6 +828,10 @@ class SegmentSolver:
         """
         if not self.bounded:
             return []
+        # The searches and the range repair ask again for some trajectories (keys hold them alive).
+        known = self._turns_beyond.get((k, traj))
+        if known is not None:
+            return known[:]
         duration = traj.duration
         watch = self._watch[k]
         if watch is None:
@@ -837,13 +840,24 @@ class SegmentSolver:
                 for j, ends in enumerate(zip(self._lows, self._highs))
                 for upper, end in ((False, ends[0]), (True, ends[1]))
             ]
-        profiles = traj.profiles[0]
+        profiles = None
         out = []
+        # Per joint its turns, computed once (a joint can be watched at both range ends).
+        turns_of: dict[int, Sequence[float]] = {}
         for reach, j, upper, end in watch:
             if reach >= duration:
                 break
-            if _turn_beyond(profiles[j], end, upper):
+            turns = turns_of.get(j)
+            if turns is None:
+                if profiles is None:
+                    profiles = traj.profiles[0]
+                prof = profiles[j]
+                v = prof.v
+                # No sign change of the velocity, no turn (the common case).
+                turns = turns_of[j] = _zero_jerk_turns(prof, v) if min(v) < 0.0 < max(v) else ()
+            if turns and (any(turn > end for turn in turns) if upper else any(turn < end for turn in turns)):
                 out.append(j)
+        self._turns_beyond[k, traj] = out[:]
         return out
 
     def _outside_mask(self, extrema: list) -> np.ndarray:
@@ -933,7 +947,8 @@ class SegmentPieces:
     """One Ruckig segment as constant-jerk pieces common to all joints (see :func:`merge_segment`).
 
     The pieces are built on first use of :attr:`knots` or :attr:`pieces` (the range check
-    needs only :attr:`missed` and Ruckig's own extrema).
+    needs only :attr:`missed` and Ruckig's own extrema), and so is :attr:`missed` of
+    :attr:`plain` pieces.
 
     Attributes:
         residual: The end error left per joint, shape (dof,) [rad or m].
@@ -942,20 +957,40 @@ class SegmentPieces:
             none); None where the pieces are not Ruckig's profile (an end correction added).
     """
 
-    __slots__ = ("_build", "_knots", "_pieces", "missed", "residual")
+    __slots__ = ("_build", "_knots", "_missed", "_pieces", "_plain", "_turns", "residual")
 
     def __init__(
         self,
         build: Callable[[], tuple[np.ndarray, np.ndarray]],
         residual: np.ndarray,
         missed: tuple[np.ndarray, np.ndarray] | None,
+        turns: Callable[[], tuple[np.ndarray, np.ndarray]] | None = None,
     ):
-        """Pieces that `build` makes (local knots (K,), stacked (p, v, a, j) (4, K, dof))."""
+        """Pieces that `build` makes (local knots (K,), stacked (p, v, a, j) (4, K, dof)).
+
+        `missed` as the attribute holds it, or None with `turns` computing it when first used
+        (for pieces that are Ruckig's profiles as they are, see :attr:`plain`).
+        """
         self._build: Callable[[], tuple[np.ndarray, np.ndarray]] | None = build
         self._knots: np.ndarray | None = None
         self._pieces: np.ndarray | None = None
         self.residual = residual
-        self.missed = missed
+        self._missed = missed
+        self._turns = turns
+        self._plain = turns is not None
+
+    @property
+    def missed(self) -> tuple[np.ndarray, np.ndarray] | None:
+        """See the class attributes (computed when first used)."""
+        if self._turns is not None:
+            self._missed = self._turns()
+            self._turns = None
+        return self._missed
+
+    @property
+    def plain(self) -> bool:
+        """Whether the pieces are Ruckig's profiles as they are (no brake phase, no end correction)."""
+        return self._plain
 
     def _made(self) -> None:
         if self._build is not None:
@@ -1011,15 +1046,16 @@ def merge_segment(
     dof = len(profiles)
     if duration <= 0.0:
         return SegmentPieces(lambda: (np.empty(0), np.empty((4, 0, dof))), np.zeros(dof), None)
-    if any(prof.accel.duration > 0 for prof in profiles):  # pragma: no cover - via states are admissible
+    plain = _plain_profiles(profiles, end)
+    if not plain and any(prof.accel.duration > 0 for prof in profiles):  # pragma: no cover - see below
         raise RuntimeError("Ruckig needed a post-profile: a via state exceeds the limits")
-    missed = _plain_missed_turns(profiles, end)
-    if missed is not None:
-        # The common case, decided from Ruckig's lists: the arrays are read when first used.
+    if plain:
+        # The common case, decided from Ruckig's lists: the arrays are read when first used,
+        # the turning points too (the range repair asks SegmentSolver.turns_beyond instead).
         def build_plain() -> tuple[np.ndarray, np.ndarray]:
             return _merged_pieces(*_profile_phases(profiles), duration, start)
 
-        return SegmentPieces(build_plain, np.zeros(dof), missed)
+        return SegmentPieces(build_plain, np.zeros(dof), None, lambda: _profile_turns(profiles))
     starts, phases = _profile_phases(profiles)
     pos = phases[0]
 
@@ -1041,23 +1077,37 @@ def merge_segment(
     return SegmentPieces(build, residual, _missed_turns(phases))
 
 
-def _plain_missed_turns(profiles: list, end: np.ndarray | None) -> tuple[np.ndarray, np.ndarray] | None:
-    """:func:`_missed_turns` from Ruckig's lists, where :func:`merge_segment` needs nothing else.
+def _plain_profiles(profiles: list, end: np.ndarray | None) -> bool:
+    """Whether :func:`merge_segment` takes Ruckig's profiles as they are.
 
     That is: no brake phase and every profile ending on `end` within :data:`END_TOLERANCE`
-    (no end correction); else None. The turning points are computed as there, bit for bit.
+    (no end correction).
+
+    Raises:
+        RuntimeError: If a profile has a post-profile (Ruckig's ``accel``, for a target state
+            beyond the limits: via states are admissible).
     """
     goals = None if end is None else np.asarray(end, dtype=float).tolist()
+    for k, prof in enumerate(profiles):
+        if prof.accel.duration > 0:  # pragma: no cover - via states are admissible
+            raise RuntimeError("Ruckig needed a post-profile: a via state exceeds the limits")
+        if prof.brake.duration > 0:
+            return False
+        if goals is not None:
+            goal = goals[k]
+            if abs(goal - prof.p[-1]) > END_TOLERANCE * (goal if goal > 1.0 else -goal if goal < -1.0 else 1.0):
+                return False
+    return True
+
+
+def _profile_turns(profiles: list) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`_missed_turns` from Ruckig's lists (for profiles :func:`_plain_profiles` accepts), bit for bit."""
     dof = len(profiles)
     low, high = [math.inf] * dof, [-math.inf] * dof
     for k, prof in enumerate(profiles):
-        if prof.brake.duration > 0:
-            return None
-        if goals is not None and abs(goals[k] - prof.p[-1]) > END_TOLERANCE * max(1.0, abs(goals[k])):
-            return None
         v = prof.v
         if min(v) < 0.0 < max(v):  # a sign change, often only a rounding at the end
-            for turn in _zero_jerk_turns(prof):
+            for turn in _zero_jerk_turns(prof, v):
                 low[k], high[k] = min(low[k], turn), max(high[k], turn)
     return np.array(low), np.array(high)
 

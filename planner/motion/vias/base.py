@@ -86,15 +86,26 @@ class ViaChain:
             self.acc[rest] = 0.0
         # The range checks may skip joints that cannot reach a range end where every state is
         # admissible: the strategies' via states are, a given start state need not be.
-        start_ok = not (v0.any() or a0.any()) or _admissible(v0, a0, limits)
+        start_ok = not (any(v0.tolist()) or any(a0.tolist())) or _admissible(v0, a0, limits)
         given_ok = given is None or bool(np.all(np.abs(self.v) <= limits.velocity))
         admissible = [start_ok and given_ok] + [given_ok] * (self.n - 2)
         self.seg = SegmentSolver(q, limits, min_durations, admissible)
         self.repaired = np.zeros(q.shape, dtype=bool)
+        self._rows: tuple[np.ndarray, np.ndarray, list[np.ndarray], list[np.ndarray]] | None = None
+
+    def state_rows(self) -> tuple[list[np.ndarray], list[np.ndarray]]:
+        """The rows of :attr:`v` and :attr:`acc` as views (live: they follow every change in place).
+
+        Made once per pair of arrays (indexing a row makes a new view each time).
+        """
+        rows = self._rows
+        if rows is None or rows[0] is not self.v or rows[1] is not self.acc:
+            rows = self._rows = (self.v, self.acc, list(self.v), list(self.acc))
+        return rows[2], rows[3]
 
     def durations(self) -> np.ndarray:
         """Duration of every segment with the current via states, shape (N-1,) [s] (inf: no profile)."""
-        v, acc, solve = list(self.v), list(self.acc), self.seg.solve
+        (v, acc), solve = self.state_rows(), self.seg.solve
         return np.array([solve(k, v[k], acc[k], v[k + 1], acc[k + 1])[0] for k in range(self.n - 1)])
 
     def limited_by(self, i: int, joints: np.ndarray) -> bool:
@@ -135,7 +146,8 @@ class ViaChain:
 
         For line searches over via i, which change no other via state while they search.
         """
-        both = self.seg.around(i, self.v[i - 1], self.acc[i - 1], self.v[i + 1], self.acc[i + 1])
+        v, acc = self.state_rows()
+        both = self.seg.around(i, v[i - 1], acc[i - 1], v[i + 1], acc[i + 1])
         halved = functools.partial(_halved_pair_cost, both)
 
         def pair(cv: np.ndarray, ca: np.ndarray) -> tuple[float, np.ndarray, np.ndarray]:

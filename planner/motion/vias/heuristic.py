@@ -45,12 +45,13 @@ def via_directions(
     total = tp + tn
     velocity, acceleration, _ = limits.ruckig_limits
     u, w = [], []
-    for before, at, after, v_max, a_max in zip(
-        q[i - 1].tolist(), q[i].tolist(), q[i + 1].tolist(), velocity, acceleration
-    ):
+    for before, at, after, v_max, a_max in zip(*q[i - 1 : i + 2].tolist(), velocity, acceleration):
         sp, sn = (at - before) / tp, (after - at) / tn
-        u.append(min(max((sp * tn + sn * tp) / total, -v_max), v_max))
-        w.append(min(max(2.0 * (sn - sp) / total, -a_max), a_max))
+        # min(max(x, -top), top) written out (the same value, NaN too).
+        x = (sp * tn + sn * tp) / total
+        u.append(x if -v_max <= x <= v_max else v_max if x > v_max else -v_max if x < -v_max else x)
+        x = 2.0 * (sn - sp) / total
+        w.append(x if -a_max <= x <= a_max else a_max if x > a_max else -a_max if x < -a_max else x)
     return np.array(u), np.array(w)
 
 

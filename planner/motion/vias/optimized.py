@@ -27,10 +27,11 @@ from __future__ import annotations
 import functools
 import math
 from collections.abc import Callable, Sequence
+from operator import itemgetter
 
 import numpy as np
 
-from planner.motion.limits import admissible_acceleration
+from planner.motion.limits import JointLimits, admissible_acceleration
 from planner.motion.vias.base import SEARCH_HALVINGS, ViaChain, ViaStrategy, best_choice
 from planner.motion.vias.heuristic import via_directions
 from planner.motion.vias.joint_steps import STEPS as RESWEEP_STEPS
@@ -152,30 +153,58 @@ def spline_via_states(
     Returns:
         Velocities and accelerations at ``q[1:m]``, shapes (m-1, dof).
     """
-    m = len(h)
-    slope = (q[1:] - q[:-1]) / h[:, None]  # (m, dof)
-    inv = 1.0 / h
+    # On plain floats (a few vias and joints: faster than NumPy), row by row the operations the
+    # array form (``slope = diff(q) / h``, ``rhs = 3 (slope[:-1] inv[:-1] + slope[1:] inv[1:])``, ...) has.
+    rows, hs = q.tolist(), h.tolist()
+    m = len(hs)
+    inv = [1.0 / x for x in hs]
+    slope = [[(y - x) / span for x, y in zip(r0, r1)] for r0, r1, span in zip(rows, rows[1:], hs)]
     # Tridiagonal system for v_1 .. v_{m-1} (Thomas algorithm, one right-hand side per joint).
-    diag = (2.0 * (inv[:-1] + inv[1:])).tolist()
-    rhs = 3.0 * (slope[:-1] * inv[:-1, None] + slope[1:] * inv[1:, None])
-    inv_list = inv.tolist()
-    rhs[0] -= inv_list[0] * v_start
-    rhs[-1] -= inv_list[-1] * v_end
-    c = [inv_list[1] / diag[0]]
-    d = np.empty_like(rhs)
-    d[0] = rhs[0] / diag[0]
+    rhs = [[3.0 * (x * i0 + y * i1) for x, y in zip(s0, s1)] for s0, s1, i0, i1 in zip(slope, slope[1:], inv, inv[1:])]
+    first, last = inv[0], inv[-1]
+    rhs[0] = [x - first * y for x, y in zip(rhs[0], v_start.tolist())]
+    end = v_end.tolist()
+    rhs[-1] = [x - last * y for x, y in zip(rhs[-1], end)]
+    diag = [2.0 * (x + y) for x, y in zip(inv, inv[1:])]
+    c = [inv[1] / diag[0]]
+    den = diag[0]
+    d = [[x / den for x in rhs[0]]]
     for r in range(1, m - 1):
-        den = diag[r] - inv_list[r] * c[r - 1]
-        c.append(inv_list[r + 1] / den)
-        d[r] = (rhs[r] - inv_list[r] * d[r - 1]) / den
-    v = np.empty_like(rhs)
-    v[-1] = d[-1]
+        den = diag[r] - inv[r] * c[r - 1]
+        c.append(inv[r + 1] / den)
+        ir = inv[r]
+        d.append([(x - ir * y) / den for x, y in zip(rhs[r], d[r - 1])])
+    v = d[:]
     for r in range(m - 3, -1, -1):
-        v[r] = d[r] - c[r] * v[r + 1]
-    v_next = np.empty_like(v)
-    v_next[:-1], v_next[-1] = v[1:], v_end
-    acc = (6.0 * slope[1:] - 4.0 * v - 2.0 * v_next) * inv[1:, None]
-    return v, acc
+        cr = c[r]
+        v[r] = [x - cr * y for x, y in zip(d[r], v[r + 1])]
+    acc = [
+        [(6.0 * s - 4.0 * x - 2.0 * y) * i for s, x, y in zip(sr, vr, nr)]
+        for sr, vr, nr, i in zip(slope[1:], v, [*v[1:], end], inv[1:])
+    ]
+    return np.array(v), np.array(acc)
+
+
+def _scaled_states(
+    x: np.ndarray, su: np.ndarray, mag: np.ndarray, sw: np.ndarray, wmag: np.ndarray, limits: JointLimits
+) -> tuple[np.ndarray, np.ndarray]:
+    """The via states ``(x u, x^2 w)`` of :meth:`OptimizedStrategy.search_via`, shapes (G, dof).
+
+    Per scale x (shape (G,)) the velocity ``sign(u) min(v_max, x |u|)`` and the acceleration
+    ``sign(w) min(a_max, x^2 |w|)`` made admissible: :func:`admissible_acceleration` with
+    ``|cv|`` at hand (bit for bit the same values; its ``max(v_max - |cv|, 0)`` is a no-op here).
+    """
+    x = x[:, None]
+    speed = np.minimum(limits.velocity, x * mag)  # |cv|, bit for bit
+    cv = su * speed
+    ca = sw * np.minimum(limits.acceleration, x * x * wmag)
+    amax = np.subtract(limits.velocity, speed, out=speed)
+    np.multiply(limits.twice_jerk, amax, out=amax)
+    np.sqrt(amax, out=amax)
+    amax *= 1.0 - 1e-9
+    np.minimum(limits.acceleration, amax, out=amax)
+    np.minimum(ca, amax, out=ca)
+    return cv, np.maximum(ca, np.negative(amax, out=amax), out=ca)
 
 
 class OptimizedStrategy(ViaStrategy):
@@ -210,10 +239,11 @@ class OptimizedStrategy(ViaStrategy):
         durations = chain.durations()
         for i in free:
             u, w = via_directions(chain.q, i, durations, chain.limits, chain.stop)
-            tried = self.search_via(chain, i, u, w) if u.any() or w.any() else []
+            tried = self.search_via(chain, i, u, w) if any(u.tolist()) or any(w.tolist()) else []
             self.combine_joints(chain, i, tried)
-            durations[i - 1] = chain.seg.solve(i - 1, chain.v[i - 1], chain.acc[i - 1], chain.v[i], chain.acc[i])[0]
-            durations[i] = chain.seg.solve(i, chain.v[i], chain.acc[i], chain.v[i + 1], chain.acc[i + 1])[0]
+            v, acc = chain.state_rows()
+            durations[i - 1] = chain.seg.solve(i - 1, v[i - 1], acc[i - 1], v[i], acc[i])[0]
+            durations[i] = chain.seg.solve(i, v[i], acc[i], v[i + 1], acc[i + 1])[0]
         # A second pass over the first vias of each run, given their final neighbours.
         if self.resweep_steps and self.resweep_vias != 0:
             for a, b in zip(fixed[:-1], fixed[1:]):
@@ -243,7 +273,10 @@ class OptimizedStrategy(ViaStrategy):
         """
         pair = chain.pair_coster(i)
         current = pair(chain.v[i], chain.acc[i])
-        grid = sorted({min(g, top) for g in grid} | {top})
+        if grid is _GRID and top > _GRID[-1]:
+            grid = [*_GRID, top]  # (the common case of the line below: the grid is sorted)
+        else:
+            grid = sorted({min(g, top) for g in grid} | {top})
         if not math.isfinite(current[0]) and 0.0 not in grid:
             grid.insert(0, 0.0)  # resting at the via: the fallback where the current state has no profile
         n = len(grid)
@@ -266,8 +299,8 @@ class OptimizedStrategy(ViaStrategy):
             value = tried[g][0]
             while g > 0 and (step := at(g - 1)) <= value:
                 g, value = g - 1, step
-        states = [current, *(t for t in tried if t is not None)]
-        best = min(states, key=lambda c: c[0])  # the first smallest: the current state unless beaten
+        states = [current, *[t for t in tried if t is not None]]
+        best = min(states, key=itemgetter(0))  # the first smallest: the current state unless beaten
         _, chain.v[i], chain.acc[i] = best
         return states
 
@@ -296,9 +329,7 @@ class OptimizedStrategy(ViaStrategy):
             tops.append(math.sqrt(max(scales)))
 
         def candidates(x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-            x = x[:, None]
-            cv = su * np.minimum(lim.velocity, x * mag)
-            return cv, admissible_acceleration(cv, sw * np.minimum(lim.acceleration, x * x * wmag), lim)
+            return _scaled_states(x, su, mag, sw, wmag, lim)
 
         return self._line_search(chain, i, candidates, min(max(tops), _MAX_SCALE), start=_GRID_START)
 
@@ -307,10 +338,11 @@ class OptimizedStrategy(ViaStrategy):
 
         Done before the search, so that each via is searched next to neighbours that fit.
         """
+        v, acc = chain.state_rows()
         for _ in range(_SETTLE_HALVINGS):
             changed = False
             for k in range(chain.n - 1):
-                bad = chain.seg.solve(k, chain.v[k], chain.acc[k], chain.v[k + 1], chain.acc[k + 1])[1]
+                bad = chain.seg.solve(k, v[k], acc[k], v[k + 1], acc[k + 1])[1]
                 if bad is None:
                     continue
                 for idx in (k, k + 1):
@@ -343,7 +375,7 @@ class OptimizedStrategy(ViaStrategy):
         # one spline at the durations h0 gives the via states at every scale.
         zero = np.zeros_like(v_a)
         v_q, acc_q = spline_via_states(q_run, h0, zero, zero)
-        moving_ends = bool(v_a.any() or v_b.any())
+        moving_ends = any(v_a.tolist()) or any(v_b.tolist())
         if moving_ends:
             v_e, acc_e = spline_via_states(q_run, h0, v_a, v_b)
             v_e, acc_e = v_e - v_q, acc_e - acc_q
@@ -357,7 +389,8 @@ class OptimizedStrategy(ViaStrategy):
         accs = admissible_acceleration(vs, accs, lim)
         index = _SPLINE_INDEX
 
-        solve, start, end = chain.seg.solve, (chain.v[a], chain.acc[a]), (chain.v[b], chain.acc[b])
+        rows_v, rows_acc = chain.state_rows()
+        solve, start, end = chain.seg.solve, (rows_v[a], rows_acc[a]), (rows_v[b], rows_acc[b])
 
         def cost(x: float) -> float:
             v, acc = vs[index[x]], accs[index[x]]
@@ -377,7 +410,7 @@ class OptimizedStrategy(ViaStrategy):
 
         current = 0.0
         for k in range(a, b):
-            d, bad, _ = chain.seg.solve(k, chain.v[k], chain.acc[k], chain.v[k + 1], chain.acc[k + 1])
+            d, bad, _ = solve(k, rows_v[k], rows_acc[k], rows_v[k + 1], rows_acc[k + 1])
             current += math.inf if bad is not None else d
         golden_minimum(cost, *_SPLINE_SCALE, _SPLINE_SCALE_EVALS)
         if best[0] < current:
