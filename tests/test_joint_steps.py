@@ -164,3 +164,20 @@ def test_the_second_pass_is_off_by_default_and_its_steps_are_shares_of_the_speed
     off = _FirstVia()
     off.resweep_steps = ()
     assert plan_trajectory(q, limits).duration == plan_trajectory(q, limits, strategy=off).duration
+
+
+def test_the_second_pass_is_set_when_the_strategy_is_made_and_bad_counts_are_refused():
+    from planner import InvalidArgumentError
+
+    assert OptimizedStrategy().resweep_vias == 0
+    assert OptimizedStrategy(resweep_vias=2).resweep_vias == 2 and OptimizedStrategy(None).resweep_vias is None
+    robot = get_robot("al5c")
+    limits = JointLimits.from_robot(robot)
+    q = robot.random_configurations(np.random.default_rng(3), 5)
+    made, subclassed = OptimizedStrategy(resweep_vias=None), _EveryVia()
+    assert (
+        plan_trajectory(q, limits, strategy=made).duration == plan_trajectory(q, limits, strategy=subclassed).duration
+    )
+    for bad in (-1, 1.5, True, "all"):
+        with pytest.raises(InvalidArgumentError, match="resweep_vias must be None .* or an integer >= 0"):
+            OptimizedStrategy(resweep_vias=bad)

@@ -31,6 +31,7 @@ from operator import itemgetter
 
 import numpy as np
 
+from planner.exceptions import InvalidArgumentError
 from planner.motion.limits import JointLimits, admissible_acceleration
 from planner.motion.vias.base import SEARCH_HALVINGS, ViaChain, ViaStrategy, best_choice
 from planner.motion.vias.heuristic import via_directions
@@ -207,8 +208,20 @@ def _scaled_states(
     return cv, np.maximum(ca, np.negative(amax, out=amax), out=ca)
 
 
+#: :class:`OptimizedStrategy`'s argument left out (its class attribute holds).
+_CLASS_DEFAULT = object()
+
+
 class OptimizedStrategy(ViaStrategy):
-    """Via states chosen by a spline search per run, then a duration search per via waypoint."""
+    """Via states chosen by a spline search per run, then a duration search per via waypoint.
+
+    Args:
+        resweep_vias: How many vias of each run the optional second pass visits
+            (:attr:`resweep_vias`): 0 none, None every one; left out, the class's (0).
+
+    Raises:
+        InvalidArgumentError: If `resweep_vias` is neither None nor an integer >= 0.
+    """
 
     name = "optimized"
     #: The velocity steps probed per joint at each via (shares of the speed limit; see :meth:`combine_joints`).
@@ -219,6 +232,17 @@ class OptimizedStrategy(ViaStrategy):
     #: (0: none, the default; None: all). Each costs about 5 % of a 6-dof plan's time through 5
     #: waypoints (see _RESWEEP_VIAS).
     resweep_vias: int | None = _RESWEEP_VIAS
+
+    def __init__(self, resweep_vias: int | None | object = _CLASS_DEFAULT) -> None:
+        if resweep_vias is _CLASS_DEFAULT:
+            return  # the class's (a subclass may set its own)
+        if resweep_vias is not None and (
+            isinstance(resweep_vias, bool) or not isinstance(resweep_vias, (int, np.integer)) or resweep_vias < 0
+        ):
+            raise InvalidArgumentError(
+                f"resweep_vias must be None (every via) or an integer >= 0, got {resweep_vias!r}"
+            )
+        self.resweep_vias = None if resweep_vias is None else int(resweep_vias)
 
     def choose(self, chain: ViaChain) -> None:
         """Spline-like via states, a joint spline search per run between fixed waypoints, then one sweep."""
