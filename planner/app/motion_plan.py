@@ -619,7 +619,9 @@ def plan_motion(
         for k, q in enumerate(q_user):
             robot.check_limits(q, context=f"waypoint {k}")
     # So is a move no segment can time (a continuous joint told to turn a million radians).
-    limits.check_move_durations(q_user, labels)
+    # The first move's least time from rest bounds it only where the motion starts at rest.
+    moving_start = any(s is not None and bool(np.any(s)) for s in (start_v, start_a))
+    limits.check_move_durations(q_user, labels, from_rest=not moving_start)
     if checker is not None:
         _check_against_scene(checker, request, q_user, paths, cartesian, labels, allow)
         for k in range(1, n):
