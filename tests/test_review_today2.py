@@ -21,7 +21,8 @@ from ruckig import InputParameter, Result, Ruckig, Trajectory
 import planner
 from planner.app.plan_file import parse_motion_request
 from planner.collision import CollisionChecker, parse_scene
-from planner.exceptions import PlanningError
+from planner.exceptions import InvalidArgumentError, PlanningError
+from planner.motion.detours import SingularityOptions, plan_clear_of_singularities
 from planner.motion.limits import MAX_SEGMENT_DURATION, JointLimits
 from planner.motion.plan import plan_trajectory_request
 from planner.motion.request import TrajectoryRequest
@@ -204,3 +205,28 @@ def test_many_scene_plans_are_clear_and_measured(name):
         except planner.PlannerError:
             continue
         _assert_plan_honest(robot, checker, plan)
+
+
+def test_a_trajectory_timed_for_another_request_is_refused():
+    """plan_clear_of_singularities(timed=) took any trajectory through the waypoints: one timed at a
+    tenth of the velocity limits, or from a moving start, came back as the request's plan."""
+    robot = get_robot("dh3")
+    limits = JointLimits.from_robot(robot)
+    q = robot.random_configurations(np.random.default_rng(5), 3)
+    request = TrajectoryRequest(q, limits)
+    options = SingularityOptions(max_detours=0)
+    own = plan_trajectory_request(request)
+    assert plan_clear_of_singularities(robot, request, options, timed=own).trajectory is own
+    moving = TrajectoryRequest(q, limits, start_velocity=np.full(robot.dof, 0.1))
+    moving_own = plan_trajectory_request(moving)
+    assert plan_clear_of_singularities(robot, moving, options, timed=moving_own).trajectory is moving_own
+    others = [
+        TrajectoryRequest(q, JointLimits.from_robot(robot, velocity=[0.1] * robot.dof)),
+        TrajectoryRequest(q, limits, dwell=[0.0, 0.5, 0.0]),
+        moving,
+    ]
+    for other in others:
+        with pytest.raises(InvalidArgumentError, match="timed must be the JointTrajectory planned from the request"):
+            plan_clear_of_singularities(robot, request, options, timed=plan_trajectory_request(other))
+    with pytest.raises(InvalidArgumentError, match="timed must be"):
+        plan_clear_of_singularities(robot, moving, options, timed=own)
