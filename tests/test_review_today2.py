@@ -230,3 +230,38 @@ def test_a_trajectory_timed_for_another_request_is_refused():
             plan_clear_of_singularities(robot, request, options, timed=plan_trajectory_request(other))
     with pytest.raises(InvalidArgumentError, match="timed must be"):
         plan_clear_of_singularities(robot, moving, options, timed=own)
+
+
+def _slow_line() -> dict:
+    """dh3 along a Cartesian line, its base turning 1.12 rad at 0.2 mrad/s reached in 3000 s."""
+    robot = get_robot("dh3")
+    v, a = 2e-4, 2e-4 / 3000.0
+
+    def position(q: list[float]) -> list[float]:
+        return np.asarray(robot.fk(q))[:3, 3].tolist()
+
+    return {
+        "targets": [{"position": position([-0.56, 0.4, 0.5])}, {"position": position([0.56, 0.4, 0.5]), "line": True}],
+        "limits": {"velocity": [v, v, v], "acceleration": [a, a, a], "jerk": [1.0, 1.0, 1.0]},
+        "units": {"length": "m", "angle": "rad"},
+    }
+
+
+def test_a_line_is_not_bounded_as_one_segment_from_rest():
+    """A line is timed in many segments: its ends' least time from and to rest as one segment
+    (7100 s) does not bound it. plan_motion refused such a line since b074e8a (see the slow test)."""
+    limits = JointLimits.from_robot(get_robot("dh3"), velocity=[2e-4] * 3, acceleration=[2e-4 / 3000.0] * 3)
+    q = np.array([[-0.56, 0.4, 0.5], [0.56, 0.4, 0.5]])
+    limits.check_move_durations(q, from_rest=False, to_rest=False)
+    with pytest.raises(PlanningError, match="from rest within its velocity limit"):
+        limits.check_move_durations(q)
+    with pytest.raises(PlanningError, match="to rest within its velocity limit"):
+        limits.check_move_durations(q, from_rest=False)
+
+
+@pytest.mark.slow
+def test_a_slow_line_is_planned():
+    """About 4 min: the line takes some 1.6e4 s, timed sample by sample."""
+    plan = planner.plan_motion(get_robot("dh3"), parse_motion_request(_slow_line()), rate=0.5)
+    assert plan.waypoint_times[-1] > MAX_SEGMENT_DURATION
+    assert np.all(np.diff(plan.trajectory.waypoint_times) <= MAX_SEGMENT_DURATION)
