@@ -261,7 +261,7 @@ def test_a_line_is_not_bounded_as_one_segment_from_rest():
 
 @pytest.mark.slow
 def test_a_slow_line_is_planned():
-    """About 4 min: the line takes 1.9e4 s (b074e8a~ planned it so), timed sample by sample."""
+    """About 4 min: the line takes 1.9e4 s (as b074e8a planned it), timed sample by sample."""
     plan = planner.plan_motion(get_robot("dh3"), parse_motion_request(_slow_line()), rate=0.5)
     assert plan.waypoint_times[-1] > MAX_SEGMENT_DURATION
     assert np.all(np.diff(plan.trajectory.waypoint_times) <= MAX_SEGMENT_DURATION)
