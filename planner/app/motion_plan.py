@@ -619,7 +619,12 @@ def plan_motion(
         for k, q in enumerate(q_user):
             robot.check_limits(q, context=f"waypoint {k}")
     # So is a move no segment can time (a continuous joint told to turn a million radians).
-    limits.check_move_durations(q_user, labels)
+    # The least time from or to rest bounds the first or last move only where it starts or ends
+    # at rest in one segment: not from a moving start, nor along a line (timed in many segments).
+    moving_start = any(s is not None and bool(np.any(s)) for s in (start_v, start_a))
+    limits.check_move_durations(
+        q_user, labels, from_rest=not (moving_start or cartesian[min(1, n - 1)]), to_rest=not cartesian[n - 1]
+    )
     if checker is not None:
         _check_against_scene(checker, request, q_user, paths, cartesian, labels, allow)
         for k in range(1, n):

@@ -250,6 +250,26 @@ def _segment_dips(
     return found
 
 
+def _timed_for(timed: object, request: TrajectoryRequest) -> bool:
+    """Whether `timed` passes `request`'s waypoints with its dwells and start state, within its limits."""
+    if not isinstance(timed, JointTrajectory):
+        return False
+    lim, own = timed.limits, request.limits
+    return (
+        np.array_equal(timed.waypoints, request.waypoints)
+        and np.array_equal(timed.dwell, request.dwell)
+        and np.array_equal(timed.via_velocities[0], request.start_velocity)
+        and np.array_equal(timed.via_accelerations[0], request.start_acceleration)
+        and (
+            lim is own
+            or all(
+                np.array_equal(getattr(lim, f), getattr(own, f))
+                for f in ("velocity", "acceleration", "jerk", "lower", "upper")
+            )
+        )
+    )
+
+
 def plan_clear_of_singularities(
     robot: Robot,
     request: TrajectoryRequest,
@@ -278,7 +298,7 @@ def plan_clear_of_singularities(
     Raises:
         InvalidArgumentError: If the request is for another number of joints, on a start
             state the planner cannot brake from, or if `timed` is not a trajectory through
-            the request's waypoints.
+            the request's waypoints with its dwells and start state within its limits.
     """
     opts = SingularityOptions() if options is None else options
     t_task = robot.resolve_task(opts.task)
@@ -289,8 +309,10 @@ def plan_clear_of_singularities(
         raise InvalidArgumentError(f"the limits are for {limits.dof} joints; {robot.name} has {robot.dof}")
     user = request.waypoints
     n = len(user)
-    if timed is not None and (not isinstance(timed, JointTrajectory) or not np.array_equal(timed.waypoints, user)):
-        raise InvalidArgumentError("timed must be the JointTrajectory planned from the request (its waypoints)")
+    if timed is not None and not _timed_for(timed, request):
+        raise InvalidArgumentError(
+            "timed must be the JointTrajectory planned from the request (its waypoints, dwells, start state and limits)"
+        )
     # Per augmented waypoint: prescribed (velocity, acceleration), and the minimum duration of
     # the segment that starts there (detours split a segment and drop its minimum).
     states: list[tuple[np.ndarray, np.ndarray, float]] = [

@@ -196,12 +196,17 @@ class JointLimits:
         )
 
     def check_move_durations(
-        self, waypoints: np.ndarray, labels: Sequence[str] | None = None, *, from_rest: bool = True
+        self,
+        waypoints: np.ndarray,
+        labels: Sequence[str] | None = None,
+        *,
+        from_rest: bool = True,
+        to_rest: bool = True,
     ) -> None:
         """Refuse a move between consecutive `waypoints` longer than :data:`MAX_SEGMENT_DURATION`.
 
         A joint moving ``d`` at velocity limit ``v`` needs at least ``d / v``; the first move
-        (when it starts at rest) and the last (a plan ends at rest) at least
+        (when it starts at rest) and the last (when it is one segment ending at rest) at least
         :func:`~planner.motion.segments.reach_time` within the velocity and acceleration limits.
         Ruckig plans no segment longer than its 7e3 s (its result -101), and sweeps along such a
         move (a continuous joint told to turn a million radians) would sample it without bound.
@@ -209,7 +214,9 @@ class JointLimits:
         Args:
             waypoints: Shape (N, dof), SI units.
             labels: Names of the waypoints for the message (default ``waypoint k``).
-            from_rest: Whether the first move starts at rest.
+            from_rest: Whether the first move starts at rest (and is one segment).
+            to_rest: Whether the last move is one segment ending at rest (a plan's last move
+                along a line is timed in many segments).
 
         Raises:
             PlanningError: Naming the two waypoints, the joint, its move, the time it needs and
@@ -232,7 +239,7 @@ class JointLimits:
             # From or to rest: a t^2 / 2 up to t = v / a, then v t - v^2 / (2 a).
             knee = self.velocity * self.velocity / (2.0 * self.acceleration)
             rest = np.where(d <= knee, np.sqrt(2.0 * d / self.acceleration), (d + knee) / self.velocity)
-        ends = [len(d) - 1] + ([0] if from_rest else [])
+        ends = ([len(d) - 1] if to_rest else []) + ([0] if from_rest else [])
         need[ends] = np.fmax(need[ends], rest[ends])
         worst = np.where(np.isfinite(need), need, np.inf)  # an overflow or NaN counts as too long
         too_long = np.nonzero(worst.max(axis=1) > MAX_SEGMENT_DURATION)[0]
