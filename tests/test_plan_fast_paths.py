@@ -32,6 +32,11 @@ from planner.motion.segments import (
 from planner.motion.vias.heuristic import via_directions
 from planner.motion.vias.optimized import _scaled_states, spline_via_states
 
+from conftest import HAVE_EXAMPLE_ROBOT_DATA, needs_example_robot_data
+
+#: Arms for the reach-time comparison: the bundled ones, and example-robot-data's where installed.
+_ARMS = ["three_joint", "al5c", "dh3", *(["ur5", "panda", "so101", "z1"] if HAVE_EXAMPLE_ROBOT_DATA else [])]
+
 finite = st.floats(-1e3, 1e3, allow_nan=False, allow_infinity=False)
 LIMITS3 = JointLimits(
     np.array([1.0, 2.5, 0.3]),
@@ -116,7 +121,7 @@ def watch_reference(solver: SegmentSolver, limits: JointLimits, admissible):
 
 
 @settings(max_examples=150, deadline=None)
-@given(st.integers(0, 2**32 - 1), st.sampled_from(["ur5", "panda", "so101", "z1", "three_joint"]), st.booleans())
+@given(st.integers(0, 2**32 - 1), st.sampled_from(_ARMS), st.booleans())
 def test_watched_range_ends_equal_reach_time_per_end(seed, name, near_ends):
     from planner import load_robot
 
@@ -209,7 +214,9 @@ def test_move_duration_check_accepts_at_once_only_what_the_full_check_accepts(ro
     assert refusal(limits(), q, from_rest) == refusal(full, q, from_rest)
 
 
-@pytest.mark.parametrize("name", ["ur5", "z1", "panda"])
+@pytest.mark.parametrize(
+    "name", ["al5c", "three_joint", *(pytest.param(n, marks=needs_example_robot_data) for n in ("ur5", "z1", "panda"))]
+)
 def test_lazy_turning_points_of_plain_segments_are_those_of_their_phases(name):
     # A plain merged segment computes its turning points (missed) only when asked: they must be
     # the ones the phase arrays give, and the range repair's turns_beyond must flag exactly the
