@@ -23,11 +23,38 @@ from planner.exceptions import InvalidLimitsError, PlanningError
 if TYPE_CHECKING:
     from planner.model.robot import Robot
 
-__all__ = ["MAX_SEGMENT_DURATION", "RANGE_TOLERANCE", "JointLimits", "admissible_acceleration", "per_joint_limit"]
+__all__ = [
+    "MAX_SEGMENT_DURATION",
+    "RANGE_TOLERANCE",
+    "JointLimits",
+    "admissible_acceleration",
+    "per_joint_limit",
+    "reach_time",
+]
 
 #: Relative slack of the position-range checks [rad or m per unit of max(1, |bound|)]: a joint
 #: counts as leaving its range only beyond it, so that rounding at a range end is no overshoot.
 RANGE_TOLERANCE = 1e-10
+
+
+def reach_time(distance: float, velocity: float, acceleration: float) -> float:
+    """The least time a joint needs to cover `distance` from rest or to rest within the limits [s].
+
+    Within ``|v| <= velocity`` and ``|a| <= acceleration``, a motion that ends (or starts) at rest
+    covers at most ``a t^2 / 2`` in time t up to ``t = v / a``, then ``v t - v^2 / (2 a)``; this
+    is the inverse of that bound.
+
+    Args:
+        distance: The distance [rad or m]; negative gives -inf.
+        velocity: The velocity limit [rad/s or m/s].
+        acceleration: The acceleration limit [rad/s^2 or m/s^2].
+    """
+    if distance < 0.0:
+        return -math.inf
+    knee = velocity * velocity / (2.0 * acceleration)
+    if distance <= knee:
+        return math.sqrt(2.0 * distance / acceleration)
+    return (distance + knee) / velocity
 
 
 def per_joint_limit(
@@ -207,7 +234,7 @@ class JointLimits:
 
         A joint moving ``d`` at velocity limit ``v`` needs at least ``d / v``; the first move
         (when it starts at rest) and the last (when it is one segment ending at rest) at least
-        :func:`~planner.motion.segments.reach_time` within the velocity and acceleration limits.
+        :func:`reach_time` within the velocity and acceleration limits.
         Ruckig plans no segment longer than its 7e3 s (its result -101), and sweeps along such a
         move (a continuous joint told to turn a million radians) would sample it without bound.
 
@@ -233,14 +260,13 @@ class JointLimits:
             and all(max(col) - min(col) <= most for col, most in zip(zip(*q.tolist()), quick))
         ):
             return
-        with np.errstate(invalid="ignore", over="ignore", divide="ignore"):
+        with np.errstate(invalid="ignore", over="ignore"):
             d = np.abs(np.diff(q, axis=0))
             need = d / self.velocity
-            # From or to rest: a t^2 / 2 up to t = v / a, then v t - v^2 / (2 a).
-            knee = self.velocity * self.velocity / (2.0 * self.acceleration)
-            rest = np.where(d <= knee, np.sqrt(2.0 * d / self.acceleration), (d + knee) / self.velocity)
         ends = ([len(d) - 1] if to_rest else []) + ([0] if from_rest else [])
-        need[ends] = np.fmax(need[ends], rest[ends])
+        v, a = self.velocity.tolist(), self.acceleration.tolist()
+        for k in ends:
+            need[k] = np.fmax(need[k], [reach_time(x, y, z) for x, y, z in zip(d[k].tolist(), v, a)])
         worst = np.where(np.isfinite(need), need, np.inf)  # an overflow or NaN counts as too long
         too_long = np.nonzero(worst.max(axis=1) > MAX_SEGMENT_DURATION)[0]
         if too_long.size:

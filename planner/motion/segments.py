@@ -24,7 +24,7 @@ from ruckig import ControlInterface, InputParameter, Result, Ruckig, RuckigError
 from ruckig import Trajectory as RuckigTrajectory
 
 from planner.exceptions import InvalidArgumentError, PlanningError
-from planner.motion.limits import RANGE_TOLERANCE, JointLimits
+from planner.motion.limits import RANGE_TOLERANCE, JointLimits, reach_time
 from planner.motion.trajectory import LIMIT_TOLERANCE
 
 __all__ = [
@@ -323,26 +323,6 @@ _END_MISS = 1e-6
 #: accepts 1e-12 beyond them), and on rounding of the positions it reports.
 _LIMIT_SLACK = 1e-6
 _POSITION_SLACK = 1e-9
-
-
-def reach_time(distance: float, velocity: float, acceleration: float) -> float:
-    """The least time a joint needs to cover `distance` from rest or to rest within the limits [s].
-
-    Within ``|v| <= velocity`` and ``|a| <= acceleration``, a motion that ends (or starts) at rest
-    covers at most ``a t^2 / 2`` in time t up to ``t = v / a``, then ``v t - v^2 / (2 a)``; this
-    is the inverse of that bound.
-
-    Args:
-        distance: The distance [rad or m]; negative gives -inf.
-        velocity: The velocity limit [rad/s or m/s].
-        acceleration: The acceleration limit [rad/s^2 or m/s^2].
-    """
-    if distance < 0.0:
-        return -math.inf
-    knee = velocity * velocity / (2.0 * acceleration)
-    if distance <= knee:
-        return math.sqrt(2.0 * distance / acceleration)
-    return (distance + knee) / velocity
 
 
 _LOCAL = threading.local()
