@@ -128,6 +128,12 @@ class _Pieces:
         obj.__dict__[self.name] = value
 
 
+def _check_rate(rate: object) -> None:
+    """Refuse a sample rate that is not a positive, finite number [Hz] (a bool is not one)."""
+    if isinstance(rate, bool) or not (isinstance(rate, (int, float)) and math.isfinite(rate) and rate > 0):
+        raise InvalidArgumentError(f"rate must be positive and finite [Hz], got {plain(rate)}")
+
+
 @dataclass(frozen=True, eq=False)
 class JointTrajectory:
     """A jerk-limited joint trajectory through waypoints (piecewise-constant jerk).
@@ -339,8 +345,7 @@ class JointTrajectory:
             InvalidArgumentError: On a rate that is not positive and finite, or more than
                 :data:`MAX_SAMPLES` samples.
         """
-        if isinstance(rate, bool) or not (isinstance(rate, (int, float)) and math.isfinite(rate) and rate > 0):
-            raise InvalidArgumentError(f"rate must be positive and finite [Hz], got {plain(rate)}")
+        _check_rate(rate)
         count = self.duration * rate
         if not count <= MAX_SAMPLES:
             raise InvalidArgumentError(
@@ -401,8 +406,7 @@ class JointTrajectory:
         Raises:
             InvalidArgumentError: On a rate that is not positive and finite.
         """
-        if isinstance(rate, bool) or not (isinstance(rate, (int, float)) and math.isfinite(rate) and rate > 0):
-            raise InvalidArgumentError(f"rate must be positive and finite [Hz], got {plain(rate)}")
+        _check_rate(rate)
         end = self.duration if t1 is None else float(t1)
         s = self.sample(np.arange(float(t0), end, 1.0 / rate), clamp=True)
         out = np.zeros(self.dof, dtype=int)
