@@ -22,7 +22,7 @@ import numpy as np
 
 from planner.motion.vias.base import ViaChain, best_choice
 
-__all__ = ["BINDING", "STEPS", "resweep_via", "step_binding_joints"]
+__all__ = ["BINDING", "STEPS", "moved_states", "resweep_via", "step_binding_joints"]
 
 #: The velocity steps of the second pass, shares of the speed limit (each taken either way, all
 #: in one probe). Over every via of bench_trajectory's paths (seed 0) the median optimum gap falls
@@ -33,30 +33,30 @@ STEPS = (0.03, 0.1)
 BINDING = 0.98
 
 
-def step_candidates(
+def moved_states(
     limits: tuple[Sequence[float], Sequence[float], Sequence[float]],
     state: tuple[list[float], list[float]],
     joints: Sequence[int],
-    steps: Sequence[float],
+    moves: Sequence[float],
 ) -> list[tuple[list[float], list[float]]]:
-    """The states of `joints` with their velocity moved by each step, down then up.
+    """The states of `joints` with their velocity moved by each of `moves`, on plain floats.
 
     Args:
         limits: Per joint (all joints) the speed and acceleration limits and twice the jerk limit.
         state: Velocities and accelerations, lists over all joints.
         joints: The joints moved.
-        steps: The moves, shares of the speed limit (positive).
+        moves: The moves, signed shares of the speed limit.
 
     Returns:
-        Per move (each step downwards, then each upwards) the velocities and accelerations of
-        `joints`: each velocity clipped to the speed limit, each acceleration the joint's,
-        limited as :func:`planner.motion.limits.admissible_acceleration` limits it.
+        Per move the velocities and accelerations of `joints`: each velocity clipped to the
+        speed limit, each acceleration the joint's, limited as
+        :func:`planner.motion.limits.admissible_acceleration` limits it (the same operations).
     """
     velocity, acceleration, twice_jerk = limits
     cv, ca = state
     rows = [(velocity[j], acceleration[j], twice_jerk[j], cv[j], ca[j]) for j in joints]
     out = []
-    for move in [-s for s in steps] + list(steps):
+    for move in moves:
         nv, na = [], []
         for top, most, tj, x, y in rows:
             x += move * top
@@ -69,6 +69,16 @@ def step_candidates(
             na.append(amax if y > amax else -amax if y < -amax else y)
         out.append((nv, na))
     return out
+
+
+def step_candidates(
+    limits: tuple[Sequence[float], Sequence[float], Sequence[float]],
+    state: tuple[list[float], list[float]],
+    joints: Sequence[int],
+    steps: Sequence[float],
+) -> list[tuple[list[float], list[float]]]:
+    """:func:`moved_states` with each of `steps` (positive) taken down, then up."""
+    return moved_states(limits, state, joints, [-s for s in steps] + list(steps))
 
 
 def step_binding_joints(

@@ -36,7 +36,7 @@ from planner.motion.limits import JointLimits, admissible_acceleration
 from planner.motion.vias.base import SEARCH_HALVINGS, ViaChain, ViaStrategy, best_choice
 from planner.motion.vias.heuristic import via_directions
 from planner.motion.vias.joint_steps import STEPS as RESWEEP_STEPS
-from planner.motion.vias.joint_steps import resweep_via
+from planner.motion.vias.joint_steps import moved_states, resweep_via
 
 #: Largest time scale searched: keeps x * x finite where a via component is tiny (x * 0 is then
 #: 0, not NaN), far beyond any scale at which every joint already saturates.
@@ -475,24 +475,13 @@ class OptimizedStrategy(ViaStrategy):
         joints = tuple(j for j, (x, y) in enumerate(zip(t1, t2)) if x >= near1 or y >= near2)
         lim = chain.limits
         velocity, acceleration, _ = lim.ruckig_limits
-        twice_jerk = lim.twice_jerk
+        twice_jerk = lim.twice_jerk.tolist()
         v, a = current[1].tolist(), current[2].tolist()
-        # Per joint probed: its limits and state, on plain floats.
-        rows = [(velocity[j], acceleration[j], float(twice_jerk[j]), v[j], a[j]) for j in joints]
-        candidates = []
-        for step in self.probe_steps:
-            cv, ca = [], []
-            for top, most, tj, x, y in rows:
-                x = min(max(x + step * top, -top), top)
-                # admissible_acceleration on floats (the same operations).
-                room = top - (x if x >= 0.0 else -x)
-                amax = min(most, math.sqrt(tj * (room if room > 0.0 else 0.0)) * (1.0 - 1e-9))
-                cv.append(x)
-                ca.append(max(min(y, amax), -amax))
-            candidates.append((cv, ca))
+        candidates = moved_states((velocity, acceleration, twice_jerk), (v, a), joints, self.probe_steps)
         if any(turning[j] for j in joints):
             cv, ca = [], []
-            for j, (top, most, tj, x, y) in zip(joints, rows):
+            for j in joints:
+                top, most, tj, x, y = velocity[j], acceleration[j], twice_jerk[j], v[j], a[j]
                 if turning[j]:
                     amax = min(most, math.sqrt(tj * top) * (1.0 - 1e-9))
                     cv.append(0.0)
