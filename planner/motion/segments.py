@@ -1026,10 +1026,9 @@ def merge_segment(
     dof = len(profiles)
     if duration <= 0.0:
         return SegmentPieces(lambda: (np.empty(0), np.empty((4, 0, dof))), np.zeros(dof), None)
-    plain = _plain_profiles(profiles, end)
-    if not plain and any(prof.accel.duration > 0 for prof in profiles):  # pragma: no cover - see below
+    if any(prof.accel.duration > 0 for prof in profiles):  # pragma: no cover - via states are admissible
         raise RuntimeError("Ruckig needed a post-profile: a via state exceeds the limits")
-    if plain:
+    if _plain_profiles(profiles, end):
         # The common case, decided from Ruckig's lists: the arrays are read when first used,
         # the turning points too (the range repair asks SegmentSolver.turns_beyond instead).
         def build_plain() -> tuple[np.ndarray, np.ndarray]:
@@ -1062,15 +1061,9 @@ def _plain_profiles(profiles: list, end: np.ndarray | None) -> bool:
 
     That is: no brake phase and every profile ending on `end` within :data:`END_TOLERANCE`
     (no end correction).
-
-    Raises:
-        RuntimeError: If a profile has a post-profile (Ruckig's ``accel``, for a target state
-            beyond the limits: via states are admissible).
     """
     goals = None if end is None else np.asarray(end, dtype=float).tolist()
     for k, prof in enumerate(profiles):
-        if prof.accel.duration > 0:  # pragma: no cover - via states are admissible
-            raise RuntimeError("Ruckig needed a post-profile: a via state exceeds the limits")
         if prof.brake.duration > 0:
             return False
         if goals is not None:
