@@ -454,7 +454,10 @@ def pair_floors(checker: CollisionChecker) -> np.ndarray:
     model, data = robot.model, robot.model.createData()
     gdata = pin.GeometryData(checker.geometry)
     lower, upper = np.asarray(robot.lower, dtype=float), np.asarray(robot.upper, dtype=float)
-    base = np.where(np.isfinite(lower) & np.isfinite(upper), (lower + upper) / 2.0, 0.0)
+    # The other joints at their ranges' middles (0 where a range is unbounded): halves first, so
+    # that neither an unbounded range (-inf + inf) nor a huge one overflows into a NumPy warning.
+    bounded = np.isfinite(lower) & np.isfinite(upper)
+    base = np.where(bounded, np.where(bounded, lower, 0.0) / 2.0 + np.where(bounded, upper, 0.0) / 2.0, 0.0)
     turns = np.array([kind != "prismatic" for kind in robot.joint_kinds])
     for k, pair in enumerate(checker.geometry.collisionPairs):
         if not checker.self_pairs[k]:
@@ -481,7 +484,8 @@ def _pair_floor(robot, model, data, geom, gdata, k, weights, base, lower, upper,
     joints = np.flatnonzero(weights > 0.0)
     if len(joints) == 0 or len(joints) > FLOOR_JOINTS:
         return -np.inf
-    lo, width = lower[joints].copy(), upper[joints] - lower[joints]
+    with np.errstate(over="ignore"):  # a range wider than the largest float: inf, a whole turn below
+        lo, width = lower[joints].copy(), upper[joints] - lower[joints]
     for i, j in enumerate(joints):
         if turns[j] and not width[i] <= 2.0 * np.pi:  # a whole turn (or an unlimited joint)
             lo[i] = lo[i] if np.isfinite(lo[i]) else -np.pi
@@ -496,8 +500,14 @@ def _pair_floor(robot, model, data, geom, gdata, k, weights, base, lower, upper,
         pin.updateGeometryPlacements(model, data, geom, gdata, robot.pinocchio_configuration(q))
         return float(pin.computeDistance(geom, gdata, k).min_distance)
 
-    # Cells of at most 0.2 rad (or m) to start with; a heap by their lower bound.
-    counts = np.maximum(1, np.ceil(width / 0.2)).astype(int)
+    # Cells of at most 0.2 rad (or m) to start with, fewer and wider where that would spend more
+    # than half the evaluations (a long slide: 0.2 m cells of a 1 km rail took 15 s); a heap by
+    # their lower bound.
+    counts = np.maximum(1.0, np.ceil(width / 0.2))
+    most = FLOOR_EVALUATIONS // 2
+    if np.prod(counts) > most:
+        counts = np.maximum(1.0, np.floor(counts * (most / np.prod(counts)) ** (1.0 / len(counts))))
+    counts = counts.astype(int)
     half = width / counts / 2.0
     heap: list[tuple[float, float, int, tuple[float, ...], tuple[float, ...]]] = []
     evaluations = 0

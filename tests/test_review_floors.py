@@ -1,0 +1,381 @@
+"""Review of pair floors (3bce170): the distance a pair of the arm's own links never comes below.
+
+Checked independently of the branch and bound that computes them:
+
+- per floored pair, the pair's least distance found by a dense grid over the joints between its
+  two bodies (a whole turn for a joint whose range spans one) at random values of the other
+  joints, refined by Nelder-Mead from the best grid points, with Pinocchio and coal's
+  ``computeDistance``: never below the floor;
+- the joints a floored pair's distance "depends on" (those ``pair_weights`` counts) are all
+  that move one body relative to the other, or the others leave its distance unchanged;
+- random arms (revolute, continuous and prismatic joints; wide, narrow and whole-turn ranges;
+  random link radii; mm to 10 m scale; a box base under a vertical first joint), the bundled
+  arms and ur5 / panda;
+- the proximity tests' verdicts with and without floors, at random configurations and at the
+  configurations where each floored pair comes closest;
+- the floors' cost stays within their evaluation budget however long a slide (a fix), and
+  arms with continuous joints get their floors without a NumPy warning (a fix).
+"""
+
+from __future__ import annotations
+
+import itertools
+import math
+import warnings
+
+import numpy as np
+import pinocchio as pin
+import pytest
+from dh_arms import property_settings
+from hypothesis import given
+from hypothesis import strategies as st
+from scipy.optimize import minimize
+
+import planner
+from planner.app.motion_plan import plan_motion
+from planner.app.plan_file import parse_motion_request
+from planner.collision import CollisionChecker, parse_scene
+from planner.collision.continuous import FLOOR_EVALUATIONS, floored, pair_floors, pair_weights
+
+from conftest import get_robot, needs_example_robot_data
+
+_FLOAT = {"allow_nan": False, "allow_infinity": False, "allow_subnormal": False}
+
+
+# ---------------------------------------------------------------------------------------------
+# Random arms from joint lists (urdf_from_dh's `joints` form): every joint kind, any axis.
+
+
+@st.composite
+def joint_arms(draw, scale: float | None = None) -> dict:
+    """A random arm description: 2-6 joints of any kind, axis and offset, ranges from 1e-4 rad to 15 rad."""
+    scale = draw(st.sampled_from([0.001, 1.0, 1.0, 10.0])) if scale is None else scale
+    rows = []
+    for k in range(draw(st.integers(2, 6))):
+        kind = draw(st.sampled_from(["revolute", "revolute", "prismatic", "continuous"]))
+        row: dict = {"name": f"j{k + 1}", "type": kind, "velocity": 1.0}
+        row["xyz"] = [draw(st.one_of(st.just(0.0), st.floats(-0.3, 0.3, **_FLOAT))) * scale for _ in range(3)]
+        angle = st.one_of(st.sampled_from([0.0, math.pi / 2, -math.pi / 2, math.pi]), st.floats(-3.1, 3.1, **_FLOAT))
+        row["rpy"] = [draw(angle) for _ in range(3)]
+        axis = draw(
+            st.one_of(
+                st.sampled_from([[1.0, 0, 0], [0, 1.0, 0], [0, 0, 1.0], [0, 0, -1.0]]),
+                st.lists(st.floats(-1, 1, **_FLOAT), min_size=3, max_size=3).filter(lambda v: np.linalg.norm(v) > 0.1),
+            )
+        )
+        row["axis"] = list(axis)
+        if kind == "revolute":
+            style = draw(st.sampled_from(["plain", "plain", "narrow", "wide"]))
+            lower = draw(st.floats(-math.pi, math.pi - 0.02, **_FLOAT))
+            if style == "plain":
+                upper = draw(st.floats(lower + 0.01, math.pi, **_FLOAT))
+            elif style == "narrow":
+                upper = lower + 10 ** draw(st.floats(-4, -1, **_FLOAT))
+            else:  # more than a turn
+                lower -= 6.0
+                upper = lower + draw(st.floats(6.3, 15.0, **_FLOAT))
+            row["lower"], row["upper"] = lower, upper
+        elif kind == "prismatic":
+            lower = draw(st.floats(-0.2, 0.1, **_FLOAT)) * scale
+            row["lower"], row["upper"] = lower, lower + 10 ** draw(st.floats(-4, -0.5, **_FLOAT)) * scale
+        if draw(st.booleans()):
+            row["radius"] = draw(st.sampled_from([0.0, 0.001, 0.01, 0.03, 0.1])) * scale
+        rows.append(row)
+    tool = {"name": "tip", "xyz": [draw(st.floats(-0.1, 0.1, **_FLOAT)) * scale for _ in range(3)]}
+    return {"name": "fuzz", "joints": rows, "tool": tool}
+
+
+def _arm(description: dict) -> planner.Robot | None:
+    try:
+        return planner.Robot(planner.urdf_from_dh(description), tip="tip", validate=False)
+    except planner.PlannerError:
+        return None  # a description the generator refuses (e.g. all offsets zero): nothing to check
+
+
+def _with_base_box(urdf: str, size, position, yaw: float) -> str:
+    box = (
+        f'<link name="base_link"><collision><origin xyz="{position[0]} {position[1]} {position[2]}" '
+        f'rpy="0 0 {yaw}"/><geometry><box size="{size[0]} {size[1]} {size[2]}"/></geometry></collision></link>'
+    )
+    return urdf.replace('<link name="base_link"/>', box)
+
+
+# ---------------------------------------------------------------------------------------------
+# The independent check.
+
+
+class _PairDistance:
+    """One pair's distance at a configuration, by Pinocchio and coal on a copy of the checker's geometry."""
+
+    def __init__(self, robot: planner.Robot, checker: CollisionChecker) -> None:
+        self.robot, self.model = robot, robot.model
+        self.data = robot.model.createData()
+        self.geom = pin.GeometryModel()
+        for obj in checker.geometry.geometryObjects:
+            self.geom.addGeometryObject(obj)
+        for pair in checker.geometry.collisionPairs:
+            self.geom.addCollisionPair(pin.CollisionPair(pair.first, pair.second))
+        self.gdata = pin.GeometryData(self.geom)
+
+    def __call__(self, q: np.ndarray, k: int) -> float:
+        pin.updateGeometryPlacements(
+            self.model, self.data, self.geom, self.gdata, self.robot.pinocchio_configuration(q)
+        )
+        return float(pin.computeDistance(self.geom, self.gdata, int(k)).min_distance)
+
+
+def _between(robot: planner.Robot, checker: CollisionChecker, k: int) -> list[int]:
+    """The joints that move one body of pair `k` and not the other (from the kinematic tree alone)."""
+    pair, objects = checker.geometry.collisionPairs[k], checker.geometry.geometryObjects
+    a = set(robot.model.supports[objects[pair.first].parentJoint]) - {0}
+    b = set(robot.model.supports[objects[pair.second].parentJoint]) - {0}
+    return sorted(j - 1 for j in a ^ b)
+
+
+def _domain(robot: planner.Robot, j: int) -> tuple[float, float]:
+    lo, hi = float(robot.lower[j]), float(robot.upper[j])
+    if robot.joint_kinds[j] != "prismatic" and not hi - lo <= 2.0 * math.pi:
+        lo = lo if math.isfinite(lo) else -math.pi
+        return lo, lo + 2.0 * math.pi  # its distances repeat every turn
+    return lo, hi
+
+
+def _random_q(robot: planner.Robot, rng: np.random.Generator) -> np.ndarray:
+    lo = np.where(np.isfinite(robot.lower), robot.lower, -math.pi)
+    hi = np.where(np.isfinite(robot.upper), robot.upper, math.pi)
+    return rng.uniform(lo, hi)
+
+
+def _least_distance(robot, distance, k, joints, rng, grid: int, others: int) -> tuple[float, np.ndarray]:
+    """Pair `k`'s least distance over `joints`' ranges: a grid, then Nelder-Mead from its 3 best points."""
+    bounds = np.array([_domain(robot, j) for j in joints])
+    axes = [np.linspace(lo, hi, grid) for lo, hi in bounds]
+    best, where = math.inf, None
+    for _ in range(others):
+        q = _random_q(robot, rng)
+        found = []
+        for values in itertools.product(*axes):
+            q[joints] = values
+            found.append((distance(q, k), values))
+        found.sort(key=lambda item: item[0])
+        for d, values in found[:3]:
+            if d < best:
+                best, where = d, q.copy()
+                where[joints] = values
+
+            def f(x, q=q):
+                p = q.copy()
+                p[joints] = np.clip(x, bounds[:, 0], bounds[:, 1])
+                return distance(p, k)
+
+            result = minimize(f, np.array(values), method="Nelder-Mead", options={"xatol": 1e-9, "fatol": 1e-12})
+            if result.fun < best:
+                best, where = float(result.fun), q.copy()
+                where[joints] = np.clip(result.x, bounds[:, 0], bounds[:, 1])
+    return best, where
+
+
+def _check_floors(robot: planner.Robot, rng: np.random.Generator, grid2: int = 31, others: int = 2) -> int:
+    """Every floor of `robot`'s pairs at or below the independent least distance; returns how many were checked."""
+    checker = CollisionChecker(robot)
+    floors = pair_floors(checker)
+    weights = pair_weights(checker)
+    distance = _PairDistance(robot, checker)
+    checked = 0
+    for k in np.flatnonzero(np.isfinite(floors)).tolist():
+        counted = np.flatnonzero(weights[k] > 0.0).tolist()
+        between = _between(robot, checker, k)
+        assert set(counted) <= set(between) and len(counted) <= 2, (k, counted, between)
+        # A joint between the bodies that the floor leaves out must not change their distance.
+        for j in sorted(set(between) - set(counted)):
+            for _ in range(4):
+                q = _random_q(robot, rng)
+                p = q.copy()
+                p[j] = rng.uniform(*_domain(robot, j))
+                assert abs(distance(q, k) - distance(p, k)) <= 1e-7, (k, j, counted, between)
+        joints = between if len(between) <= 2 else counted
+        least, where = _least_distance(robot, distance, k, joints, rng, 400 if len(joints) == 1 else grid2, others)
+        assert least >= floors[k], (k, floors[k], least, where.tolist())
+        checked += 1
+    return checked
+
+
+# ---------------------------------------------------------------------------------------------
+# Floors against the dense independent minimum.
+
+
+@pytest.mark.parametrize("name", ["al5c", "dh3", "three_joint"])
+def test_floors_hold_on_the_bundled_arms_densely(name):
+    assert _check_floors(get_robot(name), np.random.default_rng(11)) >= 4
+
+
+@pytest.mark.slow
+@needs_example_robot_data
+@pytest.mark.parametrize("name", ["ur5", "panda"])
+def test_floors_hold_on_the_example_arms_densely(name):
+    assert _check_floors(get_robot(name), np.random.default_rng(12), grid2=61) >= 2
+
+
+@property_settings(6)
+@given(description=joint_arms(), seed=st.integers(0, 2**32 - 1))
+def test_floors_hold_on_random_arms(description, seed):
+    robot = _arm(description)
+    if robot is not None:
+        _check_floors(robot, np.random.default_rng(seed), grid2=21, others=1)
+
+
+@pytest.mark.slow
+@property_settings(150)
+@given(description=joint_arms(), seed=st.integers(0, 2**32 - 1))
+def test_floors_hold_on_many_random_arms(description, seed):
+    robot = _arm(description)
+    if robot is not None:
+        _check_floors(robot, np.random.default_rng(seed), grid2=41, others=2)
+
+
+@pytest.mark.slow
+@property_settings(60)
+@given(
+    description=joint_arms(scale=1.0),
+    size=st.tuples(st.floats(0.05, 0.6), st.floats(0.05, 0.6), st.floats(0.01, 0.2)),
+    yaw=st.floats(-3.0, 3.0),
+    seed=st.integers(0, 2**32 - 1),
+)
+def test_floors_hold_above_a_base_box(description, size, yaw, seed):
+    """A box base under a vertical first joint: pairs with it leave that joint out (its face weight is 0)."""
+    first = description["joints"][0]
+    first.update(axis=[0.0, 0.0, 1.0], rpy=[0.0, 0.0, 0.0], xyz=[0.0, 0.0, 0.05])
+    try:
+        urdf = _with_base_box(planner.urdf_from_dh(description), size, (0.0, 0.0, -size[2] / 2.0), yaw)
+        robot = planner.Robot(urdf, tip="tip", validate=False)
+    except planner.PlannerError:
+        return
+    _check_floors(robot, np.random.default_rng(seed), grid2=31, others=3)
+
+
+def test_a_pair_above_a_base_box_leaves_the_turntable_out_and_holds():
+    """The base box's pair with the second link depends on the turntable only through its face weight (0)."""
+    description = {
+        "name": "turntable",
+        "joints": [
+            {"name": "yaw", "axis": [0, 0, 1], "xyz": [0, 0, 0.05], "lower": -3, "upper": 3, "velocity": 1},
+            {"name": "pitch", "axis": [0, 1, 0], "xyz": [0, 0, 0.1], "lower": -1, "upper": 1, "velocity": 1},
+            {"name": "elbow", "axis": [0, 1, 0], "xyz": [0.2, 0, 0], "lower": -2, "upper": 2, "velocity": 1},
+        ],
+        "tool": {"name": "tip", "xyz": [0.15, 0, 0]},
+        "collision": {"radius": 0.02},
+    }
+    urdf = _with_base_box(planner.urdf_from_dh(description), (1.2, 1.2, 0.04), (0.0, 0.0, -0.02), 0.3)
+    robot = planner.Robot(urdf, tip="tip", validate=False)
+    checker = CollisionChecker(robot)
+    weights = pair_weights(checker)
+    base = [k for k, p in enumerate(checker.geometry.collisionPairs) if checker.names[p.first] == "base_link"]
+    assert any(weights[k, 0] == 0.0 and len(_between(robot, checker, k)) == 3 for k in base)
+    assert _check_floors(robot, np.random.default_rng(5), grid2=31, others=3) >= 1
+
+
+# ---------------------------------------------------------------------------------------------
+# The same verdicts with and without floors.
+
+
+def _same_verdicts(robot: planner.Robot, rng: np.random.Generator, samples: int) -> int:
+    scene = parse_scene({"floor": -0.05 * robot.characteristic_length})
+    plain = CollisionChecker(robot, scene)
+    with_floors = floored(CollisionChecker(robot, scene))
+    floors, weights = with_floors.floors, pair_weights(with_floors)
+    distance = _PairDistance(robot, with_floors)
+    qs = [_random_q(robot, rng) for _ in range(samples)]
+    for k in np.flatnonzero(np.isfinite(floors)).tolist()[:12]:  # where floored pairs come closest
+        joints = np.flatnonzero(weights[k] > 0.0).tolist()
+        qs.append(_least_distance(robot, distance, k, joints, rng, 60 if len(joints) == 1 else 13, 1)[1])
+    tested = [0.0, 0.002, 0.01] + sorted({float(f) for f in floors[np.isfinite(floors)] if f > 0.0})[:10]
+    count = 0
+    for d in [x + e for x in tested for e in (-1e-7, 1e-7) if x + e >= 0.0]:
+        a, b = plain.closer_than(d), with_floors.closer_than(d)
+        for q in qs:
+            assert bool(a(q)) == bool(b(q)), (d, q.tolist())
+            count += 1
+    return count
+
+
+@pytest.mark.parametrize("name", ["al5c", "dh3", "three_joint"])
+def test_same_verdicts_near_the_floors(name):
+    assert _same_verdicts(get_robot(name), np.random.default_rng(2), 100) > 1000
+
+
+@pytest.mark.slow
+@property_settings(40)
+@given(description=joint_arms(), seed=st.integers(0, 2**32 - 1))
+def test_same_verdicts_near_the_floors_on_random_arms(description, seed):
+    robot = _arm(description)
+    if robot is not None:
+        _same_verdicts(robot, np.random.default_rng(seed), 150)
+
+
+# ---------------------------------------------------------------------------------------------
+# Fixes.
+
+
+def _rail(travel: float) -> planner.Robot:
+    """An arm on a slide of +-`travel` [m] (a rail), then three turning joints."""
+    description = {
+        "name": "rail",
+        "joints": [
+            {"name": "x", "type": "prismatic", "axis": [1, 0, 0], "xyz": [0, 0, 0.1], "lower": -1, "upper": 1},
+            {"name": "y", "type": "prismatic", "axis": [0, 1, 0], "xyz": [0, 0, 0.1]},
+            {"name": "z", "axis": [0, 0, 1], "xyz": [0, 0, 0.1], "lower": -1, "upper": 1},
+            {"name": "w", "axis": [0, 1, 0], "xyz": [0.2, 0, 0], "lower": -1, "upper": 1},
+        ],
+        "velocity": 1.0,
+        "tool": {"name": "tip", "xyz": [0.2, 0, 0]},
+        "collision": {"radius": 0.05},
+    }
+    description["joints"][1].update(lower=-travel, upper=travel)
+    return planner.Robot(planner.urdf_from_dh(description), tip="tip", validate=False)
+
+
+def test_a_long_slide_keeps_the_floors_within_their_evaluation_budget(monkeypatch):
+    """0.2 m cells of a 2 km slide were 10^4 distances per pair before any refinement (15 s on
+    this arm, hours for two such slides); the first cells are now widened to fit the budget."""
+    robot = _rail(1000.0)
+    checker = CollisionChecker(robot)
+    weights = pair_weights(checker)
+    bounded = sum(1 for row in weights if 0 < np.count_nonzero(row) <= 2)
+    calls = [0]
+    compute = pin.computeDistance
+
+    def counting(*args):
+        calls[0] += 1
+        return compute(*args)
+
+    monkeypatch.setattr(pin, "computeDistance", counting)
+    floors = pair_floors(checker)
+    monkeypatch.undo()
+    assert bounded >= 9 and calls[0] <= bounded * FLOOR_EVALUATIONS
+    assert np.isfinite(floors).sum() >= 9
+
+
+def test_floors_on_a_long_slide_hold():
+    assert _check_floors(_rail(50.0), np.random.default_rng(4), grid2=41, others=1) >= 9
+
+
+def test_an_arm_with_a_continuous_joint_gets_floors_without_a_warning():
+    """``(lower + upper) / 2`` of a continuous joint's range (-inf + inf) warned 'invalid value
+    encountered in add' on every arm with one (an error under ``-W error``, out of plan_motion)."""
+    description = {
+        "name": "spinner",
+        "joints": [
+            {"name": "a", "type": "continuous", "axis": [0, 0, 1], "xyz": [0, 0, 0.1]},
+            {"name": "b", "axis": [0, 1, 0], "xyz": [0, 0, 0.2], "lower": -1, "upper": 1},
+            {"name": "c", "axis": [0, 1, 0], "xyz": [0.2, 0, 0], "lower": -2, "upper": 2},
+        ],
+        "velocity": 1.0,
+        "tool": {"name": "tip", "xyz": [0.1, 0, 0]},
+    }
+    robot = planner.Robot(planner.urdf_from_dh(description), tip="tip")
+    request = parse_motion_request({"waypoints": [[0, 0, 0], [1, 0.5, 0.5]], "scene": {"floor": -0.5}})
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        plan = plan_motion(robot, request)
+    assert plan.collision_free
+    assert _check_floors(robot, np.random.default_rng(9)) >= 1
