@@ -361,7 +361,10 @@ class CollisionChecker:
         distance: the same verdicts, fewer pairs tested (links that always keep apart, such as
         two wrist links with one joint between them).
         """
-        floors = np.array(floors, dtype=float)
+        try:
+            floors = np.array(floors, dtype=float)
+        except (TypeError, ValueError) as exc:
+            raise InvalidArgumentError(f"floors must be {len(self._pairs)} distances [m], got {floors!r}") from exc
         if floors.shape != (len(self._pairs),) or np.isnan(floors).any():
             raise InvalidArgumentError(f"floors must be {len(self._pairs)} distances [m], got shape {floors.shape}")
         floors.setflags(write=False)

@@ -441,6 +441,8 @@ def pair_floors(checker: CollisionChecker) -> np.ndarray:
     all cells is the floor (none where the two links touch somewhere). Computed once per arm; the checker is given them
     (:meth:`CollisionChecker.use_floors`).
     """
+    if not isinstance(checker, CollisionChecker):
+        raise InvalidArgumentError(f"pair_floors needs a CollisionChecker, got {type(checker).__name__}")
     floors = checker.floors
     if floors is not None:
         return floors

@@ -85,28 +85,56 @@ class _StartOvershoot(Exception):
     """The given start state runs a joint out of its range in the first segment (caught by the planner)."""
 
 
+def _rest_to_rest(d: np.ndarray, v: np.ndarray, a: np.ndarray, jerk: np.ndarray) -> np.ndarray:
+    """The least time [s] a joint needs to move `d` from rest to rest within its velocity, acceleration and jerk limits.
+
+    The time-optimal profile (Ruckig's for one joint): where the move reaches the velocity limit,
+    ``d / v`` plus the ramp to it (``v / a + a / j`` where the ramp reaches the acceleration
+    limit, ``v j >= a^2``, else ``2 sqrt(v / j)``); else, with a peak velocity below ``v``,
+    ``a / j + sqrt(a^2 / j^2 + 4 d / a)`` where it reaches the acceleration limit
+    (``d >= 2 a^3 / j^2``), else ``4 (d / 2 j)^(1/3)``. inf where a term overflows.
+    """
+    with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
+        ramp = np.where(v * jerk >= a * a, v / a + a / jerk, 2.0 * np.sqrt(v / jerk))
+        below = np.where(
+            d >= 2.0 * a**3 / jerk**2,
+            a / jerk + np.sqrt((a / jerk) ** 2 + 4.0 * d / a),
+            4.0 * np.cbrt(d / (2.0 * jerk)),
+        )
+        need = np.where(d >= v * ramp, d / v + ramp, below)
+    return np.where(np.isnan(need), np.inf, need)
+
+
 def _no_profile(chain: ViaChain, k: int) -> PlanningError:
     """The error for segment `k`, which Ruckig cannot time even at rest at its free ends.
 
-    Names the joint that needs longest from rest to rest (at least ``2 sqrt(d / a)``, or
-    ``d / v + v / a`` where it reaches its velocity limit ``v``) where that exceeds
+    Names the joint that needs longest from rest to rest (:func:`_rest_to_rest`, at least
+    ``2 sqrt(d / a)``, or ``d / v + v / a`` where it reaches its velocity limit ``v``, and more
+    with the jerk limit) where that exceeds
     :data:`~planner.motion.limits.MAX_SEGMENT_DURATION`; else Ruckig's failure as it is.
     """
     limits = chain.limits
     d = np.abs(chain.q[k + 1] - chain.q[k])
     v, a = limits.velocity, limits.acceleration
     with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
-        need = np.where(d * a <= v * v, 2.0 * np.sqrt(d / a), d / v + v / a)
-    need = np.where(np.isnan(need), np.inf, need)
+        without_jerk = np.where(d * a <= v * v, 2.0 * np.sqrt(d / a), d / v + v / a)
+    without_jerk = np.where(np.isnan(without_jerk), np.inf, without_jerk)
+    need = np.fmax(without_jerk, _rest_to_rest(d, v, a, limits.jerk))
     j = int(np.argmax(need))
     where = f"waypoint {k} -> waypoint {k + 1}"
     start = " from the given start state" if k == 0 and (chain.v[0].any() or chain.acc[0].any()) else ""
     if need[j] > MAX_SEGMENT_DURATION:
+        # The jerk limit is named where it is what makes the move too long.
+        by = (
+            f"its velocity limit {plain(float(v[j]))} and acceleration limit {plain(float(a[j]))}"
+            if without_jerk[j] > MAX_SEGMENT_DURATION
+            else f"its velocity limit {plain(float(v[j]))}, acceleration limit {plain(float(a[j]))} and jerk "
+            f"limit {plain(float(limits.jerk[j]))}"
+        )
         return PlanningError(
             f"{where}: joint {limits.joint_names[j]} moves {plain(float(d[j]))}, at least {float(need[j]):.6g} s "
-            f"from rest to rest within its velocity limit {plain(float(v[j]))} and acceleration limit "
-            f"{plain(float(a[j]))}; a segment can last at most {MAX_SEGMENT_DURATION:g} s (Ruckig's limit): "
-            "add waypoints between them or raise the limits"
+            f"from rest to rest within {by}; a segment can last at most {MAX_SEGMENT_DURATION:g} s (Ruckig's "
+            "limit): add waypoints between them or raise the limits"
         )
     largest = float(np.max(np.abs(chain.q[k : k + 2])))
     hint = "check the waypoints and limits"
