@@ -540,3 +540,73 @@ def test_a_segment_ruckig_cannot_synchronise_is_still_planned():
     limits = JointLimits.from_robot(get_robot("shelley"), velocity=_SYNC_V, acceleration=_SYNC_A, jerk=_SYNC_J)
     plan = plan_trajectory_request(TrajectoryRequest(_SYNC_Q, limits, strategy="stop"))
     assert plan.duration == pytest.approx(1305.268, rel=1e-4)
+
+
+# ---------------------------------------------------------------------------------------------
+# Plans with scenes (their proximity tests floored) re-checked at 1 kHz, and reproducible.
+
+
+def _scene_request(robot: planner.Robot, rng: np.random.Generator, seed: int) -> dict:
+    reach = max(robot.characteristic_length, 1e-3)
+    lo = np.where(np.isfinite(robot.lower), robot.lower, -math.pi)
+    hi = np.where(np.isfinite(robot.upper), robot.upper, math.pi)
+    obstacles = [
+        {
+            "name": f"box{i}",
+            "box": (rng.uniform(0.05, 0.4, 3) * reach).tolist(),
+            "position": (rng.uniform([-0.8, -0.8, 0.0], [0.8, 0.8, 0.8]) * reach).tolist(),
+            "rpy": rng.uniform(-3.0, 3.0, 3).tolist(),
+        }
+        for i in range(int(rng.integers(0, 3)))
+    ]
+    scene = {
+        "floor": float(rng.uniform(-0.5, 0.0) * reach),
+        "clearance": float(rng.choice([0.0, 0.002, 0.005 * reach])),
+        "obstacles": obstacles,
+    }
+    waypoints = rng.uniform(lo, hi, (int(rng.integers(2, 4)), robot.dof))
+    return {"waypoints": waypoints.tolist(), "scene": scene, "avoidance": {"seed": seed, "time_budget": 30.0}}
+
+
+def _plan_and_recheck(make, rng: np.random.Generator, seed: int) -> bool:
+    robot = make()
+    data = _scene_request(robot, rng, seed)
+    try:
+        plan = plan_motion(robot, parse_motion_request(data))
+    except planner.PlannerError:
+        return False
+    if plan.collision_free:
+        samples = plan.trajectory.sample(plan.trajectory.times(1000.0)).q
+        checker = CollisionChecker(robot, plan.scene)
+        assert not any(checker.in_collision(q) for q in samples), data
+        least = min(checker.clearance(q).distance for q in samples[::3])
+        assert least >= plan.scene.clearance - 1e-4 - 1e-5, (least, data)
+    # The same request again, and on a new robot (no floors, tables or checkers kept): the same plan.
+    again = plan_motion(robot, parse_motion_request(data))
+    fresh = plan_motion(make(), parse_motion_request(data))
+    np.testing.assert_array_equal(again.trajectory.p, plan.trajectory.p)
+    np.testing.assert_array_equal(fresh.trajectory.p, plan.trajectory.p)
+    return True
+
+
+@pytest.mark.slow
+def test_scene_plans_of_bundled_and_random_arms_are_clear_and_reproducible():
+    planned = 0
+    for seed in range(60):
+        rng = np.random.default_rng(seed)
+        if seed % 2:
+            name = ("al5c", "dh3", "three_joint", "shelley")[seed // 2 % 4]
+
+            def make(name=name):
+                return planner.load_robot(name)
+
+        else:
+            description = _seeded_arm(rng, 1.0)
+            if _arm(description) is None:
+                continue
+
+            def make(description=description):
+                return _arm(description)
+
+        planned += _plan_and_recheck(make, rng, seed)
+    assert planned >= 12
