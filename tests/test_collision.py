@@ -109,6 +109,45 @@ def test_allow_names_must_be_in_the_scene():
         CollisionChecker(get_robot("dh3"), scene).clearance([0, 0.5, 0.5], allow=["brick"])
 
 
+@pytest.mark.parametrize(
+    ("allow", "message"),
+    [
+        ("block", "allow must be a list of scene names, got 'block'"),
+        (5, "allow must be a list of scene names, got 5"),
+        ([3], "allow must be a list of scene names, got 3 among them"),
+    ],
+)
+def test_allow_must_be_a_list_of_names(allow, message):
+    """A single name or a number is refused, not read letter by letter or leaked as a TypeError."""
+    scene = Scene(floor=0.0, obstacles=(Obstacle("block", Sphere(0.1), np.zeros(3)),))
+    checker = CollisionChecker(get_robot("dh3"), scene)
+    for call in (
+        lambda: checker.clearance([0, 0.5, 0.5], allow=allow),
+        lambda: checker.in_collision([0, 0.5, 0.5], allow=allow),
+        lambda: checker.closer_than(0.01, allow=allow),
+        lambda: checker.pair_mask(allow),
+    ):
+        with pytest.raises(InvalidArgumentError, match=_escape(message)):
+            call()
+    # Tuples, lists and sets of names work alike; allowing the block leaves out its pairs.
+    assert checker.pair_mask(("block",)).sum() < checker.pair_mask([]).sum()
+    assert np.array_equal(checker.pair_mask({"block"}), checker.pair_mask(["block"]))
+
+
+@pytest.mark.parametrize("distance", ["a", float("nan"), float("inf"), True, None])
+def test_closer_than_needs_a_finite_distance(distance):
+    checker = CollisionChecker(get_robot("dh3"), Scene(floor=0.0))
+    with pytest.raises(InvalidArgumentError, match="distance must be a (finite )?number"):
+        checker.closer_than(distance)
+
+
+def test_pair_weights_needs_a_checker():
+    from planner.collision.continuous import pair_weights
+
+    with pytest.raises(InvalidArgumentError, match="pair_weights needs a CollisionChecker, got str"):
+        pair_weights("x")
+
+
 # ---------------------------------------------------------------------------- geometry and checks
 
 

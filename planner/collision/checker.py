@@ -209,7 +209,7 @@ class CollisionChecker:
             The :class:`Clearance`.
         """
         return self._clearance(
-            self._checked(q), self._everything if type(allow) is tuple and not allow else self._mask(tuple(allow))
+            self._checked(q), self._everything if type(allow) is tuple and not allow else self._mask(_allowed(allow))
         )
 
     def pair_distances(self, q: np.ndarray, mask: np.ndarray) -> np.ndarray:
@@ -309,13 +309,13 @@ class CollisionChecker:
     def clearances(self, qs: np.ndarray, *, allow: Iterable[str] = ()) -> list[Clearance]:
         """:meth:`clearance` for each row of `qs`, shape (n, dof)."""
         qs = self.robot.check_configuration(qs)
-        mask = self._mask(tuple(allow))
+        mask = self._mask(_allowed(allow))
         return [self._clearance(q, mask) for q in np.atleast_2d(qs)]
 
     def in_collision(self, q: Sequence[float] | np.ndarray, *, allow: Iterable[str] = ()) -> bool:
         """Whether any checked pair touches or overlaps at `q` (faster than a distance)."""
         q = self._checked(q)
-        mask = self._everything if type(allow) is tuple and not allow else self._mask(tuple(allow))
+        mask = self._everything if type(allow) is tuple and not allow else self._mask(_allowed(allow))
         if mask is not self._active_now:  # a mask without pairs is never made active
             if not mask.any():
                 return False
@@ -337,8 +337,12 @@ class CollisionChecker:
         inner loops); one is kept per distance and allow set. Pairs whose floor
         (:meth:`use_floors`) is beyond `distance` are left out: they cannot be closer.
         """
-        mask = self._mask(tuple(allow))
-        key = (float(distance), tuple(sorted(set(allow))))
+        if isinstance(distance, bool) or not isinstance(distance, (int, float, np.integer, np.floating)):
+            raise InvalidArgumentError(f"distance must be a number [m], got {distance!r}")
+        if not math.isfinite(distance):
+            raise InvalidArgumentError(f"distance must be a finite number [m], got {distance!r}")
+        mask = self._mask(_allowed(allow))
+        key = (float(distance), tuple(sorted(set(_allowed(allow)))))
         test = self._near.get(key)
         if test is None:
             if len(self._near) >= 32:
@@ -373,7 +377,20 @@ class CollisionChecker:
 
     def pair_mask(self, allow: Iterable[str] = ()) -> np.ndarray:
         """The pairs checked when `allow` is allowed, for :meth:`distance_at`."""
-        return self._mask(tuple(allow))
+        return self._mask(_allowed(allow))
+
+
+def _allowed(allow: Iterable[str]) -> tuple[str, ...]:
+    """`allow` as a tuple of names; a single string or a non-iterable is refused (not read letter by letter)."""
+    if type(allow) is tuple and all(type(name) is str for name in allow):
+        return allow
+    if isinstance(allow, (str, bytes)) or not isinstance(allow, Iterable):
+        raise InvalidArgumentError(f"allow must be a list of scene names, got {allow!r}")
+    names = tuple(allow)
+    bad = [name for name in names if not isinstance(name, str)]
+    if bad:
+        raise InvalidArgumentError(f"allow must be a list of scene names, got {bad[0]!r} among them")
+    return names
 
 
 #: Fewest objects on one joint for :class:`BoundingPairs` to bound them together (measured: with

@@ -261,6 +261,8 @@ def pair_weights(checker: CollisionChecker) -> np.ndarray:
     Row ``p`` holds ``r_j`` for the joints that move one body of pair ``p`` but not the other
     (see the module docstring), zero elsewhere; shape (pairs, dof). Computed once per checker.
     """
+    if not isinstance(checker, CollisionChecker):
+        raise InvalidArgumentError(f"pair_weights needs a CollisionChecker, got {type(checker).__name__}")
     cached = _WEIGHTS.get(checker)
     if cached is None:
         cached = _WEIGHTS[checker] = _arm_table(checker, "weights", lambda: _pair_weights(checker))
