@@ -37,6 +37,7 @@ from planner.motion.vias.base import SEARCH_HALVINGS, ViaChain, ViaStrategy, bes
 from planner.motion.vias.heuristic import via_directions
 from planner.motion.vias.joint_steps import STEPS as RESWEEP_STEPS
 from planner.motion.vias.joint_steps import moved_states, resweep_via
+from planner.motion.vias.kernels import scale_states
 
 #: Largest time scale searched: keeps x * x finite where a via component is tiny (x * 0 is then
 #: 0, not NaN), far beyond any scale at which every joint already saturates.
@@ -288,7 +289,7 @@ class OptimizedStrategy(ViaStrategy):
         The grid is walked from `start` upwards while the duration falls, else downwards; the
         best point is kept if it is faster than the current state. (No refinement between the
         grid points: the joint choice that follows picks among them per joint.)
-        `make` maps parameters, shape (G,), to admissible via states, shapes (G, dof); the
+        `make` maps parameters (G floats) to admissible via states, shapes (G, dof); the
         chain's current via state is admissible too (every strategy step keeps it so).
 
         Returns:
@@ -304,7 +305,7 @@ class OptimizedStrategy(ViaStrategy):
         if not math.isfinite(current[0]) and 0.0 not in grid:
             grid.insert(0, 0.0)  # resting at the via: the fallback where the current state has no profile
         n = len(grid)
-        cvs, cas = make(np.array(grid))  # in one batch
+        cvs, cas = make(grid)  # in one batch
         tried: list[tuple[float, np.ndarray, np.ndarray] | None] = [None] * n
 
         def at(g: int) -> float:
@@ -340,20 +341,22 @@ class OptimizedStrategy(ViaStrategy):
             The states tried (see :meth:`_line_search`).
         """
         lim = chain.limits
-        mag, wmag = np.abs(u), np.abs(w)
-        su, sw = np.sign(u), np.sign(w)
         tops = [1.0]
         # On plain floats: the largest scale at which a joint still gains speed (acceleration).
         velocity, acceleration, _ = lim.ruckig_limits
-        scales = [top / m for top, m in zip(velocity, mag.tolist()) if m > 0]
+        scales = [top / m for top, m in zip(velocity, map(abs, u.tolist())) if m > 0]
         if scales:
             tops.append(max(scales))
-        scales = [top / m for top, m in zip(acceleration, wmag.tolist()) if m > 0]
+        scales = [top / m for top, m in zip(acceleration, map(abs, w.tolist())) if m > 0]
         if scales:
             tops.append(math.sqrt(max(scales)))
 
-        def candidates(x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-            return _scaled_states(x, su, mag, sw, wmag, lim)
+        def candidates(x: list[float]) -> tuple[np.ndarray, np.ndarray]:
+            limits = lim.velocity.tobytes() + lim.acceleration.tobytes() + lim.twice_jerk.tobytes()
+            fast = scale_states(x, u, w, limits)  # compiled, the same operations
+            if fast is not None:
+                return fast
+            return _scaled_states(np.array(x), np.sign(u), np.abs(u), np.sign(w), np.abs(w), lim)
 
         return self._line_search(chain, i, candidates, min(max(tops), _MAX_SCALE), start=_GRID_START)
 
