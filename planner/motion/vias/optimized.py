@@ -209,6 +209,14 @@ def _scaled_states(
     return cv, np.maximum(ca, np.negative(amax, out=amax), out=ca)
 
 
+def _gather(indices: list[int]) -> Callable[[Sequence[float]], tuple[float, ...]]:
+    """The entries of a sequence at `indices`, as a tuple (one :func:`operator.itemgetter` call)."""
+    if len(indices) == 1:
+        (index,) = indices
+        return lambda seq: (seq[index],)
+    return itemgetter(*indices)
+
+
 #: :class:`OptimizedStrategy`'s argument left out (its class attribute holds).
 _CLASS_DEFAULT = object()
 
@@ -468,7 +476,7 @@ class OptimizedStrategy(ViaStrategy):
             turning: Per joint, whether it reverses at the via.
 
         Returns:
-            The states probed (velocities and accelerations, lists over all joints; a joint not
+            The states probed (velocities and accelerations, tuples over all joints; a joint not
             probed keeps its current state) and per state its per-joint times in the segment
             before and after the via (inf for a joint not probed or whose own profile leaves
             the range); empty lists where nothing was probed.
@@ -502,17 +510,16 @@ class OptimizedStrategy(ViaStrategy):
             return [], [], [], []
         p1, p2 = probed
         count, dof = len(joints), len(v)
-        states_v, states_a, rows1, rows2 = [], [], [], []
-        for c, (cv, ca) in enumerate(candidates):
-            sv, sa = list(v), list(a)
-            r1, r2 = [math.inf] * dof, [math.inf] * dof
-            for m, j in enumerate(joints):
-                sv[j], sa[j] = cv[m], ca[m]
-                r1[j], r2[j] = p1[c * count + m], p2[c * count + m]
-            states_v.append(sv)
-            states_a.append(sa)
-            rows1.append(r1)
-            rows2.append(r2)
+        # Per joint where its entry lies: the m-th probed joint at m, the others after the
+        # probed entries (their current state, an inf time), gathered by one itemgetter.
+        where = {j: m for m, j in enumerate(joints)}
+        states = _gather([where.get(j, count + j) for j in range(dof)])
+        entries = _gather([where.get(j, count) for j in range(dof)])
+        tail = [math.inf]
+        states_v = [states(cv + v) for cv, _ in candidates]
+        states_a = [states(ca + a) for _, ca in candidates]
+        rows1 = [entries(p1[c : c + count] + tail) for c in range(0, len(p1), count)]
+        rows2 = [entries(p2[c : c + count] + tail) for c in range(0, len(p2), count)]
         return states_v, states_a, rows1, rows2
 
     def combine_joints(self, chain: ViaChain, i: int, tried: list[tuple[float, np.ndarray, np.ndarray]]) -> None:
