@@ -110,7 +110,8 @@ static double np_sign(double a) { return a > 0.0 ? 1.0 : a < 0.0 ? -1.0 : a == 0
 /* _scaled_states (planner.motion.vias.optimized) of the direction (u, w), shapes (dof,): per
    scale x[g] and joint j the via state, cv at out[g * dof + j] and ca at out[(G + g) * dof + j],
    with the operations of its NumPy form in the same order (su = sign(u), mag = |u|, likewise
-   for w). lims holds the velocity, acceleration and twice the jerk limits one after the other. */
+   for w), zeros made positive as there (+ 0.0). lims holds the velocity, acceleration and twice
+   the jerk limits one after the other. */
 void scaled_states(long G, long dof, const double *x, const double *u, const double *w, const double *lims,
                    double *out) {
     const double *velocity = lims, *acceleration = lims + dof, *twice_jerk = lims + 2 * dof;
@@ -123,8 +124,8 @@ void scaled_states(long G, long dof, const double *x, const double *u, const dou
             amax *= 1.0 - 1e-9;
             amax = np_min(acceleration[j], amax);
             a = np_min(a, amax);
-            out[g * dof + j] = np_sign(u[j]) * speed;
-            out[(G + g) * dof + j] = np_max(a, -amax);
+            out[g * dof + j] = np_sign(u[j]) * speed + 0.0;
+            out[(G + g) * dof + j] = np_max(a, -amax) + 0.0;
         }
     }
 }

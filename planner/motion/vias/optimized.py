@@ -194,7 +194,9 @@ def _scaled_states(
 
     Per scale x (shape (G,)) the velocity ``sign(u) min(v_max, x |u|)`` and the acceleration
     ``sign(w) min(a_max, x^2 |w|)`` made admissible: :func:`admissible_acceleration` with
-    ``|cv|`` at hand (bit for bit the same values; its ``max(v_max - |cv|, 0)`` is a no-op here).
+    ``|cv|`` at hand (bit for bit the same values; its ``max(v_max - |cv|, 0)`` is a no-op here),
+    every zero positive (a state at rest has one cache key in :meth:`SegmentSolver.solve`,
+    whatever the signs of the direction; -0.0 and 0.0 solved the same segment twice).
     """
     x = x[:, None]
     speed = np.minimum(limits.velocity, x * mag)  # |cv|, bit for bit
@@ -206,7 +208,10 @@ def _scaled_states(
     amax *= 1.0 - 1e-9
     np.minimum(limits.acceleration, amax, out=amax)
     np.minimum(ca, amax, out=ca)
-    return cv, np.maximum(ca, np.negative(amax, out=amax), out=ca)
+    np.maximum(ca, np.negative(amax, out=amax), out=ca)
+    cv += 0.0  # zeros positive: a state that rests a joint has one cache key
+    ca += 0.0
+    return cv, ca
 
 
 def _gather(indices: list[int]) -> Callable[[Sequence[float]], tuple[float, ...]]:
