@@ -84,3 +84,10 @@ def test_compiled_scaled_states_equal_the_numpy_form(u, w, grid):
     cv, ca = scale_states(grid, u, w, limits)
     want_v, want_a = _scaled_states(np.array(grid), np.sign(u), np.abs(u), np.sign(w), np.abs(w), LIMITS)
     assert cv.tobytes() == want_v.tobytes() and ca.tobytes() == want_a.tobytes()
+
+
+def test_many_options_take_the_python_path():
+    rows = [[1.0 + 0.001 * k] * 10 for k in range(500)]  # 5000 entries
+    assert choose_options(rows, rows) is None
+    best, choice = base.best_choice(rows, rows)
+    assert best == 2.0 and choice is None

@@ -137,6 +137,10 @@ _SIGNATURES = {
 }
 
 
+#: The most options times joints :func:`choose_options` takes (more: the Python path).
+_MOST_ENTRIES = 4096
+
+
 def _library() -> ctypes.CDLL | None:
     library = load_functions(_SOURCE, "via_kernels", _SIGNATURES)
     if library is not None and library.best_choice.restype is None:
@@ -155,14 +159,14 @@ def choose_options(rows1: list[list[float]], rows2: list[list[float]]) -> tuple[
     if library is None:
         return None
     k, dof = len(rows1), len(rows1[0])
+    if k * dof > _MOST_ENTRIES:
+        return None  # (the C function sorts on its stack)
     flat1 = array("d", [x for row in rows1 for x in row])
     flat2 = array("d", [x for row in rows2 for x in row])
     if len(flat1) != k * dof or len(flat2) != k * dof:
         return None  # ragged rows: the Python path says what is wrong
     out = array("d", [0.0])
-    choice = array("l", bytes(8 * dof)) if array("l").itemsize == 8 else None
-    if choice is None:  # pragma: no cover - a C long of 4 bytes (Windows)
-        return None
+    choice = array("l", [0]) * dof  # C longs, as the function's
     found = library.best_choice(
         k, dof, flat1.buffer_info()[0], flat2.buffer_info()[0], out.buffer_info()[0], choice.buffer_info()[0]
     )
