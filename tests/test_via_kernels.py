@@ -9,8 +9,10 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from planner import load_robot
 from planner.motion.limits import JointLimits
-from planner.motion.vias import base
+from planner.motion.plan import plan_trajectory
+from planner.motion.vias import base, kernels
 from planner.motion.vias.kernels import _library, choose_options, scale_states
 from planner.motion.vias.optimized import _scaled_states
 
@@ -91,3 +93,18 @@ def test_many_options_take_the_python_path():
     assert choose_options(rows, rows) is None
     best, choice = base.best_choice(rows, rows)
     assert best == 2.0 and choice is None
+
+
+@pytest.mark.parametrize("name", ["three_joint", "al5c", "dh3"])
+def test_plans_are_the_same_with_and_without_the_compiled_loops(name, monkeypatch):
+    robot = load_robot(name)
+    limits = JointLimits.from_robot(robot)
+    rng = np.random.default_rng(11)
+    paths = [robot.random_configurations(rng, 5) for _ in range(12)]
+
+    def arrays(traj):
+        return [traj.duration, *(np.asarray(a).tobytes() for a in (traj.via_velocities, traj.via_accelerations))]
+
+    compiled = [arrays(plan_trajectory(q, limits)) for q in paths]
+    monkeypatch.setattr(kernels, "_library", lambda: None)
+    assert [arrays(plan_trajectory(q, limits)) for q in paths] == compiled
