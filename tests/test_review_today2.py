@@ -97,13 +97,10 @@ def test_a_motion_starting_at_full_speed_is_not_bounded_as_from_rest():
 @pytest.mark.xfail(
     strict=True,
     reason=(
-        "planner/motion/plan.py _repair_range: a segment Ruckig cannot time (here: longer than its "
-        "7000 s once the via speeds are lowered to 0) is set to rest at its ends and retried until the "
-        "halvings run out, then reported as 'the via states could not be brought within the joint "
-        "ranges'. The plan exists (6700 s + 6250 s at full speed through the via); suggested fix: keep "
-        "the chooser's via speed where lowering it makes a segment exceed MAX_SEGMENT_DURATION, and when "
-        "a segment at rest on both ends still has no profile raise a PlanningError naming the segment "
-        "and Ruckig's 7000 s limit, not the joint ranges"
+        "the via choosers start from rest-to-rest segments, which here exceed Ruckig's 7000 s (9165 s), "
+        "so every candidate they compare lasts forever and they keep the via at rest; the plan exists "
+        "(6700 s + 6250 s at full speed through the via). Refused with a PlanningError naming the joint, "
+        "its rest-to-rest time and the 7000 s limit (test_a_segment_too_long_even_at_rest_is_named)"
     ),
 )
 def test_a_move_the_duration_check_accepts_is_timed():
@@ -265,3 +262,31 @@ def test_a_slow_line_is_planned():
     plan = planner.plan_motion(get_robot("dh3"), parse_motion_request(_slow_line()), rate=0.5)
     assert plan.waypoint_times[-1] > MAX_SEGMENT_DURATION
     assert np.all(np.diff(plan.trajectory.waypoint_times) <= MAX_SEGMENT_DURATION)
+
+
+def test_a_segment_too_long_even_at_rest_is_named():
+    """A segment Ruckig cannot time at rest at both ends names the joint and the 7000 s limit."""
+    v, a = 5e-4, 1e-7
+    limits = JointLimits.from_robot(
+        get_robot("dh3"), velocity=[v, 1.0, 1.0], acceleration=[a, 1.0, 1.0], jerk=[1.0, 10.0, 10.0]
+    )
+    q = np.zeros((3, 3))
+    q[:, 0] = [-2.0, 0.1, 1.975]
+    for strategy in ("stop", "heuristic", "optimized"):
+        with pytest.raises(
+            PlanningError,
+            match=r"waypoint 0 -> waypoint 1: joint \w+ moves 2\.1, at least 9165\.15 s from rest to rest "
+            r"within its velocity limit 0\.0005 and acceleration limit 1e-07; a segment can last at most 7000 s",
+        ):
+            plan_trajectory_request(TrajectoryRequest(q, limits, strategy=strategy))
+
+
+def test_positions_too_far_from_zero_for_ruckig_are_named():
+    """Where Ruckig fails on a short move far from zero (a continuous joint at 1e9 rad), the
+    refusal says the positions are too coarse for its precision, not that a range was left."""
+    limits = JointLimits([1.0, 1.0], [2.0, 2.0], [10.0, 10.0], [-np.inf, -np.inf], [np.inf, np.inf])
+    q = np.array([[1e9, 0.0], [1e9 + 1.0, 0.5]])
+    with pytest.raises(PlanningError, match=r"too coarse for Ruckig's precision 1e-08: turn continuous joints"):
+        plan_trajectory_request(TrajectoryRequest(q, limits))
+    # The same move near zero plans.
+    assert plan_trajectory_request(TrajectoryRequest(q - [1e9, 0.0], limits)).duration > 0.0

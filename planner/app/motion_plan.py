@@ -20,7 +20,13 @@ import numpy as np
 from planner.app.outputs import write_plan_files
 from planner.app.plan_file import MotionRequest
 from planner.collision.checker import CollisionChecker, shared_checker
-from planner.collision.continuous import MotionClearance, check_segment, check_trajectory, segment_is_clear
+from planner.collision.continuous import (
+    MotionClearance,
+    check_segment,
+    check_trajectory,
+    floored,
+    segment_is_clear,
+)
 from planner.collision.rrt import PathResult, certify_path, ends_margin, find_clear_path, segment_looks_clear
 from planner.collision.scene import Scene
 from planner.core.arrays import read_only
@@ -518,7 +524,8 @@ def plan_motion(
 
     n = request.count
     labels = [f"waypoint {k}" + (f" ({request.labels[k]})" if request.labels[k] else "") for k in range(n)]
-    checker = shared_checker(robot, request.scene) if request.scene is not None else None
+    # Its floors first: the proximity tests leave out the pairs that always keep apart.
+    checker = floored(shared_checker(robot, request.scene)) if request.scene is not None else None
     allow = request.allow or ((),) * n
     branches: list[str | None] = [None] * n
     # The joint configuration of each requested waypoint, and how each requested segment moves:

@@ -146,6 +146,7 @@ class CollisionChecker:
         self._everything = self._mask(())
         self._near: dict[tuple, _CloserThan] = {}
         self._bounding: BoundingPairs | None = None
+        self._floors: np.ndarray | None = None
 
     def forget_guesses(self) -> None:
         """Start GJK from its default direction again (as a new checker does).
@@ -333,7 +334,8 @@ class CollisionChecker:
 
         Coal's collision test with `distance` as its security margin: several times faster
         than computing the distances, with the same verdict. The test takes `q` unchecked (for
-        inner loops); one is kept per distance and allow set.
+        inner loops); one is kept per distance and allow set. Pairs whose floor
+        (:meth:`use_floors`) is beyond `distance` are left out: they cannot be closer.
         """
         mask = self._mask(tuple(allow))
         key = (float(distance), tuple(sorted(set(allow))))
@@ -341,8 +343,30 @@ class CollisionChecker:
         if test is None:
             if len(self._near) >= 32:
                 self._near.clear()
+            if self._floors is not None:
+                mask = mask & ~(self._floors > float(distance))
             test = self._near[key] = _CloserThan(self, mask, float(distance))
         return test
+
+    @property
+    def floors(self) -> np.ndarray | None:
+        """Per pair, a distance [m] it never comes below (see :meth:`use_floors`), or None."""
+        return self._floors
+
+    def use_floors(self, floors: np.ndarray) -> None:
+        """Give per pair a distance [m] it never comes below in any configuration within the joint limits.
+
+        From :func:`~planner.collision.continuous.pair_floors` (``-inf`` where none is known).
+        :meth:`closer_than`'s tests then leave out each pair whose floor is beyond their
+        distance: the same verdicts, fewer pairs tested (links that always keep apart, such as
+        two wrist links with one joint between them).
+        """
+        floors = np.array(floors, dtype=float)
+        if floors.shape != (len(self._pairs),) or np.isnan(floors).any():
+            raise InvalidArgumentError(f"floors must be {len(self._pairs)} distances [m], got shape {floors.shape}")
+        floors.setflags(write=False)
+        self._floors = floors
+        self._near.clear()
 
     def pair_mask(self, allow: Iterable[str] = ()) -> np.ndarray:
         """The pairs checked when `allow` is allowed, for :meth:`distance_at`."""

@@ -61,12 +61,15 @@ from __future__ import annotations
 
 import bisect
 import ctypes
+import heapq
+import itertools
 import weakref
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
 import coal
 import numpy as np
+import pinocchio as pin
 
 from planner.collision.arm import box_corners, hull_points
 from planner.collision.checker import BoundingPairs, Clearance, CollisionChecker
@@ -84,7 +87,9 @@ __all__ = [
     "check_motion",
     "check_segment",
     "check_trajectory",
+    "floored",
     "near_bounds",
+    "pair_floors",
     "pair_weights",
     "segment_is_clear",
     "sweep_order",
@@ -401,6 +406,123 @@ def _reach_weights(checker: CollisionChecker) -> np.ndarray:
             if only:
                 weights[k, only] += reach_of(i)[only]
     return weights
+
+
+#: Distance evaluations :func:`pair_floors` spends at most per pair.
+FLOOR_EVALUATIONS = 6000
+
+#: :func:`pair_floors` stops refining once its floor is this share of the least distance found.
+FLOOR_SHARE = 0.5
+
+#: Most joints a pair's distance may depend on for :func:`pair_floors` to bound it.
+FLOOR_JOINTS = 2
+
+
+class _ArmFloors:
+    """Per arm, :func:`pair_floors` of its own pairs (kept in ``robot.derived``)."""
+
+    def __init__(self) -> None:
+        self.arm: object | None = None
+        self.floors: dict[tuple[int, int], float] = {}
+
+
+def pair_floors(checker: CollisionChecker) -> np.ndarray:
+    """Per checked pair, a distance [m] it never comes below within the joint limits; ``-inf`` where none is known.
+
+    Known for the pairs of the arm's own links whose distance depends on at most
+    :data:`FLOOR_JOINTS` joints (those that move one link and not the other: a joint both hang
+    from moves them alike), such as two wrist links with one joint between them. Over those
+    joints' ranges (a turning joint's at most one turn: its distances repeat) a branch and
+    bound: a cell of joint values whose centre is at distance ``d`` keeps at least ``d - sum_j
+    r_j h_j`` (``h_j`` the cell's half-width, ``r_j`` of :func:`pair_weights`: how fast the pair
+    can approach per unit of joint ``j``); the cell lowest so bounded is quartered (halved per
+    joint) until its bound reaches :data:`FLOOR_SHARE` of the least distance found or is
+    within 0.1 mm of its centre's, or :data:`FLOOR_EVALUATIONS` are spent; the least bound of
+    all cells is the floor (none where the two links touch somewhere). Computed once per arm; the checker is given them
+    (:meth:`CollisionChecker.use_floors`).
+    """
+    floors = checker.floors
+    if floors is not None:
+        return floors
+    robot = checker.robot
+    held = robot.derived.get(_ArmFloors, _ArmFloors)
+    if held.arm is not checker.arm:
+        held.arm, held.floors = checker.arm, {}
+    weights = pair_weights(checker)
+    objects = list(checker.geometry.geometryObjects)
+    out = np.full(checker.pair_count, -np.inf)
+    model, data = robot.model, robot.model.createData()
+    gdata = pin.GeometryData(checker.geometry)
+    lower, upper = np.asarray(robot.lower, dtype=float), np.asarray(robot.upper, dtype=float)
+    base = np.where(np.isfinite(lower) & np.isfinite(upper), (lower + upper) / 2.0, 0.0)
+    turns = np.array([kind != "prismatic" for kind in robot.joint_kinds])
+    for k, pair in enumerate(checker.geometry.collisionPairs):
+        if not checker.self_pairs[k]:
+            continue
+        key = (int(pair.first), int(pair.second))
+        if key not in held.floors:
+            held.floors[key] = _pair_floor(
+                robot, model, data, checker.geometry, gdata, k, weights[k], base, lower, upper, turns, objects
+            )
+        out[k] = held.floors[key]
+    checker.use_floors(out)
+    return checker.floors
+
+
+def floored(checker: CollisionChecker) -> CollisionChecker:
+    """`checker`, given its :func:`pair_floors` first (a stand-in that is no :class:`CollisionChecker` as it is)."""
+    if isinstance(checker, CollisionChecker) and checker.floors is None:
+        pair_floors(checker)
+    return checker
+
+
+def _pair_floor(robot, model, data, geom, gdata, k, weights, base, lower, upper, turns, objects) -> float:
+    """:func:`pair_floors` of pair `k`: the branch and bound over the joints it depends on."""
+    joints = np.flatnonzero(weights > 0.0)
+    if len(joints) == 0 or len(joints) > FLOOR_JOINTS:
+        return -np.inf
+    lo, width = lower[joints].copy(), upper[joints] - lower[joints]
+    for i, j in enumerate(joints):
+        if turns[j] and not width[i] <= 2.0 * np.pi:  # a whole turn (or an unlimited joint)
+            lo[i] = lo[i] if np.isfinite(lo[i]) else -np.pi
+            width[i] = 2.0 * np.pi
+    if not np.all(np.isfinite(width)) or not np.all(np.isfinite(lo)):
+        return -np.inf
+    w = weights[joints]
+    q = base.copy()
+
+    def distance(centre: np.ndarray) -> float:
+        q[joints] = centre
+        pin.updateGeometryPlacements(model, data, geom, gdata, robot.pinocchio_configuration(q))
+        return float(pin.computeDistance(geom, gdata, k).min_distance)
+
+    # Cells of at most 0.2 rad (or m) to start with; a heap by their lower bound.
+    counts = np.maximum(1, np.ceil(width / 0.2)).astype(int)
+    half = width / counts / 2.0
+    heap: list[tuple[float, float, int, tuple[float, ...], tuple[float, ...]]] = []
+    evaluations = 0
+    for index in np.ndindex(*counts):
+        centre = lo + (2.0 * np.array(index) + 1.0) * half
+        d = distance(centre)
+        evaluations += 1
+        heapq.heappush(heap, (d - float(w @ half), d, evaluations, tuple(centre), tuple(half)))
+    least = min(cell[1] for cell in heap)
+    # GJK's distances are exact to about its tolerance (1e-6 m): a margin far above it.
+    slack = 1e-5
+    while True:
+        bound, d, _, centre, h = heap[0]
+        if least <= 0.0:
+            return -np.inf  # they touch: no floor above zero
+        if bound >= FLOOR_SHARE * least or d - bound <= 1e-4 or evaluations + 2 ** len(joints) > FLOOR_EVALUATIONS:
+            return bound - slack
+        heapq.heappop(heap)
+        c, h2 = np.array(centre), np.array(h) / 2.0
+        for signs in itertools.product((-1.0, 1.0), repeat=len(joints)):
+            child = c + np.array(signs) * h2
+            dc = distance(child)
+            least = min(least, dc)
+            evaluations += 1
+            heapq.heappush(heap, (dc - float(w @ h2), dc, evaluations, tuple(child), tuple(h2)))
 
 
 #: Largest total joint rotation between two checks of a pair under the near-body bound [rad].
@@ -819,7 +941,7 @@ def segment_is_clear(
     """
     a, b = np.asarray(q_start, dtype=float), np.asarray(q_end, dtype=float)
     need = checker.scene.clearance + margin
-    near = checker.closer_than(need, allow)
+    near = floored(checker).closer_than(need, allow)
     d = b - a
     n = max(1, int(np.ceil(float(np.max(np.abs(d), initial=0.0)) / SWEEP_RESOLUTION)))
     if near(a) or any(map(near, a + sweep_order(n)[:, None] * d)):

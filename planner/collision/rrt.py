@@ -37,7 +37,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from planner.collision.checker import CollisionChecker
-from planner.collision.continuous import check_segment, segment_is_clear, sweep_order
+from planner.collision.continuous import check_segment, floored, segment_is_clear, sweep_order
 from planner.core.arrays import read_only
 from planner.exceptions import InvalidArgumentError
 
@@ -216,7 +216,7 @@ def _proximity_test(checker: CollisionChecker, distance: float, allow: Sequence[
     per checker, distance and allow set by :meth:`CollisionChecker.closer_than`; a stand-in
     checker (not a :class:`CollisionChecker`) gives its own test.
     """
-    test = checker.closer_than(distance, allow)
+    test = floored(checker).closer_than(distance, allow)
     return getattr(test, "floats", test)
 
 
@@ -237,7 +237,7 @@ def ends_margin(checker: CollisionChecker, ends: Sequence[np.ndarray], allow: Se
     whole margin; only a nearer one needs its distance.
     """
     mask = checker.pair_mask(allow)
-    near = checker.closer_than(checker.scene.clearance + 2.0 * margin, allow)
+    near = floored(checker).closer_than(checker.scene.clearance + 2.0 * margin, allow)
     end = min([math.inf] + [checker.distance_at(q, mask).distance for q in ends if near(q)])
     return path_margin(checker.scene.clearance, end, margin)
 
@@ -287,7 +287,7 @@ def find_clear_path(
     empty = read_only(np.zeros((0, robot.dof)))
     # An end at least clearance + 2 margin from everything (one proximity test) keeps the whole
     # margin for the path (path_margin); only a nearer one needs its distance.
-    far = checker.closer_than(checker.scene.clearance + 2.0 * options.margin, allow)
+    far = floored(checker).closer_than(checker.scene.clearance + 2.0 * options.margin, allow)
     ends = [np.inf]
     for q, status, what in ((q0, PathStatus.START_IN_COLLISION, "start"), (q1, PathStatus.GOAL_IN_COLLISION, "goal")):
         if not far(q):

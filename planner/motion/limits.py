@@ -283,7 +283,7 @@ class JointLimits:
                 )
             raise PlanningError(
                 f"{a} -> {b}: joint {self.joint_names[j]} moves {plain(float(d[k, j]))}, at least "
-                f"{plain(float(need[k, j]))} s {by}; a segment can last at most {MAX_SEGMENT_DURATION:g} s "
+                f"{float(need[k, j]):.6g} s {by}; a segment can last at most {MAX_SEGMENT_DURATION:g} s "
                 "(Ruckig's limit): add waypoints between them or raise the limits"
             )
 

@@ -55,11 +55,13 @@ from operator import gt, lt
 import numpy as np
 
 from planner.core.arrays import read_only
+from planner.core.text import plain
 from planner.exceptions import InvalidArgumentError, PlanningError
 from planner.motion.checks import waypoint_rows_within
-from planner.motion.limits import JointLimits
+from planner.motion.limits import MAX_SEGMENT_DURATION, JointLimits
 from planner.motion.request import TrajectoryRequest
 from planner.motion.segments import (
+    RUCKIG_PRECISION,
     SegmentPieces,
     brake_segment,
     merge_segment,
@@ -81,6 +83,42 @@ _REPAIR_HALVINGS_BEFORE_REST = 6
 
 class _StartOvershoot(Exception):
     """The given start state runs a joint out of its range in the first segment (caught by the planner)."""
+
+
+def _no_profile(chain: ViaChain, k: int) -> PlanningError:
+    """The error for segment `k`, which Ruckig cannot time even at rest at its free ends.
+
+    Names the joint that needs longest from rest to rest (at least ``2 sqrt(d / a)``, or
+    ``d / v + v / a`` where it reaches its velocity limit ``v``) where that exceeds
+    :data:`~planner.motion.limits.MAX_SEGMENT_DURATION`; else Ruckig's failure as it is.
+    """
+    limits = chain.limits
+    d = np.abs(chain.q[k + 1] - chain.q[k])
+    v, a = limits.velocity, limits.acceleration
+    with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
+        need = np.where(d * a <= v * v, 2.0 * np.sqrt(d / a), d / v + v / a)
+    need = np.where(np.isnan(need), np.inf, need)
+    j = int(np.argmax(need))
+    where = f"waypoint {k} -> waypoint {k + 1}"
+    start = " from the given start state" if k == 0 and (chain.v[0].any() or chain.acc[0].any()) else ""
+    if need[j] > MAX_SEGMENT_DURATION:
+        return PlanningError(
+            f"{where}: joint {limits.joint_names[j]} moves {plain(float(d[j]))}, at least {float(need[j]):.6g} s "
+            f"from rest to rest within its velocity limit {plain(float(v[j]))} and acceleration limit "
+            f"{plain(float(a[j]))}; a segment can last at most {MAX_SEGMENT_DURATION:g} s (Ruckig's limit): "
+            "add waypoints between them or raise the limits"
+        )
+    largest = float(np.max(np.abs(chain.q[k : k + 2])))
+    hint = "check the waypoints and limits"
+    if np.spacing(largest) > 0.1 * RUCKIG_PRECISION[0]:
+        hint = (
+            f"positions this far from zero are spaced {np.spacing(largest):.3g} apart, too coarse for Ruckig's "
+            f"precision {RUCKIG_PRECISION[0]:g}: turn continuous joints' waypoints by whole turns nearer zero"
+        )
+    return PlanningError(
+        f"{where}: Ruckig found no jerk-limited profile{start} with the arm at rest at waypoint {k + 1} "
+        f"(largest position {plain(largest)}); {hint}"
+    )
 
 
 def _repair_range(chain: ViaChain) -> list[tuple[float, SegmentPieces]]:
@@ -113,11 +151,14 @@ def _repair_range(chain: ViaChain) -> list[tuple[float, SegmentPieces]]:
             start = (q_rows[k], v_rows[k], acc_rows[k])
             d, outside, traj = chain.seg.solve(k, v_rows[k], acc_rows[k], v_rows[k + 1], acc_rows[k + 1], keep=True)
             if traj is None:
-                # Ruckig found no profile: rest at the free ends of this segment.
-                for idx in (k, k + 1):
-                    if idx > 0:
-                        chain.v[idx] = 0.0
-                        chain.acc[idx] = 0.0
+                # Ruckig found no profile: rest at the ends of this segment (the start's state
+                # is given), or refuse where they are at rest already.
+                moving_ends = [idx for idx in (k, k + 1) if idx > 0 and (v_rows[idx].any() or acc_rows[idx].any())]
+                if not moving_ends:
+                    raise _no_profile(chain, k)
+                for idx in moving_ends:
+                    chain.v[idx] = 0.0
+                    chain.acc[idx] = 0.0
                 any_bad = True
                 continue
             merged = merge_segment(traj, d, start, q_rows[k + 1], chain.limits)

@@ -1,0 +1,85 @@
+"""Pair floors: distances a pair of the arm's links provably never comes below, and the tests that skip them."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from planner import load_robot
+from planner.collision import CollisionChecker, parse_scene
+from planner.collision.continuous import floored, pair_floors
+from planner.exceptions import InvalidArgumentError
+from tests.conftest import needs_example_robot_data
+
+SCENE = {
+    "obstacles": [
+        {"name": "table", "box": [1.6, 1.6, 0.05], "position": [0.0, 0.0, -0.03]},
+        {"name": "box", "box": [0.25, 0.25, 0.5], "position": [0.45, 0.0, 0.25]},
+    ]
+}
+
+
+def _floors_hold(name: str, samples: int) -> None:
+    robot = load_robot(name)
+    checker = CollisionChecker(robot, parse_scene(SCENE))
+    floors = pair_floors(checker)
+    assert floors.shape == (checker.pair_count,)
+    assert checker.floors is floors
+    # Only the arm's own pairs get one; some do on every arm tried here.
+    assert np.all(np.isneginf(floors[~checker.self_pairs]))
+    assert np.isfinite(floors).any() and np.all(floors[np.isfinite(floors)] > 0.0)
+    # No configuration within the limits has a pair closer than its floor (an independent
+    # check: coal's distances of every pair at random configurations).
+    mask = checker.pair_mask()
+    qs = robot.random_configurations(np.random.default_rng(7), samples)
+    distances = np.array([checker.pair_distances(q, mask) for q in qs])
+    assert np.all(distances >= floors)
+
+
+@pytest.mark.parametrize("name", ["al5c", "dh3", "three_joint"])
+def test_floors_hold_bundled(name):
+    _floors_hold(name, 400)
+
+
+@needs_example_robot_data
+@pytest.mark.parametrize("name", ["ur5", "panda"])
+def test_floors_hold_example_arms(name):
+    _floors_hold(name, 300)
+
+
+def _verdicts(checker: CollisionChecker, qs: np.ndarray, distance: float) -> list[bool]:
+    test = checker.closer_than(distance)
+    return [bool(test(q)) for q in qs]
+
+
+@pytest.mark.parametrize("name", ["al5c", "dh3"])
+def test_proximity_verdicts_unchanged(name):
+    """The proximity tests give the same verdicts with the floors (pairs beyond them left out) as without."""
+    robot = load_robot(name)
+    plain = CollisionChecker(robot, parse_scene({"floor": 0.0}))
+    with_floors = floored(CollisionChecker(robot, parse_scene({"floor": 0.0})))
+    assert plain.floors is None and with_floors.floors is not None
+    qs = robot.random_configurations(np.random.default_rng(3), 600)
+    for distance in (0.0, 0.002, 0.01, 0.05):
+        assert _verdicts(plain, qs, distance) == _verdicts(with_floors, qs, distance)
+
+
+def test_use_floors_checks_its_argument():
+    checker = CollisionChecker(load_robot("al5c"))
+    with pytest.raises(InvalidArgumentError):
+        checker.use_floors(np.zeros(checker.pair_count + 1))
+    with pytest.raises(InvalidArgumentError):
+        checker.use_floors(np.full(checker.pair_count, np.nan))
+
+
+def test_a_pair_beyond_its_floor_is_left_out():
+    """A floor beyond the test's distance takes the pair out of that test (here: every pair, so nothing is close)."""
+    robot = load_robot("al5c")
+    checker = CollisionChecker(robot)
+    q = robot.random_configurations(np.random.default_rng(1), 400)
+    near = checker.closer_than(0.01)
+    touching = [x for x in q if near(x)]
+    assert touching  # some configurations have links within 1 cm
+    checker.use_floors(np.full(checker.pair_count, 0.02))
+    assert not any(checker.closer_than(0.01)(x) for x in touching)
+    assert all(checker.closer_than(0.03)(x) for x in touching)
