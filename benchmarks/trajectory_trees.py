@@ -7,7 +7,8 @@ checkout and a branch), in subprocesses with ``PYTHONPATH`` set to the tree.
 
 - Same plans: per plan a hash of its duration, waypoint times, via velocities and
   accelerations, repair flags and pieces (knots, p, v, a, j); prints per arm how many agree
-  (and the duration ratios second / first where they do not).
+  (and the duration ratios second / first where they do not); with ``--zero-sign-blind``
+  plans that differ only in the sign of zeros count as the same.
   With ``--mixed N``, also N varied requests per arm (waypoints near the range ends, moving
   start states, stops, dwell, prescribed via velocities, minimum durations; seed 5), a
   failure hashed by its message.
@@ -52,9 +53,28 @@ def bench_paths(paths: int, seed: int) -> dict:
     return out
 
 
+#: With ``--zero-sign-blind``, the hashes take -0.0 as 0.0 (plans equal but for the sign of zeros agree).
+_ZERO_SIGN_BLIND = os.environ.get("TRAJECTORY_TREES_ZERO_SIGN_BLIND") == "1"
+
+
 def plan_hash(traj) -> str:
     """A hash of everything a plan holds."""
     h = hashlib.sha256()
+    if _ZERO_SIGN_BLIND:
+        for arr in (
+            traj.waypoint_times,
+            traj.via_velocities,
+            traj.via_accelerations,
+            traj.knots,
+            traj.p,
+            traj.v,
+            traj.a,
+        ):
+            h.update((np.ascontiguousarray(arr, dtype=float) + 0.0).tobytes())
+        h.update((np.ascontiguousarray(traj.j, dtype=float) + 0.0).tobytes())
+        h.update(np.ascontiguousarray(traj.repaired).tobytes())
+        h.update(repr((traj.duration + 0.0, traj.strategy)).encode())
+        return h.hexdigest()[:16]
     for arr in (
         traj.waypoint_times,
         traj.via_velocities,
@@ -152,6 +172,9 @@ def main() -> None:
     parser.add_argument("--reps", type=int, default=3, help="timings per plan in a round (the least counts)")
     parser.add_argument("--no-hash", action="store_true", help="only time")
     parser.add_argument("--mixed", type=int, default=0, help="varied requests per arm to compare as well")
+    parser.add_argument(
+        "--zero-sign-blind", action="store_true", help="plans equal but for the sign of zeros count as the same"
+    )
     parser.add_argument("--worker", choices=("hash", "time"), help=argparse.SUPPRESS)
     args = parser.parse_args()
     if args.worker:
@@ -163,6 +186,7 @@ def main() -> None:
 
     def child(tree: str, mode: str) -> dict:
         env = dict(os.environ, PYTHONPATH=tree, OPENBLAS_NUM_THREADS="1")
+        env["TRAJECTORY_TREES_ZERO_SIGN_BLIND"] = "1" if args.zero_sign_blind else "0"
         cmd = [sys.executable, str(HERE), "--worker", mode, "--paths", str(args.paths), "--seed", str(args.seed)]
         cmd += ["--strategy", args.strategy, "--reps", str(args.reps), "--mixed", str(args.mixed)]
         proc = subprocess.run(cmd, env=env, capture_output=True, text=True, check=True)

@@ -243,16 +243,21 @@ def _zero_jerk_turns(prof, v: list[float] | None = None) -> list[float]:
     """
     if v is None:
         v = prof.v
+    # The phases where the velocity changes sign (from the velocities alone: the jerks, the
+    # accelerations and the positions are read only where there is one).
+    phases = [i for i, (v0, v1) in enumerate(zip(v, v[1:])) if v0 * v1 < 0.0]
+    if not phases:
+        return []
+    jerk = prof.j
+    phases = [i for i in phases if jerk[i] == 0.0]
+    if not phases:
+        return []
     turns = []
-    acc = pos = None
-    for i, jerk in enumerate(prof.j):
-        v0 = v[i]
-        if jerk == 0.0 and v0 * v[i + 1] < 0.0:
-            if acc is None:
-                acc, pos = prof.a, prof.p
-            a0 = acc[i]
-            tz = -v0 / a0
-            turns.append(pos[i] + tz * (v0 + tz * a0 / 2.0))
+    acc, pos = prof.a, prof.p
+    for i in phases:
+        v0, a0 = v[i], acc[i]
+        tz = -v0 / a0
+        turns.append(pos[i] + tz * (v0 + tz * a0 / 2.0))
     return turns
 
 
@@ -613,7 +618,6 @@ class SegmentSolver:
         count = len(joints)
         va, aa = [start[0][j] for j in joints], [start[1][j] for j in joints]
         vb, ab = [end[0][j] for j in joints], [end[1][j] for j in joints]
-        v0, v1, a0, a1 = [], [], [], []
         skipped = []
         still1, still2 = self._still[i - 1], self._still[i]
         if still1 is not None or still2 is not None:
@@ -626,12 +630,15 @@ class SegmentSolver:
                         cv, ca = list(cv), list(ca)
                         cv[m] = ca[m] = 0.0
                         candidates = [*candidates[:c], (cv, ca), *candidates[c + 1 :]]
-        for cv, ca in candidates:
-            for x, y, v, a, z, w in zip(va, aa, cv, ca, vb, ab):
-                v0 += (x, v)
-                a0 += (y, a)
-                v1 += (v, z)
-                a1 += (a, w)
+        # Per (candidate, joint) the two degrees of freedom, interleaved by slice assignment.
+        many = len(candidates)
+        cvs = [x for cv, _ in candidates for x in cv]
+        cas = [x for _, ca in candidates for x in ca]
+        v0, a0, v1, a1 = cvs * 2, cas * 2, cvs * 2, cas * 2
+        v0[0::2], v0[1::2] = va * many, cvs
+        a0[0::2], a0[1::2] = aa * many, cas
+        v1[0::2], v1[1::2] = cvs, vb * many
+        a1[0::2], a1[1::2] = cas, ab * many
         inp.current_velocity, inp.current_acceleration = v0, a0
         inp.target_velocity, inp.target_acceleration = v1, a1
         try:
@@ -649,10 +656,10 @@ class SegmentSolver:
             reach = self._reach
             if reach is None:
                 reach = self._reach = self._reach_times()
-            reach1 = [reach[i - 1][j] for j in joints] * len(candidates)
-            reach2 = [reach[i][j] for j in joints] * len(candidates)
-            check = [e for e, (x, y, r1, r2) in enumerate(zip(first, second, reach1, reach2)) if x > r1 or y > r2]
-            if check:
+            reach1 = [reach[i - 1][j] for j in joints] * many
+            reach2 = [reach[i][j] for j in joints] * many
+            if any(map(gt, first, reach1)) or any(map(gt, second, reach2)):
+                check = [e for e, (x, y, r1, r2) in enumerate(zip(first, second, reach1, reach2)) if x > r1 or y > r2]
                 extrema = traj.position_extrema
                 lows, highs = self._lows, self._highs
                 for e in check:

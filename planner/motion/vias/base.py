@@ -18,6 +18,7 @@ import numpy as np
 
 from planner.motion.limits import JointLimits, admissible_acceleration
 from planner.motion.segments import SegmentSolver
+from planner.motion.vias.kernels import choose_options
 
 __all__ = ["SEARCH_HALVINGS", "ViaChain", "ViaStrategy", "best_choice"]
 
@@ -181,6 +182,10 @@ def best_choice(
     rows1 = t1.tolist() if isinstance(t1, np.ndarray) else t1
     rows2 = t2.tolist() if isinstance(t2, np.ndarray) else t2
     dof = len(rows1[0])
+    if dof:
+        fast = choose_options(rows1, rows2)  # compiled, the same sweep (None: none, or a NaN)
+        if fast is not None:
+            return fast[0], None if fast[1] is None else np.array(fast[1])
     best = max(rows1[0]) + max(rows2[0])
     flat1 = [x for row in rows1 for x in row]
     flat2 = [x for row in rows2 for x in row]

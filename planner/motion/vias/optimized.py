@@ -37,6 +37,7 @@ from planner.motion.vias.base import SEARCH_HALVINGS, ViaChain, ViaStrategy, bes
 from planner.motion.vias.heuristic import via_directions
 from planner.motion.vias.joint_steps import STEPS as RESWEEP_STEPS
 from planner.motion.vias.joint_steps import moved_states, resweep_via
+from planner.motion.vias.kernels import scale_states
 
 #: Largest time scale searched: keeps x * x finite where a via component is tiny (x * 0 is then
 #: 0, not NaN), far beyond any scale at which every joint already saturates.
@@ -193,7 +194,9 @@ def _scaled_states(
 
     Per scale x (shape (G,)) the velocity ``sign(u) min(v_max, x |u|)`` and the acceleration
     ``sign(w) min(a_max, x^2 |w|)`` made admissible: :func:`admissible_acceleration` with
-    ``|cv|`` at hand (bit for bit the same values; its ``max(v_max - |cv|, 0)`` is a no-op here).
+    ``|cv|`` at hand (bit for bit the same values; its ``max(v_max - |cv|, 0)`` is a no-op here),
+    every zero positive (a state at rest has one cache key in :meth:`SegmentSolver.solve`,
+    whatever the signs of the direction; -0.0 and 0.0 solved the same segment twice).
     """
     x = x[:, None]
     speed = np.minimum(limits.velocity, x * mag)  # |cv|, bit for bit
@@ -205,7 +208,18 @@ def _scaled_states(
     amax *= 1.0 - 1e-9
     np.minimum(limits.acceleration, amax, out=amax)
     np.minimum(ca, amax, out=ca)
-    return cv, np.maximum(ca, np.negative(amax, out=amax), out=ca)
+    np.maximum(ca, np.negative(amax, out=amax), out=ca)
+    cv += 0.0  # zeros positive: a state that rests a joint has one cache key
+    ca += 0.0
+    return cv, ca
+
+
+def _gather(indices: list[int]) -> Callable[[Sequence[float]], tuple[float, ...]]:
+    """The entries of a sequence at `indices`, as a tuple (one :func:`operator.itemgetter` call)."""
+    if len(indices) == 1:
+        (index,) = indices
+        return lambda seq: (seq[index],)
+    return itemgetter(*indices)
 
 
 #: :class:`OptimizedStrategy`'s argument left out (its class attribute holds).
@@ -288,7 +302,7 @@ class OptimizedStrategy(ViaStrategy):
         The grid is walked from `start` upwards while the duration falls, else downwards; the
         best point is kept if it is faster than the current state. (No refinement between the
         grid points: the joint choice that follows picks among them per joint.)
-        `make` maps parameters, shape (G,), to admissible via states, shapes (G, dof); the
+        `make` maps parameters (G floats) to admissible via states, shapes (G, dof); the
         chain's current via state is admissible too (every strategy step keeps it so).
 
         Returns:
@@ -304,7 +318,7 @@ class OptimizedStrategy(ViaStrategy):
         if not math.isfinite(current[0]) and 0.0 not in grid:
             grid.insert(0, 0.0)  # resting at the via: the fallback where the current state has no profile
         n = len(grid)
-        cvs, cas = make(np.array(grid))  # in one batch
+        cvs, cas = make(grid)  # in one batch
         tried: list[tuple[float, np.ndarray, np.ndarray] | None] = [None] * n
 
         def at(g: int) -> float:
@@ -340,20 +354,22 @@ class OptimizedStrategy(ViaStrategy):
             The states tried (see :meth:`_line_search`).
         """
         lim = chain.limits
-        mag, wmag = np.abs(u), np.abs(w)
-        su, sw = np.sign(u), np.sign(w)
         tops = [1.0]
         # On plain floats: the largest scale at which a joint still gains speed (acceleration).
         velocity, acceleration, _ = lim.ruckig_limits
-        scales = [top / m for top, m in zip(velocity, mag.tolist()) if m > 0]
+        scales = [top / m for top, m in zip(velocity, map(abs, u.tolist())) if m > 0]
         if scales:
             tops.append(max(scales))
-        scales = [top / m for top, m in zip(acceleration, wmag.tolist()) if m > 0]
+        scales = [top / m for top, m in zip(acceleration, map(abs, w.tolist())) if m > 0]
         if scales:
             tops.append(math.sqrt(max(scales)))
 
-        def candidates(x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-            return _scaled_states(x, su, mag, sw, wmag, lim)
+        def candidates(x: list[float]) -> tuple[np.ndarray, np.ndarray]:
+            limits = lim.velocity.tobytes() + lim.acceleration.tobytes() + lim.twice_jerk.tobytes()
+            fast = scale_states(x, u, w, limits)  # compiled, the same operations
+            if fast is not None:
+                return fast
+            return _scaled_states(np.array(x), np.sign(u), np.abs(u), np.sign(w), np.abs(w), lim)
 
         return self._line_search(chain, i, candidates, min(max(tops), _MAX_SCALE), start=_GRID_START)
 
@@ -465,7 +481,7 @@ class OptimizedStrategy(ViaStrategy):
             turning: Per joint, whether it reverses at the via.
 
         Returns:
-            The states probed (velocities and accelerations, lists over all joints; a joint not
+            The states probed (velocities and accelerations, tuples over all joints; a joint not
             probed keeps its current state) and per state its per-joint times in the segment
             before and after the via (inf for a joint not probed or whose own profile leaves
             the range); empty lists where nothing was probed.
@@ -499,17 +515,16 @@ class OptimizedStrategy(ViaStrategy):
             return [], [], [], []
         p1, p2 = probed
         count, dof = len(joints), len(v)
-        states_v, states_a, rows1, rows2 = [], [], [], []
-        for c, (cv, ca) in enumerate(candidates):
-            sv, sa = list(v), list(a)
-            r1, r2 = [math.inf] * dof, [math.inf] * dof
-            for m, j in enumerate(joints):
-                sv[j], sa[j] = cv[m], ca[m]
-                r1[j], r2[j] = p1[c * count + m], p2[c * count + m]
-            states_v.append(sv)
-            states_a.append(sa)
-            rows1.append(r1)
-            rows2.append(r2)
+        # Per joint where its entry lies: the m-th probed joint at m, the others after the
+        # probed entries (their current state, an inf time), gathered by one itemgetter.
+        where = {j: m for m, j in enumerate(joints)}
+        states = _gather([where.get(j, count + j) for j in range(dof)])
+        entries = _gather([where.get(j, count) for j in range(dof)])
+        tail = [math.inf]
+        states_v = [states(cv + v) for cv, _ in candidates]
+        states_a = [states(ca + a) for _, ca in candidates]
+        rows1 = [entries(p1[c : c + count] + tail) for c in range(0, len(p1), count)]
+        rows2 = [entries(p2[c : c + count] + tail) for c in range(0, len(p2), count)]
         return states_v, states_a, rows1, rows2
 
     def combine_joints(self, chain: ViaChain, i: int, tried: list[tuple[float, np.ndarray, np.ndarray]]) -> None:

@@ -1,0 +1,199 @@
+"""Compiled loops of the via search: the per-joint option choice and the time-scaled via states.
+
+:func:`planner.motion.vias.base.best_choice` (a sweep over every option's times, run once per
+via) and :func:`planner.motion.vias.optimized._scaled_states` (a few NumPy operations on arrays
+of a few dozen entries) cost more in Python's and NumPy's call overhead than in arithmetic.
+Here both are one C function each (:mod:`planner.core.native`, compiled once), with the same
+comparisons and operations in the same order: the same values bit for bit, the sign of a zero
+included (``np.minimum`` and ``np.maximum`` return their second argument on a tie, as the C
+does; the tests compare both paths). Without a compiler (or with ``PLANNER_JIT=0``) the
+functions here return None and the callers take their Python path.
+"""
+
+from __future__ import annotations
+
+import ctypes
+from array import array
+
+import numpy as np
+
+from planner.core.native import load_functions
+
+__all__ = ["choose_options", "scale_states"]
+
+_SOURCE = r"""
+#include <math.h>
+
+/* best_choice (planner.motion.vias.base) on rows (K, dof), row-major. Returns 1 and fills
+   choice where a better choice exists, 0 where none, -1 where a NaN is among the times (the
+   Python sort is then the reference). *best gets the best sum either way (unless -1). */
+long best_choice(long K, long dof, const double *t1, const double *t2, double *best_out, long *choice) {
+    long n = K * dof;
+    for (long e = 0; e < n; ++e)
+        if (isnan(t1[e]) || isnan(t2[e])) return -1;
+    double m1 = t1[0], m2 = t2[0];
+    for (long j = 1; j < dof; ++j) {
+        if (t1[j] > m1) m1 = t1[j];
+        if (t2[j] > m2) m2 = t2[j];
+    }
+    double best = m1 + m2;
+    long order[n];
+    for (long e = 0; e < n; ++e) {  /* a stable insertion sort by t1 (Python's sorted, a key) */
+        long k = e;
+        while (k > 0 && t1[e] < t1[order[k - 1]]) {
+            order[k] = order[k - 1];
+            --k;
+        }
+        order[k] = e;
+    }
+    double floor = 0.0;
+    for (long j = 0; j < dof; ++j) {
+        double lo = t2[j];
+        for (long k = 1; k < K; ++k)
+            if (t2[k * dof + j] < lo) lo = t2[k * dof + j];
+        if (j == 0 || lo > floor) floor = lo;
+    }
+    double low[dof];
+    for (long j = 0; j < dof; ++j) low[j] = INFINITY;
+    long missing = dof, found = 0, last = n - 1;
+    double d2 = INFINITY, f1 = 0.0, f2 = 0.0;
+    for (long e = 0; e < n; ++e) {
+        long index = order[e];
+        double d1 = t1[index];
+        if (d1 + floor >= best) break;
+        long j = index % dof;
+        double b = t2[index];
+        if (low[j] == INFINITY) --missing;
+        if (b < low[j]) {
+            if (low[j] == d2) d2 = NAN;
+            low[j] = b;
+        }
+        if (missing != 0 || (e < last && t1[order[e + 1]] == d1)) continue;
+        if (!(d2 < INFINITY)) {
+            d2 = low[0];
+            for (long i = 1; i < dof; ++i)
+                if (low[i] > d2) d2 = low[i];
+        }
+        if (d1 + d2 < best) {
+            best = d1 + d2;
+            found = 1;
+            f1 = d1;
+            f2 = d2;
+        }
+    }
+    *best_out = best;
+    if (!found) return 0;
+    for (long j = 0; j < dof; ++j) {
+        if (t1[j] <= f1 && t2[j] <= f2) {
+            choice[j] = 0;
+            continue;
+        }
+        long pick = 0;
+        double smallest = INFINITY;
+        for (long k = 0; k < K; ++k)
+            if (t1[k * dof + j] <= f1 && t2[k * dof + j] < smallest) {
+                pick = k;
+                smallest = t2[k * dof + j];
+            }
+        choice[j] = pick;
+    }
+    return 1;
+}
+
+/* np.minimum / np.maximum: NaN propagates, a tie gives the second argument. */
+static double np_min(double a, double b) { return isnan(a) ? a : isnan(b) ? b : a < b ? a : b; }
+static double np_max(double a, double b) { return isnan(a) ? a : isnan(b) ? b : a > b ? a : b; }
+
+/* np.sign: +0.0 for either zero, NaN for NaN. */
+static double np_sign(double a) { return a > 0.0 ? 1.0 : a < 0.0 ? -1.0 : a == 0.0 ? 0.0 : a; }
+
+/* _scaled_states (planner.motion.vias.optimized) of the direction (u, w), shapes (dof,): per
+   scale x[g] and joint j the via state, cv at out[g * dof + j] and ca at out[(G + g) * dof + j],
+   with the operations of its NumPy form in the same order (su = sign(u), mag = |u|, likewise
+   for w), zeros made positive as there (+ 0.0). lims holds the velocity, acceleration and twice
+   the jerk limits one after the other. */
+void scaled_states(long G, long dof, const double *x, const double *u, const double *w, const double *lims,
+                   double *out) {
+    const double *velocity = lims, *acceleration = lims + dof, *twice_jerk = lims + 2 * dof;
+    for (long g = 0; g < G; ++g) {
+        double s = x[g], s2 = x[g] * x[g];
+        for (long j = 0; j < dof; ++j) {
+            double speed = np_min(velocity[j], s * fabs(u[j]));
+            double a = np_sign(w[j]) * np_min(acceleration[j], s2 * fabs(w[j]));
+            double amax = sqrt(twice_jerk[j] * (velocity[j] - speed));
+            amax *= 1.0 - 1e-9;
+            amax = np_min(acceleration[j], amax);
+            a = np_min(a, amax);
+            out[g * dof + j] = np_sign(u[j]) * speed + 0.0;
+            out[(G + g) * dof + j] = np_max(a, -amax) + 0.0;
+        }
+    }
+}
+"""
+
+_SIGNATURES = {
+    "best_choice": [ctypes.c_long, ctypes.c_long, *[ctypes.c_void_p] * 4],
+    "scaled_states": [ctypes.c_long, ctypes.c_long, *[ctypes.c_void_p] * 5],
+}
+
+
+#: The most options times joints :func:`choose_options` takes (more: the Python path).
+_MOST_ENTRIES = 4096
+
+
+def _library() -> ctypes.CDLL | None:
+    library = load_functions(_SOURCE, "via_kernels", _SIGNATURES)
+    if library is not None and library.best_choice.restype is None:
+        library.best_choice.restype = ctypes.c_long  # (load_functions sets None: it returns a code)
+    return library
+
+
+def choose_options(rows1: list[list[float]], rows2: list[list[float]]) -> tuple[float, list[int] | None] | None:
+    """:func:`planner.motion.vias.base.best_choice` on rows of floats, compiled.
+
+    Returns:
+        The best sum and the choice per joint (None where no choice is better), or None where
+        there is no compiled library or a time is NaN (the caller's Python path decides).
+    """
+    library = _library()
+    if library is None:
+        return None
+    k, dof = len(rows1), len(rows1[0])
+    if k * dof > _MOST_ENTRIES:
+        return None  # (the C function sorts on its stack)
+    flat1 = array("d", [x for row in rows1 for x in row])
+    flat2 = array("d", [x for row in rows2 for x in row])
+    if len(flat1) != k * dof or len(flat2) != k * dof:
+        return None  # ragged rows: the Python path says what is wrong
+    out = array("d", [0.0])
+    choice = array("l", [0]) * dof  # C longs, as the function's
+    found = library.best_choice(
+        k, dof, flat1.buffer_info()[0], flat2.buffer_info()[0], out.buffer_info()[0], choice.buffer_info()[0]
+    )
+    if found < 0:
+        return None
+    return out[0], (choice.tolist() if found else None)
+
+
+def scale_states(x: list[float], u: np.ndarray, w: np.ndarray, limits: bytes) -> tuple[np.ndarray, np.ndarray] | None:
+    """``_scaled_states`` of :mod:`planner.motion.vias.optimized`, compiled (None without a library).
+
+    Args:
+        x: The scales, G floats.
+        u: The velocity direction, shape (dof,), float64.
+        w: The acceleration direction, shape (dof,), float64.
+        limits: The velocity, acceleration and twice the jerk limits, float64 bytes, one after
+            the other (3 dof values).
+
+    Returns:
+        The velocities and accelerations, shapes (G, dof) (views of one new buffer).
+    """
+    library = _library()
+    if library is None:
+        return None
+    count, dof = len(x), len(u)
+    out = array("d", bytes(16 * count * dof))
+    scales = array("d", x)  # (held here while the C function reads it)
+    library.scaled_states(count, dof, scales.buffer_info()[0], u.tobytes(), w.tobytes(), limits, out.buffer_info()[0])
+    both = np.frombuffer(out).reshape(2, count, dof)
+    return both[0], both[1]

@@ -1,0 +1,110 @@
+"""The via search's compiled loops (planner.motion.vias.kernels) against their Python forms, bit for bit."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from planner import load_robot
+from planner.motion.limits import JointLimits
+from planner.motion.plan import plan_trajectory
+from planner.motion.vias import base, kernels
+from planner.motion.vias.kernels import _library, choose_options, scale_states
+from planner.motion.vias.optimized import _scaled_states
+
+pytestmark = pytest.mark.skipif(_library() is None, reason="no C compiler (or PLANNER_JIT=0): the Python paths only")
+
+LIMITS = JointLimits(
+    np.array([1.0, 2.5, 0.3]),
+    np.array([2.0, 5.0, 0.6]),
+    np.array([20.0, 50.0, 6.0]),
+    np.full(3, -10.0),
+    np.full(3, 10.0),
+)
+
+# Times with many ties (a few values), zeros of either sign and inf, as the probes give them.
+times = st.one_of(st.sampled_from([0.0, -0.0, 0.5, 1.0, 1.5, 2.0, math.inf]), st.floats(0.0, 3.0))
+
+
+def python_best_choice(rows1, rows2, monkeypatch):
+    with monkeypatch.context() as m:
+        m.setattr(base, "choose_options", lambda a, b: None)
+        best, choice = base.best_choice(rows1, rows2)
+    return best, None if choice is None else choice.tolist()
+
+
+@settings(max_examples=400, deadline=None)
+@given(st.integers(1, 9), st.integers(1, 7), st.data())
+def test_compiled_choice_equals_the_python_sweep(k, dof, data):
+    rows1 = [data.draw(st.lists(times, min_size=dof, max_size=dof)) for _ in range(k)]
+    rows2 = [data.draw(st.lists(times, min_size=dof, max_size=dof)) for _ in range(k)]
+    rows1[0] = [x if x < math.inf else 1.0 for x in rows1[0]]  # the current state has finite times
+    rows2[0] = [x if x < math.inf else 1.0 for x in rows2[0]]
+    with pytest.MonkeyPatch.context() as monkeypatch:
+        want = python_best_choice(rows1, rows2, monkeypatch)
+    got = choose_options(rows1, rows2)
+    assert got is not None
+    assert got[0] == want[0] and got[1] == want[1]
+    assert math.copysign(1.0, got[0]) == math.copysign(1.0, want[0])
+
+
+def test_compiled_choice_leaves_nan_to_python():
+    assert choose_options([[1.0, math.nan]], [[1.0, 2.0]]) is None
+    assert choose_options([[1.0, 2.0], [0.5, 0.5]], [[1.0, 2.0], [math.nan, 0.5]]) is None
+
+
+def test_best_choice_takes_the_compiled_path_where_there_is_one(monkeypatch):
+    rows1 = [[1.0, 2.0], [0.5, 1.0]]
+    rows2 = [[1.0, 2.0], [0.5, 1.0]]
+    calls = []
+
+    def spy(a, b):
+        calls.append((a, b))
+        return choose_options(a, b)
+
+    monkeypatch.setattr(base, "choose_options", spy)
+    best, choice = base.best_choice(rows1, rows2)
+    assert calls and best == 2.0 and choice.tolist() == [0, 1]
+
+
+components = st.one_of(st.sampled_from([0.0, -0.0, 1e-300, -1e-300, 5.0, -5.0]), st.floats(-1e3, 1e3))
+
+
+@settings(max_examples=300, deadline=None)
+@given(
+    st.lists(components, min_size=3, max_size=3),
+    st.lists(components, min_size=3, max_size=3),
+    st.lists(st.one_of(st.sampled_from([0.0, 1.0, 1e100]), st.floats(0.0, 1e3)), min_size=1, max_size=6),
+)
+def test_compiled_scaled_states_equal_the_numpy_form(u, w, grid):
+    u, w = np.array(u), np.array(w)
+    limits = LIMITS.velocity.tobytes() + LIMITS.acceleration.tobytes() + LIMITS.twice_jerk.tobytes()
+    cv, ca = scale_states(grid, u, w, limits)
+    want_v, want_a = _scaled_states(np.array(grid), np.sign(u), np.abs(u), np.sign(w), np.abs(w), LIMITS)
+    assert cv.tobytes() == want_v.tobytes() and ca.tobytes() == want_a.tobytes()
+
+
+def test_many_options_take_the_python_path():
+    rows = [[1.0 + 0.001 * k] * 10 for k in range(500)]  # 5000 entries
+    assert choose_options(rows, rows) is None
+    best, choice = base.best_choice(rows, rows)
+    assert best == 2.0 and choice is None
+
+
+@pytest.mark.parametrize("name", ["three_joint", "al5c", "dh3"])
+def test_plans_are_the_same_with_and_without_the_compiled_loops(name, monkeypatch):
+    robot = load_robot(name)
+    limits = JointLimits.from_robot(robot)
+    rng = np.random.default_rng(11)
+    paths = [robot.random_configurations(rng, 5) for _ in range(12)]
+
+    def arrays(traj):
+        return [traj.duration, *(np.asarray(a).tobytes() for a in (traj.via_velocities, traj.via_accelerations))]
+
+    compiled = [arrays(plan_trajectory(q, limits)) for q in paths]
+    monkeypatch.setattr(kernels, "_library", lambda: None)
+    assert [arrays(plan_trajectory(q, limits)) for q in paths] == compiled
