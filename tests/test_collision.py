@@ -283,8 +283,14 @@ def test_slab_pieces_contain_the_mesh_and_its_solid():
     meshes = pin.buildGeomFromUrdfString(full, robot.urdf, pin.GeometryType.COLLISION, None, _package_dirs(robot))
     split = {arm.link_of[e] for k, e in enumerate(arm.part_of) if k != e}
     assert {"upper_arm_link", "forearm_link"} <= split
-    # Pieces only in pairs of the arm's own links, at most as many objects as URDF elements and pieces.
+    # The URDF's elements first, their pieces after them; the scene is checked against elements only.
     assert all(e == k for k, e in enumerate(arm.part_of[: meshes.ngeoms]))
+    assert all(e < meshes.ngeoms for e in arm.part_of)
+    scene = Scene(obstacles=(Obstacle("block", Box((0.2, 0.2, 0.2)), np.array([0.4, 0.0, 0.3])),))
+    checker = CollisionChecker(robot, scene)
+    for (a, b), own in zip(checker._pairs, checker.self_pairs):
+        if not own:
+            assert arm.part_of[min(a, b)] == min(a, b)
     request = coal.DistanceRequest()
     request.gjk_tolerance = 1e-12
     rng = np.random.default_rng(4)
