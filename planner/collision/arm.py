@@ -27,7 +27,7 @@ import coal
 import numpy as np
 import pinocchio as pin
 
-from planner.collision.slabs import mesh_arrays, slab_hulls
+from planner.collision.slabs import MAX_TRIANGLES, mesh_arrays, slab_hulls
 from planner.core.rotations import homogeneous
 from planner.model.catalog import example_robot_data_dir
 from planner.model.robot import Robot
@@ -111,9 +111,10 @@ def _from_urdf(robot: Robot) -> tuple[pin.GeometryModel, dict[int, list[coal.Con
             mesh = obj.geometry
             mesh.buildConvexHull(True, "Qt")
             obj.geometry = mesh.convex
-            parts = slab_hulls(*mesh_arrays(mesh), float(mesh.convex.computeVolume()))
-            if parts:
-                pieces[k] = parts
+            if mesh.num_tris <= MAX_TRIANGLES:
+                parts = slab_hulls(*mesh_arrays(mesh), float(mesh.convex.computeVolume()))
+                if parts:
+                    pieces[k] = parts
     return geom, pieces
 
 
