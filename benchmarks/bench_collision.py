@@ -13,7 +13,8 @@ for both: a table (a 1.6 x 1.6 x 0.05 m box whose top is 5 mm below the arm's ba
    the pairs that differ are listed). CPU time, interleaved in blocks; the speed ratio is the
    median over blocks, on all configurations and again on those all checkers find free (where
    none stops at a first collision). The verdicts are compared: the shapes still differ (ours
-   are the collision meshes' convex hulls, roboplan's the meshes' triangles).
+   are the collision meshes' convex hulls, or slab hulls containing them in some pairs of the
+   arm's own links, roboplan's the meshes' triangles).
 2. **Plans**: random start/goal pairs within the joint limits that both checkers find
    collision-free (fixed seed). Ours: :func:`planner.app.motion_plan.plan_motion` with the
    scene (a straight move when it is clear, else RRT-Connect + shortcuts, then jerk-limited
@@ -576,8 +577,10 @@ def markdown(summaries: list[dict]) -> str:
     lines += [
         "",
         "Same pairs, different shapes: ours checks each URDF collision mesh as its convex hull (it "
-        "contains the mesh), roboplan the mesh's triangles, so a configuration only ours finds in "
-        "collision is one where the hulls touch and the meshes do not. With the SRDF the pair sets "
+        "contains the mesh), or, between links whose hulls are a poor stand-in (ur5's base, upper arm "
+        "and forearm against some links), as a few slab hulls that together contain it; roboplan checks "
+        "the mesh's triangles, so a configuration only ours finds in "
+        "collision is one where the hulls (or slab hulls) touch and the meshes do not. With the SRDF the pair sets "
         "differ too (body pairs; the SRDF's reason for disabling in brackets):",
     ]
     for s in summaries:

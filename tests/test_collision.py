@@ -273,7 +273,7 @@ def test_known_configurations_of_mesh_arms(name, free, self_hit, floor_hit):
 @needs_example_robot_data
 @pytest.mark.parametrize("name", ["ur5", "panda"])
 def test_mesh_hulls_contain_the_meshes(name):
-    """Every contact of the URDF meshes is a contact of their hulls (UR5 links are not convex)."""
+    """Every contact of the URDF meshes is a contact of their hulls or pieces (UR5 links are not convex)."""
     import pinocchio as pin
 
     from planner.collision.arm import _package_dirs
@@ -287,18 +287,105 @@ def test_mesh_hulls_contain_the_meshes(name):
         for joint, value in robot.locked_joints.items():
             q_ref[full.joints[full.getJointId(joint)].idx_q] = value
         _, meshes = pin.buildReducedModel(full, meshes, [full.getJointId(j) for j in robot.locked_joints], q_ref)
-    for a, b in checker.arm.self_pairs:
+    part_of = checker.arm.part_of
+    # The checked pairs of each pair of URDF elements (one, or several between their pieces).
+    checked: dict[tuple[int, int], list[int]] = {}
+    for k, (a, b) in enumerate(checker.arm.self_pairs):
+        checked.setdefault((part_of[a], part_of[b]), []).append(k)
+    for a, b in checked:
         meshes.addCollisionPair(pin.CollisionPair(a, b))
     data, gdata = robot.model.createData(), pin.GeometryData(meshes)
     contacts = 0
     for q in robot.random_configurations(np.random.default_rng(1), 150):
         pin.computeCollisions(robot.model, data, meshes, gdata, robot.pinocchio_configuration(q), False)
-        hulls = checker.pair_distances(q, checker.pair_mask())
-        for k, result in enumerate(gdata.collisionResults):
+        shapes = checker.pair_distances(q, checker.pair_mask())
+        for pair, result in zip(checked, gdata.collisionResults):
             if result.isCollision():
                 contacts += 1
-                assert hulls[k] <= 0.0, (q, checker.arm.self_pairs[k])
+                assert min(shapes[checked[pair]]) <= 0.0, (q, pair)
     assert contacts > 0
+
+
+@needs_example_robot_data
+def test_slab_pieces_contain_the_mesh_and_its_solid():
+    """UR5's upper arm and forearm are checked in pieces against some links; the pieces hold every
+    vertex of the mesh and every point inside it, and lie within the hull."""
+    import coal
+    import pinocchio as pin
+
+    from planner.collision.arm import _package_dirs
+    from planner.collision.slabs import mesh_arrays
+
+    robot = get_robot("ur5")
+    arm = arm_collision_model(robot)
+    full = pin.buildModelFromXML(robot.urdf)
+    meshes = pin.buildGeomFromUrdfString(full, robot.urdf, pin.GeometryType.COLLISION, None, _package_dirs(robot))
+    split = {arm.link_of[e] for k, e in enumerate(arm.part_of) if k != e}
+    assert {"upper_arm_link", "forearm_link"} <= split
+    # The URDF's elements first, their pieces after them; the scene is checked against elements only.
+    assert all(e == k for k, e in enumerate(arm.part_of[: meshes.ngeoms]))
+    assert all(e < meshes.ngeoms for e in arm.part_of)
+    scene = Scene(obstacles=(Obstacle("block", Box((0.2, 0.2, 0.2)), np.array([0.4, 0.0, 0.3])),))
+    checker = CollisionChecker(robot, scene)
+    for (a, b), own in zip(checker._pairs, checker.self_pairs):
+        if not own:
+            assert arm.part_of[min(a, b)] == min(a, b)
+    request = coal.DistanceRequest()
+    request.gjk_tolerance = 1e-12
+    rng = np.random.default_rng(4)
+    tested = 0
+    for element in sorted(set(arm.part_of)):
+        pieces = [
+            arm.geometry.geometryObjects[k].geometry for k, e in enumerate(arm.part_of) if e == element and k != e
+        ]
+        if not pieces:
+            continue
+        mesh = meshes.geometryObjects[element].geometry
+        vertices, triangles = mesh_arrays(mesh)
+        hull = arm.geometry.geometryObjects[element].geometry
+        assert sum(p.computeVolume() for p in pieces) < hull.computeVolume()
+
+        def gap(shape, point):
+            result = coal.DistanceResult()
+            ball = coal.Sphere(1e-9)
+            coal.distance(shape, coal.Transform3s(), ball, coal.Transform3s(np.eye(3), point), request, result)
+            return result.min_distance
+
+        # Points on the surface (vertices and points inside triangles) and inside the solid:
+        # midpoints of chords between surface points that stay inside (crossing no triangle).
+        weights = rng.dirichlet(np.ones(3), size=len(triangles))
+        surface = np.vstack([vertices, np.einsum("ij,ijk->ik", weights, vertices[triangles])])
+        for point in surface:
+            assert min(gap(p, point) for p in pieces) <= 1e-7, (element, point)
+        inside = 0
+        for point in surface[rng.choice(len(surface), 400)]:
+            other = surface[rng.integers(len(surface))]
+            middle = (point + other) / 2.0
+            # Inside the closed mesh: a ray from the middle crosses it an odd number of times.
+            direction = rng.normal(size=3)
+            direction /= np.linalg.norm(direction)
+            a, b, c = (vertices[triangles[:, i]] for i in range(3))
+            e1, e2 = b - a, c - a
+            h = np.cross(direction, e2)
+            det = np.einsum("ij,ij->i", e1, h)
+            ok = np.abs(det) > 1e-15
+            f = np.where(ok, 1.0 / np.where(ok, det, 1.0), 0.0)
+            s = middle - a
+            u = f * np.einsum("ij,ij->i", s, h)
+            qv = np.cross(s, e1)
+            v = f * (qv @ direction)
+            t = f * np.einsum("ij,ij->i", e2, qv)
+            crossings = ok & (u >= 0) & (v >= 0) & (u + v <= 1) & (t > 0)
+            if crossings.sum() % 2 == 1:
+                inside += 1
+                assert min(gap(p, middle) for p in pieces) <= 1e-7, (element, middle)
+            assert gap(hull, middle) <= 1e-7 or crossings.sum() % 2 == 0
+        for p in pieces:
+            for point in np.array(p.points()).reshape(-1, 3):
+                assert gap(hull, point) <= 1e-7
+        assert inside > 20
+        tested += 1
+    assert tested >= 2
 
 
 def _independent_pair_checks(checker: CollisionChecker, q: np.ndarray, mask: np.ndarray):

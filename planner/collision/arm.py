@@ -7,6 +7,13 @@ convex hulls (which contain them). The pairs of links
 checked against each other are every pair except adjacent links and links found in contact in
 every one of a set of sampled configurations (what MoveIt's setup assistant does), computed
 once per robot and kept in its ``derived`` cache.
+
+Where a mesh is far from convex (a UR5 upper arm or forearm), its hull is a poor stand-in against
+the arm's other links: two hulls may overlap where the meshes are centimetres apart. Such a mesh
+also gets a few tighter convex pieces that together contain it
+(:func:`~planner.collision.slabs.slab_hulls`), and a pair of links whose hulls overlap in sampled
+configurations where their pieces keep apart is checked piece against piece instead. The scene
+is always checked against the hulls.
 """
 
 from __future__ import annotations
@@ -20,6 +27,7 @@ import coal
 import numpy as np
 import pinocchio as pin
 
+from planner.collision.slabs import MAX_TRIANGLES, mesh_arrays, slab_hulls
 from planner.core.rotations import homogeneous
 from planner.model.catalog import example_robot_data_dir
 from planner.model.robot import Robot
@@ -29,6 +37,10 @@ __all__ = ["ArmCollisionModel", "arm_collision_model", "bounding_radius", "box_c
 #: Configurations sampled to find link pairs that are always in contact.
 PAIR_SAMPLES = 300
 
+#: Least number of those configurations in which a link pair's hulls must overlap while its
+#: pieces keep apart for the pair to be checked piece against piece.
+PIECE_SAMPLES = 3
+
 
 @dataclass(frozen=True, eq=False)
 class ArmCollisionModel:
@@ -36,8 +48,11 @@ class ArmCollisionModel:
 
     Attributes:
         geometry: The geometry model: one object per collision element, attached to the
-            robot's joints (do not modify; checkers copy it).
+            robot's joints, then the pieces of the elements checked in pieces (do not modify;
+            checkers copy it).
         link_of: Per geometry object, the name of the link it belongs to.
+        part_of: Per geometry object, the element it is a piece of (its own index for an
+            element). Pieces are checked only against the arm's own links, never the scene.
         self_pairs: Index pairs of objects checked against each other.
         excluded: Link pairs never checked, with the reason (``"adjacent"`` or ``"always in contact"``).
         source: ``"urdf"`` or ``"capsules"`` (generated because the URDF has no collision geometry,
@@ -50,6 +65,7 @@ class ArmCollisionModel:
 
     geometry: pin.GeometryModel
     link_of: tuple[str, ...]
+    part_of: tuple[int, ...]
     self_pairs: tuple[tuple[int, int], ...]
     excluded: tuple[tuple[str, str, str], ...]
     source: str
@@ -68,7 +84,8 @@ def _package_dirs(robot: Robot) -> list[str]:
     return dirs
 
 
-def _from_urdf(robot: Robot) -> pin.GeometryModel | None:
+def _from_urdf(robot: Robot) -> tuple[pin.GeometryModel, dict[int, list[coal.Convex]]] | None:
+    """The URDF's collision elements (meshes as their hulls), and per far from convex mesh its pieces."""
     try:
         full = pin.buildModelFromXML(robot.urdf)
         geom = pin.buildGeomFromUrdfString(full, robot.urdf, pin.GeometryType.COLLISION, None, _package_dirs(robot))
@@ -82,7 +99,8 @@ def _from_urdf(robot: Robot) -> pin.GeometryModel | None:
             q_ref[full.joints[full.getJointId(name)].idx_q] = value
         lock = [full.getJointId(n) for n in robot.locked_joints]
         _, geom = pin.buildReducedModel(full, geom, lock, q_ref)
-    for obj in geom.geometryObjects:
+    pieces = {}
+    for k, obj in enumerate(geom.geometryObjects):
         # A mesh is checked as its convex hull: it contains the mesh (so a distance is never
         # overestimated) and GJK on it is far faster than a mesh-to-mesh distance.
         # buildConvexHull (qhull), not buildConvexRepresentation: that one takes the mesh's own
@@ -90,9 +108,14 @@ def _from_urdf(robot: Robot) -> pin.GeometryModel | None:
         # support search then stops at a local extreme and overestimates distances (by up to
         # 0.27 m on UR5 links that were in contact).
         if isinstance(obj.geometry, coal.BVHModelBase):
-            obj.geometry.buildConvexHull(True, "Qt")
-            obj.geometry = obj.geometry.convex
-    return geom
+            mesh = obj.geometry
+            mesh.buildConvexHull(True, "Qt")
+            obj.geometry = mesh.convex
+            if mesh.num_tris <= MAX_TRIANGLES:
+                parts = slab_hulls(*mesh_arrays(mesh), float(mesh.convex.computeVolume()))
+                if parts:
+                    pieces[k] = parts
+    return geom, pieces
 
 
 def _capsules(robot: Robot) -> pin.GeometryModel:
@@ -200,8 +223,9 @@ def _reach(robot: Robot, geom: pin.GeometryModel) -> np.ndarray:
 
 
 def _self_pairs(
-    robot: Robot, geom: pin.GeometryModel, link_of: tuple[str, ...]
-) -> tuple[tuple[tuple[int, int], ...], tuple[tuple[str, str, str], ...]]:
+    robot: Robot, geom: pin.GeometryModel, link_of: tuple[str, ...], pieces: Mapping[int, list[coal.Convex]]
+) -> tuple[tuple[tuple[int, int], ...], tuple[tuple[str, str, str], ...], list[tuple[int, int]]]:
+    """The pairs checked, the link pairs excluded, and the pairs of elements to check in pieces."""
     model = robot.model
     candidates, excluded = [], {}
     for a in range(geom.ngeoms):
@@ -214,7 +238,7 @@ def _self_pairs(
                 continue
             candidates.append((a, b))
     if not candidates:
-        return (), tuple((a, b, why) for (a, b), why in sorted(excluded.items()))
+        return (), tuple((a, b, why) for (a, b), why in sorted(excluded.items())), []
     work = pin.GeometryModel()
     for obj in geom.geometryObjects:
         work.addGeometryObject(obj)
@@ -223,12 +247,20 @@ def _self_pairs(
     data, gdata = model.createData(), pin.GeometryData(work)
     rng = np.random.default_rng(0)
     always = np.ones(len(candidates), dtype=bool)
+    apart = np.zeros(len(candidates), dtype=int)  # hulls overlap, pieces apart
+    request = coal.CollisionRequest()
     for q in robot.random_configurations(rng, PAIR_SAMPLES):
         pin.computeCollisions(model, data, work, gdata, robot.pinocchio_configuration(q), False)
         hit = np.array([r.isCollision() for r in gdata.collisionResults])
         always &= hit
-        if not always.any():
-            break
+        if not pieces:
+            if not always.any():
+                break
+            continue
+        for i in np.flatnonzero(hit).tolist():
+            a, b = candidates[i]
+            if a in pieces or b in pieces:
+                apart[i] += not _pieces_collide(geom, gdata, a, b, pieces, request)
     pairs = []
     for (a, b), stuck in zip(candidates, always):
         if stuck:
@@ -238,7 +270,54 @@ def _self_pairs(
     # Links found always in contact through one pair of elements are excluded as a whole.
     dropped = {k for k, why in excluded.items() if why == "always in contact"}
     pairs = [(a, b) for a, b in pairs if tuple(sorted((link_of[a], link_of[b]))) not in dropped]
-    return tuple(pairs), tuple((a, b, why) for (a, b), why in sorted(excluded.items()))
+    split = [pair for pair, n in zip(candidates, apart) if n >= PIECE_SAMPLES and pair in pairs]
+    return tuple(pairs), tuple((a, b, why) for (a, b), why in sorted(excluded.items())), split
+
+
+def _pieces_collide(
+    geom: pin.GeometryModel,
+    gdata: pin.GeometryData,
+    a: int,
+    b: int,
+    pieces: Mapping[int, list[coal.Convex]],
+    request: coal.CollisionRequest,
+) -> bool:
+    """Whether elements `a` and `b`, placed as in `gdata`, touch piece against piece."""
+    placed = [coal.Transform3s(gdata.oMg[i].rotation, gdata.oMg[i].translation) for i in (a, b)]
+    shapes = [pieces.get(i, [geom.geometryObjects[i].geometry]) for i in (a, b)]
+    return any(
+        coal.collide(x, placed[0], y, placed[1], request, coal.CollisionResult()) for x in shapes[0] for y in shapes[1]
+    )
+
+
+def _with_pieces(
+    geom: pin.GeometryModel,
+    link_of: tuple[str, ...],
+    pairs: tuple[tuple[int, int], ...],
+    split: list[tuple[int, int]],
+    pieces: Mapping[int, list[coal.Convex]],
+) -> tuple[tuple[str, ...], tuple[int, ...], tuple[tuple[int, int], ...]]:
+    """Add to `geom` the pieces the pairs in `split` need; those pairs become pairs of their pieces.
+
+    Returns the new ``link_of``, ``part_of`` and pairs.
+    """
+    link_of, part_of = list(link_of), list(range(geom.ngeoms))
+    ids: dict[int, list[int]] = {}
+    for element in sorted({i for pair in split for i in pair if i in pieces}):
+        obj = geom.geometryObjects[element]
+        ids[element] = []
+        for n, shape in enumerate(pieces[element]):
+            piece = pin.GeometryObject(f"{obj.name}_piece_{n}", obj.parentJoint, obj.parentFrame, obj.placement, shape)
+            ids[element].append(geom.addGeometryObject(piece))
+            link_of.append(link_of[element])
+            part_of.append(element)
+    out = []
+    for a, b in pairs:
+        if (a, b) in split:
+            out += [(x, y) for x in ids.get(a, [a]) for y in ids.get(b, [b])]
+        else:
+            out.append((a, b))
+    return tuple(link_of), tuple(part_of), tuple(out)
 
 
 def arm_collision_model(robot: Robot) -> ArmCollisionModel:
@@ -251,7 +330,7 @@ def _fixed_lowest(robot: Robot, geom: pin.GeometryModel) -> Mapping[int, float]:
     probe = pin.GeometryModel()
     for obj in geom.geometryObjects:
         probe.addGeometryObject(obj)
-    n = probe.ngeoms
+    n = probe.ngeoms  # the elements only: pieces are never checked against a floor
     floor = coal.Halfspace(np.array([0.0, 0.0, 1.0]), -10.0)
     probe.addGeometryObject(pin.GeometryObject("probe_floor", 0, 0, pin.SE3.Identity(), floor))
     for a in range(n):
@@ -267,10 +346,14 @@ def _fixed_lowest(robot: Robot, geom: pin.GeometryModel) -> Mapping[int, float]:
 
 
 def _build(robot: Robot) -> ArmCollisionModel:
-    geom = _from_urdf(robot)
+    found = _from_urdf(robot)
     source = "urdf"
-    if geom is None:
-        geom, source = _capsules(robot), "capsules"
+    if found is None:
+        geom, pieces, source = _capsules(robot), {}, "capsules"
+    else:
+        geom, pieces = found
     link_of = _link_names(robot, geom)
-    pairs, excluded = _self_pairs(robot, geom, link_of)
-    return ArmCollisionModel(geom, link_of, pairs, excluded, source, _reach(robot, geom), _fixed_lowest(robot, geom))
+    pairs, excluded, split = _self_pairs(robot, geom, link_of, pieces)
+    reach, lowest = _reach(robot, geom), _fixed_lowest(robot, geom)
+    link_of, part_of, pairs = _with_pieces(geom, link_of, pairs, split, pieces)
+    return ArmCollisionModel(geom, link_of, part_of, pairs, excluded, source, reach, lowest)

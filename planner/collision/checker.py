@@ -117,6 +117,8 @@ class CollisionChecker:
             fixed = {a for a, low in arm.fixed_lowest.items() if low - self.scene.floor < self.scene.clearance}
         for name, sid in scene_ids.items():
             for a in range(n_arm):
+                if arm.part_of[a] != a:
+                    continue  # a piece: the scene is checked against the whole element
                 if arm.geometry.geometryObjects[a].parentJoint == 0:
                     continue  # fixed to the base: it cannot move into anything
                 if name == FLOOR and a in fixed:
@@ -430,7 +432,7 @@ class BoundingPairs:
         by_joint: dict[int, list[int]] = {}
         for k in range(n_arm):
             joint = objects[k].parentJoint
-            if joint > 0:
+            if joint > 0 and checker.arm.part_of[k] == k:  # elements, not their pieces
                 by_joint.setdefault(joint, []).append(k)
         index = {(int(a), int(b)): k for k, (a, b) in enumerate(checker._pairs)}
         index.update({(b, a): k for (a, b), k in list(index.items())})
