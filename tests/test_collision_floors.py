@@ -9,6 +9,7 @@ from planner import load_robot
 from planner.collision import CollisionChecker, parse_scene
 from planner.collision.continuous import floored, pair_floors
 from planner.exceptions import InvalidArgumentError
+
 from conftest import needs_example_robot_data
 
 SCENE = {
