@@ -8,7 +8,8 @@ and flagged. For a square task Jacobian a sign change of its determinant between
 a segment means every path between them crosses a singularity; such segments are reported as
 unresolved instead of detoured (another IK branch is the remedy there), and so is a segment
 whose deepest dip its last detour did not raise (the dip moved along the segment instead of
-being passed: more detours would only push it further); detours that did not
+being passed: more detours would only push it further); no detour goes in where the sign is
+the other than at an end of its segment (its path there would cross); detours that did not
 clear their segment are taken out again, so they never cost time for nothing (where that leads
 back to nodes and states planned before, that plan and its measure are reused, not made again).
 The measure and its threshold are those of :mod:`planner.motion.singularity`.
