@@ -183,9 +183,30 @@ def test_no_plan_is_slower_than_resting_at_every_waypoint_unless_its_detours_cle
     _check_not_slower_than_resting(q)
 
 
-def test_detours_taken_out_again_give_the_segment_its_minimum_duration_back(monkeypatch):
+def test_a_detour_across_a_singularity_from_its_segment_is_not_planned(monkeypatch):
     # The stretched elbow lies between these (q3 changes sign) but det J keeps its sign (the
-    # shoulder factor changes sign too), so detours are tried, clear nothing and are removed.
+    # shoulder factor changes sign too); the ascent from the dip ends where det J has the
+    # other sign, so a detour there would cross a singularity on either side: not planned.
+    import planner.motion.detours as detours_module
+
+    calls, ascents = [], []
+    plan_request, ascend = detours_module.plan_trajectory_request, detours_module._ascend
+    monkeypatch.setattr(detours_module, "plan_trajectory_request", lambda r: calls.append(r) or plan_request(r))
+    monkeypatch.setattr(detours_module, "_ascend", lambda *a, **k: ascents.append(ascend(*a, **k)) or ascents[-1])
+    robot = get_robot("dh3")
+    limits = JointLimits.from_robot(robot)
+    q = np.array([[0.925, -0.977, 2.349], [2.231, -0.95, -0.877]])
+    minimum = 2 * plan_trajectory(q, limits).duration
+    plan = plan_clear_of_singularities(robot, TrajectoryRequest(q, limits, min_durations=[minimum]))
+    sign = [np.sign(np.linalg.det(robot.jacobian(x)[:3])) for x in (q[0], q[1], ascents[0][0])]
+    assert sign[0] == sign[1] == -sign[2] != 0.0 and ascents[0][1] >= plan.report.threshold
+    assert len(calls) == 1 and plan.detours == () and plan.unresolved == (0,)
+    assert not plan.report.clear
+
+
+def test_detours_taken_out_again_give_the_segment_its_minimum_duration_back(monkeypatch):
+    # A dip between these that the detours tried (on the ends' side of the singularities) do not
+    # clear: they are removed again.
     import planner.motion.detours as detours_module
 
     calls = []
@@ -193,7 +214,7 @@ def test_detours_taken_out_again_give_the_segment_its_minimum_duration_back(monk
     monkeypatch.setattr(detours_module, "plan_trajectory_request", lambda r: calls.append(r) or plan_request(r))
     robot = get_robot("dh3")
     limits = JointLimits.from_robot(robot)
-    q = np.array([[0.925, -0.977, 2.349], [2.231, -0.95, -0.877]])
+    q = np.array([[2.169, -0.459, -0.955], [1.619, -1.752, 1.09]])
     minimum = 2 * plan_trajectory(q, limits).duration
     plan = plan_clear_of_singularities(robot, TrajectoryRequest(q, limits, min_durations=[minimum]))
     assert len(calls) >= 2 and len(calls[-1].waypoints) > 2  # detours were planned, then taken out

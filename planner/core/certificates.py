@@ -41,8 +41,13 @@ _SOURCE = r"""
 #include <math.h>
 #include <float.h>
 
+/* Every helper is inlined into the exported loops, and each loop is built once per common size
+   (k = 3 or 6; m = 3 or 6 task rows of 6 or 7 joints) besides the general one: with the sizes
+   constant the compiler unrolls the small loops. The arithmetic and its order are the same. */
+#define INLINE static inline __attribute__((always_inline))
+
 /* Cholesky factor L (row-major, lower) of g - (shift + 1e-12 tr g) I and its pivots; 1 if all > 0. */
-static int factor(long k, const double *g, double shift, double *L, double *piv) {
+INLINE int factor(long k, const double *g, double shift, double *L, double *piv) {
     double tr = 0.0;
     for (long i = 0; i < k; ++i) tr += g[i * k + i];
     double margin = shift + 1e-12 * tr;
@@ -74,7 +79,7 @@ void cholesky_certificates(long n, long k, const double *g, const double *shift,
     }
 }
 
-static double quotient(long k, const double *g, const double *x) {
+INLINE double quotient(long k, const double *g, const double *x) {
     double num = 0.0, den = 0.0;
     for (long i = 0; i < k; ++i) {
         double gx = 0.0;
@@ -86,7 +91,7 @@ static double quotient(long k, const double *g, const double *x) {
 }
 
 /* Whether the Cholesky factorisation of sign (g - shift I) - margin I has positive pivots. */
-static int positive(long k, const double *g, double sign, double shift, double margin, double *L) {
+INLINE int positive(long k, const double *g, double sign, double shift, double margin, double *L) {
     for (long j = 0; j < k; ++j) {
         double s = 0.0;
         for (long i = 0; i < j; ++i) s += L[j * k + i] * L[j * k + i];
@@ -104,7 +109,7 @@ static int positive(long k, const double *g, double sign, double shift, double m
 }
 
 /* `iterations` steps of the power method x <- M x / |M x| (y: work space); x stays where M x = 0. */
-static void power_steps(long k, const double *M, double *x, double *y, int iterations) {
+INLINE void power_steps(long k, const double *M, double *x, double *y, int iterations) {
     for (int it = 0; it < iterations; ++it) {
         double norm = 0.0;
         for (long i = 0; i < k; ++i) {
@@ -121,7 +126,7 @@ static void power_steps(long k, const double *M, double *x, double *y, int itera
 
 /* Per matrix: bounds of the smallest eigenvalue (lower, upper), of the largest (lower, upper)
    and a lower bound of the product of the eigenvalues of one matrix G, into o[0 .. 4]. */
-static void bracket(long k, const double *G, double *o) {
+INLINE void bracket(long k, const double *G, double *o) {
     static const double loose[4] = {1e-7, 1e-4, 0.05, 0.5};
     double L[64], piv[8], x[8], y[8];
     double tr = 0.0;
@@ -220,12 +225,18 @@ static void bracket(long k, const double *G, double *o) {
     }
 }
 
-void extreme_bounds(long n, long k, const double *g, double *out) {
+INLINE void extreme_bounds_of(long n, long k, const double *g, double *out) {
     for (long m = 0; m < n; ++m) bracket(k, g + m * k * k, out + 5 * m);
 }
 
+void extreme_bounds(long n, long k, const double *g, double *out) {
+    if (k == 3) extreme_bounds_of(n, 3, g, out);
+    else if (k == 6) extreme_bounds_of(n, 6, g, out);
+    else extreme_bounds_of(n, k, g, out);
+}
+
 /* Gram matrices of (n, r, c) matrices: S S^T (r x r) when r <= c, else S^T S (c x c). */
-void grams(long n, long r, long c, const double *S, double *out) {
+INLINE void grams_of(long n, long r, long c, const double *S, double *out) {
     long k = r <= c ? r : c;
     for (long m = 0; m < n; ++m) {
         const double *A = S + m * r * c;
@@ -242,12 +253,12 @@ void grams(long n, long r, long c, const double *S, double *out) {
     }
 }
 
-static void gram_one(long r, long c, const double *A, double *G) {
-    grams(1, r, c, A, G);
+INLINE void gram_one(long r, long c, const double *A, double *G) {
+    grams_of(1, r, c, A, G);
 }
 
 /* jacobian_change_bound of one joint change u (dof). */
-static double change_bound(long dof, const double *u, const double *rho, double angular) {
+INLINE double change_bound(long dof, const double *u, const double *rho, double angular) {
     double before[dof], after[dof], sum = 0.0, a2 = 0.0, b2 = 0.0;
     for (long i = 0; i < dof; ++i) {
         before[i] = sum;
@@ -267,7 +278,7 @@ static double change_bound(long dof, const double *u, const double *rho, double 
 }
 
 /* jacobian_curvature_bound of one joint change u (dof). */
-static double curvature_bound(long dof, const double *u, const double *rho, double angular) {
+INLINE double curvature_bound(long dof, const double *u, const double *rho, double angular) {
     double before[dof], turn[dof], a[dof], sum = 0.0, t = 0.0, c2 = 0.0, g2 = 0.0;
     for (long i = 0; i < dof; ++i) {
         double ui = fabs(u[i]);
@@ -294,7 +305,7 @@ static double curvature_bound(long dof, const double *u, const double *rho, doub
 
 /* Whether J_lam J_lam^T - f^2 I is positive definite for f = lift s_up + e (then every row
    within e of J_lam is above lift): raises *li to lift and *lm to the manipulability shown. */
-static void certify(long k, const double *G, double lift, double s_up, double e, double scale, double *L,
+INLINE void certify(long k, const double *G, double lift, double s_up, double e, double scale, double *L,
                     double *piv, double *li, double *lm) {
     double floor = lift * s_up + e;
     if (!factor(k, G, floor * floor, L, piv)) return;
@@ -309,7 +320,7 @@ static void certify(long k, const double *G, double lift, double s_up, double e,
 
 /* tr(G^-1) of G = S S^T (or S^T S) for (m, dof) S: the squared Frobenius norm of the inverse of
    G's factor (inf where the factorisation fails). */
-static double inverse_trace(long m, long dof, const double *S) {
+INLINE double inverse_trace(long m, long dof, const double *S) {
     long k = m < dof ? m : dof;
     double G[64], L[64], W[64], piv[8], sum = 0.0;
     gram_one(m, dof, S, G);
@@ -333,7 +344,7 @@ static double inverse_trace(long m, long dof, const double *S) {
    so the product is at least the root of the pivots' product times (1 - e^2 / f^2)^(k / 2). The
    relative loss, about f^2 tr(G^-1) / 2 + k e^2 / (2 f^2), is least at f^2 = e (k / tr(G^-1))^(1/2);
    `inverse` estimates tr(G^-1) (any value gives a bound). */
-static double manipulability_alone(long k, const double *G, double e, double inverse, double *L, double *piv) {
+INLINE double manipulability_alone(long k, const double *G, double e, double inverse, double *L, double *piv) {
     double shift = e * sqrt((double)k / inverse);
     if (!(shift > e * e) || !factor(k, G, shift, L, piv)) return 0.0;
     double det = 1.0;
@@ -343,7 +354,7 @@ static double manipulability_alone(long k, const double *G, double e, double inv
 
 /* Unit estimates of the eigenvectors of the smallest and the largest eigenvalue of S S^T (or S^T S):
    inverse iteration (the factor of G + 1e-10 tr I) and power iteration, a few steps each. */
-static void extreme_vectors(long m, long dof, const double *S, double *low, double *high) {
+INLINE void extreme_vectors(long m, long dof, const double *S, double *low, double *high) {
     long k = m < dof ? m : dof;
     double G[64], L[64], piv[8], y[8], tr = 0.0, norm;
     gram_one(m, dof, S, G);
@@ -373,7 +384,7 @@ static void extreme_vectors(long m, long dof, const double *S, double *low, doub
    ends (na, 6) per anchor: top, bottom, product, min_up, max_low, value_up; least (na - 1) per
    interval; params: angular, threshold, level, lifted, level_man, scale. Per row between anchors:
    lo_inv, lo_man and flags (1 below, 2 not settled, 4 inverse condition number not settled). */
-void interval_certificates(long n, long dof, long m, const double *q, long na, const long *anchors,
+INLINE void interval_certificates_of(long n, long dof, long m, const double *q, long na, const long *anchors,
                            const double *S, const double *ends, const double *least, const double *rho,
                            const double *params, double *lo_inv, double *lo_man, long *flags) {
     double angular = params[0], threshold = params[1], level = params[2], lifted = params[3];
@@ -504,7 +515,7 @@ void interval_certificates(long n, long dof, long m, const double *q, long na, c
    out (t, 8) the largest singular value's upper bound, the smallest's lower bound, the product's
    lower bound, the smallest's upper bound, the largest's lower bound, the inverse condition
    number's lower and upper bounds and the manipulability's upper bound (times scale). */
-void anchor_bounds(long t, long m, long dof, const double *S, double scale, double *out) {
+INLINE void anchor_bounds_of(long t, long m, long dof, const double *S, double scale, double *out) {
     long md = m * dof, k = m < dof ? m : dof;
     double G[64], L[64], piv[8], o[5];
     for (long r = 0; r < t; ++r) {
@@ -531,7 +542,7 @@ void anchor_bounds(long t, long m, long dof, const double *S, double scale, doub
 /* Step 3 of bounded_conditioning: rows (t, m, dof) of their own scaled Jacobians; lo_inv, lo_man
    and flags (as interval_certificates gives them) updated; least (t) per row; params: threshold,
    level, level_man, scale. */
-void own_certificates(long t, long m, long dof, const double *S, const double *least, const double *params,
+INLINE void own_certificates_of(long t, long m, long dof, const double *S, const double *least, const double *params,
                       double *lo_inv, double *lo_man, long *flags) {
     double threshold = params[0], level = params[1], level_man = params[2], scale = params[3];
     long md = m * dof, k = m < dof ? m : dof;
@@ -563,6 +574,36 @@ void own_certificates(long t, long m, long dof, const double *S, const double *l
         lo_man[r] = lm;
         flags[r] = below | (settled_inv && lm > level_man ? 0 : 2) | (settled_inv ? 0 : 4);
     }
+}
+
+/* CALL with m_ and d_ for m and dof: constants where they are a common pair. */
+#define SIZED(m, dof, CALL)                                      \
+    do {                                                         \
+        if (m == 6 && dof == 6) { const long m_ = 6, d_ = 6; CALL; } \
+        else if (m == 6 && dof == 7) { const long m_ = 6, d_ = 7; CALL; } \
+        else if (m == 3 && dof == 6) { const long m_ = 3, d_ = 6; CALL; } \
+        else if (m == 3 && dof == 7) { const long m_ = 3, d_ = 7; CALL; } \
+        else { const long m_ = m, d_ = dof; CALL; }              \
+    } while (0)
+
+void grams(long n, long r, long c, const double *S, double *out) {
+    SIZED(r, c, grams_of(n, m_, d_, S, out));
+}
+
+void interval_certificates(long n, long dof, long m, const double *q, long na, const long *anchors,
+                           const double *S, const double *ends, const double *least, const double *rho,
+                           const double *params, double *lo_inv, double *lo_man, long *flags) {
+    SIZED(m, dof,
+          interval_certificates_of(n, d_, m_, q, na, anchors, S, ends, least, rho, params, lo_inv, lo_man, flags));
+}
+
+void anchor_bounds(long t, long m, long dof, const double *S, double scale, double *out) {
+    SIZED(m, dof, anchor_bounds_of(t, m_, d_, S, scale, out));
+}
+
+void own_certificates(long t, long m, long dof, const double *S, const double *least, const double *params,
+                      double *lo_inv, double *lo_man, long *flags) {
+    SIZED(m, dof, own_certificates_of(t, m_, d_, S, least, params, lo_inv, lo_man, flags));
 }
 """
 

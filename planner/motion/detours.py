@@ -8,7 +8,8 @@ and flagged. For a square task Jacobian a sign change of its determinant between
 a segment means every path between them crosses a singularity; such segments are reported as
 unresolved instead of detoured (another IK branch is the remedy there), and so is a segment
 whose deepest dip its last detour did not raise (the dip moved along the segment instead of
-being passed: more detours would only push it further); detours that did not
+being passed: more detours would only push it further); no detour goes in where the sign is
+the other than at an end of its segment (its path there would cross); detours that did not
 clear their segment are taken out again, so they never cost time for nothing (where that leads
 back to nodes and states planned before, that plan and its measure are reused, not made again).
 The measure and its threshold are those of :mod:`planner.motion.singularity`.
@@ -381,11 +382,16 @@ def plan_clear_of_singularities(
         inserted = False
         for dip, s, k in sorted(dips):
             seg = nodes[s][2]
-            if _det_sign(robot, nodes[s][0], t_task) * _det_sign(robot, nodes[s + 1][0], t_task) < 0:
+            signs = _det_sign(robot, nodes[s][0], t_task), _det_sign(robot, nodes[s + 1][0], t_task)
+            if signs[0] * signs[1] < 0:
                 given_up.add(seg)
                 continue
             q_new, f_new = _ascend(robot, traj.positions(t[k]), limits, margin * thr, t_task, thr)
-            if f_new < thr:
+            # A detour on the other side of a singularity from either end does not clear the
+            # segment either: its path there must cross the singularity (the determinant changes
+            # sign), so the segment still dips and the detour would only be taken out again.
+            sign = _det_sign(robot, q_new, t_task)
+            if f_new < thr or sign * signs[0] < 0 or sign * signs[1] < 0:
                 given_up.add(seg)
                 continue
             nodes.insert(s + 1, (q_new, None, seg))
