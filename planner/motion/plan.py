@@ -58,7 +58,7 @@ from planner.core.arrays import read_only
 from planner.core.text import plain
 from planner.exceptions import InvalidArgumentError, PlanningError
 from planner.motion.checks import waypoint_rows_within
-from planner.motion.limits import MAX_SEGMENT_DURATION, JointLimits
+from planner.motion.limits import MAX_SEGMENT_DURATION, JointLimits, reach_time
 from planner.motion.request import TrajectoryRequest
 from planner.motion.segments import (
     RUCKIG_PRECISION,
@@ -108,17 +108,16 @@ def _rest_to_rest(d: np.ndarray, v: np.ndarray, a: np.ndarray, jerk: np.ndarray)
 def _no_profile(chain: ViaChain, k: int) -> PlanningError:
     """The error for segment `k`, which Ruckig cannot time even at rest at its free ends.
 
-    Names the joint that needs longest from rest to rest (:func:`_rest_to_rest`, at least
-    ``2 sqrt(d / a)``, or ``d / v + v / a`` where it reaches its velocity limit ``v``, and more
-    with the jerk limit) where that exceeds
+    Names the joint that needs longest from rest to rest (:func:`_rest_to_rest`; at least twice
+    :func:`~planner.motion.limits.reach_time` of half its move, more with the jerk limit) where
+    that exceeds
     :data:`~planner.motion.limits.MAX_SEGMENT_DURATION`; else Ruckig's failure as it is.
     """
     limits = chain.limits
     d = np.abs(chain.q[k + 1] - chain.q[k])
     v, a = limits.velocity, limits.acceleration
-    with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
-        without_jerk = np.where(d * a <= v * v, 2.0 * np.sqrt(d / a), d / v + v / a)
-    without_jerk = np.where(np.isnan(without_jerk), np.inf, without_jerk)
+    # Without the jerk limit: twice the least time to cover half the move from rest.
+    without_jerk = np.array([2.0 * reach_time(x / 2.0, y, z) for x, y, z in zip(d.tolist(), v.tolist(), a.tolist())])
     need = np.fmax(without_jerk, _rest_to_rest(d, v, a, limits.jerk))
     j = int(np.argmax(need))
     where = f"waypoint {k} -> waypoint {k + 1}"
