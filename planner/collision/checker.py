@@ -343,8 +343,9 @@ class CollisionChecker:
             raise InvalidArgumentError(f"distance must be a number [m], got {distance!r}")
         if not math.isfinite(distance):
             raise InvalidArgumentError(f"distance must be a finite number [m], got {distance!r}")
-        mask = self._mask(_allowed(allow))
-        key = (float(distance), tuple(sorted(set(_allowed(allow)))))
+        names = _allowed(allow)
+        mask = self._mask(names)
+        key = (float(distance), tuple(sorted(set(names))))
         test = self._near.get(key)
         if test is None:
             if len(self._near) >= 32:
