@@ -461,7 +461,7 @@ def pair_floors(checker: CollisionChecker) -> np.ndarray:
     # The other joints at their ranges' middles (0 where a range is unbounded): halves first, so
     # that neither an unbounded range (-inf + inf) nor a huge one overflows into a NumPy warning.
     bounded = np.isfinite(lower) & np.isfinite(upper)
-    base = np.where(bounded, np.where(bounded, lower, 0.0) / 2.0 + np.where(bounded, upper, 0.0) / 2.0, 0.0)
+    base = np.where(bounded, lower, 0.0) / 2.0 + np.where(bounded, upper, 0.0) / 2.0
     turns = np.array([kind != "prismatic" for kind in robot.joint_kinds])
     for k, pair in enumerate(checker.geometry.collisionPairs):
         if not checker.self_pairs[k]:
