@@ -62,10 +62,17 @@ def _volume(points: np.ndarray) -> float:
         return float("inf")
 
 
-def _closed_volume(vertices: np.ndarray, triangles: np.ndarray) -> float | None:
-    """The volume the mesh bounds [m^3] when every edge is shared by two triangles, else None."""
-    edges = np.sort(np.vstack([triangles[:, [0, 1]], triangles[:, [1, 2]], triangles[:, [2, 0]]]), axis=1)
-    _, counts = np.unique(edges, axis=0, return_counts=True)
+def _edges(triangles: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The mesh's edges (vertex index pairs, each once, shape (e, 2)) and how many triangles share each."""
+    sides = np.sort(np.vstack([triangles[:, [0, 1]], triangles[:, [1, 2]], triangles[:, [2, 0]]]), axis=1)
+    return np.unique(sides, axis=0, return_counts=True)
+
+
+def _closed_volume(vertices: np.ndarray, triangles: np.ndarray, counts: np.ndarray) -> float | None:
+    """The volume the mesh bounds [m^3] when every edge is shared by two triangles, else None.
+
+    `counts`: per edge, the triangles sharing it (of :func:`_edges`).
+    """
     if not np.all(counts == 2):
         return None
     a, b, c = (vertices[triangles[:, i]] for i in range(3))
@@ -91,15 +98,13 @@ def slab_hulls(vertices: np.ndarray, triangles: np.ndarray, whole: float) -> lis
     """
     if len(triangles) == 0 or not np.isfinite(whole) or whole <= 0.0:
         return []
-    inside = _closed_volume(vertices, triangles)
+    edges, counts = _edges(triangles)
+    inside = _closed_volume(vertices, triangles, counts)
     if inside is not None and whole - inside < 2.0 * SLAB_GAIN * whole:
         # The pieces contain the solid, so they save at most what the hull exceeds it by, and
         # cuts between parallel planes recover only part of that: not worth the hulls (UR5's
         # shoulder and wrists, within 8 % of their hulls; Panda's meshes, convex).
         return []
-    edges = np.unique(
-        np.sort(np.vstack([triangles[:, [0, 1]], triangles[:, [1, 2]], triangles[:, [2, 0]]]), axis=1), axis=0
-    )
     _, _, axes = np.linalg.svd(vertices - vertices.mean(axis=0), full_matrices=False)
     s = vertices @ axes[0]
     cuts = np.linspace(float(s.min()), float(s.max()), SLAB_GRID + 1)
