@@ -16,8 +16,8 @@ from __future__ import annotations
 import math
 import threading
 from collections.abc import Callable, Sequence
-from itertools import repeat
-from operator import add, gt, lt, sub
+from itertools import compress, repeat
+from operator import add, gt, lt, or_, sub
 
 import numpy as np
 from ruckig import ControlInterface, InputParameter, Result, Ruckig, RuckigError, Synchronization
@@ -243,13 +243,10 @@ def _zero_jerk_turns(prof, v: list[float] | None = None) -> list[float]:
     """
     if v is None:
         v = prof.v
-    # The phases where the velocity changes sign (from the velocities alone: the jerks, the
-    # accelerations and the positions are read only where there is one).
-    phases = [i for i, (v0, v1) in enumerate(zip(v, v[1:])) if v0 * v1 < 0.0]
-    if not phases:
-        return []
+    # The phases of zero jerk where the velocity changes sign (the accelerations and the
+    # positions are read only where there is one).
     jerk = prof.j
-    phases = [i for i in phases if jerk[i] == 0.0]
+    phases = [i for i in range(len(jerk)) if jerk[i] == 0.0 and v[i] * v[i + 1] < 0.0]
     if not phases:
         return []
     turns = []
@@ -658,8 +655,10 @@ class SegmentSolver:
                 reach = self._reach = self._reach_times()
             reach1 = [reach[i - 1][j] for j in joints] * many
             reach2 = [reach[i][j] for j in joints] * many
-            if any(map(gt, first, reach1)) or any(map(gt, second, reach2)):
-                check = [e for e, (x, y, r1, r2) in enumerate(zip(first, second, reach1, reach2)) if x > r1 or y > r2]
+            # The entries that last longer than their joint needs to reach a range end (C loops).
+            longer = list(map(or_, map(gt, first, reach1), map(gt, second, reach2)))
+            if True in longer:
+                check = list(compress(range(len(longer)), longer))
                 extrema = traj.position_extrema
                 lows, highs = self._lows, self._highs
                 for e in check:

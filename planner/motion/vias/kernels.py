@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import ctypes
 from array import array
+from itertools import chain
 
 import numpy as np
 
@@ -161,8 +162,8 @@ def choose_options(rows1: list[list[float]], rows2: list[list[float]]) -> tuple[
     k, dof = len(rows1), len(rows1[0])
     if k * dof > _MOST_ENTRIES:
         return None  # (the C function sorts on its stack)
-    flat1 = array("d", [x for row in rows1 for x in row])
-    flat2 = array("d", [x for row in rows2 for x in row])
+    flat1 = array("d", list(chain.from_iterable(rows1)))  # (C loops: a comprehension costs more)
+    flat2 = array("d", list(chain.from_iterable(rows2)))
     if len(flat1) != k * dof or len(flat2) != k * dof:
         return None  # ragged rows: the Python path says what is wrong
     out = array("d", [0.0])
