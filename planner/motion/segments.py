@@ -25,6 +25,7 @@ from ruckig import Trajectory as RuckigTrajectory
 
 from planner.exceptions import InvalidArgumentError, PlanningError
 from planner.motion.limits import RANGE_TOLERANCE, JointLimits, reach_time
+from planner.motion.segment_kernels import WatchTable, watch_times
 from planner.motion.trajectory import LIMIT_TOLERANCE
 
 __all__ = [
@@ -328,6 +329,35 @@ _POSITION_SLACK = 1e-9
 
 
 _LOCAL = threading.local()
+#: Per set of limits (by identity, the limits held), what _range_ends made of them.
+_RANGE_ENDS: dict[int, tuple[JointLimits, tuple]] = {}
+
+
+def _range_ends(limits: JointLimits) -> tuple[list[tuple], list[tuple], WatchTable]:
+    """The finite range ends :meth:`SegmentSolver._watch_ends` watches, made once per set of limits.
+
+    Per joint and range end (uppers, then lowers): the joint, its speed and acceleration limits
+    taken :data:`_LIMIT_SLACK` larger, reach_time's knee, the end and where the checks put it
+    (:data:`_POSITION_SLACK` nearer); and the same as a :class:`WatchTable`.
+    """
+    known = _RANGE_ENDS.get(id(limits))
+    if known is not None and known[0] is limits:
+        return known[1]
+    grow = 1.0 + _LIMIT_SLACK
+    lows, highs = limits.checked_floats
+    uppers, lowers = [], []
+    for j, (v, a, lo, hi) in enumerate(zip(*limits.ruckig_limits[:2], lows, highs)):
+        v, a = v * grow, a * grow
+        knee = v * v / (2.0 * a)
+        if hi < math.inf:
+            uppers.append((j, v, a, knee, hi, hi - _POSITION_SLACK * max(1.0, abs(hi))))
+        if lo > -math.inf:
+            lowers.append((j, v, a, knee, lo, lo + _POSITION_SLACK * max(1.0, abs(lo))))
+    made = uppers, lowers, WatchTable(uppers, lowers)
+    if len(_RANGE_ENDS) >= 64:
+        _RANGE_ENDS.clear()  # (a few sets of limits are in use at a time)
+    _RANGE_ENDS[id(limits)] = (limits, made)
+    return made
 
 
 def _thread_solver(dof: int) -> list:
@@ -449,17 +479,15 @@ class SegmentSolver:
         checks :data:`_POSITION_SLACK` nearer (rounding of Ruckig's extrema), and the end
         position missed by up to :data:`_END_MISS`.
         """
-        grow = 1.0 + _LIMIT_SLACK
-        # Per joint and range end: the limits, the end, where the checks put it, and reach_time's knee.
-        uppers, lowers = [], []
-        for j, (v, a, lo, hi) in enumerate(zip(*limits.ruckig_limits[:2], self._lows, self._highs)):
-            v, a = v * grow, a * grow
-            knee = v * v / (2.0 * a)
-            if hi < math.inf:
-                uppers.append((j, v, a, knee, hi, hi - _POSITION_SLACK * max(1.0, abs(hi))))
-            if lo > -math.inf:
-                lowers.append((j, v, a, knee, lo, lo + _POSITION_SLACK * max(1.0, abs(lo))))
+        uppers, lowers, table = _range_ends(limits)
         rows = self.rows
+        times = watch_times(rows, table, _END_MISS)  # compiled, the same operations (None: none)
+        if times is not None:
+            count, joints, flags, ends = table.count, table.joints, table.uppers, table.ends
+            for k, ok in enumerate(admissible):
+                if ok:
+                    self._watch[k] = sorted(zip(times[k * count : (k + 1) * count], joints, flags, ends))
+            return
         sqrt = math.sqrt
         for k, ok in enumerate(admissible):
             if not ok:

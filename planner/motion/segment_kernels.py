@@ -1,0 +1,129 @@
+"""Compiled loops of the segment solver: the reach times of the range ends.
+
+:meth:`planner.motion.segments.SegmentSolver._watch_ends` computes, per admissible segment and
+range end, the least time a joint needs to reach that end and come back (two reach times, a
+few dozen of them per plan): in Python that costs more in the interpreter's overhead than in
+arithmetic. Here it is one C function (:mod:`planner.core.native`, compiled once) with the
+same operations in the same order (divisions, square roots and sums, no product added to
+another, so no fused multiply-add can change a rounding): the same values bit for bit (the
+tests compare both paths). Without a compiler (or with ``PLANNER_JIT=0``) :func:`watch_times`
+returns None and the caller takes its Python path.
+"""
+
+from __future__ import annotations
+
+import ctypes
+from array import array
+from itertools import chain
+
+from planner.core.native import load_functions
+
+__all__ = ["WatchTable", "watch_times"]
+
+_SOURCE = r"""
+#include <math.h>
+
+/* One reach time written out as SegmentSolver._watch_ends has it (planner.motion.segments). */
+static double reach(double d, double a, double knee, double v) {
+    return d < 0.0 ? -INFINITY : d <= knee ? sqrt(2.0 * d / a) : (d + knee) / v;
+}
+
+/* Per segment k (rows k and k + 1 of q, (K + 1, dof), row-major) and range end e, the time to
+   the end and back at out[k * E + e], E = U + L: first the U upper ends (joint ju[e], limits vu,
+   au, knee ku, the end as the checks put it hu), then the L lower ones (likewise). miss is
+   _END_MISS. */
+void watch_times(long K, long dof, const double *q, long U, const long *ju, const double *vu, const double *au,
+                 const double *ku, const double *hu, long L, const long *jl, const double *vl, const double *al,
+                 const double *kl, const double *ll, double miss, double *out) {
+    long E = U + L;
+    for (long k = 0; k < K; ++k) {
+        const double *before = q + k * dof, *after = q + (k + 1) * dof;
+        double *t = out + k * E;
+        for (long e = 0; e < U; ++e) {
+            long j = ju[e];
+            double d = hu[e] - before[j], f = hu[e] - after[j] - miss;
+            double s = reach(d, au[e], ku[e], vu[e]);
+            s += reach(f, au[e], ku[e], vu[e]);
+            t[e] = s;
+        }
+        for (long e = 0; e < L; ++e) {
+            long j = jl[e];
+            double d = before[j] - ll[e], f = after[j] - miss - ll[e];
+            double s = reach(d, al[e], kl[e], vl[e]);
+            s += reach(f, al[e], kl[e], vl[e]);
+            t[U + e] = s;
+        }
+    }
+}
+"""
+
+_SIGNATURES = {
+    "watch_times": [
+        ctypes.c_long,
+        ctypes.c_long,
+        ctypes.c_void_p,
+        ctypes.c_long,
+        *[ctypes.c_void_p] * 5,
+        ctypes.c_long,
+        *[ctypes.c_void_p] * 5,
+        ctypes.c_double,
+        ctypes.c_void_p,
+    ],
+}
+
+
+def _library() -> ctypes.CDLL | None:
+    return load_functions(_SOURCE, "segment_kernels", _SIGNATURES)
+
+
+class WatchTable:
+    """The range ends :meth:`SegmentSolver._watch_ends` watches, as C arrays (made once per set of limits).
+
+    Args:
+        uppers: Per finite upper range end ``(joint, speed limit, acceleration limit, knee, end,
+            end as checked)``, as ``_watch_ends`` lists them.
+        lowers: Likewise for the lower ends.
+
+    Attributes:
+        count: How many range ends.
+        joints: Per range end its joint (uppers first).
+        uppers: Per range end whether it is an upper one.
+        ends: Per range end the end itself [rad or m].
+    """
+
+    __slots__ = ("_args", "_columns", "count", "ends", "joints", "uppers")
+
+    def __init__(self, uppers: list[tuple], lowers: list[tuple]):
+        self.count = len(uppers) + len(lowers)
+        self.joints = [e[0] for e in uppers] + [e[0] for e in lowers]
+        self.uppers = [True] * len(uppers) + [False] * len(lowers)
+        self.ends = [e[4] for e in uppers] + [e[4] for e in lowers]
+
+        def columns(rows: list[tuple]) -> list[array]:
+            return [array("l", [r[0] for r in rows])] + [array("d", [r[i] for r in rows]) for i in (1, 2, 3, 5)]
+
+        # Per side the joints, v, a, knee and the end as checked (held here), passed by address.
+        self._columns = columns(uppers), columns(lowers)
+        up, low = ([c.buffer_info()[0] for c in side] for side in self._columns)
+        self._args = (len(uppers), *up, len(lowers), *low)
+
+
+def watch_times(rows: list[list[float]], table: WatchTable, miss: float) -> list[float] | None:
+    """Every segment's reach times of every range end in `table`, or None without a library.
+
+    Args:
+        rows: The waypoints, K + 1 rows of dof floats.
+        table: The range ends.
+        miss: The end position's allowed miss [rad or m].
+
+    Returns:
+        The times [s], flat: segment k's at ``k * table.count`` on.
+    """
+    library = _library()
+    if library is None:
+        return None
+    segments, dof = len(rows) - 1, len(rows[0])
+    q = array("d", list(chain.from_iterable(rows)))
+    out = array("d", bytes(8 * segments * table.count))
+    library.watch_times(segments, dof, q.buffer_info()[0], *table._args, miss, out.buffer_info()[0])
+    return out.tolist()

@@ -1,0 +1,56 @@
+"""The segment solver's compiled loops (planner.motion.segment_kernels) against their Python forms, bit for bit."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from planner.motion import segments
+from planner.motion.limits import JointLimits
+from planner.motion.segment_kernels import _library
+from planner.motion.segments import SegmentSolver
+
+pytestmark = pytest.mark.skipif(_library() is None, reason="no C compiler (or PLANNER_JIT=0): the Python paths only")
+
+# Range ends: finite, unbounded, near zero; positions anywhere in a few turns (beyond the ends too).
+ends = st.one_of(st.sampled_from([0.0, -0.0, 1e-12, math.pi, 2.0 * math.pi, math.inf]), st.floats(0.0, 7.0))
+positions = st.one_of(st.sampled_from([0.0, -0.0, math.pi, -math.pi]), st.floats(-8.0, 8.0))
+limit = st.floats(0.01, 50.0)
+
+
+def _watch(q, limits, admissible, monkeypatch, compiled):
+    with monkeypatch.context() as m:
+        if not compiled:
+            m.setattr(segments, "watch_times", lambda *args: None)
+        segments._RANGE_ENDS.clear()
+        return SegmentSolver(q, limits, None, admissible)._watch
+
+
+@settings(max_examples=300, deadline=None)
+@given(st.integers(1, 7), st.integers(2, 6), st.data())
+def test_compiled_watch_equals_the_python_loop(dof, n, data):
+    velocity = np.array(data.draw(st.lists(limit, min_size=dof, max_size=dof)))
+    acceleration = np.array(data.draw(st.lists(limit, min_size=dof, max_size=dof)))
+    upper = np.array(data.draw(st.lists(ends, min_size=dof, max_size=dof)))
+    lower = -np.array(data.draw(st.lists(ends, min_size=dof, max_size=dof)))
+    limits = JointLimits(velocity, acceleration, 10.0 * acceleration, lower, upper)
+    q = np.array([data.draw(st.lists(positions, min_size=dof, max_size=dof)) for _ in range(n)])
+    admissible = data.draw(st.lists(st.booleans(), min_size=n - 1, max_size=n - 1))
+    with pytest.MonkeyPatch.context() as monkeypatch:
+        want = _watch(q, limits, admissible, monkeypatch, compiled=False)
+        got = _watch(q, limits, admissible, monkeypatch, compiled=True)
+    assert repr(got) == repr(want)  # (repr: the sign of zeros and infinities too)
+    if limits.bounded and any(admissible):
+        assert all((w is None) != ok for w, ok in zip(got, admissible))
+
+
+def test_range_ends_are_made_once_per_set_of_limits():
+    limits = JointLimits(np.ones(2), np.ones(2), np.ones(2), -np.ones(2), np.ones(2))
+    first = segments._range_ends(limits)
+    assert segments._range_ends(limits) is first
+    other = JointLimits(np.ones(2), np.ones(2), np.ones(2), -np.ones(2), np.ones(2))
+    assert segments._range_ends(other) is not first
