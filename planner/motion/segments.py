@@ -1060,8 +1060,6 @@ def merge_segment(
     dof = len(profiles)
     if duration <= 0.0:
         return SegmentPieces(lambda: (np.empty(0), np.empty((4, 0, dof))), np.zeros(dof), None)
-    if any(prof.accel.duration > 0 for prof in profiles):  # pragma: no cover - via states are admissible
-        raise RuntimeError("Ruckig needed a post-profile: a via state exceeds the limits")
     if _plain_profiles(profiles, end):
         # The common case, decided from Ruckig's lists: the arrays are read when first used,
         # the turning points too (the range repair asks SegmentSolver.turns_beyond instead).
@@ -1095,16 +1093,25 @@ def _plain_profiles(profiles: list, end: np.ndarray | None) -> bool:
 
     That is: no brake phase and every profile ending on `end` within :data:`END_TOLERANCE`
     (no end correction).
+
+    Raises:
+        RuntimeError: If a profile needed a post-profile (a via state beyond the limits).
     """
     goals = None if end is None else np.asarray(end, dtype=float).tolist()
+    plain = True
     for k, prof in enumerate(profiles):
+        # (Checked here for every profile, in the same pass.)
+        if prof.accel.duration > 0:  # pragma: no cover - via states are admissible
+            raise RuntimeError("Ruckig needed a post-profile: a via state exceeds the limits")
+        if not plain:
+            continue
         if prof.brake.duration > 0:
-            return False
-        if goals is not None:
+            plain = False
+        elif goals is not None:
             goal = goals[k]
             if abs(goal - prof.p[-1]) > END_TOLERANCE * (goal if goal > 1.0 else -goal if goal < -1.0 else 1.0):
-                return False
-    return True
+                plain = False
+    return plain
 
 
 def _profile_turns(profiles: list) -> tuple[np.ndarray, np.ndarray]:
