@@ -188,7 +188,8 @@ def _repair_range(chain: ViaChain) -> list[tuple[float, SegmentPieces]]:
                     chain.acc[idx] = 0.0
                 any_bad = True
                 continue
-            merged = merge_segment(traj, d, start, q_rows[k + 1], chain.limits)
+            profiles = chain.seg.profiles(traj)  # (read once for the merge and the checks below)
+            merged = merge_segment(traj, d, start, q_rows[k + 1], chain.limits, profiles)
             if any(merged.residual.tolist()):
                 free = [
                     idx
@@ -208,7 +209,7 @@ def _repair_range(chain: ViaChain) -> list[tuple[float, SegmentPieces]]:
             if d <= 0.0:
                 continue
             ends = (v_rows[k].tolist(), acc_rows[k].tolist()), (v_rows[k + 1].tolist(), acc_rows[k + 1].tolist())
-            fast = speed_overshoots(traj, *ends, limits)
+            fast = speed_overshoots(traj, *ends, limits, profiles)
             if not chain.seg.bounded and not fast:
                 continue
             if not chain.seg.bounded:

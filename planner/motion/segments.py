@@ -264,6 +264,7 @@ def speed_overshoots(
     start: tuple[list[float], list[float]],
     end: tuple[list[float], list[float]],
     limits: JointLimits,
+    profiles: list | None = None,
 ) -> list[int]:
     """The joints whose Ruckig profile exceeds the speed limit near a moving end of the segment.
 
@@ -280,13 +281,13 @@ def speed_overshoots(
         start: Velocities and accelerations at the start, as lists.
         end: Velocities and accelerations at the end, as lists.
         limits: The limits.
+        profiles: ``traj.profiles[0]`` if already read (see :meth:`SegmentSolver.profiles`).
 
     Returns:
         The joints (in order; empty for none).
     """
     velocity = limits.ruckig_limits[0]
     out = []
-    profiles = None
     half = traj.duration / 2.0
     for j, (v0, a0, v1, a1, v_max) in enumerate(zip(*start, *end, velocity)):
         # A phase reaching the peak lasts |a / jerk| <= the duration: the peak is below |v| + |a| T / 2.
@@ -452,6 +453,8 @@ class SegmentSolver:
             for a, b in zip(rows, rows[1:])
         ]
         self._cache: dict[tuple, tuple[float, np.ndarray | None, RuckigTrajectory | None]] = {}
+        # Per trajectory, its profiles as read (see profiles).
+        self._profiles: dict[RuckigTrajectory, list] = {}
         # Per (segment, trajectory), what turns_beyond found.
         self._turns_beyond: dict[tuple[int, RuckigTrajectory], list[int]] = {}
         # Per (waypoint, joints, candidates), the positions and limits of probe_around's input.
@@ -589,12 +592,16 @@ class SegmentSolver:
             bv, ba = cv.tobytes(), ca.tobytes()
             key = (i - 1, bva, baa, bv, ba)
             first = cache.get(key)
+            state = None  # (cv, ca) as lists, made once for both segments
             if first is None:
-                first = cache[key] = solve(i - 1, va, aa, cv, ca, key)
+                state = (cv.tolist(), ca.tolist())
+                first = cache[key] = solve(i - 1, va, aa, cv, ca, key, None, state)
             key = (i, bv, ba, bvb, bab)
             second = cache.get(key)
             if second is None:
-                second = cache[key] = solve(i, cv, ca, vb, ab, key)
+                if state is None:
+                    state = (cv.tolist(), ca.tolist())
+                second = cache[key] = solve(i, cv, ca, vb, ab, key, state)
             return first, second
 
         return both
@@ -755,9 +762,20 @@ class SegmentSolver:
         return inp
 
     def _solve(
-        self, k: int, va: np.ndarray, aa: np.ndarray, vb: np.ndarray, ab: np.ndarray, key: tuple | None = None
+        self,
+        k: int,
+        va: np.ndarray,
+        aa: np.ndarray,
+        vb: np.ndarray,
+        ab: np.ndarray,
+        key: tuple | None = None,
+        start: tuple[list[float], list[float]] | None = None,
+        end: tuple[list[float], list[float]] | None = None,
     ) -> tuple[float, np.ndarray | None, RuckigTrajectory | None]:
-        """:meth:`solve` without the cache (and without `keep`); `key` as for :meth:`_input`."""
+        """:meth:`solve` without the cache (and without `keep`); `key` as for :meth:`_input`.
+
+        `start` and `end` are the end states as lists, where the caller has them already.
+        """
         still = self._still[k]
         if still is not None and self._on_one_parabola(still, va, aa, vb, ab):
             return math.inf, None, None
@@ -766,14 +784,10 @@ class SegmentSolver:
         if inp is None:
             inp = self._new_input(k)
         held = self._held[k]
-        if key is None or held is None:
-            inp.current_velocity, inp.current_acceleration = va.tolist(), aa.tolist()
-            inp.target_velocity, inp.target_acceleration = vb.tolist(), ab.tolist()
-        else:
-            if key[1] != held[1] or key[2] != held[2]:
-                inp.current_velocity, inp.current_acceleration = va.tolist(), aa.tolist()
-            if key[3] != held[3] or key[4] != held[4]:
-                inp.target_velocity, inp.target_acceleration = vb.tolist(), ab.tolist()
+        if key is None or held is None or key[1] != held[1] or key[2] != held[2]:
+            inp.current_velocity, inp.current_acceleration = (va.tolist(), aa.tolist()) if start is None else start
+        if key is None or held is None or key[3] != held[3] or key[4] != held[4]:
+            inp.target_velocity, inp.target_acceleration = (vb.tolist(), ab.tolist()) if end is None else end
         self._held[k] = key
         traj = RuckigTrajectory(self.dof)
         try:
@@ -824,6 +838,17 @@ class SegmentSolver:
         merged = merge_segment(traj, duration, (self.q[k], va, aa), self.q[k + 1], self.limits)
         return bool(merged.residual.any())
 
+    def profiles(self, traj: RuckigTrajectory) -> list:
+        """Ruckig's profiles of a trajectory :meth:`solve` gave, read once (not to be changed).
+
+        Reading ``traj.profiles`` copies every profile (about a tenth of a solve's cost): the
+        search's range checks and the range repair's merge and speed checks share one copy.
+        """
+        known = self._profiles.get(traj)
+        if known is None:
+            known = self._profiles[traj] = traj.profiles[0]
+        return known
+
     def turns_beyond(self, k: int, traj: RuckigTrajectory) -> list[int]:
         """The joints of segment k that turn round beyond their range inside a phase of zero jerk.
 
@@ -864,7 +889,7 @@ class SegmentSolver:
             turns = turns_of.get(j)
             if turns is None:
                 if profiles is None:
-                    profiles = traj.profiles[0]
+                    profiles = self.profiles(traj)
                 prof = profiles[j]
                 v = prof.v
                 # No sign change of the velocity, no turn (the common case).
@@ -1030,6 +1055,7 @@ def merge_segment(
     start: tuple[np.ndarray, np.ndarray, np.ndarray],
     end: np.ndarray | None = None,
     limits: JointLimits | None = None,
+    profiles: list | None = None,
 ) -> SegmentPieces:
     """One Ruckig segment as constant-jerk pieces common to all joints.
 
@@ -1049,6 +1075,7 @@ def merge_segment(
         start: The start state (q, qd, qdd), each shape (dof,): the segment starts exactly there.
         end: Target positions, shape (dof,) [rad or m]; None: no end correction.
         limits: Limits to check a corrected joint against.
+        profiles: ``traj.profiles[0]`` if already read (see :meth:`SegmentSolver.profiles`).
 
     Returns:
         The pieces; their residual is the end error left per joint: where the correction
@@ -1056,7 +1083,8 @@ def merge_segment(
         keeps Ruckig's profile, and the caller decides (see
         :func:`planner.motion.plan.plan_trajectory_request`).
     """
-    profiles = traj.profiles[0]
+    if profiles is None:
+        profiles = traj.profiles[0]
     dof = len(profiles)
     if duration <= 0.0:
         return SegmentPieces(lambda: (np.empty(0), np.empty((4, 0, dof))), np.zeros(dof), None)
