@@ -24,34 +24,37 @@ _SOURCE = r"""
 #include <math.h>
 
 /* One reach time written out as SegmentSolver._watch_ends has it (planner.motion.segments). */
-static double reach(double d, double a, double knee, double v) {
+static double reach_time(double d, double a, double knee, double v) {
     return d < 0.0 ? -INFINITY : d <= knee ? sqrt(2.0 * d / a) : (d + knee) / v;
 }
 
 /* Per segment k (rows k and k + 1 of q, (K + 1, dof), row-major) and range end e, the time to
    the end and back at out[k * E + e], E = U + L: first the U upper ends (joint ju[e], limits vu,
    au, knee ku, the end as the checks put it hu), then the L lower ones (likewise). miss is
-   _END_MISS. */
+   _END_MISS. Per segment and joint the least of its times at reach[k * dof + j] (inf for none). */
 void watch_times(long K, long dof, const double *q, long U, const long *ju, const double *vu, const double *au,
                  const double *ku, const double *hu, long L, const long *jl, const double *vl, const double *al,
-                 const double *kl, const double *ll, double miss, double *out) {
+                 const double *kl, const double *ll, double miss, double *out, double *reach) {
     long E = U + L;
     for (long k = 0; k < K; ++k) {
         const double *before = q + k * dof, *after = q + (k + 1) * dof;
-        double *t = out + k * E;
+        double *t = out + k * E, *r = reach + k * dof;
+        for (long j = 0; j < dof; ++j) r[j] = INFINITY;
         for (long e = 0; e < U; ++e) {
             long j = ju[e];
             double d = hu[e] - before[j], f = hu[e] - after[j] - miss;
-            double s = reach(d, au[e], ku[e], vu[e]);
-            s += reach(f, au[e], ku[e], vu[e]);
+            double s = reach_time(d, au[e], ku[e], vu[e]);
+            s += reach_time(f, au[e], ku[e], vu[e]);
             t[e] = s;
+            if (s < r[j]) r[j] = s;
         }
         for (long e = 0; e < L; ++e) {
             long j = jl[e];
             double d = before[j] - ll[e], f = after[j] - miss - ll[e];
-            double s = reach(d, al[e], kl[e], vl[e]);
-            s += reach(f, al[e], kl[e], vl[e]);
+            double s = reach_time(d, al[e], kl[e], vl[e]);
+            s += reach_time(f, al[e], kl[e], vl[e]);
             t[U + e] = s;
+            if (s < r[j]) r[j] = s;
         }
     }
 }
@@ -67,6 +70,7 @@ _SIGNATURES = {
         ctypes.c_long,
         *[ctypes.c_void_p] * 5,
         ctypes.c_double,
+        ctypes.c_void_p,
         ctypes.c_void_p,
     ],
 }
@@ -108,8 +112,8 @@ class WatchTable:
         self._args = (len(uppers), *up, len(lowers), *low)
 
 
-def watch_times(rows: list[list[float]], table: WatchTable, miss: float) -> list[float] | None:
-    """Every segment's reach times of every range end in `table`, or None without a library.
+def watch_times(rows: list[list[float]], table: WatchTable, miss: float) -> tuple[list[float], list[float]] | None:
+    """Every segment's reach times of every range end in `table`, and per joint the least, or None without a library.
 
     Args:
         rows: The waypoints, K + 1 rows of dof floats.
@@ -117,7 +121,8 @@ def watch_times(rows: list[list[float]], table: WatchTable, miss: float) -> list
         miss: The end position's allowed miss [rad or m].
 
     Returns:
-        The times [s], flat: segment k's at ``k * table.count`` on.
+        The times [s], flat: segment k's at ``k * table.count`` on; and per segment and joint
+        the least of them (inf where none), flat: segment k's at ``k * dof`` on.
     """
     library = _library()
     if library is None:
@@ -125,5 +130,8 @@ def watch_times(rows: list[list[float]], table: WatchTable, miss: float) -> list
     segments, dof = len(rows) - 1, len(rows[0])
     q = array("d", list(chain.from_iterable(rows)))
     out = array("d", bytes(8 * segments * table.count))
-    library.watch_times(segments, dof, q.buffer_info()[0], *table._args, miss, out.buffer_info()[0])
-    return out.tolist()
+    reach = array("d", bytes(8 * segments * dof))
+    library.watch_times(
+        segments, dof, q.buffer_info()[0], *table._args, miss, out.buffer_info()[0], reach.buffer_info()[0]
+    )
+    return out.tolist(), reach.tolist()

@@ -462,10 +462,10 @@ class SegmentSolver:
         # Per segment, the range ends a joint could reach, in the order of the time it needs
         # to (see _watch_ends): (time, joint, whether the upper end, the end); None: check all.
         self._watch: list[list[tuple[float, int, bool, float]] | None] = [None] * (len(q) - 1)
-        if self.bounded and admissible is not None and any(admissible):
-            self._watch_ends(limits, admissible)
         # Per segment and joint, the least time in which it can reach a range end (see _reach_times).
         self._reach: list[list[float]] | None = None
+        if self.bounded and admissible is not None and any(admissible):
+            self._watch_ends(limits, admissible)
 
     def _watch_ends(self, limits: JointLimits, admissible: Sequence[bool]) -> None:
         """Fill :attr:`_watch` for the admissible segments.
@@ -484,12 +484,19 @@ class SegmentSolver:
         """
         uppers, lowers, table = _range_ends(limits)
         rows = self.rows
-        times = watch_times(rows, table, _END_MISS)  # compiled, the same operations (None: none)
-        if times is not None:
+        compiled = watch_times(rows, table, _END_MISS)  # the same operations (None: no compiler)
+        if compiled is not None:
+            times, least = compiled
             count, joints, flags, ends = table.count, table.joints, table.uppers, table.ends
+            dof = self.dof
+            reach = []
             for k, ok in enumerate(admissible):
                 if ok:
                     self._watch[k] = sorted(zip(times[k * count : (k + 1) * count], joints, flags, ends))
+                    reach.append(least[k * dof : (k + 1) * dof])
+                else:
+                    reach.append([0.0] * dof)
+            self._reach = reach  # what _reach_times gives (a tie may differ only in the sign of a zero)
             return
         sqrt = math.sqrt
         for k, ok in enumerate(admissible):
