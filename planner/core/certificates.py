@@ -46,6 +46,20 @@ _SOURCE = r"""
    constant the compiler unrolls the small loops. The arithmetic and its order are the same. */
 #define INLINE static inline __attribute__((always_inline))
 
+/* x^k and x^(k/2) for 0 <= x <= 1 by multiplications (and one root for odd k): a few roundings
+   (of the order of k ulp), far below the 1e-9 every bound they enter gives up; cheaper than pow. */
+INLINE double int_power(double x, long k) {
+    double r = 1.0;
+    for (long i = 0; i < k; ++i) r *= x;
+    return r;
+}
+
+INLINE double half_power(double x, long k) {
+    double r = (k & 1) ? sqrt(x) : 1.0;
+    for (long i = 0; i < k / 2; ++i) r *= x;
+    return r;
+}
+
 /* Cholesky factor L (row-major, lower) of g - (shift + 1e-12 tr g) I and its pivots; 1 if all > 0. */
 INLINE int factor(long k, const double *g, double shift, double *L, double *piv) {
     double tr = 0.0;
@@ -314,7 +328,7 @@ INLINE void certify(long k, const double *G, double lift, double s_up, double e,
     *li = *li > lift ? *li : lift;
     double ratio = floor > 0.0 ? e / floor : 0.0; /* s_i - e >= (s_i^2 - f^2)^(1/2) (1 - ratio^2)^(1/2) */
     double loss = 1.0 - ratio * ratio;
-    double got = sqrt(det) * pow(loss > 0.0 ? loss : 0.0, 0.5 * (double)k) * (scale * (1.0 - 1e-9));
+    double got = sqrt(det) * half_power(loss > 0.0 ? loss : 0.0, k) * (scale * (1.0 - 1e-9));
     *lm = *lm > got ? *lm : got;
 }
 
@@ -349,7 +363,7 @@ INLINE double manipulability_alone(long k, const double *G, double e, double inv
     if (!(shift > e * e) || !factor(k, G, shift, L, piv)) return 0.0;
     double det = 1.0;
     for (long i = 0; i < k; ++i) det *= piv[i];
-    return sqrt(det) * pow(1.0 - e * e / shift, 0.5 * (double)k);
+    return sqrt(det) * half_power(1.0 - e * e / shift, k);
 }
 
 /* Unit estimates of the eigenvectors of the smallest and the largest eigenvalue of S S^T (or S^T S):
@@ -431,10 +445,10 @@ INLINE void interval_certificates_of(long n, long dof, long m, const double *q, 
         double sigma = sqrt(m2 - c > 0.0 ? m2 - c : 0.0);
         double inv0 = (sigma - err > 0.0 ? sigma - err : 0.0) / (top + margin + err);
         double shift = smallest > 0.0 ? 1.0 - margin / (smallest + margin) : 0.0;
-        shift = pow(shift > 0.0 ? shift : 0.0, (double)k);
+        shift = int_power(shift > 0.0 ? shift : 0.0, k);
         double product = (ea[2] < eb[2] ? ea[2] : eb[2]) * shift;
-        double det_factor = m2 > c ? pow(1.0 - c / m2 > 0.0 ? 1.0 - c / m2 : 0.0, 0.5 * k) : 0.0;
-        double shrink = sigma > err ? pow(1.0 - err / sigma > 0.0 ? 1.0 - err / sigma : 0.0, (double)k) : 0.0;
+        double det_factor = m2 > c ? half_power(1.0 - c / m2 > 0.0 ? 1.0 - c / m2 : 0.0, k) : 0.0;
+        double shrink = sigma > err ? int_power(1.0 - err / sigma > 0.0 ? 1.0 - err / sigma : 0.0, k) : 0.0;
         double man0 = product * det_factor * shrink;
         double top_low = 0.5 * (ea[4] + eb[4] - d) - margin - err;
         double upper = top_low > 0.0 ? (0.5 * (ea[3] + eb[3] + d) + margin + err) / top_low * (1.0 + 1e-9) : INFINITY;

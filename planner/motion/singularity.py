@@ -672,16 +672,10 @@ def bounded_conditioning(
     level_man = min(float(np.min(man[exact])), float(np.min(man_up, initial=np.inf)) if len(loose) else np.inf)
     lifted = level * (1.0 + 1e-9)  # what a certificate shows the rows to be above
     ends = anchors
-    right = np.searchsorted(ends, rows)
-    left, right = ends[right - 1], ends[right]  # the anchors on either side of each row
-    # The stretches between the rows `keep`: the smallest exact value in each (ends included).
-    stretch = np.searchsorted(bounds_of, rows) - 1
-    # Over the anchors from one row of `keep` to the next (the rows `keep` are anchors).
+    # The stretches between the rows `keep`: the smallest exact value in each (ends included),
+    # over the anchors from one row of `keep` to the next (the rows `keep` are anchors).
     at_ends, values = np.searchsorted(ends, bounds_of), value_up[ends]
     least_of = np.minimum(np.minimum.reduceat(values, at_ends[:-1]), values[at_ends[1:]])
-    least = least_of[stretch]
-    lo_inv, lo_man = np.zeros(len(rows)), np.zeros(len(rows))
-    below = np.zeros(len(rows), dtype=bool)  # shown below the threshold
 
     def weyl(take: np.ndarray, a: np.ndarray, e: np.ndarray, e_man: np.ndarray) -> None:
         # Rounding of the SVDs and norms: a margin far above it.
@@ -732,17 +726,27 @@ def bounded_conditioning(
             q, anchors, scaled_all[anchors], anchor_ends, least_of[of_interval], rho, params
         )
     if compiled is not None:
-        # Steps 0 to 3 in compiled loops (planner.core.certificates), the same bounds.
-        lo_inv, lo_man, flags = (values[rows] for values in compiled)
-        take = np.nonzero(flags & 2)[0]
+        # Steps 0 to 3 in compiled loops (planner.core.certificates), the same bounds. Their
+        # arrays (n,) hold the rows' bounds (flags 0 at the anchors): they become the measure,
+        # with the anchors' values in place.
+        bounds_inv, bounds_man, flags = compiled
+        bounds_inv[anchors], bounds_man[anchors] = inv[anchors], man[anchors]
+        inv, man = bounds_inv, bounds_man
+        take = np.flatnonzero(flags & 2)  # rows
         if len(take):
-            scaled = robot.task_rows(kernel(q[rows[take]]), task)[1]
-            t_inv, t_man, t_flags = lo_inv[take], lo_man[take], flags[take]
-            if own_certificates(scaled, least[take], t_inv, t_man, t_flags, (threshold, level, level_man, scale)):
-                lo_inv[take], lo_man[take] = t_inv, t_man
+            scaled = robot.task_rows(kernel(q[take]), task)[1]
+            t_inv, t_man, t_flags = inv[take], man[take], flags[take]
+            least = least_of[np.searchsorted(bounds_of, take) - 1]
+            if own_certificates(scaled, least, t_inv, t_man, t_flags, (threshold, level, level_man, scale)):
+                inv[take], man[take] = t_inv, t_man
                 take = take[(t_flags & 2) != 0]
-            pending = rows[take]  # measured below, with the bracketed anchors left open
+            pending = take  # measured below, with the bracketed anchors left open
     else:
+        right = np.searchsorted(ends, rows)
+        left, right = ends[right - 1], ends[right]  # the anchors on either side of each row
+        least = least_of[np.searchsorted(bounds_of, rows) - 1]  # of each row's stretch
+        lo_inv, lo_man = np.zeros(len(rows)), np.zeros(len(rows))
+        below = np.zeros(len(rows), dtype=bool)  # shown below the threshold
         if change is not None:
             rho, angular, raw_angular = change
             if divisor is not None:
@@ -817,10 +821,11 @@ def bounded_conditioning(
         shown = ((loose_low > level) | dip) & (loose_man > level_man)
         inv[loose[shown]], man[loose[shown]] = loose_low[shown], loose_man[shown]
         pending = np.concatenate([pending, loose[~shown]])
+    if compiled is None:
+        free = ~exact[rows]
+        inv[rows[free]], man[rows[free]] = lo_inv[free], lo_man[free]
     if len(pending):
         measure(pending)
-    free = ~exact[rows]
-    inv[rows[free]], man[rows[free]] = lo_inv[free], lo_man[free]
     return inv, man
 
 
