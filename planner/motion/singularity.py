@@ -137,7 +137,13 @@ class SingularityReport:
 
 
 def _sample_times(trajectory: JointTrajectory, rate: float) -> np.ndarray:
-    return np.unique(np.concatenate([trajectory.times(rate), trajectory.waypoint_times]))
+    """The times at `rate` and the waypoint instants, sorted, each once (``np.unique`` of both, without its sort)."""
+    t, w = trajectory.times(rate), np.unique(trajectory.waypoint_times)
+    at = np.searchsorted(t, w)
+    new = np.ones(len(w), dtype=bool)
+    inside = at < len(t)
+    new[inside] = t[at[inside]] != w[inside]
+    return np.insert(t, at[new], w[new]) if new.any() else t
 
 
 def _intervals(t: np.ndarray, low: np.ndarray) -> tuple[tuple[float, float], ...]:
@@ -611,17 +617,22 @@ def bounded_conditioning(
     # values, or of the raw Jacobian's: its bound is on the matrix it is computed from.
     divisor = robot.manipulability_divisor(task)
     scale = 1.0 if divisor is None else 1.0 / divisor
-    raw_all, scaled_all = _RowStore(n, (m_rows, dof)), _RowStore(n, (m_rows, dof))
+    scaled_all = _RowStore(n, (m_rows, dof))
     inv, man = np.empty(n), np.empty(n)
-    s_inv, s_man = _RowStore(n, (k,)), _RowStore(n, (k,))  # singular values at the exact rows
+    # The singular values at the exact rows (the manipulability's are the scaled Jacobian's
+    # where a fixed divisor relates them: one store).
+    s_inv = _RowStore(n, (k,))
+    s_man = s_inv if divisor is not None else _RowStore(n, (k,))
     exact = np.zeros(n, dtype=bool)
 
     def measure(idx: np.ndarray, raw: np.ndarray | None = None, scaled: np.ndarray | None = None) -> None:
         if raw is None or scaled is None:
             raw, scaled = robot.task_jacobians(q[idx], task)
-        raw_all[idx], scaled_all[idx] = raw, scaled
+        scaled_all[idx] = scaled
         values = robot.task_singular_values(raw, scaled, task)
-        s_inv[idx], s_man[idx] = values
+        s_inv[idx] = values[0]
+        if s_man is not s_inv:
+            s_man[idx] = values[1]
         inv[idx], man[idx] = robot.conditioning_from(*values, task)
         exact[idx] = True
 
