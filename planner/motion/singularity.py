@@ -575,8 +575,10 @@ def bounded_conditioning(
 
     Where step 0 applies and C can be compiled, steps 0 to 3 run in the loops of
     :func:`planner.core.certificates.interval_certificates` and
-    :func:`~planner.core.certificates.own_certificates` (the same bounds; step 0's second
-    differences are taken over each interval alone, as here), and step 2 also bounds the
+    :func:`~planner.core.certificates.own_certificates` (the same bounds, with each row taken
+    at its projection on the line between its anchors instead of at ``lam = (r - left) / (right
+    - left)``: any ``lam`` in [0, 1] gives a bound, and a row on that line, as along a straight
+    joint move however it is timed, is then off it only by rounding), and step 2 also bounds the
     inverse condition number from above where step 0 did not show a row below: the Rayleigh
     quotients of ``J_lam J_lam^T`` at the neighbours' estimated extreme eigenvectors bound its
     smallest eigenvalue from above and its largest from below, and the row's singular values
