@@ -46,8 +46,8 @@ _SOURCE = r"""
    constant the compiler unrolls the small loops. The arithmetic and its order are the same. */
 #define INLINE static inline __attribute__((always_inline))
 
-/* x^k and x^(k/2) for 0 <= x <= 1 by multiplications (and one root for odd k): a few roundings
-   (of the order of k ulp), far below the 1e-9 every bound they enter gives up; cheaper than pow. */
+/* x^k and x^(k/2) for x >= 0 by multiplications (and one root for odd k): a few roundings (of
+   the order of k ulp), far below the 1e-9 every bound they enter gives up; cheaper than pow. */
 INLINE double int_power(double x, long k) {
     double r = 1.0;
     for (long i = 0; i < k; ++i) r *= x;
@@ -58,6 +58,29 @@ INLINE double half_power(double x, long k) {
     double r = (k & 1) ? sqrt(x) : 1.0;
     for (long i = 0; i < k / 2; ++i) r *= x;
     return r;
+}
+
+/* A lower bound of det(M - c I) = prod(mu_i - c) over the symmetric k x k matrices M whose
+   eigenvalues mu_i lie in [m2, T] and whose determinant is at least P (0 unless c < m2). The
+   product grows with each mu_i: least where prod(mu_i) = P, raised to m2^k (and at most T^k);
+   in x_i = log(mu_i) it is the sum of the concave log(e^x - c) over the polytope sum(x_i) =
+   log(P), x_i in [log(m2), log(T)], so least at a vertex: j of the mu_i at m2, k - 1 - j at T
+   and one between (for j where that one is at most T; one below m2 is taken at m2, a point of
+   product above P: no lower than the least). */
+INLINE double shifted_det(long k, double m2, double T, double P, double c) {
+    if (!(m2 > c)) return 0.0;
+    double low = int_power(m2, k), high = int_power(T, k);
+    P = P > low ? P : low;
+    P = P < high ? P : high;
+    double least = INFINITY;
+    for (long j = 0; j < k; ++j) {
+        double mu = P / (int_power(m2, j) * int_power(T, k - 1 - j));
+        if (!(mu <= T * (1.0 + 1e-12))) continue; /* no vertex with j at m2 */
+        mu = mu < m2 ? m2 : (mu > T ? T : mu);
+        double v = int_power(m2 - c, j) * int_power(T - c, k - 1 - j) * (mu - c);
+        least = v < least ? v : least;
+    }
+    return least < INFINITY ? least : int_power(m2 - c, k);
 }
 
 /* Cholesky factor L (row-major, lower) of g - (shift + 1e-12 tr g) I and its pivots; 1 if all > 0. */
@@ -463,10 +486,9 @@ INLINE void interval_certificates_of(long n, long dof, long m, const double *q, 
         double inv0 = (sigma - err > 0.0 ? sigma - err : 0.0) / (top + margin + err);
         double shift = smallest > 0.0 ? 1.0 - margin / (smallest + margin) : 0.0;
         shift = int_power(shift > 0.0 ? shift : 0.0, k);
-        double product = (ea[2] < eb[2] ? ea[2] : eb[2]) * shift;
-        double det_factor = m2 > c ? half_power(1.0 - c / m2 > 0.0 ? 1.0 - c / m2 : 0.0, k) : 0.0;
+        double product = (ea[2] < eb[2] ? ea[2] : eb[2]) * shift, high = top + margin;
         double shrink = sigma > err ? int_power(1.0 - err / sigma > 0.0 ? 1.0 - err / sigma : 0.0, k) : 0.0;
-        double man0 = product * det_factor * shrink;
+        double man0 = sqrt(shifted_det(k, m2, high * high, product * product, c)) * shrink;
         double top_low = 0.5 * (ea[4] + eb[4] - d) - margin - err;
         double upper = top_low > 0.0 ? (0.5 * (ea[3] + eb[3] + d) + margin + err) / top_low * (1.0 + 1e-9) : INFINITY;
         int below = upper < threshold;

@@ -454,8 +454,11 @@ def _interval_bounds(
     at most ``c = d^2 / 4`` times the identity. The smallest eigenvalue is concave, so that of
     ``G(lam)`` is at least ``m2 - c`` with ``m2`` the smaller of the ends' smallest squared
     singular values; the largest singular value is convex along the line, at most the larger
-    end's. The determinant is log-concave, so ``det G(lam) >= min(det G_left, det G_right)
-    (1 - c / m2)^k``. Each row is within ``e`` of ``J_lam`` (:func:`_interpolation_error`, here
+    end's. The determinant is log-concave, so ``M = (1 - lam) G_left + lam G_right`` has
+    ``det M >= min(det G_left, det G_right)``, its eigenvalues between ``m2`` and the larger
+    end's largest, and ``det G(lam) >= det(M - c I)``, bounded below over every such ``M`` by
+    :func:`_shifted_det` (at least ``min(det G_left, det G_right) (1 - c / m2)^k``: only the
+    eigenvalues near ``m2`` lose much). Each row is within ``e`` of ``J_lam`` (:func:`_interpolation_error`, here
     with ``lam (1 - lam) <= 1 / 4`` and a bound of the rows' deviation from the straight line
     between the ends: ``h L^2 / 8`` for ``L`` steps whose second differences are at most ``h``);
     by Weyl's inequality its singular values are within ``e`` of ``J_lam``'s: the inverse
@@ -507,9 +510,9 @@ def _interval_bounds(
         # prod(s_i - margin) >= prod(s_i) (1 - margin / s_min)^k.
         shift = np.where(smallest > 0.0, np.maximum(1.0 - margin / (smallest + margin), 0.0), 0.0) ** k
         product = np.minimum(s.product[a], s.product[b]) * shift
-        det_factor = np.where(m2 > c, np.maximum(1.0 - c / m2, 0.0), 0.0) ** (0.5 * k)
+        high = top + margin
         shrink = np.where(sigma > err, np.maximum(1.0 - err / sigma, 0.0), 0.0) ** k
-    man = product * det_factor * shrink
+        man = np.sqrt(_shifted_det(k, m2, high * high, product * product, c)) * shrink
     # From above: s_min(J_lam) <= min(s_min(a) + lam d, s_min(b) + (1 - lam) d) <= (s_min(a) +
     # s_min(b) + d) / 2 and s_max(J_lam) >= (s_max(a) + s_max(b) - d) / 2 (Weyl), each moved by e.
     with np.errstate(divide="ignore", invalid="ignore"):
@@ -518,6 +521,31 @@ def _interval_bounds(
     upper = np.where(top_low > 0.0, upper, np.inf)
     counts = np.diff(np.append(starts, len(rows)))
     return np.repeat(inv, counts), np.repeat(man, counts), np.repeat(upper, counts)
+
+
+def _shifted_det(k: int, m2: np.ndarray, top: np.ndarray, product: np.ndarray, c: np.ndarray) -> np.ndarray:
+    """A lower bound of ``det(M - c I)`` over symmetric ``M`` with eigenvalues in ``[m2, top]``, ``det M >= product``.
+
+    ``det(M - c I) = prod(mu_i - c)`` grows with each eigenvalue ``mu_i``: it is least where
+    ``prod(mu_i)`` is `product` (raised to ``m2^k``, at most ``top^k``); in ``x_i = log(mu_i)``
+    it is the sum of the concave ``log(e^x - c)`` over the polytope ``sum(x_i) = log(product)``,
+    ``x_i`` in ``[log(m2), log(top)]``, so least at a vertex: ``j`` eigenvalues at ``m2``,
+    ``k - 1 - j`` at `top` and one between (for each ``j`` where that one is at most `top`; one
+    below ``m2`` is taken at ``m2``, a point of larger product: no lower than the least). 0 where
+    ``c >= m2``. The same arithmetic as the compiled ``shifted_det`` of
+    :mod:`planner.core.certificates`; all arrays of one shape.
+    """
+    product = np.minimum(np.maximum(product, m2**k), top**k)
+    least = np.full(np.shape(m2), np.inf)
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+        for j in range(k):
+            mu = product / (m2**j * top ** (k - 1 - j))
+            vertex = mu <= top * (1.0 + 1e-12)
+            mu = np.minimum(np.maximum(mu, m2), top)
+            value = (m2 - c) ** j * (top - c) ** (k - 1 - j) * (mu - c)
+            least = np.where(vertex, np.minimum(least, value), least)
+    least = np.where(np.isfinite(least), least, (m2 - c) ** k)
+    return np.where(m2 > c, least, 0.0)
 
 
 def bounded_conditioning(
