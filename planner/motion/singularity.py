@@ -559,7 +559,9 @@ def bounded_conditioning(
     an anchor's extreme singular values and the product of all of them are bracketed from its
     Gram matrix (:func:`_extreme_bounds`, and the pivots of
     ``G + 1e-12 tr(G) I`` for the product from above), and it is measured exactly only where
-    that does not show it as below. `keep` cuts the rows into stretches (ends included). Every
+    that does not show it as below (there the rows `keep` are bracketed first as well, and
+    measured at the end with the rows left open, in one batch). `keep` cuts the rows into
+    stretches (ends included). Every
     other row is then shown either above the threshold and above an upper bound of an anchor's
     value (inverse condition number), or below the threshold and above such a bound in its
     stretch, and in both cases its manipulability above an upper bound of an anchor's; or else
@@ -676,13 +678,19 @@ def bounded_conditioning(
     is_anchor[:: BRACKETED_SPACING if bracketed else ANCHOR_SPACING] = True
     is_anchor[bounds_of] = True
     anchors = np.flatnonzero(is_anchor)
-    if bracketed:
+    # Bracketed, the rows `keep` too (measured exactly with the rows left open, in one batch),
+    # where there are rows between the anchors.
+    deferred = bracketed and len(anchors) < n
+    if deferred:
+        loose = anchors
+    elif bracketed:
         is_loose = is_anchor.copy()
         is_loose[bounds_of] = False
         loose = np.flatnonzero(is_loose)
     else:
         loose = anchors[:0]
-    measure(bounds_of if bracketed else anchors)  # the anchors not in `loose`
+    if not deferred:
+        measure(bounds_of if bracketed else anchors)  # the anchors not in `loose`
     ends_at = _Ends.exact(s_inv, n, np.nonzero(exact)[0])
     value_up = inv.copy()  # at the anchors: an upper bound of the inverse condition number
     if len(loose):
@@ -710,7 +718,9 @@ def bounded_conditioning(
         return inv, man
     # Every row shown above these is above an exact value (the final minimum is no larger).
     level = max(threshold, float(np.min(value_up[anchors])))
-    level_man = min(float(np.min(man[exact])), float(np.min(man_up, initial=np.inf)) if len(loose) else np.inf)
+    level_man = min(
+        float(np.min(man[exact], initial=np.inf)), float(np.min(man_up, initial=np.inf)) if len(loose) else np.inf
+    )
     lifted = level * (1.0 + 1e-9)  # what a certificate shows the rows to be above
     ends = anchors
     # The stretches between the rows `keep`: the smallest exact value in each (ends included),
@@ -860,6 +870,8 @@ def bounded_conditioning(
         loose_man = ends_at.product[loose] * (scale * (1.0 - 1e-9))
         dip = (value_up[loose] < threshold) & (loose_low > least_of[np.searchsorted(bounds_of, loose) - 1])
         shown = ((loose_low > level) | dip) & (loose_man > level_man)
+        if deferred:
+            shown[np.searchsorted(loose, bounds_of)] = False  # the rows `keep`: measured
         inv[loose[shown]], man[loose[shown]] = loose_low[shown], loose_man[shown]
         pending = np.concatenate([pending, loose[~shown]])
     if compiled is None:
