@@ -1049,17 +1049,28 @@ def check_trajectory(
     """
     # The limits hold to LIMIT_TOLERANCE; the bound takes a little more.
     vmax = np.asarray(trajectory.limits.velocity) * (1.0 + 1e-6)
-    # The trajectory's pieces, evaluated here one time at a time (JointTrajectory.sample's
-    # polynomial without its checks and array bookkeeping).
-    knots = np.asarray(trajectory.knots, dtype=float).tolist()
-    # Per piece its rows (a list of rows is faster to index than the arrays).
-    p, v, a, j = trajectory.p, trajectory.v, trajectory.a, trajectory.j
-    p, v, half_a, sixth_j = (list(x) for x in (p, v, a / 2.0, j / 6.0))
     duration, last = float(trajectory.duration), np.asarray(trajectory.waypoints[-1], dtype=float)
+    # The trajectory's pieces, evaluated here one time at a time (JointTrajectory.sample's
+    # polynomial without its checks and array bookkeeping); made at the first call (with the
+    # compiled steps, which sample the trajectory themselves, only the first check's and the
+    # closest bounding pair's configurations are taken from here).
+    pieces: list = []
+    # At 0 (the first check), piece 0 at its start: p + 0 (v + ...) is p (with -0.0 as +0.0).
+    start = (
+        np.asarray(trajectory.p[0], dtype=float) + 0.0 if len(trajectory.knots) and trajectory.knots[0] == 0.0 else None
+    )
 
     def sample(t: float) -> tuple[np.ndarray, float]:
         if t >= duration:
             return last, t
+        if t == 0.0 and start is not None:
+            return start, t
+        if not pieces:
+            # Per piece its rows (a list of rows is faster to index than the arrays).
+            a, j = trajectory.a, trajectory.j
+            pieces.extend([np.asarray(trajectory.knots, dtype=float).tolist()])
+            pieces.extend(list(x) for x in (trajectory.p, trajectory.v, a / 2.0, j / 6.0))
+        knots, p, v, half_a, sixth_j = pieces
         i = max(bisect.bisect_right(knots, t) - 1, 0)
         dt = t - knots[i]
         return p[i] + dt * (v[i] + dt * (half_a[i] + dt * sixth_j[i])), t
@@ -1073,7 +1084,7 @@ def check_trajectory(
         # Joint j's position at t is within its travel from 0 to t of the start and within the
         # rest of the travel of the end: between (q_0 + q_end -+ C_j) / 2, C_j its total travel
         # (the ends' values exactly where the joint moves one way).
-        mid = (np.asarray(p[0], dtype=float) + last) / 2.0
+        mid = (np.asarray(trajectory.p[0], dtype=float) + last) / 2.0
         apart = _apart(checker, mid - travel / 2.0, mid + travel / 2.0, checker.scene.clearance)
     return _advance(
         checker,
