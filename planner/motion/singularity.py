@@ -691,11 +691,13 @@ def bounded_conditioning(
         loose = anchors[:0]
     if not deferred:
         measure(bounds_of if bracketed else anchors)  # the anchors not in `loose`
-    ends_at = _Ends.exact(s_inv, n, np.nonzero(exact)[0])
+    # Deferred, every anchor is bracketed below (no exact row yet): only the anchors' entries are read.
+    ends_at = _Ends(*(np.empty(n) for _ in range(5))) if deferred else _Ends.exact(s_inv, n, np.nonzero(exact)[0])
     value_up = inv.copy()  # at the anchors: an upper bound of the inverse condition number
-    if len(loose):
-        scaled_all[loose] = robot.task_rows(kernel(q[loose]), task)[1]
-    bracketed_anchors = anchor_bounds(scaled_all[loose], scale) if len(loose) else None
+    scaled_loose = robot.task_rows(kernel(q[loose]), task)[1] if len(loose) else None
+    if scaled_loose is not None:
+        scaled_all[loose] = scaled_loose
+    bracketed_anchors = anchor_bounds(scaled_loose, scale) if scaled_loose is not None else None
     if bracketed_anchors is not None:
         top, bottom, product, min_up, max_low, loose_low, value_up[loose], man_up = bracketed_anchors.T
         ends_at.top[loose], ends_at.bottom[loose], ends_at.product[loose] = top, bottom, product
@@ -770,12 +772,15 @@ def bounded_conditioning(
     compiled, pending = None, rows[:0]
     if bracketed:
         rho, angular, _ = change
-        anchor_ends = np.stack([values[anchors] for values in (*ends_at, value_up)], axis=1)
+        if deferred and bracketed_anchors is not None:
+            # The anchors are the bracketed rows, in order: their bounds as anchor_bounds gave them.
+            anchor_ends, anchor_scaled = bracketed_anchors[:, [0, 1, 2, 3, 4, 6]], scaled_loose
+        else:
+            anchor_ends = np.stack([values[anchors] for values in (*ends_at, value_up)], axis=1)
+            anchor_scaled = scaled_all[anchors]
         of_interval = np.minimum(np.searchsorted(bounds_of, anchors[:-1], side="right") - 1, len(least_of) - 1)
         params = (angular, threshold, level, lifted, level_man, scale)
-        compiled = interval_certificates(
-            q, anchors, scaled_all[anchors], anchor_ends, least_of[of_interval], rho, params
-        )
+        compiled = interval_certificates(q, anchors, anchor_scaled, anchor_ends, least_of[of_interval], rho, params)
     if compiled is not None:
         # Steps 0 to 3 in compiled loops (planner.core.certificates), the same bounds. Their
         # arrays (n,) hold the rows' bounds (flags 0 at the anchors): they become the measure,
