@@ -84,3 +84,65 @@ def test_a_pair_beyond_its_floor_is_left_out():
     checker.use_floors(np.full(checker.pair_count, 0.02))
     assert not any(checker.closer_than(0.01)(x) for x in touching)
     assert all(checker.closer_than(0.03)(x) for x in touching)
+
+
+def _computed_pairs(checker: CollisionChecker, run) -> tuple[object, set[int]]:
+    """`run()`'s result and the pairs whose distance it computed (both ways the checker computes them)."""
+    seen: set[int] = set()
+    placed, every = checker.placed_distances, checker.pair_distances
+
+    def spy_placed(pairs):
+        seen.update(np.asarray(pairs).tolist())
+        return placed(pairs)
+
+    def spy_every(q, mask):
+        seen.update(np.flatnonzero(mask).tolist())
+        return every(q, mask)
+
+    with pytest.MonkeyPatch.context() as patch:
+        patch.setattr(checker, "placed_distances", spy_placed)
+        patch.setattr(checker, "pair_distances", spy_every)
+        return run(), seen
+
+
+@pytest.mark.parametrize("name", ["al5c", "dh3"])
+def test_motion_checks_leave_out_pairs_beyond_their_floors(name):
+    """check_trajectory and check_segment compute no pair whose floor is beyond the clearance, and keep their verdicts.
+
+    Only while the motion stays within the joint limits (where the floors hold): with the limits
+    narrowed so that it leaves them, every pair is computed again.
+    """
+    from planner.collision.continuous import check_segment, check_trajectory
+    from planner.motion.limits import JointLimits
+    from planner.motion.plan import plan_trajectory
+
+    robot = load_robot(name)
+    scene = parse_scene({"floor": 0.0})
+    limits = JointLimits.from_robot(robot)
+    rng = np.random.default_rng(5)
+    left_out = 0
+    for _ in range(12):
+        qa, qb = robot.random_configurations(rng, 2)
+        traj = plan_trajectory(np.array([qa, qb]), limits)
+        plain, with_floors = CollisionChecker(robot, scene), floored(CollisionChecker(robot, scene))
+        apart = set(np.flatnonzero(with_floors.floors > scene.clearance).tolist())
+        assert apart  # these arms have pairs that never come within the clearance
+        for check in (
+            lambda c, traj=traj: check_trajectory(c, traj, stop_at_first=False),
+            lambda c, qa=qa, qb=qb: check_segment(c, qa, qb, stop_at_first=False),
+        ):
+            a = check(plain)
+            b, computed = _computed_pairs(with_floors, lambda check=check, c=with_floors: check(c))
+            assert a.clear == b.clear and (a.first_hit is None) == (b.first_hit is None)
+            assert not computed & apart
+            left_out += 1
+    assert left_out
+    # Limits narrowed to the segment's middle: the motion leaves them, the floors do not hold.
+    qa, qb = robot.random_configurations(np.random.default_rng(6), 2)
+    narrow = floored(CollisionChecker(robot, scene))
+    mid = (qa + qb) / 2.0
+    with pytest.MonkeyPatch.context() as patch:
+        patch.setattr(type(robot), "lower", property(lambda self: mid - 1e-6))
+        patch.setattr(type(robot), "upper", property(lambda self: mid + 1e-6))
+        _, computed = _computed_pairs(narrow, lambda: check_segment(narrow, qa, qb, stop_at_first=False))
+    assert set(np.flatnonzero(narrow.floors > scene.clearance).tolist()) <= computed

@@ -41,9 +41,13 @@ the objects one joint carries (a hand and its fingers,
 :class:`~planner.collision.checker.BoundingPairs`) is no farther from an object than any of
 them, and moves no faster than the fastest of them (the largest of their ``r_j``): while it
 keeps :data:`BOUND_MARGIN` beyond the clearance, its steps hold for all its member pairs,
-which are not computed. The steps and bookkeeping after each check (and the trajectory's
-grid) run in a small compiled loop (:mod:`planner.core.native`) where a C compiler is found;
-NumPy does the same arithmetic otherwise.
+which are not computed. Pairs whose floor (:func:`pair_floors`, where the checker has them) is
+beyond the clearance are not computed at all while the motion stays within the joint limits
+(a straight segment between two configurations within them; a timed trajectory whose joints'
+travel keeps them there): they cannot come closer anywhere there. The steps and bookkeeping
+after each check (and the trajectory's grid) run in a small compiled loop
+(:mod:`planner.core.native`) where a C compiler is found; NumPy does the same arithmetic
+otherwise.
 
 A second bound (the *near-body* bound) serves a small body ``A`` close to the joints that
 move a long body ``B`` below it (a base beside a long upper arm): the first bound must let
@@ -106,7 +110,8 @@ class MotionClearance:
     Attributes:
         clear: Whether every check kept the clearance (so, by the step bound, the whole
             motion keeps ``clearance - tolerance``).
-        closest: The closest pair found, at :attr:`where`.
+        closest: The closest pair found, at :attr:`where` (among the pairs computed: not those
+            left out by their floors, which keep farther than the clearance throughout).
         where: Time [s] (or path parameter in [0, 1]) of the closest check.
         first_hit: Time (or parameter) of the first check below the clearance, or None.
         hit: The pair at :attr:`first_hit` (the bodies and the depth), or None.
@@ -483,6 +488,22 @@ def floored(checker: CollisionChecker) -> CollisionChecker:
     return checker
 
 
+def _apart(checker: CollisionChecker, low: np.ndarray, high: np.ndarray, clearance: float) -> np.ndarray | None:
+    """The pairs whose floor (:func:`pair_floors`, where the checker has them) is beyond `clearance`, or None.
+
+    Only where the motion stays within the joint limits the floors hold in: every joint between
+    `low` and `high` (bounds of its positions along the motion) within its range.
+    """
+    floors = checker.floors
+    if floors is None:
+        return None
+    robot = checker.robot
+    if not (np.all(low >= robot.lower) and np.all(high <= robot.upper)):
+        return None
+    apart = floors > clearance
+    return apart if apart.any() else None
+
+
 def _pair_floor(robot, model, data, geom, gdata, k, weights, base, lower, upper, turns, objects) -> float:
     """:func:`pair_floors` of pair `k`: the branch and bound over the joints it depends on."""
     joints = np.flatnonzero(weights > 0.0)
@@ -734,6 +755,7 @@ def _advance(
     clearance: float | None,
     native: Callable | None = None,
     bounds: BoundingPairs | None = None,
+    apart: np.ndarray | None = None,
 ) -> MotionClearance:
     """Conservative advancement pair by pair: `sample` gives q and a speed state, `steps` each due pair's step.
 
@@ -748,6 +770,10 @@ def _advance(
     not computed (a member's distance is at least its bounding pair's, so the bounding pair's
     steps hold for it). Where one comes closer its members are computed from then on, and it
     is tried again when its distance could have grown back.
+
+    `apart` (a mask of pairs, or None) marks pairs that cannot come within the clearance
+    anywhere on the motion (:func:`_apart`): they are never computed, nor handed back by a
+    bounding pair, which is left off where all its members are apart.
     """
     if not (tolerance > 0 and np.isfinite(tolerance)):
         raise InvalidArgumentError(f"tolerance must be a positive distance [m], got {tolerance!r}")
@@ -757,6 +783,13 @@ def _advance(
     n_bounds = len(bounds) if bounds is not None else 0
     members = bounds.members if bounds is not None else []
     firsts = np.array([m[0] for m in members], dtype=int)
+    live = np.ones(n_bounds, dtype=bool)
+    if apart is not None and apart.any():
+        masks = [(x_from, mask & ~apart) for x_from, mask in masks]
+        members = [m[~apart[m]] for m in members]
+        live = np.array([len(m) > 0 for m in members], dtype=bool)
+        # A bounding pair is on with its members (those of one share their scene body's allowance).
+        firsts = np.array([m[0] if len(m) else 0 for m in members], dtype=int)
     threshold = c + BOUND_MARGIN
     # Per pair, the x up to which it is certified, and from which it is computed with the
     # pairs due then (halfway through its last step: one more pair costs far less than one
@@ -782,7 +815,7 @@ def _advance(
             k_mask += 1
             due = None
             was, mask = (None if k_mask == 0 else masks[k_mask - 1][1]), masks[k_mask][1]
-            full = np.concatenate([mask, mask[firsts]])  # a bounding pair is on with its members
+            full = np.concatenate([mask, mask[firsts] & live])  # a bounding pair is on with its members
             on = full if was is None else full & ~np.concatenate([was, was[firsts]])
             until[on], early[on] = -np.inf, -np.inf
             until[~full], early[~full] = np.inf, np.inf
@@ -798,7 +831,7 @@ def _advance(
             q, speed = (q_next, x) if q_next is not None else sample(x)
             if n_bounds:
                 d, d_bounds, due, due_bounds, x_best = _check_bounds(
-                    checker, bounds, q, due, until, early, covered, standing, threshold, c, tolerance
+                    checker, bounds, members, q, due, until, early, covered, standing, threshold, c, tolerance
                 )
                 if x_best is not None and x_best[0] < best_bound[0]:
                     best_bound = (x_best[0], x, x_best[1])
@@ -870,6 +903,7 @@ _NONE, _NONE_DUE = np.zeros(0), np.zeros(0, dtype=int)
 def _check_bounds(
     checker: CollisionChecker,
     bounds: BoundingPairs,
+    members: Sequence[np.ndarray],
     q: np.ndarray,
     due: np.ndarray,
     until: np.ndarray,
@@ -885,6 +919,7 @@ def _check_bounds(
     A bounding pair at least `threshold` away stands for its members (they are taken off the
     schedule); one closer hands them back (due now) and is tried again when its distance could
     have grown to `threshold` (its distance is passed on as the one that gives that room).
+    `members`: per bounding pair, the member pairs it stands for (those not apart).
     Returns the pairs' distances, the bounding pairs' (as passed on), the pairs computed, the
     bounding pairs (indices past the pairs) and the closest bounding pair (distance, index).
     """
@@ -901,7 +936,7 @@ def _check_bounds(
     changed = far != standing[local]
     if True in changed.tolist():  # a handful of bounding pairs: faster than changed.any()
         for k, ok in zip(local[changed].tolist(), far[changed].tolist()):
-            pairs = bounds.members[k]
+            pairs = members[k]
             standing[k] = covered[pairs] = ok
             until[pairs] = early[pairs] = np.inf if ok else -np.inf
             if not ok:
@@ -932,6 +967,9 @@ def check_segment(
     q0, q1 = np.asarray(q_start, dtype=float), np.asarray(q_end, dtype=float)
     dq = q1 - q0
     speed = np.abs(dq)
+    c = checker.scene.clearance if clearance is None else float(clearance)
+    # The segment stays in the box its ends span (the floors' pairs are left out within the limits).
+    apart = _apart(checker, np.minimum(q0, q1), np.maximum(q0, q1), c)
     return _advance(
         checker,
         lambda s: (q0 + s * dq, speed),
@@ -941,6 +979,7 @@ def check_segment(
         tolerance,
         stop_at_first,
         clearance,
+        apart=apart,
     )
 
 
@@ -1010,17 +1049,28 @@ def check_trajectory(
     """
     # The limits hold to LIMIT_TOLERANCE; the bound takes a little more.
     vmax = np.asarray(trajectory.limits.velocity) * (1.0 + 1e-6)
-    # The trajectory's pieces, evaluated here one time at a time (JointTrajectory.sample's
-    # polynomial without its checks and array bookkeeping).
-    knots = np.asarray(trajectory.knots, dtype=float).tolist()
-    # Per piece its rows (a list of rows is faster to index than the arrays).
-    p, v, a, j = trajectory.p, trajectory.v, trajectory.a, trajectory.j
-    p, v, half_a, sixth_j = (list(x) for x in (p, v, a / 2.0, j / 6.0))
     duration, last = float(trajectory.duration), np.asarray(trajectory.waypoints[-1], dtype=float)
+    # The trajectory's pieces, evaluated here one time at a time (JointTrajectory.sample's
+    # polynomial without its checks and array bookkeeping); made at the first call (with the
+    # compiled steps, which sample the trajectory themselves, only the first check's and the
+    # closest bounding pair's configurations are taken from here).
+    pieces: list = []
+    # At 0 (the first check), piece 0 at its start: p + 0 (v + ...) is p (with -0.0 as +0.0).
+    start = (
+        np.asarray(trajectory.p[0], dtype=float) + 0.0 if len(trajectory.knots) and trajectory.knots[0] == 0.0 else None
+    )
 
     def sample(t: float) -> tuple[np.ndarray, float]:
         if t >= duration:
             return last, t
+        if t == 0.0 and start is not None:
+            return start, t
+        if not pieces:
+            # Per piece its rows (a list of rows is faster to index than the arrays).
+            a, j = trajectory.a, trajectory.j
+            pieces.extend([np.asarray(trajectory.knots, dtype=float).tolist()])
+            pieces.extend(list(x) for x in (trajectory.p, trajectory.v, a / 2.0, j / 6.0))
+        knots, p, v, half_a, sixth_j = pieces
         i = max(bisect.bisect_right(knots, t) - 1, 0)
         dt = t - knots[i]
         return p[i] + dt * (v[i] + dt * (half_a[i] + dt * sixth_j[i])), t
@@ -1028,6 +1078,14 @@ def check_trajectory(
     masks = [(0.0, checker.pair_mask())] + [(float(t), checker.pair_mask(names)) for t, names in allow]
     masks.sort(key=lambda m: m[0])
     steps = _trajectory_steps(checker, trajectory, last, vmax, max(checker.scene.clearance - tolerance, 0.0))
+    apart = None
+    travel = getattr(steps, "travel", None)
+    if travel is not None and checker.floors is not None:
+        # Joint j's position at t is within its travel from 0 to t of the start and within the
+        # rest of the travel of the end: between (q_0 + q_end -+ C_j) / 2, C_j its total travel
+        # (the ends' values exactly where the joint moves one way).
+        mid = (np.asarray(trajectory.p[0], dtype=float) + last) / 2.0
+        apart = _apart(checker, mid - travel / 2.0, mid + travel / 2.0, checker.scene.clearance)
     return _advance(
         checker,
         sample,
@@ -1039,6 +1097,7 @@ def check_trajectory(
         None,
         getattr(steps, "native", None),
         checker.bounding_pairs(),
+        apart,
     )
 
 
@@ -1299,6 +1358,7 @@ def _trajectory_steps(
         arrays = (c, top, t, ordered, flags)
         native = _NativeSteps(lib, arrays, addresses, g, c.shape[1], slack, len(useful), trajectory, last)
         steps.native = native  # type: ignore[attr-defined]
+    steps.travel = c[-1]  # type: ignore[attr-defined]  # each joint's total travel (from above)
     return steps
 
 

@@ -46,6 +46,43 @@ _SOURCE = r"""
    constant the compiler unrolls the small loops. The arithmetic and its order are the same. */
 #define INLINE static inline __attribute__((always_inline))
 
+/* x^k and x^(k/2) for x >= 0 by multiplications (and one root for odd k): a few roundings (of
+   the order of k ulp), far below the 1e-9 every bound they enter gives up; cheaper than pow. */
+INLINE double int_power(double x, long k) {
+    double r = 1.0;
+    for (long i = 0; i < k; ++i) r *= x;
+    return r;
+}
+
+INLINE double half_power(double x, long k) {
+    double r = (k & 1) ? sqrt(x) : 1.0;
+    for (long i = 0; i < k / 2; ++i) r *= x;
+    return r;
+}
+
+/* A lower bound of det(M - c I) = prod(mu_i - c) over the symmetric k x k matrices M whose
+   eigenvalues mu_i lie in [m2, T] and whose determinant is at least P (0 unless c < m2). The
+   product grows with each mu_i: least where prod(mu_i) = P, raised to m2^k (and at most T^k);
+   in x_i = log(mu_i) it is the sum of the concave log(e^x - c) over the polytope sum(x_i) =
+   log(P), x_i in [log(m2), log(T)], so least at a vertex: j of the mu_i at m2, k - 1 - j at T
+   and one between (for j where that one is at most T; one below m2 is taken at m2, a point of
+   product above P: no lower than the least). */
+INLINE double shifted_det(long k, double m2, double T, double P, double c) {
+    if (!(m2 > c)) return 0.0;
+    double low = int_power(m2, k), high = int_power(T, k);
+    P = P > low ? P : low;
+    P = P < high ? P : high;
+    double least = INFINITY;
+    for (long j = 0; j < k; ++j) {
+        double mu = P / (int_power(m2, j) * int_power(T, k - 1 - j));
+        if (!(mu <= T * (1.0 + 1e-12))) continue; /* no vertex with j at m2 */
+        mu = mu < m2 ? m2 : (mu > T ? T : mu);
+        double v = int_power(m2 - c, j) * int_power(T - c, k - 1 - j) * (mu - c);
+        least = v < least ? v : least;
+    }
+    return least < INFINITY ? least : int_power(m2 - c, k);
+}
+
 /* Cholesky factor L (row-major, lower) of g - (shift + 1e-12 tr g) I and its pivots; 1 if all > 0. */
 INLINE int factor(long k, const double *g, double shift, double *L, double *piv) {
     double tr = 0.0;
@@ -314,7 +351,7 @@ INLINE void certify(long k, const double *G, double lift, double s_up, double e,
     *li = *li > lift ? *li : lift;
     double ratio = floor > 0.0 ? e / floor : 0.0; /* s_i - e >= (s_i^2 - f^2)^(1/2) (1 - ratio^2)^(1/2) */
     double loss = 1.0 - ratio * ratio;
-    double got = sqrt(det) * pow(loss > 0.0 ? loss : 0.0, 0.5 * (double)k) * (scale * (1.0 - 1e-9));
+    double got = sqrt(det) * half_power(loss > 0.0 ? loss : 0.0, k) * (scale * (1.0 - 1e-9));
     *lm = *lm > got ? *lm : got;
 }
 
@@ -349,7 +386,7 @@ INLINE double manipulability_alone(long k, const double *G, double e, double inv
     if (!(shift > e * e) || !factor(k, G, shift, L, piv)) return 0.0;
     double det = 1.0;
     for (long i = 0; i < k; ++i) det *= piv[i];
-    return sqrt(det) * pow(1.0 - e * e / shift, 0.5 * (double)k);
+    return sqrt(det) * half_power(1.0 - e * e / shift, k);
 }
 
 /* Unit estimates of the eigenvectors of the smallest and the largest eigenvalue of S S^T (or S^T S):
@@ -380,6 +417,22 @@ INLINE void extreme_vectors(long m, long dof, const double *S, double *low, doub
     power_steps(k, G, high, y, 6);
 }
 
+/* Where row qr lies along the line from qa by u (uu = |u|^2): its projection on it, clamped to
+   [0, 1] (`fallback` where u = 0). Any lam in [0, 1] gives a bound; the projection a small one. */
+INLINE double projection(long dof, const double *qa, const double *qr, const double *u, double uu, double fallback) {
+    if (!(uu > 0.0)) return fallback;
+    double dot = 0.0;
+    for (long i = 0; i < dof; ++i) dot += (qr[i] - qa[i]) * u[i];
+    double lam = dot / uu;
+    return lam < 0.0 ? 0.0 : (lam > 1.0 ? 1.0 : lam);
+}
+
+/* Joint i's distance of row qr from the point qa + lam u, plus the rounding of that difference
+   (a spacing of q at huge angles on continuous joints). */
+INLINE double off_line(const double *qa, const double *qb, const double *qr, const double *u, double lam, long i) {
+    return fabs(qr[i] - (qa[i] + lam * u[i])) + 2.0 * DBL_EPSILON * (fabs(qa[i]) + fabs(qb[i]) + fabs(qr[i]));
+}
+
 /* Steps 0 and 2 of bounded_conditioning over the rows between consecutive anchors.
    ends (na, 6) per anchor: top, bottom, product, min_up, max_low, value_up; least (na - 1) per
    interval; params: angular, threshold, level, lifted, level_man, scale. Per row between anchors:
@@ -390,7 +443,7 @@ INLINE void interval_certificates_of(long n, long dof, long m, const double *q, 
     double angular = params[0], threshold = params[1], level = params[2], lifted = params[3];
     double level_man = params[4], scale = params[5];
     long md = m * dof, k = m < dof ? m : dof;
-    double bend[dof], u[dof], dev[dof], off[dof], J[md], G[64], L[64], piv[8];
+    double u[dof], dev[dof], off[dof], J[md], G[64], L[64], piv[8];
     double va_low[8], va_high[8], vb_low[8], vb_high[8];
     long cached = -1; /* the anchor whose vectors vb_low, vb_high hold */
     long inverse_at = -1; /* the interval whose anchors' tr(G^-1) `inverse` holds */
@@ -402,22 +455,23 @@ INLINE void interval_certificates_of(long n, long dof, long m, const double *q, 
         const double *ea = ends + 6 * j, *eb = ends + 6 * (j + 1);
         const double *Sa = S + j * md, *Sb = S + (j + 1) * md;
         const double *qa = q + a * dof, *qb = q + b * dof;
-        /* Step 0: the rows a..b off the line from q_a to q_b by at most h (b - a)^2 / 8. */
-        for (long i = 0; i < dof; ++i) bend[i] = 0.0;
-        for (long r = a; r + 2 <= b; ++r) {
-            const double *q0 = q + r * dof;
+        /* Step 0: each row r of a..b at its point q_a + lam_r u of the line from q_a to q_b
+           (projection); dev, per joint, the largest distance of a row from its point. */
+        double span = (double)(b - a), uu = 0.0;
+        for (long i = 0; i < dof; ++i) {
+            u[i] = qb[i] - qa[i];
+            uu += u[i] * u[i];
+            dev[i] = 0.0;
+        }
+        for (long r = a + 1; r < b; ++r) {
+            const double *qr = q + r * dof;
+            double lam = projection(dof, qa, qr, u, uu, (double)(r - a) / span);
             for (long i = 0; i < dof; ++i) {
-                /* Plus the rounding of the differences (a spacing of q at huge angles). */
-                double h = fabs((q0[2 * dof + i] - q0[dof + i]) - (q0[dof + i] - q0[i]))
-                           + 2.0 * DBL_EPSILON * (fabs(q0[i]) + 2.0 * fabs(q0[dof + i]) + fabs(q0[2 * dof + i]));
-                if (h > bend[i]) bend[i] = h;
+                double o = off_line(qa, qb, qr, u, lam, i);
+                if (o > dev[i]) dev[i] = o;
             }
         }
-        double span = (double)(b - a);
-        for (long i = 0; i < dof; ++i) {
-            dev[i] = bend[i] * (0.125 * span * span) * (1.0 + 1e-9);
-            u[i] = qb[i] - qa[i];
-        }
+        for (long i = 0; i < dof; ++i) dev[i] *= 1.0 + 1e-9;
         double top = ea[0] > eb[0] ? ea[0] : eb[0];
         double margin = 1e-9 * (top + 1.0);
         double curvature = curvature_bound(dof, u, rho, angular);
@@ -431,11 +485,10 @@ INLINE void interval_certificates_of(long n, long dof, long m, const double *q, 
         double sigma = sqrt(m2 - c > 0.0 ? m2 - c : 0.0);
         double inv0 = (sigma - err > 0.0 ? sigma - err : 0.0) / (top + margin + err);
         double shift = smallest > 0.0 ? 1.0 - margin / (smallest + margin) : 0.0;
-        shift = pow(shift > 0.0 ? shift : 0.0, (double)k);
-        double product = (ea[2] < eb[2] ? ea[2] : eb[2]) * shift;
-        double det_factor = m2 > c ? pow(1.0 - c / m2 > 0.0 ? 1.0 - c / m2 : 0.0, 0.5 * k) : 0.0;
-        double shrink = sigma > err ? pow(1.0 - err / sigma > 0.0 ? 1.0 - err / sigma : 0.0, (double)k) : 0.0;
-        double man0 = product * det_factor * shrink;
+        shift = int_power(shift > 0.0 ? shift : 0.0, k);
+        double product = (ea[2] < eb[2] ? ea[2] : eb[2]) * shift, high = top + margin;
+        double shrink = sigma > err ? int_power(1.0 - err / sigma > 0.0 ? 1.0 - err / sigma : 0.0, k) : 0.0;
+        double man0 = sqrt(shifted_det(k, m2, high * high, product * product, c)) * shrink;
         double top_low = 0.5 * (ea[4] + eb[4] - d) - margin - err;
         double upper = top_low > 0.0 ? (0.5 * (ea[3] + eb[3] + d) + margin + err) / top_low * (1.0 + 1e-9) : INFINITY;
         int below = upper < threshold;
@@ -449,11 +502,9 @@ INLINE void interval_certificates_of(long n, long dof, long m, const double *q, 
             int need_inv = !settled_inv && !hopeless;
             if (!settled_inv || !(lm > level_man)) {
                 /* Step 2: the interpolation of the anchors' Jacobians, up to e. */
-                double lam = (double)(r - a) / span;
                 const double *qr = q + r * dof;
-                for (long i = 0; i < dof; ++i)
-                    off[i] = fabs(qr[i] - (qa[i] + lam * u[i]))
-                             + 2.0 * DBL_EPSILON * (fabs(qa[i]) + fabs(qb[i]) + fabs(qr[i]));
+                double lam = projection(dof, qa, qr, u, uu, (double)(r - a) / span);
+                for (long i = 0; i < dof; ++i) off[i] = off_line(qa, qb, qr, u, lam, i);
                 double e = change_bound(dof, off, rho, angular) + 0.5 * lam * (1.0 - lam) * curvature;
                 double s_lam = (1.0 - lam) * ea[0] + lam * eb[0];
                 e = e * (1.0 + 1e-9) + 1e-9 * (s_lam + 1.0);
@@ -735,7 +786,13 @@ def interval_certificates(
     estimated eigenvectors of their smallest and largest eigenvalues (a few steps of inverse and
     power iteration) bound its extreme eigenvalues from above and from below (any unit vector
     does; ``2e-12 tr`` covers their rounding), and ``e`` more or less those of the row (Weyl):
-    a quotient under the threshold shows the row below it.
+    a quotient under the threshold shows the row below it. Also compiled only: each row is taken
+    at its projection ``lam`` on the line between its anchors (clamped to [0, 1]; the NumPy path
+    takes ``(r - a) / (b - a)``), in step 0's deviation from the line (the rows' largest distance
+    from their points on it, per joint, instead of the second differences' bound) and in step 2's
+    interpolation: any ``lam`` in [0, 1] gives the bounds, and a row on the line (a straight
+    joint move, however it is timed) is then off it only by rounding, where the row's fraction of
+    the interval is off it by as much as the timing bends (a move's slow start and end).
 
     Args:
         q: Configurations, shape (n, dof).

@@ -137,7 +137,13 @@ class SingularityReport:
 
 
 def _sample_times(trajectory: JointTrajectory, rate: float) -> np.ndarray:
-    return np.unique(np.concatenate([trajectory.times(rate), trajectory.waypoint_times]))
+    """The times at `rate` and the waypoint instants, sorted, each once (``np.unique`` of both, without its sort)."""
+    t, w = trajectory.times(rate), np.unique(trajectory.waypoint_times)
+    at = np.searchsorted(t, w)
+    new = np.ones(len(w), dtype=bool)
+    inside = at < len(t)
+    new[inside] = t[at[inside]] != w[inside]
+    return np.insert(t, at[new], w[new]) if new.any() else t
 
 
 def _intervals(t: np.ndarray, low: np.ndarray) -> tuple[tuple[float, float], ...]:
@@ -448,8 +454,11 @@ def _interval_bounds(
     at most ``c = d^2 / 4`` times the identity. The smallest eigenvalue is concave, so that of
     ``G(lam)`` is at least ``m2 - c`` with ``m2`` the smaller of the ends' smallest squared
     singular values; the largest singular value is convex along the line, at most the larger
-    end's. The determinant is log-concave, so ``det G(lam) >= min(det G_left, det G_right)
-    (1 - c / m2)^k``. Each row is within ``e`` of ``J_lam`` (:func:`_interpolation_error`, here
+    end's. The determinant is log-concave, so ``M = (1 - lam) G_left + lam G_right`` has
+    ``det M >= min(det G_left, det G_right)``, its eigenvalues between ``m2`` and the larger
+    end's largest, and ``det G(lam) >= det(M - c I)``, bounded below over every such ``M`` by
+    :func:`_shifted_det` (at least ``min(det G_left, det G_right) (1 - c / m2)^k``: only the
+    eigenvalues near ``m2`` lose much). Each row is within ``e`` of ``J_lam`` (:func:`_interpolation_error`, here
     with ``lam (1 - lam) <= 1 / 4`` and a bound of the rows' deviation from the straight line
     between the ends: ``h L^2 / 8`` for ``L`` steps whose second differences are at most ``h``);
     by Weyl's inequality its singular values are within ``e`` of ``J_lam``'s: the inverse
@@ -501,9 +510,9 @@ def _interval_bounds(
         # prod(s_i - margin) >= prod(s_i) (1 - margin / s_min)^k.
         shift = np.where(smallest > 0.0, np.maximum(1.0 - margin / (smallest + margin), 0.0), 0.0) ** k
         product = np.minimum(s.product[a], s.product[b]) * shift
-        det_factor = np.where(m2 > c, np.maximum(1.0 - c / m2, 0.0), 0.0) ** (0.5 * k)
+        high = top + margin
         shrink = np.where(sigma > err, np.maximum(1.0 - err / sigma, 0.0), 0.0) ** k
-    man = product * det_factor * shrink
+        man = np.sqrt(_shifted_det(k, m2, high * high, product * product, c)) * shrink
     # From above: s_min(J_lam) <= min(s_min(a) + lam d, s_min(b) + (1 - lam) d) <= (s_min(a) +
     # s_min(b) + d) / 2 and s_max(J_lam) >= (s_max(a) + s_max(b) - d) / 2 (Weyl), each moved by e.
     with np.errstate(divide="ignore", invalid="ignore"):
@@ -512,6 +521,31 @@ def _interval_bounds(
     upper = np.where(top_low > 0.0, upper, np.inf)
     counts = np.diff(np.append(starts, len(rows)))
     return np.repeat(inv, counts), np.repeat(man, counts), np.repeat(upper, counts)
+
+
+def _shifted_det(k: int, m2: np.ndarray, top: np.ndarray, product: np.ndarray, c: np.ndarray) -> np.ndarray:
+    """A lower bound of ``det(M - c I)`` over symmetric ``M`` with eigenvalues in ``[m2, top]``, ``det M >= product``.
+
+    ``det(M - c I) = prod(mu_i - c)`` grows with each eigenvalue ``mu_i``: it is least where
+    ``prod(mu_i)`` is `product` (raised to ``m2^k``, at most ``top^k``); in ``x_i = log(mu_i)``
+    it is the sum of the concave ``log(e^x - c)`` over the polytope ``sum(x_i) = log(product)``,
+    ``x_i`` in ``[log(m2), log(top)]``, so least at a vertex: ``j`` eigenvalues at ``m2``,
+    ``k - 1 - j`` at `top` and one between (for each ``j`` where that one is at most `top`; one
+    below ``m2`` is taken at ``m2``, a point of larger product: no lower than the least). 0 where
+    ``c >= m2``. The same arithmetic as the compiled ``shifted_det`` of
+    :mod:`planner.core.certificates`; all arrays of one shape.
+    """
+    product = np.minimum(np.maximum(product, m2**k), top**k)
+    least = np.full(np.shape(m2), np.inf)
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+        for j in range(k):
+            mu = product / (m2**j * top ** (k - 1 - j))
+            vertex = mu <= top * (1.0 + 1e-12)
+            mu = np.minimum(np.maximum(mu, m2), top)
+            value = (m2 - c) ** j * (top - c) ** (k - 1 - j) * (mu - c)
+            least = np.where(vertex, np.minimum(least, value), least)
+    least = np.where(np.isfinite(least), least, (m2 - c) ** k)
+    return np.where(m2 > c, least, 0.0)
 
 
 def bounded_conditioning(
@@ -525,7 +559,9 @@ def bounded_conditioning(
     an anchor's extreme singular values and the product of all of them are bracketed from its
     Gram matrix (:func:`_extreme_bounds`, and the pivots of
     ``G + 1e-12 tr(G) I`` for the product from above), and it is measured exactly only where
-    that does not show it as below. `keep` cuts the rows into stretches (ends included). Every
+    that does not show it as below (there the rows `keep` are bracketed first as well, and
+    measured at the end with the rows left open, in one batch). `keep` cuts the rows into
+    stretches (ends included). Every
     other row is then shown either above the threshold and above an upper bound of an anchor's
     value (inverse condition number), or below the threshold and above such a bound in its
     stretch, and in both cases its manipulability above an upper bound of an anchor's; or else
@@ -569,8 +605,10 @@ def bounded_conditioning(
 
     Where step 0 applies and C can be compiled, steps 0 to 3 run in the loops of
     :func:`planner.core.certificates.interval_certificates` and
-    :func:`~planner.core.certificates.own_certificates` (the same bounds; step 0's second
-    differences are taken over each interval alone, as here), and step 2 also bounds the
+    :func:`~planner.core.certificates.own_certificates` (the same bounds, with each row taken
+    at its projection on the line between its anchors instead of at ``lam = (r - left) / (right
+    - left)``: any ``lam`` in [0, 1] gives a bound, and a row on that line, as along a straight
+    joint move however it is timed, is then off it only by rounding), and step 2 also bounds the
     inverse condition number from above where step 0 did not show a row below: the Rayleigh
     quotients of ``J_lam J_lam^T`` at the neighbours' estimated extreme eigenvectors bound its
     smallest eigenvalue from above and its largest from below, and the row's singular values
@@ -611,17 +649,22 @@ def bounded_conditioning(
     # values, or of the raw Jacobian's: its bound is on the matrix it is computed from.
     divisor = robot.manipulability_divisor(task)
     scale = 1.0 if divisor is None else 1.0 / divisor
-    raw_all, scaled_all = _RowStore(n, (m_rows, dof)), _RowStore(n, (m_rows, dof))
+    scaled_all = _RowStore(n, (m_rows, dof))
     inv, man = np.empty(n), np.empty(n)
-    s_inv, s_man = _RowStore(n, (k,)), _RowStore(n, (k,))  # singular values at the exact rows
+    # The singular values at the exact rows (the manipulability's are the scaled Jacobian's
+    # where a fixed divisor relates them: one store).
+    s_inv = _RowStore(n, (k,))
+    s_man = s_inv if divisor is not None else _RowStore(n, (k,))
     exact = np.zeros(n, dtype=bool)
 
     def measure(idx: np.ndarray, raw: np.ndarray | None = None, scaled: np.ndarray | None = None) -> None:
         if raw is None or scaled is None:
             raw, scaled = robot.task_jacobians(q[idx], task)
-        raw_all[idx], scaled_all[idx] = raw, scaled
+        scaled_all[idx] = scaled
         values = robot.task_singular_values(raw, scaled, task)
-        s_inv[idx], s_man[idx] = values
+        s_inv[idx] = values[0]
+        if s_man is not s_inv:
+            s_man[idx] = values[1]
         inv[idx], man[idx] = robot.conditioning_from(*values, task)
         exact[idx] = True
 
@@ -635,18 +678,26 @@ def bounded_conditioning(
     is_anchor[:: BRACKETED_SPACING if bracketed else ANCHOR_SPACING] = True
     is_anchor[bounds_of] = True
     anchors = np.flatnonzero(is_anchor)
-    if bracketed:
+    # Bracketed, the rows `keep` too (measured exactly with the rows left open, in one batch),
+    # where there are rows between the anchors.
+    deferred = bracketed and len(anchors) < n
+    if deferred:
+        loose = anchors
+    elif bracketed:
         is_loose = is_anchor.copy()
         is_loose[bounds_of] = False
         loose = np.flatnonzero(is_loose)
     else:
         loose = anchors[:0]
-    measure(bounds_of if bracketed else anchors)  # the anchors not in `loose`
-    ends_at = _Ends.exact(s_inv, n, np.nonzero(exact)[0])
+    if not deferred:
+        measure(bounds_of if bracketed else anchors)  # the anchors not in `loose`
+    # Deferred, every anchor is bracketed below (no exact row yet): only the anchors' entries are read.
+    ends_at = _Ends(*(np.empty(n) for _ in range(5))) if deferred else _Ends.exact(s_inv, n, np.nonzero(exact)[0])
     value_up = inv.copy()  # at the anchors: an upper bound of the inverse condition number
-    if len(loose):
-        scaled_all[loose] = robot.task_rows(kernel(q[loose]), task)[1]
-    bracketed_anchors = anchor_bounds(scaled_all[loose], scale) if len(loose) else None
+    scaled_loose = robot.task_rows(kernel(q[loose]), task)[1] if len(loose) else None
+    if scaled_loose is not None:
+        scaled_all[loose] = scaled_loose
+    bracketed_anchors = anchor_bounds(scaled_loose, scale) if scaled_loose is not None else None
     if bracketed_anchors is not None:
         top, bottom, product, min_up, max_low, loose_low, value_up[loose], man_up = bracketed_anchors.T
         ends_at.top[loose], ends_at.bottom[loose], ends_at.product[loose] = top, bottom, product
@@ -669,19 +720,15 @@ def bounded_conditioning(
         return inv, man
     # Every row shown above these is above an exact value (the final minimum is no larger).
     level = max(threshold, float(np.min(value_up[anchors])))
-    level_man = min(float(np.min(man[exact])), float(np.min(man_up, initial=np.inf)) if len(loose) else np.inf)
+    level_man = min(
+        float(np.min(man[exact], initial=np.inf)), float(np.min(man_up, initial=np.inf)) if len(loose) else np.inf
+    )
     lifted = level * (1.0 + 1e-9)  # what a certificate shows the rows to be above
     ends = anchors
-    right = np.searchsorted(ends, rows)
-    left, right = ends[right - 1], ends[right]  # the anchors on either side of each row
-    # The stretches between the rows `keep`: the smallest exact value in each (ends included).
-    stretch = np.searchsorted(bounds_of, rows) - 1
-    # Over the anchors from one row of `keep` to the next (the rows `keep` are anchors).
+    # The stretches between the rows `keep`: the smallest exact value in each (ends included),
+    # over the anchors from one row of `keep` to the next (the rows `keep` are anchors).
     at_ends, values = np.searchsorted(ends, bounds_of), value_up[ends]
     least_of = np.minimum(np.minimum.reduceat(values, at_ends[:-1]), values[at_ends[1:]])
-    least = least_of[stretch]
-    lo_inv, lo_man = np.zeros(len(rows)), np.zeros(len(rows))
-    below = np.zeros(len(rows), dtype=bool)  # shown below the threshold
 
     def weyl(take: np.ndarray, a: np.ndarray, e: np.ndarray, e_man: np.ndarray) -> None:
         # Rounding of the SVDs and norms: a margin far above it.
@@ -725,24 +772,37 @@ def bounded_conditioning(
     compiled, pending = None, rows[:0]
     if bracketed:
         rho, angular, _ = change
-        anchor_ends = np.stack([values[anchors] for values in (*ends_at, value_up)], axis=1)
+        if deferred and bracketed_anchors is not None:
+            # The anchors are the bracketed rows, in order: their bounds as anchor_bounds gave them.
+            anchor_ends, anchor_scaled = bracketed_anchors[:, [0, 1, 2, 3, 4, 6]], scaled_loose
+        else:
+            anchor_ends = np.stack([values[anchors] for values in (*ends_at, value_up)], axis=1)
+            anchor_scaled = scaled_all[anchors]
         of_interval = np.minimum(np.searchsorted(bounds_of, anchors[:-1], side="right") - 1, len(least_of) - 1)
         params = (angular, threshold, level, lifted, level_man, scale)
-        compiled = interval_certificates(
-            q, anchors, scaled_all[anchors], anchor_ends, least_of[of_interval], rho, params
-        )
+        compiled = interval_certificates(q, anchors, anchor_scaled, anchor_ends, least_of[of_interval], rho, params)
     if compiled is not None:
-        # Steps 0 to 3 in compiled loops (planner.core.certificates), the same bounds.
-        lo_inv, lo_man, flags = (values[rows] for values in compiled)
-        take = np.nonzero(flags & 2)[0]
+        # Steps 0 to 3 in compiled loops (planner.core.certificates), the same bounds. Their
+        # arrays (n,) hold the rows' bounds (flags 0 at the anchors): they become the measure,
+        # with the anchors' values in place.
+        bounds_inv, bounds_man, flags = compiled
+        bounds_inv[anchors], bounds_man[anchors] = inv[anchors], man[anchors]
+        inv, man = bounds_inv, bounds_man
+        take = np.flatnonzero(flags & 2)  # rows
         if len(take):
-            scaled = robot.task_rows(kernel(q[rows[take]]), task)[1]
-            t_inv, t_man, t_flags = lo_inv[take], lo_man[take], flags[take]
-            if own_certificates(scaled, least[take], t_inv, t_man, t_flags, (threshold, level, level_man, scale)):
-                lo_inv[take], lo_man[take] = t_inv, t_man
+            scaled = robot.task_rows(kernel(q[take]), task)[1]
+            t_inv, t_man, t_flags = inv[take], man[take], flags[take]
+            least = least_of[np.searchsorted(bounds_of, take) - 1]
+            if own_certificates(scaled, least, t_inv, t_man, t_flags, (threshold, level, level_man, scale)):
+                inv[take], man[take] = t_inv, t_man
                 take = take[(t_flags & 2) != 0]
-            pending = rows[take]  # measured below, with the bracketed anchors left open
+            pending = take  # measured below, with the bracketed anchors left open
     else:
+        right = np.searchsorted(ends, rows)
+        left, right = ends[right - 1], ends[right]  # the anchors on either side of each row
+        least = least_of[np.searchsorted(bounds_of, rows) - 1]  # of each row's stretch
+        lo_inv, lo_man = np.zeros(len(rows)), np.zeros(len(rows))
+        below = np.zeros(len(rows), dtype=bool)  # shown below the threshold
         if change is not None:
             rho, angular, raw_angular = change
             if divisor is not None:
@@ -815,12 +875,15 @@ def bounded_conditioning(
         loose_man = ends_at.product[loose] * (scale * (1.0 - 1e-9))
         dip = (value_up[loose] < threshold) & (loose_low > least_of[np.searchsorted(bounds_of, loose) - 1])
         shown = ((loose_low > level) | dip) & (loose_man > level_man)
+        if deferred:
+            shown[np.searchsorted(loose, bounds_of)] = False  # the rows `keep`: measured
         inv[loose[shown]], man[loose[shown]] = loose_low[shown], loose_man[shown]
         pending = np.concatenate([pending, loose[~shown]])
+    if compiled is None:
+        free = ~exact[rows]
+        inv[rows[free]], man[rows[free]] = lo_inv[free], lo_man[free]
     if len(pending):
         measure(pending)
-    free = ~exact[rows]
-    inv[rows[free]], man[rows[free]] = lo_inv[free], lo_man[free]
     return inv, man
 
 
