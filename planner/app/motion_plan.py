@@ -201,6 +201,9 @@ def _collision_summary(c: MotionClearance) -> dict[str, Any]:
     }
     if c.hit is not None:
         out.update(first_hit_time=c.first_hit, hit_bodies=list(c.hit.bodies), hit_distance=c.hit.distance)
+    if c.unmeasured is not None:
+        # Pairs left out by their floors: the least floor, a lower bound of that pair's distance.
+        out.update(unmeasured_bodies=list(c.unmeasured.bodies), unmeasured_floor=c.unmeasured.distance)
     return out
 
 

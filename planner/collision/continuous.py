@@ -116,6 +116,12 @@ class MotionClearance:
         first_hit: Time (or parameter) of the first check below the clearance, or None.
         hit: The pair at :attr:`first_hit` (the bodies and the depth), or None.
         checks: Number of distance checks made.
+        unmeasured: Of the pairs left out by their floors (:func:`pair_floors`: a distance
+            each provably never comes below within the joint limits, beyond the clearance),
+            the one with the least floor, as a :class:`Clearance` whose distance is that
+            floor: a lower bound of its distance throughout, not a distance found. None where
+            no pair was left out. Where its floor is below :attr:`closest`'s distance, that
+            pair may have come closer than :attr:`closest` (its distance was not computed).
     """
 
     clear: bool
@@ -124,11 +130,20 @@ class MotionClearance:
     first_hit: float | None
     hit: Clearance | None
     checks: int
+    unmeasured: Clearance | None = None
 
     def describe(self, unit: str = "s") -> str:
         """One line for users: clear and how close, or where it hits what."""
         if self.clear:
-            return f"clear: closest {self.closest} (at {self.where:.3f} {unit}, {self.checks} checks)"
+            line = f"clear: closest {self.closest} (at {self.where:.3f} {unit}, {self.checks} checks)"
+            u = self.unmeasured
+            if u is not None and u.distance < self.closest.distance:
+                a, b = u.bodies
+                line += (
+                    f"; {a} and {b} not measured: never closer than {u.distance * 1000:.1f} mm "
+                    "within the joint limits (their floor)"
+                )
+            return line
         assert self.hit is not None
         if self.hit.in_collision:
             return f"collides at {self.first_hit:.3f} {unit}: {self.hit}"
@@ -784,7 +799,9 @@ def _advance(
     members = bounds.members if bounds is not None else []
     firsts = np.array([m[0] for m in members], dtype=int)
     live = np.ones(n_bounds, dtype=bool)
+    left_out = None
     if apart is not None and apart.any():
+        left_out = np.logical_or.reduce([mask for _, mask in masks]) & apart  # for the report
         masks = [(x_from, mask & ~apart) for x_from, mask in masks]
         members = [m[~apart[m]] for m in members]
         live = np.array([len(m) > 0 for m in members], dtype=bool)
@@ -894,7 +911,16 @@ def _advance(
         closest = checker.pair_clearance(best_pair, best[0])
     else:
         closest = checker.clearance_of(np.zeros(0))
-    return MotionClearance(first_hit is None, closest, best[1], first_hit, hit, checks)
+    unmeasured = None
+    if left_out is not None and left_out.any():
+        # The left-out pairs some allowance mask checks: the one with the least floor.
+        left = np.flatnonzero(left_out)
+        if left.size:
+            floors = checker.floors
+            assert floors is not None  # apart comes from them
+            k = int(left[int(floors[left].argmin())])
+            unmeasured = checker.pair_clearance(k, float(floors[k]))
+    return MotionClearance(first_hit is None, closest, best[1], first_hit, hit, checks, unmeasured)
 
 
 _NONE, _NONE_DUE = np.zeros(0), np.zeros(0, dtype=int)
