@@ -669,6 +669,87 @@ class SegmentSolver:
                         first[e] = second[e] = math.inf
         return first, second
 
+    def probe_run(
+        self, a: int, m: int, velocities: list[list[float]], accelerations: list[list[float]]
+    ) -> list[float] | None:
+        """Per-joint minimum times of segments a .. a+m-1 for several options of the states at waypoints a .. a+m.
+
+        As :meth:`probe_around`, one unsynchronised Ruckig calculate for every (option,
+        segment, joint): a segment lasts at least as long as each joint alone needs, and that
+        depends on the joint's own end states only. An entry whose own profile leaves the
+        range by Ruckig's extrema (looked at only where the joint could reach a range end), or
+        where Ruckig 0.19 would fail on a joint going out and back on one parabola (not
+        solved), gets inf.
+
+        Args:
+            a: The first waypoint.
+            m: The number of segments, a + m < N.
+            velocities: Per option, the velocities at waypoints a .. a+m, one flat list of
+                (m+1) dof floats (waypoint by waypoint), each state admissible (see
+                :func:`planner.motion.limits.admissible_acceleration`).
+            accelerations: Per option, the accelerations, likewise.
+
+        Returns:
+            The times [s], a flat list with the entry of option c, segment a+r and joint j at
+            ``(c m + r) dof + j``; None where Ruckig fails.
+        """
+        many, dof = len(velocities), self.dof
+        if not many:
+            return []
+        key = ("run", a, m, many)
+        fixed = self._probes.get(key)
+        if fixed is None:
+            rows = self.rows
+            p0 = [x for row in rows[a : a + m] for x in row]
+            p1 = [x for row in rows[a + 1 : a + m + 1] for x in row]
+            velocity, acceleration, jerk = self._limits
+            reps = m * many
+            fixed = self._probes[key] = (p0 * many, p1 * many, velocity * reps, acceleration * reps, jerk * reps)
+        otg, inp, traj = _thread_prober(len(fixed[0]))
+        inp.current_position, inp.target_position, inp.max_velocity, inp.max_acceleration, inp.max_jerk = fixed
+        inner = m * dof
+        v0 = [x for row in velocities for x in row[:inner]]
+        a0 = [x for row in accelerations for x in row[:inner]]
+        v1 = [x for row in velocities for x in row[dof:]]
+        a1 = [x for row in accelerations for x in row[dof:]]
+        skipped = []
+        for r, still in enumerate(self._still[a : a + m]):
+            if still is None:
+                continue
+            for c in range(many):
+                for j in still:
+                    e = (c * m + r) * dof + j
+                    if _parabola(v0[e], a0[e], v1[e], a1[e]):
+                        skipped.append(e)
+                        v0[e] = a0[e] = v1[e] = a1[e] = 0.0
+        inp.current_velocity, inp.current_acceleration = v0, a0
+        inp.target_velocity, inp.target_acceleration = v1, a1
+        try:
+            result = otg.calculate(inp, traj)
+        except (RuckigError, ValueError):  # see _solve
+            return None
+        if result not in _SOLVED:
+            return None
+        times = traj.independent_min_durations
+        for e in skipped:
+            times[e] = math.inf
+        if self.bounded:
+            # Only a profile that lasts longer than the joint needs to reach a range end can leave the range.
+            reach = self._reach
+            if reach is None:
+                reach = self._reach = self._reach_times()
+            limit = [x for row in reach[a : a + m] for x in row] * many
+            if any(map(gt, times, limit)):
+                extrema = traj.position_extrema
+                lows, highs = self._lows, self._highs
+                for e, (x, r) in enumerate(zip(times, limit)):
+                    if x > r:
+                        j = e % dof
+                        bound = extrema[e]
+                        if bound.min < lows[j] or bound.max > highs[j]:
+                            times[e] = math.inf
+        return times
+
     def _reach_times(self) -> list[list[float]]:
         """Per segment and joint, the least time in which it can reach a range end [s] (0 where unknown)."""
         out = []

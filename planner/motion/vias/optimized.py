@@ -24,7 +24,6 @@ the planner's range repair would halve at any cost). A second pass, off by defau
 
 from __future__ import annotations
 
-import functools
 import math
 from collections.abc import Callable, Sequence
 from operator import itemgetter
@@ -54,13 +53,13 @@ __all__ = ["OptimizedStrategy", "golden_minimum", "golden_points", "spline_via_s
 # (the same median optimum gap) for 1.4 solves per 6-dof plan.
 _GRID = (0.0, 1.4, 2.0, 3.0)
 _GRID_START = 1.4
-# Spline stage: range of the common log time-scale of the segment durations searched, and
-# golden-section evaluations (a simplex over every duration gained nothing on top; a fourth
-# evaluation costs 7 % of the plan's instructions for 0.01 % optimum gap with the probes below).
-_SPLINE_SCALE = (-0.5, 0.1)
-_SPLINE_SCALE_EVALS = 3
-# A segment whose Ruckig extrema leave the range counts this much longer in the search.
-_SPLINE_PENALTY = 1.5
+# Spline stage: the log time-scales of the segment durations whose splines give each joint its
+# options along a run (:meth:`OptimizedStrategy.search_spline`), the rounds of the per-joint
+# choice among them, and how often joints whose extrema leave the range go back to the current
+# states before the run keeps those.
+_SPLINE_SCALES = (-0.5, -0.3, -0.1, 0.1)
+_CHOICE_ROUNDS = 2
+_SPLINE_FIXES = 2
 # How many of the fastest states tried at a via that turn beyond the range are halved in turn
 # (as the search halves states that leave it) before slower ones that fit are taken.
 _TURN_HALVED = 1
@@ -124,18 +123,9 @@ def golden_points(lo: float, hi: float, evals: int) -> set[float]:
     return points
 
 
-@functools.lru_cache(maxsize=1024)
-def _sorted_golden_points(lo: float, hi: float, evals: int) -> tuple[float, ...]:
-    """:func:`golden_points` in ascending order, kept per bracket (a search asks for few brackets)."""
-    return tuple(sorted(golden_points(lo, hi, evals)))
-
-
-# The spline stage's golden-section points, their inverse time scales exp(-x) and those squared,
-# the same for every run.
-_SPLINE_POINTS = _sorted_golden_points(*_SPLINE_SCALE, _SPLINE_SCALE_EVALS)
-_SPLINE_INV = np.array([math.exp(-x) for x in _SPLINE_POINTS])[:, None, None]
+# The inverse time scales exp(-x) of the spline stage and those squared, the same for every run.
+_SPLINE_INV = np.array([math.exp(-x) for x in _SPLINE_SCALES])[:, None, None]
 _SPLINE_INV2 = _SPLINE_INV * _SPLINE_INV
-_SPLINE_INDEX = {x: p for p, x in enumerate(_SPLINE_POINTS)}
 
 
 def spline_via_states(
@@ -214,6 +204,75 @@ def _scaled_states(
     return cv, ca
 
 
+def _joint_choice(times: list[list[list[float]]], dof: int) -> list[int] | None:
+    """Per joint one of several options along a run, so that the run's duration (estimated) falls.
+
+    The run's duration is estimated as the sum over its segments of the slowest joint's time.
+
+    From the best option common to all joints, each joint that sets a segment's time takes in
+    turn the option that makes the sum smallest given the others' choices (the first smallest:
+    its own unless beaten), for :data:`_CHOICE_ROUNDS` rounds or until none changes.
+
+    Args:
+        times: Per option, per segment, per joint its time [s] (inf: not allowed).
+        dof: The number of joints.
+
+    Returns:
+        The option per joint, or None where every option has an inf.
+    """
+    totals = [sum(map(max, option)) for option in times]
+    best = min(totals)
+    if not best < math.inf:
+        return None
+    first = totals.index(best)
+    choice = [first] * dof
+    chosen = [list(row) for row in times[first]]  # per segment the chosen times of every joint
+    for _ in range(_CHOICE_ROUNDS):
+        changed = False
+        for j in range(dof):
+            if not any(row[j] >= max(row) for row in chosen):
+                continue  # the joint sets no segment's time: no option of its own makes the run faster
+            others = [max(row[:j] + row[j + 1 :], default=0.0) for row in chosen]
+            pick = choice[j]
+            for c, option in enumerate(times):
+                total = 0.0
+                for o, row in zip(others, option):
+                    t = row[j]
+                    total += o if o > t else t
+                if total < best:
+                    best, pick = total, c
+            if pick != choice[j]:
+                choice[j], changed = pick, True
+                for row, option_row in zip(chosen, times[pick]):
+                    row[j] = option_row[j]
+        if not changed:
+            break
+    return choice
+
+
+def _grid_top(u: np.ndarray, w: np.ndarray, lim: JointLimits) -> float:
+    """The largest scale of the grid of states ``(x u, x^2 w)``: where the last joint stops gaining speed."""
+    tops = [1.0]
+    # On plain floats: the largest scale at which a joint still gains speed (acceleration).
+    velocity, acceleration, _ = lim.ruckig_limits
+    scales = [top / m for top, m in zip(velocity, map(abs, u.tolist())) if m > 0]
+    if scales:
+        tops.append(max(scales))
+    scales = [top / m for top, m in zip(acceleration, map(abs, w.tolist())) if m > 0]
+    if scales:
+        tops.append(math.sqrt(max(scales)))
+    return min(max(tops), _MAX_SCALE)
+
+
+def _grid_candidates(x: list[float], u: np.ndarray, w: np.ndarray, lim: JointLimits) -> tuple[np.ndarray, np.ndarray]:
+    """The admissible states ``(x u, x^2 w)`` at the scales x, shapes (G, dof) (:func:`_scaled_states`)."""
+    limits = lim.velocity.tobytes() + lim.acceleration.tobytes() + lim.twice_jerk.tobytes()
+    fast = scale_states(x, u, w, limits)  # compiled, the same operations
+    if fast is not None:
+        return fast
+    return _scaled_states(np.array(x), np.sign(u), np.abs(u), np.sign(w), np.abs(w), lim)
+
+
 def _gather(indices: list[int]) -> Callable[[Sequence[float]], tuple[float, ...]]:
     """The entries of a sequence at `indices`, as a tuple (one :func:`operator.itemgetter` call)."""
     if len(indices) == 1:
@@ -277,8 +336,13 @@ class OptimizedStrategy(ViaStrategy):
         durations = chain.durations()
         for i in free:
             u, w = via_directions(chain.q, i, durations, chain.limits, chain.stop)
-            tried = self.search_via(chain, i, u, w) if any(u.tolist()) or any(w.tolist()) else []
-            self.combine_joints(chain, i, tried)
+            grid, tried = None, []
+            if any(u.tolist()) or any(w.tolist()):
+                if chain.pair_coster(i)(chain.v[i], chain.acc[i])[0] < math.inf:
+                    grid = self.grid_states(chain, u, w)
+                else:
+                    tried = self.search_via(chain, i, u, w)  # (resting at the via among them)
+            self.combine_joints(chain, i, tried, grid)
             v, acc = chain.state_rows()
             durations[i - 1] = chain.seg.solve(i - 1, v[i - 1], acc[i - 1], v[i], acc[i])[0]
             durations[i] = chain.seg.solve(i, v[i], acc[i], v[i + 1], acc[i + 1])[0]
@@ -348,30 +412,31 @@ class OptimizedStrategy(ViaStrategy):
         """Time-scale the spline-like via state (u, w) at via i to minimise its segments' time.
 
         Scaling a trajectory's time by 1/x multiplies velocities by x and accelerations by
-        x^2, so the candidates are ``(x u, x^2 w)``, each joint saturating at its limits.
+        x^2, so the candidates are ``(x u, x^2 w)``, each joint saturating at its limits,
+        each solved (the sweep of :meth:`choose` probes them per joint instead, see
+        :meth:`grid_states`; this search is its fallback where the current state has no profile).
 
         Returns:
             The states tried (see :meth:`_line_search`).
         """
         lim = chain.limits
-        tops = [1.0]
-        # On plain floats: the largest scale at which a joint still gains speed (acceleration).
-        velocity, acceleration, _ = lim.ruckig_limits
-        scales = [top / m for top, m in zip(velocity, map(abs, u.tolist())) if m > 0]
-        if scales:
-            tops.append(max(scales))
-        scales = [top / m for top, m in zip(acceleration, map(abs, w.tolist())) if m > 0]
-        if scales:
-            tops.append(math.sqrt(max(scales)))
 
         def candidates(x: list[float]) -> tuple[np.ndarray, np.ndarray]:
-            limits = lim.velocity.tobytes() + lim.acceleration.tobytes() + lim.twice_jerk.tobytes()
-            fast = scale_states(x, u, w, limits)  # compiled, the same operations
-            if fast is not None:
-                return fast
-            return _scaled_states(np.array(x), np.sign(u), np.abs(u), np.sign(w), np.abs(w), lim)
+            return _grid_candidates(x, u, w, lim)
 
-        return self._line_search(chain, i, candidates, min(max(tops), _MAX_SCALE), start=_GRID_START)
+        return self._line_search(chain, i, candidates, _grid_top(u, w, lim), start=_GRID_START)
+
+    def grid_states(self, chain: ViaChain, u: np.ndarray, w: np.ndarray) -> tuple[list[list[float]], list[list[float]]]:
+        """The states ``(x u, x^2 w)`` of :meth:`search_via` at every scale x of its grid, as rows of floats.
+
+        Returns:
+            Per scale the velocities and the accelerations (lists over all joints).
+        """
+        lim = chain.limits
+        top = _grid_top(u, w, lim)
+        grid = [*_GRID, top] if top > _GRID[-1] else sorted({min(g, top) for g in _GRID} | {top})
+        cvs, cas = _grid_candidates(grid, u, w, lim)
+        return cvs.tolist(), cas.tolist()
 
     def _settle(self, chain: ViaChain, free: list[int]) -> None:
         """Halve the via states of joints that (by Ruckig's extrema) leave their range.
@@ -394,20 +459,39 @@ class OptimizedStrategy(ViaStrategy):
                 return
 
     def search_spline(self, chain: ViaChain, a: int, b: int, durations: np.ndarray) -> None:
-        """Choose the via states between fixed waypoints a and b jointly, from a timed spline.
+        """Choose the via states between fixed waypoints a and b jointly, from timed splines, per joint.
 
         Given segment durations, the C2 cubic spline through the waypoints at those times
         gives every via a velocity and an acceleration that fit all the others (a joint that
         turns round at a waypoint may pass it still moving, turning just beyond, as on the
-        spline). A common time scale of the durations is searched (golden section, in log
-        scale) to minimise the Ruckig durations of segments a..b-1 with those via states;
-        the best states whose segments stay within the range (by Ruckig's extrema) replace
-        the current ones if they are faster.
+        spline). The durations scaled by each of :data:`_SPLINE_SCALES` (in log scale) give
+        one option per scale for the states of every joint along the run, the current states
+        one more. A segment lasts as long as its slowest joint needs and each joint's time
+        depends on its own states only: one unsynchronised Ruckig probe times every (option,
+        segment, joint) (:meth:`SegmentSolver.probe_run`), and every joint that sets a
+        segment's time takes in turn the option that makes the run fastest given the others'
+        (from the best option common to all joints). The result is solved; joints whose
+        extrema leave the range there take the current states again. It replaces the current
+        states if it is faster and within the range.
         """
         lim = chain.limits
         h0 = durations[a:b]
         if not all(0.0 < h < math.inf for h in h0.tolist()):
             return  # a segment without a profile (inf or NaN) or of no duration
+        seg, m, dof = chain.seg, b - a, chain.q.shape[1]
+        rows_v, rows_acc = chain.state_rows()
+        # The current states: their per-joint times, and the duration to beat.
+        current, now = 0.0, []
+        for k in range(a, b):
+            d, bad, traj = seg.solve(k, rows_v[k], rows_acc[k], rows_v[k + 1], rows_acc[k + 1])
+            if traj is None:
+                return  # (durations are finite: not reached)
+            times = traj.independent_min_durations
+            if bad is not None:
+                current = math.inf
+                times = [math.inf if out else t for out, t in zip(bad.tolist(), times)]
+            current += d
+            now.append(times)
         q_run = chain.q[a : b + 1]
         v_a, v_b = chain.v[a], chain.v[b]
         # Scaling every duration by s scales the spline's via velocities by 1/s and its via
@@ -415,46 +499,59 @@ class OptimizedStrategy(ViaStrategy):
         # one spline at the durations h0 gives the via states at every scale.
         zero = np.zeros_like(v_a)
         v_q, acc_q = spline_via_states(q_run, h0, zero, zero)
-        moving_ends = any(v_a.tolist()) or any(v_b.tolist())
-        if moving_ends:
-            v_e, acc_e = spline_via_states(q_run, h0, v_a, v_b)
-            v_e, acc_e = v_e - v_q, acc_e - acc_q
-        best: list = [math.inf, None, None]
-        # The via states at every scale the golden section may ask for, made in one batch.
         vs, accs = v_q * _SPLINE_INV, acc_q * _SPLINE_INV2
-        if moving_ends:
-            vs += v_e
-            accs += acc_e * _SPLINE_INV
+        if any(v_a.tolist()) or any(v_b.tolist()):
+            v_e, acc_e = spline_via_states(q_run, h0, v_a, v_b)
+            vs += v_e - v_q
+            accs += (acc_e - acc_q) * _SPLINE_INV
         vs = np.minimum(np.maximum(vs, -lim.velocity), lim.velocity)
         accs = admissible_acceleration(vs, accs, lim)
-        index = _SPLINE_INDEX
-
-        rows_v, rows_acc = chain.state_rows()
-        solve, start, end = chain.seg.solve, (rows_v[a], rows_acc[a]), (rows_v[b], rows_acc[b])
-
-        def cost(x: float) -> float:
-            v, acc = vs[index[x]], accs[index[x]]
-            # The states at waypoints a..b (row views made in one go).
-            states = [start, *zip(v, acc), end]
-            total, inside = 0.0, True
+        count = len(vs)
+        # Per option the states at waypoints a..b, flat (the ends are the chain's).
+        flat_v = np.empty((count, m + 1, dof))
+        flat_a = np.empty((count, m + 1, dof))
+        flat_v[:, 0], flat_v[:, 1:m], flat_v[:, m] = v_a, vs, v_b
+        flat_a[:, 0], flat_a[:, 1:m], flat_a[:, m] = chain.acc[a], accs, chain.acc[b]
+        probed = seg.probe_run(a, m, flat_v.reshape(count, -1).tolist(), flat_a.reshape(count, -1).tolist())
+        if probed is None:
+            return
+        span = m * dof
+        # times[c][r] holds option c's per-joint times in segment a+r; option `count` is the current states.
+        times = [[probed[c * span + r * dof : c * span + (r + 1) * dof] for r in range(m)] for c in range(count)]
+        times.append(now)
+        choice = _joint_choice(times, dof)
+        if choice is None:
+            return
+        for _ in range(_SPLINE_FIXES + 1):
+            v = np.array(
+                [
+                    [vs[c, r, j] if c < count else rows_v[a + 1 + r][j] for j, c in enumerate(choice)]
+                    for r in range(m - 1)
+                ]
+            )
+            acc = np.array(
+                [
+                    [accs[c, r, j] if c < count else rows_acc[a + 1 + r][j] for j, c in enumerate(choice)]
+                    for r in range(m - 1)
+                ]
+            )
+            states = [(rows_v[a], rows_acc[a]), *zip(v, acc), (rows_v[b], rows_acc[b])]
+            total, out = 0.0, set()
             for k in range(a, b):
                 (va, aa), (vb, ab) = states[k - a], states[k - a + 1]
-                d, bad, _ = solve(k, va, aa, vb, ab)
+                d, bad, _ = seg.solve(k, va, aa, vb, ab)
                 if bad is not None:
-                    inside = False
-                    d *= _SPLINE_PENALTY
+                    out.update(j for j, x in enumerate(bad.tolist()) if x)
                 total += d
-            if inside and total < best[0]:
-                best[:] = [total, v, acc]
-            return total
-
-        current = 0.0
-        for k in range(a, b):
-            d, bad, _ = solve(k, rows_v[k], rows_acc[k], rows_v[k + 1], rows_acc[k + 1])
-            current += math.inf if bad is not None else d
-        golden_minimum(cost, *_SPLINE_SCALE, _SPLINE_SCALE_EVALS)
-        if best[0] < current:
-            chain.v[a + 1 : b], chain.acc[a + 1 : b] = best[1], best[2]
+            if not out:
+                if total < current:
+                    chain.v[a + 1 : b], chain.acc[a + 1 : b] = v, acc
+                return
+            # Joints out of the range take the current states (already solved: within it, or no better).
+            if all(choice[j] == count for j in out):
+                return
+            for j in out:
+                choice[j] = count
 
     def _probe_options(
         self,
@@ -464,13 +561,15 @@ class OptimizedStrategy(ViaStrategy):
         times: tuple[list[float], list[float]],
         dp: list[float],
         turning: list[bool],
+        grid: tuple[list[list[float]], list[list[float]]] | None = None,
     ) -> tuple[list[list[float]], list[list[float]], list[list[float]], list[list[float]]]:
         """More options per joint at via i, their times in both segments from one Ruckig probe.
 
         The current velocity moved by each of :attr:`probe_steps` (shares of the speed limit;
         the acceleration kept, within :func:`admissible_acceleration`) for the joints near a
-        segment's time, and a time-optimal turn (at rest, still braking at full deceleration)
-        for those of them that reverse at the via (:meth:`SegmentSolver.probe_around`).
+        segment's time, a time-optimal turn (at rest, still braking at full deceleration)
+        for those of them that reverse at the via, and their states in `grid`
+        (:meth:`SegmentSolver.probe_around`).
 
         Args:
             chain: The chain.
@@ -479,6 +578,8 @@ class OptimizedStrategy(ViaStrategy):
             times: The state's per-joint times in the segments before and after the via [s].
             dp: Per joint, the move into the via [rad or m].
             turning: Per joint, whether it reverses at the via.
+            grid: More states, per state the velocities and the accelerations of all joints
+                (:meth:`grid_states`); None for none.
 
         Returns:
             The states probed (velocities and accelerations, tuples over all joints; a joint not
@@ -506,6 +607,9 @@ class OptimizedStrategy(ViaStrategy):
                     cv.append(x)
                     ca.append(y)
             candidates.append((cv, ca))
+        if grid is not None and joints:
+            states = _gather(list(joints))
+            candidates += [(list(states(cv)), list(states(ca))) for cv, ca in zip(*grid)]
         if not joints or not candidates:
             return [], [], [], []
         start = (chain.v[i - 1].tolist(), chain.acc[i - 1].tolist())
@@ -527,14 +631,20 @@ class OptimizedStrategy(ViaStrategy):
         rows2 = [entries(p2[c : c + count] + tail) for c in range(0, len(p2), count)]
         return states_v, states_a, rows1, rows2
 
-    def combine_joints(self, chain: ViaChain, i: int, tried: list[tuple[float, np.ndarray, np.ndarray]]) -> None:
+    def combine_joints(
+        self,
+        chain: ViaChain,
+        i: int,
+        tried: list[tuple[float, np.ndarray, np.ndarray]],
+        grid: tuple[list[list[float]], list[list[float]]] | None = None,
+    ) -> None:
         """Give every joint at via i its best state among those tried, and a time-optimal turn.
 
         A segment lasts as long as its slowest joint needs (Ruckig's independent minimum
         durations, up to its blocked intervals), and each joint's time depends only on its own
         states. So the states already solved, plus per joint near a segment's time its velocity
-        moved by :attr:`probe_steps` and, where it reverses at the via, a time-optimal turn (at
-        rest, still braking at full deceleration), timed by one unsynchronised Ruckig probe
+        moved by :attr:`probe_steps`, its states in `grid` and, where it reverses at the via, a
+        time-optimal turn (at rest, still braking at full deceleration), timed by one unsynchronised Ruckig probe
         (:meth:`_probe_options`), give each joint several options whose best pick
         (:func:`best_choice`) is known without solving; that pick is solved once. The fastest
         of these states is kept whose joints do not turn round beyond their range inside a
@@ -547,6 +657,7 @@ class OptimizedStrategy(ViaStrategy):
             chain: The chain.
             i: The via.
             tried: States tried at via i, (pair duration, velocities, accelerations) each.
+            grid: States probed per joint, not solved (:meth:`grid_states`); None for none.
         """
         lim = chain.limits
         pair = chain.pair_coster(i)
@@ -567,7 +678,7 @@ class OptimizedStrategy(ViaStrategy):
             options.append(state)
         pv, pa = [], []
         if options and options[0] is current:
-            pv, pa, rows1, rows2 = self._probe_options(chain, i, current, (t1s[0], t2s[0]), dp, flags)
+            pv, pa, rows1, rows2 = self._probe_options(chain, i, current, (t1s[0], t2s[0]), dp, flags, grid)
             t1s += rows1
             t2s += rows2
         if len(t1s) > 1:
