@@ -670,9 +670,9 @@ class SegmentSolver:
         return first, second
 
     def probe_run(
-        self, a: int, m: int, velocities: list[list[float]], accelerations: list[list[float]]
+        self, a: int, velocities: np.ndarray, accelerations: np.ndarray, joints: tuple[int, ...] | None = None
     ) -> list[float] | None:
-        """Per-joint minimum times of segments a .. a+m-1 for several options of the states at waypoints a .. a+m.
+        """Per-joint minimum times of the segments from waypoint a on, for several options of the states at their ends.
 
         As :meth:`probe_around`, one unsynchronised Ruckig calculate for every (option,
         segment, joint): a segment lasts at least as long as each joint alone needs, and that
@@ -683,42 +683,44 @@ class SegmentSolver:
 
         Args:
             a: The first waypoint.
-            m: The number of segments, a + m < N.
-            velocities: Per option, the velocities at waypoints a .. a+m, one flat list of
-                (m+1) dof floats (waypoint by waypoint), each state admissible (see
+            velocities: Per option, the velocities of `joints` at waypoints a .. a+m, shape
+                (options, m+1, len(joints)), a + m < N, each state admissible (see
                 :func:`planner.motion.limits.admissible_acceleration`).
             accelerations: Per option, the accelerations, likewise.
+            joints: The joints probed (ascending indices); None for all.
 
         Returns:
-            The times [s], a flat list with the entry of option c, segment a+r and joint j at
-            ``(c m + r) dof + j``; None where Ruckig fails.
+            The times [s], a flat list with the entry of option c, segment a+r and the i-th
+            joint probed at ``(c m + r) len(joints) + i``; None where Ruckig fails.
         """
-        many, dof = len(velocities), self.dof
+        many, m, count = velocities.shape
+        m -= 1
         if not many:
             return []
-        key = ("run", a, m, many)
+        if joints is None:
+            joints = tuple(range(self.dof))
+        key = ("run", a, m, many, joints)
         fixed = self._probes.get(key)
         if fixed is None:
             rows = self.rows
-            p0 = [x for row in rows[a : a + m] for x in row]
-            p1 = [x for row in rows[a + 1 : a + m + 1] for x in row]
-            velocity, acceleration, jerk = self._limits
+            p0 = [row[j] for row in rows[a : a + m] for j in joints]
+            p1 = [row[j] for row in rows[a + 1 : a + m + 1] for j in joints]
+            velocity, acceleration, jerk = ([limit[j] for j in joints] for limit in self._limits)
             reps = m * many
             fixed = self._probes[key] = (p0 * many, p1 * many, velocity * reps, acceleration * reps, jerk * reps)
         otg, inp, traj = _thread_prober(len(fixed[0]))
         inp.current_position, inp.target_position, inp.max_velocity, inp.max_acceleration, inp.max_jerk = fixed
-        inner = m * dof
-        v0 = [x for row in velocities for x in row[:inner]]
-        a0 = [x for row in accelerations for x in row[:inner]]
-        v1 = [x for row in velocities for x in row[dof:]]
-        a1 = [x for row in accelerations for x in row[dof:]]
+        v0, a0 = velocities[:, :-1].ravel().tolist(), accelerations[:, :-1].ravel().tolist()
+        v1, a1 = velocities[:, 1:].ravel().tolist(), accelerations[:, 1:].ravel().tolist()
         skipped = []
         for r, still in enumerate(self._still[a : a + m]):
             if still is None:
                 continue
-            for c in range(many):
-                for j in still:
-                    e = (c * m + r) * dof + j
+            for i, j in enumerate(joints):
+                if j not in still:
+                    continue
+                for c in range(many):
+                    e = (c * m + r) * count + i
                     if _parabola(v0[e], a0[e], v1[e], a1[e]):
                         skipped.append(e)
                         v0[e] = a0[e] = v1[e] = a1[e] = 0.0
@@ -738,16 +740,15 @@ class SegmentSolver:
             reach = self._reach
             if reach is None:
                 reach = self._reach = self._reach_times()
-            limit = [x for row in reach[a : a + m] for x in row] * many
+            limit = [row[j] for row in reach[a : a + m] for j in joints] * many
             if any(map(gt, times, limit)):
                 extrema = traj.position_extrema
                 lows, highs = self._lows, self._highs
-                for e, (x, r) in enumerate(zip(times, limit)):
-                    if x > r:
-                        j = e % dof
-                        bound = extrema[e]
-                        if bound.min < lows[j] or bound.max > highs[j]:
-                            times[e] = math.inf
+                for e in np.flatnonzero(np.greater(times, limit)).tolist():
+                    j = joints[e % count]
+                    bound = extrema[e]
+                    if bound.min < lows[j] or bound.max > highs[j]:
+                        times[e] = math.inf
         return times
 
     def _reach_times(self) -> list[list[float]]:

@@ -1,25 +1,39 @@
-"""The ``"optimized"`` via strategy (the default): a spline run search, then a search per via.
+"""The ``"optimized"`` via strategy (the default): a per-joint spline run search, then a search per via.
 
 All via states between two fixed waypoints are first chosen together: the C2 cubic spline
 through the waypoints at the segment durations gives every via a velocity and an acceleration
 consistent with all the others (a joint with time to spare may pass its waypoint still moving
-and turn just beyond it, as a spline does); the durations are scaled by a common factor, found
-by golden-section search, to minimise the chained Ruckig durations. Then each via is refined on
-its own: scaling time by 1/x multiplies velocities by x and accelerations by x^2, so candidates
-``(x v, x^2 a)`` of the slope blend (each joint saturating at its limits) are tried on a grid,
-minimising the duration of the two segments next to the waypoint. A segment lasts as long as
-its slowest joint needs, and each joint's time depends on its own states only: so every joint
-then takes its best state among those tried, its velocity moved a little either way, or a
-time-optimal turn where it reverses at the waypoint (at rest, still braking at full
-deceleration), each pick known from one solve per state tried or one unsynchronised Ruckig
-probe of the others, and confirmed by one more solve. Each search keeps the current state
-unless a candidate is faster; resting at the via (scale 0) is on the grid. Candidates that
-carry a joint out of its range (by Ruckig's extrema) have that joint's state halved (a probed
-option whose joint's own profile leaves the range is not taken), and the state kept at a via
-turns no joint beyond its range inside a phase of zero jerk (which Ruckig's extrema miss and
-the planner's range repair would halve at any cost). A second pass, off by default
-(:attr:`OptimizedStrategy.resweep_vias`), re-steps vias given their final neighbours
-(:mod:`planner.motion.vias.joint_steps`).
+and turn just beyond it, as a spline does). A segment lasts as long as its slowest joint needs,
+and each joint's time depends on its own states only: so the splines at a few time scales of
+the durations, and the current states, are options per joint along the whole run, all timed by
+one unsynchronised Ruckig probe, and every joint that sets a segment's time takes in turn the
+option that makes the run fastest (each joint its own time scale: the optimum through the
+waypoints has several joints setting each segment's time, each on its own pattern). Then each
+via is refined on its own: scaling time by 1/x multiplies velocities by x and accelerations by
+x^2, so the states ``(x v, x^2 a)`` of the slope blend (each joint saturating at its limits) on
+a grid, the current velocity moved a little either way, and a time-optimal turn where a joint
+reverses at the waypoint (at rest, still braking at full deceleration) are options per joint,
+timed by one more probe; every joint takes its best option and the pick is confirmed by one
+solve. Where the probes' per-joint times do not tell the segments' durations (a segment
+lasting longer than its slowest joint needs: Ruckig's blocked intervals; or no profile within
+the range), or where the pick is not kept once solved (slower, turning beyond the range or
+missing a segment's end), the grid states are
+solved one by one instead (resting at the via, scale 0, among them) and every joint picks among
+those. Each search keeps the current state unless a candidate is faster.
+Candidates that carry a joint out of its range (by Ruckig's extrema) have that joint's state
+halved (a probed option whose joint's own profile leaves the range is not taken), and the
+state kept at a via turns no joint beyond its range inside a phase of zero jerk (which Ruckig's
+extrema miss and the planner's range repair would halve at any cost). A second pass
+(:attr:`OptimizedStrategy.resweep_vias`, off by default) re-steps vias given their final
+neighbours (:mod:`planner.motion.vias.joint_steps`).
+
+On bench_trajectory's paths (8 arms x 100, 5 waypoints; every 4th solved as an NLP, the
+optimum gap is the median of duration / optimum - 1), against the golden-section search of one
+common spline scale and the solved grid walk at every via before: optimum gap 1.01 -> 0.93 %
+(seed 1: 0.88 -> 0.76 %), mean duration -0.08 %, 0.96 x the instructions per 6-dof plan
+(callgrind, 60 plans of ur5, z1 and panda). With the second pass over the first two vias of
+each run (``resweep_vias=2``) 0.72 % (seed 1: 0.54 %) at 1.05 x, over every via 0.56 % (0.43 %)
+at about 1.10 x.
 """
 
 from __future__ import annotations
@@ -36,7 +50,7 @@ from planner.motion.vias.base import SEARCH_HALVINGS, ViaChain, ViaStrategy, bes
 from planner.motion.vias.heuristic import via_directions
 from planner.motion.vias.joint_steps import STEPS as RESWEEP_STEPS
 from planner.motion.vias.joint_steps import moved_states, resweep_via
-from planner.motion.vias.kernels import scale_states
+from planner.motion.vias.kernels import choose_joints, scale_states
 
 #: Largest time scale searched: keeps x * x finite where a via component is tiny (x * 0 is then
 #: 0, not NaN), far beyond any scale at which every joint already saturates.
@@ -44,22 +58,28 @@ _MAX_SCALE = 1e100
 
 __all__ = ["OptimizedStrategy", "golden_minimum", "golden_points", "spline_via_states"]
 
-# Scale factors of the slope blend for each via state (1 = the blend itself): the grid is walked
-# from _GRID_START (the most frequent best) up while the duration falls, else down. Every joint
-# then picks its best among the states tried (combine_joints), which makes the grid's points count
-# per joint: on bench_trajectory's 800 paths, no golden-section step between them (two points)
-# saves 14 of 76 Ruckig solves per 6-dof plan for +0.05 % duration on average. With the probed
-# velocity steps (_PROBE_STEPS), the scales 0.5 and 1.0 changed durations by 0.003 % on average
-# (the same median optimum gap) for 1.4 solves per 6-dof plan.
+# Scale factors of the slope blend for each via state (1 = the blend itself). The sweep probes
+# these states per joint (with the velocity steps and the turn below, one Ruckig call); where
+# probes do not apply (see _probes_apply) or found nothing faster, the grid is walked, each state
+# solved, from _GRID_START (the most frequent best) up while the duration falls, else down, and
+# every joint picks its best among the states tried (combine_joints). (Probed, the scale 0
+# changed no plan's duration on bench_trajectory's paths.)
 _GRID = (0.0, 1.4, 2.0, 3.0)
 _GRID_START = 1.4
-# Spline stage: the log time-scales of the segment durations whose splines give each joint its
-# options along a run (:meth:`OptimizedStrategy.search_spline`), the rounds of the per-joint
-# choice among them, and how often joints whose extrema leave the range go back to the current
-# states before the run keeps those.
+_PROBE_GRID = _GRID
+# Spline stage (OptimizedStrategy.search_spline): the log time-scales of the segment durations
+# whose splines give each joint its options along a run, the rounds of the per-joint choice among
+# them, and how often joints whose extrema leave the range go back to the current states before
+# the run keeps those. Only the joints whose time in a segment is at least _RUN_NEAR of the
+# segment's with the current states are probed (the others keep them: no change on
+# bench_trajectory's 800 paths at 0.5, +0.01 % mean duration at 0.7). Where the mix, solved, is
+# not faster (blocked intervals), the options common to all joints are solved instead. Three
+# scales (-0.45, -0.2, 0.05) gave the same gaps within 0.05 %.
 _SPLINE_SCALES = (-0.5, -0.3, -0.1, 0.1)
 _CHOICE_ROUNDS = 2
 _SPLINE_FIXES = 2
+_RUN_NEAR = 0.7
+_FALLBACK_PROBE = False
 # How many of the fastest states tried at a via that turn beyond the range are halved in turn
 # (as the search halves states that leave it) before slower ones that fit are taken.
 _TURN_HALVED = 1
@@ -74,11 +94,14 @@ _SETTLE_HALVINGS = 24
 # (one sweep) at many times the plan time.
 _PROBE_STEPS = (-0.05, 0.05)
 _PROBE_NEAR = 0.8
+# A segment counts as lasting as long as its slowest joint needs up to this factor (rounding).
+_OWN_TIMES = 1.0 + 1e-9
 # The second pass (planner.motion.vias.joint_steps), off by default: on bench_trajectory's paths
-# (seed 0; 5 waypoints, 3 vias) over the first via of each run (1) the median optimum gap falls
-# from 1.02 % to 0.92 % (mean duration -0.13 %) at +5 % instructions per 6-dof plan, over every
-# via (None) to 0.71 % (mean duration -0.37 %) at +14 %: most of a visit's cost is fixed (the
-# probe call, the joint choice, the solve and range checks of a new state).
+# (seed 0; 5 waypoints, 3 vias) over the first two vias of each run (2) the median optimum gap
+# falls from 0.93 % to 0.72 % (seed 1: 0.76 to 0.54 %; mean duration -0.24 %) at +10 %
+# instructions per 6-dof plan (1.05 x those of the golden-section run search and solved grid
+# walk before), over every via (None) to 0.56 % (0.43 %; mean duration -0.36 %) at about 1.10 x:
+# most of a visit's cost is fixed (the probe call, the joint choice, the solve and range checks).
 _RESWEEP_VIAS: int | None = 0
 
 
@@ -204,7 +227,7 @@ def _scaled_states(
     return cv, ca
 
 
-def _joint_choice(times: list[list[list[float]]], dof: int) -> list[int] | None:
+def _joint_choice(times: list[float], shape: tuple[int, int, int]) -> list[int] | None:
     """Per joint one of several options along a run, so that the run's duration (estimated) falls.
 
     The run's duration is estimated as the sum over its segments of the slowest joint's time.
@@ -214,12 +237,19 @@ def _joint_choice(times: list[list[list[float]]], dof: int) -> list[int] | None:
     its own unless beaten), for :data:`_CHOICE_ROUNDS` rounds or until none changes.
 
     Args:
-        times: Per option, per segment, per joint its time [s] (inf: not allowed).
-        dof: The number of joints.
+        times: Per option, segment and joint, the joint's time [s] (inf: not allowed), flat
+            (option by option, segment by segment).
+        shape: The number of options, segments and joints.
 
     Returns:
         The option per joint, or None where every option has an inf.
     """
+    fast = choose_joints(times, shape, _CHOICE_ROUNDS)  # compiled, the same loop (False: none, or a NaN)
+    if fast is not False:
+        return fast
+    count, m, dof = shape
+    span = m * dof
+    times = [[times[c * span + r * dof : c * span + (r + 1) * dof] for r in range(m)] for c in range(count)]
     totals = [sum(map(max, option)) for option in times]
     best = min(totals)
     if not best < math.inf:
@@ -273,6 +303,27 @@ def _grid_candidates(x: list[float], u: np.ndarray, w: np.ndarray, lim: JointLim
     return _scaled_states(np.array(x), np.sign(u), np.abs(u), np.sign(w), np.abs(w), lim)
 
 
+def _probes_apply(chain: ViaChain, i: int) -> bool:
+    """Whether the sweep may probe the grid states at via i per joint instead of solving them.
+
+    That is where both segments next to via i, with its current state, have a profile within
+    the range and last as long as their slowest joint alone needs. Where Ruckig's time
+    synchronisation makes a segment last longer (a joint cannot take the slowest joint's time:
+    its blocked intervals), the per-joint times of probes say little about the solved
+    durations; where the current state has no such profile, the states solved on the grid are
+    the fallbacks of :meth:`OptimizedStrategy.combine_joints`.
+    """
+    v, acc = chain.state_rows()
+    seg = chain.seg
+    (d1, bad1, traj1), (d2, bad2, traj2) = seg.solve_around(i, v[i - 1], acc[i - 1], v[i], acc[i], v[i + 1], acc[i + 1])
+    if traj1 is None or traj2 is None or bad1 is not None or bad2 is not None:
+        return False
+    return (
+        d1 <= max(traj1.independent_min_durations) * _OWN_TIMES
+        and d2 <= max(traj2.independent_min_durations) * _OWN_TIMES
+    )
+
+
 def _gather(indices: list[int]) -> Callable[[Sequence[float]], tuple[float, ...]]:
     """The entries of a sequence at `indices`, as a tuple (one :func:`operator.itemgetter` call)."""
     if len(indices) == 1:
@@ -302,8 +353,8 @@ class OptimizedStrategy(ViaStrategy):
     #: The velocity steps of the second pass (:func:`~planner.motion.vias.joint_steps.resweep_via`; () for none).
     resweep_steps: tuple[float, ...] = RESWEEP_STEPS
     #: How many vias of each run between fixed waypoints, from its first, the second pass visits
-    #: (0: none, the default; None: all). Each costs about 5 % of a 6-dof plan's time through 5
-    #: waypoints (see _RESWEEP_VIAS).
+    #: (0: none, the default; None: all). Each costs about 5 % of a 6-dof plan's instructions
+    #: through 5 waypoints (see _RESWEEP_VIAS).
     resweep_vias: int | None = _RESWEEP_VIAS
 
     def __init__(self, resweep_vias: int | None | object = _CLASS_DEFAULT) -> None:
@@ -338,11 +389,16 @@ class OptimizedStrategy(ViaStrategy):
             u, w = via_directions(chain.q, i, durations, chain.limits, chain.stop)
             grid, tried = None, []
             if any(u.tolist()) or any(w.tolist()):
-                if chain.pair_coster(i)(chain.v[i], chain.acc[i])[0] < math.inf:
+                if _probes_apply(chain, i):
                     grid = self.grid_states(chain, u, w)
                 else:
                     tried = self.search_via(chain, i, u, w)  # (resting at the via among them)
-            self.combine_joints(chain, i, tried, grid)
+            if grid is None:
+                self.combine_joints(chain, i, tried)
+            else:
+                if self.combine_joints(chain, i, [], grid):
+                    # The probed pick was not kept once solved: the grid states solved instead.
+                    self.combine_joints(chain, i, self.search_via(chain, i, u, w), probe=_FALLBACK_PROBE)
             v, acc = chain.state_rows()
             durations[i - 1] = chain.seg.solve(i - 1, v[i - 1], acc[i - 1], v[i], acc[i])[0]
             durations[i] = chain.seg.solve(i, v[i], acc[i], v[i + 1], acc[i + 1])[0]
@@ -434,7 +490,7 @@ class OptimizedStrategy(ViaStrategy):
         """
         lim = chain.limits
         top = _grid_top(u, w, lim)
-        grid = [*_GRID, top] if top > _GRID[-1] else sorted({min(g, top) for g in _GRID} | {top})
+        grid = [*_PROBE_GRID, top] if top > _PROBE_GRID[-1] else sorted({min(g, top) for g in _PROBE_GRID} | {top})
         cvs, cas = _grid_candidates(grid, u, w, lim)
         return cvs.tolist(), cas.tolist()
 
@@ -468,11 +524,14 @@ class OptimizedStrategy(ViaStrategy):
         one option per scale for the states of every joint along the run, the current states
         one more. A segment lasts as long as its slowest joint needs and each joint's time
         depends on its own states only: one unsynchronised Ruckig probe times every (option,
-        segment, joint) (:meth:`SegmentSolver.probe_run`), and every joint that sets a
+        segment, joint) (:meth:`SegmentSolver.probe_run`; only the joints near a segment's
+        time with the current states, the others keep them), and every joint that sets a
         segment's time takes in turn the option that makes the run fastest given the others'
         (from the best option common to all joints). The result is solved; joints whose
         extrema leave the range there take the current states again. It replaces the current
-        states if it is faster and within the range.
+        states if it is faster, within the range and every segment reaches its end; else (the
+        solved run slower than its joints' own times tell: Ruckig's blocked intervals) the
+        fastest option common to all joints does, solved, under the same conditions.
         """
         lim = chain.limits
         h0 = durations[a:b]
@@ -507,35 +566,40 @@ class OptimizedStrategy(ViaStrategy):
         vs = np.minimum(np.maximum(vs, -lim.velocity), lim.velocity)
         accs = admissible_acceleration(vs, accs, lim)
         count = len(vs)
-        # Per option the states at waypoints a..b, flat (the ends are the chain's).
-        flat_v = np.empty((count, m + 1, dof))
-        flat_a = np.empty((count, m + 1, dof))
-        flat_v[:, 0], flat_v[:, 1:m], flat_v[:, m] = v_a, vs, v_b
-        flat_a[:, 0], flat_a[:, 1:m], flat_a[:, m] = chain.acc[a], accs, chain.acc[b]
-        probed = seg.probe_run(a, m, flat_v.reshape(count, -1).tolist(), flat_a.reshape(count, -1).tolist())
+        # Per option the states at waypoints a..b (the ends are the chain's), the current ones last.
+        states_v = np.empty((count + 1, m + 1, dof))
+        states_a = np.empty((count + 1, m + 1, dof))
+        states_v[:, 0], states_v[:count, 1:m], states_v[count, 1:m], states_v[:, m] = v_a, vs, chain.v[a + 1 : b], v_b
+        states_a[:, 0], states_a[:count, 1:m], states_a[count, 1:m], states_a[:, m] = (
+            chain.acc[a],
+            accs,
+            chain.acc[a + 1 : b],
+            chain.acc[b],
+        )
+        # Only the joints near a segment's time with the current states are probed: the others
+        # keep them (their other options count as not allowed).
+        near = [_RUN_NEAR * max(times) for times in now]
+        joints = tuple(j for j in range(dof) if any(times[j] >= x for times, x in zip(now, near)))
+        if len(joints) == dof:
+            probed = seg.probe_run(a, states_v[:count], states_a[:count])
+        else:
+            probed = seg.probe_run(a, states_v[:count, :, joints], states_a[:count, :, joints], joints)
+            if probed is not None:
+                fill = [math.inf] * (count * m * dof)
+                for i, j in enumerate(joints):
+                    fill[j::dof] = probed[i :: len(joints)]
+                probed = fill
         if probed is None:
             return
-        span = m * dof
-        # times[c][r] holds option c's per-joint times in segment a+r; option `count` is the current states.
-        times = [[probed[c * span + r * dof : c * span + (r + 1) * dof] for r in range(m)] for c in range(count)]
-        times.append(now)
-        choice = _joint_choice(times, dof)
+        choice = _joint_choice(probed + [t for times in now for t in times], (count + 1, m, dof))
         if choice is None:
             return
-        for _ in range(_SPLINE_FIXES + 1):
-            v = np.array(
-                [
-                    [vs[c, r, j] if c < count else rows_v[a + 1 + r][j] for j, c in enumerate(choice)]
-                    for r in range(m - 1)
-                ]
-            )
-            acc = np.array(
-                [
-                    [accs[c, r, j] if c < count else rows_acc[a + 1 + r][j] for j, c in enumerate(choice)]
-                    for r in range(m - 1)
-                ]
-            )
-            states = [(rows_v[a], rows_acc[a]), *zip(v, acc), (rows_v[b], rows_acc[b])]
+        columns = np.arange(dof)
+        start, end = (rows_v[a], rows_acc[a]), (rows_v[b], rows_acc[b])
+
+        def solved(v: np.ndarray, acc: np.ndarray) -> tuple[float, set[int], list]:
+            """The run's duration with via states (v, acc), the joints out of the range, the states."""
+            states = [start, *zip(v, acc), end]
             total, out = 0.0, set()
             for k in range(a, b):
                 (va, aa), (vb, ab) = states[k - a], states[k - a + 1]
@@ -543,15 +607,37 @@ class OptimizedStrategy(ViaStrategy):
                 if bad is not None:
                     out.update(j for j, x in enumerate(bad.tolist()) if x)
                 total += d
+            return total, out, states
+
+        def reaches(states: list) -> bool:
+            """Whether every segment reaches its end (else the range repair would rest at the vias)."""
+            return not any(seg.misses_end(k, *states[k - a], *states[k - a + 1]) for k in range(a, b))
+
+        for _ in range(_SPLINE_FIXES + 1):
+            picks = np.array(choice)
+            v = np.ascontiguousarray(states_v[picks, 1:m, columns].T)
+            acc = np.ascontiguousarray(states_a[picks, 1:m, columns].T)
+            total, out, states = solved(v, acc)
             if not out:
-                if total < current:
+                if total < current and reaches(states):
                     chain.v[a + 1 : b], chain.acc[a + 1 : b] = v, acc
-                return
+                    return
+                break
             # Joints out of the range take the current states (already solved: within it, or no better).
             if all(choice[j] == count for j in out):
-                return
+                break
             for j in out:
                 choice[j] = count
+        # The mix not kept (slower than its joints' own times tell, Ruckig's blocked intervals):
+        # the options common to all joints, solved.
+        best, kept = current, None
+        for c in range(count):
+            v, acc = states_v[c, 1:m], states_a[c, 1:m]
+            total, out, states = solved(v, acc)
+            if not out and total < best:
+                best, kept = total, (v, acc, states)
+        if kept is not None and reaches(kept[2]):
+            chain.v[a + 1 : b], chain.acc[a + 1 : b] = kept[0], kept[1]
 
     def _probe_options(
         self,
@@ -637,7 +723,8 @@ class OptimizedStrategy(ViaStrategy):
         i: int,
         tried: list[tuple[float, np.ndarray, np.ndarray]],
         grid: tuple[list[list[float]], list[list[float]]] | None = None,
-    ) -> None:
+        probe: bool = True,
+    ) -> bool:
         """Give every joint at via i its best state among those tried, and a time-optimal turn.
 
         A segment lasts as long as its slowest joint needs (Ruckig's independent minimum
@@ -658,6 +745,12 @@ class OptimizedStrategy(ViaStrategy):
             i: The via.
             tried: States tried at via i, (pair duration, velocities, accelerations) each.
             grid: States probed per joint, not solved (:meth:`grid_states`); None for none.
+            probe: Whether to probe more options per joint (:meth:`_probe_options`); else the
+                joints pick among the states tried only.
+
+        Returns:
+            Whether the joints' best pick, once solved, was not kept (slower than its estimate,
+            or turning beyond the range or missing a segment's end), or no state was kept.
         """
         lim = chain.limits
         pair = chain.pair_coster(i)
@@ -676,8 +769,8 @@ class OptimizedStrategy(ViaStrategy):
             t1s.append(traj1.independent_min_durations)
             t2s.append(traj2.independent_min_durations)
             options.append(state)
-        pv, pa = [], []
-        if options and options[0] is current:
+        pv, pa, found = [], [], None
+        if probe and options and options[0] is current:
             pv, pa, rows1, rows2 = self._probe_options(chain, i, current, (t1s[0], t2s[0]), dp, flags, grid)
             t1s += rows1
             t2s += rows2
@@ -729,3 +822,4 @@ class OptimizedStrategy(ViaStrategy):
         best = min(pool, key=lambda c: c[0], default=None)
         if best is not None:
             _, chain.v[i], chain.acc[i] = best
+        return best is None or (found is not None and best is not found)
