@@ -51,6 +51,14 @@ def _watched_plan(monkeypatch, robot, start, goal, seed):
 
     monkeypatch.setattr(motion_plan, "check_trajectory", watch_check)
     monkeypatch.setattr(detours, "measure_singularities", watch_measure)
+    # Lines smoothed into one motion are measured where they are smoothed (planner.app.motion_plan).
+    smoothed = motion_plan.measure_singularities
+
+    def watch_smoothed(robot, trajectory, *args, **kw):
+        measured.append(trajectory)
+        return smoothed(robot, trajectory, *args, **kw)
+
+    monkeypatch.setattr(motion_plan, "measure_singularities", watch_smoothed)
     request = parse_motion_request(
         {"waypoints": [list(start), list(goal)], "scene": SCENE, "avoidance": {"seed": seed}}
     )

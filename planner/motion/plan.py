@@ -16,16 +16,16 @@ chooses the state (velocity and acceleration) at every via waypoint itself:
    waypoints are then chosen together: the C2 cubic spline through the waypoints at the
    segment durations gives every via a velocity and an acceleration consistent with all the
    others (a joint with time to spare may pass its waypoint still moving and turn just
-   beyond it, as a spline does); the durations are scaled by a common factor, found by
-   golden-section search, to minimise the chained Ruckig durations. Then each via is refined
-   on its own: scaling time by 1/x multiplies velocities by x and accelerations by x^2, so
-   candidates ``(x v, x^2 a)`` of the slope blend (each joint saturating at its limits) are
-   tried on a grid, minimising the duration of the two segments next to the waypoint. Then
-   every joint takes its best state among those tried, or a time-optimal turn where it
-   reverses at the waypoint (at rest, still braking at full deceleration): a segment lasts
-   as long as its slowest joint needs and each joint's time depends on its own states only,
-   so one solve per state tells every joint's options. Each search keeps the current state
-   unless a candidate is faster; resting at the via (scale 0) is on the grid.
+   beyond it, as a spline does); a segment lasts as long as its slowest joint needs and each
+   joint's time depends on its own states only, so every joint takes, along the whole run,
+   the spline of the time scale of the durations that makes the run fastest (one
+   unsynchronised Ruckig probe times every option). Then each via is refined on its own:
+   scaling time by 1/x multiplies velocities by x and accelerations by x^2, so candidates
+   ``(x v, x^2 a)`` of the slope blend (each joint saturating at its limits) on a grid, the
+   velocity moved a little either way, or a time-optimal turn where a joint reverses at the
+   waypoint (at rest, still braking at full deceleration) are every joint's options, and each
+   joint takes its best (see :mod:`planner.motion.vias.optimized`). Each search keeps the
+   current state unless a candidate is faster; resting at the via (scale 0) is on the grid.
 3. **Range repair.** A non-zero via state can carry a joint past its range inside a segment.
    The search discards such candidates (halving the offending joints' via state), and every
    final segment is checked exactly: the per-joint extrema of its constant-jerk pieces

@@ -710,6 +710,88 @@ class SegmentSolver:
                         first[e] = second[e] = math.inf
         return first, second
 
+    def probe_run(
+        self, a: int, velocities: np.ndarray, accelerations: np.ndarray, joints: tuple[int, ...] | None = None
+    ) -> list[float] | None:
+        """Per-joint minimum times of the segments from waypoint a on, for several options of the states at their ends.
+
+        As :meth:`probe_around`, one unsynchronised Ruckig calculate for every (option,
+        segment, joint): a segment lasts at least as long as each joint alone needs, and that
+        depends on the joint's own end states only. An entry whose own profile leaves the
+        range by Ruckig's extrema (looked at only where the joint could reach a range end), or
+        where Ruckig 0.19 would fail on a joint going out and back on one parabola (not
+        solved), gets inf.
+
+        Args:
+            a: The first waypoint.
+            velocities: Per option, the velocities of `joints` at waypoints a .. a+m, shape
+                (options, m+1, len(joints)), a + m < N, each state admissible (see
+                :func:`planner.motion.limits.admissible_acceleration`).
+            accelerations: Per option, the accelerations, likewise.
+            joints: The joints probed (ascending indices); None for all.
+
+        Returns:
+            The times [s], a flat list with the entry of option c, segment a+r and the i-th
+            joint probed at ``(c m + r) len(joints) + i``; None where Ruckig fails.
+        """
+        many, m, count = velocities.shape
+        m -= 1
+        if not many:
+            return []
+        if joints is None:
+            joints = tuple(range(self.dof))
+        key = ("run", a, m, many, joints)
+        fixed = self._probes.get(key)
+        if fixed is None:
+            rows = self.rows
+            p0 = [row[j] for row in rows[a : a + m] for j in joints]
+            p1 = [row[j] for row in rows[a + 1 : a + m + 1] for j in joints]
+            velocity, acceleration, jerk = ([limit[j] for j in joints] for limit in self._limits)
+            reps = m * many
+            fixed = self._probes[key] = (p0 * many, p1 * many, velocity * reps, acceleration * reps, jerk * reps)
+        otg, inp, traj = _thread_prober(len(fixed[0]))
+        inp.current_position, inp.target_position, inp.max_velocity, inp.max_acceleration, inp.max_jerk = fixed
+        v0, a0 = velocities[:, :-1].ravel().tolist(), accelerations[:, :-1].ravel().tolist()
+        v1, a1 = velocities[:, 1:].ravel().tolist(), accelerations[:, 1:].ravel().tolist()
+        skipped = []
+        for r, still in enumerate(self._still[a : a + m]):
+            if still is None:
+                continue
+            for i, j in enumerate(joints):
+                if j not in still:
+                    continue
+                for c in range(many):
+                    e = (c * m + r) * count + i
+                    if _parabola(v0[e], a0[e], v1[e], a1[e]):
+                        skipped.append(e)
+                        v0[e] = a0[e] = v1[e] = a1[e] = 0.0
+        inp.current_velocity, inp.current_acceleration = v0, a0
+        inp.target_velocity, inp.target_acceleration = v1, a1
+        try:
+            result = otg.calculate(inp, traj)
+        except (RuckigError, ValueError):  # see _solve
+            return None
+        if result not in _SOLVED:
+            return None
+        times = traj.independent_min_durations
+        for e in skipped:
+            times[e] = math.inf
+        if self.bounded:
+            # Only a profile that lasts longer than the joint needs to reach a range end can leave the range.
+            reach = self._reach
+            if reach is None:
+                reach = self._reach = self._reach_times()
+            limit = [row[j] for row in reach[a : a + m] for j in joints] * many
+            if any(map(gt, times, limit)):
+                extrema = traj.position_extrema
+                lows, highs = self._lows, self._highs
+                for e in np.flatnonzero(np.greater(times, limit)).tolist():
+                    j = joints[e % count]
+                    bound = extrema[e]
+                    if bound.min < lows[j] or bound.max > highs[j]:
+                        times[e] = math.inf
+        return times
+
     def _reach_times(self) -> list[list[float]]:
         """Per segment and joint, the least time in which it can reach a range end [s] (0 where unknown)."""
         out = []

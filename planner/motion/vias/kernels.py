@@ -1,13 +1,14 @@
-"""Compiled loops of the via search: the per-joint option choice and the time-scaled via states.
+"""Compiled loops of the via search: the per-joint option choices and the time-scaled via states.
 
 :func:`planner.motion.vias.base.best_choice` (a sweep over every option's times, run once per
-via) and :func:`planner.motion.vias.optimized._scaled_states` (a few NumPy operations on arrays
+via), :func:`planner.motion.vias.optimized._joint_choice` (its counterpart along a run, once per
+run) and :func:`planner.motion.vias.optimized._scaled_states` (a few NumPy operations on arrays
 of a few dozen entries) cost more in Python's and NumPy's call overhead than in arithmetic.
-Here both are one C function each (:mod:`planner.core.native`, compiled once), with the same
+Here each is one C function (:mod:`planner.core.native`, compiled once), with the same
 comparisons and operations in the same order: the same values bit for bit, the sign of a zero
 included (``np.minimum`` and ``np.maximum`` return their second argument on a tie, as the C
 does; the tests compare both paths). Without a compiler (or with ``PLANNER_JIT=0``) the
-functions here return None and the callers take their Python path.
+functions here return None (:func:`choose_joints` False) and the callers take their Python path.
 """
 
 from __future__ import annotations
@@ -20,7 +21,7 @@ import numpy as np
 
 from planner.core.native import load_functions
 
-__all__ = ["choose_options", "scale_states"]
+__all__ = ["choose_options", "choose_joints", "scale_states"]
 
 _SOURCE = r"""
 #include <math.h>
@@ -101,6 +102,77 @@ long best_choice(long K, long dof, const double *t1, const double *t2, double *b
     return 1;
 }
 
+/* _joint_choice (planner.motion.vias.optimized) on times (K, m, dof), row-major: per option, segment
+   and joint. Returns 1 and fills choice (dof), 0 where every option has an inf, -1 where a NaN is
+   among the times (the Python loop is then the reference). The same comparisons and sums, in the
+   same order. */
+long joint_choice(long K, long m, long dof, long rounds, const double *t, long *choice) {
+    long n = K * m * dof;
+    for (long e = 0; e < n; ++e)
+        if (isnan(t[e])) return -1;
+    double best = INFINITY;
+    long first = 0;
+    for (long c = 0; c < K; ++c) {
+        double total = 0.0;
+        for (long r = 0; r < m; ++r) {
+            const double *row = t + (c * m + r) * dof;
+            double mx = row[0];
+            for (long j = 1; j < dof; ++j)
+                if (row[j] > mx) mx = row[j];
+            total += mx;
+        }
+        if (c == 0 || total < best) {
+            best = total;
+            first = c;
+        }
+    }
+    if (!(best < INFINITY)) return 0;
+    double chosen[m * dof], others[m];
+    for (long j = 0; j < dof; ++j) choice[j] = first;
+    for (long e = 0; e < m * dof; ++e) chosen[e] = t[first * m * dof + e];
+    for (long round = 0; round < rounds; ++round) {
+        int changed = 0;
+        for (long j = 0; j < dof; ++j) {
+            int binding = 0;
+            for (long r = 0; r < m; ++r) {
+                const double *row = chosen + r * dof;
+                double mx = row[0];
+                for (long i = 1; i < dof; ++i)
+                    if (row[i] > mx) mx = row[i];
+                if (row[j] >= mx) binding = 1;
+                double o = 0.0;
+                int any = 0;
+                for (long i = 0; i < dof; ++i) {
+                    if (i == j) continue;
+                    if (!any || row[i] > o) o = row[i];
+                    any = 1;
+                }
+                others[r] = o;
+            }
+            if (!binding) continue;
+            long pick = choice[j];
+            for (long c = 0; c < K; ++c) {
+                double total = 0.0;
+                for (long r = 0; r < m; ++r) {
+                    double o = others[r], x = t[(c * m + r) * dof + j];
+                    total += o > x ? o : x;
+                }
+                if (total < best) {
+                    best = total;
+                    pick = c;
+                }
+            }
+            if (pick != choice[j]) {
+                choice[j] = pick;
+                changed = 1;
+                for (long r = 0; r < m; ++r) chosen[r * dof + j] = t[(pick * m + r) * dof + j];
+            }
+        }
+        if (!changed) break;
+    }
+    return 1;
+}
+
 /* np.minimum / np.maximum: NaN propagates, a tie gives the second argument. */
 static double np_min(double a, double b) { return isnan(a) ? a : isnan(b) ? b : a < b ? a : b; }
 static double np_max(double a, double b) { return isnan(a) ? a : isnan(b) ? b : a > b ? a : b; }
@@ -135,6 +207,7 @@ void scaled_states(long G, long dof, const double *x, const double *u, const dou
 _SIGNATURES = {
     "best_choice": [ctypes.c_long, ctypes.c_long, *[ctypes.c_void_p] * 4],
     "scaled_states": [ctypes.c_long, ctypes.c_long, *[ctypes.c_void_p] * 5],
+    "joint_choice": [ctypes.c_long, ctypes.c_long, ctypes.c_long, ctypes.c_long, ctypes.c_void_p, ctypes.c_void_p],
 }
 
 
@@ -146,6 +219,7 @@ def _library() -> ctypes.CDLL | None:
     library = load_functions(_SOURCE, "via_kernels", _SIGNATURES)
     if library is not None and library.best_choice.restype is None:
         library.best_choice.restype = ctypes.c_long  # (load_functions sets None: it returns a code)
+        library.joint_choice.restype = ctypes.c_long
     return library
 
 
@@ -174,6 +248,30 @@ def choose_options(rows1: list[list[float]], rows2: list[list[float]]) -> tuple[
     if found < 0:
         return None
     return out[0], (choice.tolist() if found else None)
+
+
+def choose_joints(times: list[float], shape: tuple[int, int, int], rounds: int) -> list[int] | None | bool:
+    """:func:`planner.motion.vias.optimized._joint_choice` on flat times, compiled.
+
+    Args:
+        times: Per option, segment and joint the joint's time [s], flat (option by option).
+        shape: The number of options, segments and joints.
+        rounds: The rounds of the choice.
+
+    Returns:
+        The option per joint, None where every option has an inf, or False where there is no
+        compiled library, too many entries or a NaN among the times (the caller's Python path decides).
+    """
+    library = _library()
+    count, m, dof = shape
+    if library is None or count * m * dof > _MOST_ENTRIES:
+        return False  # (the C function keeps the chosen times on its stack)
+    flat = array("d", times)
+    choice = array("l", [0]) * dof  # C longs, as the function's
+    found = library.joint_choice(count, m, dof, rounds, flat.buffer_info()[0], choice.buffer_info()[0])
+    if found < 0:
+        return False
+    return choice.tolist() if found else None
 
 
 def scale_states(x: list[float], u: np.ndarray, w: np.ndarray, limits: bytes) -> tuple[np.ndarray, np.ndarray] | None:

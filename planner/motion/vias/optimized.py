@@ -1,30 +1,43 @@
-"""The ``"optimized"`` via strategy (the default): a spline run search, then a search per via.
+"""The ``"optimized"`` via strategy (the default): a per-joint spline run search, then a search per via.
 
 All via states between two fixed waypoints are first chosen together: the C2 cubic spline
 through the waypoints at the segment durations gives every via a velocity and an acceleration
 consistent with all the others (a joint with time to spare may pass its waypoint still moving
-and turn just beyond it, as a spline does); the durations are scaled by a common factor, found
-by golden-section search, to minimise the chained Ruckig durations. Then each via is refined on
-its own: scaling time by 1/x multiplies velocities by x and accelerations by x^2, so candidates
-``(x v, x^2 a)`` of the slope blend (each joint saturating at its limits) are tried on a grid,
-minimising the duration of the two segments next to the waypoint. A segment lasts as long as
-its slowest joint needs, and each joint's time depends on its own states only: so every joint
-then takes its best state among those tried, its velocity moved a little either way, or a
-time-optimal turn where it reverses at the waypoint (at rest, still braking at full
-deceleration), each pick known from one solve per state tried or one unsynchronised Ruckig
-probe of the others, and confirmed by one more solve. Each search keeps the current state
-unless a candidate is faster; resting at the via (scale 0) is on the grid. Candidates that
-carry a joint out of its range (by Ruckig's extrema) have that joint's state halved (a probed
-option whose joint's own profile leaves the range is not taken), and the state kept at a via
-turns no joint beyond its range inside a phase of zero jerk (which Ruckig's extrema miss and
-the planner's range repair would halve at any cost). A second pass, off by default
-(:attr:`OptimizedStrategy.resweep_vias`), re-steps vias given their final neighbours
-(:mod:`planner.motion.vias.joint_steps`).
+and turn just beyond it, as a spline does). A segment lasts as long as its slowest joint needs,
+and each joint's time depends on its own states only: so the splines at a few time scales of
+the durations, and the current states, are options per joint along the whole run, all timed by
+one unsynchronised Ruckig probe, and every joint that sets a segment's time takes in turn the
+option that makes the run fastest (each joint its own time scale: the optimum through the
+waypoints has several joints setting each segment's time, each on its own pattern). Then each
+via is refined on its own: scaling time by 1/x multiplies velocities by x and accelerations by
+x^2, so the states ``(x v, x^2 a)`` of the slope blend (each joint saturating at its limits) on
+a grid, the current velocity moved a little either way, and a time-optimal turn where a joint
+reverses at the waypoint (at rest, still braking at full deceleration) are options per joint,
+timed by one more probe; every joint takes its best option and the pick is confirmed by one
+solve. Where the probes' per-joint times do not tell the segments' durations (a segment
+lasting longer than its slowest joint needs: Ruckig's blocked intervals; or no profile within
+the range), or where the pick is not kept once solved (slower, turning beyond the range or
+missing a segment's end), the grid states are
+solved one by one instead (resting at the via, scale 0, among them) and every joint picks among
+those. Each search keeps the current state unless a candidate is faster.
+Candidates that carry a joint out of its range (by Ruckig's extrema) have that joint's state
+halved (a probed option whose joint's own profile leaves the range is not taken), and the
+state kept at a via turns no joint beyond its range inside a phase of zero jerk (which Ruckig's
+extrema miss and the planner's range repair would halve at any cost). A second pass
+(:attr:`OptimizedStrategy.resweep_vias`, off by default) re-steps vias given their final
+neighbours (:mod:`planner.motion.vias.joint_steps`).
+
+On bench_trajectory's paths (8 arms x 100, 5 waypoints; every 4th solved as an NLP, the
+optimum gap is the median of duration / optimum - 1), against the golden-section search of one
+common spline scale and the solved grid walk at every via before: optimum gap 1.01 -> 0.93 %
+(seed 1: 0.88 -> 0.76 %), mean duration -0.08 %, 0.96 x the instructions per 6-dof plan
+(callgrind, 60 plans of ur5, z1 and panda). With the second pass over the first two vias of
+each run (``resweep_vias=2``) 0.72 % (seed 1: 0.54 %) at 1.05 x, over every via 0.56 % (0.43 %)
+at about 1.10 x.
 """
 
 from __future__ import annotations
 
-import functools
 import math
 from collections.abc import Callable, Sequence
 from operator import itemgetter
@@ -37,7 +50,7 @@ from planner.motion.vias.base import SEARCH_HALVINGS, ViaChain, ViaStrategy, bes
 from planner.motion.vias.heuristic import via_directions
 from planner.motion.vias.joint_steps import STEPS as RESWEEP_STEPS
 from planner.motion.vias.joint_steps import moved_states, resweep_via
-from planner.motion.vias.kernels import scale_states
+from planner.motion.vias.kernels import choose_joints, scale_states
 
 #: Largest time scale searched: keeps x * x finite where a via component is tiny (x * 0 is then
 #: 0, not NaN), far beyond any scale at which every joint already saturates.
@@ -45,22 +58,28 @@ _MAX_SCALE = 1e100
 
 __all__ = ["OptimizedStrategy", "golden_minimum", "golden_points", "spline_via_states"]
 
-# Scale factors of the slope blend for each via state (1 = the blend itself): the grid is walked
-# from _GRID_START (the most frequent best) up while the duration falls, else down. Every joint
-# then picks its best among the states tried (combine_joints), which makes the grid's points count
-# per joint: on bench_trajectory's 800 paths, no golden-section step between them (two points)
-# saves 14 of 76 Ruckig solves per 6-dof plan for +0.05 % duration on average. With the probed
-# velocity steps (_PROBE_STEPS), the scales 0.5 and 1.0 changed durations by 0.003 % on average
-# (the same median optimum gap) for 1.4 solves per 6-dof plan.
+# Scale factors of the slope blend for each via state (1 = the blend itself). The sweep probes
+# these states per joint (with the velocity steps and the turn below, one Ruckig call); where
+# probes do not apply (see _probes_apply) or found nothing faster, the grid is walked, each state
+# solved, from _GRID_START (the most frequent best) up while the duration falls, else down, and
+# every joint picks its best among the states tried (combine_joints). (Probed, the scale 0
+# changed no plan's duration on bench_trajectory's paths.)
 _GRID = (0.0, 1.4, 2.0, 3.0)
 _GRID_START = 1.4
-# Spline stage: range of the common log time-scale of the segment durations searched, and
-# golden-section evaluations (a simplex over every duration gained nothing on top; a fourth
-# evaluation costs 7 % of the plan's instructions for 0.01 % optimum gap with the probes below).
-_SPLINE_SCALE = (-0.5, 0.1)
-_SPLINE_SCALE_EVALS = 3
-# A segment whose Ruckig extrema leave the range counts this much longer in the search.
-_SPLINE_PENALTY = 1.5
+_PROBE_GRID = _GRID
+# Spline stage (OptimizedStrategy.search_spline): the log time-scales of the segment durations
+# whose splines give each joint its options along a run, the rounds of the per-joint choice among
+# them, and how often joints whose extrema leave the range go back to the current states before
+# the run keeps those. Only the joints whose time in a segment is at least _RUN_NEAR of the
+# segment's with the current states are probed (the others keep them: no change on
+# bench_trajectory's 800 paths at 0.5, +0.01 % mean duration at 0.7). Where the mix, solved, is
+# not faster (blocked intervals), the options common to all joints are solved instead. Three
+# scales (-0.45, -0.2, 0.05) gave the same gaps within 0.05 %.
+_SPLINE_SCALES = (-0.5, -0.3, -0.1, 0.1)
+_CHOICE_ROUNDS = 2
+_SPLINE_FIXES = 2
+_RUN_NEAR = 0.7
+_FALLBACK_PROBE = False
 # How many of the fastest states tried at a via that turn beyond the range are halved in turn
 # (as the search halves states that leave it) before slower ones that fit are taken.
 _TURN_HALVED = 1
@@ -75,11 +94,14 @@ _SETTLE_HALVINGS = 24
 # (one sweep) at many times the plan time.
 _PROBE_STEPS = (-0.05, 0.05)
 _PROBE_NEAR = 0.8
+# A segment counts as lasting as long as its slowest joint needs up to this factor (rounding).
+_OWN_TIMES = 1.0 + 1e-9
 # The second pass (planner.motion.vias.joint_steps), off by default: on bench_trajectory's paths
-# (seed 0; 5 waypoints, 3 vias) over the first via of each run (1) the median optimum gap falls
-# from 1.02 % to 0.92 % (mean duration -0.13 %) at +5 % instructions per 6-dof plan, over every
-# via (None) to 0.71 % (mean duration -0.37 %) at +14 %: most of a visit's cost is fixed (the
-# probe call, the joint choice, the solve and range checks of a new state).
+# (seed 0; 5 waypoints, 3 vias) over the first two vias of each run (2) the median optimum gap
+# falls from 0.93 % to 0.72 % (seed 1: 0.76 to 0.54 %; mean duration -0.24 %) at +10 %
+# instructions per 6-dof plan (1.05 x those of the golden-section run search and solved grid
+# walk before), over every via (None) to 0.56 % (0.43 %; mean duration -0.36 %) at about 1.10 x:
+# most of a visit's cost is fixed (the probe call, the joint choice, the solve and range checks).
 _RESWEEP_VIAS: int | None = 0
 
 
@@ -124,18 +146,9 @@ def golden_points(lo: float, hi: float, evals: int) -> set[float]:
     return points
 
 
-@functools.lru_cache(maxsize=1024)
-def _sorted_golden_points(lo: float, hi: float, evals: int) -> tuple[float, ...]:
-    """:func:`golden_points` in ascending order, kept per bracket (a search asks for few brackets)."""
-    return tuple(sorted(golden_points(lo, hi, evals)))
-
-
-# The spline stage's golden-section points, their inverse time scales exp(-x) and those squared,
-# the same for every run.
-_SPLINE_POINTS = _sorted_golden_points(*_SPLINE_SCALE, _SPLINE_SCALE_EVALS)
-_SPLINE_INV = np.array([math.exp(-x) for x in _SPLINE_POINTS])[:, None, None]
+# The inverse time scales exp(-x) of the spline stage and those squared, the same for every run.
+_SPLINE_INV = np.array([math.exp(-x) for x in _SPLINE_SCALES])[:, None, None]
 _SPLINE_INV2 = _SPLINE_INV * _SPLINE_INV
-_SPLINE_INDEX = {x: p for p, x in enumerate(_SPLINE_POINTS)}
 
 
 def spline_via_states(
@@ -214,6 +227,103 @@ def _scaled_states(
     return cv, ca
 
 
+def _joint_choice(times: list[float], shape: tuple[int, int, int]) -> list[int] | None:
+    """Per joint one of several options along a run, so that the run's duration (estimated) falls.
+
+    The run's duration is estimated as the sum over its segments of the slowest joint's time.
+
+    From the best option common to all joints, each joint that sets a segment's time takes in
+    turn the option that makes the sum smallest given the others' choices (the first smallest:
+    its own unless beaten), for :data:`_CHOICE_ROUNDS` rounds or until none changes.
+
+    Args:
+        times: Per option, segment and joint, the joint's time [s] (inf: not allowed), flat
+            (option by option, segment by segment).
+        shape: The number of options, segments and joints.
+
+    Returns:
+        The option per joint, or None where every option has an inf.
+    """
+    fast = choose_joints(times, shape, _CHOICE_ROUNDS)  # compiled, the same loop (False: none, or a NaN)
+    if fast is not False:
+        return fast
+    count, m, dof = shape
+    span = m * dof
+    times = [[times[c * span + r * dof : c * span + (r + 1) * dof] for r in range(m)] for c in range(count)]
+    totals = [sum(map(max, option)) for option in times]
+    best = min(totals)
+    if not best < math.inf:
+        return None
+    first = totals.index(best)
+    choice = [first] * dof
+    chosen = [list(row) for row in times[first]]  # per segment the chosen times of every joint
+    for _ in range(_CHOICE_ROUNDS):
+        changed = False
+        for j in range(dof):
+            if not any(row[j] >= max(row) for row in chosen):
+                continue  # the joint sets no segment's time: no option of its own makes the run faster
+            others = [max(row[:j] + row[j + 1 :], default=0.0) for row in chosen]
+            pick = choice[j]
+            for c, option in enumerate(times):
+                total = 0.0
+                for o, row in zip(others, option):
+                    t = row[j]
+                    total += o if o > t else t
+                if total < best:
+                    best, pick = total, c
+            if pick != choice[j]:
+                choice[j], changed = pick, True
+                for row, option_row in zip(chosen, times[pick]):
+                    row[j] = option_row[j]
+        if not changed:
+            break
+    return choice
+
+
+def _grid_top(u: np.ndarray, w: np.ndarray, lim: JointLimits) -> float:
+    """The largest scale of the grid of states ``(x u, x^2 w)``: where the last joint stops gaining speed."""
+    tops = [1.0]
+    # On plain floats: the largest scale at which a joint still gains speed (acceleration).
+    velocity, acceleration, _ = lim.ruckig_limits
+    scales = [top / m for top, m in zip(velocity, map(abs, u.tolist())) if m > 0]
+    if scales:
+        tops.append(max(scales))
+    scales = [top / m for top, m in zip(acceleration, map(abs, w.tolist())) if m > 0]
+    if scales:
+        tops.append(math.sqrt(max(scales)))
+    return min(max(tops), _MAX_SCALE)
+
+
+def _grid_candidates(x: list[float], u: np.ndarray, w: np.ndarray, lim: JointLimits) -> tuple[np.ndarray, np.ndarray]:
+    """The admissible states ``(x u, x^2 w)`` at the scales x, shapes (G, dof) (:func:`_scaled_states`)."""
+    limits = lim.velocity.tobytes() + lim.acceleration.tobytes() + lim.twice_jerk.tobytes()
+    fast = scale_states(x, u, w, limits)  # compiled, the same operations
+    if fast is not None:
+        return fast
+    return _scaled_states(np.array(x), np.sign(u), np.abs(u), np.sign(w), np.abs(w), lim)
+
+
+def _probes_apply(chain: ViaChain, i: int) -> bool:
+    """Whether the sweep may probe the grid states at via i per joint instead of solving them.
+
+    That is where both segments next to via i, with its current state, have a profile within
+    the range and last as long as their slowest joint alone needs. Where Ruckig's time
+    synchronisation makes a segment last longer (a joint cannot take the slowest joint's time:
+    its blocked intervals), the per-joint times of probes say little about the solved
+    durations; where the current state has no such profile, the states solved on the grid are
+    the fallbacks of :meth:`OptimizedStrategy.combine_joints`.
+    """
+    v, acc = chain.state_rows()
+    seg = chain.seg
+    (d1, bad1, traj1), (d2, bad2, traj2) = seg.solve_around(i, v[i - 1], acc[i - 1], v[i], acc[i], v[i + 1], acc[i + 1])
+    if traj1 is None or traj2 is None or bad1 is not None or bad2 is not None:
+        return False
+    return (
+        d1 <= max(traj1.independent_min_durations) * _OWN_TIMES
+        and d2 <= max(traj2.independent_min_durations) * _OWN_TIMES
+    )
+
+
 def _gather(indices: list[int]) -> Callable[[Sequence[float]], tuple[float, ...]]:
     """The entries of a sequence at `indices`, as a tuple (one :func:`operator.itemgetter` call)."""
     if len(indices) == 1:
@@ -243,8 +353,8 @@ class OptimizedStrategy(ViaStrategy):
     #: The velocity steps of the second pass (:func:`~planner.motion.vias.joint_steps.resweep_via`; () for none).
     resweep_steps: tuple[float, ...] = RESWEEP_STEPS
     #: How many vias of each run between fixed waypoints, from its first, the second pass visits
-    #: (0: none, the default; None: all). Each costs about 5 % of a 6-dof plan's time through 5
-    #: waypoints (see _RESWEEP_VIAS).
+    #: (0: none, the default; None: all). Each costs about 5 % of a 6-dof plan's instructions
+    #: through 5 waypoints (see _RESWEEP_VIAS).
     resweep_vias: int | None = _RESWEEP_VIAS
 
     def __init__(self, resweep_vias: int | None | object = _CLASS_DEFAULT) -> None:
@@ -277,8 +387,18 @@ class OptimizedStrategy(ViaStrategy):
         durations = chain.durations()
         for i in free:
             u, w = via_directions(chain.q, i, durations, chain.limits, chain.stop)
-            tried = self.search_via(chain, i, u, w) if any(u.tolist()) or any(w.tolist()) else []
-            self.combine_joints(chain, i, tried)
+            grid, tried = None, []
+            if any(u.tolist()) or any(w.tolist()):
+                if _probes_apply(chain, i):
+                    grid = self.grid_states(chain, u, w)
+                else:
+                    tried = self.search_via(chain, i, u, w)  # (resting at the via among them)
+            if grid is None:
+                self.combine_joints(chain, i, tried)
+            else:
+                if self.combine_joints(chain, i, [], grid):
+                    # The probed pick was not kept once solved: the grid states solved instead.
+                    self.combine_joints(chain, i, self.search_via(chain, i, u, w), probe=_FALLBACK_PROBE)
             v, acc = chain.state_rows()
             durations[i - 1] = chain.seg.solve(i - 1, v[i - 1], acc[i - 1], v[i], acc[i])[0]
             durations[i] = chain.seg.solve(i, v[i], acc[i], v[i + 1], acc[i + 1])[0]
@@ -348,30 +468,31 @@ class OptimizedStrategy(ViaStrategy):
         """Time-scale the spline-like via state (u, w) at via i to minimise its segments' time.
 
         Scaling a trajectory's time by 1/x multiplies velocities by x and accelerations by
-        x^2, so the candidates are ``(x u, x^2 w)``, each joint saturating at its limits.
+        x^2, so the candidates are ``(x u, x^2 w)``, each joint saturating at its limits,
+        each solved (the sweep of :meth:`choose` probes them per joint instead, see
+        :meth:`grid_states`; this search is its fallback where the current state has no profile).
 
         Returns:
             The states tried (see :meth:`_line_search`).
         """
         lim = chain.limits
-        tops = [1.0]
-        # On plain floats: the largest scale at which a joint still gains speed (acceleration).
-        velocity, acceleration, _ = lim.ruckig_limits
-        scales = [top / m for top, m in zip(velocity, map(abs, u.tolist())) if m > 0]
-        if scales:
-            tops.append(max(scales))
-        scales = [top / m for top, m in zip(acceleration, map(abs, w.tolist())) if m > 0]
-        if scales:
-            tops.append(math.sqrt(max(scales)))
 
         def candidates(x: list[float]) -> tuple[np.ndarray, np.ndarray]:
-            limits = lim.velocity.tobytes() + lim.acceleration.tobytes() + lim.twice_jerk.tobytes()
-            fast = scale_states(x, u, w, limits)  # compiled, the same operations
-            if fast is not None:
-                return fast
-            return _scaled_states(np.array(x), np.sign(u), np.abs(u), np.sign(w), np.abs(w), lim)
+            return _grid_candidates(x, u, w, lim)
 
-        return self._line_search(chain, i, candidates, min(max(tops), _MAX_SCALE), start=_GRID_START)
+        return self._line_search(chain, i, candidates, _grid_top(u, w, lim), start=_GRID_START)
+
+    def grid_states(self, chain: ViaChain, u: np.ndarray, w: np.ndarray) -> tuple[list[list[float]], list[list[float]]]:
+        """The states ``(x u, x^2 w)`` of :meth:`search_via` at every scale x of its grid, as rows of floats.
+
+        Returns:
+            Per scale the velocities and the accelerations (lists over all joints).
+        """
+        lim = chain.limits
+        top = _grid_top(u, w, lim)
+        grid = [*_PROBE_GRID, top] if top > _PROBE_GRID[-1] else sorted({min(g, top) for g in _PROBE_GRID} | {top})
+        cvs, cas = _grid_candidates(grid, u, w, lim)
+        return cvs.tolist(), cas.tolist()
 
     def _settle(self, chain: ViaChain, free: list[int]) -> None:
         """Halve the via states of joints that (by Ruckig's extrema) leave their range.
@@ -394,20 +515,42 @@ class OptimizedStrategy(ViaStrategy):
                 return
 
     def search_spline(self, chain: ViaChain, a: int, b: int, durations: np.ndarray) -> None:
-        """Choose the via states between fixed waypoints a and b jointly, from a timed spline.
+        """Choose the via states between fixed waypoints a and b jointly, from timed splines, per joint.
 
         Given segment durations, the C2 cubic spline through the waypoints at those times
         gives every via a velocity and an acceleration that fit all the others (a joint that
         turns round at a waypoint may pass it still moving, turning just beyond, as on the
-        spline). A common time scale of the durations is searched (golden section, in log
-        scale) to minimise the Ruckig durations of segments a..b-1 with those via states;
-        the best states whose segments stay within the range (by Ruckig's extrema) replace
-        the current ones if they are faster.
+        spline). The durations scaled by each of :data:`_SPLINE_SCALES` (in log scale) give
+        one option per scale for the states of every joint along the run, the current states
+        one more. A segment lasts as long as its slowest joint needs and each joint's time
+        depends on its own states only: one unsynchronised Ruckig probe times every (option,
+        segment, joint) (:meth:`SegmentSolver.probe_run`; only the joints near a segment's
+        time with the current states, the others keep them), and every joint that sets a
+        segment's time takes in turn the option that makes the run fastest given the others'
+        (from the best option common to all joints). The result is solved; joints whose
+        extrema leave the range there take the current states again. It replaces the current
+        states if it is faster, within the range and every segment reaches its end; else (the
+        solved run slower than its joints' own times tell: Ruckig's blocked intervals) the
+        fastest option common to all joints does, solved, under the same conditions.
         """
         lim = chain.limits
         h0 = durations[a:b]
         if not all(0.0 < h < math.inf for h in h0.tolist()):
             return  # a segment without a profile (inf or NaN) or of no duration
+        seg, m, dof = chain.seg, b - a, chain.q.shape[1]
+        rows_v, rows_acc = chain.state_rows()
+        # The current states: their per-joint times, and the duration to beat.
+        current, now = 0.0, []
+        for k in range(a, b):
+            d, bad, traj = seg.solve(k, rows_v[k], rows_acc[k], rows_v[k + 1], rows_acc[k + 1])
+            if traj is None:
+                return  # (durations are finite: not reached)
+            times = traj.independent_min_durations
+            if bad is not None:
+                current = math.inf
+                times = [math.inf if out else t for out, t in zip(bad.tolist(), times)]
+            current += d
+            now.append(times)
         q_run = chain.q[a : b + 1]
         v_a, v_b = chain.v[a], chain.v[b]
         # Scaling every duration by s scales the spline's via velocities by 1/s and its via
@@ -415,46 +558,86 @@ class OptimizedStrategy(ViaStrategy):
         # one spline at the durations h0 gives the via states at every scale.
         zero = np.zeros_like(v_a)
         v_q, acc_q = spline_via_states(q_run, h0, zero, zero)
-        moving_ends = any(v_a.tolist()) or any(v_b.tolist())
-        if moving_ends:
-            v_e, acc_e = spline_via_states(q_run, h0, v_a, v_b)
-            v_e, acc_e = v_e - v_q, acc_e - acc_q
-        best: list = [math.inf, None, None]
-        # The via states at every scale the golden section may ask for, made in one batch.
         vs, accs = v_q * _SPLINE_INV, acc_q * _SPLINE_INV2
-        if moving_ends:
-            vs += v_e
-            accs += acc_e * _SPLINE_INV
+        if any(v_a.tolist()) or any(v_b.tolist()):
+            v_e, acc_e = spline_via_states(q_run, h0, v_a, v_b)
+            vs += v_e - v_q
+            accs += (acc_e - acc_q) * _SPLINE_INV
         vs = np.minimum(np.maximum(vs, -lim.velocity), lim.velocity)
         accs = admissible_acceleration(vs, accs, lim)
-        index = _SPLINE_INDEX
+        count = len(vs)
+        # Per option the states at waypoints a..b (the ends are the chain's), the current ones last.
+        states_v = np.empty((count + 1, m + 1, dof))
+        states_a = np.empty((count + 1, m + 1, dof))
+        states_v[:, 0], states_v[:count, 1:m], states_v[count, 1:m], states_v[:, m] = v_a, vs, chain.v[a + 1 : b], v_b
+        states_a[:, 0], states_a[:count, 1:m], states_a[count, 1:m], states_a[:, m] = (
+            chain.acc[a],
+            accs,
+            chain.acc[a + 1 : b],
+            chain.acc[b],
+        )
+        # Only the joints near a segment's time with the current states are probed: the others
+        # keep them (their other options count as not allowed).
+        near = [_RUN_NEAR * max(times) for times in now]
+        joints = tuple(j for j in range(dof) if any(times[j] >= x for times, x in zip(now, near)))
+        if len(joints) == dof:
+            probed = seg.probe_run(a, states_v[:count], states_a[:count])
+        else:
+            probed = seg.probe_run(a, states_v[:count, :, joints], states_a[:count, :, joints], joints)
+            if probed is not None:
+                fill = [math.inf] * (count * m * dof)
+                for i, j in enumerate(joints):
+                    fill[j::dof] = probed[i :: len(joints)]
+                probed = fill
+        if probed is None:
+            return
+        choice = _joint_choice(probed + [t for times in now for t in times], (count + 1, m, dof))
+        if choice is None:
+            return
+        columns = np.arange(dof)
+        start, end = (rows_v[a], rows_acc[a]), (rows_v[b], rows_acc[b])
 
-        rows_v, rows_acc = chain.state_rows()
-        solve, start, end = chain.seg.solve, (rows_v[a], rows_acc[a]), (rows_v[b], rows_acc[b])
-
-        def cost(x: float) -> float:
-            v, acc = vs[index[x]], accs[index[x]]
-            # The states at waypoints a..b (row views made in one go).
+        def solved(v: np.ndarray, acc: np.ndarray) -> tuple[float, set[int], list]:
+            """The run's duration with via states (v, acc), the joints out of the range, the states."""
             states = [start, *zip(v, acc), end]
-            total, inside = 0.0, True
+            total, out = 0.0, set()
             for k in range(a, b):
                 (va, aa), (vb, ab) = states[k - a], states[k - a + 1]
-                d, bad, _ = solve(k, va, aa, vb, ab)
+                d, bad, _ = seg.solve(k, va, aa, vb, ab)
                 if bad is not None:
-                    inside = False
-                    d *= _SPLINE_PENALTY
+                    out.update(j for j, x in enumerate(bad.tolist()) if x)
                 total += d
-            if inside and total < best[0]:
-                best[:] = [total, v, acc]
-            return total
+            return total, out, states
 
-        current = 0.0
-        for k in range(a, b):
-            d, bad, _ = solve(k, rows_v[k], rows_acc[k], rows_v[k + 1], rows_acc[k + 1])
-            current += math.inf if bad is not None else d
-        golden_minimum(cost, *_SPLINE_SCALE, _SPLINE_SCALE_EVALS)
-        if best[0] < current:
-            chain.v[a + 1 : b], chain.acc[a + 1 : b] = best[1], best[2]
+        def reaches(states: list) -> bool:
+            """Whether every segment reaches its end (else the range repair would rest at the vias)."""
+            return not any(seg.misses_end(k, *states[k - a], *states[k - a + 1]) for k in range(a, b))
+
+        for _ in range(_SPLINE_FIXES + 1):
+            picks = np.array(choice)
+            v = np.ascontiguousarray(states_v[picks, 1:m, columns].T)
+            acc = np.ascontiguousarray(states_a[picks, 1:m, columns].T)
+            total, out, states = solved(v, acc)
+            if not out:
+                if total < current and reaches(states):
+                    chain.v[a + 1 : b], chain.acc[a + 1 : b] = v, acc
+                    return
+                break
+            # Joints out of the range take the current states (already solved: within it, or no better).
+            if all(choice[j] == count for j in out):
+                break
+            for j in out:
+                choice[j] = count
+        # The mix not kept (slower than its joints' own times tell, Ruckig's blocked intervals):
+        # the options common to all joints, solved.
+        best, kept = current, None
+        for c in range(count):
+            v, acc = states_v[c, 1:m], states_a[c, 1:m]
+            total, out, states = solved(v, acc)
+            if not out and total < best:
+                best, kept = total, (v, acc, states)
+        if kept is not None and reaches(kept[2]):
+            chain.v[a + 1 : b], chain.acc[a + 1 : b] = kept[0], kept[1]
 
     def _probe_options(
         self,
@@ -464,13 +647,15 @@ class OptimizedStrategy(ViaStrategy):
         times: tuple[list[float], list[float]],
         dp: list[float],
         turning: list[bool],
+        grid: tuple[list[list[float]], list[list[float]]] | None = None,
     ) -> tuple[list[list[float]], list[list[float]], list[list[float]], list[list[float]]]:
         """More options per joint at via i, their times in both segments from one Ruckig probe.
 
         The current velocity moved by each of :attr:`probe_steps` (shares of the speed limit;
         the acceleration kept, within :func:`admissible_acceleration`) for the joints near a
-        segment's time, and a time-optimal turn (at rest, still braking at full deceleration)
-        for those of them that reverse at the via (:meth:`SegmentSolver.probe_around`).
+        segment's time, a time-optimal turn (at rest, still braking at full deceleration)
+        for those of them that reverse at the via, and their states in `grid`
+        (:meth:`SegmentSolver.probe_around`).
 
         Args:
             chain: The chain.
@@ -479,6 +664,8 @@ class OptimizedStrategy(ViaStrategy):
             times: The state's per-joint times in the segments before and after the via [s].
             dp: Per joint, the move into the via [rad or m].
             turning: Per joint, whether it reverses at the via.
+            grid: More states, per state the velocities and the accelerations of all joints
+                (:meth:`grid_states`); None for none.
 
         Returns:
             The states probed (velocities and accelerations, tuples over all joints; a joint not
@@ -506,6 +693,9 @@ class OptimizedStrategy(ViaStrategy):
                     cv.append(x)
                     ca.append(y)
             candidates.append((cv, ca))
+        if grid is not None and joints:
+            states = _gather(list(joints))
+            candidates += [(list(states(cv)), list(states(ca))) for cv, ca in zip(*grid)]
         if not joints or not candidates:
             return [], [], [], []
         start = (chain.v[i - 1].tolist(), chain.acc[i - 1].tolist())
@@ -527,14 +717,21 @@ class OptimizedStrategy(ViaStrategy):
         rows2 = [entries(p2[c : c + count] + tail) for c in range(0, len(p2), count)]
         return states_v, states_a, rows1, rows2
 
-    def combine_joints(self, chain: ViaChain, i: int, tried: list[tuple[float, np.ndarray, np.ndarray]]) -> None:
+    def combine_joints(
+        self,
+        chain: ViaChain,
+        i: int,
+        tried: list[tuple[float, np.ndarray, np.ndarray]],
+        grid: tuple[list[list[float]], list[list[float]]] | None = None,
+        probe: bool = True,
+    ) -> bool:
         """Give every joint at via i its best state among those tried, and a time-optimal turn.
 
         A segment lasts as long as its slowest joint needs (Ruckig's independent minimum
         durations, up to its blocked intervals), and each joint's time depends only on its own
         states. So the states already solved, plus per joint near a segment's time its velocity
-        moved by :attr:`probe_steps` and, where it reverses at the via, a time-optimal turn (at
-        rest, still braking at full deceleration), timed by one unsynchronised Ruckig probe
+        moved by :attr:`probe_steps`, its states in `grid` and, where it reverses at the via, a
+        time-optimal turn (at rest, still braking at full deceleration), timed by one unsynchronised Ruckig probe
         (:meth:`_probe_options`), give each joint several options whose best pick
         (:func:`best_choice`) is known without solving; that pick is solved once. The fastest
         of these states is kept whose joints do not turn round beyond their range inside a
@@ -547,6 +744,13 @@ class OptimizedStrategy(ViaStrategy):
             chain: The chain.
             i: The via.
             tried: States tried at via i, (pair duration, velocities, accelerations) each.
+            grid: States probed per joint, not solved (:meth:`grid_states`); None for none.
+            probe: Whether to probe more options per joint (:meth:`_probe_options`); else the
+                joints pick among the states tried only.
+
+        Returns:
+            Whether the joints' best pick, once solved, was not kept (slower than its estimate,
+            or turning beyond the range or missing a segment's end), or no state was kept.
         """
         lim = chain.limits
         pair = chain.pair_coster(i)
@@ -565,9 +769,9 @@ class OptimizedStrategy(ViaStrategy):
             t1s.append(traj1.independent_min_durations)
             t2s.append(traj2.independent_min_durations)
             options.append(state)
-        pv, pa = [], []
-        if options and options[0] is current:
-            pv, pa, rows1, rows2 = self._probe_options(chain, i, current, (t1s[0], t2s[0]), dp, flags)
+        pv, pa, found = [], [], None
+        if probe and options and options[0] is current:
+            pv, pa, rows1, rows2 = self._probe_options(chain, i, current, (t1s[0], t2s[0]), dp, flags, grid)
             t1s += rows1
             t2s += rows2
         if len(t1s) > 1:
@@ -618,3 +822,4 @@ class OptimizedStrategy(ViaStrategy):
         best = min(pool, key=lambda c: c[0], default=None)
         if best is not None:
             _, chain.v[i], chain.acc[i] = best
+        return best is None or (found is not None and best is not found)
