@@ -84,3 +84,59 @@ def test_floored_motion_checks_keep_the_clearance_on_a_dense_recheck(name):
 @pytest.mark.parametrize("seed", range(3))
 def test_floored_motion_checks_keep_the_clearance_on_a_dense_recheck_long(name, seed):
     assert _fuzz(name, 40 + seed, 15, 2000)
+
+
+def _pair_distance(checker: CollisionChecker, k: int, qs: np.ndarray) -> np.ndarray:
+    """Pair `k`'s distance at each row of `qs`, computed directly."""
+    robot, geometry = checker.robot, checker.geometry
+    data, gdata = robot.model.createData(), pin.GeometryData(geometry)
+    out = np.empty(len(qs))
+    for r, q in enumerate(qs):
+        pin.updateGeometryPlacements(robot.model, data, geometry, gdata, robot._pin_q(q))
+        out[r] = pin.computeDistance(geometry, gdata, k).min_distance
+    return out
+
+
+def _through_closest(name: str, seed: int, pairs: int, samples: int) -> int:
+    """Segments through the configuration where a floored pair comes closest, the clearance above its distance there.
+
+    A floor set too high (or a left-out pair that can come closer) shows here: the floored
+    check would call clear a motion the dense re-check finds closer than the clearance.
+    """
+    robot = load_robot(name)
+    rng = np.random.default_rng(seed)
+    floors = floored(CollisionChecker(robot, parse_scene({"floor": -5.0}))).floors
+    candidates = np.flatnonzero(np.isfinite(floors) & (floors > 0.0))
+    flagged = 0
+    for k in rng.choice(candidates, size=min(pairs, len(candidates)), replace=False):
+        base = CollisionChecker(robot, parse_scene({"floor": -5.0}))
+        qs = robot.random_configurations(rng, 300)
+        d = _pair_distance(base, int(k), qs)
+        closest = qs[int(np.argmin(d))]
+        # Between the floor and twice the pair's least distance found: the pair is left out (and
+        # the correct floor keeps it there) or it is computed.
+        clearance = float(rng.uniform(floors[k], 2.0 * d.min() + 1e-3))
+        scene = parse_scene({"floor": -5.0, "clearance": clearance})
+        checker, plain = floored(CollisionChecker(robot, scene)), CollisionChecker(robot, scene)
+        step = rng.normal(0.0, 0.05, robot.dof)
+        qa = np.clip(closest - step, robot.lower, robot.upper)
+        qb = np.clip(closest + step, robot.lower, robot.upper)
+        s = np.linspace(0.0, 1.0, samples)[:, None]
+        least = _dense_least(checker, qa + s * (qb - qa))
+        result = check_segment(checker, qa, qb)
+        assert result.clear == check_segment(plain, qa, qb).clear
+        if result.clear:
+            assert least >= clearance - DEFAULT_TOLERANCE - 1e-9
+        flagged += least < clearance
+    return flagged
+
+
+@pytest.mark.parametrize("name", ARMS)
+def test_floored_segments_through_a_pairs_closest_configuration(name):
+    _through_closest(name, 5, 2, 100)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("name", ARMS)
+def test_floored_segments_through_a_pairs_closest_configuration_long(name):
+    _through_closest(name, 6, 20, 1000)
