@@ -14,7 +14,8 @@ x^2, so the states ``(x v, x^2 a)`` of the slope blend (each joint saturating at
 a grid, the current velocity moved a little either way, and a time-optimal turn where a joint
 reverses at the waypoint (at rest, still braking at full deceleration) are options per joint,
 timed by one more probe; every joint takes its best option and the pick is confirmed by one
-solve. Where the probes' per-joint times do not tell the segments' durations (a segment
+solve (where it moves two joints or more, their velocity steps are probed again around their
+new states, and that pick solved). Where the probes' per-joint times do not tell the segments' durations (a segment
 lasting longer than its slowest joint needs: Ruckig's blocked intervals; or no profile within
 the range), or where the pick is not kept once solved (slower, turning beyond the range or
 missing a segment's end), the grid states are
@@ -29,11 +30,11 @@ neighbours (:mod:`planner.motion.vias.joint_steps`).
 
 On bench_trajectory's paths (8 arms x 100, 5 waypoints; every 4th solved as an NLP, the
 optimum gap is the median of duration / optimum - 1), against the golden-section search of one
-common spline scale and the solved grid walk at every via before: optimum gap 1.01 -> 0.93 %
-(seed 1: 0.88 -> 0.76 %), mean duration -0.08 %, 0.96 x the instructions per 6-dof plan
-(callgrind, 60 plans of ur5, z1 and panda). With the second pass over the first two vias of
-each run (``resweep_vias=2``) 0.72 % (seed 1: 0.54 %) at 1.05 x, over every via 0.56 % (0.43 %)
-at about 1.10 x.
+common spline scale and the solved grid walk at every via before: optimum gap 1.01 -> 0.78 %
+(seed 1: 0.88 -> 0.70 %), mean duration -0.19 %, about the same instructions per 6-dof plan
+(callgrind, 60 plans of ur5, z1 and panda: 0.96 x without the second probe of moved joints,
+1.00 x with it). With the second pass over the first two vias of each run
+(``resweep_vias=2``) 0.64 % at 1.10 x these instructions, over every via 0.53 %.
 """
 
 from __future__ import annotations
@@ -104,10 +105,9 @@ _PROBE_NEAR = 0.8
 _OWN_TIMES = 1.0 + 1e-9
 # The second pass (planner.motion.vias.joint_steps), off by default: on bench_trajectory's paths
 # (seed 0; 5 waypoints, 3 vias) over the first two vias of each run (2) the median optimum gap
-# falls from 0.93 % to 0.72 % (seed 1: 0.76 to 0.54 %; mean duration -0.24 %) at +10 %
-# instructions per 6-dof plan (1.05 x those of the golden-section run search and solved grid
-# walk before), over every via (None) to 0.56 % (0.43 %; mean duration -0.36 %) at about 1.10 x:
-# most of a visit's cost is fixed (the probe call, the joint choice, the solve and range checks).
+# falls from 0.78 % to 0.64 % (mean duration -0.21 %) at +10 % instructions per 6-dof plan, over
+# every via (None) to 0.53 % (mean duration -0.29 %): most of a visit's cost is fixed (the probe
+# call, the joint choice, the solve and range checks).
 _RESWEEP_VIAS: int | None = 0
 
 
