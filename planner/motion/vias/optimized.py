@@ -14,8 +14,7 @@ x^2, so the states ``(x v, x^2 a)`` of the slope blend (each joint saturating at
 a grid, the current velocity moved a little either way, and a time-optimal turn where a joint
 reverses at the waypoint (at rest, still braking at full deceleration) are options per joint,
 timed by one more probe; every joint takes its best option and the pick is confirmed by one
-solve (where it moves two joints or more, their velocity steps are probed again around their
-new states, and that pick solved). Where the probes' per-joint times do not tell the segments' durations (a segment
+solve. Where the probes' per-joint times do not tell the segments' durations (a segment
 lasting longer than its slowest joint needs: Ruckig's blocked intervals; or no profile within
 the range), or where the pick is not kept once solved (slower, turning beyond the range or
 missing a segment's end), the grid states are
@@ -30,11 +29,11 @@ neighbours (:mod:`planner.motion.vias.joint_steps`).
 
 On bench_trajectory's paths (8 arms x 100, 5 waypoints; every 4th solved as an NLP, the
 optimum gap is the median of duration / optimum - 1), against the golden-section search of one
-common spline scale and the solved grid walk at every via before: optimum gap 1.01 -> 0.78 %
-(seed 1: 0.88 -> 0.70 %), mean duration -0.19 %, about the same instructions per 6-dof plan
-(callgrind, 60 plans of ur5, z1 and panda: 0.96 x without the second probe of moved joints,
-1.00 x with it). With the second pass over the first two vias of each run
-(``resweep_vias=2``) 0.64 % at 1.10 x these instructions, over every via 0.53 %.
+common spline scale and the solved grid walk at every via before: optimum gap 1.01 -> 0.93 %
+(seed 1: 0.88 -> 0.76 %), mean duration -0.08 %, 0.96 x the instructions per 6-dof plan
+(callgrind, 60 plans of ur5, z1 and panda). With the second pass over the first two vias of
+each run (``resweep_vias=2``) 0.72 % (seed 1: 0.54 %) at 1.05 x, over every via 0.56 % (0.43 %)
+at about 1.10 x.
 """
 
 from __future__ import annotations
@@ -63,12 +62,11 @@ __all__ = ["OptimizedStrategy", "golden_minimum", "golden_points", "spline_via_s
 # these states per joint (with the velocity steps and the turn below, one Ruckig call); where
 # probes do not apply (see _probes_apply) or found nothing faster, the grid is walked, each state
 # solved, from _GRID_START (the most frequent best) up while the duration falls, else down, and
-# every joint picks its best among the states tried (combine_joints). The probed grid leaves out
-# the scale 0 (resting at the via): probed, it changed no plan's duration on bench_trajectory's
-# paths, at 2 % of a 6-dof plan's instructions.
+# every joint picks its best among the states tried (combine_joints). (Probed, the scale 0
+# changed no plan's duration on bench_trajectory's paths.)
 _GRID = (0.0, 1.4, 2.0, 3.0)
 _GRID_START = 1.4
-_PROBE_GRID = _GRID[1:]
+_PROBE_GRID = _GRID
 # Spline stage (OptimizedStrategy.search_spline): the log time-scales of the segment durations
 # whose splines give each joint its options along a run, the rounds of the per-joint choice among
 # them, and how often joints whose extrema leave the range go back to the current states before
@@ -82,11 +80,6 @@ _CHOICE_ROUNDS = 2
 _SPLINE_FIXES = 2
 _RUN_NEAR = 0.7
 _FALLBACK_PROBE = False
-# Where the probed pick at a via, kept, moved at least this many joints off their states, those
-# joints are probed again around their new states (the velocity steps; see OptimizedStrategy.choose).
-# On bench_trajectory's paths (ur5, z1, panda) with 1 joint moved, 1 in 6 such probes found a faster
-# state (2.5 ms on average), with 2 or more, 6 in 10 (9 ms).
-_REPROBE_MOVED = 2
 # How many of the fastest states tried at a via that turn beyond the range are halved in turn
 # (as the search halves states that leave it) before slower ones that fit are taken.
 _TURN_HALVED = 1
@@ -105,9 +98,10 @@ _PROBE_NEAR = 0.8
 _OWN_TIMES = 1.0 + 1e-9
 # The second pass (planner.motion.vias.joint_steps), off by default: on bench_trajectory's paths
 # (seed 0; 5 waypoints, 3 vias) over the first two vias of each run (2) the median optimum gap
-# falls from 0.78 % to 0.64 % (mean duration -0.21 %) at +10 % instructions per 6-dof plan, over
-# every via (None) to 0.53 % (mean duration -0.29 %): most of a visit's cost is fixed (the probe
-# call, the joint choice, the solve and range checks).
+# falls from 0.93 % to 0.72 % (seed 1: 0.76 to 0.54 %; mean duration -0.24 %) at +10 %
+# instructions per 6-dof plan (1.05 x those of the golden-section run search and solved grid
+# walk before), over every via (None) to 0.56 % (0.43 %; mean duration -0.36 %) at about 1.10 x:
+# most of a visit's cost is fixed (the probe call, the joint choice, the solve and range checks).
 _RESWEEP_VIAS: int | None = 0
 
 
@@ -402,16 +396,9 @@ class OptimizedStrategy(ViaStrategy):
             if grid is None:
                 self.combine_joints(chain, i, tried)
             else:
-                before = chain.v[i].tolist()
                 if self.combine_joints(chain, i, [], grid):
                     # The probed pick was not kept once solved: the grid states solved instead.
                     self.combine_joints(chain, i, self.search_via(chain, i, u, w), probe=_FALLBACK_PROBE)
-                else:
-                    # The joints the pick moved had their velocity steps probed around the old states:
-                    # probed again around their new ones (the pick changes which joints set the times).
-                    moved = frozenset(j for j, (x, y) in enumerate(zip(before, chain.v[i].tolist())) if x != y)
-                    if len(moved) >= _REPROBE_MOVED:
-                        self.combine_joints(chain, i, [], only=moved)
             v, acc = chain.state_rows()
             durations[i - 1] = chain.seg.solve(i - 1, v[i - 1], acc[i - 1], v[i], acc[i])[0]
             durations[i] = chain.seg.solve(i, v[i], acc[i], v[i + 1], acc[i + 1])[0]
@@ -661,7 +648,6 @@ class OptimizedStrategy(ViaStrategy):
         dp: list[float],
         turning: list[bool],
         grid: tuple[list[list[float]], list[list[float]]] | None = None,
-        only: frozenset[int] | None = None,
     ) -> tuple[list[list[float]], list[list[float]], list[list[float]], list[list[float]]]:
         """More options per joint at via i, their times in both segments from one Ruckig probe.
 
@@ -680,8 +666,6 @@ class OptimizedStrategy(ViaStrategy):
             turning: Per joint, whether it reverses at the via.
             grid: More states, per state the velocities and the accelerations of all joints
                 (:meth:`grid_states`); None for none.
-            only: The joints that may be probed (among those near a segment's time), without
-                the turn; None for all.
 
         Returns:
             The states probed (velocities and accelerations, tuples over all joints; a joint not
@@ -691,15 +675,13 @@ class OptimizedStrategy(ViaStrategy):
         """
         t1, t2 = times
         near1, near2 = _PROBE_NEAR * max(t1), _PROBE_NEAR * max(t2)
-        joints = tuple(
-            j for j, (x, y) in enumerate(zip(t1, t2)) if (x >= near1 or y >= near2) and (only is None or j in only)
-        )
+        joints = tuple(j for j, (x, y) in enumerate(zip(t1, t2)) if x >= near1 or y >= near2)
         lim = chain.limits
         velocity, acceleration, _ = lim.ruckig_limits
         twice_jerk = lim.twice_jerk.tolist()
         v, a = current[1].tolist(), current[2].tolist()
         candidates = moved_states((velocity, acceleration, twice_jerk), (v, a), joints, self.probe_steps)
-        if only is None and any(turning[j] for j in joints):
+        if any(turning[j] for j in joints):
             cv, ca = [], []
             for j in joints:
                 top, most, tj, x, y = velocity[j], acceleration[j], twice_jerk[j], v[j], a[j]
@@ -742,7 +724,6 @@ class OptimizedStrategy(ViaStrategy):
         tried: list[tuple[float, np.ndarray, np.ndarray]],
         grid: tuple[list[list[float]], list[list[float]]] | None = None,
         probe: bool = True,
-        only: frozenset[int] | None = None,
     ) -> bool:
         """Give every joint at via i its best state among those tried, and a time-optimal turn.
 
@@ -766,8 +747,6 @@ class OptimizedStrategy(ViaStrategy):
             grid: States probed per joint, not solved (:meth:`grid_states`); None for none.
             probe: Whether to probe more options per joint (:meth:`_probe_options`); else the
                 joints pick among the states tried only.
-            only: The joints whose velocity steps are probed (no turn); None for all (see
-                :meth:`_probe_options`).
 
         Returns:
             Whether the joints' best pick, once solved, was not kept (slower than its estimate,
@@ -792,7 +771,7 @@ class OptimizedStrategy(ViaStrategy):
             options.append(state)
         pv, pa, found = [], [], None
         if probe and options and options[0] is current:
-            pv, pa, rows1, rows2 = self._probe_options(chain, i, current, (t1s[0], t2s[0]), dp, flags, grid, only)
+            pv, pa, rows1, rows2 = self._probe_options(chain, i, current, (t1s[0], t2s[0]), dp, flags, grid)
             t1s += rows1
             t2s += rows2
         if len(t1s) > 1:
