@@ -361,6 +361,23 @@ def _range_ends(limits: JointLimits) -> tuple[list[tuple], list[tuple], WatchTab
     return made
 
 
+def _probe(otg: Ruckig, inp: InputParameter, traj: RuckigTrajectory, v0, a0, v1, a1) -> list[float] | None:
+    """One unsynchronised calculate of a probe's end states (lists).
+
+    Returns:
+        Ruckig's minimum duration per entry, or None where it fails.
+    """
+    inp.current_velocity, inp.current_acceleration = v0, a0
+    inp.target_velocity, inp.target_acceleration = v1, a1
+    try:
+        result = otg.calculate(inp, traj)
+    except (RuckigError, ValueError):  # see SegmentSolver._solve
+        return None
+    if result not in _SOLVED:
+        return None
+    return traj.independent_min_durations
+
+
 def _thread_solver(dof: int) -> list:
     """This thread's Ruckig for `dof` joints, an input for rest-to-rest segments, its limits, a scratch trajectory.
 
@@ -678,23 +695,15 @@ class SegmentSolver:
         a0[0::2], a0[1::2] = aa * many, cas
         v1[0::2], v1[1::2] = cvs, vb * many
         a1[0::2], a1[1::2] = cas, ab * many
-        inp.current_velocity, inp.current_acceleration = v0, a0
-        inp.target_velocity, inp.target_acceleration = v1, a1
-        try:
-            result = otg.calculate(inp, traj)
-        except (RuckigError, ValueError):  # see _solve
+        times = _probe(otg, inp, traj, v0, a0, v1, a1)
+        if times is None:
             return None
-        if result not in _SOLVED:
-            return None
-        times = traj.independent_min_durations
         first, second = times[0::2], times[1::2]
         for e in skipped:
             first[e] = second[e] = math.inf
         if self.bounded:
             # Only a profile that lasts longer than the joint needs to reach a range end can leave the range.
-            reach = self._reach
-            if reach is None:
-                reach = self._reach = self._reach_times()
+            reach = self._reach_table()
             reach1 = [reach[i - 1][j] for j in joints] * many
             reach2 = [reach[i][j] for j in joints] * many
             # The entries that last longer than their joint needs to reach a range end (C loops).
@@ -765,22 +774,14 @@ class SegmentSolver:
                     if _parabola(v0[e], a0[e], v1[e], a1[e]):
                         skipped.append(e)
                         v0[e] = a0[e] = v1[e] = a1[e] = 0.0
-        inp.current_velocity, inp.current_acceleration = v0, a0
-        inp.target_velocity, inp.target_acceleration = v1, a1
-        try:
-            result = otg.calculate(inp, traj)
-        except (RuckigError, ValueError):  # see _solve
+        times = _probe(otg, inp, traj, v0, a0, v1, a1)
+        if times is None:
             return None
-        if result not in _SOLVED:
-            return None
-        times = traj.independent_min_durations
         for e in skipped:
             times[e] = math.inf
         if self.bounded:
             # Only a profile that lasts longer than the joint needs to reach a range end can leave the range.
-            reach = self._reach
-            if reach is None:
-                reach = self._reach = self._reach_times()
+            reach = self._reach_table()
             limit = [row[j] for row in reach[a : a + m] for j in joints] * many
             if any(map(gt, times, limit)):
                 extrema = traj.position_extrema
@@ -791,6 +792,13 @@ class SegmentSolver:
                     if bound.min < lows[j] or bound.max > highs[j]:
                         times[e] = math.inf
         return times
+
+    def _reach_table(self) -> list[list[float]]:
+        """:meth:`_reach_times`, made at the first call (or by :meth:`_watch_ends`) and kept."""
+        reach = self._reach
+        if reach is None:
+            reach = self._reach = self._reach_times()
+        return reach
 
     def _reach_times(self) -> list[list[float]]:
         """Per segment and joint, the least time in which it can reach a range end [s] (0 where unknown)."""

@@ -66,7 +66,6 @@ __all__ = ["OptimizedStrategy", "golden_minimum", "golden_points", "spline_via_s
 # changed no plan's duration on bench_trajectory's paths.)
 _GRID = (0.0, 1.4, 2.0, 3.0)
 _GRID_START = 1.4
-_PROBE_GRID = _GRID
 # Spline stage (OptimizedStrategy.search_spline): the log time-scales of the segment durations
 # whose splines give each joint its options along a run, the rounds of the per-joint choice among
 # them, and how often joints whose extrema leave the range go back to the current states before
@@ -294,6 +293,13 @@ def _grid_top(u: np.ndarray, w: np.ndarray, lim: JointLimits) -> float:
     return min(max(tops), _MAX_SCALE)
 
 
+def _capped_grid(top: float) -> list[float]:
+    """The scales of :data:`_GRID` capped at `top` (see :func:`_grid_top`), and `top` itself, ascending."""
+    if top > _GRID[-1]:
+        return [*_GRID, top]  # (the common case of the line below: _GRID is sorted)
+    return sorted({min(g, top) for g in _GRID} | {top})
+
+
 def _grid_candidates(x: list[float], u: np.ndarray, w: np.ndarray, lim: JointLimits) -> tuple[np.ndarray, np.ndarray]:
     """The admissible states ``(x u, x^2 w)`` at the scales x, shapes (G, dof) (:func:`_scaled_states`)."""
     limits = lim.velocity.tobytes() + lim.acceleration.tobytes() + lim.twice_jerk.tobytes()
@@ -414,10 +420,9 @@ class OptimizedStrategy(ViaStrategy):
         i: int,
         make: Callable[[np.ndarray], tuple[np.ndarray, np.ndarray]],
         top: float,
-        grid: Sequence[float] = _GRID,
         start: float = 0.0,
     ) -> list[tuple[float, np.ndarray, np.ndarray]]:
-        """Minimise the pair cost over a scalar parameter in [0, top] on a grid.
+        """Minimise the pair cost over a scalar parameter in [0, top] on the grid :func:`_capped_grid` makes of `top`.
 
         The grid is walked from `start` upwards while the duration falls, else downwards; the
         best point is kept if it is faster than the current state. (No refinement between the
@@ -431,10 +436,7 @@ class OptimizedStrategy(ViaStrategy):
         """
         pair = chain.pair_coster(i)
         current = pair(chain.v[i], chain.acc[i])
-        if grid is _GRID and top > _GRID[-1]:
-            grid = [*_GRID, top]  # (the common case of the line below: the grid is sorted)
-        else:
-            grid = sorted({min(g, top) for g in grid} | {top})
+        grid = _capped_grid(top)
         if not math.isfinite(current[0]) and 0.0 not in grid:
             grid.insert(0, 0.0)  # resting at the via: the fallback where the current state has no profile
         n = len(grid)
@@ -490,8 +492,7 @@ class OptimizedStrategy(ViaStrategy):
         """
         lim = chain.limits
         top = _grid_top(u, w, lim)
-        grid = [*_PROBE_GRID, top] if top > _PROBE_GRID[-1] else sorted({min(g, top) for g in _PROBE_GRID} | {top})
-        cvs, cas = _grid_candidates(grid, u, w, lim)
+        cvs, cas = _grid_candidates(_capped_grid(top), u, w, lim)
         return cvs.tolist(), cas.tolist()
 
     def _settle(self, chain: ViaChain, free: list[int]) -> None:
