@@ -915,11 +915,10 @@ def _advance(
     if left_out is not None and left_out.any():
         # The left-out pairs some allowance mask checks: the one with the least floor.
         left = np.flatnonzero(left_out)
-        if left.size:
-            floors = checker.floors
-            assert floors is not None  # apart comes from them
-            k = int(left[int(floors[left].argmin())])
-            unmeasured = checker.pair_clearance(k, float(floors[k]))
+        floors = checker.floors
+        assert floors is not None  # apart comes from them
+        k = int(left[int(floors[left].argmin())])
+        unmeasured = checker.pair_clearance(k, float(floors[k]))
     return MotionClearance(first_hit is None, closest, best[1], first_hit, hit, checks, unmeasured)
 
 
