@@ -248,3 +248,58 @@ def test_lazy_turning_points_of_plain_segments_are_those_of_their_phases(name):
             assert set(solver.turns_beyond(k, rt)) == beyond
             assert set(solver.turns_beyond(k, rt)) == beyond  # remembered
     assert plain > 0
+
+
+def _s_curve_per_knot(out: np.ndarray, knots: np.ndarray, duration: float, error: np.ndarray) -> None:
+    """The end correction's S-curve added knot by knot (the plain form of segments._add_s_curve)."""
+    quarter = duration / 4.0
+    big_j = 32.0 * error / duration**3
+    state = [np.zeros_like(error), np.zeros_like(error), np.zeros_like(error)]
+    table = []
+    for sign in (1.0, -1.0, -1.0, 1.0):
+        j = sign * big_j
+        table.append((*state, j))
+        p, v, a = state
+        state = [
+            p + quarter * (v + quarter * (a / 2.0 + quarter * j / 6.0)),
+            v + quarter * (a + quarter * j / 2.0),
+            a + quarter * j,
+        ]
+    for k, t in enumerate(knots):
+        phase = min(int(t / quarter + 1e-9), 3)
+        p, v, a, j = table[phase]
+        dt = t - phase * quarter
+        out[0, k] += p + dt * (v + dt * (a / 2.0 + dt * j / 6.0))
+        out[1, k] += v + dt * (a + dt * j / 2.0)
+        out[2, k] += a + dt * j
+        out[3, k] += j
+
+
+@settings(max_examples=200, deadline=None)
+@given(
+    st.integers(1, 7),
+    st.lists(st.floats(0.0, 1.0, allow_nan=False), min_size=0, max_size=12),
+    st.floats(1e-3, 50.0),
+    st.integers(0, 2**32 - 1),
+)
+def test_end_correction_adds_its_s_curve_at_every_knot_as_knot_by_knot(dof, shares, duration, seed):
+    # segments._add_s_curve adds the S-curve at all knots at once: the same operations as knot by
+    # knot, so the same values bit for bit; the quarters of the segment are knots as merge_segment makes them.
+    from planner.motion.segments import _add_s_curve
+
+    rng = np.random.default_rng(seed)
+    knots = np.unique(np.concatenate([[0.0], np.array(shares) * duration, duration * np.array([0.25, 0.5, 0.75])]))
+    knots = knots[knots < duration]
+    error = rng.normal(size=dof) * 1e-6 * (rng.random(dof) < 0.7)
+    pieces = rng.normal(size=(4, len(knots), dof))
+    expected, got = pieces.copy(), pieces.copy()
+    _s_curve_per_knot(expected, knots, duration, error)
+    assert _add_s_curve(got, knots, duration, error, None)
+    assert got.tobytes() == expected.tobytes()
+    # And it is the S-curve: half the error at mid-segment, exactly where the joint was without it.
+    alone = np.zeros((4, len(knots), dof))
+    _add_s_curve(alone, knots, duration, error, None)
+    mid = int(np.flatnonzero(knots == duration * 0.5)[0])
+    np.testing.assert_allclose(alone[0, mid], error / 2.0, rtol=1e-12, atol=1e-30)
+    np.testing.assert_array_equal(alone[:3, 0], np.zeros((3, dof)))  # from rest, with the jerk J = 32 e / T^3
+    np.testing.assert_array_equal(alone[3, 0], 32.0 * error / duration**3)

@@ -15,8 +15,9 @@ from __future__ import annotations
 
 import math
 import threading
+from bisect import bisect_left
 from collections.abc import Callable, Sequence
-from itertools import compress, repeat
+from itertools import chain, compress, islice, repeat
 from operator import add, gt, lt, or_, sub
 
 import numpy as np
@@ -247,15 +248,16 @@ def _zero_jerk_turns(prof, v: list[float] | None = None) -> list[float]:
     # The phases of zero jerk where the velocity changes sign (the accelerations and the
     # positions are read only where there is one).
     jerk = prof.j
-    phases = [i for i in range(len(jerk)) if jerk[i] == 0.0 and v[i] * v[i + 1] < 0.0]
-    if not phases:
-        return []
     turns = []
-    acc, pos = prof.a, prof.p
-    for i in phases:
-        v0, a0 = v[i], acc[i]
-        tz = -v0 / a0
-        turns.append(pos[i] + tz * (v0 + tz * a0 / 2.0))
+    acc = pos = None
+    # (A plain loop: cheaper than a comprehension's frame on seven phases.)
+    for i in range(len(jerk)):
+        if jerk[i] == 0.0 and v[i] * v[i + 1] < 0.0:
+            if acc is None:
+                acc, pos = prof.a, prof.p
+            v0, a0 = v[i], acc[i]
+            tz = -v0 / a0
+            turns.append(pos[i] + tz * (v0 + tz * a0 / 2.0))
     return turns
 
 
@@ -378,6 +380,18 @@ def _probe(otg: Ruckig, inp: InputParameter, traj: RuckigTrajectory, v0, a0, v1,
     return traj.independent_min_durations
 
 
+def _pick(values: Sequence[float], joints: Sequence[int]) -> list[float]:
+    """``[values[j] for j in joints]`` (one C loop)."""
+    return list(map(values.__getitem__, joints))
+
+
+def _interleave(first: list[float], second: list[float]) -> list[float]:
+    """``[first[0], second[0], first[1], second[1], ...]`` for lists of one length."""
+    out = first * 2
+    out[0::2], out[1::2] = first, second
+    return out
+
+
 def _thread_solver(dof: int) -> list:
     """This thread's Ruckig for `dof` joints, an input for rest-to-rest segments, its limits, a scratch trajectory.
 
@@ -472,6 +486,8 @@ class SegmentSolver:
         self._cache: dict[tuple, tuple[float, np.ndarray | None, RuckigTrajectory | None]] = {}
         # Per trajectory, its profiles as read (see profiles).
         self._profiles: dict[RuckigTrajectory, list] = {}
+        # Per trajectory, what misses_end found.
+        self._misses_end: dict[RuckigTrajectory, bool] = {}
         # Per (segment, trajectory), what turns_beyond found.
         self._turns_beyond: dict[tuple[int, RuckigTrajectory], list[int]] = {}
         # Per (waypoint, joints, candidates), the positions and limits of probe_around's input.
@@ -479,6 +495,8 @@ class SegmentSolver:
         # Per segment, the range ends a joint could reach, in the order of the time it needs
         # to (see _watch_ends): (time, joint, whether the upper end, the end); None: check all.
         self._watch: list[list[tuple[float, int, bool, float]] | None] = [None] * (len(q) - 1)
+        # Per segment, the times of its _watch entries (ascending; for bisection).
+        self._watch_times: list[list[float] | None] = [None] * (len(q) - 1)
         # Per segment and joint, the least time in which it can reach a range end (see _reach_times).
         self._reach: list[list[float]] | None = None
         if self.bounded and admissible is not None and any(admissible):
@@ -509,7 +527,7 @@ class SegmentSolver:
             reach = []
             for k, ok in enumerate(admissible):
                 if ok:
-                    self._watch[k] = sorted(zip(times[k * count : (k + 1) * count], joints, flags, ends))
+                    self._watched(k, sorted(zip(times[k * count : (k + 1) * count], joints, flags, ends)))
                     reach.append(least[k * dof : (k + 1) * dof])
                 else:
                     reach.append([0.0] * dof)
@@ -533,7 +551,12 @@ class SegmentSolver:
                 t += -math.inf if e < 0.0 else sqrt(2.0 * e / a) if e <= knee else (e + knee) / v
                 ends.append((t, j, False, lo))
             ends.sort()
-            self._watch[k] = ends
+            self._watched(k, ends)
+
+    def _watched(self, k: int, watch: list[tuple[float, int, bool, float]]) -> None:
+        """Keep segment k's range ends in the order of their times (see :attr:`_watch`) and their times."""
+        self._watch[k] = watch
+        self._watch_times[k] = [entry[0] for entry in watch]
 
     def solve(
         self, k: int, va: np.ndarray, aa: np.ndarray, vb: np.ndarray, ab: np.ndarray, keep: bool = False
@@ -672,8 +695,8 @@ class SegmentSolver:
         otg, inp, traj = _thread_prober(len(fixed[0]))
         inp.current_position, inp.target_position, inp.max_velocity, inp.max_acceleration, inp.max_jerk = fixed
         count = len(joints)
-        va, aa = [start[0][j] for j in joints], [start[1][j] for j in joints]
-        vb, ab = [end[0][j] for j in joints], [end[1][j] for j in joints]
+        va, aa = _pick(start[0], joints), _pick(start[1], joints)
+        vb, ab = _pick(end[0], joints), _pick(end[1], joints)
         skipped = []
         still1, still2 = self._still[i - 1], self._still[i]
         if still1 is not None or still2 is not None:
@@ -688,8 +711,8 @@ class SegmentSolver:
                         candidates = [*candidates[:c], (cv, ca), *candidates[c + 1 :]]
         # Per (candidate, joint) the two degrees of freedom, interleaved by slice assignment.
         many = len(candidates)
-        cvs = [x for cv, _ in candidates for x in cv]
-        cas = [x for _, ca in candidates for x in ca]
+        cvs, cas = zip(*candidates)
+        cvs, cas = list(chain.from_iterable(cvs)), list(chain.from_iterable(cas))
         v0, a0, v1, a1 = cvs * 2, cas * 2, cvs * 2, cas * 2
         v0[0::2], v0[1::2] = va * many, cvs
         a0[0::2], a0[1::2] = aa * many, cas
@@ -704,8 +727,8 @@ class SegmentSolver:
         if self.bounded:
             # Only a profile that lasts longer than the joint needs to reach a range end can leave the range.
             reach = self._reach_table()
-            reach1 = [reach[i - 1][j] for j in joints] * many
-            reach2 = [reach[i][j] for j in joints] * many
+            reach1 = _pick(reach[i - 1], joints) * many
+            reach2 = _pick(reach[i], joints) * many
             # The entries that last longer than their joint needs to reach a range end (C loops).
             longer = list(map(or_, map(gt, first, reach1), map(gt, second, reach2)))
             if True in longer:
@@ -752,10 +775,9 @@ class SegmentSolver:
         key = ("run", a, m, many, joints)
         fixed = self._probes.get(key)
         if fixed is None:
-            rows = self.rows
-            p0 = [row[j] for row in rows[a : a + m] for j in joints]
-            p1 = [row[j] for row in rows[a + 1 : a + m + 1] for j in joints]
-            velocity, acceleration, jerk = ([limit[j] for j in joints] for limit in self._limits)
+            picked = [_pick(row, joints) for row in self.rows[a : a + m + 1]]
+            p0, p1 = list(chain.from_iterable(picked[:-1])), list(chain.from_iterable(picked[1:]))
+            velocity, acceleration, jerk = (_pick(limit, joints) for limit in self._limits)
             reps = m * many
             fixed = self._probes[key] = (p0 * many, p1 * many, velocity * reps, acceleration * reps, jerk * reps)
         otg, inp, traj = _thread_prober(len(fixed[0]))
@@ -782,11 +804,12 @@ class SegmentSolver:
         if self.bounded:
             # Only a profile that lasts longer than the joint needs to reach a range end can leave the range.
             reach = self._reach_table()
-            limit = [row[j] for row in reach[a : a + m] for j in joints] * many
-            if any(map(gt, times, limit)):
+            limit = list(chain.from_iterable(_pick(row, joints) for row in reach[a : a + m])) * many
+            check = list(compress(range(len(times)), map(gt, times, limit)))
+            if check:
                 extrema = traj.position_extrema
                 lows, highs = self._lows, self._highs
-                for e in np.flatnonzero(np.greater(times, limit)).tolist():
+                for e in check:
                     j = joints[e % count]
                     bound = extrema[e]
                     if bound.min < lows[j] or bound.max > highs[j]:
@@ -816,16 +839,15 @@ class SegmentSolver:
 
     def _probe_fixed(self, i: int, joints: tuple[int, ...], count: int) -> tuple[list[float], ...]:
         """The positions and limits of :meth:`probe_around`'s Ruckig input (start, target, v, a, j)."""
-        velocity, acceleration, jerk = self._limits
-        before, at, after = self.rows[i - 1], self.rows[i], self.rows[i + 1]
-        p0, p1, vm, am, jm = [], [], [], [], []
-        for j in joints:
-            p0 += (before[j], at[j])
-            p1 += (at[j], after[j])
-            vm += (velocity[j], velocity[j])
-            am += (acceleration[j], acceleration[j])
-            jm += (jerk[j], jerk[j])
-        return p0 * count, p1 * count, vm * count, am * count, jm * count
+        velocity, acceleration, jerk = (_pick(limit, joints) for limit in self._limits)
+        before, at, after = (_pick(row, joints) for row in self.rows[i - 1 : i + 2])
+        return (
+            _interleave(before, at) * count,
+            _interleave(at, after) * count,
+            _interleave(velocity, velocity) * count,
+            _interleave(acceleration, acceleration) * count,
+            _interleave(jerk, jerk) * count,
+        )
 
     def _input(
         self, k: int, va: np.ndarray, aa: np.ndarray, vb: np.ndarray, ab: np.ndarray, key: tuple | None = None
@@ -906,11 +928,12 @@ class SegmentSolver:
             # Only the range ends a joint can reach within the duration: each of Ruckig's
             # extrema costs about as much to read as a tenth of the solve.
             duration = traj.duration
-            if watch and watch[0][0] < duration:
+            reachable = bisect_left(self._watch_times[k], duration)  # the entries with a time below it
+            if reachable:
                 extrema = traj.position_extrema
-                for reach, j, upper, end in watch:
-                    if reach >= duration:
-                        break
+                # Whether a reachable upper end lies below its joint's highest position, or a lower
+                # one above the lowest (C loops over the entries' joints and ends).
+                for _, j, upper, end in islice(watch, reachable):
                     if extrema[j].max > end if upper else extrema[j].min < end:
                         return duration, self._outside_mask(extrema), traj
             return duration, None, traj
@@ -929,11 +952,16 @@ class SegmentSolver:
         duration, _, traj = self.solve(k, va, aa, vb, ab)
         if traj is None:
             return True
-        if math.dist(traj.at_time(duration)[0], self.rows[k + 1]) <= _END_DISTANCE:
-            return False
-        duration, _, traj = self.solve(k, va, aa, vb, ab, keep=True)
-        merged = merge_segment(traj, duration, (self.q[k], va, aa), self.q[k + 1], self.limits)
-        return bool(merged.residual.any())
+        known = self._misses_end.get(traj)  # (the searches ask again for some states)
+        if known is None:
+            if math.dist(traj.at_time(duration)[0], self.rows[k + 1]) <= _END_DISTANCE:
+                known = False
+            else:
+                duration, _, kept = self.solve(k, va, aa, vb, ab, keep=True)
+                merged = merge_segment(kept, duration, (self.q[k], va, aa), self.q[k + 1], self.limits)
+                known = bool(merged.residual.any())
+            self._misses_end[traj] = known
+        return known
 
     def profiles(self, traj: RuckigTrajectory) -> list:
         """Ruckig's profiles of a trajectory :meth:`solve` gave, read once (not to be changed).
@@ -976,13 +1004,14 @@ class SegmentSolver:
                 for j, ends in enumerate(zip(self._lows, self._highs))
                 for upper, end in ((False, ends[0]), (True, ends[1]))
             ]
+            reachable = len(watch) if duration > 0.0 else 0
+        else:
+            reachable = bisect_left(self._watch_times[k], duration)  # the entries with a time below it
         profiles = None
         out = []
         # Per joint its turns, computed once (a joint can be watched at both range ends).
         turns_of: dict[int, Sequence[float]] = {}
-        for reach, j, upper, end in watch:
-            if reach >= duration:
-                break
+        for _, j, upper, end in islice(watch, reachable):
             turns = turns_of.get(j)
             if turns is None:
                 if profiles is None:
@@ -991,7 +1020,7 @@ class SegmentSolver:
                 v = prof.v
                 # No sign change of the velocity, no turn (the common case).
                 turns = turns_of[j] = _zero_jerk_turns(prof, v) if min(v) < 0.0 < max(v) else ()
-            if turns and (any(turn > end for turn in turns) if upper else any(turn < end for turn in turns)):
+            if turns and any(map(end.__lt__ if upper else end.__gt__, turns)):  # turn > end, turn < end
                 out.append(j)
         self._turns_beyond[k, traj] = out[:]
         return out
@@ -1364,25 +1393,23 @@ def _add_s_curve(
     big_j = 32.0 * error / duration**3
     # Phase starts (p, v, a) of the S-curve and its jerk per phase.
     signs = (1.0, -1.0, -1.0, 1.0)
-    state = [np.zeros_like(error), np.zeros_like(error), np.zeros_like(error)]
-    table = []
-    for sign in signs:
-        table.append((state[0].copy(), state[1].copy(), state[2].copy(), sign * big_j))
-        j = sign * big_j
-        p, v, a = state
-        state = [
-            p + quarter * (v + quarter * (a / 2.0 + quarter * j / 6.0)),
-            v + quarter * (a + quarter * j / 2.0),
-            a + quarter * j,
-        ]
-    for k, t in enumerate(knots):
-        phase = min(int(t / quarter + 1e-9), 3)
-        p, v, a, j = table[phase]
-        dt = t - phase * quarter
-        out[0, k] += p + dt * (v + dt * (a / 2.0 + dt * j / 6.0))
-        out[1, k] += v + dt * (a + dt * j / 2.0)
-        out[2, k] += a + dt * j
-        out[3, k] += j
+    # Per phase (rows) its start state and jerk, shapes (4, dof).
+    table = np.zeros((4, 4, len(error)))
+    p, v, a = table[0, 0], table[1, 0], table[2, 0]
+    for phase, sign in enumerate(signs):
+        j = table[3, phase] = sign * big_j
+        if phase < 3:
+            p = table[0, phase + 1] = p + quarter * (v + quarter * (a / 2.0 + quarter * j / 6.0))
+            v = table[1, phase + 1] = v + quarter * (a + quarter * j / 2.0)
+            a = table[2, phase + 1] = a + quarter * j
+    # Every knot at once, with the operations of one knot (the same values bit for bit).
+    phase = np.minimum((knots / quarter + 1e-9).astype(np.intp), 3)
+    dt = (knots - phase * quarter)[:, None]
+    p, v, a, j = table[:, phase]
+    out[0] += p + dt * (v + dt * (a / 2.0 + dt * j / 6.0))
+    out[1] += v + dt * (a + dt * j / 2.0)
+    out[2] += a + dt * j
+    out[3] += j
     if limits is None:
         return True
     h = np.append(np.diff(knots), duration - knots[-1])[:, None]
