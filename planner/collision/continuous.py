@@ -828,7 +828,9 @@ def _advance(
     due: np.ndarray | None = None
     q_next: np.ndarray | None = None  # the configuration at x where `native` gave it
     if native is not None:
-        native.attach(n_pairs, members, until, early, covered, standing)
+        native.attach(
+            n_pairs, members, until, early, covered, standing, (c, tolerance, threshold, threshold + BOUND_MARGIN)
+        )
         best, best_pair, best_bound, first_hit, hit, checks = _native_loop(
             checker, sample, native, end, masks, tolerance, stop_at_first, c, bounds, members, firsts, live
         )
@@ -957,14 +959,13 @@ def _native_loop(
     n_pairs = checker.pair_count
     n_bounds = len(members)
     until, early, covered, standing = native.loop[:4]
-    threshold = c + BOUND_MARGIN
-    retry = threshold + BOUND_MARGIN
     coarse = end / 2000.0  # past a hit: coarse steps, only to find the worst
     due_buffer, bound_buffer, out = native.due, native.due_b, native.out
     distances, bound_distances = native.distances, native.bound_distances
     head, advance, stand = native.head_at, native.next, native.bounds
     x, checks, k_mask = 0.0, 0, -1
     mask = masks[0][1]
+    switch = masks[0][0]  # where the next mask starts (inf: none)
     best: tuple[float, float, Clearance | None] = (np.inf, 0.0, None)
     best_pair = -1
     best_bound = (np.inf, 0.0, -1)
@@ -974,10 +975,11 @@ def _native_loop(
     m = mb = 0  # pairs and bounding pairs due, in the buffers
     q_next: np.ndarray | None = None
     while True:
-        while k_mask + 1 < len(masks) and masks[k_mask + 1][0] <= x:
+        while switch <= x:
             k_mask += 1
             fresh = True
             mask = _switch_mask(masks, k_mask, firsts, live, members, until, early, covered, standing)
+            switch = masks[k_mask + 1][0] if k_mask + 1 < len(masks) else np.inf
         if fresh:
             fresh = False
             due = (early <= x).nonzero()[0]
@@ -992,11 +994,12 @@ def _native_loop(
                 checker.place(q)
                 if mb:
                     bound_distances[:mb] = bounds.placed_distances(bound_buffer[:mb])
-                    stand(head, mb, m, threshold, c, tolerance, retry)
-                    m = int(out[1])
+                    stand(head, mb, m)
+                    _, m, _, _, _, closest, which, _ = out[:8].tolist()
+                    m = int(m)
                     pairs = due_buffer[:m]
-                    if out[5] < best_bound[0]:
-                        best_bound = (float(out[5]), x, int(out[6]))
+                    if closest < best_bound[0]:
+                        best_bound = (closest, x, int(which))
                 d = checker.placed_distances(pairs)
             elif checks == 0 or m == n_pairs:
                 d = checker.pair_distances(q, mask)[pairs]
@@ -1020,15 +1023,14 @@ def _native_loop(
             # The steps of the pairs and bounding pairs computed (those after the pairs in the
             # buffers), the next x (at most the next change of mask) and the pairs due there.
             distances[:m] = d
-            bound = masks[k_mask + 1][0] if k_mask + 1 < len(masks) else end
-            advance(head, x, m + (mb if n_bounds else 0), c, tolerance, coarse if first_hit is not None else 0.0, bound)
-            x, m, mb, q_next = float(out[0]), int(out[1]), int(out[4]), native.q
+            advance(head, x, m + mb, coarse if first_hit is not None else 0.0, min(switch, end))
+            x, m, _, _, mb = out[:5].tolist()
+            m, mb, q_next = int(m), int(mb), native.q
             continue
         if x >= end:
             break
         x_next = float(until.min()) if n_pairs else end
-        if k_mask + 1 < len(masks):
-            x_next = min(x_next, masks[k_mask + 1][0])  # a change of mask: check at the boundary
+        x_next = min(x_next, switch)  # a change of mask: check at the boundary
         x = min(x_next if x_next > x else float(np.nextafter(x, np.inf)), end)
         fresh, q_next = True, None
     return best, best_pair, best_bound, first_hit, hit, checks
@@ -1707,16 +1709,15 @@ void trajectory_update(const int64_t *head, double x, long n, double cl, double 
     place_q(head, next);
 }
 
-/* trajectory_update with the pairs due apart from the bounding pairs (the entries from head[21]
-   on): the pairs in `due` (their number in out[1]), the bounding pairs' own indices in due_b
-   (their number in out[4]). */
-void trajectory_next(const int64_t *head, double x, long n, double cl, double tolerance, double coarse,
-                     double bound) {
-    double next = advance(head, x, n, cl, tolerance, coarse, bound);
+/* trajectory_update (the clearance and tolerance in out[8] and out[9]) with the pairs due apart
+   from the bounding pairs (the entries from head[21] on): the pairs in `due` (their number in
+   out[1]), the bounding pairs' own indices in due_b (their number in out[4]). */
+void trajectory_next(const int64_t *head, double x, long n, double coarse, double bound) {
+    double *out = (double *)(intptr_t)head[20];
+    double next = advance(head, x, n, out[8], out[9], coarse, bound);
     long npairs = (long)head[7], split = (long)head[21];
     int64_t *due = (int64_t *)(intptr_t)head[16], *due_b = (int64_t *)(intptr_t)head[22];
     const double *early = (const double *)(intptr_t)head[19];
-    double *out = (double *)(intptr_t)head[20];
     long m = 0, mb = 0;
     for (long i = 0; i < npairs; ++i)
         if (early[i] <= next) {
@@ -1735,9 +1736,9 @@ void trajectory_next(const int64_t *head, double x, long n, double cl, double to
    ascending. Their number in out[1] (and 1 in out[7] where any changed, else 0), the closest
    bounding pair's distance and index in out[5] and out[6]; after the pairs in due and d the
    bounding pairs (indices past the pairs) with the distance passed on: their own where at least
-   `threshold`, else cl - tolerance + (retry - db), which gives the room up to `retry`. */
-void trajectory_bounds(const int64_t *head, long nb, long m, double threshold, double cl, double tolerance,
-                       double retry) {
+   `threshold`, else cl - tolerance + (retry - db), which gives the room up to `retry` (cl,
+   tolerance, threshold and retry in out[8] to out[11]). */
+void trajectory_bounds(const int64_t *head, long nb, long m) {
     long split = (long)head[21];
     int64_t *due = (int64_t *)(intptr_t)head[16];
     const int64_t *due_b = (const int64_t *)(intptr_t)head[22];
@@ -1748,6 +1749,7 @@ void trajectory_bounds(const int64_t *head, long nb, long m, double threshold, d
     double *d = (double *)(intptr_t)head[17];
     double *until = (double *)(intptr_t)head[18], *early = (double *)(intptr_t)head[19];
     double *out = (double *)(intptr_t)head[20];
+    double cl = out[8], tolerance = out[9], threshold = out[10], retry = out[11];
     int changed = 0;
     long best = 0;
     for (long i = 0; i < nb; ++i) {
@@ -1788,8 +1790,8 @@ _P, _L, _D = ctypes.c_void_p, ctypes.c_long, ctypes.c_double
 _NATIVE_SIGNATURES = {
     "trajectory_grid": [_P] * 5 + [_L, _L, _D, _P, _P, _L, _P, _P, _P, _P],
     "trajectory_update": [_P, _D, _L, _D, _D, _D, _D],
-    "trajectory_next": [_P, _D, _L, _D, _D, _D, _D],
-    "trajectory_bounds": [_P, _L, _L, _D, _D, _D, _D],
+    "trajectory_next": [_P, _D, _L, _D, _D],
+    "trajectory_bounds": [_P, _L, _L],
 }
 
 
@@ -1823,8 +1825,8 @@ class _NativeSteps:
         size = max(n_pairs, 1)
         # q, the distances and out (next x, pairs due; the slack, the turn cap; for the loop of
         # :meth:`attach`: bounding pairs due, the closest one's distance and index, whether the
-        # pairs due changed) in one block.
-        floats = np.zeros(dof + size + 8)
+        # pairs due changed; its clearance, tolerance, threshold and retry) in one block.
+        floats = np.zeros(dof + size + 12)
         self.q, self.distances, self.out = floats[:dof], floats[dof : dof + size], floats[dof + size :]
         self.out[2:4] = slack, NEAR_TURN - slack
         self.due = np.zeros(size, dtype=np.int64)
@@ -1852,12 +1854,15 @@ class _NativeSteps:
         early: np.ndarray,
         covered: np.ndarray,
         standing: np.ndarray,
+        constants: tuple[float, float, float, float],
     ) -> None:
-        """Give the state of :func:`_advance_native`'s loop (the arrays themselves, changed in place).
+        """Give the state of :func:`_native_loop` (the arrays themselves, changed in place).
 
         `n_pairs` of the :attr:`size` scheduled entries are pairs, the rest bounding pairs with
-        `members`; `covered` and `standing` are bool arrays (one byte each).
+        `members`; `covered` and `standing` are bool arrays (one byte each). `constants`: the
+        clearance, tolerance, bounding pairs' threshold and retry distance [m].
         """
+        self.out[8:12] = constants
         counts = [len(m) for m in members]
         starts = np.zeros(len(members) + 1, dtype=np.int64)
         np.cumsum(counts, out=starts[1:])
