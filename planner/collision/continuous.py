@@ -796,17 +796,13 @@ def _advance(
     masks = list(masks) if masks else [(0.0, checker.pair_mask())]
     n_pairs = checker.pair_count
     n_bounds = len(bounds) if bounds is not None else 0
-    members = bounds.members if bounds is not None else []
-    firsts = np.array([m[0] for m in members], dtype=int)
-    live = np.ones(n_bounds, dtype=bool)
     left_out = None
     if apart is not None and apart.any():
         left_out = np.logical_or.reduce([mask for _, mask in masks]) & apart  # for the report
         masks = [(x_from, mask & ~apart) for x_from, mask in masks]
-        members = [m[~apart[m]] for m in members]
-        live = np.array([len(m) > 0 for m in members], dtype=bool)
-        # A bounding pair is on with its members (those of one share their scene body's allowance).
-        firsts = np.array([m[0] if len(m) else 0 for m in members], dtype=int)
+    else:
+        apart = None
+    members, live, firsts, flat = _bound_members(bounds, apart)
     threshold = c + BOUND_MARGIN
     # Per pair, the x up to which it is certified, and from which it is computed with the
     # pairs due then (halfway through its last step: one more pair costs far less than one
@@ -828,9 +824,8 @@ def _advance(
     due: np.ndarray | None = None
     q_next: np.ndarray | None = None  # the configuration at x where `native` gave it
     if native is not None:
-        native.attach(
-            n_pairs, members, until, early, covered, standing, (c, tolerance, threshold, threshold + BOUND_MARGIN)
-        )
+        constants = (c, tolerance, threshold, threshold + BOUND_MARGIN)
+        native.attach(n_pairs, flat, until, early, covered, standing, constants)
         best, best_pair, best_bound, first_hit, hit, checks = _native_loop(
             checker, sample, native, end, masks, tolerance, stop_at_first, c, bounds, members, firsts, live
         )
@@ -905,6 +900,36 @@ def _advance(
         k = int(left[int(floors[left].argmin())])
         unmeasured = checker.pair_clearance(k, float(floors[k]))
     return MotionClearance(first_hit is None, closest, best[1], first_hit, hit, checks, unmeasured)
+
+
+_MEMBERS: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
+
+
+def _bound_members(bounds: BoundingPairs | None, apart: np.ndarray | None) -> tuple:
+    """Per bounding pair its members not `apart`, whether it has any, its first (or 0); the members flat.
+
+    A bounding pair is on with its members (those of one share their scene body's allowance).
+    The members flat: all of them one after another, and where each bounding pair's start
+    (int64, for :meth:`_NativeSteps.attach`). Kept per bounding pairs and `apart` (the same for
+    most motions of a checker).
+    """
+    if bounds is None:
+        none = np.zeros(0, dtype=np.int64)
+        return [], np.ones(0, dtype=bool), np.zeros(0, dtype=int), (none, np.zeros(1, dtype=np.int64))
+    held = _MEMBERS.setdefault(bounds, {})
+    key = b"" if apart is None else apart.tobytes()
+    out = held.get(key)
+    if out is None:
+        members = list(bounds.members) if apart is None else [m[~apart[m]] for m in bounds.members]
+        live = np.array([len(m) > 0 for m in members], dtype=bool).reshape(len(members))
+        firsts = np.array([m[0] if len(m) else 0 for m in members], dtype=int).reshape(len(members))
+        starts = np.zeros(len(members) + 1, dtype=np.int64)
+        np.cumsum([len(m) for m in members], out=starts[1:])
+        flat = np.concatenate([np.asarray(m, dtype=np.int64) for m in members]) if members else starts[:0]
+        if len(held) >= 16:
+            held.clear()
+        out = held[key] = (members, live, firsts, (flat, starts))
+    return out
 
 
 def _switch_mask(
@@ -1253,6 +1278,14 @@ def _trajectory_grid(trajectory, last: np.ndarray, vmax: np.ndarray) -> tuple[np
     lib = _native_library()
     if lib is None:
         return _numpy_grid(trajectory, last, vmax)
+    return _native_grid(lib, trajectory, last, vmax)[:3]
+
+
+def _native_grid(lib, trajectory, last: np.ndarray, vmax: np.ndarray) -> tuple:
+    """:func:`_trajectory_grid` compiled: ``t, c, top``, and the block of its inputs with their addresses.
+
+    The inputs (knots, p, v, a, j, last, vmax) serve :class:`_NativeSteps` too.
+    """
     k, dof = np.shape(trajectory.p)
     # The inputs in one block and the outputs in another (an array's address costs more than
     # copying a few pieces): knots, p, v, a, j, last, vmax; then t, c, top and the count.
@@ -1274,7 +1307,7 @@ def _trajectory_grid(trajectory, last: np.ndarray, vmax: np.ndarray) -> tuple[np
         *(base + 8 * size * m for m in (1, 1 + dof, 1 + 2 * dof)),
     )
     g = int(count[0])
-    return t[:g], c[:g], top[: max(g - 1, 0)]
+    return t[:g], c[:g], top[: max(g - 1, 0)], inputs, at
 
 
 def _packed(arrays: Sequence) -> tuple[np.ndarray, list[int]]:
@@ -1411,7 +1444,11 @@ def _trajectory_steps(
     at the grid times. `steps` takes the time of the check as its state.
     """
     rates, useful = _step_rates(checker, floor)
-    t, c, top = _trajectory_grid(trajectory, last, vmax)
+    lib = _native_library()
+    if lib is not None:
+        t, c, top, inputs, at = _native_grid(lib, trajectory, last, vmax)
+    else:
+        t, c, top = _numpy_grid(trajectory, last, vmax)
     g = len(t)
     if g < 2:
         return lambda x, due, d, room: np.full(len(due), np.inf)
@@ -1491,11 +1528,10 @@ def _trajectory_steps(
         until = np.where(rooms < first, rooms * inverse[at], until)
         return np.maximum(until[:, 0], np.minimum(until[:, 1], until[:, 2]))
 
-    lib = _native_library()
     if lib is not None:
         ordered, flags, addresses = _native_rates(checker, floor, rates, useful)
         arrays = (c, top, t, ordered, flags)
-        native = _NativeSteps(lib, arrays, addresses, g, c.shape[1], slack, len(useful), trajectory, last)
+        native = _NativeSteps(lib, arrays, addresses, g, c.shape[1], slack, len(useful), trajectory, (inputs, at))
         steps.native = native  # type: ignore[attr-defined]
     steps.travel = c[-1]  # type: ignore[attr-defined]  # each joint's total travel (from above)
     return steps
@@ -1672,8 +1708,8 @@ static void place_q(const int64_t *head, double x) {
     const double *t = (const double *)(intptr_t)head[3];
     long g = (long)head[5], dof = (long)head[6], k = (long)head[9];
     const double *knots = (const double *)(intptr_t)head[8], *p = (const double *)(intptr_t)head[10];
-    const double *v = (const double *)(intptr_t)head[11], *half_a = (const double *)(intptr_t)head[12];
-    const double *sixth_j = (const double *)(intptr_t)head[13], *last = (const double *)(intptr_t)head[14];
+    const double *v = (const double *)(intptr_t)head[11], *acc = (const double *)(intptr_t)head[12];
+    const double *jerk = (const double *)(intptr_t)head[13], *last = (const double *)(intptr_t)head[14];
     double *q = (double *)(intptr_t)head[15];
     if (x >= t[g - 1]) {
         for (long i = 0; i < dof; ++i) q[i] = last[i];
@@ -1688,7 +1724,7 @@ static void place_q(const int64_t *head, double x) {
     double dt = x - knots[i];
     for (long e = 0; e < dof; ++e) {
         long r = i * dof + e;
-        q[e] = p[r] + dt * (v[r] + dt * (half_a[r] + dt * sixth_j[r]));
+        q[e] = p[r] + dt * (v[r] + dt * (acc[r] / 2.0 + dt * (jerk[r] / 6.0)));
     }
 }
 
@@ -1818,10 +1854,9 @@ class _NativeSteps:
         slack: float,
         n_pairs: int,
         trajectory,
-        last,
+        pieces: tuple[np.ndarray, list[int]],
     ) -> None:
         k = len(trajectory.knots)
-        pieces = [trajectory.knots, trajectory.p, trajectory.v, trajectory.a / 2.0, trajectory.j / 6.0, last]
         size = max(n_pairs, 1)
         # q, the distances and out (next x, pairs due; the slack, the turn cap; for the loop of
         # :meth:`attach`: bounding pairs due, the closest one's distance and index, whether the
@@ -1830,7 +1865,8 @@ class _NativeSteps:
         self.q, self.distances, self.out = floats[:dof], floats[dof : dof + size], floats[dof + size :]
         self.out[2:4] = slack, NEAR_TURN - slack
         self.due = np.zeros(size, dtype=np.int64)
-        self.pieces, at = _packed(pieces)
+        # The trajectory's knots, p, v, a, j and last waypoint: the grid's inputs (_native_grid).
+        self.pieces, at = pieces
         # Kept alive here: C reads them through the addresses in `head`.
         self.kept = tuple(np.ascontiguousarray(a) for a in arrays)
         self.function = lib.trajectory_update
@@ -1839,7 +1875,7 @@ class _NativeSteps:
         buffers = [base, self.due.ctypes.data, base + 8 * dof]
         kept = [addresses[0], *(a.ctypes.data for a in self.kept[:3]), addresses[1]]  # rates, c, top, t, flags
         self.head = np.array(
-            [*kept, g, dof, n_pairs, at[0], k, *at[1:], *buffers, 0, 0, base + 8 * (dof + size), *[0] * 8],
+            [*kept, g, dof, n_pairs, at[0], k, *at[1:6], *buffers, 0, 0, base + 8 * (dof + size), *[0] * 8],
             dtype=np.int64,
         )
         self.head_at = self.head.ctypes.data
@@ -1849,7 +1885,7 @@ class _NativeSteps:
     def attach(
         self,
         n_pairs: int,
-        members: Sequence[np.ndarray],
+        members: tuple[np.ndarray, np.ndarray],
         until: np.ndarray,
         early: np.ndarray,
         covered: np.ndarray,
@@ -1858,17 +1894,16 @@ class _NativeSteps:
     ) -> None:
         """Give the state of :func:`_native_loop` (the arrays themselves, changed in place).
 
-        `n_pairs` of the :attr:`size` scheduled entries are pairs, the rest bounding pairs with
-        `members`; `covered` and `standing` are bool arrays (one byte each). `constants`: the
-        clearance, tolerance, bounding pairs' threshold and retry distance [m].
+        `n_pairs` of the :attr:`size` scheduled entries are pairs, the rest bounding pairs whose
+        `members` are given flat (:func:`_bound_members`); `covered` and `standing` are bool
+        arrays (one byte each). `constants`: the clearance, tolerance, bounding pairs'
+        threshold and retry distance [m].
         """
         self.out[8:12] = constants
-        counts = [len(m) for m in members]
-        starts = np.zeros(len(members) + 1, dtype=np.int64)
-        np.cumsum(counts, out=starts[1:])
-        flat = np.concatenate([np.asarray(m, dtype=np.int64) for m in members]) if members else starts[:0]
-        self.due_b = np.zeros(max(len(members), 1), dtype=np.int64)
-        self.bound_distances = np.zeros(max(len(members), 1))
+        flat, starts = members
+        count = len(starts) - 1
+        self.due_b = np.zeros(max(count, 1), dtype=np.int64)
+        self.bound_distances = np.zeros(max(count, 1))
         mark = np.zeros(max(n_pairs, 1), dtype=np.uint8)
         self.loop = (until, early, covered, standing, flat, starts, mark)  # kept alive: C reads them
         addresses = [self.due_b, self.bound_distances, standing, covered, flat, starts, mark]
