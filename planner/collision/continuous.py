@@ -988,9 +988,13 @@ def _native_loop(
     due_buffer, bound_buffer, out = native.due, native.due_b, native.out
     distances, bound_distances = native.distances, native.bound_distances
     head, advance, stand = native.head_at, native.next, native.bounds
+    place, placed = checker.place, checker.placed_distances
+    bound_placed = bounds.placed_distances if n_bounds else None
     x, checks, k_mask = 0.0, 0, -1
     mask = masks[0][1]
     switch = masks[0][0]  # where the next mask starts (inf: none)
+    limit = min(switch, end)  # the compiled call's next x at most
+    late = 0.0  # its least step: 0, past a hit `coarse`
     best: tuple[float, float, Clearance | None] = (np.inf, 0.0, None)
     best_pair = -1
     best_bound = (np.inf, 0.0, -1)
@@ -1005,6 +1009,7 @@ def _native_loop(
             fresh = True
             mask = _switch_mask(masks, k_mask, firsts, live, members, until, early, covered, standing)
             switch = masks[k_mask + 1][0] if k_mask + 1 < len(masks) else np.inf
+            limit = min(switch, end)
         if fresh:
             fresh = False
             due = (early <= x).nonzero()[0]
@@ -1016,16 +1021,16 @@ def _native_loop(
             q = q_next if q_next is not None else sample(x)[0]
             pairs = due_buffer[:m]
             if n_bounds:
-                checker.place(q)
+                place(q)
                 if mb:
-                    bound_distances[:mb] = bounds.placed_distances(bound_buffer[:mb])
+                    bound_distances[:mb] = bound_placed(bound_buffer[:mb])
                     stand(head, mb, m)
                     _, m, _, _, _, closest, which, _ = out[:8].tolist()
                     m = int(m)
                     pairs = due_buffer[:m]
                     if closest < best_bound[0]:
                         best_bound = (closest, x, int(which))
-                d = checker.placed_distances(pairs)
+                d = placed(pairs)
             elif checks == 0 or m == n_pairs:
                 d = checker.pair_distances(q, mask)[pairs]
             else:
@@ -1038,7 +1043,7 @@ def _native_loop(
                     best = (dmin, x, checker.pair_clearance(int(pairs[i]), dmin) if dmin <= 0.0 else None)
                     best_pair = int(pairs[i])
                 if dmin < c and first_hit is None:
-                    first_hit = x
+                    first_hit, late = x, coarse
                     # The closest pair of all at this instant (not only of those due).
                     hit = checker.clearance_of(checker.pair_distances(q, mask))
                     if stop_at_first:
@@ -1048,7 +1053,7 @@ def _native_loop(
             # The steps of the pairs and bounding pairs computed (those after the pairs in the
             # buffers), the next x (at most the next change of mask) and the pairs due there.
             distances[:m] = d
-            advance(head, x, m + mb, coarse if first_hit is not None else 0.0, min(switch, end))
+            advance(head, x, m + mb, late, limit)
             x, m, _, _, mb = out[:5].tolist()
             m, mb, q_next = int(m), int(mb), native.q
             continue
