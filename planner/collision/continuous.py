@@ -1025,7 +1025,7 @@ def _native_loop(
                 if mb:
                     bound_distances[:mb] = bound_placed(bound_buffer[:mb])
                     stand(head, mb, m)
-                    _, m, _, _, _, closest, which, _ = out[:8].tolist()
+                    _, m, _, _, _, closest, which, *_ = out.tolist()
                     m = int(m)
                     pairs = due_buffer[:m]
                     if closest < best_bound[0]:
@@ -1037,9 +1037,10 @@ def _native_loop(
                 d = checker.distances_of(q, pairs)
             checks += 1
             if m:
-                i = int(d.argmin())
-                dmin = float(d[i])
+                dmin = float(d.min())
                 if dmin < best[0]:
+                    i = int(d.argmin())
+                    dmin = float(d[i])  # (the same number; of zeros, the first's sign)
                     best = (dmin, x, checker.pair_clearance(int(pairs[i]), dmin) if dmin <= 0.0 else None)
                     best_pair = int(pairs[i])
                 if dmin < c and first_hit is None:
@@ -1054,7 +1055,7 @@ def _native_loop(
             # buffers), the next x (at most the next change of mask) and the pairs due there.
             distances[:m] = d
             advance(head, x, m + mb, late, limit)
-            x, m, _, _, mb = out[:5].tolist()
+            x, m, _, _, mb, *_ = out.tolist()
             m, mb, q_next = int(m), int(mb), native.q
             continue
         if x >= end:
