@@ -796,17 +796,13 @@ def _advance(
     masks = list(masks) if masks else [(0.0, checker.pair_mask())]
     n_pairs = checker.pair_count
     n_bounds = len(bounds) if bounds is not None else 0
-    members = bounds.members if bounds is not None else []
-    firsts = np.array([m[0] for m in members], dtype=int)
-    live = np.ones(n_bounds, dtype=bool)
     left_out = None
     if apart is not None and apart.any():
         left_out = np.logical_or.reduce([mask for _, mask in masks]) & apart  # for the report
         masks = [(x_from, mask & ~apart) for x_from, mask in masks]
-        members = [m[~apart[m]] for m in members]
-        live = np.array([len(m) > 0 for m in members], dtype=bool)
-        # A bounding pair is on with its members (those of one share their scene body's allowance).
-        firsts = np.array([m[0] if len(m) else 0 for m in members], dtype=int)
+    else:
+        apart = None
+    members, live, firsts, flat = _bound_members(bounds, apart)
     threshold = c + BOUND_MARGIN
     # Per pair, the x up to which it is certified, and from which it is computed with the
     # pairs due then (halfway through its last step: one more pair costs far less than one
@@ -827,21 +823,17 @@ def _advance(
     half = tolerance / 2.0
     due: np.ndarray | None = None
     q_next: np.ndarray | None = None  # the configuration at x where `native` gave it
-    while True:
+    if native is not None:
+        constants = (c, tolerance, threshold, threshold + BOUND_MARGIN)
+        native.attach(n_pairs, flat, until, early, covered, standing, constants)
+        best, best_pair, best_bound, first_hit, hit, checks = _native_loop(
+            checker, sample, native, end, masks, tolerance, stop_at_first, c, bounds, members, firsts, live
+        )
+    while native is None:
         while k_mask + 1 < len(masks) and masks[k_mask + 1][0] <= x:
             k_mask += 1
             due = None
-            was, mask = (None if k_mask == 0 else masks[k_mask - 1][1]), masks[k_mask][1]
-            full = np.concatenate([mask, mask[firsts] & live])  # a bounding pair is on with its members
-            on = full if was is None else full & ~np.concatenate([was, was[firsts]])
-            until[on], early[on] = -np.inf, -np.inf
-            until[~full], early[~full] = np.inf, np.inf
-            if n_bounds:
-                # Bounding pairs switched on are tried at once; their members are due now too.
-                standing &= full[n_pairs:]
-                covered[:] = False
-                for k in np.flatnonzero(standing):
-                    covered[members[k]] = True
+            mask = _switch_mask(masks, k_mask, firsts, live, members, until, early, covered, standing)
         if due is None:
             due = (early <= x).nonzero()[0]
         if due.size:
@@ -869,18 +861,6 @@ def _advance(
                     hit = checker.clearance_of(checker.pair_distances(q, mask))
                     if stop_at_first:
                         break
-            if native is not None:
-                if x >= end:
-                    break
-                # The same steps and bookkeeping in one compiled call: it also moves on to the
-                # next x (at most the next change of mask) and finds the pairs due there.
-                bound = masks[k_mask + 1][0] if k_mask + 1 < len(masks) else end
-                if n_bounds and due_bounds.size:
-                    native.take(due_bounds, d_bounds, len(due))
-                x, due, q_next = native(
-                    x, due, d, c, tolerance, coarse if first_hit is not None else 0.0, until, early, bound
-                )
-                continue
             if n_bounds and due_bounds.size:
                 due, d = np.concatenate([due, due_bounds]), np.concatenate([d, d_bounds])
             room = d - c
@@ -920,6 +900,171 @@ def _advance(
         k = int(left[int(floors[left].argmin())])
         unmeasured = checker.pair_clearance(k, float(floors[k]))
     return MotionClearance(first_hit is None, closest, best[1], first_hit, hit, checks, unmeasured)
+
+
+_MEMBERS: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
+
+
+def _bound_members(bounds: BoundingPairs | None, apart: np.ndarray | None) -> tuple:
+    """Per bounding pair its members not `apart`, whether it has any, its first (or 0); the members flat.
+
+    A bounding pair is on with its members (those of one share their scene body's allowance).
+    The members flat: all of them one after another, and where each bounding pair's start
+    (int64, for :meth:`_NativeSteps.attach`). Kept per bounding pairs and `apart` (the same for
+    most motions of a checker).
+    """
+    if bounds is None:
+        none = np.zeros(0, dtype=np.int64)
+        return [], np.ones(0, dtype=bool), np.zeros(0, dtype=int), (none, np.zeros(1, dtype=np.int64))
+    held = _MEMBERS.setdefault(bounds, {})
+    key = b"" if apart is None else apart.tobytes()
+    out = held.get(key)
+    if out is None:
+        members = list(bounds.members) if apart is None else [m[~apart[m]] for m in bounds.members]
+        live = np.array([len(m) > 0 for m in members], dtype=bool).reshape(len(members))
+        firsts = np.array([m[0] if len(m) else 0 for m in members], dtype=int).reshape(len(members))
+        starts = np.zeros(len(members) + 1, dtype=np.int64)
+        np.cumsum([len(m) for m in members], out=starts[1:])
+        flat = np.concatenate([np.asarray(m, dtype=np.int64) for m in members]) if members else starts[:0]
+        if len(held) >= 16:
+            held.clear()
+        out = held[key] = (members, live, firsts, (flat, starts))
+    return out
+
+
+def _switch_mask(
+    masks: Sequence[tuple[float, np.ndarray]],
+    k_mask: int,
+    firsts: np.ndarray,
+    live: np.ndarray,
+    members: Sequence[np.ndarray],
+    until: np.ndarray,
+    early: np.ndarray,
+    covered: np.ndarray,
+    standing: np.ndarray,
+) -> np.ndarray:
+    """:func:`_advance`'s change to mask `k_mask`: pairs switched on due now, those off never; returns the mask."""
+    was, mask = (None if k_mask == 0 else masks[k_mask - 1][1]), masks[k_mask][1]
+    full = np.concatenate([mask, mask[firsts] & live])  # a bounding pair is on with its members
+    on = full if was is None else full & ~np.concatenate([was, was[firsts]])
+    until[on], early[on] = -np.inf, -np.inf
+    until[~full], early[~full] = np.inf, np.inf
+    if len(standing):
+        # Bounding pairs switched on are tried at once; their members are due now too.
+        standing &= full[len(covered) :]
+        covered[:] = False
+        for k in np.flatnonzero(standing):
+            covered[members[k]] = True
+    return mask
+
+
+def _native_loop(
+    checker: CollisionChecker,
+    sample: Callable[[float], tuple[np.ndarray, object]],
+    native: _NativeSteps,
+    end: float,
+    masks: Sequence[tuple[float, np.ndarray]],
+    tolerance: float,
+    stop_at_first: bool,
+    c: float,
+    bounds: BoundingPairs | None,
+    members: Sequence[np.ndarray],
+    firsts: np.ndarray,
+    live: np.ndarray,
+) -> tuple:
+    """:func:`_advance`'s loop with `native` (attached to its state) doing the bookkeeping.
+
+    The same checks as the loop in Python with :func:`_check_bounds`: per check the bounding
+    pairs due are computed first and their standing updated (``trajectory_bounds``), then the
+    pairs due; the steps, the next x and the pairs and bounding pairs due there come from one
+    compiled call (``trajectory_next``) into the buffers of `native`. Returns the closest pair
+    found (distance, x, Clearance or None), its index, the closest bounding pair (distance, x,
+    index), the first hit, the hit and the number of checks.
+    """
+    n_pairs = checker.pair_count
+    n_bounds = len(members)
+    until, early, covered, standing = native.loop[:4]
+    coarse = end / 2000.0  # past a hit: coarse steps, only to find the worst
+    due_buffer, bound_buffer, out = native.due, native.due_b, native.out
+    distances, bound_distances = native.distances, native.bound_distances
+    head, advance, stand = native.head_at, native.next, native.bounds
+    place, placed = checker.place, checker.placed_distances
+    bound_placed = bounds.placed_distances if n_bounds else None
+    x, checks, k_mask = 0.0, 0, -1
+    mask = masks[0][1]
+    switch = masks[0][0]  # where the next mask starts (inf: none)
+    limit = min(switch, end)  # the compiled call's next x at most
+    late = 0.0  # its least step: 0, past a hit `coarse`
+    best: tuple[float, float, Clearance | None] = (np.inf, 0.0, None)
+    best_pair = -1
+    best_bound = (np.inf, 0.0, -1)
+    first_hit: float | None = None
+    hit: Clearance | None = None
+    fresh = True  # the pairs due are to be found from `early` (not given by the compiled call)
+    m = mb = 0  # pairs and bounding pairs due, in the buffers
+    q_next: np.ndarray | None = None
+    while True:
+        while switch <= x:
+            k_mask += 1
+            fresh = True
+            mask = _switch_mask(masks, k_mask, firsts, live, members, until, early, covered, standing)
+            switch = masks[k_mask + 1][0] if k_mask + 1 < len(masks) else np.inf
+            limit = min(switch, end)
+        if fresh:
+            fresh = False
+            due = (early <= x).nonzero()[0]
+            m = int(due.searchsorted(n_pairs))
+            mb = len(due) - m
+            due_buffer[:m] = due[:m]
+            bound_buffer[:mb] = due[m:] - n_pairs
+        if m or mb:
+            q = q_next if q_next is not None else sample(x)[0]
+            pairs = due_buffer[:m]
+            if n_bounds:
+                place(q)
+                if mb:
+                    bound_distances[:mb] = bound_placed(bound_buffer[:mb])
+                    stand(head, mb, m)
+                    _, m, _, _, _, closest, which, *_ = out.tolist()
+                    m = int(m)
+                    pairs = due_buffer[:m]
+                    if closest < best_bound[0]:
+                        best_bound = (closest, x, int(which))
+                d = placed(pairs)
+            elif checks == 0 or m == n_pairs:
+                d = checker.pair_distances(q, mask)[pairs]
+            else:
+                d = checker.distances_of(q, pairs)
+            checks += 1
+            if m:
+                dmin = float(d.min())
+                if dmin < best[0]:
+                    i = int(d.argmin())
+                    dmin = float(d[i])  # (the same number; of zeros, the first's sign)
+                    best = (dmin, x, checker.pair_clearance(int(pairs[i]), dmin) if dmin <= 0.0 else None)
+                    best_pair = int(pairs[i])
+                if dmin < c and first_hit is None:
+                    first_hit, late = x, coarse
+                    # The closest pair of all at this instant (not only of those due).
+                    hit = checker.clearance_of(checker.pair_distances(q, mask))
+                    if stop_at_first:
+                        break
+            if x >= end:
+                break
+            # The steps of the pairs and bounding pairs computed (those after the pairs in the
+            # buffers), the next x (at most the next change of mask) and the pairs due there.
+            distances[:m] = d
+            advance(head, x, m + mb, late, limit)
+            x, m, _, _, mb, *_ = out.tolist()
+            m, mb, q_next = int(m), int(mb), native.q
+            continue
+        if x >= end:
+            break
+        x_next = float(until.min()) if n_pairs else end
+        x_next = min(x_next, switch)  # a change of mask: check at the boundary
+        x = min(x_next if x_next > x else float(np.nextafter(x, np.inf)), end)
+        fresh, q_next = True, None
+    return best, best_pair, best_bound, first_hit, hit, checks
 
 
 _NONE, _NONE_DUE = np.zeros(0), np.zeros(0, dtype=int)
@@ -1139,6 +1284,14 @@ def _trajectory_grid(trajectory, last: np.ndarray, vmax: np.ndarray) -> tuple[np
     lib = _native_library()
     if lib is None:
         return _numpy_grid(trajectory, last, vmax)
+    return _native_grid(lib, trajectory, last, vmax)[:3]
+
+
+def _native_grid(lib, trajectory, last: np.ndarray, vmax: np.ndarray) -> tuple:
+    """:func:`_trajectory_grid` compiled: ``t, c, top``, and the block of its inputs with their addresses.
+
+    The inputs (knots, p, v, a, j, last, vmax) serve :class:`_NativeSteps` too.
+    """
     k, dof = np.shape(trajectory.p)
     # The inputs in one block and the outputs in another (an array's address costs more than
     # copying a few pieces): knots, p, v, a, j, last, vmax; then t, c, top and the count.
@@ -1160,7 +1313,7 @@ def _trajectory_grid(trajectory, last: np.ndarray, vmax: np.ndarray) -> tuple[np
         *(base + 8 * size * m for m in (1, 1 + dof, 1 + 2 * dof)),
     )
     g = int(count[0])
-    return t[:g], c[:g], top[: max(g - 1, 0)]
+    return t[:g], c[:g], top[: max(g - 1, 0)], inputs, at
 
 
 def _packed(arrays: Sequence) -> tuple[np.ndarray, list[int]]:
@@ -1297,7 +1450,11 @@ def _trajectory_steps(
     at the grid times. `steps` takes the time of the check as its state.
     """
     rates, useful = _step_rates(checker, floor)
-    t, c, top = _trajectory_grid(trajectory, last, vmax)
+    lib = _native_library()
+    if lib is not None:
+        t, c, top, inputs, at = _native_grid(lib, trajectory, last, vmax)
+    else:
+        t, c, top = _numpy_grid(trajectory, last, vmax)
     g = len(t)
     if g < 2:
         return lambda x, due, d, room: np.full(len(due), np.inf)
@@ -1377,11 +1534,10 @@ def _trajectory_steps(
         until = np.where(rooms < first, rooms * inverse[at], until)
         return np.maximum(until[:, 0], np.minimum(until[:, 1], until[:, 2]))
 
-    lib = _native_library()
     if lib is not None:
         ordered, flags, addresses = _native_rates(checker, floor, rates, useful)
         arrays = (c, top, t, ordered, flags)
-        native = _NativeSteps(lib, arrays, addresses, g, c.shape[1], slack, len(useful), trajectory, last)
+        native = _NativeSteps(lib, arrays, addresses, g, c.shape[1], slack, len(useful), trajectory, (inputs, at))
         steps.native = native  # type: ignore[attr-defined]
     steps.travel = c[-1]  # type: ignore[attr-defined]  # each joint's total travel (from above)
     return steps
@@ -1495,24 +1651,19 @@ static double row_step(const double *rate, const double *c, const double *top, c
 
 /* After a check at x of the n pairs `due` (distances d): each one's step (from its room
    max(d - cl + tolerance, tolerance / 2), at least `coarse`), until = x + step, early = x + step / 2;
-   then the next x (the least until, at most `bound`, past x, at most the end) in out[0] and the
-   pairs due there (early <= next x) written to `due`, their number in out[1]. `rates` holds
+   returns the next x (the least until, at most `bound`, past x, at most the end). `rates` holds
    three rows per pair (_step_rates), c and top the grid of _trajectory_grid at the times t. */
-void trajectory_update(const int64_t *head, double x, long n, double cl, double tolerance, double coarse,
-                       double bound) {
+static double advance(const int64_t *head, double x, long n, double cl, double tolerance, double coarse,
+                      double bound) {
     /* The tables and buffers (addresses) and sizes of _NativeSteps.head, in its order. */
     const double *rates = (const double *)(intptr_t)head[0], *c = (const double *)(intptr_t)head[1];
     const double *top = (const double *)(intptr_t)head[2], *t = (const double *)(intptr_t)head[3];
     const unsigned char *useful = (const unsigned char *)(intptr_t)head[4];
-    long g = (long)head[5], dof = (long)head[6], npairs = (long)head[7], k = (long)head[9];
-    const double *knots = (const double *)(intptr_t)head[8], *p = (const double *)(intptr_t)head[10];
-    const double *v = (const double *)(intptr_t)head[11], *half_a = (const double *)(intptr_t)head[12];
-    const double *sixth_j = (const double *)(intptr_t)head[13], *last = (const double *)(intptr_t)head[14];
-    double *q = (double *)(intptr_t)head[15];
-    int64_t *due = (int64_t *)(intptr_t)head[16];
+    long g = (long)head[5], dof = (long)head[6], npairs = (long)head[7];
+    const int64_t *due = (const int64_t *)(intptr_t)head[16];
     const double *d = (const double *)(intptr_t)head[17];
     double *until = (double *)(intptr_t)head[18], *early = (double *)(intptr_t)head[19];
-    double *out = (double *)(intptr_t)head[20];
+    const double *out = (const double *)(intptr_t)head[20];
     double slack = out[2], cap = out[3];
     double end = t[g - 1];
     long lo = 0, hi = g;
@@ -1555,33 +1706,134 @@ void trajectory_update(const int64_t *head, double x, long n, double cl, double 
     if (bound < next) next = bound;
     next = next > x ? next : nextafter(x, INFINITY);
     if (end < next) next = end;
-    long m = 0;
-    for (long i = 0; i < npairs; ++i)
-        if (early[i] <= next) due[m++] = i;
-    out[0] = next;
-    out[1] = (double)m;
-    /* The configuration at the next x: check_trajectory's sample. */
-    if (next >= end) {
+    return next;
+}
+
+/* The configuration at x (check_trajectory's sample) into the q buffer. */
+static void place_q(const int64_t *head, double x) {
+    const double *t = (const double *)(intptr_t)head[3];
+    long g = (long)head[5], dof = (long)head[6], k = (long)head[9];
+    const double *knots = (const double *)(intptr_t)head[8], *p = (const double *)(intptr_t)head[10];
+    const double *v = (const double *)(intptr_t)head[11], *acc = (const double *)(intptr_t)head[12];
+    const double *jerk = (const double *)(intptr_t)head[13], *last = (const double *)(intptr_t)head[14];
+    double *q = (double *)(intptr_t)head[15];
+    if (x >= t[g - 1]) {
         for (long i = 0; i < dof; ++i) q[i] = last[i];
         return;
     }
     long a = 0, b = k;
     while (a < b) {
         long mid = a + (b - a) / 2;
-        if (next < knots[mid]) b = mid; else a = mid + 1;
+        if (x < knots[mid]) b = mid; else a = mid + 1;
     }
     long i = a - 1 > 0 ? a - 1 : 0;
-    double dt = next - knots[i];
+    double dt = x - knots[i];
     for (long e = 0; e < dof; ++e) {
         long r = i * dof + e;
-        q[e] = p[r] + dt * (v[r] + dt * (half_a[r] + dt * sixth_j[r]));
+        q[e] = p[r] + dt * (v[r] + dt * (acc[r] / 2.0 + dt * (jerk[r] / 6.0)));
     }
+}
+
+/* advance, then the pairs due at the next x (early <= next x) written to `due`, their number in
+   out[1], the next x in out[0] and the configuration there in q. */
+void trajectory_update(const int64_t *head, double x, long n, double cl, double tolerance, double coarse,
+                       double bound) {
+    double next = advance(head, x, n, cl, tolerance, coarse, bound);
+    long npairs = (long)head[7];
+    int64_t *due = (int64_t *)(intptr_t)head[16];
+    const double *early = (const double *)(intptr_t)head[19];
+    double *out = (double *)(intptr_t)head[20];
+    long m = 0;
+    for (long i = 0; i < npairs; ++i)
+        if (early[i] <= next) due[m++] = i;
+    out[0] = next;
+    out[1] = (double)m;
+    place_q(head, next);
+}
+
+/* trajectory_update (the clearance and tolerance in out[8] and out[9]) with the pairs due apart
+   from the bounding pairs (the entries from head[21] on): the pairs in `due` (their number in
+   out[1]), the bounding pairs' own indices in due_b (their number in out[4]). */
+void trajectory_next(const int64_t *head, double x, long n, double coarse, double bound) {
+    double *out = (double *)(intptr_t)head[20];
+    double next = advance(head, x, n, out[8], out[9], coarse, bound);
+    long npairs = (long)head[7], split = (long)head[21];
+    int64_t *due = (int64_t *)(intptr_t)head[16], *due_b = (int64_t *)(intptr_t)head[22];
+    const double *early = (const double *)(intptr_t)head[19];
+    long m = 0, mb = 0;
+    for (long i = 0; i < npairs; ++i)
+        if (early[i] <= next) {
+            if (i < split) due[m++] = i; else due_b[mb++] = i - split;
+        }
+    out[0] = next;
+    out[1] = (double)m;
+    out[4] = (double)mb;
+    place_q(head, next);
+}
+
+/* _check_bounds's bookkeeping after the distances db of the nb bounding pairs due_b at a check,
+   with the m pairs due in `due`: a bounding pair at least `threshold` away stands for its members
+   (covered, until = early = inf), one closer hands them back (until = early = -inf, due now);
+   where any changed, the pairs due become those due and those handed back, less the covered,
+   ascending. Their number in out[1] (and 1 in out[7] where any changed, else 0), the closest
+   bounding pair's distance and index in out[5] and out[6]; after the pairs in due and d the
+   bounding pairs (indices past the pairs) with the distance passed on: their own where at least
+   `threshold`, else cl - tolerance + (retry - db), which gives the room up to `retry` (cl,
+   tolerance, threshold and retry in out[8] to out[11]). */
+void trajectory_bounds(const int64_t *head, long nb, long m) {
+    long split = (long)head[21];
+    int64_t *due = (int64_t *)(intptr_t)head[16];
+    const int64_t *due_b = (const int64_t *)(intptr_t)head[22];
+    const double *db = (const double *)(intptr_t)head[23];
+    unsigned char *standing = (unsigned char *)(intptr_t)head[24], *covered = (unsigned char *)(intptr_t)head[25];
+    const int64_t *members = (const int64_t *)(intptr_t)head[26], *starts = (const int64_t *)(intptr_t)head[27];
+    unsigned char *mark = (unsigned char *)(intptr_t)head[28];
+    double *d = (double *)(intptr_t)head[17];
+    double *until = (double *)(intptr_t)head[18], *early = (double *)(intptr_t)head[19];
+    double *out = (double *)(intptr_t)head[20];
+    double cl = out[8], tolerance = out[9], threshold = out[10], retry = out[11];
+    int changed = 0;
+    long best = 0;
+    for (long i = 0; i < nb; ++i) {
+        long b = due_b[i];
+        unsigned char far = db[i] >= threshold;
+        if (db[i] < db[best]) best = i;
+        if (far == standing[b]) continue;
+        if (!changed) {
+            changed = 1;
+            for (long j = 0; j < m; ++j) mark[due[j]] = 1;
+        }
+        standing[b] = far;
+        for (long j = starts[b]; j < starts[b + 1]; ++j) {
+            long pair = members[j];
+            covered[pair] = far;
+            until[pair] = early[pair] = far ? INFINITY : -INFINITY;
+            if (!far) mark[pair] = 1;
+        }
+    }
+    if (changed) {
+        m = 0;
+        for (long pair = 0; pair < split; ++pair) {
+            if (mark[pair] && !covered[pair]) due[m++] = pair;
+            mark[pair] = 0;
+        }
+    }
+    for (long i = 0; i < nb; ++i) {
+        due[m + i] = split + due_b[i];
+        d[m + i] = db[i] >= threshold ? db[i] : cl - tolerance + (retry - db[i]);
+    }
+    out[1] = (double)m;
+    out[5] = nb ? db[best] : INFINITY;
+    out[6] = (double)(nb ? due_b[best] : -1);
+    out[7] = (double)changed;
 }
 """
 _P, _L, _D = ctypes.c_void_p, ctypes.c_long, ctypes.c_double
 _NATIVE_SIGNATURES = {
     "trajectory_grid": [_P] * 5 + [_L, _L, _D, _P, _P, _L, _P, _P, _P, _P],
     "trajectory_update": [_P, _D, _L, _D, _D, _D, _D],
+    "trajectory_next": [_P, _D, _L, _D, _D],
+    "trajectory_bounds": [_P, _L, _L],
 }
 
 
@@ -1608,17 +1860,19 @@ class _NativeSteps:
         slack: float,
         n_pairs: int,
         trajectory,
-        last,
+        pieces: tuple[np.ndarray, list[int]],
     ) -> None:
         k = len(trajectory.knots)
-        pieces = [trajectory.knots, trajectory.p, trajectory.v, trajectory.a / 2.0, trajectory.j / 6.0, last]
         size = max(n_pairs, 1)
-        # q, the distances and out (next x, pairs due; the slack, the turn cap) in one block.
-        floats = np.zeros(dof + size + 4)
+        # q, the distances and out (next x, pairs due; the slack, the turn cap; for the loop of
+        # :meth:`attach`: bounding pairs due, the closest one's distance and index, whether the
+        # pairs due changed; its clearance, tolerance, threshold and retry) in one block.
+        floats = np.zeros(dof + size + 12)
         self.q, self.distances, self.out = floats[:dof], floats[dof : dof + size], floats[dof + size :]
-        self.out[2:] = slack, NEAR_TURN - slack
+        self.out[2:4] = slack, NEAR_TURN - slack
         self.due = np.zeros(size, dtype=np.int64)
-        self.pieces, at = _packed(pieces)
+        # The trajectory's knots, p, v, a, j and last waypoint: the grid's inputs (_native_grid).
+        self.pieces, at = pieces
         # Kept alive here: C reads them through the addresses in `head`.
         self.kept = tuple(np.ascontiguousarray(a) for a in arrays)
         self.function = lib.trajectory_update
@@ -1627,18 +1881,43 @@ class _NativeSteps:
         buffers = [base, self.due.ctypes.data, base + 8 * dof]
         kept = [addresses[0], *(a.ctypes.data for a in self.kept[:3]), addresses[1]]  # rates, c, top, t, flags
         self.head = np.array(
-            [*kept, g, dof, n_pairs, at[0], k, *at[1:], *buffers, 0, 0, base + 8 * (dof + size)], dtype=np.int64
+            [*kept, g, dof, n_pairs, at[0], k, *at[1:6], *buffers, 0, 0, base + 8 * (dof + size), *[0] * 8],
+            dtype=np.int64,
         )
         self.head_at = self.head.ctypes.data
         self.arrays: tuple[np.ndarray | None, ...] = (None, None)
-        self.extra = 0
+        self.lib = lib
 
-    def take(self, due: np.ndarray, d: np.ndarray, at: int) -> None:
-        """Put pairs `due` (distances `d`) in the buffers from `at` on: :meth:`__call__`'s next pairs after its own."""
-        n = at + len(due)
-        self.due[at:n] = due
-        self.distances[at:n] = d
-        self.extra = len(due)
+    def attach(
+        self,
+        n_pairs: int,
+        members: tuple[np.ndarray, np.ndarray],
+        until: np.ndarray,
+        early: np.ndarray,
+        covered: np.ndarray,
+        standing: np.ndarray,
+        constants: tuple[float, float, float, float],
+    ) -> None:
+        """Give the state of :func:`_native_loop` (the arrays themselves, changed in place).
+
+        `n_pairs` of the :attr:`size` scheduled entries are pairs, the rest bounding pairs whose
+        `members` are given flat (:func:`_bound_members`); `covered` and `standing` are bool
+        arrays (one byte each). `constants`: the clearance, tolerance, bounding pairs'
+        threshold and retry distance [m].
+        """
+        self.out[8:12] = constants
+        flat, starts = members
+        count = len(starts) - 1
+        self.due_b = np.zeros(max(count, 1), dtype=np.int64)
+        self.bound_distances = np.zeros(max(count, 1))
+        mark = np.zeros(max(n_pairs, 1), dtype=np.uint8)
+        self.loop = (until, early, covered, standing, flat, starts, mark)  # kept alive: C reads them
+        addresses = [self.due_b, self.bound_distances, standing, covered, flat, starts, mark]
+        self.head[18], self.head[19] = until.ctypes.data, early.ctypes.data
+        self.head[21] = n_pairs
+        self.head[22:29] = [a.ctypes.data for a in addresses]
+        self.arrays = (until, early)
+        self.next, self.bounds = self.lib.trajectory_next, self.lib.trajectory_bounds
 
     def __call__(self, x, due, d, c, tolerance, coarse, until, early, bound) -> tuple[float, np.ndarray, np.ndarray]:
         n = len(due)
@@ -1646,9 +1925,6 @@ class _NativeSteps:
         if due.base is not buffer:
             buffer[:n] = due
         self.distances[:n] = d
-        if self.extra:
-            n += self.extra  # the pairs :meth:`take` put after them
-            self.extra = 0
         if self.arrays[0] is not until or self.arrays[1] is not early:
             self.arrays = (until, early)
             self.head[18], self.head[19] = until.ctypes.data, early.ctypes.data
