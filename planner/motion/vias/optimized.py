@@ -25,7 +25,9 @@ halved (a probed option whose joint's own profile leaves the range is not taken)
 state kept at a via turns no joint beyond its range inside a phase of zero jerk (which Ruckig's
 extrema miss and the planner's range repair would halve at any cost). A second pass
 (:attr:`OptimizedStrategy.resweep_vias`, off by default) re-steps vias given their final
-neighbours (:mod:`planner.motion.vias.joint_steps`).
+neighbours (:mod:`planner.motion.vias.joint_steps`). Arms of at most
+:attr:`OptimizedStrategy.polish_joints` joints (5) then have every via stepped so, with finer
+and finer steps, while a via changes (:meth:`OptimizedStrategy.polish`).
 
 On bench_trajectory's paths (8 arms x 100, 5 waypoints; every 4th solved as an NLP, the
 optimum gap is the median of duration / optimum - 1), against the golden-section search of one
@@ -33,7 +35,8 @@ common spline scale and the solved grid walk at every via before: optimum gap 1.
 (seed 1: 0.88 -> 0.76 %), mean duration -0.08 %, 0.96 x the instructions per 6-dof plan
 (callgrind, 60 plans of ur5, z1 and panda). With the second pass over the first two vias of
 each run (``resweep_vias=2``) 0.72 % (seed 1: 0.54 %) at 1.05 x, over every via 0.56 % (0.43 %)
-at about 1.10 x.
+at about 1.10 x. The polish of the arms of 2 to 5 joints: 0.93 -> 0.50 % (seed 1: 0.76 -> 0.43 %),
+those arms' plan time about doubled, 6-dof plans unchanged.
 """
 
 from __future__ import annotations
@@ -102,6 +105,19 @@ _OWN_TIMES = 1.0 + 1e-9
 # walk before), over every via (None) to 0.56 % (0.43 %; mean duration -0.36 %) at about 1.10 x:
 # most of a visit's cost is fixed (the probe call, the joint choice, the solve and range checks).
 _RESWEEP_VIAS: int | None = 0
+# The polish of arms with few joints (OptimizedStrategy.polish_joints): after the sweep, every
+# via is stepped (planner.motion.vias.joint_steps.resweep_via) with each pair of velocity steps
+# in turn, coarse to fine, in up to _POLISH_ROUNDS rounds per pair, a round visiting only the
+# vias that changed in the one before and their neighbours. With few joints a segment's time is
+# set by one or two joints, whose states at neighbouring vias trade time with each other: one
+# pass of steps leaves much of that (bench_trajectory's paths, seed 0: the arms of 2 to 5 joints'
+# median optimum gaps 0.96-1.41 % without the polish, 0.79-1.25 % with one pass over every via,
+# 0.31-0.50 % with these three pairs and two rounds; one round 0.45-0.66 %, three 0.27-0.50 %).
+# It about doubles those arms' plan time (so101 0.9 -> 1.7 ms, still below a 6-dof plan's):
+# an arm of more joints (6-dof: +10 % per pass over every via) keeps the one sweep.
+_POLISH_JOINTS = 5
+_POLISH_STEPS = ((0.03, 0.1), (0.01, 0.03), (0.003, 0.01))
+_POLISH_ROUNDS = 2
 
 
 def golden_minimum(f: Callable[[float], float], lo: float, hi: float, evals: int) -> float:
@@ -342,15 +358,23 @@ def _gather(indices: list[int]) -> Callable[[Sequence[float]], tuple[float, ...]
 _CLASS_DEFAULT = object()
 
 
+def _count(x: object) -> bool:
+    """Whether `x` is an integer >= 0 (not a bool)."""
+    return not isinstance(x, bool) and isinstance(x, (int, np.integer)) and x >= 0
+
+
 class OptimizedStrategy(ViaStrategy):
     """Via states chosen by a spline search per run, then a duration search per via waypoint.
 
     Args:
         resweep_vias: How many vias of each run the optional second pass visits
             (:attr:`resweep_vias`): 0 none, None every one; left out, the class's (0).
+        polish_joints: Arms of at most this many joints are polished (:attr:`polish_joints`;
+            0: none); left out, the class's (5).
 
     Raises:
-        InvalidArgumentError: If `resweep_vias` is neither None nor an integer >= 0.
+        InvalidArgumentError: If `resweep_vias` is neither None nor an integer >= 0, or
+            `polish_joints` is not an integer >= 0.
     """
 
     name = "optimized"
@@ -362,17 +386,25 @@ class OptimizedStrategy(ViaStrategy):
     #: (0: none, the default; None: all). Each costs about 5 % of a 6-dof plan's instructions
     #: through 5 waypoints (see _RESWEEP_VIAS).
     resweep_vias: int | None = _RESWEEP_VIAS
+    #: Arms of at most this many joints have their via states polished after the sweep
+    #: (:meth:`polish`; 0: none). Each polish about doubles such an arm's plan time.
+    polish_joints: int = _POLISH_JOINTS
+    #: The pairs of velocity steps of the polish, coarse to fine (shares of the speed limit).
+    polish_steps: tuple[tuple[float, ...], ...] = _POLISH_STEPS
 
-    def __init__(self, resweep_vias: int | None | object = _CLASS_DEFAULT) -> None:
-        if resweep_vias is _CLASS_DEFAULT:
-            return  # the class's (a subclass may set its own)
-        if resweep_vias is not None and (
-            isinstance(resweep_vias, bool) or not isinstance(resweep_vias, (int, np.integer)) or resweep_vias < 0
-        ):
-            raise InvalidArgumentError(
-                f"resweep_vias must be None (every via) or an integer >= 0, got {resweep_vias!r}"
-            )
-        self.resweep_vias = None if resweep_vias is None else int(resweep_vias)
+    def __init__(
+        self, resweep_vias: int | None | object = _CLASS_DEFAULT, polish_joints: int | object = _CLASS_DEFAULT
+    ) -> None:
+        if resweep_vias is not _CLASS_DEFAULT:  # else the class's (a subclass may set its own)
+            if resweep_vias is not None and not _count(resweep_vias):
+                raise InvalidArgumentError(
+                    f"resweep_vias must be None (every via) or an integer >= 0, got {resweep_vias!r}"
+                )
+            self.resweep_vias = None if resweep_vias is None else int(resweep_vias)
+        if polish_joints is not _CLASS_DEFAULT:
+            if not _count(polish_joints):
+                raise InvalidArgumentError(f"polish_joints must be an integer >= 0, got {polish_joints!r}")
+            self.polish_joints = int(polish_joints)
 
     def choose(self, chain: ViaChain) -> None:
         """Spline-like via states, a joint spline search per run between fixed waypoints, then one sweep."""
@@ -413,6 +445,35 @@ class OptimizedStrategy(ViaStrategy):
             for a, b in zip(fixed[:-1], fixed[1:]):
                 for i in range(a + 1, b if self.resweep_vias is None else min(b, a + 1 + self.resweep_vias)):
                     resweep_via(chain, i, self.resweep_steps)
+        if chain.q.shape[1] <= self.polish_joints:
+            self.polish(chain, free)
+
+    def polish(self, chain: ViaChain, free: list[int]) -> None:
+        """Step the via states with finer and finer velocity steps while a via changes.
+
+        For each of :attr:`polish_steps` in turn, every free via is stepped
+        (:func:`~planner.motion.vias.joint_steps.resweep_via`: the joints that set a segment's
+        time, each velocity moved either way, kept only where the pair is faster and stays within
+        the range), then for up to :data:`_POLISH_ROUNDS` - 1 more rounds the vias that changed
+        and their free neighbours again.
+
+        Args:
+            chain: The chain.
+            free: The vias the strategy may change, ascending.
+        """
+        if len(free) == 0:
+            return
+        allowed = set(free)
+        for steps in self.polish_steps:
+            visit = free
+            for _ in range(_POLISH_ROUNDS):
+                again = set()
+                for i in visit:
+                    if resweep_via(chain, i, steps):
+                        again.update(k for k in (i - 1, i, i + 1) if k in allowed)
+                if not again:
+                    break
+                visit = sorted(again)
 
     def _line_search(
         self,
