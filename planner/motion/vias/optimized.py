@@ -65,8 +65,9 @@ __all__ = ["OptimizedStrategy", "golden_minimum", "golden_points", "spline_via_s
 # these states per joint (with the velocity steps and the turn below, one Ruckig call); where
 # probes do not apply (see _probes_apply) or found nothing faster, the grid is walked, each state
 # solved, from _GRID_START (the most frequent best) up while the duration falls, else down, and
-# every joint picks its best among the states tried (combine_joints). (Probed, the scale 0
-# changed no plan's duration on bench_trajectory's paths.)
+# every joint picks its best among the states tried (combine_joints). The probed grid leaves out
+# the scale 0 (resting at the via): no joint picked it on 300 6-dof plans, and no plan's
+# duration changed on bench_trajectory's paths without it (1.4 % fewer instructions per plan).
 _GRID = (0.0, 1.4, 2.0, 3.0)
 _GRID_START = 1.4
 # Spline stage (OptimizedStrategy.search_spline): the log time-scales of the segment durations
@@ -93,9 +94,18 @@ _SETTLE_HALVINGS = 24
 # segment's (the others cannot shorten it). On bench_trajectory's paths (seed 0) the median
 # optimum gap falls from 1.34 % to 1.02 %; steps of 0.15 as well give 0.95 % at +8 %
 # instructions per plan, a dense grid of 21 velocities and 3 accelerations per joint 0.54 %
-# (one sweep) at many times the plan time.
+# (one sweep) at many times the plan time. Probing the joints within 0.8 of the segment's time
+# (not 0.9) made 4 % more instructions per 6-dof plan for no shorter plan on those paths.
 _PROBE_STEPS = (-0.05, 0.05)
-_PROBE_NEAR = 0.8
+_PROBE_NEAR = 0.9
+# Where the probed pick at a via, kept once solved, moved at least this many joints, those of
+# them that now set a segment's time have their velocity steps (OptimizedStrategy.reprobe_steps)
+# probed again around their new states (resweep_via among them): the first probe took the steps
+# around the states before the pick only. bench_trajectory's 6-dof paths (ur5, z1, panda) with
+# their stored NLP optima: median optimum gap 0.68 -> 0.51 % (seed 1: 0.61 -> 0.49 %), about
+# one such probe per plan, 6 in 10 of them kept; with 1 joint moved as well 0.47 % (0.49 %) at
+# 5 % more instructions per plan, steps (0.03, 0.1) 0.51 % (0.43 %) at 2 % more.
+_REPROBE_MOVED = 2
 # A segment counts as lasting as long as its slowest joint needs up to this factor (rounding).
 _OWN_TIMES = 1.0 + 1e-9
 # The second pass (planner.motion.vias.joint_steps), off by default: on bench_trajectory's paths
@@ -380,6 +390,9 @@ class OptimizedStrategy(ViaStrategy):
     name = "optimized"
     #: The velocity steps probed per joint at each via (shares of the speed limit; see :meth:`combine_joints`).
     probe_steps: tuple[float, ...] = _PROBE_STEPS
+    #: The velocity steps probed again around a kept pick's new states where it moved two
+    #: joints or more (see _REPROBE_MOVED; each taken either way; () for none).
+    reprobe_steps: tuple[float, ...] = (0.05,)
     #: The velocity steps of the second pass (:func:`~planner.motion.vias.joint_steps.resweep_via`; () for none).
     resweep_steps: tuple[float, ...] = RESWEEP_STEPS
     #: How many vias of each run between fixed waypoints, from its first, the second pass visits
@@ -434,9 +447,14 @@ class OptimizedStrategy(ViaStrategy):
             if grid is None:
                 self.combine_joints(chain, i, tried)
             else:
+                before = chain.v[i].tolist()
                 if self.combine_joints(chain, i, [], grid):
                     # The probed pick was not kept once solved: the grid states solved instead.
                     self.combine_joints(chain, i, self.search_via(chain, i, u, w), probe=_FALLBACK_PROBE)
+                elif self.reprobe_steps:
+                    moved = [j for j, (x, y) in enumerate(zip(before, chain.v[i].tolist())) if x != y]
+                    if len(moved) >= _REPROBE_MOVED:
+                        resweep_via(chain, i, self.reprobe_steps, moved)
             v, acc = chain.state_rows()
             durations[i - 1] = chain.seg.solve(i - 1, v[i - 1], acc[i - 1], v[i], acc[i])[0]
             durations[i] = chain.seg.solve(i, v[i], acc[i], v[i + 1], acc[i + 1])[0]
@@ -546,14 +564,14 @@ class OptimizedStrategy(ViaStrategy):
         return self._line_search(chain, i, candidates, _grid_top(u, w, lim), start=_GRID_START)
 
     def grid_states(self, chain: ViaChain, u: np.ndarray, w: np.ndarray) -> tuple[list[list[float]], list[list[float]]]:
-        """The states ``(x u, x^2 w)`` of :meth:`search_via` at every scale x of its grid, as rows of floats.
+        """The states ``(x u, x^2 w)`` of :meth:`search_via` at every scale x > 0 of its grid, as rows of floats.
 
         Returns:
             Per scale the velocities and the accelerations (lists over all joints).
         """
         lim = chain.limits
         top = _grid_top(u, w, lim)
-        cvs, cas = _grid_candidates(_capped_grid(top), u, w, lim)
+        cvs, cas = _grid_candidates([x for x in _capped_grid(top) if x > 0.0], u, w, lim)
         return cvs.tolist(), cas.tolist()
 
     def _settle(self, chain: ViaChain, free: list[int]) -> None:
