@@ -36,7 +36,8 @@ common spline scale and the solved grid walk at every via before: optimum gap 1.
 (callgrind, 60 plans of ur5, z1 and panda). With the second pass over the first two vias of
 each run (``resweep_vias=2``) 0.72 % (seed 1: 0.54 %) at 1.05 x, over every via 0.56 % (0.43 %)
 at about 1.10 x. The polish of the arms of 2 to 5 joints: 0.93 -> 0.50 % (seed 1: 0.76 -> 0.43 %),
-those arms' plan time about doubled, 6-dof plans unchanged.
+those arms' plan time about doubled, 6-dof plans unchanged (about 3 % faster with the probe of
+the joints within 0.9 of a segment's time and no rest state in the probed grid, the same plans).
 """
 
 from __future__ import annotations
@@ -99,12 +100,15 @@ _SETTLE_HALVINGS = 24
 _PROBE_STEPS = (-0.05, 0.05)
 _PROBE_NEAR = 0.9
 # Where the probed pick at a via, kept once solved, moved at least this many joints, those of
-# them that now set a segment's time have their velocity steps (OptimizedStrategy.reprobe_steps)
-# probed again around their new states (resweep_via among them): the first probe took the steps
-# around the states before the pick only. bench_trajectory's 6-dof paths (ur5, z1, panda) with
-# their stored NLP optima: median optimum gap 0.68 -> 0.51 % (seed 1: 0.61 -> 0.49 %), about
-# one such probe per plan, 6 in 10 of them kept; with 1 joint moved as well 0.47 % (0.49 %) at
-# 5 % more instructions per plan, steps (0.03, 0.1) 0.51 % (0.43 %) at 2 % more.
+# them that now set a segment's time can have their velocity steps (OptimizedStrategy.reprobe_steps,
+# off by default) probed again around their new states (resweep_via among them): the first probe
+# took the steps around the states before the pick only. bench_trajectory's 6-dof paths (ur5, z1,
+# panda) with their stored NLP optima, seeds 0 and 1: median optimum gap 0.67 -> 0.51 % with
+# (0.05,), 0.44 % with (0.03, 0.1); about one such probe per plan, 6 in 10 kept. Its cost: +5 %
+# instructions per 6-dof plan, but about +7 % time in a warm loop (ur5, z1; the two solves and
+# checks of the new state more than the probe), more than _PROBE_NEAR 0.9 and the probed grid
+# without scale 0 save (-3 %). Probing the steps around the pick before solving it (no second
+# solve) gave 0.52 % at +5.5 % time.
 _REPROBE_MOVED = 2
 # A segment counts as lasting as long as its slowest joint needs up to this factor (rounding).
 _OWN_TIMES = 1.0 + 1e-9
@@ -391,8 +395,9 @@ class OptimizedStrategy(ViaStrategy):
     #: The velocity steps probed per joint at each via (shares of the speed limit; see :meth:`combine_joints`).
     probe_steps: tuple[float, ...] = _PROBE_STEPS
     #: The velocity steps probed again around a kept pick's new states where it moved two
-    #: joints or more (see _REPROBE_MOVED; each taken either way; () for none).
-    reprobe_steps: tuple[float, ...] = (0.05,)
+    #: joints or more (see _REPROBE_MOVED; each taken either way). () (none), the default:
+    #: ``(0.05,)`` costs about 7 % more time per 6-dof plan.
+    reprobe_steps: tuple[float, ...] = ()
     #: The velocity steps of the second pass (:func:`~planner.motion.vias.joint_steps.resweep_via`; () for none).
     resweep_steps: tuple[float, ...] = RESWEEP_STEPS
     #: How many vias of each run between fixed waypoints, from its first, the second pass visits
