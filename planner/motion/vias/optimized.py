@@ -126,12 +126,14 @@ _RESWEEP_VIAS: int | None = 0
 # set by one or two joints, whose states at neighbouring vias trade time with each other: one
 # pass of steps leaves much of that (bench_trajectory's paths, seed 0: the arms of 2 to 5 joints'
 # median optimum gaps 0.96-1.41 % without the polish, 0.79-1.25 % with one pass over every via,
-# 0.31-0.50 % with these three pairs and two rounds; one round 0.45-0.66 %, three 0.27-0.50 %).
-# It about doubles those arms' plan time (so101 0.9 -> 1.7 ms, still below a 6-dof plan's):
-# an arm of more joints (6-dof: +10 % per pass over every via) keeps the one sweep.
+# 0.31-0.50 % with these three pairs and two rounds; one round 0.45-0.66 %, three 0.27-0.50 %;
+# all arms, seeds 0 and 1: two rounds 0.505 and 0.431 %, three 0.493 and 0.408 %, a fourth pair
+# (0.001, 0.003) 0.504 and 0.428 %). It about doubles those arms' plan time (so101 0.85 -> 1.98
+# ms with three rounds, 1.78 ms with two; ur5 and z1 0.95 ms in the same loop): an arm of more
+# joints (6-dof: +10 % per pass over every via) keeps the one sweep.
 _POLISH_JOINTS = 5
 _POLISH_STEPS = ((0.03, 0.1), (0.01, 0.03), (0.003, 0.01))
-_POLISH_ROUNDS = 2
+_POLISH_ROUNDS = 3
 
 
 def golden_minimum(f: Callable[[float], float], lo: float, hi: float, evals: int) -> float:
