@@ -87,7 +87,10 @@ def test_a_motion_starting_at_full_speed_is_not_bounded_as_from_rest():
     robot = get_robot("dh3")
     plan = planner.plan_motion(robot, parse_motion_request(_slow_base([5e-4, 0.0, 0.0])), rate=2.0)
     moves = np.diff(plan.waypoint_times)
-    assert moves[0] == pytest.approx(5600.0, rel=1e-6)
+    # 2.8 rad at 0.5 mrad/s all the way: 5600 s, not the 7100 s from rest (the via state may be a
+    # little below full speed where that shortens the braking move after it: the optimized
+    # strategy's polish of small arms takes 5600.0135 + 3000.0068 s against 5600 + 3000.0316 s).
+    assert moves[0] == pytest.approx(5600.0, abs=0.1)
     assert np.all(moves < MAX_SEGMENT_DURATION)
     # The same from rest needs 2.8 rad / 0.5 mrad/s + 1500 s to reach the velocity limit: refused.
     with pytest.raises(PlanningError, match=r"at least 7\d{3}[.0-9]* s from rest within its velocity limit 0\.0005"):

@@ -14,7 +14,7 @@ from trajectory_checks import assert_passes_waypoints, assert_within_limits
 from planner import InvalidArgumentError
 from planner.motion.limits import JointLimits
 from planner.motion.plan import plan_trajectory
-from planner.motion.vias import VIA_STRATEGIES, RefinedStrategy, via_strategy
+from planner.motion.vias import VIA_STRATEGIES, OptimizedStrategy, RefinedStrategy, via_strategy
 from planner.motion.vias.refined import best_choice
 
 from conftest import BUNDLED, get_robot
@@ -75,6 +75,12 @@ def test_registered_by_name_and_checks_its_settings():
         RefinedStrategy(step=float("nan"))
 
 
+class _RefinedUnpolished(RefinedStrategy):
+    """The refined search from the optimized sweep's states, without the polish."""
+
+    polish_joints = 0
+
+
 @pytest.mark.parametrize("name", BUNDLED)
 def test_random_paths_hold_limits_and_are_never_slower(name):
     robot = get_robot(name)
@@ -91,7 +97,10 @@ def test_random_paths_hold_limits_and_are_never_slower(name):
         np.testing.assert_array_equal(fitted.repaired, optimized.repaired)
         repaired += optimized.repaired.any()
         assert refined.duration <= optimized.duration
-        faster += refined.duration < optimized.duration
+        # What the search finds, counted from the sweep's states alone (the optimized strategy's
+        # polish of arms with few joints takes part of it first: three_joint 5 of these 12).
+        unpolished = plan_trajectory(q, limits, strategy=OptimizedStrategy(polish_joints=0))
+        faster += plan_trajectory(q, limits, strategy=_RefinedUnpolished()).duration < unpolished.duration
         assert_passes_waypoints(refined, refined.waypoint_times, q)
         np.testing.assert_allclose(refined.sample(refined.waypoint_times).q, q, rtol=0, atol=1e-12)
         assert_within_limits(refined, limits.velocity, limits.acceleration, limits.jerk, limits.lower, limits.upper)

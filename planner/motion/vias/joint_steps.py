@@ -16,7 +16,7 @@ turn no joint beyond the range inside a phase of zero jerk (as the first pass ke
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Collection, Sequence
 
 import numpy as np
 
@@ -87,6 +87,7 @@ def step_binding_joints(
     state: tuple[list[float], list[float]],
     times: tuple[list[float], list[float]],
     steps: Sequence[float] = STEPS,
+    among: Collection[int] | None = None,
 ) -> bool:
     """Move the joints that set a segment's time at via i by :data:`STEPS` where that is faster.
 
@@ -100,6 +101,7 @@ def step_binding_joints(
         times: Per joint its times in the segments before and after the via [s] (changed in
             place: a joint moved gets its probed times).
         steps: The moves, shares of the speed limit (each taken either way).
+        among: The joints that may move (those of them that set a segment's time); None for all.
 
     Returns:
         Whether any joint moved.
@@ -109,7 +111,7 @@ def step_binding_joints(
     d1, d2 = BINDING * max(c1), BINDING * max(c2)
     joints, rest1, rest2 = [], 0.0, 0.0
     for j, (x, y) in enumerate(zip(c1, c2)):
-        if x >= d1 or y >= d2:
+        if (x >= d1 or y >= d2) and (among is None or j in among):
             joints.append(j)
         else:
             rest1 = x if x > rest1 else rest1
@@ -146,8 +148,10 @@ def step_binding_joints(
     return True
 
 
-def resweep_via(chain: ViaChain, i: int, steps: Sequence[float] = STEPS) -> bool:
+def resweep_via(chain: ViaChain, i: int, steps: Sequence[float] = STEPS, among: Collection[int] | None = None) -> bool:
     """Second-pass step at via i: :func:`step_binding_joints`, kept where the solved pair is faster.
+
+    `among`: the joints that may move (see :func:`step_binding_joints`); None for all.
 
     The current state is kept unless the new one's two segments are faster, within the range
     (by Ruckig's extrema and ``SegmentSolver.turns_beyond``) and reach their ends
@@ -164,7 +168,7 @@ def resweep_via(chain: ViaChain, i: int, steps: Sequence[float] = STEPS) -> bool
         return False
     state = (chain.v[i].tolist(), chain.acc[i].tolist())
     times = (traj1.independent_min_durations, traj2.independent_min_durations)
-    if not step_binding_joints(chain, i, state, times, steps):
+    if not step_binding_joints(chain, i, state, times, steps, among):
         return False
     cv, ca = np.array(state[0]), np.array(state[1])
     (e1, bad1, traj1), (e2, bad2, traj2) = both(cv, ca)

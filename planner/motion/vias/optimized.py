@@ -25,7 +25,9 @@ halved (a probed option whose joint's own profile leaves the range is not taken)
 state kept at a via turns no joint beyond its range inside a phase of zero jerk (which Ruckig's
 extrema miss and the planner's range repair would halve at any cost). A second pass
 (:attr:`OptimizedStrategy.resweep_vias`, off by default) re-steps vias given their final
-neighbours (:mod:`planner.motion.vias.joint_steps`).
+neighbours (:mod:`planner.motion.vias.joint_steps`). Arms of at most
+:attr:`OptimizedStrategy.polish_joints` joints (5) then have every via stepped so, with finer
+and finer steps, while a via changes (:meth:`OptimizedStrategy.polish`).
 
 On bench_trajectory's paths (8 arms x 100, 5 waypoints; every 4th solved as an NLP, the
 optimum gap is the median of duration / optimum - 1), against the golden-section search of one
@@ -33,7 +35,9 @@ common spline scale and the solved grid walk at every via before: optimum gap 1.
 (seed 1: 0.88 -> 0.76 %), mean duration -0.08 %, 0.96 x the instructions per 6-dof plan
 (callgrind, 60 plans of ur5, z1 and panda). With the second pass over the first two vias of
 each run (``resweep_vias=2``) 0.72 % (seed 1: 0.54 %) at 1.05 x, over every via 0.56 % (0.43 %)
-at about 1.10 x.
+at about 1.10 x. The polish of the arms of 2 to 5 joints: 0.93 -> 0.50 % (seed 1: 0.76 -> 0.43 %),
+those arms' plan time about doubled, 6-dof plans unchanged (about 3 % faster with the probe of
+the joints within 0.9 of a segment's time and no rest state in the probed grid, the same plans).
 """
 
 from __future__ import annotations
@@ -62,8 +66,9 @@ __all__ = ["OptimizedStrategy", "golden_minimum", "golden_points", "spline_via_s
 # these states per joint (with the velocity steps and the turn below, one Ruckig call); where
 # probes do not apply (see _probes_apply) or found nothing faster, the grid is walked, each state
 # solved, from _GRID_START (the most frequent best) up while the duration falls, else down, and
-# every joint picks its best among the states tried (combine_joints). (Probed, the scale 0
-# changed no plan's duration on bench_trajectory's paths.)
+# every joint picks its best among the states tried (combine_joints). The probed grid leaves out
+# the scale 0 (resting at the via): no joint picked it on 300 6-dof plans, and no plan's
+# duration changed on bench_trajectory's paths without it (1.4 % fewer instructions per plan).
 _GRID = (0.0, 1.4, 2.0, 3.0)
 _GRID_START = 1.4
 # Spline stage (OptimizedStrategy.search_spline): the log time-scales of the segment durations
@@ -90,9 +95,21 @@ _SETTLE_HALVINGS = 24
 # segment's (the others cannot shorten it). On bench_trajectory's paths (seed 0) the median
 # optimum gap falls from 1.34 % to 1.02 %; steps of 0.15 as well give 0.95 % at +8 %
 # instructions per plan, a dense grid of 21 velocities and 3 accelerations per joint 0.54 %
-# (one sweep) at many times the plan time.
+# (one sweep) at many times the plan time. Probing the joints within 0.8 of the segment's time
+# (not 0.9) made 4 % more instructions per 6-dof plan for no shorter plan on those paths.
 _PROBE_STEPS = (-0.05, 0.05)
-_PROBE_NEAR = 0.8
+_PROBE_NEAR = 0.9
+# Where the probed pick at a via, kept once solved, moved at least this many joints, those of
+# them that now set a segment's time can have their velocity steps (OptimizedStrategy.reprobe_steps,
+# off by default) probed again around their new states (resweep_via among them): the first probe
+# took the steps around the states before the pick only. bench_trajectory's 6-dof paths (ur5, z1,
+# panda) with their stored NLP optima, seeds 0 and 1: median optimum gap 0.67 -> 0.51 % with
+# (0.05,), 0.44 % with (0.03, 0.1); about one such probe per plan, 6 in 10 kept. Its cost: +5 %
+# instructions per 6-dof plan, but about +7 % time in a warm loop (ur5, z1; the two solves and
+# checks of the new state more than the probe), more than _PROBE_NEAR 0.9 and the probed grid
+# without scale 0 save (-3 %). Probing the steps around the pick before solving it (no second
+# solve) gave 0.52 % at +5.5 % time.
+_REPROBE_MOVED = 2
 # A segment counts as lasting as long as its slowest joint needs up to this factor (rounding).
 _OWN_TIMES = 1.0 + 1e-9
 # The second pass (planner.motion.vias.joint_steps), off by default: on bench_trajectory's paths
@@ -102,6 +119,21 @@ _OWN_TIMES = 1.0 + 1e-9
 # walk before), over every via (None) to 0.56 % (0.43 %; mean duration -0.36 %) at about 1.10 x:
 # most of a visit's cost is fixed (the probe call, the joint choice, the solve and range checks).
 _RESWEEP_VIAS: int | None = 0
+# The polish of arms with few joints (OptimizedStrategy.polish_joints): after the sweep, every
+# via is stepped (planner.motion.vias.joint_steps.resweep_via) with each pair of velocity steps
+# in turn, coarse to fine, in up to _POLISH_ROUNDS rounds per pair, a round visiting only the
+# vias that changed in the one before and their neighbours. With few joints a segment's time is
+# set by one or two joints, whose states at neighbouring vias trade time with each other: one
+# pass of steps leaves much of that (bench_trajectory's paths, seed 0: the arms of 2 to 5 joints'
+# median optimum gaps 0.96-1.41 % without the polish, 0.79-1.25 % with one pass over every via,
+# 0.31-0.50 % with these three pairs and two rounds; one round 0.45-0.66 %, three 0.27-0.50 %;
+# all arms, seeds 0 and 1: two rounds 0.505 and 0.431 %, three 0.493 and 0.408 %, a fourth pair
+# (0.001, 0.003) 0.504 and 0.428 %). It about doubles those arms' plan time (so101 0.85 -> 1.98
+# ms with three rounds, 1.78 ms with two; ur5 and z1 0.95 ms in the same loop): an arm of more
+# joints (6-dof: +10 % per pass over every via) keeps the one sweep.
+_POLISH_JOINTS = 5
+_POLISH_STEPS = ((0.03, 0.1), (0.01, 0.03), (0.003, 0.01))
+_POLISH_ROUNDS = 3
 
 
 def golden_minimum(f: Callable[[float], float], lo: float, hi: float, evals: int) -> float:
@@ -342,37 +374,57 @@ def _gather(indices: list[int]) -> Callable[[Sequence[float]], tuple[float, ...]
 _CLASS_DEFAULT = object()
 
 
+def _count(x: object) -> bool:
+    """Whether `x` is an integer >= 0 (not a bool)."""
+    return not isinstance(x, bool) and isinstance(x, (int, np.integer)) and x >= 0
+
+
 class OptimizedStrategy(ViaStrategy):
     """Via states chosen by a spline search per run, then a duration search per via waypoint.
 
     Args:
         resweep_vias: How many vias of each run the optional second pass visits
             (:attr:`resweep_vias`): 0 none, None every one; left out, the class's (0).
+        polish_joints: Arms of at most this many joints are polished (:attr:`polish_joints`;
+            0: none); left out, the class's (5).
 
     Raises:
-        InvalidArgumentError: If `resweep_vias` is neither None nor an integer >= 0.
+        InvalidArgumentError: If `resweep_vias` is neither None nor an integer >= 0, or
+            `polish_joints` is not an integer >= 0.
     """
 
     name = "optimized"
     #: The velocity steps probed per joint at each via (shares of the speed limit; see :meth:`combine_joints`).
     probe_steps: tuple[float, ...] = _PROBE_STEPS
+    #: The velocity steps probed again around a kept pick's new states where it moved two
+    #: joints or more (see _REPROBE_MOVED; each taken either way). () (none), the default:
+    #: ``(0.05,)`` costs about 7 % more time per 6-dof plan.
+    reprobe_steps: tuple[float, ...] = ()
     #: The velocity steps of the second pass (:func:`~planner.motion.vias.joint_steps.resweep_via`; () for none).
     resweep_steps: tuple[float, ...] = RESWEEP_STEPS
     #: How many vias of each run between fixed waypoints, from its first, the second pass visits
     #: (0: none, the default; None: all). Each costs about 5 % of a 6-dof plan's instructions
     #: through 5 waypoints (see _RESWEEP_VIAS).
     resweep_vias: int | None = _RESWEEP_VIAS
+    #: Arms of at most this many joints have their via states polished after the sweep
+    #: (:meth:`polish`; 0: none). Each polish about doubles such an arm's plan time.
+    polish_joints: int = _POLISH_JOINTS
+    #: The pairs of velocity steps of the polish, coarse to fine (shares of the speed limit).
+    polish_steps: tuple[tuple[float, ...], ...] = _POLISH_STEPS
 
-    def __init__(self, resweep_vias: int | None | object = _CLASS_DEFAULT) -> None:
-        if resweep_vias is _CLASS_DEFAULT:
-            return  # the class's (a subclass may set its own)
-        if resweep_vias is not None and (
-            isinstance(resweep_vias, bool) or not isinstance(resweep_vias, (int, np.integer)) or resweep_vias < 0
-        ):
-            raise InvalidArgumentError(
-                f"resweep_vias must be None (every via) or an integer >= 0, got {resweep_vias!r}"
-            )
-        self.resweep_vias = None if resweep_vias is None else int(resweep_vias)
+    def __init__(
+        self, resweep_vias: int | None | object = _CLASS_DEFAULT, polish_joints: int | object = _CLASS_DEFAULT
+    ) -> None:
+        if resweep_vias is not _CLASS_DEFAULT:  # else the class's (a subclass may set its own)
+            if resweep_vias is not None and not _count(resweep_vias):
+                raise InvalidArgumentError(
+                    f"resweep_vias must be None (every via) or an integer >= 0, got {resweep_vias!r}"
+                )
+            self.resweep_vias = None if resweep_vias is None else int(resweep_vias)
+        if polish_joints is not _CLASS_DEFAULT:
+            if not _count(polish_joints):
+                raise InvalidArgumentError(f"polish_joints must be an integer >= 0, got {polish_joints!r}")
+            self.polish_joints = int(polish_joints)
 
     def choose(self, chain: ViaChain) -> None:
         """Spline-like via states, a joint spline search per run between fixed waypoints, then one sweep."""
@@ -402,9 +454,14 @@ class OptimizedStrategy(ViaStrategy):
             if grid is None:
                 self.combine_joints(chain, i, tried)
             else:
+                before = chain.v[i].tolist()
                 if self.combine_joints(chain, i, [], grid):
                     # The probed pick was not kept once solved: the grid states solved instead.
                     self.combine_joints(chain, i, self.search_via(chain, i, u, w), probe=_FALLBACK_PROBE)
+                elif self.reprobe_steps:
+                    moved = [j for j, (x, y) in enumerate(zip(before, chain.v[i].tolist())) if x != y]
+                    if len(moved) >= _REPROBE_MOVED:
+                        resweep_via(chain, i, self.reprobe_steps, moved)
             v, acc = chain.state_rows()
             durations[i - 1] = chain.seg.solve(i - 1, v[i - 1], acc[i - 1], v[i], acc[i])[0]
             durations[i] = chain.seg.solve(i, v[i], acc[i], v[i + 1], acc[i + 1])[0]
@@ -413,6 +470,35 @@ class OptimizedStrategy(ViaStrategy):
             for a, b in zip(fixed[:-1], fixed[1:]):
                 for i in range(a + 1, b if self.resweep_vias is None else min(b, a + 1 + self.resweep_vias)):
                     resweep_via(chain, i, self.resweep_steps)
+        if chain.q.shape[1] <= self.polish_joints:
+            self.polish(chain, free)
+
+    def polish(self, chain: ViaChain, free: list[int]) -> None:
+        """Step the via states with finer and finer velocity steps while a via changes.
+
+        For each of :attr:`polish_steps` in turn, every free via is stepped
+        (:func:`~planner.motion.vias.joint_steps.resweep_via`: the joints that set a segment's
+        time, each velocity moved either way, kept only where the pair is faster and stays within
+        the range), then for up to :data:`_POLISH_ROUNDS` - 1 more rounds the vias that changed
+        and their free neighbours again.
+
+        Args:
+            chain: The chain.
+            free: The vias the strategy may change, ascending.
+        """
+        if len(free) == 0:
+            return
+        allowed = set(free)
+        for steps in self.polish_steps:
+            visit = free
+            for _ in range(_POLISH_ROUNDS):
+                again = set()
+                for i in visit:
+                    if resweep_via(chain, i, steps):
+                        again.update(k for k in (i - 1, i, i + 1) if k in allowed)
+                if not again:
+                    break
+                visit = sorted(again)
 
     def _line_search(
         self,
@@ -485,14 +571,14 @@ class OptimizedStrategy(ViaStrategy):
         return self._line_search(chain, i, candidates, _grid_top(u, w, lim), start=_GRID_START)
 
     def grid_states(self, chain: ViaChain, u: np.ndarray, w: np.ndarray) -> tuple[list[list[float]], list[list[float]]]:
-        """The states ``(x u, x^2 w)`` of :meth:`search_via` at every scale x of its grid, as rows of floats.
+        """The states ``(x u, x^2 w)`` of :meth:`search_via` at every scale x > 0 of its grid, as rows of floats.
 
         Returns:
             Per scale the velocities and the accelerations (lists over all joints).
         """
         lim = chain.limits
         top = _grid_top(u, w, lim)
-        cvs, cas = _grid_candidates(_capped_grid(top), u, w, lim)
+        cvs, cas = _grid_candidates([x for x in _capped_grid(top) if x > 0.0], u, w, lim)
         return cvs.tolist(), cas.tolist()
 
     def _settle(self, chain: ViaChain, free: list[int]) -> None:
