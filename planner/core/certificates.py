@@ -329,6 +329,8 @@ INLINE void bracket_warm(long k, const double *G, double *o, double *vl, double 
     inverse_steps(k, L, vl, y, WARM_STEPS);
     top_vector(k, G, tr, vh, WARM_SQUARINGS, WARM_POWER_STEPS);
     bounds_from_vectors(k, G, tr, 1, product, vl, vh, L, o);
+    if (!(isfinite(o[1]) && isfinite(o[2]))) /* vectors lost (not finite): from no estimate */
+        bracket(k, G, o, vl, vh);
 }
 
 /* bracket, from the vectors vl, vh of the previous matrix Gp where *warm is set and G is within
