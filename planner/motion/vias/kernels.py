@@ -21,7 +21,7 @@ import numpy as np
 
 from planner.core.native import load_functions
 
-__all__ = ["choose_options", "choose_joints", "scale_states"]
+__all__ = ["choose_options", "choose_joints", "scale_states", "spline_states", "blend_directions"]
 
 _SOURCE = r"""
 #include <math.h>
@@ -202,12 +202,71 @@ void scaled_states(long G, long dof, const double *x, const double *u, const dou
         }
     }
 }
+/* spline_via_states (planner.motion.vias.optimized): the clamped C2 cubic spline through q
+   ((m + 1, dof), row-major) at the durations h (m), end velocities vs and ve (dof). Writes the
+   velocities (m - 1, dof) at out and the accelerations after them. Returns 0, or -1 (nothing
+   written) where m < 2 or a duration is not positive and finite (the Python form is then the
+   reference). The operations of its Python form, in the same order. */
+long spline_states(long m, long dof, const double *q, const double *h, const double *vs, const double *ve,
+                   double *out) {
+    if (m < 2) return -1;
+    for (long r = 0; r < m; ++r)
+        if (!(h[r] > 0.0 && h[r] < INFINITY)) return -1;
+    long n = m - 1;
+    double inv[m], slope[m * dof], c[n], diag[n], d[n * dof];
+    double *v = out, *acc = out + n * dof;
+    for (long r = 0; r < m; ++r) inv[r] = 1.0 / h[r];
+    for (long r = 0; r < m; ++r)
+        for (long j = 0; j < dof; ++j) slope[r * dof + j] = (q[(r + 1) * dof + j] - q[r * dof + j]) / h[r];
+    /* rhs in d, solved in place row by row (Thomas algorithm) */
+    for (long r = 0; r < n; ++r)
+        for (long j = 0; j < dof; ++j)
+            d[r * dof + j] = 3.0 * (slope[r * dof + j] * inv[r] + slope[(r + 1) * dof + j] * inv[r + 1]);
+    for (long j = 0; j < dof; ++j) d[j] = d[j] - inv[0] * vs[j];
+    for (long j = 0; j < dof; ++j) d[(n - 1) * dof + j] = d[(n - 1) * dof + j] - inv[m - 1] * ve[j];
+    for (long r = 0; r < n; ++r) diag[r] = 2.0 * (inv[r] + inv[r + 1]);
+    c[0] = inv[1] / diag[0];
+    double den = diag[0];
+    for (long j = 0; j < dof; ++j) d[j] = d[j] / den;
+    for (long r = 1; r < n; ++r) {
+        den = diag[r] - inv[r] * c[r - 1];
+        c[r] = inv[r + 1] / den;
+        for (long j = 0; j < dof; ++j) d[r * dof + j] = (d[r * dof + j] - inv[r] * d[(r - 1) * dof + j]) / den;
+    }
+    for (long j = 0; j < dof; ++j) v[(n - 1) * dof + j] = d[(n - 1) * dof + j];
+    for (long r = n - 2; r >= 0; --r)
+        for (long j = 0; j < dof; ++j) v[r * dof + j] = d[r * dof + j] - c[r] * v[(r + 1) * dof + j];
+    for (long r = 0; r < n; ++r) {
+        const double *next = r + 1 < n ? v + (r + 1) * dof : ve;
+        for (long j = 0; j < dof; ++j)
+            acc[r * dof + j] = (6.0 * slope[(r + 1) * dof + j] - 4.0 * v[r * dof + j] - 2.0 * next[j]) * inv[r + 1];
+    }
+    return 0;
+}
+
+/* via_directions (planner.motion.vias.heuristic) past its checks: the waypoints before, at and
+   after the via (q, (3, dof), row-major), the durations tp and tn, the limits. Writes u (dof)
+   at out and w after it, with the same operations and clipping (a NaN kept). */
+void via_directions(long dof, double tp, double tn, const double *q, const double *velocity,
+                    const double *acceleration, double *out) {
+    double total = tp + tn;
+    for (long j = 0; j < dof; ++j) {
+        double before = q[j], at = q[dof + j], after = q[2 * dof + j], vm = velocity[j], am = acceleration[j];
+        double sp = (at - before) / tp, sn = (after - at) / tn;
+        double x = (sp * tn + sn * tp) / total;
+        out[j] = (-vm <= x && x <= vm) ? x : x > vm ? vm : x < -vm ? -vm : x;
+        x = 2.0 * (sn - sp) / total;
+        out[dof + j] = (-am <= x && x <= am) ? x : x > am ? am : x < -am ? -am : x;
+    }
+}
 """
 
 _SIGNATURES = {
     "best_choice": [ctypes.c_long, ctypes.c_long, *[ctypes.c_void_p] * 4],
     "scaled_states": [ctypes.c_long, ctypes.c_long, *[ctypes.c_void_p] * 5],
     "joint_choice": [ctypes.c_long, ctypes.c_long, ctypes.c_long, ctypes.c_long, ctypes.c_void_p, ctypes.c_void_p],
+    "spline_states": [ctypes.c_long, ctypes.c_long, *[ctypes.c_void_p] * 5],
+    "via_directions": [ctypes.c_long, ctypes.c_double, ctypes.c_double, *[ctypes.c_void_p] * 4],
 }
 
 
@@ -220,6 +279,7 @@ def _library() -> ctypes.CDLL | None:
     if library is not None and library.best_choice.restype is None:
         library.best_choice.restype = ctypes.c_long  # (load_functions sets None: it returns a code)
         library.joint_choice.restype = ctypes.c_long
+        library.spline_states.restype = ctypes.c_long
     return library
 
 
@@ -295,4 +355,62 @@ def scale_states(x: list[float], u: np.ndarray, w: np.ndarray, limits: bytes) ->
     scales = array("d", x)  # (held here while the C function reads it)
     library.scaled_states(count, dof, scales.buffer_info()[0], u.tobytes(), w.tobytes(), limits, out.buffer_info()[0])
     both = np.frombuffer(out).reshape(2, count, dof)
+    return both[0], both[1]
+
+
+def spline_states(
+    q: np.ndarray, h: np.ndarray, v_start: np.ndarray, v_end: np.ndarray
+) -> tuple[np.ndarray, np.ndarray] | None:
+    """:func:`planner.motion.vias.optimized.spline_via_states`, compiled.
+
+    Args:
+        q: Waypoints of the run, shape (m+1, dof), float64.
+        h: Segment durations, shape (m,) [s].
+        v_start: Velocity at ``q[0]``, shape (dof,), float64.
+        v_end: Velocity at ``q[m]``, shape (dof,), float64.
+
+    Returns:
+        The velocities and accelerations at ``q[1:m]``, shapes (m-1, dof) (views of one new
+        buffer), or None where there is no compiled library, m < 2, too many entries or a
+        duration is not positive and finite (the caller's Python path decides).
+    """
+    library = _library()
+    if library is None:
+        return None
+    m, dof = len(h), len(v_start)
+    if m < 2 or q.shape != (m + 1, dof) or m * dof > _MOST_ENTRIES:
+        return None  # (the C function keeps its rows on its stack)
+    q = q.astype(np.float64, copy=False)  # (as the Python form's floats)
+    out = array("d", bytes(16 * (m - 1) * dof))
+    if library.spline_states(
+        m, dof, q.tobytes(), h.tobytes(), v_start.tobytes(), v_end.tobytes(), out.buffer_info()[0]
+    ):
+        return None
+    both = np.frombuffer(out).reshape(2, m - 1, dof)
+    return both[0], both[1]
+
+
+def blend_directions(
+    q: np.ndarray, tp: float, tn: float, velocity: np.ndarray, acceleration: np.ndarray
+) -> tuple[np.ndarray, np.ndarray] | None:
+    """:func:`planner.motion.vias.heuristic.via_directions` past its checks, compiled (None without a library).
+
+    Args:
+        q: The waypoints before, at and after the via, shape (3, dof), float64.
+        tp: The duration of the segment before the via [s], positive and finite.
+        tn: Likewise after it.
+        velocity: The speed limits, shape (dof,), float64.
+        acceleration: The acceleration limits, shape (dof,), float64.
+
+    Returns:
+        The velocity and acceleration directions, shapes (dof,) (views of one new buffer).
+    """
+    library = _library()
+    if library is None:
+        return None
+    dof = len(velocity)
+    q = q.astype(np.float64, copy=False)  # (as the Python form's floats)
+    out = array("d", bytes(16 * dof))
+    library.via_directions(dof, tp, tn, q.tobytes(), velocity.tobytes(), acceleration.tobytes(), out.buffer_info()[0])
+    both = np.frombuffer(out).reshape(2, dof)
     return both[0], both[1]

@@ -50,7 +50,7 @@ from planner.motion.vias.base import SEARCH_HALVINGS, ViaChain, ViaStrategy, bes
 from planner.motion.vias.heuristic import via_directions
 from planner.motion.vias.joint_steps import STEPS as RESWEEP_STEPS
 from planner.motion.vias.joint_steps import moved_states, resweep_via
-from planner.motion.vias.kernels import choose_joints, scale_states
+from planner.motion.vias.kernels import choose_joints, scale_states, spline_states
 
 #: Largest time scale searched: keeps x * x finite where a via component is tiny (x * 0 is then
 #: 0, not NaN), far beyond any scale at which every joint already saturates.
@@ -167,6 +167,9 @@ def spline_via_states(
     Returns:
         Velocities and accelerations at ``q[1:m]``, shapes (m-1, dof).
     """
+    fast = spline_states(q, h, v_start, v_end)  # compiled, the same operations (None: the loops below)
+    if fast is not None:
+        return fast
     # On plain floats (a few vias and joints: faster than NumPy), row by row the operations the
     # array form (``slope = diff(q) / h``, ``rhs = 3 (slope[:-1] inv[:-1] + slope[1:] inv[1:])``, ...) has.
     rows, hs = q.tolist(), h.tolist()
