@@ -13,7 +13,14 @@ from planner import load_robot
 from planner.motion.limits import JointLimits
 from planner.motion.plan import plan_trajectory
 from planner.motion.vias import base, heuristic, kernels, optimized
-from planner.motion.vias.kernels import _library, blend_directions, choose_options, scale_states, spline_states
+from planner.motion.vias.kernels import (
+    _library,
+    blend_directions,
+    choose_options,
+    choose_probed,
+    scale_states,
+    spline_states,
+)
 from planner.motion.vias.optimized import _scaled_states, spline_via_states
 
 pytestmark = pytest.mark.skipif(_library() is None, reason="no C compiler (or PLANNER_JIT=0): the Python paths only")
@@ -162,3 +169,37 @@ def test_compiled_slope_blend_equals_the_python_form(rows, tp, tn):
         want = heuristic.via_directions(q, 1, np.array([tp, tn]), LIMITS, stop)
     assert got[0].tobytes() == want[0].tobytes() and got[1].tobytes() == want[1].tobytes()
     assert blend_directions(q, tp, tn, LIMITS.velocity, LIMITS.acceleration) is not None
+
+
+@settings(max_examples=400, deadline=None)
+@given(st.integers(1, 4), st.integers(1, 6), st.integers(1, 7), st.data())
+def test_compiled_probed_choice_equals_the_python_sweep_on_the_rows(k, probes, dof, data):
+    rows1 = [data.draw(st.lists(times, min_size=dof, max_size=dof)) for _ in range(k)]
+    rows2 = [data.draw(st.lists(times, min_size=dof, max_size=dof)) for _ in range(k)]
+    rows1[0] = [x if x < math.inf else 1.0 for x in rows1[0]]  # the current state has finite times
+    rows2[0] = [x if x < math.inf else 1.0 for x in rows2[0]]
+    joints = tuple(sorted(data.draw(st.sets(st.integers(0, dof - 1), min_size=1))))
+    count = len(joints)
+    p1 = data.draw(st.lists(times, min_size=probes * count, max_size=probes * count))
+    p2 = data.draw(st.lists(times, min_size=probes * count, max_size=probes * count))
+    # The rows the probed times stand for: inf for a joint not probed.
+    full1 = [[p1[c * count + joints.index(j)] if j in joints else math.inf for j in range(dof)] for c in range(probes)]
+    full2 = [[p2[c * count + joints.index(j)] if j in joints else math.inf for j in range(dof)] for c in range(probes)]
+    with pytest.MonkeyPatch.context() as monkeypatch:
+        want = python_best_choice(rows1 + full1, rows2 + full2, monkeypatch)
+    got = choose_probed(rows1, rows2, (p1, p2), joints)
+    assert got is not None
+    assert got[0] == want[0] and got[1] == want[1]
+    assert math.copysign(1.0, got[0]) == math.copysign(1.0, want[0])
+    # The search's Python path (no library) builds the same rows.
+    with pytest.MonkeyPatch.context() as monkeypatch:
+        monkeypatch.setattr(optimized, "choose_probed", lambda *args: None)
+        monkeypatch.setattr(base, "choose_options", lambda a, b: None)
+        assert optimized._probed_choice(rows1, rows2, ([], joints, (p1, p2))) == want[1]
+    assert optimized._probed_choice(rows1, rows2, ([], joints, (p1, p2))) == want[1]
+
+
+def test_compiled_probed_choice_leaves_nan_to_python():
+    assert choose_probed([[1.0, 2.0]], [[1.0, 2.0]], ([math.nan], [0.5]), (1,)) is None
+    assert choose_probed([[1.0, 2.0]], [[1.0, 2.0]], ([], []), ()) is None
+    assert optimized._probed_choice([[1.0, 2.0]], [[1.0, 2.0]], ([], (1,), ([0.5], [0.5]))) == [0, 1]

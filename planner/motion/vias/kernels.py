@@ -21,7 +21,7 @@ import numpy as np
 
 from planner.core.native import load_functions
 
-__all__ = ["choose_options", "choose_joints", "scale_states", "spline_states", "blend_directions"]
+__all__ = ["choose_options", "choose_probed", "choose_joints", "scale_states", "spline_states", "blend_directions"]
 
 _SOURCE = r"""
 #include <math.h>
@@ -259,6 +259,28 @@ void via_directions(long dof, double tp, double tn, const double *q, const doubl
         out[dof + j] = (-am <= x && x <= am) ? x : x > am ? am : x < -am ? -am : x;
     }
 }
+/* best_choice on the K rows t1, t2 (K, dof) followed by P probed rows: probed row c of joint j is
+   p1[c * count + m] where j is joints[m], inf for a joint not among joints (likewise t2 and p2).
+   Returns as best_choice. */
+long probed_choice(long K, long P, long count, long dof, const double *t1, const double *t2, const double *p1,
+                   const double *p2, const long *joints, double *best_out, long *choice) {
+    long where[dof];
+    for (long j = 0; j < dof; ++j) where[j] = -1;
+    for (long m = 0; m < count; ++m) where[joints[m]] = m;
+    long n = (K + P) * dof;
+    double r1[n], r2[n];
+    for (long e = 0; e < K * dof; ++e) {
+        r1[e] = t1[e];
+        r2[e] = t2[e];
+    }
+    for (long c = 0; c < P; ++c)
+        for (long j = 0; j < dof; ++j) {
+            long m = where[j], e = (K + c) * dof + j;
+            r1[e] = m < 0 ? INFINITY : p1[c * count + m];
+            r2[e] = m < 0 ? INFINITY : p2[c * count + m];
+        }
+    return best_choice(K + P, dof, r1, r2, best_out, choice);
+}
 """
 
 _SIGNATURES = {
@@ -267,6 +289,7 @@ _SIGNATURES = {
     "joint_choice": [ctypes.c_long, ctypes.c_long, ctypes.c_long, ctypes.c_long, ctypes.c_void_p, ctypes.c_void_p],
     "spline_states": [ctypes.c_long, ctypes.c_long, *[ctypes.c_void_p] * 5],
     "via_directions": [ctypes.c_long, ctypes.c_double, ctypes.c_double, *[ctypes.c_void_p] * 4],
+    "probed_choice": [ctypes.c_long, ctypes.c_long, ctypes.c_long, ctypes.c_long, *[ctypes.c_void_p] * 7],
 }
 
 
@@ -280,6 +303,7 @@ def _library() -> ctypes.CDLL | None:
         library.best_choice.restype = ctypes.c_long  # (load_functions sets None: it returns a code)
         library.joint_choice.restype = ctypes.c_long
         library.spline_states.restype = ctypes.c_long
+        library.probed_choice.restype = ctypes.c_long
     return library
 
 
@@ -304,6 +328,59 @@ def choose_options(rows1: list[list[float]], rows2: list[list[float]]) -> tuple[
     choice = array("l", [0]) * dof  # C longs, as the function's
     found = library.best_choice(
         k, dof, flat1.buffer_info()[0], flat2.buffer_info()[0], out.buffer_info()[0], choice.buffer_info()[0]
+    )
+    if found < 0:
+        return None
+    return out[0], (choice.tolist() if found else None)
+
+
+def choose_probed(
+    rows1: list[list[float]], rows2: list[list[float]], probed: tuple[list[float], list[float]], joints: tuple[int, ...]
+) -> tuple[float, list[int] | None] | None:
+    """:func:`planner.motion.vias.base.best_choice` on rows of floats followed by probed rows, compiled.
+
+    Args:
+        rows1: Per option and joint the joint's time in the first segment [s], K rows of dof floats.
+        rows2: Likewise in the second segment.
+        probed: The probed times in the first and second segment [s], flat: the entry of
+            probed option c and joint ``joints[m]`` at ``c * len(joints) + m``
+            (:meth:`planner.motion.segments.SegmentSolver.probe_around`); a joint not among
+            `joints` has the time inf in every probed option.
+        joints: The joints probed, distinct indices below dof.
+
+    Returns:
+        The best sum and the option per joint (probed option c is option K + c; None where no
+        choice is better), or None where there is no compiled library, too many entries or a
+        NaN among the times (the caller's Python path decides).
+    """
+    library = _library()
+    if library is None:
+        return None
+    k, dof, count = len(rows1), len(rows1[0]), len(joints)
+    if not count:
+        return None
+    p1, p2 = probed
+    extra = len(p1) // count
+    if (k + extra) * dof > _MOST_ENTRIES or len(p1) != extra * count or len(p2) != len(p1):
+        return None  # (the C function sorts on its stack)
+    flat1 = array("d", list(chain.from_iterable(rows1)))  # (C loops: a comprehension costs more)
+    flat2 = array("d", list(chain.from_iterable(rows2)))
+    if len(flat1) != k * dof or len(flat2) != k * dof:
+        return None  # ragged rows: the Python path says what is wrong
+    out = array("d", [0.0])
+    choice = array("l", [0]) * dof  # C longs, as the function's
+    found = library.probed_choice(
+        k,
+        extra,
+        count,
+        dof,
+        flat1.buffer_info()[0],
+        flat2.buffer_info()[0],
+        array("d", p1).tobytes(),
+        array("d", p2).tobytes(),
+        array("l", joints).tobytes(),
+        out.buffer_info()[0],
+        choice.buffer_info()[0],
     )
     if found < 0:
         return None
