@@ -12,9 +12,16 @@ from hypothesis import strategies as st
 from planner import load_robot
 from planner.motion.limits import JointLimits
 from planner.motion.plan import plan_trajectory
-from planner.motion.vias import base, kernels
-from planner.motion.vias.kernels import _library, choose_options, scale_states
-from planner.motion.vias.optimized import _scaled_states
+from planner.motion.vias import base, heuristic, kernels, optimized
+from planner.motion.vias.kernels import (
+    _library,
+    blend_directions,
+    choose_options,
+    choose_probed,
+    scale_states,
+    spline_states,
+)
+from planner.motion.vias.optimized import _scaled_states, spline_via_states
 
 pytestmark = pytest.mark.skipif(_library() is None, reason="no C compiler (or PLANNER_JIT=0): the Python paths only")
 
@@ -108,3 +115,91 @@ def test_plans_are_the_same_with_and_without_the_compiled_loops(name, monkeypatc
     compiled = [arrays(plan_trajectory(q, limits)) for q in paths]
     monkeypatch.setattr(kernels, "_library", lambda: None)
     assert [arrays(plan_trajectory(q, limits)) for q in paths] == compiled
+
+
+# Waypoints, durations and end velocities as runs have them, and edge values (zeros of either
+# sign, tiny and huge durations).
+positions = st.one_of(st.sampled_from([0.0, -0.0, 1e-300, 3.0, -3.0]), st.floats(-10.0, 10.0))
+durations = st.one_of(st.sampled_from([1e-300, 1e-9, 1.0, 1e300]), st.floats(1e-6, 1e3))
+
+
+def python_spline(q, h, v_start, v_end, monkeypatch):
+    with monkeypatch.context() as m:
+        m.setattr(optimized, "spline_states", lambda *args: None)
+        return optimized.spline_via_states(q, h, v_start, v_end)
+
+
+@settings(max_examples=300, deadline=None)
+@given(st.integers(2, 6), st.integers(1, 7), st.data())
+def test_compiled_spline_states_equal_the_python_form(m, dof, data):
+    q = np.array([data.draw(st.lists(positions, min_size=dof, max_size=dof)) for _ in range(m + 1)])
+    h = np.array(data.draw(st.lists(durations, min_size=m, max_size=m)))
+    v_start = np.array(data.draw(st.lists(positions, min_size=dof, max_size=dof)))
+    v_end = np.array(data.draw(st.lists(positions, min_size=dof, max_size=dof)))
+    got = spline_states(q, h, v_start, v_end)
+    assert got is not None
+    with pytest.MonkeyPatch.context() as monkeypatch:
+        want = python_spline(q, h, v_start, v_end, monkeypatch)
+    assert got[0].shape == want[0].shape == (m - 1, dof) and got[1].shape == want[1].shape
+    assert got[0].tobytes() == want[0].tobytes() and got[1].tobytes() == want[1].tobytes()
+
+
+def test_spline_states_leave_bad_durations_to_python():
+    q = np.zeros((3, 2))
+    v = np.zeros(2)
+    assert spline_states(q, np.array([1.0, 0.0]), v, v) is None
+    assert spline_states(q, np.array([1.0, math.inf]), v, v) is None
+    assert spline_states(q, np.array([1.0, math.nan]), v, v) is None
+    assert spline_states(q[:2], np.array([1.0]), v, v) is None
+    assert spline_via_states(q, np.array([1.0, 2.0]), v, v)[0].tolist() == [[0.0, 0.0]]
+
+
+@settings(max_examples=300, deadline=None)
+@given(
+    st.lists(st.lists(positions, min_size=3, max_size=3), min_size=3, max_size=3),
+    durations,
+    durations,
+)
+def test_compiled_slope_blend_equals_the_python_form(rows, tp, tn):
+    q = np.array(rows)
+    stop = np.zeros(3, dtype=bool)
+    got = heuristic.via_directions(q, 1, np.array([tp, tn]), LIMITS, stop)
+    with pytest.MonkeyPatch.context() as monkeypatch:
+        monkeypatch.setattr(heuristic, "blend_directions", lambda *args: None)
+        want = heuristic.via_directions(q, 1, np.array([tp, tn]), LIMITS, stop)
+    assert got[0].tobytes() == want[0].tobytes() and got[1].tobytes() == want[1].tobytes()
+    assert blend_directions(q, tp, tn, LIMITS.velocity, LIMITS.acceleration) is not None
+
+
+@settings(max_examples=400, deadline=None)
+@given(st.integers(1, 4), st.integers(1, 6), st.integers(1, 7), st.data())
+def test_compiled_probed_choice_equals_the_python_sweep_on_the_rows(k, probes, dof, data):
+    rows1 = [data.draw(st.lists(times, min_size=dof, max_size=dof)) for _ in range(k)]
+    rows2 = [data.draw(st.lists(times, min_size=dof, max_size=dof)) for _ in range(k)]
+    rows1[0] = [x if x < math.inf else 1.0 for x in rows1[0]]  # the current state has finite times
+    rows2[0] = [x if x < math.inf else 1.0 for x in rows2[0]]
+    joints = tuple(sorted(data.draw(st.sets(st.integers(0, dof - 1), min_size=1))))
+    count = len(joints)
+    p1 = data.draw(st.lists(times, min_size=probes * count, max_size=probes * count))
+    p2 = data.draw(st.lists(times, min_size=probes * count, max_size=probes * count))
+    # The rows the probed times stand for: inf for a joint not probed.
+    full1 = [[p1[c * count + joints.index(j)] if j in joints else math.inf for j in range(dof)] for c in range(probes)]
+    full2 = [[p2[c * count + joints.index(j)] if j in joints else math.inf for j in range(dof)] for c in range(probes)]
+    with pytest.MonkeyPatch.context() as monkeypatch:
+        want = python_best_choice(rows1 + full1, rows2 + full2, monkeypatch)
+    got = choose_probed(rows1, rows2, (p1, p2), joints)
+    assert got is not None
+    assert got[0] == want[0] and got[1] == want[1]
+    assert math.copysign(1.0, got[0]) == math.copysign(1.0, want[0])
+    # The search's Python path (no library) builds the same rows.
+    with pytest.MonkeyPatch.context() as monkeypatch:
+        monkeypatch.setattr(optimized, "choose_probed", lambda *args: None)
+        monkeypatch.setattr(base, "choose_options", lambda a, b: None)
+        assert optimized._probed_choice(rows1, rows2, ([], joints, (p1, p2))) == want[1]
+    assert optimized._probed_choice(rows1, rows2, ([], joints, (p1, p2))) == want[1]
+
+
+def test_compiled_probed_choice_leaves_nan_to_python():
+    assert choose_probed([[1.0, 2.0]], [[1.0, 2.0]], ([math.nan], [0.5]), (1,)) is None
+    assert choose_probed([[1.0, 2.0]], [[1.0, 2.0]], ([], []), ()) is None
+    assert optimized._probed_choice([[1.0, 2.0]], [[1.0, 2.0]], ([], (1,), ([0.5], [0.5]))) == [0, 1]

@@ -21,7 +21,7 @@ import numpy as np
 
 from planner.core.native import load_functions
 
-__all__ = ["choose_options", "choose_joints", "scale_states"]
+__all__ = ["choose_options", "choose_probed", "choose_joints", "scale_states", "spline_states", "blend_directions"]
 
 _SOURCE = r"""
 #include <math.h>
@@ -202,12 +202,94 @@ void scaled_states(long G, long dof, const double *x, const double *u, const dou
         }
     }
 }
+/* spline_via_states (planner.motion.vias.optimized): the clamped C2 cubic spline through q
+   ((m + 1, dof), row-major) at the durations h (m), end velocities vs and ve (dof). Writes the
+   velocities (m - 1, dof) at out and the accelerations after them. Returns 0, or -1 (nothing
+   written) where m < 2 or a duration is not positive and finite (the Python form is then the
+   reference). The operations of its Python form, in the same order. */
+long spline_states(long m, long dof, const double *q, const double *h, const double *vs, const double *ve,
+                   double *out) {
+    if (m < 2) return -1;
+    for (long r = 0; r < m; ++r)
+        if (!(h[r] > 0.0 && h[r] < INFINITY)) return -1;
+    long n = m - 1;
+    double inv[m], slope[m * dof], c[n], diag[n], d[n * dof];
+    double *v = out, *acc = out + n * dof;
+    for (long r = 0; r < m; ++r) inv[r] = 1.0 / h[r];
+    for (long r = 0; r < m; ++r)
+        for (long j = 0; j < dof; ++j) slope[r * dof + j] = (q[(r + 1) * dof + j] - q[r * dof + j]) / h[r];
+    /* rhs in d, solved in place row by row (Thomas algorithm) */
+    for (long r = 0; r < n; ++r)
+        for (long j = 0; j < dof; ++j)
+            d[r * dof + j] = 3.0 * (slope[r * dof + j] * inv[r] + slope[(r + 1) * dof + j] * inv[r + 1]);
+    for (long j = 0; j < dof; ++j) d[j] = d[j] - inv[0] * vs[j];
+    for (long j = 0; j < dof; ++j) d[(n - 1) * dof + j] = d[(n - 1) * dof + j] - inv[m - 1] * ve[j];
+    for (long r = 0; r < n; ++r) diag[r] = 2.0 * (inv[r] + inv[r + 1]);
+    c[0] = inv[1] / diag[0];
+    double den = diag[0];
+    for (long j = 0; j < dof; ++j) d[j] = d[j] / den;
+    for (long r = 1; r < n; ++r) {
+        den = diag[r] - inv[r] * c[r - 1];
+        c[r] = inv[r + 1] / den;
+        for (long j = 0; j < dof; ++j) d[r * dof + j] = (d[r * dof + j] - inv[r] * d[(r - 1) * dof + j]) / den;
+    }
+    for (long j = 0; j < dof; ++j) v[(n - 1) * dof + j] = d[(n - 1) * dof + j];
+    for (long r = n - 2; r >= 0; --r)
+        for (long j = 0; j < dof; ++j) v[r * dof + j] = d[r * dof + j] - c[r] * v[(r + 1) * dof + j];
+    for (long r = 0; r < n; ++r) {
+        const double *next = r + 1 < n ? v + (r + 1) * dof : ve;
+        for (long j = 0; j < dof; ++j)
+            acc[r * dof + j] = (6.0 * slope[(r + 1) * dof + j] - 4.0 * v[r * dof + j] - 2.0 * next[j]) * inv[r + 1];
+    }
+    return 0;
+}
+
+/* via_directions (planner.motion.vias.heuristic) past its checks: the waypoints before, at and
+   after the via (q, (3, dof), row-major), the durations tp and tn, the limits. Writes u (dof)
+   at out and w after it, with the same operations and clipping (a NaN kept). */
+void via_directions(long dof, double tp, double tn, const double *q, const double *velocity,
+                    const double *acceleration, double *out) {
+    double total = tp + tn;
+    for (long j = 0; j < dof; ++j) {
+        double before = q[j], at = q[dof + j], after = q[2 * dof + j], vm = velocity[j], am = acceleration[j];
+        double sp = (at - before) / tp, sn = (after - at) / tn;
+        double x = (sp * tn + sn * tp) / total;
+        out[j] = (-vm <= x && x <= vm) ? x : x > vm ? vm : x < -vm ? -vm : x;
+        x = 2.0 * (sn - sp) / total;
+        out[dof + j] = (-am <= x && x <= am) ? x : x > am ? am : x < -am ? -am : x;
+    }
+}
+/* best_choice on the K rows t1, t2 (K, dof) followed by P probed rows: probed row c of joint j is
+   p1[c * count + m] where j is joints[m], inf for a joint not among joints (likewise t2 and p2).
+   Returns as best_choice. */
+long probed_choice(long K, long P, long count, long dof, const double *t1, const double *t2, const double *p1,
+                   const double *p2, const long *joints, double *best_out, long *choice) {
+    long where[dof];
+    for (long j = 0; j < dof; ++j) where[j] = -1;
+    for (long m = 0; m < count; ++m) where[joints[m]] = m;
+    long n = (K + P) * dof;
+    double r1[n], r2[n];
+    for (long e = 0; e < K * dof; ++e) {
+        r1[e] = t1[e];
+        r2[e] = t2[e];
+    }
+    for (long c = 0; c < P; ++c)
+        for (long j = 0; j < dof; ++j) {
+            long m = where[j], e = (K + c) * dof + j;
+            r1[e] = m < 0 ? INFINITY : p1[c * count + m];
+            r2[e] = m < 0 ? INFINITY : p2[c * count + m];
+        }
+    return best_choice(K + P, dof, r1, r2, best_out, choice);
+}
 """
 
 _SIGNATURES = {
     "best_choice": [ctypes.c_long, ctypes.c_long, *[ctypes.c_void_p] * 4],
     "scaled_states": [ctypes.c_long, ctypes.c_long, *[ctypes.c_void_p] * 5],
     "joint_choice": [ctypes.c_long, ctypes.c_long, ctypes.c_long, ctypes.c_long, ctypes.c_void_p, ctypes.c_void_p],
+    "spline_states": [ctypes.c_long, ctypes.c_long, *[ctypes.c_void_p] * 5],
+    "via_directions": [ctypes.c_long, ctypes.c_double, ctypes.c_double, *[ctypes.c_void_p] * 4],
+    "probed_choice": [ctypes.c_long, ctypes.c_long, ctypes.c_long, ctypes.c_long, *[ctypes.c_void_p] * 7],
 }
 
 
@@ -220,6 +302,8 @@ def _library() -> ctypes.CDLL | None:
     if library is not None and library.best_choice.restype is None:
         library.best_choice.restype = ctypes.c_long  # (load_functions sets None: it returns a code)
         library.joint_choice.restype = ctypes.c_long
+        library.spline_states.restype = ctypes.c_long
+        library.probed_choice.restype = ctypes.c_long
     return library
 
 
@@ -244,6 +328,59 @@ def choose_options(rows1: list[list[float]], rows2: list[list[float]]) -> tuple[
     choice = array("l", [0]) * dof  # C longs, as the function's
     found = library.best_choice(
         k, dof, flat1.buffer_info()[0], flat2.buffer_info()[0], out.buffer_info()[0], choice.buffer_info()[0]
+    )
+    if found < 0:
+        return None
+    return out[0], (choice.tolist() if found else None)
+
+
+def choose_probed(
+    rows1: list[list[float]], rows2: list[list[float]], probed: tuple[list[float], list[float]], joints: tuple[int, ...]
+) -> tuple[float, list[int] | None] | None:
+    """:func:`planner.motion.vias.base.best_choice` on rows of floats followed by probed rows, compiled.
+
+    Args:
+        rows1: Per option and joint the joint's time in the first segment [s], K rows of dof floats.
+        rows2: Likewise in the second segment.
+        probed: The probed times in the first and second segment [s], flat: the entry of
+            probed option c and joint ``joints[m]`` at ``c * len(joints) + m``
+            (:meth:`planner.motion.segments.SegmentSolver.probe_around`); a joint not among
+            `joints` has the time inf in every probed option.
+        joints: The joints probed, distinct indices below dof.
+
+    Returns:
+        The best sum and the option per joint (probed option c is option K + c; None where no
+        choice is better), or None where there is no compiled library, too many entries or a
+        NaN among the times (the caller's Python path decides).
+    """
+    library = _library()
+    if library is None:
+        return None
+    k, dof, count = len(rows1), len(rows1[0]), len(joints)
+    if not count:
+        return None
+    p1, p2 = probed
+    extra = len(p1) // count
+    if (k + extra) * dof > _MOST_ENTRIES or len(p1) != extra * count or len(p2) != len(p1):
+        return None  # (the C function sorts on its stack)
+    flat1 = array("d", list(chain.from_iterable(rows1)))  # (C loops: a comprehension costs more)
+    flat2 = array("d", list(chain.from_iterable(rows2)))
+    if len(flat1) != k * dof or len(flat2) != k * dof:
+        return None  # ragged rows: the Python path says what is wrong
+    out = array("d", [0.0])
+    choice = array("l", [0]) * dof  # C longs, as the function's
+    found = library.probed_choice(
+        k,
+        extra,
+        count,
+        dof,
+        flat1.buffer_info()[0],
+        flat2.buffer_info()[0],
+        array("d", p1).tobytes(),
+        array("d", p2).tobytes(),
+        array("l", joints).tobytes(),
+        out.buffer_info()[0],
+        choice.buffer_info()[0],
     )
     if found < 0:
         return None
@@ -295,4 +432,62 @@ def scale_states(x: list[float], u: np.ndarray, w: np.ndarray, limits: bytes) ->
     scales = array("d", x)  # (held here while the C function reads it)
     library.scaled_states(count, dof, scales.buffer_info()[0], u.tobytes(), w.tobytes(), limits, out.buffer_info()[0])
     both = np.frombuffer(out).reshape(2, count, dof)
+    return both[0], both[1]
+
+
+def spline_states(
+    q: np.ndarray, h: np.ndarray, v_start: np.ndarray, v_end: np.ndarray
+) -> tuple[np.ndarray, np.ndarray] | None:
+    """:func:`planner.motion.vias.optimized.spline_via_states`, compiled.
+
+    Args:
+        q: Waypoints of the run, shape (m+1, dof), float64.
+        h: Segment durations, shape (m,) [s].
+        v_start: Velocity at ``q[0]``, shape (dof,), float64.
+        v_end: Velocity at ``q[m]``, shape (dof,), float64.
+
+    Returns:
+        The velocities and accelerations at ``q[1:m]``, shapes (m-1, dof) (views of one new
+        buffer), or None where there is no compiled library, m < 2, too many entries or a
+        duration is not positive and finite (the caller's Python path decides).
+    """
+    library = _library()
+    if library is None:
+        return None
+    m, dof = len(h), len(v_start)
+    if m < 2 or q.shape != (m + 1, dof) or m * dof > _MOST_ENTRIES:
+        return None  # (the C function keeps its rows on its stack)
+    q = q.astype(np.float64, copy=False)  # (as the Python form's floats)
+    out = array("d", bytes(16 * (m - 1) * dof))
+    if library.spline_states(
+        m, dof, q.tobytes(), h.tobytes(), v_start.tobytes(), v_end.tobytes(), out.buffer_info()[0]
+    ):
+        return None
+    both = np.frombuffer(out).reshape(2, m - 1, dof)
+    return both[0], both[1]
+
+
+def blend_directions(
+    q: np.ndarray, tp: float, tn: float, velocity: np.ndarray, acceleration: np.ndarray
+) -> tuple[np.ndarray, np.ndarray] | None:
+    """:func:`planner.motion.vias.heuristic.via_directions` past its checks, compiled (None without a library).
+
+    Args:
+        q: The waypoints before, at and after the via, shape (3, dof), float64.
+        tp: The duration of the segment before the via [s], positive and finite.
+        tn: Likewise after it.
+        velocity: The speed limits, shape (dof,), float64.
+        acceleration: The acceleration limits, shape (dof,), float64.
+
+    Returns:
+        The velocity and acceleration directions, shapes (dof,) (views of one new buffer).
+    """
+    library = _library()
+    if library is None:
+        return None
+    dof = len(velocity)
+    q = q.astype(np.float64, copy=False)  # (as the Python form's floats)
+    out = array("d", bytes(16 * dof))
+    library.via_directions(dof, tp, tn, q.tobytes(), velocity.tobytes(), acceleration.tobytes(), out.buffer_info()[0])
+    both = np.frombuffer(out).reshape(2, dof)
     return both[0], both[1]

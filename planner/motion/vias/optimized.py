@@ -54,7 +54,7 @@ from planner.motion.vias.base import SEARCH_HALVINGS, ViaChain, ViaStrategy, bes
 from planner.motion.vias.heuristic import via_directions
 from planner.motion.vias.joint_steps import STEPS as RESWEEP_STEPS
 from planner.motion.vias.joint_steps import moved_states, resweep_via
-from planner.motion.vias.kernels import choose_joints, scale_states
+from planner.motion.vias.kernels import choose_joints, choose_probed, scale_states, spline_states
 
 #: Largest time scale searched: keeps x * x finite where a via component is tiny (x * 0 is then
 #: 0, not NaN), far beyond any scale at which every joint already saturates.
@@ -199,6 +199,9 @@ def spline_via_states(
     Returns:
         Velocities and accelerations at ``q[1:m]``, shapes (m-1, dof).
     """
+    fast = spline_states(q, h, v_start, v_end)  # compiled, the same operations (None: the loops below)
+    if fast is not None:
+        return fast
     # On plain floats (a few vias and joints: faster than NumPy), row by row the operations the
     # array form (``slope = diff(q) / h``, ``rhs = 3 (slope[:-1] inv[:-1] + slope[1:] inv[1:])``, ...) has.
     rows, hs = q.tolist(), h.tolist()
@@ -368,6 +371,68 @@ def _gather(indices: list[int]) -> Callable[[Sequence[float]], tuple[float, ...]
         (index,) = indices
         return lambda seq: (seq[index],)
     return itemgetter(*indices)
+
+
+def _probed_choice(
+    t1s: list[Sequence[float]],
+    t2s: list[Sequence[float]],
+    probed: tuple[list, tuple[int, ...], tuple[list[float], list[float]]] | None,
+) -> list[int] | None:
+    """:func:`best_choice` among the options timed (rows) and those probed (:meth:`OptimizedStrategy._probe_options`).
+
+    Returns:
+        Per joint the option to take (probed state c is option ``len(t1s) + c``), or None where
+        no choice is better.
+    """
+    if probed is None:
+        choice = best_choice(t1s, t2s)[1]
+        return None if choice is None else choice.tolist()
+    _, joints, times = probed
+    fast = choose_probed(t1s, t2s, times, joints)  # compiled, the rows below (None: a NaN, or no library)
+    if fast is not None:
+        return fast[1]
+    p1, p2 = times
+    count, dof = len(joints), len(t1s[0])
+    # Per joint where its entry lies: the m-th probed joint at m, the others after the probed
+    # entries (an inf time: their current state), gathered by one itemgetter.
+    where = {j: m for m, j in enumerate(joints)}
+    entries = _gather([where.get(j, count) for j in range(dof)])
+    tail = [math.inf]
+    rows1 = [entries(p1[c : c + count] + tail) for c in range(0, len(p1), count)]
+    rows2 = [entries(p2[c : c + count] + tail) for c in range(0, len(p2), count)]
+    choice = best_choice(t1s + rows1, t2s + rows2)[1]
+    return None if choice is None else choice.tolist()
+
+
+def _picked_states(
+    options: list[tuple[float, np.ndarray, np.ndarray]],
+    probed: tuple[list[tuple[list[float], list[float]]], tuple[int, ...], tuple] | None,
+    picks: list[int],
+) -> tuple[np.ndarray, np.ndarray]:
+    """The state that gives joint j option ``picks[j]`` (:func:`_probed_choice`), velocities and accelerations.
+
+    A probed state gives a joint not probed its current state (that of ``options[0]``).
+    """
+    k = len(options)
+    if probed is None or max(picks) < k:
+        return (
+            np.array([options[g][1][j] for j, g in enumerate(picks)]),
+            np.array([options[g][2][j] for j, g in enumerate(picks)]),
+        )
+    candidates, joints, _ = probed
+    cv, ca = [], []
+    for j, g in enumerate(picks):
+        if g < k:
+            cv.append(options[g][1][j])
+            ca.append(options[g][2][j])
+        elif j in joints:
+            m = joints.index(j)
+            cv.append(candidates[g - k][0][m])
+            ca.append(candidates[g - k][1][m])
+        else:
+            cv.append(options[0][1][j])
+            ca.append(options[0][2][j])
+    return np.array(cv), np.array(ca)
 
 
 #: :class:`OptimizedStrategy`'s argument left out (its class attribute holds).
@@ -735,7 +800,7 @@ class OptimizedStrategy(ViaStrategy):
         dp: list[float],
         turning: list[bool],
         grid: tuple[list[list[float]], list[list[float]]] | None = None,
-    ) -> tuple[list[list[float]], list[list[float]], list[list[float]], list[list[float]]]:
+    ) -> tuple[list[tuple[list[float], list[float]]], tuple[int, ...], tuple[list[float], list[float]]] | None:
         """More options per joint at via i, their times in both segments from one Ruckig probe.
 
         The current velocity moved by each of :attr:`probe_steps` (shares of the speed limit;
@@ -755,10 +820,11 @@ class OptimizedStrategy(ViaStrategy):
                 (:meth:`grid_states`); None for none.
 
         Returns:
-            The states probed (velocities and accelerations, tuples over all joints; a joint not
-            probed keeps its current state) and per state its per-joint times in the segment
-            before and after the via (inf for a joint not probed or whose own profile leaves
-            the range); empty lists where nothing was probed.
+            The states probed (velocities and accelerations, lists over the joints probed; the
+            others keep their current states), the joints probed, and the times in the segment
+            before and after the via [s], flat (:meth:`SegmentSolver.probe_around`: probed
+            state c and the m-th joint probed at ``c * len(joints) + m``; inf where the joint's
+            own profile leaves the range); None where nothing was probed.
         """
         t1, t2 = times
         near1, near2 = _PROBE_NEAR * max(t1), _PROBE_NEAR * max(t2)
@@ -784,25 +850,13 @@ class OptimizedStrategy(ViaStrategy):
             states = _gather(list(joints))
             candidates += [(list(states(cv)), list(states(ca))) for cv, ca in zip(*grid)]
         if not joints or not candidates:
-            return [], [], [], []
+            return None
         start = (chain.v[i - 1].tolist(), chain.acc[i - 1].tolist())
         end = (chain.v[i + 1].tolist(), chain.acc[i + 1].tolist())
         probed = chain.seg.probe_around(i, start, end, joints, candidates)
         if probed is None:
-            return [], [], [], []
-        p1, p2 = probed
-        count, dof = len(joints), len(v)
-        # Per joint where its entry lies: the m-th probed joint at m, the others after the
-        # probed entries (their current state, an inf time), gathered by one itemgetter.
-        where = {j: m for m, j in enumerate(joints)}
-        states = _gather([where.get(j, count + j) for j in range(dof)])
-        entries = _gather([where.get(j, count) for j in range(dof)])
-        tail = [math.inf]
-        states_v = [states(cv + v) for cv, _ in candidates]
-        states_a = [states(ca + a) for _, ca in candidates]
-        rows1 = [entries(p1[c : c + count] + tail) for c in range(0, len(p1), count)]
-        rows2 = [entries(p2[c : c + count] + tail) for c in range(0, len(p2), count)]
-        return states_v, states_a, rows1, rows2
+            return None
+        return candidates, joints, probed
 
     def combine_joints(
         self,
@@ -856,19 +910,13 @@ class OptimizedStrategy(ViaStrategy):
             t1s.append(traj1.independent_min_durations)
             t2s.append(traj2.independent_min_durations)
             options.append(state)
-        pv, pa, found = [], [], None
+        found, probed = None, None
         if probe and options and options[0] is current:
-            pv, pa, rows1, rows2 = self._probe_options(chain, i, current, (t1s[0], t2s[0]), dp, flags, grid)
-            t1s += rows1
-            t2s += rows2
-        if len(t1s) > 1:
-            _, choice = best_choice(t1s, t2s)
-            if choice is not None:
-                picks = choice.tolist()
-                k = len(options)
-                cv = np.array([options[g][1][j] if g < k else pv[g - k][j] for j, g in enumerate(picks)])
-                ca = np.array([options[g][2][j] if g < k else pa[g - k][j] for j, g in enumerate(picks)])
-                found = pair(cv, ca)
+            probed = self._probe_options(chain, i, current, (t1s[0], t2s[0]), dp, flags, grid)
+        if probed is not None or len(t1s) > 1:
+            picks = _probed_choice(t1s, t2s, probed)
+            if picks is not None:
+                found = pair(*_picked_states(options, probed, picks))
                 if found[0] < math.inf:
                     options.append(found)
         # The fastest state whose joints turn nowhere beyond their range: Ruckig's extrema
