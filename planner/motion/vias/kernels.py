@@ -307,6 +307,15 @@ def _library() -> ctypes.CDLL | None:
     return library
 
 
+def _flat_rows(rows1: list[list[float]], rows2: list[list[float]], size: int) -> tuple[array, array] | None:
+    """Both segments' rows as flat C doubles, or None where either does not hold `size` floats (ragged)."""
+    flat1 = array("d", list(chain.from_iterable(rows1)))  # (C loops: a comprehension costs more)
+    flat2 = array("d", list(chain.from_iterable(rows2)))
+    if len(flat1) != size or len(flat2) != size:
+        return None
+    return flat1, flat2
+
+
 def choose_options(rows1: list[list[float]], rows2: list[list[float]]) -> tuple[float, list[int] | None] | None:
     """:func:`planner.motion.vias.base.best_choice` on rows of floats, compiled.
 
@@ -320,10 +329,10 @@ def choose_options(rows1: list[list[float]], rows2: list[list[float]]) -> tuple[
     k, dof = len(rows1), len(rows1[0])
     if k * dof > _MOST_ENTRIES:
         return None  # (the C function sorts on its stack)
-    flat1 = array("d", list(chain.from_iterable(rows1)))  # (C loops: a comprehension costs more)
-    flat2 = array("d", list(chain.from_iterable(rows2)))
-    if len(flat1) != k * dof or len(flat2) != k * dof:
+    flat = _flat_rows(rows1, rows2, k * dof)
+    if flat is None:
         return None  # ragged rows: the Python path says what is wrong
+    flat1, flat2 = flat
     out = array("d", [0.0])
     choice = array("l", [0]) * dof  # C longs, as the function's
     found = library.best_choice(
@@ -363,10 +372,10 @@ def choose_probed(
     extra = len(p1) // count
     if (k + extra) * dof > _MOST_ENTRIES or len(p1) != extra * count or len(p2) != len(p1):
         return None  # (the C function sorts on its stack)
-    flat1 = array("d", list(chain.from_iterable(rows1)))  # (C loops: a comprehension costs more)
-    flat2 = array("d", list(chain.from_iterable(rows2)))
-    if len(flat1) != k * dof or len(flat2) != k * dof:
+    flat = _flat_rows(rows1, rows2, k * dof)
+    if flat is None:
         return None  # ragged rows: the Python path says what is wrong
+    flat1, flat2 = flat
     out = array("d", [0.0])
     choice = array("l", [0]) * dof  # C longs, as the function's
     found = library.probed_choice(
