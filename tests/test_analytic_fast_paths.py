@@ -26,6 +26,8 @@ from planner.ik.analytic.yaw_planar.corrected import real_tip_pose, solve_correc
 from planner.ik.analytic.yaw_planar.scalar_pose import pose_frame
 from planner.model.catalog import example_robot_data_dir
 
+from conftest import single_after
+
 TOL_POS = 1e-9
 TOL_ROT = 1e-9
 TOL_Q = 1e-6
@@ -174,16 +176,25 @@ def test_pose_targets_on_random_arms(robot, data):
     assert_reproduces(robot, moved, result)
 
 
+@functools.cache
+def _bundled_solver(name: str):
+    """One closed-form solver per bundled arm for this module: its solve kernel (CasADi,
+    0.1-0.3 s to build) built once, not once per example."""
+    return closed_form_solver(load_robot(name))
+
+
 @pytest.mark.parametrize("name", ["dh3", "three_joint", "al5c"])
 @property_settings(100)
 @given(data=st.data())
 def test_pose_targets_on_bundled_arms(name, data):
-    robot = load_robot(name)
-    solver = closed_form_solver(robot)
+    solver = _bundled_solver(name)
+    robot = solver.robot
     q = configuration(data, robot)
     pose = robot.fk(q)
     target = Target(pose[:3, 3], rotation=pose[:3, :3])
-    result = solver.solve(target)
+    # Never compiled to C: every example takes a fresh solver's first-call path (the VM kernel).
+    result = single_after(10**12, lambda: solver.solve(target))
+    assert not any(kernel.compiled for kernel in solver._scalar_plan.compiled._built.values() if kernel)
     assert_same(result, reference(solver, target, None))
     assert_reproduces(robot, target, result)
     assert has(result, q) or result.singular
@@ -365,3 +376,24 @@ def test_so101_batch_agrees_with_single_calls(kind):
             np.testing.assert_allclose(np.abs((s.q - batch.q[i, slot] + np.pi) % (2 * np.pi) - np.pi), 0.0, atol=1e-9)
             assert s.within_limits == batch.within_limits[i, slot]
         assert has(single, q[i])
+
+
+@pytest.mark.parametrize("elbow", [2.3125, 2.356, 0.0])
+def test_a_straight_elbow_has_one_name_on_every_path(elbow):
+    """dh3 with its elbow stretched, a full-pose target: the one solution is elbow-up on the
+    scalar, compiled and batch paths alike (round-off once put the sign of the elbow angle, and
+    so the name, either way: back/elbow-down on one path, back/elbow-up on another)."""
+    robot = load_robot("dh3")
+    q = np.array([0.0, elbow, 0.0])
+    pose = robot.fk(q)
+    target = Target(pose[:3, 3], rotation=pose[:3, :3])
+    fresh = closed_form_solver(load_robot("dh3"))
+    interpreted = single_after(10**12, lambda: fresh.solve(target))
+    compiled = closed_form_solver(robot)
+    last = single_after(1, lambda: compiled.solve(target))  # the compiled kernel from the first call
+    batch = reference(compiled, target, None)
+    for result in (interpreted, last, batch):
+        assert result.ok and result.singular
+        assert all(s.branch.endswith("elbow-up") for s in result.solutions), result
+        assert_same(result, batch)
+        assert_reproduces(robot, target, result)

@@ -267,7 +267,8 @@ class Planar2IK(AnalyticIK):
             a1 = math.atan2(ey, ex)
             e = (heading + self._g2 - a1 + math.pi) % (2 * math.pi) - math.pi
             singular = abs(math.sin(e)) < SINGULAR_TOL
-            branches = [("elbow-left" if e <= 0 else "elbow-right", a1, e)]
+            # A stretched or folded elbow: one solution, named elbow-left on every path.
+            branches = [("elbow-left" if e <= 0 or singular else "elbow-right", a1, e)]
         else:
             c = (dd * dd - r1 * r1 - r2 * r2) / (2.0 * r1 * r2)
             c = min(1.0, max(-1.0, c))
@@ -458,7 +459,7 @@ class Planar2IK(AnalyticIK):
             a1_one = np.arctan2(ey, ex)
             e_one = (heading + self._g2 - a1_one + math.pi) % (2 * math.pi) - math.pi
             singular = np.abs(np.sin(e_one)) < SINGULAR_TOL
-            left = e_one <= 0
+            left = (e_one <= 0) | singular  # a stretched or folded elbow: elbow-left
             a1 = np.stack([a1_one, a1_one], axis=1)
             e = np.stack([e_one, e_one], axis=1)
             valid = np.stack([geo & orient_ok & left, geo & orient_ok & ~left], axis=1)

@@ -114,7 +114,8 @@ def _symbolic(g: Planar2Geometry, pose: bool, current: bool) -> ca.Function:
         e = _python_mod(heading + g.g2 - a1 + _PI, _TWO_PI) - _PI
         # One branch, named by the elbow's side; slot 0 ("elbow-left") or 1.
         branches = [(a1, e)]
-        slot_of = [ca.if_else(e <= 0.0, 0, 1)]
+        # A stretched or folded elbow (|sin e| < SINGULAR_TOL): elbow-left, as the Python path.
+        slot_of = [ca.if_else(ca.logic_or(e <= 0.0, ca.fabs(ca.sin(e)) < SINGULAR_TOL), 0, 1)]
     else:
         c = ca.fmin(1.0, ca.fmax(-1.0, (dd * dd - r1 * r1 - r2 * r2) / (2.0 * r1 * r2)))
         s = ca.sqrt(1.0 - c * c)

@@ -536,7 +536,9 @@ def _one_target(arm: ArmGeometry, kind: str, current: bool, distances: bool = Fa
             c = _where(ca.logic_and(c == VALID, abs(r_e - l1) > tol), ORIENT, c)
             a1 = _Angle.atan2(ez, ex, r_e)
             e = _wrap_pi(phi.a + g2 - a1.a)
-            up = (e <= 0.0) if k == 0 else (e >= 0.0)
+            sin_e = (phi.shift(g2) - a1).s
+            # A stretched or folded elbow: one solution, labelled elbow-up (as solve_core_pose2).
+            up = ca.logic_or((e <= 0.0) if k == 0 else (e >= 0.0), abs(sin_e) < SINGULAR_TOL)
             phi2 = a1.shift(-g1)
             for m, chosen in ((2 * k, up), (2 * k + 1, ca.logic_not(up))):
                 qa[m][0] = psi[k].signed(arm.sigma)
@@ -547,7 +549,6 @@ def _one_target(arm: ArmGeometry, kind: str, current: bool, distances: bool = Fa
                 cat4[m] = _where(ca.logic_and(c == VALID, ca.logic_not(chosen)), DUPLICATE, c)
                 links[m], ends[m] = [a1], phi
             dist2.append(de)
-            sin_e = (phi.shift(g2) - a1).s
             sing2.append(
                 ca.logic_or(ca.logic_or(abs(sin_e) < SINGULAR_TOL, free), abs(ue[k]) < SINGULAR_TOL * arm.scale)
             )

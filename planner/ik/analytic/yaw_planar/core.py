@@ -300,7 +300,10 @@ def _core_two_oriented(arm: ArmGeometry, alpha_t, m_rot, psi, ue, ze2, tu, tz, d
     cat = np.where((cat == VALID) & (np.abs(np.hypot(ex, ez) - l1) > tol), ORIENT, cat)
     a1 = np.arctan2(ez, ex)
     e = wrap_pi(phi + g2 - a1)
-    up = np.stack([e[:, 0] <= 0.0, e[:, 1] >= 0.0], axis=1)
+    # A stretched or folded elbow (sin e ~ 0) has one solution: labelled elbow-up on every path,
+    # whatever the sign round-off gives e there.
+    straight = np.abs(np.sin(e)) < SINGULAR_TOL
+    up = np.stack([e[:, 0] <= 0.0, e[:, 1] >= 0.0], axis=1) | straight
     rep = [0, 0, 1, 1]
     q2 = np.empty((n, 2, dof))
     q2[:, :, 0] = arm.sigma * psi
@@ -317,7 +320,7 @@ def _core_two_oriented(arm: ArmGeometry, alpha_t, m_rot, psi, ue, ze2, tu, tz, d
     cat4 = cat[:, rep].copy()
     chosen = np.stack([up[:, 0], ~up[:, 0], up[:, 1], ~up[:, 1]], axis=1)
     cat4 = np.where((cat4 == VALID) & ~chosen, DUPLICATE, cat4)
-    singular = (np.abs(np.sin(e)) < SINGULAR_TOL) | free[:, None] | (np.abs(ue) < SINGULAR_TOL * arm.scale)
+    singular = straight | free[:, None] | (np.abs(ue) < SINGULAR_TOL * arm.scale)
     return CoreBranches(
         q=q,
         cat=cat4,

@@ -311,10 +311,12 @@ def solve_scalar(
                 continue
             a1 = atan2(ez, ex)
             e = (phi + g2 - a1 + PI) % TWO_PI - PI  # wrap_pi
-            up = e <= 0.0 if side == 0 else e >= 0.0
+            straight = abs(sin(e)) < SINGULAR_TOL
+            # A stretched or folded elbow: one solution, labelled elbow-up on every path.
+            up = straight or (e <= 0.0 if side == 0 else e >= 0.0)
             slot = 2 * side + (0 if up else 1)
             cats[slot ^ 1] = DUPLICATE
-            cands: tuple = ((slot, a1, e, abs(sin(e)) < SINGULAR_TOL),)
+            cands: tuple = ((slot, a1, e, straight),)
         else:
             c = (dd * dd - l1_sq - l2_sq) / l1_l2 if has_lengths else 1.0
             c = 1.0 if c > 1.0 else (-1.0 if c < -1.0 else c)

@@ -524,11 +524,13 @@ def _two_pitch(arm: ArmGeometry, ue, ze, tu, tz, phis, cat, twisted):
             continue
         a1 = atan2(ez, ex)
         e = wrap_pi(phi + g2 - a1)
-        up = e <= 0.0 if side == 0 else e >= 0.0
+        straight = abs(math.sin(e)) < SINGULAR_TOL
+        # A stretched or folded elbow: one solution, labelled elbow-up on every path.
+        up = straight or (e <= 0.0 if side == 0 else e >= 0.0)
         slot = 2 * side + (0 if up else 1)
         cats[slot ^ 1] = DUPLICATE
         # The last link's angle is the pitch sum: phi3 = phi.
-        cands.append((slot, side, a1, phi, abs(math.sin(e)) < SINGULAR_TOL))
+        cands.append((slot, side, a1, phi, straight))
     return cands, cats, dist
 
 
