@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
 from line_cases import random_position_line
@@ -108,8 +110,6 @@ def test_the_chosen_motion_is_no_rougher_than_symmetric_ramps_as_fast(name, seed
     piece = _smooth_piece(q, template, 1.0)
     assert piece is not None
     at, _, knots, p, v, a, j = piece
-    from dataclasses import replace
-
     chosen = replace(template, knots=knots, p=p, v=v, a=a, j=j, duration=float(at[-1]))
     target = _targets(q)
     excess = int(np.maximum(chosen.jerk_sign_changes() - target, 0).sum())
