@@ -53,6 +53,7 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass, replace
+from functools import cached_property
 
 import numpy as np
 
@@ -75,6 +76,32 @@ def _knots(t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     knots = np.concatenate([[t[0], (t[0] + t[1]) / 2], t[1:-1], [(t[-2] + t[-1]) / 2, t[-1]]])
     sample = np.concatenate([[0, -1], np.arange(1, n - 1), [-1, n - 1]])
     return knots, sample
+
+
+def _solve_tridiagonal(sub: np.ndarray, diag: np.ndarray, sup: np.ndarray, rhs: np.ndarray) -> np.ndarray:
+    """The Thomas algorithm for a tridiagonal system with right-hand sides rhs (n, k), column by column.
+
+    In plain floats: the columns are a few joints, the rows a few hundred knots, and a numpy
+    operation per row costs more than the arithmetic.
+    """
+    n = len(diag)
+    sub_, diag_, sup_ = sub.tolist(), diag.tolist(), sup.tolist()
+    cp, den = [0.0] * n, [0.0] * n
+    den[0] = diag_[0]
+    cp[0] = sup_[0] / den[0]
+    for k in range(1, n):
+        den[k] = diag_[k] - sub_[k] * cp[k - 1]
+        cp[k] = sup_[k] / den[k]
+    out = np.empty_like(rhs)
+    for c, col in enumerate(rhs.T.tolist()):
+        x = [0.0] * n
+        x[0] = col[0] / den[0]
+        for k in range(1, n):
+            x[k] = (col[k] - sub_[k] * x[k - 1]) / den[k]
+        for k in range(n - 2, -1, -1):
+            x[k] -= cp[k] * x[k + 1]
+        out[:, c] = x
+    return out
 
 
 def rest_to_rest_spline(
@@ -145,21 +172,9 @@ def rest_to_rest_spline(
                 sup[k] -= kappa * alpha
             else:
                 sub[k] -= kappa * alpha
-    # Thomas algorithm, all joints at once.
-    n = m - 1
-    cp = np.zeros(n)
-    dp = np.zeros_like(rhs)
-    cp[0] = sup[0] / diag[0]
-    dp[0] = rhs[0] / diag[0]
-    for k in range(1, n):
-        den = diag[k] - sub[k] * cp[k - 1]
-        cp[k] = sup[k] / den
-        dp[k] = (rhs[k] - sub[k] * dp[k - 1]) / den
     moments = np.zeros((m + 1, q.shape[1]))
     moments[0], moments[m] = a0, a1
-    for k in range(n - 2, -1, -1):
-        dp[k] -= cp[k] * dp[k + 1]
-    moments[1:m] = dp
+    moments[1:m] = _solve_tridiagonal(sub, diag, sup, rhs)
     for f, alpha in free.items():
         y[f] += alpha * moments[f]
     v = (y[1:] - y[:-1]) / h[:, None] - h[:, None] * (2.0 * moments[:-1] + moments[1:]) / 6.0
@@ -484,6 +499,11 @@ class _Speed:
                 g = g * (x * x * x * (10.0 - 15.0 * x + 6.0 * x * x) if self.smoother else x * x * (3.0 - 2.0 * x))
         return g
 
+    @cached_property
+    def whole(self) -> float:
+        """The rate's integral over the piece."""
+        return float(self.integral(np.ones(1))[0])
+
     def breaks(self) -> np.ndarray:
         """Where the rate's polynomial changes: 0, the ramps' ends, 1."""
         inner = [x for x in (self.up, 1.0 - self.down) if 0.0 < x < 1.0]
@@ -501,7 +521,7 @@ class _Speed:
 
     def time_at(self, fraction: np.ndarray) -> np.ndarray:
         """The u at which the integral reaches `fraction` of its total (bisection; it only grows)."""
-        target = np.asarray(fraction, dtype=float) * float(self.integral(np.ones(1))[0])
+        target = np.asarray(fraction, dtype=float) * self.whole
         lo, hi = np.zeros_like(target), np.ones_like(target)
         for _ in range(55):
             mid = (lo + hi) / 2.0
@@ -610,7 +630,9 @@ def _screen(
     sign changes where above 1 % of the limit (per interval: the jerk is constant on each).
     The range is not checked (:func:`_scaled_spline` does, for the motion chosen).
     """
-    knots, p, v, acc, j, total = _time_spline(q, path, slopes, speed, spacing, 1.0, bounds, rest, pinned)
+    qk, grid = _knot_positions(q, path, speed, spacing, bounds, pinned)
+    knots, p, v, acc, j = _time_spline(qk, grid, path, slopes, 1.0, rest)
+    total = float(grid[-1])
     h = np.diff(np.append(knots, total))[:, None]
     vmax = np.maximum(np.abs(v), np.abs(v + acc * h + j * h * h / 2.0))
     with np.errstate(divide="ignore", invalid="ignore"):
@@ -631,32 +653,24 @@ def _screen(
 
 
 def _time_spline(
-    q: np.ndarray,
+    qk: np.ndarray,
+    grid: np.ndarray,
     path: tuple[np.ndarray, np.ndarray, np.ndarray],
     slopes: tuple[np.ndarray, np.ndarray],
-    speed: _Speed,
-    spacing: float,
     scale: float,
-    bounds: tuple[np.ndarray, np.ndarray],
     rest: tuple[bool, bool],
-    pinned: tuple[np.ndarray, np.ndarray] | None,
-    qk: np.ndarray | None = None,
 ) -> tuple:
-    """The spline in time through the path at the knots of this speed, time scaled by `scale`.
+    """The spline in time through the positions qk at the knot times grid, time scaled by `scale`.
 
-    Returns ``(knots, p, v, a, j, duration)`` (:func:`rest_to_rest_spline`'s pieces).
+    An end passed moving has the path's slope and bend there (the speed is 1 there).
+
+    Returns:
+        ``(knots, p, v, a, j)`` (:func:`rest_to_rest_spline`'s pieces).
     """
-    sigma_nodes, q_nodes, moments = path
-    length = float(sigma_nodes[-1])
-    if qk is None:
-        qk, _ = _knot_positions(q, path, speed, spacing, bounds, pinned)
-    total = length / float(speed.integral(np.ones(1))[0])
-    grid = _knot_times(speed, total, spacing, pinned)[0]
-    t = grid * scale
+    moments = path[2]
     ends = [None if at_rest else slope / scale for at_rest, slope in zip(rest, slopes)]
     curves = [None if at_rest else bend / scale**2 for at_rest, bend in zip(rest, (moments[0], moments[-1]))]
-    knots, p, v, acc, j = rest_to_rest_spline(t, qk, *ends, *curves)
-    return knots, p, v, acc, j, float(t[-1])
+    return rest_to_rest_spline(grid * scale, qk, *ends, *curves)
 
 
 def _knot_times(
@@ -676,11 +690,15 @@ def _knot_positions(
     spacing: float,
     bounds: tuple[np.ndarray, np.ndarray],
     pinned: tuple[np.ndarray, np.ndarray] | None,
-) -> tuple[np.ndarray, float]:
-    """The path's positions at the knots of this speed (clipped to the range), and the piece's time."""
+) -> tuple[np.ndarray, np.ndarray]:
+    """The path's positions at the knots of this speed (clipped to the range), and the knot times.
+
+    The piece lasts ``length / whole`` before the time scaling: the speed's mean over the piece
+    is then ``whole`` times its scale, 1 where it cruises (and at an end passed moving).
+    """
     sigma_nodes, q_nodes, moments = path
     length = float(sigma_nodes[-1])
-    whole = float(speed.integral(np.ones(1))[0])
+    whole = speed.whole
     total = length / whole
     grid, where = _knot_times(speed, total, spacing, pinned)
     s = np.clip(length * speed.integral(grid / total) / whole, 0.0, length)
@@ -688,7 +706,7 @@ def _knot_positions(
     qk[0], qk[-1] = q[0], q[-1]
     if len(where):
         qk[where] = pinned[1]
-    return qk, total
+    return qk, grid
 
 
 def _smooth_piece(
@@ -786,12 +804,12 @@ def _smooth_piece(
         )
         if fit is None:
             continue
-        knots, p, v, acc, j, alone, total, scale = fit
+        knots, p, v, acc, j, alone, grid, scale = fit
         duration = float(alone.duration)
-        at = speed.time_at(sigma / length) * total * scale
+        at = speed.time_at(sigma / length) * grid[-1] * scale
         at[0], at[-1] = 0.0, duration
         if fixed:
-            grid, where = _knot_times(speed, total, spacing, pinned)
+            _, where = _knot_times(speed, float(grid[-1]), spacing, pinned)
             at[list(fixed)] = grid[where] * scale  # their knots' times
         positions = alone.sample(at).q
         positions[0], positions[-1] = q[0], q[-1]
@@ -818,13 +836,14 @@ def _scaled_spline(
     beyond a joint's range are nudged inward (:func:`_nudge`).
 
     Returns:
-        ``(knots, p, v, a, j, trajectory, total, scale)``; None if none keeps the range.
+        ``(knots, p, v, a, j, trajectory, grid, scale)`` (grid: the knot times before the
+        scaling); None if none keeps the range.
     """
     lower, upper = bounds
-    qk, total = _knot_positions(q, path, speed, spacing, bounds, pinned)
+    qk, grid = _knot_positions(q, path, speed, spacing, bounds, pinned)
     for _ in range(8):
-        knots, p, v, acc, j, _ = _time_spline(q, path, slopes, speed, spacing, scale, bounds, rest, pinned, qk)
-        alone = replace(template, knots=knots, p=p, v=v, a=acc, j=j, duration=float(total * scale))
+        knots, p, v, acc, j = _time_spline(qk, grid, path, slopes, scale, rest)
+        alone = replace(template, knots=knots, p=p, v=v, a=acc, j=j, duration=float(grid[-1] * scale))
         peaks = alone.peak_ratios(None)
         if peaks["position"] > LIMIT_TOLERANCE * bound:
             if not _nudge(qk, alone, lower, upper):
@@ -834,7 +853,7 @@ def _scaled_spline(
         # joint then reaches its limit (faster or slower).
         k = max(peaks["velocity"], peaks["acceleration"] ** 0.5, peaks["jerk"] ** (1.0 / 3.0))
         if max(peaks["velocity"], peaks["acceleration"], peaks["jerk"]) <= 1 + LIMIT_TOLERANCE and k > 1 - 1e-6:
-            return knots, p, v, acc, j, alone, total, scale
+            return knots, p, v, acc, j, alone, grid, scale
         scale *= k * (1.0 + 1e-9)
     return None
 
