@@ -190,9 +190,9 @@ CORNER_ANGLE = 0.1
 #: Ramp lengths tried, as fractions of the time at constant speed (1: the ramps meet).
 _RAMPS = (0.1, 0.2, 0.3, 0.45, 0.65, 1.0)
 #: Factors on one ramp's length, tilts and bumps of the cruise speed tried around the best shape so far.
-_RAMP_FACTORS = (0.6, 1.5)
-_TILTS = (-0.2, 0.2)
-_BUMPS = (-0.25, 0.25)
+_RAMP_FACTORS = (0.6, 0.8, 1.25, 1.5)
+_TILTS = (-0.2, -0.1, 0.1, 0.2)
+_BUMPS = (-0.25, -0.12, 0.12, 0.25)
 #: Rounds of trying shapes near the best one.
 _ROUNDS = 3
 #: Longer than the fastest smooth motion of a piece its motion may be, if it changes jerk sign less often
@@ -506,8 +506,11 @@ class _Speed:
 
     def breaks(self) -> np.ndarray:
         """Where the rate's polynomial changes: 0, the ramps' ends, 1."""
-        inner = [x for x in (self.up, 1.0 - self.down) if 0.0 < x < 1.0]
-        return np.unique(np.array([0.0, *inner, 1.0]))
+        # Ramps meeting within rounding (up == 1 - down) have one break, not a sliver between two.
+        inner = sorted(x for x in (self.up, 1.0 - self.down) if 1e-9 < x < 1.0 - 1e-9)
+        if len(inner) == 2 and inner[1] - inner[0] < 1e-9:
+            inner = inner[:1]
+        return np.array([0.0, *inner, 1.0])
 
     def integral(self, u: np.ndarray) -> np.ndarray:
         """The rate's integral from 0 to each u in [0, 1] (exact up to rounding)."""
