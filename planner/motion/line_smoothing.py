@@ -31,10 +31,10 @@ by it buzzes.
    what each joint's path needs (:func:`_targets`: its S-curve's 2, or 2 more than the times it
    turns back), then the fewest on its worst joint and in all, then is the fastest.
 3. The trajectory: the C2 cubic spline in time (:func:`rest_to_rest_spline`) through the path
-   at evenly spaced times (:data:`KNOT_SPACING`; knots where the speed's polynomial changes), at rest at both ends
-   of the piece, then scaled in time uniformly so that the tightest joint just reaches its
-   velocity, acceleration or jerk limit (evaluated exactly; ``v ~ 1/k``, ``a ~ 1/k^2``,
-   ``j ~ 1/k^3``).
+   at evenly spaced times (:data:`KNOT_SPACING`; knots where the speed's polynomial changes),
+   at rest at both ends of the piece, then scaled in time uniformly so that the tightest joint
+   just reaches its velocity, acceleration or jerk limit (evaluated exactly; ``v ~ 1/k``,
+   ``a ~ 1/k^2``, ``j ~ 1/k^3``).
 
 A line may blend into the move before or after it (``moving`` in :func:`smooth_lines`): that
 end has no ramp, the path spline is clamped there to the samples' own tangent (a one-sided fit),
@@ -198,6 +198,9 @@ _ROUNDS = 3
 #: Longer than the fastest smooth motion of a piece its motion may be, if it changes jerk sign less often
 #: (beyond what its joint paths need; :func:`_smooth_piece`).
 DURATION_SLACK = 0.07
+#: The same for a piece passing an end moving: the moves it blends into would wait for it (a plan
+#: blends a line only where that makes it shorter).
+MOVING_SLACK = 0.03
 #: Shortest step between the samples the path spline passes, over the median step.
 NODE_GAP = 0.2
 #: Largest move of a knot off a joint bound the spline may make [rad or m].
@@ -588,7 +591,8 @@ def _variants(best: _Speed, rest: tuple[bool, bool]) -> list[_Speed]:
     if all(rest):
         out += [replace(best, tilt=best.tilt + d) for d in _TILTS if abs(best.tilt + d) < 0.7]
     out += [replace(best, bump=best.bump + d) for d in _BUMPS if -0.6 < best.bump + d < 1.0]
-    out.append(replace(best, smoother=not best.smoother))
+    if any(rest):
+        out.append(replace(best, smoother=not best.smoother))
     return out
 
 
@@ -775,7 +779,8 @@ def _smooth_piece(
         if not found:
             return []
         fastest = min(f[0] for f in found)
-        within = [f for f in found if f[0] <= fastest * (1.0 + DURATION_SLACK)]
+        slack = DURATION_SLACK if all(rest) else MOVING_SLACK
+        within = [f for f in found if f[0] <= fastest * (1.0 + slack)]
         # Fewest sign changes beyond what the joint paths need (their S-curve's 2, or their
         # reversal floor), then fewest on the worst joint and in all, then the fastest.
         return sorted(
