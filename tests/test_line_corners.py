@@ -77,9 +77,10 @@ def test_random_lines_stop_once_per_corner_and_are_smooth_between(name, seed):
     # One smooth rest-to-rest motion between the stops: single digits, like a joint-space S-curve.
     assert piece <= 9
     # Without corners the whole line is one such piece (issue 11's goal). Each corner's stop
-    # adds two ramps: lines with 3 or more corners reach 10-13 (benchmarks/bench_lines.py).
-    if corners == 0:
-        assert worst <= 9, worst
+    # adds two ramps: lines with 6 corners reach 15; those of benchmarks/bench_lines.py, up to
+    # 3 corners, stay within single digits (with one constant speed between symmetric ramps: 10-11).
+    if corners <= 3:
+        assert worst <= 9, (corners, worst)
 
 
 def test_lines_with_corners_from_the_benchmark_seed():
@@ -93,8 +94,9 @@ def test_lines_with_corners_from_the_benchmark_seed():
         if path_corners(found[1], JointLimits.from_robot(robot)):
             cornered.append(check_line_plan(robot, *found))
     assert all(piece <= 9 for _, _, piece in cornered), cornered
-    # Before one stop per corner (two stops a sample apart at each): 10, 16, 11, 10.
-    assert all(worst <= 9 for corners, worst, _ in cornered if corners <= 2), cornered
+    # Before one stop per corner (two stops a sample apart at each): 10, 16, 11, 10. With one
+    # constant speed between symmetric ramps, the line with 3 corners still reached 11.
+    assert all(worst <= 9 for _, worst, _ in cornered), cornered
 
 
 def test_a_joint_reaching_its_range_end_gets_one_sample_at_the_corner():

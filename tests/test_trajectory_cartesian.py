@@ -323,7 +323,7 @@ def test_random_lines_are_smooth_and_keep_every_limit():
             for a, b in zip(rests, rests[1:]):
                 pieces.append(max(_jerk_sign_changes(traj, a, b, plan.limits)))
     assert max(pieces) <= 9, pieces
-    assert np.median(worst) <= 9, worst
+    assert max(worst) <= 9, worst
 
 
 @pytest.mark.parametrize("count", [2, 3, 4, 9, 400])

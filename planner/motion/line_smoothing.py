@@ -19,15 +19,22 @@ by it buzzes.
    between two samples a hair apart, so one kink is one stop (neighbouring corner samples
    merge), and the spline skips samples crowding a neighbour (a step that short points across
    the kink).
-2. The time-scaling of each piece: ``sigma`` runs at a constant speed between two ramps, each a
-   smoothstep ``3x^2 - 2x^3`` in speed (acceleration continuous, one jerk sign change per
-   ramp); of a few ramp lengths, and of two knot spacings (step 3), the one whose jerk changes
-   sign least often among those within :data:`DURATION_SLACK` of the fastest is kept.
+2. The time-scaling of each piece (:class:`_Speed`): ``sigma``'s speed rises from rest in a ramp
+   (a smoothstep ``3x^2 - 2x^3``, or the longer-tailed ``10x^3 - 15x^4 + 6x^5``), falls to rest
+   in another, and between them tilts linearly and bulges or dips in the middle. A joint's jerk
+   is ``q3 sd^3 + 3 q2 sd sdd + q1 sddd`` (``qk`` its path's k-th derivative by ``sigma``): at a
+   constant speed it follows the bends of its own path, which a tilt, a bump and unequal ramps
+   shift, shrink or merge. First symmetric ramps of a few lengths (:data:`_RAMPS`), then for a
+   few rounds shapes near the best so far and near the fastest (:func:`_variants`), each with
+   two knot spacings (step 3), are screened exactly (:func:`_screen`). Of those within
+   :data:`DURATION_SLACK` of the fastest, the one kept has the fewest jerk sign changes beyond
+   what each joint's path needs (:func:`_targets`: its S-curve's 2, or 2 more than the times it
+   turns back), then the fewest on its worst joint and in all, then is the fastest.
 3. The trajectory: the C2 cubic spline in time (:func:`rest_to_rest_spline`) through the path
-   at evenly spaced times (:data:`KNOT_SPACING`; knots on the ramps' ends), at rest at both ends
-   of the piece, then scaled in time uniformly so that the tightest joint just reaches its
-   velocity, acceleration or jerk limit (evaluated exactly; ``v ~ 1/k``, ``a ~ 1/k^2``,
-   ``j ~ 1/k^3``).
+   at evenly spaced times (:data:`KNOT_SPACING`; knots where the speed's polynomial changes),
+   at rest at both ends of the piece, then scaled in time uniformly so that the tightest joint
+   just reaches its velocity, acceleration or jerk limit (evaluated exactly; ``v ~ 1/k``,
+   ``a ~ 1/k^2``, ``j ~ 1/k^3``).
 
 A line may blend into the move before or after it (``moving`` in :func:`smooth_lines`): that
 end has no ramp, the path spline is clamped there to the samples' own tangent (a one-sided fit),
@@ -45,7 +52,8 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
-from dataclasses import replace
+from dataclasses import dataclass, replace
+from functools import cached_property
 
 import numpy as np
 
@@ -68,6 +76,32 @@ def _knots(t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     knots = np.concatenate([[t[0], (t[0] + t[1]) / 2], t[1:-1], [(t[-2] + t[-1]) / 2, t[-1]]])
     sample = np.concatenate([[0, -1], np.arange(1, n - 1), [-1, n - 1]])
     return knots, sample
+
+
+def _solve_tridiagonal(sub: np.ndarray, diag: np.ndarray, sup: np.ndarray, rhs: np.ndarray) -> np.ndarray:
+    """The Thomas algorithm for a tridiagonal system with right-hand sides rhs (n, k), column by column.
+
+    In plain floats: the columns are a few joints, the rows a few hundred knots, and a numpy
+    operation per row costs more than the arithmetic.
+    """
+    n = len(diag)
+    sub_, diag_, sup_ = sub.tolist(), diag.tolist(), sup.tolist()
+    cp, den = [0.0] * n, [0.0] * n
+    den[0] = diag_[0]
+    cp[0] = sup_[0] / den[0]
+    for k in range(1, n):
+        den[k] = diag_[k] - sub_[k] * cp[k - 1]
+        cp[k] = sup_[k] / den[k]
+    out = np.empty_like(rhs)
+    for c, col in enumerate(rhs.T.tolist()):
+        x = [0.0] * n
+        x[0] = col[0] / den[0]
+        for k in range(1, n):
+            x[k] = (col[k] - sub_[k] * x[k - 1]) / den[k]
+        for k in range(n - 2, -1, -1):
+            x[k] -= cp[k] * x[k + 1]
+        out[:, c] = x
+    return out
 
 
 def rest_to_rest_spline(
@@ -138,21 +172,9 @@ def rest_to_rest_spline(
                 sup[k] -= kappa * alpha
             else:
                 sub[k] -= kappa * alpha
-    # Thomas algorithm, all joints at once.
-    n = m - 1
-    cp = np.zeros(n)
-    dp = np.zeros_like(rhs)
-    cp[0] = sup[0] / diag[0]
-    dp[0] = rhs[0] / diag[0]
-    for k in range(1, n):
-        den = diag[k] - sub[k] * cp[k - 1]
-        cp[k] = sup[k] / den
-        dp[k] = (rhs[k] - sub[k] * dp[k - 1]) / den
     moments = np.zeros((m + 1, q.shape[1]))
     moments[0], moments[m] = a0, a1
-    for k in range(n - 2, -1, -1):
-        dp[k] -= cp[k] * dp[k + 1]
-    moments[1:m] = dp
+    moments[1:m] = _solve_tridiagonal(sub, diag, sup, rhs)
     for f, alpha in free.items():
         y[f] += alpha * moments[f]
     v = (y[1:] - y[:-1]) / h[:, None] - h[:, None] * (2.0 * moments[:-1] + moments[1:]) / 6.0
@@ -167,8 +189,18 @@ KNOT_SPACING = 0.01
 CORNER_ANGLE = 0.1
 #: Ramp lengths tried, as fractions of the time at constant speed (1: the ramps meet).
 _RAMPS = (0.1, 0.2, 0.3, 0.45, 0.65, 1.0)
-#: Longer than the fastest smooth motion of a piece its motion may be, if it changes jerk sign less often.
-DURATION_SLACK = 0.03
+#: Factors on one ramp's length, tilts and bumps of the cruise speed tried around the best shape so far.
+_RAMP_FACTORS = (0.6, 0.8, 1.25, 1.5)
+_TILTS = (-0.2, -0.1, 0.1, 0.2)
+_BUMPS = (-0.25, -0.12, 0.12, 0.25)
+#: Rounds of trying shapes near the best one.
+_ROUNDS = 3
+#: Longer than the fastest smooth motion of a piece its motion may be, if it changes jerk sign less often
+#: (beyond what its joint paths need; :func:`_smooth_piece`).
+DURATION_SLACK = 0.07
+#: The same for a piece passing an end moving: the moves it blends into would wait for it (a plan
+#: blends a line only where that makes it shorter).
+MOVING_SLACK = 0.03
 #: Shortest step between the samples the path spline passes, over the median step.
 NODE_GAP = 0.2
 #: Largest move of a knot off a joint bound the spline may make [rad or m].
@@ -438,61 +470,96 @@ def _spline_at(x: np.ndarray, y: np.ndarray, moments: np.ndarray, xq: np.ndarray
     return s0 * y[i] + s1 * y[i + 1] + h * h / 6.0 * ((s0**3 - s0) * moments[i] + (s1**3 - s1) * moments[i + 1])
 
 
-def _ramp_position(t: np.ndarray, total: float, ramps: tuple[float, float]) -> np.ndarray:
-    """Distance covered at time ``t`` at unit cruise speed with smoothstep ramps ``(up, down)`` long.
+#: Gauss-Legendre nodes and weights on [0, 1] (8 points: exact for the speed profiles' polynomials, degree <= 15).
+_GAUSS_X, _GAUSS_W = (lambda x, w: ((x + 1.0) / 2.0, w / 2.0))(*np.polynomial.legendre.leggauss(8))
 
-    The speed rises as ``3x^2 - 2x^3`` (x = t / up), stays at 1, and falls the same way to rest
-    at ``total``; a ramp of length 0 is none (the piece starts or ends at cruise speed). The
-    distance at ``total`` is ``total - (up + down) / 2``.
+
+@dataclass(frozen=True)
+class _Speed:
+    """The path speed's shape over a piece, in time u in [0, 1] of the piece.
+
+    ``rate(u) = up(u) down(u) (1 + tilt (2u - 1) + bump 16 u^2 (1 - u)^2)``: ramps from rest
+    ``up`` and to rest ``down`` long (fractions of the piece, 0: that end is passed moving; the
+    ramps may overlap), each a smoothstep ``3x^2 - 2x^3`` (or with `smoother` the C2
+    ``10x^3 - 15x^4 + 6x^5``, whose tails are longer), and between them a speed that tilts
+    linearly and bulges (or dips) in the middle. The ramps are 1 away from them, so the speed is
+    C1 (the path's position C2) wherever the pieces join. A piecewise polynomial between
+    :meth:`breaks`: its integral is exact by Gauss-Legendre quadrature.
     """
-    up, down = ramps
-    out = t - up / 2.0
-    if up > 0:
-        x = np.clip(t / up, 0.0, 1.0)
-        out = np.where(t < up, up * (x**3 - x**4 / 2.0), out)
-    if down > 0:
-        y = np.clip((total - t) / down, 0.0, 1.0)
-        out = np.where(t > total - down, (total - (up + down) / 2.0) - down * (y**3 - y**4 / 2.0), out)
-    return out
+
+    up: float
+    down: float
+    tilt: float = 0.0
+    bump: float = 0.0
+    smoother: bool = False
+
+    def rate(self, u: np.ndarray) -> np.ndarray:
+        u = np.asarray(u, dtype=float)
+        g = 1.0 + self.tilt * (2.0 * u - 1.0) + self.bump * 16.0 * (u * (1.0 - u)) ** 2
+        for length, x in ((self.up, u), (self.down, 1.0 - u)):
+            if length > 0:
+                x = np.clip(x / length, 0.0, 1.0)
+                g = g * (x * x * x * (10.0 - 15.0 * x + 6.0 * x * x) if self.smoother else x * x * (3.0 - 2.0 * x))
+        return g
+
+    @cached_property
+    def whole(self) -> float:
+        """The rate's integral over the piece."""
+        return float(self.integral(np.ones(1))[0])
+
+    def breaks(self) -> np.ndarray:
+        """Where the rate's polynomial changes: 0, the ramps' ends, 1."""
+        # Ramps meeting within rounding (up == 1 - down) have one break, not a sliver between two.
+        inner = sorted(x for x in (self.up, 1.0 - self.down) if 1e-9 < x < 1.0 - 1e-9)
+        if len(inner) == 2 and inner[1] - inner[0] < 1e-9:
+            inner = inner[:1]
+        return np.array([0.0, *inner, 1.0])
+
+    def integral(self, u: np.ndarray) -> np.ndarray:
+        """The rate's integral from 0 to each u in [0, 1] (exact up to rounding)."""
+        u = np.asarray(u, dtype=float)
+        b = self.breaks()
+        parts = np.diff(b)[:, None] * self.rate(b[:-1, None] + np.diff(b)[:, None] * _GAUSS_X) @ _GAUSS_W
+        before = np.concatenate([[0.0], np.cumsum(parts)])
+        i = np.clip(np.searchsorted(b, u, side="right") - 1, 0, len(b) - 2)
+        h = u - b[i]
+        return before[i] + h * (self.rate(b[i][:, None] + h[:, None] * _GAUSS_X) @ _GAUSS_W)
+
+    def time_at(self, fraction: np.ndarray) -> np.ndarray:
+        """The u at which the integral reaches `fraction` of its total (bisection; it only grows)."""
+        target = np.asarray(fraction, dtype=float) * self.whole
+        lo, hi = np.zeros_like(target), np.ones_like(target)
+        for _ in range(55):
+            mid = (lo + hi) / 2.0
+            below = self.integral(mid) < target
+            lo, hi = np.where(below, mid, lo), np.where(below, hi, mid)
+        return (lo + hi) / 2.0
 
 
-def _time_grid(total: float, ramps: tuple[float, float], spacing: float = KNOT_SPACING) -> np.ndarray:
-    """Knot times at most `spacing` apart: evenly spaced within each ramp and the cruise, the jerk steps on knots."""
-    ends = [0.0, ramps[0], total - ramps[1], total]
+def _grid(speed: _Speed, total: float, spacing: float) -> np.ndarray:
+    """Knot times at most `spacing` apart over ``[0, total]``: evenly spaced between the speed's breaks."""
+    b = speed.breaks()
     parts = [np.zeros(1)]
-    for a, b in zip(ends, ends[1:]):
-        if b - a > 1e-12 * total:
-            parts.append(np.linspace(a, b, max(2, int(math.ceil((b - a) / spacing))) + 1)[1:])
-    return np.concatenate(parts)
+    for a, c in zip(b, b[1:]):
+        parts.append(np.linspace(a, c, max(2, int(math.ceil((c - a) * total / spacing))) + 1)[1:])
+    return np.concatenate(parts) * total
 
 
-def _pin_knots(
-    grid: np.ndarray, times: np.ndarray, ramps: tuple[float, float], total: float, spacing: float
-) -> tuple[np.ndarray, np.ndarray]:
+def _pin_knots(grid: np.ndarray, times: np.ndarray, keep: np.ndarray, spacing: float) -> tuple[np.ndarray, np.ndarray]:
     """The knot grid with knots at `times`, and their indices in it.
 
-    The knot nearest each time moves there, unless it is an end or a ramp's end (where the
-    time-scaling's jerk steps); knots closer than a third of the spacing to it go.
+    The knot nearest each time moves there, unless it is one to `keep` (the ends and the
+    speed's breaks, where the time-scaling's jerk steps); knots closer than a third of the
+    spacing to it go.
     """
-    keep = {0.0, ramps[0], total - ramps[1], total}
     out = grid
     for t in times:
         if np.any(out == t):
             continue
         near = np.abs(out - t) < spacing / 3.0
-        near &= ~np.isin(out, list(keep))
+        near &= ~np.isin(out, keep)
         out = np.sort(np.append(out[~near], t))
     return out, np.searchsorted(out, times)
-
-
-def _ramp_time(s: np.ndarray, total: float, ramps: tuple[float, float]) -> np.ndarray:
-    """Inverse of :func:`_ramp_position` (bisection; the distance only grows)."""
-    lo, hi = np.zeros_like(s), np.full_like(s, total)
-    for _ in range(60):
-        mid = (lo + hi) / 2.0
-        below = _ramp_position(mid, total, ramps) < s
-        lo, hi = np.where(below, mid, lo), np.where(below, hi, mid)
-    return (lo + hi) / 2.0
 
 
 def _end_slopes(x: np.ndarray, y: np.ndarray, moments: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -501,6 +568,152 @@ def _end_slopes(x: np.ndarray, y: np.ndarray, moments: np.ndarray) -> tuple[np.n
     first = (y[1] - y[0]) / h0 - h0 * (2.0 * moments[0] + moments[1]) / 6.0
     last = (y[-1] - y[-2]) / h1 + h1 * (moments[-2] + 2.0 * moments[-1]) / 6.0
     return first, last
+
+
+def _speeds(rest: tuple[bool, bool]) -> list[_Speed]:
+    """The first round of speed shapes: symmetric smoothstep ramps of :data:`_RAMPS` lengths."""
+    out = []
+    for f in _RAMPS:
+        r = f / (1.0 + f)  # f of the time at constant speed, as a fraction of the piece
+        out.append(_Speed(r if rest[0] else 0.0, r if rest[1] else 0.0))
+    return out
+
+
+def _variants(best: _Speed, rest: tuple[bool, bool]) -> list[_Speed]:
+    """Shapes near `best`: one ramp longer or shorter, a tilt, a bump or dip, the longer-tailed ramp."""
+    out = []
+    for i, at_rest in enumerate(rest):
+        if not at_rest:
+            continue
+        for factor in _RAMP_FACTORS:
+            ramp = min(1.0, (best.up, best.down)[i] * factor)
+            out.append(replace(best, up=ramp) if i == 0 else replace(best, down=ramp))
+    if all(rest):
+        out += [replace(best, tilt=best.tilt + d) for d in _TILTS if abs(best.tilt + d) < 0.7]
+    out += [replace(best, bump=best.bump + d) for d in _BUMPS if -0.6 < best.bump + d < 1.0]
+    if any(rest):
+        out.append(replace(best, smoother=not best.smoother))
+    return out
+
+
+def _targets(q: np.ndarray, eps: float = 1e-3) -> np.ndarray:
+    """Per joint, the fewest jerk sign changes a rest-to-rest motion along the samples q (M, dof) needs.
+
+    Two for a joint that moves (its S-curve's), 0 for one that does not; a joint whose path
+    turns back r times (by more than `eps` [rad or m]) has r + 1 velocity extrema and r + 2
+    acceleration extrema between the rests, so at least r + 2 jerk sign changes.
+    """
+    out = np.zeros(q.shape[1], dtype=int)
+    for d in range(q.shape[1]):
+        x = q[:, d]
+        direction, extreme, turns = 0, float(x[0]), 0
+        for v in x[1:]:
+            if direction == 0:
+                if abs(v - extreme) > eps:
+                    direction, extreme = (1 if v > extreme else -1), float(v)
+            elif (v - extreme) * direction > 0:
+                extreme = float(v)
+            elif abs(v - extreme) > eps:
+                direction, extreme, turns = -direction, float(v), turns + 1
+        out[d] = turns + 2 if direction != 0 else (2 if np.ptp(x) > 0 else 0)
+    return out
+
+
+def _screen(
+    q: np.ndarray,
+    path: tuple[np.ndarray, np.ndarray, np.ndarray],
+    slopes: tuple[np.ndarray, np.ndarray],
+    speed: _Speed,
+    spacing: float,
+    lim: JointLimits,
+    bounds: tuple[np.ndarray, np.ndarray],
+    rest: tuple[bool, bool],
+    pinned: tuple[np.ndarray, np.ndarray] | None,
+) -> tuple[float, float, np.ndarray] | None:
+    """Duration, time scale and per-joint jerk sign changes of the spline in time along this speed.
+
+    The spline through the knots, scaled in time so that the tightest joint just reaches its
+    velocity, acceleration or jerk limit (peaks of the piecewise cubic, exact), and its jerk
+    sign changes where above 1 % of the limit (per interval: the jerk is constant on each).
+    The range is not checked (:func:`_scaled_spline` does, for the motion chosen).
+    """
+    qk, grid = _knot_positions(q, path, speed, spacing, bounds, pinned)
+    knots, p, v, acc, j = _time_spline(qk, grid, path, slopes, 1.0, rest)
+    total = float(grid[-1])
+    h = np.diff(np.append(knots, total))[:, None]
+    vmax = np.maximum(np.abs(v), np.abs(v + acc * h + j * h * h / 2.0))
+    with np.errstate(divide="ignore", invalid="ignore"):
+        at = np.where(j != 0, -acc / j, -1.0)
+    inside = (at > 0) & (at < h)
+    vmax = np.where(inside, np.maximum(vmax, np.abs(v - acc * acc / (2.0 * np.where(j != 0, j, 1.0)))), vmax)
+    amax = np.maximum(np.abs(acc), np.abs(acc + j * h))
+    k = max(
+        float(np.max(vmax / lim.velocity)),
+        float(np.max(amax / lim.acceleration)) ** 0.5,
+        float(np.max(np.abs(j) / lim.jerk)) ** (1.0 / 3.0),
+    )
+    if not (k > 0 and np.isfinite(k)):
+        return None
+    big = np.abs(j) > 0.01 * lim.jerk * k**3
+    counts = np.array([int(np.sum(np.diff(np.sign(j[big[:, d], d])) != 0)) for d in range(j.shape[1])])
+    return total * k, k, counts
+
+
+def _time_spline(
+    qk: np.ndarray,
+    grid: np.ndarray,
+    path: tuple[np.ndarray, np.ndarray, np.ndarray],
+    slopes: tuple[np.ndarray, np.ndarray],
+    scale: float,
+    rest: tuple[bool, bool],
+) -> tuple:
+    """The spline in time through the positions qk at the knot times grid, time scaled by `scale`.
+
+    An end passed moving has the path's slope and bend there (the speed is 1 there).
+
+    Returns:
+        ``(knots, p, v, a, j)`` (:func:`rest_to_rest_spline`'s pieces).
+    """
+    moments = path[2]
+    ends = [None if at_rest else slope / scale for at_rest, slope in zip(rest, slopes)]
+    curves = [None if at_rest else bend / scale**2 for at_rest, bend in zip(rest, (moments[0], moments[-1]))]
+    return rest_to_rest_spline(grid * scale, qk, *ends, *curves)
+
+
+def _knot_times(
+    speed: _Speed, total: float, spacing: float, pinned: tuple[np.ndarray, np.ndarray] | None
+) -> tuple[np.ndarray, np.ndarray]:
+    """The knot times (unscaled) and the indices of the pinned ones."""
+    grid = _grid(speed, total, spacing)
+    if pinned is None or not len(pinned[0]):
+        return grid, np.zeros(0, dtype=int)
+    return _pin_knots(grid, speed.time_at(pinned[0]) * total, speed.breaks() * total, spacing)
+
+
+def _knot_positions(
+    q: np.ndarray,
+    path: tuple[np.ndarray, np.ndarray, np.ndarray],
+    speed: _Speed,
+    spacing: float,
+    bounds: tuple[np.ndarray, np.ndarray],
+    pinned: tuple[np.ndarray, np.ndarray] | None,
+) -> tuple[np.ndarray, np.ndarray]:
+    """The path's positions at the knots of this speed (clipped to the range), and the knot times.
+
+    The piece lasts ``length / whole`` before the time scaling: the speed's mean over the piece
+    is then ``whole`` times its scale, 1 where it cruises (and at an end passed moving).
+    """
+    sigma_nodes, q_nodes, moments = path
+    length = float(sigma_nodes[-1])
+    whole = speed.whole
+    total = length / whole
+    grid, where = _knot_times(speed, total, spacing, pinned)
+    s = np.clip(length * speed.integral(grid / total) / whole, 0.0, length)
+    qk = np.clip(_spline_at(sigma_nodes, q_nodes, moments, s), *bounds)
+    qk[0], qk[-1] = q[0], q[-1]
+    if len(where):
+        qk[where] = pinned[1]
+    return qk, grid
 
 
 def _smooth_piece(
@@ -536,96 +749,121 @@ def _smooth_piece(
         tuple(None if r else _one_sided_slope(sigma_nodes, q_nodes, end) for r, end in zip(rest, (False, True))),
         tuple(_one_sided_bend(sigma_nodes, q_nodes, end) for end in (False, True)),
     )
+    path = (sigma_nodes, q_nodes, moments)
     slopes = _end_slopes(sigma_nodes, q_nodes, moments)
-    candidates = []
-    for fraction in _RAMPS:
-        ramps = (length * fraction if rest[0] else 0.0, length * fraction if rest[1] else 0.0)
-        total = length + (ramps[0] + ramps[1]) / 2.0
-        scale, spacing = 1.0, KNOT_SPACING
-        for _ in range(2):
-            # Knots KNOT_SPACING apart before the time scaling, and (where that scaling
-            # stretches them) KNOT_SPACING apart after it: the spline through fewer knots
-            # smooths the path spline's bends, the one through more follows them.
-            pinned = (_ramp_time(sigma[list(fixed)], total, ramps), q[list(fixed)]) if fixed else None
-            scale, ok, fit = _scaled_spline(
-                q, (sigma_nodes, q_nodes, moments), slopes, total, ramps, spacing, scale, template, bound, rest, pinned
-            )
-            if not ok:
-                break
-            count = fit[-1].jerk_sign_changes()
-            candidates.append((float(fit[-1].duration), int(count.max()), int(count.sum()), total, ramps, scale, fit))
-            if scale * spacing <= 1.5 * KNOT_SPACING:
-                break
-            spacing = KNOT_SPACING / scale
-    if not candidates:
-        return None
-    # The fastest, unless one within DURATION_SLACK of it changes jerk sign less often.
-    fastest = min(c[0] for c in candidates)
-    duration, _, _, total, ramps, scale, fit = min(
-        (c for c in candidates if c[0] <= fastest * (1.0 + DURATION_SLACK)), key=lambda c: (c[1], c[2], c[0])
+    bounds = (
+        np.where(np.isfinite(lim.lower), lim.lower, -np.inf),
+        np.where(np.isfinite(lim.upper), lim.upper, np.inf),
     )
-    knots, p, v, acc, j, alone = fit
-    at = _ramp_time(sigma, total, ramps) * scale
-    at[0], at[-1] = 0.0, duration
-    if fixed:
-        at[list(fixed)] = _ramp_time(sigma[list(fixed)], total, ramps) * scale  # their knots' times
-    positions = alone.sample(at).q
-    positions[0], positions[-1] = q[0], q[-1]
-    return at, positions, knots, p, v, acc, j
+    pinned = (sigma[list(fixed)] / length, q[list(fixed)]) if fixed else None
+    target = _targets(q)
+    seen: dict = {}
+
+    def screen(speeds: list[_Speed]) -> None:
+        for speed in speeds:
+            spacing = KNOT_SPACING
+            for _ in range(2):
+                # Knots KNOT_SPACING apart before the time scaling, and (where that scaling
+                # stretches them) KNOT_SPACING apart after it: the spline through fewer knots
+                # smooths the path spline's bends, the one through more follows them.
+                if (speed, spacing) in seen:
+                    break
+                out = _screen(q, path, slopes, speed, spacing, lim, bounds, rest, pinned)
+                seen[(speed, spacing)] = out
+                if out is None or out[1] * spacing <= 1.5 * KNOT_SPACING:
+                    break
+                spacing = KNOT_SPACING / out[1]
+
+    def ranked() -> list:
+        found = [(out[0], out[2], key) for key, out in seen.items() if out is not None]
+        if not found:
+            return []
+        fastest = min(f[0] for f in found)
+        slack = DURATION_SLACK if all(rest) else MOVING_SLACK
+        within = [f for f in found if f[0] <= fastest * (1.0 + slack)]
+        # Fewest sign changes beyond what the joint paths need (their S-curve's 2, or their
+        # reversal floor), then fewest on the worst joint and in all, then the fastest.
+        return sorted(
+            within,
+            key=lambda f: (
+                int(f[1].max()) > 9,
+                int(np.maximum(f[1] - target, 0).sum()),
+                int(f[1].max()),
+                int(f[1].sum()),
+                f[0],
+            ),
+        )
+
+    screen(_speeds(rest))
+    for _ in range(_ROUNDS):
+        best = ranked()
+        if not best:
+            break
+        before = len(seen)
+        # Around the smoothest within the slack, and around the fastest (which widens the slack).
+        screen(_variants(best[0][2][0], rest))
+        fastest = min((out[0], i) for i, out in enumerate(seen.values()) if out is not None)[1]
+        screen(_variants(list(seen)[fastest][0], rest))
+        if len(seen) == before:
+            break
+    for _, _, (speed, spacing) in ranked():
+        fit = _scaled_spline(
+            q, path, slopes, speed, spacing, seen[(speed, spacing)][1], template, bound, bounds, rest, pinned
+        )
+        if fit is None:
+            continue
+        knots, p, v, acc, j, alone, grid, scale = fit
+        duration = float(alone.duration)
+        at = speed.time_at(sigma / length) * grid[-1] * scale
+        at[0], at[-1] = 0.0, duration
+        if fixed:
+            _, where = _knot_times(speed, float(grid[-1]), spacing, pinned)
+            at[list(fixed)] = grid[where] * scale  # their knots' times
+        positions = alone.sample(at).q
+        positions[0], positions[-1] = q[0], q[-1]
+        return at, positions, knots, p, v, acc, j
+    return None
 
 
 def _scaled_spline(
     q: np.ndarray,
     path: tuple[np.ndarray, np.ndarray, np.ndarray],
     slopes: tuple[np.ndarray, np.ndarray],
-    total: float,
-    ramps: tuple[float, float],
+    speed: _Speed,
     spacing: float,
     scale: float,
     template: JointTrajectory,
     bound: float,
+    bounds: tuple[np.ndarray, np.ndarray],
     rest: tuple[bool, bool],
     pinned: tuple[np.ndarray, np.ndarray] | None = None,
-) -> tuple:
-    """The spline in time along the path spline with these ramps, scaled so the tightest joint reaches its limit.
+) -> tuple | None:
+    """The spline in time along the path with this speed, scaled so the tightest joint reaches its limit.
+
+    Starts from the time `scale` the screening found; knots a spline through them carries
+    beyond a joint's range are nudged inward (:func:`_nudge`).
 
     Returns:
-        ``(scale, ok, (knots, p, v, a, j, trajectory))``; ok False if none keeps the range.
+        ``(knots, p, v, a, j, trajectory, grid, scale)`` (grid: the knot times before the
+        scaling); None if none keeps the range.
     """
-    sigma_nodes, q_nodes, moments = path
-    lim = template.limits
-    lower = np.where(np.isfinite(lim.lower), lim.lower, -np.inf)
-    upper = np.where(np.isfinite(lim.upper), lim.upper, np.inf)
-    length = float(sigma_nodes[-1])
-    grid = _time_grid(total, ramps, spacing)
-    where = np.zeros(0, dtype=int)
-    if pinned is not None and len(pinned[0]):
-        grid, where = _pin_knots(grid, pinned[0], ramps, total, spacing)
-    s = np.clip(_ramp_position(grid, total, ramps), 0.0, length)
-    qk = np.clip(_spline_at(sigma_nodes, q_nodes, moments, s), lower, upper)
-    qk[0], qk[-1] = q[0], q[-1]
-    if len(where):
-        qk[where] = pinned[1]
-    ok, fit = False, None
+    lower, upper = bounds
+    qk, grid = _knot_positions(q, path, speed, spacing, bounds, pinned)
     for _ in range(8):
-        t = grid * scale
-        ends = [None if at_rest else slope / scale for at_rest, slope in zip(rest, slopes)]
-        curves = [None if at_rest else bend / scale**2 for at_rest, bend in zip(rest, (moments[0], moments[-1]))]
-        knots, p, v, acc, j = rest_to_rest_spline(t, qk, *ends, *curves)
-        alone = replace(template, knots=knots, p=p, v=v, a=acc, j=j, duration=float(t[-1]))
+        knots, p, v, acc, j = _time_spline(qk, grid, path, slopes, scale, rest)
+        alone = replace(template, knots=knots, p=p, v=v, a=acc, j=j, duration=float(grid[-1] * scale))
         peaks = alone.peak_ratios(None)
         if peaks["position"] > LIMIT_TOLERANCE * bound:
             if not _nudge(qk, alone, lower, upper):
-                break
+                return None
             continue
         # A uniform time scaling by k scales v, a, j by 1/k, 1/k^2, 1/k^3: the tightest
         # joint then reaches its limit (faster or slower).
         k = max(peaks["velocity"], peaks["acceleration"] ** 0.5, peaks["jerk"] ** (1.0 / 3.0))
         if max(peaks["velocity"], peaks["acceleration"], peaks["jerk"]) <= 1 + LIMIT_TOLERANCE and k > 1 - 1e-6:
-            ok, fit = True, (knots, p, v, acc, j, alone)
-            break
+            return knots, p, v, acc, j, alone, grid, scale
         scale *= k * (1.0 + 1e-9)
-    return scale, ok, fit
+    return None
 
 
 def _spline_nodes(sigma: np.ndarray) -> np.ndarray:
