@@ -78,14 +78,15 @@ _GRID_START = 1.4
 # them, and how often joints whose extrema leave the range go back to the current states before
 # the run keeps those. Only the joints whose time in a segment is at least _RUN_NEAR of the
 # segment's with the current states are probed (the others keep them: no change on
-# bench_trajectory's 800 paths at 0.5, +0.01 % mean duration at 0.7; 0.9 with the step pass,
-# see _STEP_PASS). Where the mix, solved, is not faster (blocked intervals), the options common
+# bench_trajectory's 800 paths at 0.5, +0.01 % mean duration at 0.7; _RUN_NEAR_STEPPED for the
+# arms with the step pass, see _STEP_PASS). Where the mix, solved, is not faster (blocked intervals), the options common
 # to all joints are solved instead. Three scales (-0.45, -0.2, 0.05) gave the same gaps within
 # 0.05 % (and no fewer instructions with the step pass).
 _SPLINE_SCALES = (-0.5, -0.3, -0.1, 0.1)
 _CHOICE_ROUNDS = 2
 _SPLINE_FIXES = 2
-_RUN_NEAR = 0.9
+_RUN_NEAR = 0.7
+_RUN_NEAR_STEPPED = 0.9
 _FALLBACK_PROBE = False
 # How many of the fastest states tried at a via that turn beyond the range are halved in turn
 # (as the search halves states that leave it) before slower ones that fit are taken.
@@ -99,10 +100,11 @@ _SETTLE_HALVINGS = 24
 # optimum gap falls from 1.34 % to 1.02 %; steps of 0.15 as well give 0.95 % at +8 %
 # instructions per plan, a dense grid of 21 velocities and 3 accelerations per joint 0.54 %
 # (one sweep) at many times the plan time. Probing the joints within 0.8 of the segment's time
-# (not 0.9) made 4 % more instructions per 6-dof plan for no shorter plan on those paths; 0.97
-# (and _RUN_NEAR 0.9) with the step pass below.
+# (not 0.9) made 4 % more instructions per 6-dof plan for no shorter plan on those paths
+# (_PROBE_NEAR_STEPPED for the arms with the step pass, see _STEP_PASS).
 _PROBE_STEPS = (-0.05, 0.05)
-_PROBE_NEAR = 0.97
+_PROBE_NEAR = 0.9
+_PROBE_NEAR_STEPPED = 0.97
 # Where the probed pick at a via, kept once solved, moved at least this many joints, those of
 # them that now set a segment's time can have their velocity steps (OptimizedStrategy.reprobe_steps,
 # off by default) probed again around their new states (resweep_via among them): the first probe
@@ -145,8 +147,10 @@ _POLISH_JOINTS = 5
 # paths): median optimum gap 0.67 -> 0.33 % (ur5 0.51 -> 0.18, panda 0.71 -> 0.21, z1 0.83 ->
 # 0.55 %), mean duration -0.24 % (3 paths slower by more than 0.5 %, at most 1.2 %; 27 faster);
 # with the fallback and the fixed steps kept 0.27 % at +18 % instructions per 6-dof plan. The
-# probes of fewer joints (_PROBE_NEAR 0.9 -> 0.97, _RUN_NEAR 0.7 -> 0.9) pay for most of the
-# rest: +0.7 % instructions per 6-dof plan in all (callgrind, 60 plans of ur5, z1 and panda).
+# probes of fewer joints for these arms (_PROBE_NEAR_STEPPED 0.97, _RUN_NEAR_STEPPED 0.9; about
+# the same gaps, 2 % fewer instructions than 0.95 and 0.8) pay for most of the rest: +0.5 %
+# instructions per 6-dof plan in all (callgrind, 60 plans of ur5, z1 and panda). The small arms'
+# probes keep theirs: with these, al5c and so101 plans were 0.1 % longer on average.
 _STEP_PASS = True
 _POLISH_STEPS = ((0.03, 0.1), (0.01, 0.03), (0.003, 0.01))
 _POLISH_ROUNDS = 3
@@ -515,7 +519,7 @@ class OptimizedStrategy(ViaStrategy):
     def choose(self, chain: ViaChain) -> None:
         """Spline-like via states, a joint spline search per run between fixed waypoints, then one sweep."""
         free = [i for i in range(1, chain.n - 1) if not chain.fixed[i]]
-        stepped = self.step_pass and bool(self.resweep_steps) and chain.q.shape[1] > self.polish_joints
+        stepped = self._stepped(chain)
         durations = chain.durations()
         for i in free:
             chain.v[i] = via_directions(chain.q, i, durations, chain.limits, chain.stop)[0]
@@ -562,6 +566,10 @@ class OptimizedStrategy(ViaStrategy):
                     resweep_via(chain, i, self.resweep_steps)
         if chain.q.shape[1] <= self.polish_joints:
             self.polish(chain, free)
+
+    def _stepped(self, chain: ViaChain) -> bool:
+        """Whether the chain's arm has the step pass (:attr:`step_pass`): more joints than :attr:`polish_joints`."""
+        return self.step_pass and bool(self.resweep_steps) and chain.q.shape[1] > self.polish_joints
 
     def polish(self, chain: ViaChain, free: list[int]) -> None:
         """Step the via states with finer and finer velocity steps while a via changes.
@@ -755,7 +763,8 @@ class OptimizedStrategy(ViaStrategy):
         )
         # Only the joints near a segment's time with the current states are probed: the others
         # keep them (their other options count as not allowed).
-        near = [_RUN_NEAR * max(times) for times in now]
+        share = _RUN_NEAR_STEPPED if self._stepped(chain) else _RUN_NEAR
+        near = [share * max(times) for times in now]
         joints = tuple(j for j in range(dof) if any(times[j] >= x for times, x in zip(now, near)))
         if len(joints) == dof:
             probed = seg.probe_run(a, states_v[:count], states_a[:count])
@@ -854,7 +863,8 @@ class OptimizedStrategy(ViaStrategy):
             own profile leaves the range); None where nothing was probed.
         """
         t1, t2 = times
-        near1, near2 = _PROBE_NEAR * max(t1), _PROBE_NEAR * max(t2)
+        share = _PROBE_NEAR_STEPPED if self._stepped(chain) else _PROBE_NEAR
+        near1, near2 = share * max(t1), share * max(t2)
         joints = tuple(j for j, (x, y) in enumerate(zip(t1, t2)) if x >= near1 or y >= near2)
         lim = chain.limits
         velocity, acceleration, _ = lim.ruckig_limits
