@@ -79,9 +79,9 @@ _GRID_START = 1.4
 # the run keeps those. Only the joints whose time in a segment is at least _RUN_NEAR of the
 # segment's with the current states are probed (the others keep them: no change on
 # bench_trajectory's 800 paths at 0.5, +0.01 % mean duration at 0.7; _RUN_NEAR_STEPPED for the
-# arms with the step pass, see _STEP_PASS). Where the mix, solved, is not faster (blocked intervals), the options common
-# to all joints are solved instead. Three scales (-0.45, -0.2, 0.05) gave the same gaps within
-# 0.05 % (and no fewer instructions with the step pass).
+# arms with the step pass, see _STEP_PASS). Where the mix, solved, is not faster (blocked
+# intervals), the options common to all joints are solved instead. Three scales (-0.45, -0.2,
+# 0.05) gave the same gaps within 0.05 % (and no fewer instructions with the step pass).
 _SPLINE_SCALES = (-0.5, -0.3, -0.1, 0.1)
 _CHOICE_ROUNDS = 2
 _SPLINE_FIXES = 2
@@ -148,9 +148,11 @@ _POLISH_JOINTS = 5
 # 0.55 %), mean duration -0.24 % (3 paths slower by more than 0.5 %, at most 1.2 %; 27 faster);
 # with the fallback and the fixed steps kept 0.27 % at +18 % instructions per 6-dof plan. The
 # probes of fewer joints for these arms (_PROBE_NEAR_STEPPED 0.97, _RUN_NEAR_STEPPED 0.9; about
-# the same gaps, 2 % fewer instructions than 0.95 and 0.8) pay for most of the rest: +0.5 %
-# instructions per 6-dof plan in all (callgrind, 60 plans of ur5, z1 and panda). The small arms'
-# probes keep theirs: with these, al5c and so101 plans were 0.1 % longer on average.
+# the same gaps, 2 % fewer instructions than 0.95 and 0.8) pay for the rest: -3.6 % instructions
+# per 6-dof plan in all (callgrind, four sets of 60 random plans of ur5, z1 and panda: +0.5,
+# -8.1, -4.8 and -1.3 %). A second step pass over the vias the first one changed: median gap
+# 0.13 % (z1 0.45 %) at +11 %. The small arms' probes keep their shares: with these, al5c and
+# so101 plans were 0.1 % longer on average.
 _STEP_PASS = True
 _POLISH_STEPS = ((0.03, 0.1), (0.01, 0.03), (0.003, 0.01))
 _POLISH_ROUNDS = 3
