@@ -116,9 +116,10 @@ def test_the_second_pass_keeps_a_state_only_where_its_pair_is_faster_and_fits(pr
 
 
 class _OneSweep(OptimizedStrategy):
-    """The "optimized" search without the polish of arms with few joints: the sweep alone."""
+    """The "optimized" search without the polish of small arms nor the step pass of the others: the sweep alone."""
 
     polish_joints = 0
+    step_pass = False
 
 
 class _FirstVia(_OneSweep):
@@ -182,6 +183,7 @@ def test_the_second_pass_is_set_when_the_strategy_is_made_and_bad_counts_are_ref
     limits = JointLimits.from_robot(robot)
     q = robot.random_configurations(np.random.default_rng(3), 5)
     made, subclassed = OptimizedStrategy(resweep_vias=None, polish_joints=0), _EveryVia()
+    made.step_pass = False  # as _EveryVia's (the step pass would visit every via in its own way)
     assert (
         plan_trajectory(q, limits, strategy=made).duration == plan_trajectory(q, limits, strategy=subclassed).duration
     )
@@ -209,10 +211,11 @@ def test_the_polish_is_on_for_arms_of_up_to_five_joints_and_set_when_the_strateg
     for bad in (-1, 2.5, False, "5"):
         with pytest.raises(InvalidArgumentError, match="polish_joints must be an integer >= 0"):
             OptimizedStrategy(polish_joints=bad)
-    # Six joints: no polish by default, the plans the same as without it.
+    # Six joints: no polish by default, the plans the same as without it (both with the step pass).
     for seed in range(5):
         q, limits = _polish_problem(seed, 6)
-        assert plan_trajectory(q, limits).duration == plan_trajectory(q, limits, strategy=_OneSweep()).duration
+        unpolished = OptimizedStrategy(polish_joints=0)
+        assert plan_trajectory(q, limits).duration == plan_trajectory(q, limits, strategy=unpolished).duration
 
 
 @pytest.mark.parametrize("dof", [2, 4, 6])
@@ -291,3 +294,34 @@ def test_the_second_probe_around_a_kept_pick_shortens_plans_on_average(name):
         assert_passes_waypoints(traj, q)
     assert np.mean(ratios) < 1.0
     assert np.median(ratios) <= 1.0
+
+
+def test_the_step_pass_is_on_for_arms_not_polished_and_shortens_their_plans_on_average():
+    # Six joints (more than polish_joints): every via stepped once after the sweep, which has no
+    # fixed probe steps and no solved grid. Shorter than the sweep alone on average, never slower
+    # than resting at every waypoint, every limit held and every waypoint passed.
+    assert OptimizedStrategy.step_pass is True
+    ratios = []
+    for seed in range(12):
+        q, limits = _polish_problem(seed, 6)
+        traj = plan_trajectory(q, limits)
+        ratios.append(traj.duration / plan_trajectory(q, limits, strategy=_OneSweep()).duration)
+        assert traj.duration <= plan_trajectory(q, limits, strategy="stop").duration
+        assert_within_limits(traj, rate=1000.0)
+        assert_passes_waypoints(traj, q)
+    assert np.mean(ratios) < 1.0
+    assert np.median(ratios) <= 1.0
+    # Arms of at most polish_joints joints are polished instead: no step pass, the same plans.
+    q, limits = _polish_problem(0, 4)
+    off = OptimizedStrategy()
+    off.step_pass = False
+    assert plan_trajectory(q, limits).duration == plan_trajectory(q, limits, strategy=off).duration
+
+
+@SETTINGS
+@given(problems(max_points=6))
+def test_plans_with_the_step_pass_hold_every_limit(problem):
+    q, limits = problem
+    traj = plan_trajectory(q, limits, strategy=OptimizedStrategy(polish_joints=0))  # the step pass on every arm
+    assert_within_limits(traj)
+    assert_passes_waypoints(traj, q)

@@ -114,7 +114,9 @@ def test_a_detour_the_measure_inserts_after_the_check_is_checked_in_turn(monkeyp
     # A routed pair among the table and box whose clear motion dips below the threshold.
     start = [-0.743, -0.081, -2.158, -2.404, 0.36, 1.444, 1.69]
     goal = [0.609, 1.274, 1.346, -1.265, -1.231, 2.934, -1.441]
-    plan, checked, measured = _watched_plan(monkeypatch, robot, start, goal, 14)
+    # Avoidance seed 1 (14 before the optimized strategy's step pass: with panda's new via states
+    # that seed's routed motion no longer dips below the threshold, so nothing is inserted).
+    plan, checked, measured = _watched_plan(monkeypatch, robot, start, goal, 1)
     assert plan.routes == (0,) and plan.detours
     # The motion first checked clear had no detour; the detoured one was checked after it.
     first_clear = next(t for t, clear in checked if clear)

@@ -220,11 +220,17 @@ def _own_profile_leaves_range(q, limits, i, j, v, a, chain) -> bool:
     return False
 
 
-class _Unprobed(OptimizedStrategy):
+class _Probed(OptimizedStrategy):
+    """The "optimized" search with the probed velocity steps in the sweep (no polish, no step pass)."""
+
+    polish_joints = 0
+    step_pass = False  # (its sweep probes no fixed velocity steps)
+
+
+class _Unprobed(_Probed):
     """The "optimized" search without the probed velocity steps (nor the polish)."""
 
     probe_steps = ()
-    polish_joints = 0
 
 
 @pytest.mark.parametrize("name", ["dh3", "al5c", pytest.param("ur5", marks=needs_example_robot_data)])
@@ -238,7 +244,7 @@ def test_the_probed_velocity_steps_shorten_plans_through_five_waypoints_on_avera
     ratios = []
     for _ in range(30):
         q = robot.random_configurations(rng, 5)
-        probed = plan_trajectory(q, limits, strategy=OptimizedStrategy(polish_joints=0))
+        probed = plan_trajectory(q, limits, strategy=_Probed())
         ratios.append(probed.duration / plan_trajectory(q, limits, strategy=_Unprobed()).duration)
         assert_within_limits(probed, rate=1000.0)
         assert_passes_waypoints(probed, q)

@@ -76,9 +76,17 @@ def test_registered_by_name_and_checks_its_settings():
 
 
 class _RefinedUnpolished(RefinedStrategy):
-    """The refined search from the optimized sweep's states, without the polish."""
+    """The refined search from the optimized sweep's states, without the polish (nor the step pass)."""
 
     polish_joints = 0
+    step_pass = False
+
+
+class _OptimizedUnpolished(OptimizedStrategy):
+    """The optimized sweep alone (no polish, no step pass)."""
+
+    polish_joints = 0
+    step_pass = False
 
 
 @pytest.mark.parametrize("name", BUNDLED)
@@ -99,7 +107,7 @@ def test_random_paths_hold_limits_and_are_never_slower(name):
         assert refined.duration <= optimized.duration
         # What the search finds, counted from the sweep's states alone (the optimized strategy's
         # polish of arms with few joints takes part of it first: three_joint 5 of these 12).
-        unpolished = plan_trajectory(q, limits, strategy=OptimizedStrategy(polish_joints=0))
+        unpolished = plan_trajectory(q, limits, strategy=_OptimizedUnpolished())
         faster += plan_trajectory(q, limits, strategy=_RefinedUnpolished()).duration < unpolished.duration
         assert_passes_waypoints(refined, refined.waypoint_times, q)
         np.testing.assert_allclose(refined.sample(refined.waypoint_times).q, q, rtol=0, atol=1e-12)

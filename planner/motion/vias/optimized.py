@@ -27,7 +27,9 @@ extrema miss and the planner's range repair would halve at any cost). A second p
 (:attr:`OptimizedStrategy.resweep_vias`, off by default) re-steps vias given their final
 neighbours (:mod:`planner.motion.vias.joint_steps`). Arms of at most
 :attr:`OptimizedStrategy.polish_joints` joints (5) then have every via stepped so, with finer
-and finer steps, while a via changes (:meth:`OptimizedStrategy.polish`).
+and finer steps, while a via changes (:meth:`OptimizedStrategy.polish`); the other arms have
+every via stepped once (:attr:`OptimizedStrategy.step_pass`), their sweep without the fixed
+velocity steps and the solved grid where the pick is not kept.
 
 On bench_trajectory's paths (8 arms x 100, 5 waypoints; every 4th solved as an NLP, the
 optimum gap is the median of duration / optimum - 1), against the golden-section search of one
@@ -76,13 +78,15 @@ _GRID_START = 1.4
 # them, and how often joints whose extrema leave the range go back to the current states before
 # the run keeps those. Only the joints whose time in a segment is at least _RUN_NEAR of the
 # segment's with the current states are probed (the others keep them: no change on
-# bench_trajectory's 800 paths at 0.5, +0.01 % mean duration at 0.7). Where the mix, solved, is
-# not faster (blocked intervals), the options common to all joints are solved instead. Three
-# scales (-0.45, -0.2, 0.05) gave the same gaps within 0.05 %.
+# bench_trajectory's 800 paths at 0.5, +0.01 % mean duration at 0.7; _RUN_NEAR_STEPPED for the
+# arms with the step pass, see _STEP_PASS). Where the mix, solved, is not faster (blocked
+# intervals), the options common to all joints are solved instead. Three scales (-0.45, -0.2,
+# 0.05) gave the same gaps within 0.05 % (and no fewer instructions with the step pass).
 _SPLINE_SCALES = (-0.5, -0.3, -0.1, 0.1)
 _CHOICE_ROUNDS = 2
 _SPLINE_FIXES = 2
 _RUN_NEAR = 0.7
+_RUN_NEAR_STEPPED = 0.9
 _FALLBACK_PROBE = False
 # How many of the fastest states tried at a via that turn beyond the range are halved in turn
 # (as the search halves states that leave it) before slower ones that fit are taken.
@@ -96,9 +100,11 @@ _SETTLE_HALVINGS = 24
 # optimum gap falls from 1.34 % to 1.02 %; steps of 0.15 as well give 0.95 % at +8 %
 # instructions per plan, a dense grid of 21 velocities and 3 accelerations per joint 0.54 %
 # (one sweep) at many times the plan time. Probing the joints within 0.8 of the segment's time
-# (not 0.9) made 4 % more instructions per 6-dof plan for no shorter plan on those paths.
+# (not 0.9) made 4 % more instructions per 6-dof plan for no shorter plan on those paths
+# (_PROBE_NEAR_STEPPED for the arms with the step pass, see _STEP_PASS).
 _PROBE_STEPS = (-0.05, 0.05)
 _PROBE_NEAR = 0.9
+_PROBE_NEAR_STEPPED = 0.97
 # Where the probed pick at a via, kept once solved, moved at least this many joints, those of
 # them that now set a segment's time can have their velocity steps (OptimizedStrategy.reprobe_steps,
 # off by default) probed again around their new states (resweep_via among them): the first probe
@@ -132,6 +138,22 @@ _RESWEEP_VIAS: int | None = 0
 # ms with three rounds, 1.78 ms with two; ur5 and z1 0.95 ms in the same loop): an arm of more
 # joints (6-dof: +10 % per pass over every via) keeps the one sweep.
 _POLISH_JOINTS = 5
+# The step pass of the arms not polished (OptimizedStrategy.step_pass): after the sweep, every
+# via is stepped once (resweep_via with the resweep_steps (0.03, 0.1), given its final
+# neighbours), and that sweep probes no fixed velocity steps (_PROBE_STEPS) and solves no grid
+# where the probed pick is not kept (the step pass moves such a via as well, for far less: that
+# fallback cost 10.6 % of the instructions per 6-dof plan for about 15 % of the vias). On
+# bench_trajectory's 6-dof paths (ur5, panda, z1) with their NLP optima, seeds 0 and 1 (150
+# paths): median optimum gap 0.67 -> 0.33 % (ur5 0.51 -> 0.18, panda 0.71 -> 0.21, z1 0.83 ->
+# 0.55 %), mean duration -0.24 % (3 paths slower by more than 0.5 %, at most 1.2 %; 27 faster);
+# with the fallback and the fixed steps kept 0.27 % at +18 % instructions per 6-dof plan. The
+# probes of fewer joints for these arms (_PROBE_NEAR_STEPPED 0.97, _RUN_NEAR_STEPPED 0.9; about
+# the same gaps, 2 % fewer instructions than 0.95 and 0.8) pay for the rest: -3.6 % instructions
+# per 6-dof plan in all (callgrind, four sets of 60 random plans of ur5, z1 and panda: +0.5,
+# -8.1, -4.8 and -1.3 %). A second step pass over the vias the first one changed: median gap
+# 0.13 % (z1 0.45 %) at +11 %. The small arms' probes keep their shares: with these, al5c and
+# so101 plans were 0.1 % longer on average.
+_STEP_PASS = True
 _POLISH_STEPS = ((0.03, 0.1), (0.01, 0.03), (0.003, 0.01))
 _POLISH_ROUNDS = 3
 
@@ -476,6 +498,11 @@ class OptimizedStrategy(ViaStrategy):
     polish_joints: int = _POLISH_JOINTS
     #: The pairs of velocity steps of the polish, coarse to fine (shares of the speed limit).
     polish_steps: tuple[tuple[float, ...], ...] = _POLISH_STEPS
+    #: Arms of more joints than :attr:`polish_joints` have every via stepped once after the
+    #: sweep (:func:`~planner.motion.vias.joint_steps.resweep_via` with :attr:`resweep_steps`),
+    #: and their sweep probes no :attr:`probe_steps` and solves no grid where the probed pick is
+    #: not kept (see _STEP_PASS). False: the sweep alone (with those), as for every arm before.
+    step_pass: bool = _STEP_PASS
 
     def __init__(
         self, resweep_vias: int | None | object = _CLASS_DEFAULT, polish_joints: int | object = _CLASS_DEFAULT
@@ -494,6 +521,7 @@ class OptimizedStrategy(ViaStrategy):
     def choose(self, chain: ViaChain) -> None:
         """Spline-like via states, a joint spline search per run between fixed waypoints, then one sweep."""
         free = [i for i in range(1, chain.n - 1) if not chain.fixed[i]]
+        stepped = self._stepped(chain)
         durations = chain.durations()
         for i in free:
             chain.v[i] = via_directions(chain.q, i, durations, chain.limits, chain.stop)[0]
@@ -520,9 +548,10 @@ class OptimizedStrategy(ViaStrategy):
                 self.combine_joints(chain, i, tried)
             else:
                 before = chain.v[i].tolist()
-                if self.combine_joints(chain, i, [], grid):
-                    # The probed pick was not kept once solved: the grid states solved instead.
-                    self.combine_joints(chain, i, self.search_via(chain, i, u, w), probe=_FALLBACK_PROBE)
+                if self.combine_joints(chain, i, [], grid, steps=() if stepped else None):
+                    if not stepped:  # (else the step pass moves the via)
+                        # The probed pick was not kept once solved: the grid states solved instead.
+                        self.combine_joints(chain, i, self.search_via(chain, i, u, w), probe=_FALLBACK_PROBE)
                 elif self.reprobe_steps:
                     moved = [j for j, (x, y) in enumerate(zip(before, chain.v[i].tolist())) if x != y]
                     if len(moved) >= _REPROBE_MOVED:
@@ -530,13 +559,19 @@ class OptimizedStrategy(ViaStrategy):
             v, acc = chain.state_rows()
             durations[i - 1] = chain.seg.solve(i - 1, v[i - 1], acc[i - 1], v[i], acc[i])[0]
             durations[i] = chain.seg.solve(i, v[i], acc[i], v[i + 1], acc[i + 1])[0]
-        # A second pass over the first vias of each run, given their final neighbours.
-        if self.resweep_steps and self.resweep_vias != 0:
+        # A second pass over the first vias of each run (every via with the step pass), given
+        # their final neighbours.
+        vias = None if stepped else self.resweep_vias
+        if self.resweep_steps and vias != 0:
             for a, b in zip(fixed[:-1], fixed[1:]):
-                for i in range(a + 1, b if self.resweep_vias is None else min(b, a + 1 + self.resweep_vias)):
+                for i in range(a + 1, b if vias is None else min(b, a + 1 + vias)):
                     resweep_via(chain, i, self.resweep_steps)
         if chain.q.shape[1] <= self.polish_joints:
             self.polish(chain, free)
+
+    def _stepped(self, chain: ViaChain) -> bool:
+        """Whether the chain's arm has the step pass (:attr:`step_pass`): more joints than :attr:`polish_joints`."""
+        return self.step_pass and bool(self.resweep_steps) and chain.q.shape[1] > self.polish_joints
 
     def polish(self, chain: ViaChain, free: list[int]) -> None:
         """Step the via states with finer and finer velocity steps while a via changes.
@@ -730,7 +765,8 @@ class OptimizedStrategy(ViaStrategy):
         )
         # Only the joints near a segment's time with the current states are probed: the others
         # keep them (their other options count as not allowed).
-        near = [_RUN_NEAR * max(times) for times in now]
+        share = _RUN_NEAR_STEPPED if self._stepped(chain) else _RUN_NEAR
+        near = [share * max(times) for times in now]
         joints = tuple(j for j in range(dof) if any(times[j] >= x for times, x in zip(now, near)))
         if len(joints) == dof:
             probed = seg.probe_run(a, states_v[:count], states_a[:count])
@@ -800,6 +836,7 @@ class OptimizedStrategy(ViaStrategy):
         dp: list[float],
         turning: list[bool],
         grid: tuple[list[list[float]], list[list[float]]] | None = None,
+        steps: Sequence[float] | None = None,
     ) -> tuple[list[tuple[list[float], list[float]]], tuple[int, ...], tuple[list[float], list[float]]] | None:
         """More options per joint at via i, their times in both segments from one Ruckig probe.
 
@@ -818,6 +855,7 @@ class OptimizedStrategy(ViaStrategy):
             turning: Per joint, whether it reverses at the via.
             grid: More states, per state the velocities and the accelerations of all joints
                 (:meth:`grid_states`); None for none.
+            steps: The velocity steps; None for :attr:`probe_steps`.
 
         Returns:
             The states probed (velocities and accelerations, lists over the joints probed; the
@@ -827,13 +865,15 @@ class OptimizedStrategy(ViaStrategy):
             own profile leaves the range); None where nothing was probed.
         """
         t1, t2 = times
-        near1, near2 = _PROBE_NEAR * max(t1), _PROBE_NEAR * max(t2)
+        share = _PROBE_NEAR_STEPPED if self._stepped(chain) else _PROBE_NEAR
+        near1, near2 = share * max(t1), share * max(t2)
         joints = tuple(j for j, (x, y) in enumerate(zip(t1, t2)) if x >= near1 or y >= near2)
         lim = chain.limits
         velocity, acceleration, _ = lim.ruckig_limits
         twice_jerk = lim.twice_jerk.tolist()
         v, a = current[1].tolist(), current[2].tolist()
-        candidates = moved_states((velocity, acceleration, twice_jerk), (v, a), joints, self.probe_steps)
+        steps = self.probe_steps if steps is None else steps
+        candidates = moved_states((velocity, acceleration, twice_jerk), (v, a), joints, steps)
         if any(turning[j] for j in joints):
             cv, ca = [], []
             for j in joints:
@@ -865,6 +905,7 @@ class OptimizedStrategy(ViaStrategy):
         tried: list[tuple[float, np.ndarray, np.ndarray]],
         grid: tuple[list[list[float]], list[list[float]]] | None = None,
         probe: bool = True,
+        steps: Sequence[float] | None = None,
     ) -> bool:
         """Give every joint at via i its best state among those tried, and a time-optimal turn.
 
@@ -888,6 +929,7 @@ class OptimizedStrategy(ViaStrategy):
             grid: States probed per joint, not solved (:meth:`grid_states`); None for none.
             probe: Whether to probe more options per joint (:meth:`_probe_options`); else the
                 joints pick among the states tried only.
+            steps: The velocity steps probed; None for :attr:`probe_steps`.
 
         Returns:
             Whether the joints' best pick, once solved, was not kept (slower than its estimate,
@@ -912,7 +954,7 @@ class OptimizedStrategy(ViaStrategy):
             options.append(state)
         found, probed = None, None
         if probe and options and options[0] is current:
-            probed = self._probe_options(chain, i, current, (t1s[0], t2s[0]), dp, flags, grid)
+            probed = self._probe_options(chain, i, current, (t1s[0], t2s[0]), dp, flags, grid, steps)
         if probed is not None or len(t1s) > 1:
             picks = _probed_choice(t1s, t2s, probed)
             if picks is not None:
