@@ -59,3 +59,49 @@ def test_range_ends_are_made_once_per_set_of_limits():
     assert segments._range_ends(limits) is first
     other = JointLimits(np.ones(2), np.ones(2), np.ones(2), -np.ones(2), np.ones(2))
     assert segments._range_ends(other) is not first
+
+
+def _admissible_numpy(v, a, limits, monkeypatch):
+    """admissible_acceleration through its NumPy path."""
+    from planner.motion import limits as limits_module
+
+    with monkeypatch.context() as m:
+        m.setattr(limits_module, "admissible_states", lambda *args: None)
+        return limits_module.admissible_acceleration(v, a, limits)
+
+
+# Velocities and accelerations anywhere (beyond the limits, zeros of either sign, infinities, NaN).
+states = st.one_of(
+    st.sampled_from([0.0, -0.0, math.inf, -math.inf, math.nan, 1e-300]), st.floats(-60.0, 60.0, allow_nan=False)
+)
+
+
+@settings(max_examples=300, deadline=None)
+@given(st.integers(1, 7), st.lists(st.integers(1, 3), max_size=2), st.data())
+def test_compiled_admissible_acceleration_equals_numpy(dof, lead, data):
+    from planner.motion.limits import admissible_acceleration
+
+    velocity = np.array(data.draw(st.lists(limit, min_size=dof, max_size=dof)))
+    acceleration = np.array(data.draw(st.lists(limit, min_size=dof, max_size=dof)))
+    limits = JointLimits(velocity, acceleration, 10.0 * acceleration, -np.ones(dof), np.ones(dof))
+    shape = (*lead, dof)
+    size = int(np.prod(shape))
+    v = np.array(data.draw(st.lists(states, min_size=size, max_size=size))).reshape(shape)
+    a = np.array(data.draw(st.lists(states, min_size=size, max_size=size))).reshape(shape)
+    with pytest.MonkeyPatch.context() as monkeypatch:
+        want = _admissible_numpy(v, a, limits, monkeypatch)
+    got = admissible_acceleration(v, a, limits)
+    assert got.shape == want.shape
+    assert got.tobytes() == want.tobytes()  # bit for bit, the sign of zeros and NaN included
+    assert got is not a and got.flags.writeable
+
+
+def test_admissible_acceleration_takes_numpy_for_other_inputs():
+    from planner.motion.segment_kernels import admissible_states
+
+    limits = JointLimits(np.ones(2), np.ones(2), np.ones(2), -np.ones(2), np.ones(2))
+    v = np.zeros(2)
+    assert admissible_states(v, np.zeros(3), limits.kernel_limits) is None  # shapes differ
+    assert admissible_states(v, np.zeros(2, dtype=np.float32), limits.kernel_limits) is None
+    assert admissible_states(v, [0.0, 0.0], limits.kernel_limits) is None
+    assert admissible_states(np.zeros((2, 3)), np.zeros((2, 3)), limits.kernel_limits) is None  # dof differs

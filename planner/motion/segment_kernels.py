@@ -16,9 +16,11 @@ import ctypes
 from array import array
 from itertools import chain
 
+import numpy as np
+
 from planner.core.native import load_functions
 
-__all__ = ["WatchTable", "watch_times"]
+__all__ = ["WatchTable", "admissible_states", "watch_times"]
 
 _SOURCE = r"""
 #include <math.h>
@@ -32,6 +34,27 @@ static double reach_time(double d, double a, double knee, double v) {
    the end and back at out[k * E + e], E = U + L: first the U upper ends (joint ju[e], limits vu,
    au, knee ku, the end as the checks put it hu), then the L lower ones (likewise). miss is
    _END_MISS. Per segment and joint the least of its times at reach[k * dof + j] (inf for none). */
+/* np.minimum / np.maximum: NaN propagates, a tie gives the second argument. */
+static double np_min(double a, double b) { return isnan(a) ? a : isnan(b) ? b : a < b ? a : b; }
+static double np_max(double a, double b) { return isnan(a) ? a : isnan(b) ? b : a > b ? a : b; }
+
+/* admissible_acceleration (planner.motion.limits) on n states of dof joints (v, a row-major), the
+   operations of its NumPy form in the same order: amax = min(a_max, sqrt(2 j_max max(v_max - |v|, 0))
+   (1 - 1e-9)), out = max(min(a, amax), -amax). lims holds the velocity, acceleration and twice the
+   jerk limits one after the other. */
+void admissible(long n, long dof, const double *v, const double *a, const double *lims, double *out) {
+    const double *velocity = lims, *acceleration = lims + dof, *twice_jerk = lims + 2 * dof;
+    for (long r = 0; r < n; ++r)
+        for (long j = 0; j < dof; ++j) {
+            long e = r * dof + j;
+            double amax = np_max(velocity[j] - fabs(v[e]), 0.0);
+            amax = sqrt(twice_jerk[j] * amax);
+            amax *= 1.0 - 1e-9;
+            amax = np_min(acceleration[j], amax);
+            out[e] = np_max(np_min(a[e], amax), -amax);
+        }
+}
+
 void watch_times(long K, long dof, const double *q, long U, const long *ju, const double *vu, const double *au,
                  const double *ku, const double *hu, long L, const long *jl, const double *vl, const double *al,
                  const double *kl, const double *ll, double miss, double *out, double *reach) {
@@ -73,6 +96,7 @@ _SIGNATURES = {
         ctypes.c_void_p,
         ctypes.c_void_p,
     ],
+    "admissible": [ctypes.c_long, ctypes.c_long, *[ctypes.c_void_p] * 4],
 }
 
 
@@ -135,3 +159,35 @@ def watch_times(rows: list[list[float]], table: WatchTable, miss: float) -> tupl
         segments, dof, q.buffer_info()[0], *table._args, miss, out.buffer_info()[0], reach.buffer_info()[0]
     )
     return out.tolist(), reach.tolist()
+
+
+def admissible_states(v: np.ndarray, a: np.ndarray, limits: bytes) -> np.ndarray | None:
+    """:func:`planner.motion.limits.admissible_acceleration`, compiled (None without a library or for other shapes).
+
+    Args:
+        v: Velocities, shape (..., dof), float64.
+        a: Accelerations, the same shape and type (else None: the caller's NumPy path).
+        limits: The velocity, acceleration and twice the jerk limits, float64 bytes, one after
+            the other (3 dof values).
+
+    Returns:
+        The accelerations made admissible, a new array of `v`'s shape.
+    """
+    library = _library()
+    if (
+        library is None
+        or type(v) is not np.ndarray
+        or type(a) is not np.ndarray
+        or v.shape != a.shape
+        or v.dtype != np.float64
+        or a.dtype != np.float64
+        or not v.ndim
+    ):
+        return None
+    dof = v.shape[-1]
+    size = v.size
+    if not dof or 24 * dof != len(limits):
+        return None
+    out = array("d", bytes(8 * size))
+    library.admissible(size // dof, dof, v.tobytes(), a.tobytes(), limits, out.buffer_info()[0])
+    return np.frombuffer(out).reshape(v.shape)

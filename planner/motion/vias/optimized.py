@@ -337,8 +337,7 @@ def _capped_grid(top: float) -> list[float]:
 
 def _grid_candidates(x: list[float], u: np.ndarray, w: np.ndarray, lim: JointLimits) -> tuple[np.ndarray, np.ndarray]:
     """The admissible states ``(x u, x^2 w)`` at the scales x, shapes (G, dof) (:func:`_scaled_states`)."""
-    limits = lim.velocity.tobytes() + lim.acceleration.tobytes() + lim.twice_jerk.tobytes()
-    fast = scale_states(x, u, w, limits)  # compiled, the same operations
+    fast = scale_states(x, u, w, lim.kernel_limits)  # compiled, the same operations
     if fast is not None:
         return fast
     return _scaled_states(np.array(x), np.sign(u), np.abs(u), np.sign(w), np.abs(w), lim)
@@ -927,13 +926,13 @@ class OptimizedStrategy(ViaStrategy):
         pool, halve = [], _TURN_HALVED
         va, aa, vb, ab = chain.v[i - 1], chain.acc[i - 1], chain.v[i + 1], chain.acc[i + 1]
 
-        def misses_end(cv: np.ndarray, ca: np.ndarray) -> bool:
-            return seg.misses_end(i - 1, va, aa, cv, ca) or seg.misses_end(i, cv, ca, vb, ab)
+        def misses_end(cv: np.ndarray, ca: np.ndarray, traj1, traj2) -> bool:  # (trajs: both's for cv, ca)
+            return seg.traj_misses_end(i - 1, traj1, va, aa, cv, ca) or seg.traj_misses_end(i, traj2, cv, ca, vb, ab)
 
         for state in sorted(options, key=lambda c: c[0]):
-            if misses_end(state[1], state[2]):
+            (_, _, traj1), (_, _, traj2) = both(state[1], state[2])  # (finite: both profiles there)
+            if misses_end(state[1], state[2], traj1, traj2):
                 continue  # the range repair would rest at the via
-            (_, _, traj1), (_, _, traj2) = both(state[1], state[2])
             out = seg.turns_beyond(i - 1, traj1) + seg.turns_beyond(i, traj2)
             if not out:
                 pool.append(state)
@@ -951,7 +950,7 @@ class OptimizedStrategy(ViaStrategy):
                 (_, _, traj1), (_, _, traj2) = both(state[1], state[2])
                 out = seg.turns_beyond(i - 1, traj1) + seg.turns_beyond(i, traj2)
                 if not out:
-                    if not misses_end(state[1], state[2]):
+                    if not misses_end(state[1], state[2], traj1, traj2):
                         pool.append(state)
                     break
         best = min(pool, key=lambda c: c[0], default=None)
