@@ -100,8 +100,14 @@ _SIGNATURES = {
 }
 
 
+#: The library once loaded (load_functions keeps it for the process too; this skips its lookup).
+_LOADED: list[ctypes.CDLL | None] = []
+
+
 def _library() -> ctypes.CDLL | None:
-    return load_functions(_SOURCE, "segment_kernels", _SIGNATURES)
+    if not _LOADED:
+        _LOADED.append(load_functions(_SOURCE, "segment_kernels", _SIGNATURES))
+    return _LOADED[0]
 
 
 class WatchTable:

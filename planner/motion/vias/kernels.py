@@ -297,13 +297,20 @@ _SIGNATURES = {
 _MOST_ENTRIES = 4096
 
 
+#: The library once loaded (load_functions keeps it for the process too; this skips its lookup).
+_LOADED: list[ctypes.CDLL | None] = []
+
+
 def _library() -> ctypes.CDLL | None:
+    if _LOADED:
+        return _LOADED[0]
     library = load_functions(_SOURCE, "via_kernels", _SIGNATURES)
     if library is not None and library.best_choice.restype is None:
         library.best_choice.restype = ctypes.c_long  # (load_functions sets None: it returns a code)
         library.joint_choice.restype = ctypes.c_long
         library.spline_states.restype = ctypes.c_long
         library.probed_choice.restype = ctypes.c_long
+    _LOADED.append(library)
     return library
 
 

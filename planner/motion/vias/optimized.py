@@ -707,7 +707,7 @@ class OptimizedStrategy(ViaStrategy):
         # Scaling every duration by s scales the spline's via velocities by 1/s and its via
         # accelerations by 1/s^2, except the parts due to the end velocities (by 1 and 1/s):
         # one spline at the durations h0 gives the via states at every scale.
-        zero = np.zeros_like(v_a)
+        zero = np.zeros(dof)
         v_q, acc_q = spline_via_states(q_run, h0, zero, zero)
         vs, accs = v_q * _SPLINE_INV, acc_q * _SPLINE_INV2
         if any(v_a.tolist()) or any(v_b.tolist()):
