@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+import types
 
 import numpy as np
 import pytest
@@ -203,3 +204,23 @@ def test_compiled_probed_choice_leaves_nan_to_python():
     assert choose_probed([[1.0, 2.0]], [[1.0, 2.0]], ([math.nan], [0.5]), (1,)) is None
     assert choose_probed([[1.0, 2.0]], [[1.0, 2.0]], ([], []), ()) is None
     assert optimized._probed_choice([[1.0, 2.0]], [[1.0, 2.0]], ([], (1,), ([0.5], [0.5]))) == [0, 1]
+
+
+@pytest.mark.parametrize("name", ["three_joint", "dh3"])
+def test_plans_are_the_same_through_the_c_api_and_ctypes(name, monkeypatch):
+    from planner.motion import segment_kernels
+
+    if not isinstance(kernels._library(), types.ModuleType):
+        pytest.skip("no Python headers: the kernels are called through ctypes only")
+    robot = load_robot(name)
+    limits = JointLimits.from_robot(robot)
+    rng = np.random.default_rng(12)
+    paths = [robot.random_configurations(rng, 5) for _ in range(12)]
+
+    def arrays(traj):
+        return [traj.duration, *(np.asarray(a).tobytes() for a in (traj.via_velocities, traj.via_accelerations))]
+
+    through_c_api = [arrays(plan_trajectory(q, limits)) for q in paths]
+    monkeypatch.setattr(kernels, "_LOADED", [kernels._ctypes_library()])
+    monkeypatch.setattr(segment_kernels, "_LOADED", [segment_kernels._ctypes_library()])
+    assert [arrays(plan_trajectory(q, limits)) for q in paths] == through_c_api

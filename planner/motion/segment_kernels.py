@@ -15,10 +15,11 @@ from __future__ import annotations
 import ctypes
 from array import array
 from itertools import chain
+from types import ModuleType
 
 import numpy as np
 
-from planner.core.native import load_functions
+from planner.core.native import C_API_HEAD, load_extension, load_functions
 
 __all__ = ["WatchTable", "admissible_states", "watch_times"]
 
@@ -83,6 +84,34 @@ void watch_times(long K, long dof, const double *q, long U, const long *ju, cons
 }
 """
 
+# The same functions through the C API (planner.core.native.load_extension), with their ctypes arguments.
+_BINDINGS = r"""
+static PyObject *py_watch_times(PyObject *self, PyObject *const *args, Py_ssize_t nargs) {
+    arg_t a[18];
+    if (parse(args, nargs, "llplppppplpppppdpp", a)) return NULL;
+    watch_times(a[0].l, a[1].l, a[2].p, a[3].l, a[4].p, a[5].p, a[6].p, a[7].p, a[8].p, a[9].l, a[10].p, a[11].p,
+                a[12].p, a[13].p, a[14].p, a[15].d, a[16].p, a[17].p);
+    Py_RETURN_NONE;
+}
+
+static PyObject *py_admissible(PyObject *self, PyObject *const *args, Py_ssize_t nargs) {
+    arg_t a[6];
+    if (parse(args, nargs, "llpppp", a)) return NULL;
+    admissible(a[0].l, a[1].l, a[2].p, a[3].p, a[4].p, a[5].p);
+    Py_RETURN_NONE;
+}
+
+static PyMethodDef methods[] = {
+    {"watch_times", (PyCFunction)(void (*)(void))py_watch_times, METH_FASTCALL, NULL},
+    {"admissible", (PyCFunction)(void (*)(void))py_admissible, METH_FASTCALL, NULL},
+    {NULL, NULL, 0, NULL},
+};
+
+static struct PyModuleDef module = {PyModuleDef_HEAD_INIT, "planner_segment_kernels", NULL, -1, methods};
+
+PyMODINIT_FUNC PyInit_planner_segment_kernels(void) { return PyModule_Create(&module); }
+"""
+
 _SIGNATURES = {
     "watch_times": [
         ctypes.c_long,
@@ -100,14 +129,21 @@ _SIGNATURES = {
 }
 
 
-#: The library once loaded (load_functions keeps it for the process too; this skips its lookup).
-_LOADED: list[ctypes.CDLL | None] = []
+#: The library once loaded (the loaders keep it for the process too; this skips their lookup).
+_LOADED: list[ModuleType | ctypes.CDLL | None] = []
 
 
-def _library() -> ctypes.CDLL | None:
+def _library() -> ModuleType | ctypes.CDLL | None:
+    """The compiled functions: through the C API where Python's headers are at hand, else ctypes (slower calls)."""
     if not _LOADED:
-        _LOADED.append(load_functions(_SOURCE, "segment_kernels", _SIGNATURES))
+        library = load_extension(C_API_HEAD + _SOURCE + _BINDINGS, "planner_segment_kernels")
+        _LOADED.append(library if library is not None else _ctypes_library())
     return _LOADED[0]
+
+
+def _ctypes_library() -> ctypes.CDLL | None:
+    """The compiled functions through ctypes (where the C API's headers are missing)."""
+    return load_functions(_SOURCE, "segment_kernels", _SIGNATURES)
 
 
 class WatchTable:

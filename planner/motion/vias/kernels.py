@@ -16,10 +16,11 @@ from __future__ import annotations
 import ctypes
 from array import array
 from itertools import chain
+from types import ModuleType
 
 import numpy as np
 
-from planner.core.native import load_functions
+from planner.core.native import C_API_HEAD, load_extension, load_functions
 
 __all__ = ["choose_options", "choose_probed", "choose_joints", "scale_states", "spline_states", "blend_directions"]
 
@@ -283,6 +284,64 @@ long probed_choice(long K, long P, long count, long dof, const double *t1, const
 }
 """
 
+# The same functions callable from Python through the C API (see planner.core.native.load_extension):
+# each takes the arguments its ctypes signature below does (C longs and doubles; pointers as bytes or
+# as addresses), so the callers are the same for both.
+_BINDINGS = r"""
+static PyObject *py_best_choice(PyObject *self, PyObject *const *args, Py_ssize_t nargs) {
+    arg_t a[6];
+    if (parse(args, nargs, "llpppp", a)) return NULL;
+    return PyLong_FromLong(best_choice(a[0].l, a[1].l, a[2].p, a[3].p, a[4].p, a[5].p));
+}
+
+static PyObject *py_joint_choice(PyObject *self, PyObject *const *args, Py_ssize_t nargs) {
+    arg_t a[6];
+    if (parse(args, nargs, "llllpp", a)) return NULL;
+    return PyLong_FromLong(joint_choice(a[0].l, a[1].l, a[2].l, a[3].l, a[4].p, a[5].p));
+}
+
+static PyObject *py_scaled_states(PyObject *self, PyObject *const *args, Py_ssize_t nargs) {
+    arg_t a[7];
+    if (parse(args, nargs, "llppppp", a)) return NULL;
+    scaled_states(a[0].l, a[1].l, a[2].p, a[3].p, a[4].p, a[5].p, a[6].p);
+    Py_RETURN_NONE;
+}
+
+static PyObject *py_spline_states(PyObject *self, PyObject *const *args, Py_ssize_t nargs) {
+    arg_t a[7];
+    if (parse(args, nargs, "llppppp", a)) return NULL;
+    return PyLong_FromLong(spline_states(a[0].l, a[1].l, a[2].p, a[3].p, a[4].p, a[5].p, a[6].p));
+}
+
+static PyObject *py_via_directions(PyObject *self, PyObject *const *args, Py_ssize_t nargs) {
+    arg_t a[7];
+    if (parse(args, nargs, "lddpppp", a)) return NULL;
+    via_directions(a[0].l, a[1].d, a[2].d, a[3].p, a[4].p, a[5].p, a[6].p);
+    Py_RETURN_NONE;
+}
+
+static PyObject *py_probed_choice(PyObject *self, PyObject *const *args, Py_ssize_t nargs) {
+    arg_t a[11];
+    if (parse(args, nargs, "llllppppppp", a)) return NULL;
+    return PyLong_FromLong(
+        probed_choice(a[0].l, a[1].l, a[2].l, a[3].l, a[4].p, a[5].p, a[6].p, a[7].p, a[8].p, a[9].p, a[10].p));
+}
+
+static PyMethodDef methods[] = {
+    {"best_choice", (PyCFunction)(void (*)(void))py_best_choice, METH_FASTCALL, NULL},
+    {"joint_choice", (PyCFunction)(void (*)(void))py_joint_choice, METH_FASTCALL, NULL},
+    {"scaled_states", (PyCFunction)(void (*)(void))py_scaled_states, METH_FASTCALL, NULL},
+    {"spline_states", (PyCFunction)(void (*)(void))py_spline_states, METH_FASTCALL, NULL},
+    {"via_directions", (PyCFunction)(void (*)(void))py_via_directions, METH_FASTCALL, NULL},
+    {"probed_choice", (PyCFunction)(void (*)(void))py_probed_choice, METH_FASTCALL, NULL},
+    {NULL, NULL, 0, NULL},
+};
+
+static struct PyModuleDef module = {PyModuleDef_HEAD_INIT, "planner_via_kernels", NULL, -1, methods};
+
+PyMODINIT_FUNC PyInit_planner_via_kernels(void) { return PyModule_Create(&module); }
+"""
+
 _SIGNATURES = {
     "best_choice": [ctypes.c_long, ctypes.c_long, *[ctypes.c_void_p] * 4],
     "scaled_states": [ctypes.c_long, ctypes.c_long, *[ctypes.c_void_p] * 5],
@@ -297,20 +356,27 @@ _SIGNATURES = {
 _MOST_ENTRIES = 4096
 
 
-#: The library once loaded (load_functions keeps it for the process too; this skips its lookup).
-_LOADED: list[ctypes.CDLL | None] = []
+#: The library once loaded (the loaders keep it for the process too; this skips their lookup).
+_LOADED: list[ModuleType | ctypes.CDLL | None] = []
 
 
-def _library() -> ctypes.CDLL | None:
+def _library() -> ModuleType | ctypes.CDLL | None:
+    """The compiled functions: through the C API where Python's headers are at hand, else ctypes (slower calls)."""
     if _LOADED:
         return _LOADED[0]
+    library = load_extension(C_API_HEAD + _SOURCE + _BINDINGS, "planner_via_kernels")
+    _LOADED.append(library if library is not None else _ctypes_library())
+    return _LOADED[0]
+
+
+def _ctypes_library() -> ctypes.CDLL | None:
+    """The compiled functions through ctypes (where the C API's headers are missing)."""
     library = load_functions(_SOURCE, "via_kernels", _SIGNATURES)
     if library is not None and library.best_choice.restype is None:
         library.best_choice.restype = ctypes.c_long  # (load_functions sets None: it returns a code)
         library.joint_choice.restype = ctypes.c_long
         library.spline_states.restype = ctypes.c_long
         library.probed_choice.restype = ctypes.c_long
-    _LOADED.append(library)
     return library
 
 
