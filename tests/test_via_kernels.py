@@ -224,3 +224,26 @@ def test_plans_are_the_same_through_the_c_api_and_ctypes(name, monkeypatch):
     monkeypatch.setattr(kernels, "_LOADED", [kernels._ctypes_library()])
     monkeypatch.setattr(segment_kernels, "_LOADED", [segment_kernels._ctypes_library()])
     assert [arrays(plan_trajectory(q, limits)) for q in paths] == through_c_api
+
+
+@settings(max_examples=300, deadline=None)
+@given(st.integers(1, 6), st.integers(0, 4), st.integers(1, 6), st.data())
+def test_choices_are_the_same_through_the_c_api_and_ctypes(k, probes, dof, data):
+    if not isinstance(kernels._library(), types.ModuleType):
+        pytest.skip("no Python headers: the kernels are called through ctypes only")
+    values = st.one_of(times, st.just(math.nan))
+    rows1 = [data.draw(st.lists(values, min_size=dof, max_size=dof)) for _ in range(k)]
+    rows2 = [data.draw(st.lists(values, min_size=dof, max_size=dof)) for _ in range(k)]
+    if data.draw(st.booleans()):  # ragged rows (the same total or not)
+        rows1[-1] = rows1[-1][:-1] + data.draw(st.lists(values, max_size=2))
+    joints = tuple(sorted(data.draw(st.sets(st.integers(0, dof - 1), min_size=1))))
+    p1 = data.draw(st.lists(values, min_size=probes * len(joints), max_size=probes * len(joints)))
+    p2 = data.draw(st.lists(values, min_size=len(p1), max_size=len(p1)))
+
+    def both():
+        return repr(choose_options(rows1, rows2)), repr(choose_probed(rows1, rows2, (p1, p2), joints))
+
+    through_c_api = both()
+    with pytest.MonkeyPatch.context() as monkeypatch:
+        monkeypatch.setattr(kernels, "_LOADED", [kernels._ctypes_library()])
+        assert both() == through_c_api  # (repr: NaN and the sign of zeros too)

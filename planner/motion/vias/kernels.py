@@ -327,7 +327,126 @@ static PyObject *py_probed_choice(PyObject *self, PyObject *const *args, Py_ssiz
         probed_choice(a[0].l, a[1].l, a[2].l, a[3].l, a[4].p, a[5].p, a[6].p, a[7].p, a[8].p, a[9].p, a[10].p));
 }
 
+/* Up to n floats of a flat sequence into out; the count read, or -1 on an error (set). */
+static Py_ssize_t read_floats(PyObject *items, double *out, Py_ssize_t n) {
+    PyObject *seq = PySequence_Fast(items, "expected a sequence of floats");
+    if (seq == NULL) return -1;
+    Py_ssize_t m = PySequence_Fast_GET_SIZE(seq);
+    PyObject **xs = PySequence_Fast_ITEMS(seq);
+    for (Py_ssize_t i = 0; i < m && i < n; ++i) {
+        out[i] = PyFloat_CheckExact(xs[i]) ? PyFloat_AS_DOUBLE(xs[i]) : PyFloat_AsDouble(xs[i]);
+        if (out[i] == -1.0 && PyErr_Occurred()) {
+            Py_DECREF(seq);
+            return -1;
+        }
+    }
+    Py_DECREF(seq);
+    return m;
+}
+
+/* Rows of floats one after the other into out (n floats); 1 where they hold n floats, 0 where not
+   (ragged: the caller's Python path decides), -1 on an error. */
+static int read_rows(PyObject *rows, double *out, Py_ssize_t n) {
+    PyObject *seq = PySequence_Fast(rows, "expected a sequence of rows");
+    if (seq == NULL) return -1;
+    Py_ssize_t k = PySequence_Fast_GET_SIZE(seq), at = 0;
+    PyObject **items = PySequence_Fast_ITEMS(seq);
+    for (Py_ssize_t r = 0; r < k; ++r) {
+        Py_ssize_t m = read_floats(items[r], out + at, n - at);
+        if (m < 0 || at + m > n) {
+            Py_DECREF(seq);
+            return m < 0 ? -1 : 0;
+        }
+        at += m;
+    }
+    Py_DECREF(seq);
+    return at == n;
+}
+
+/* best_choice's answer as choose_options (planner.motion.vias.kernels) gives it: None for a NaN,
+   else (best, choice or None). */
+static PyObject *choice_answer(long found, double best, const long *choice, long dof) {
+    if (found < 0) Py_RETURN_NONE;
+    if (!found) return Py_BuildValue("(dO)", best, Py_None);
+    PyObject *list = PyList_New(dof);
+    if (list == NULL) return NULL;
+    for (long j = 0; j < dof; ++j) {
+        PyObject *x = PyLong_FromLong(choice[j]);
+        if (x == NULL) {
+            Py_DECREF(list);
+            return NULL;
+        }
+        PyList_SET_ITEM(list, j, x);
+    }
+    return Py_BuildValue("(dN)", best, list);
+}
+
+/* choose_options on the rows themselves: (rows1, rows2, K, dof); None where the rows do not hold
+   K dof floats each in all (ragged) or a time is NaN. */
+static PyObject *py_choose_rows(PyObject *self, PyObject *const *args, Py_ssize_t nargs) {
+    if (nargs != 4) {
+        PyErr_SetString(PyExc_TypeError, "expected 4 arguments");
+        return NULL;
+    }
+    long K = PyLong_AsLong(args[2]), dof = PyLong_AsLong(args[3]);
+    if (PyErr_Occurred()) return NULL;
+    double t1[K * dof], t2[K * dof], best = 0.0;
+    long choice[dof];
+    int ok = read_rows(args[0], t1, K * dof);
+    if (ok > 0) ok = read_rows(args[1], t2, K * dof);
+    if (ok < 0) return NULL;
+    if (!ok) Py_RETURN_NONE;
+    long found = best_choice(K, dof, t1, t2, &best, choice);
+    return choice_answer(found, best, choice, dof);
+}
+
+/* choose_probed on the rows and probes themselves: (rows1, rows2, p1, p2, joints, K, P, count, dof),
+   p1 and p2 holding P count floats, joints count indices below dof; None as py_choose_rows. */
+static PyObject *py_choose_probed(PyObject *self, PyObject *const *args, Py_ssize_t nargs) {
+    if (nargs != 9) {
+        PyErr_SetString(PyExc_TypeError, "expected 9 arguments");
+        return NULL;
+    }
+    long K = PyLong_AsLong(args[5]), P = PyLong_AsLong(args[6]), count = PyLong_AsLong(args[7]);
+    long dof = PyLong_AsLong(args[8]);
+    if (PyErr_Occurred()) return NULL;
+    double t1[K * dof], t2[K * dof], p1[P * count], p2[P * count], best = 0.0;
+    long choice[dof], joints[count];
+    int ok = read_rows(args[0], t1, K * dof);
+    if (ok > 0) ok = read_rows(args[1], t2, K * dof);
+    if (ok < 0) return NULL;
+    if (!ok) Py_RETURN_NONE;
+    if (read_floats(args[2], p1, P * count) != P * count || read_floats(args[3], p2, P * count) != P * count) {
+        if (!PyErr_Occurred()) PyErr_SetString(PyExc_ValueError, "probed times of the wrong length");
+        return NULL;
+    }
+    PyObject *seq = PySequence_Fast(args[4], "joints must be a sequence");
+    if (seq == NULL) return NULL;
+    if (PySequence_Fast_GET_SIZE(seq) != count) {
+        Py_DECREF(seq);
+        PyErr_SetString(PyExc_ValueError, "joints of the wrong length");
+        return NULL;
+    }
+    for (long m = 0; m < count; ++m) {
+        joints[m] = PyLong_AsLong(PySequence_Fast_GET_ITEM(seq, m));
+        if (joints[m] == -1 && PyErr_Occurred()) {
+            Py_DECREF(seq);
+            return NULL;
+        }
+        if (joints[m] < 0 || joints[m] >= dof) {
+            Py_DECREF(seq);
+            PyErr_SetString(PyExc_ValueError, "a joint index out of range");
+            return NULL;
+        }
+    }
+    Py_DECREF(seq);
+    long found = probed_choice(K, P, count, dof, t1, t2, p1, p2, joints, &best, choice);
+    return choice_answer(found, best, choice, dof);
+}
+
 static PyMethodDef methods[] = {
+    {"choose_rows", (PyCFunction)(void (*)(void))py_choose_rows, METH_FASTCALL, NULL},
+    {"choose_probed", (PyCFunction)(void (*)(void))py_choose_probed, METH_FASTCALL, NULL},
     {"best_choice", (PyCFunction)(void (*)(void))py_best_choice, METH_FASTCALL, NULL},
     {"joint_choice", (PyCFunction)(void (*)(void))py_joint_choice, METH_FASTCALL, NULL},
     {"scaled_states", (PyCFunction)(void (*)(void))py_scaled_states, METH_FASTCALL, NULL},
@@ -402,6 +521,8 @@ def choose_options(rows1: list[list[float]], rows2: list[list[float]]) -> tuple[
     k, dof = len(rows1), len(rows1[0])
     if k * dof > _MOST_ENTRIES:
         return None  # (the C function sorts on its stack)
+    if type(library) is ModuleType:  # the C API reads the rows itself (None: ragged, or a NaN)
+        return library.choose_rows(rows1, rows2, k, dof)
     flat = _flat_rows(rows1, rows2, k * dof)
     if flat is None:
         return None  # ragged rows: the Python path says what is wrong
@@ -445,6 +566,8 @@ def choose_probed(
     extra = len(p1) // count
     if (k + extra) * dof > _MOST_ENTRIES or len(p1) != extra * count or len(p2) != len(p1):
         return None  # (the C function sorts on its stack)
+    if type(library) is ModuleType:  # the C API reads the rows and probes itself (None: ragged, or a NaN)
+        return library.choose_probed(rows1, rows2, p1, p2, joints, k, extra, count, dof)
     flat = _flat_rows(rows1, rows2, k * dof)
     if flat is None:
         return None  # ragged rows: the Python path says what is wrong
