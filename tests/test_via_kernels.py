@@ -17,6 +17,7 @@ from planner.motion.vias import base, heuristic, kernels, optimized
 from planner.motion.vias.kernels import (
     _library,
     blend_directions,
+    choose_joints,
     choose_options,
     choose_probed,
     scale_states,
@@ -247,3 +248,41 @@ def test_choices_are_the_same_through_the_c_api_and_ctypes(k, probes, dof, data)
     with pytest.MonkeyPatch.context() as monkeypatch:
         monkeypatch.setattr(kernels, "_LOADED", [kernels._ctypes_library()])
         assert both() == through_c_api  # (repr: NaN and the sign of zeros too)
+
+
+@settings(max_examples=200, deadline=None)
+@given(st.integers(1, 5), st.integers(2, 4), st.data())
+def test_states_and_joint_choice_are_the_same_through_the_c_api_and_ctypes(dof, m, data):
+    if not isinstance(kernels._library(), types.ModuleType):
+        pytest.skip("no Python headers: the kernels are called through ctypes only")
+    floats = st.one_of(st.sampled_from([0.0, -0.0, math.inf, 1e-300]), st.floats(-10.0, 10.0))
+    u, w, v_start, v_end = (np.array(data.draw(st.lists(floats, min_size=dof, max_size=dof))) for _ in range(4))
+    q = np.array([data.draw(st.lists(floats, min_size=dof, max_size=dof)) for _ in range(m + 1)])
+    h = np.array(data.draw(st.lists(st.one_of(st.just(0.0), st.floats(0.01, 5.0)), min_size=m, max_size=m)))
+    grid = data.draw(st.lists(st.floats(0.0, 5.0), max_size=5))
+    limits = JointLimits(
+        np.linspace(1.0, 2.0, dof),
+        np.linspace(2.0, 3.0, dof),
+        np.linspace(20.0, 30.0, dof),
+        -np.ones(dof),
+        np.ones(dof),
+    )
+    size = 3 * m * dof
+    run_times = data.draw(st.lists(st.one_of(times, st.just(math.nan)), min_size=size, max_size=size))
+    tp, tn = data.draw(st.floats(0.01, 5.0)), data.draw(st.floats(0.01, 5.0))
+
+    def outputs():
+        spline = spline_states(q, h, v_start, v_end)
+        return repr(
+            [
+                None if spline is None else [x.tobytes() for x in spline],
+                [x.tobytes() for x in scale_states(grid, u, w, limits.kernel_limits)],
+                [x.tobytes() for x in blend_directions(q[:3], tp, tn, limits.velocity, limits.acceleration)],
+                choose_joints(run_times, (3, m, dof), 2),
+            ]
+        )
+
+    through_c_api = outputs()
+    with pytest.MonkeyPatch.context() as monkeypatch:
+        monkeypatch.setattr(kernels, "_LOADED", [kernels._ctypes_library()])
+        assert outputs() == through_c_api

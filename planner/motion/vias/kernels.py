@@ -444,7 +444,84 @@ static PyObject *py_choose_probed(PyObject *self, PyObject *const *args, Py_ssiz
     return choice_answer(found, best, choice, dof);
 }
 
+/* A new bytearray of n doubles (uninitialised), or NULL on an error. */
+static PyObject *doubles(long n) { return PyByteArray_FromStringAndSize(NULL, (Py_ssize_t)(8 * (n > 0 ? n : 0))); }
+
+/* via_directions into a new bytearray: (dof, tp, tn, q, velocity, acceleration). */
+static PyObject *py_directions(PyObject *self, PyObject *const *args, Py_ssize_t nargs) {
+    arg_t a[6];
+    if (parse(args, nargs, "lddppp", a)) return NULL;
+    PyObject *out = doubles(2 * a[0].l);
+    if (out != NULL)
+        via_directions(a[0].l, a[1].d, a[2].d, a[3].p, a[4].p, a[5].p, (double *)PyByteArray_AS_STRING(out));
+    return out;
+}
+
+/* scaled_states into a new bytearray: (scales (a sequence of floats), dof, u, w, lims). */
+static PyObject *py_scaled(PyObject *self, PyObject *const *args, Py_ssize_t nargs) {
+    arg_t a[5];
+    if (nargs != 5) {
+        PyErr_SetString(PyExc_TypeError, "expected 5 arguments");
+        return NULL;
+    }
+    Py_ssize_t G = PyObject_Length(args[0]);
+    if (G < 0 || parse(args + 1, 4, "lppp", a + 1)) return NULL;
+    double x[G > 0 ? G : 1];
+    if (read_floats(args[0], x, G) != G) return NULL;
+    PyObject *out = doubles(2 * G * a[1].l);
+    if (out != NULL) scaled_states(G, a[1].l, x, a[2].p, a[3].p, a[4].p, (double *)PyByteArray_AS_STRING(out));
+    return out;
+}
+
+/* spline_states into a new bytearray: (m, dof, q, h, vs, ve); None where it returns -1. */
+static PyObject *py_spline(PyObject *self, PyObject *const *args, Py_ssize_t nargs) {
+    arg_t a[6];
+    if (parse(args, nargs, "llpppp", a)) return NULL;
+    PyObject *out = doubles(2 * (a[0].l - 1) * a[1].l);
+    if (out == NULL) return NULL;
+    if (spline_states(a[0].l, a[1].l, a[2].p, a[3].p, a[4].p, a[5].p, (double *)PyByteArray_AS_STRING(out))) {
+        Py_DECREF(out);
+        Py_RETURN_NONE;
+    }
+    return out;
+}
+
+/* joint_choice on a sequence of floats: (times, K, m, dof, rounds); -1 where a NaN is among them,
+   None where every option has an inf, else the choice (a list). */
+static PyObject *py_joints(PyObject *self, PyObject *const *args, Py_ssize_t nargs) {
+    arg_t a[5];
+    if (nargs != 5 || parse(args + 1, 4, "llll", a + 1)) {
+        if (!PyErr_Occurred()) PyErr_SetString(PyExc_TypeError, "expected 5 arguments");
+        return NULL;
+    }
+    long K = a[1].l, m = a[2].l, dof = a[3].l, n = K * m * dof;
+    double t[n > 0 ? n : 1];
+    long choice[dof > 0 ? dof : 1];
+    if (read_floats(args[0], t, n) != n) {
+        if (!PyErr_Occurred()) PyErr_SetString(PyExc_ValueError, "times of the wrong length");
+        return NULL;
+    }
+    long found = joint_choice(K, m, dof, a[4].l, t, choice);
+    if (found < 0) return PyLong_FromLong(-1);
+    if (!found) Py_RETURN_NONE;
+    PyObject *list = PyList_New(dof);
+    if (list == NULL) return NULL;
+    for (long j = 0; j < dof; ++j) {
+        PyObject *x = PyLong_FromLong(choice[j]);
+        if (x == NULL) {
+            Py_DECREF(list);
+            return NULL;
+        }
+        PyList_SET_ITEM(list, j, x);
+    }
+    return list;
+}
+
 static PyMethodDef methods[] = {
+    {"directions", (PyCFunction)(void (*)(void))py_directions, METH_FASTCALL, NULL},
+    {"scaled", (PyCFunction)(void (*)(void))py_scaled, METH_FASTCALL, NULL},
+    {"spline", (PyCFunction)(void (*)(void))py_spline, METH_FASTCALL, NULL},
+    {"joints", (PyCFunction)(void (*)(void))py_joints, METH_FASTCALL, NULL},
     {"choose_rows", (PyCFunction)(void (*)(void))py_choose_rows, METH_FASTCALL, NULL},
     {"choose_probed", (PyCFunction)(void (*)(void))py_choose_probed, METH_FASTCALL, NULL},
     {"best_choice", (PyCFunction)(void (*)(void))py_best_choice, METH_FASTCALL, NULL},
@@ -608,6 +685,9 @@ def choose_joints(times: list[float], shape: tuple[int, int, int], rounds: int) 
     count, m, dof = shape
     if library is None or count * m * dof > _MOST_ENTRIES:
         return False  # (the C function keeps the chosen times on its stack)
+    if type(library) is ModuleType:  # the C API reads the times itself
+        found = library.joints(times, count, m, dof, rounds)
+        return False if found == -1 else found
     flat = array("d", times)
     choice = array("l", [0]) * dof  # C longs, as the function's
     found = library.joint_choice(count, m, dof, rounds, flat.buffer_info()[0], choice.buffer_info()[0])
@@ -633,6 +713,9 @@ def scale_states(x: list[float], u: np.ndarray, w: np.ndarray, limits: bytes) ->
     if library is None:
         return None
     count, dof = len(x), len(u)
+    if type(library) is ModuleType:  # the C API reads the scales and makes the buffer
+        both = np.frombuffer(library.scaled(x, dof, u.tobytes(), w.tobytes(), limits)).reshape(2, count, dof)
+        return both[0], both[1]
     out = array("d", bytes(16 * count * dof))
     scales = array("d", x)  # (held here while the C function reads it)
     library.scaled_states(count, dof, scales.buffer_info()[0], u.tobytes(), w.tobytes(), limits, out.buffer_info()[0])
@@ -663,6 +746,12 @@ def spline_states(
     if m < 2 or q.shape != (m + 1, dof) or m * dof > _MOST_ENTRIES:
         return None  # (the C function keeps its rows on its stack)
     q = q.astype(np.float64, copy=False)  # (as the Python form's floats)
+    if type(library) is ModuleType:  # the C API makes the buffer (None: -1 from the C function)
+        made = library.spline(m, dof, q.tobytes(), h.tobytes(), v_start.tobytes(), v_end.tobytes())
+        if made is None:
+            return None
+        both = np.frombuffer(made).reshape(2, m - 1, dof)
+        return both[0], both[1]
     out = array("d", bytes(16 * (m - 1) * dof))
     if library.spline_states(
         m, dof, q.tobytes(), h.tobytes(), v_start.tobytes(), v_end.tobytes(), out.buffer_info()[0]
@@ -692,6 +781,9 @@ def blend_directions(
         return None
     dof = len(velocity)
     q = q.astype(np.float64, copy=False)  # (as the Python form's floats)
+    if type(library) is ModuleType:  # the C API makes the buffer
+        both = np.frombuffer(library.directions(dof, tp, tn, q.tobytes(), velocity.tobytes(), acceleration.tobytes()))
+        return both[:dof], both[dof:]
     out = array("d", bytes(16 * dof))
     library.via_directions(dof, tp, tn, q.tobytes(), velocity.tobytes(), acceleration.tobytes(), out.buffer_info()[0])
     both = np.frombuffer(out).reshape(2, dof)
