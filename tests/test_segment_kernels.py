@@ -105,3 +105,30 @@ def test_admissible_acceleration_takes_numpy_for_other_inputs():
     assert admissible_states(v, np.zeros(2, dtype=np.float32), limits.kernel_limits) is None
     assert admissible_states(v, [0.0, 0.0], limits.kernel_limits) is None
     assert admissible_states(np.zeros((2, 3)), np.zeros((2, 3)), limits.kernel_limits) is None  # dof differs
+
+
+@settings(max_examples=100, deadline=None)
+@given(st.integers(1, 6), st.integers(2, 5), st.data())
+def test_watch_and_admissible_are_the_same_through_the_c_api_and_ctypes(dof, n, data):
+    import types
+
+    from planner.motion import segment_kernels
+    from planner.motion.limits import admissible_acceleration
+
+    if not isinstance(segment_kernels._library(), types.ModuleType):
+        pytest.skip("no Python headers: the kernels are called through ctypes only")
+    velocity = np.array(data.draw(st.lists(limit, min_size=dof, max_size=dof)))
+    upper = np.array(data.draw(st.lists(ends, min_size=dof, max_size=dof)))
+    limits = JointLimits(velocity, 2.0 * velocity, 20.0 * velocity, -upper, upper)
+    q = np.array([data.draw(st.lists(positions, min_size=dof, max_size=dof)) for _ in range(n)])
+    v = np.array(data.draw(st.lists(states, min_size=n * dof, max_size=n * dof))).reshape(n, dof)
+
+    def outputs():
+        segments._RANGE_ENDS.clear()
+        solver = SegmentSolver(q, limits, None, [True] * (n - 1))
+        return repr((solver._watch, solver._reach)), admissible_acceleration(v, v, limits).tobytes()
+
+    through_c_api = outputs()
+    with pytest.MonkeyPatch.context() as monkeypatch:
+        monkeypatch.setattr(segment_kernels, "_LOADED", [segment_kernels._ctypes_library()])
+        assert outputs() == through_c_api

@@ -163,6 +163,7 @@ def load_functions(source: str, name: str, signatures: Mapping[str, Sequence]) -
 #: which reads the arguments of a METH_FASTCALL function by type codes as ctypes would take them:
 #: ``l`` a C long, ``d`` a double, ``p`` a pointer (bytes: their data; else an integer address).
 #: So one C function can be called through the C API and through ctypes with the same arguments.
+#: ``read_floats`` and ``read_rows`` copy a sequence of floats, or rows of them, into C doubles.
 C_API_HEAD = r"""#define PY_SSIZE_T_CLEAN
 #include <Python.h>
 #include <string.h>
@@ -191,14 +192,47 @@ static int parse(PyObject *const *args, Py_ssize_t nargs, const char *codes, arg
         } else if (PyBytes_Check(o)) {
             out[i].p = PyBytes_AS_STRING(o);
         } else {
-            out[i].p = PyLong_AsVoidPtr(o);
-            if (out[i].p == NULL) {
-                if (!PyErr_Occurred()) PyErr_SetString(PyExc_ValueError, "null pointer");
-                return -1;
-            }
+            out[i].p = PyLong_AsVoidPtr(o); /* 0: NULL, as ctypes passes it (an empty array's address) */
+            if (out[i].p == NULL && PyErr_Occurred()) return -1;
         }
     }
     return 0;
+}
+
+/* Up to n floats of a flat sequence into out; the count read, or -1 on an error (set). */
+static Py_ssize_t read_floats(PyObject *items, double *out, Py_ssize_t n) {
+    PyObject *seq = PySequence_Fast(items, "expected a sequence of floats");
+    if (seq == NULL) return -1;
+    Py_ssize_t m = PySequence_Fast_GET_SIZE(seq);
+    PyObject **xs = PySequence_Fast_ITEMS(seq);
+    for (Py_ssize_t i = 0; i < m && i < n; ++i) {
+        out[i] = PyFloat_CheckExact(xs[i]) ? PyFloat_AS_DOUBLE(xs[i]) : PyFloat_AsDouble(xs[i]);
+        if (out[i] == -1.0 && PyErr_Occurred()) {
+            Py_DECREF(seq);
+            return -1;
+        }
+    }
+    Py_DECREF(seq);
+    return m;
+}
+
+/* Rows of floats one after the other into out (n floats); 1 where they hold n floats, 0 where not
+   (ragged: the caller's Python path decides), -1 on an error. */
+static int read_rows(PyObject *rows, double *out, Py_ssize_t n) {
+    PyObject *seq = PySequence_Fast(rows, "expected a sequence of rows");
+    if (seq == NULL) return -1;
+    Py_ssize_t k = PySequence_Fast_GET_SIZE(seq), at = 0;
+    PyObject **items = PySequence_Fast_ITEMS(seq);
+    for (Py_ssize_t r = 0; r < k; ++r) {
+        Py_ssize_t m = read_floats(items[r], out + at, n - at);
+        if (m < 0 || at + m > n) {
+            Py_DECREF(seq);
+            return m < 0 ? -1 : 0;
+        }
+        at += m;
+    }
+    Py_DECREF(seq);
+    return at == n;
 }
 """
 

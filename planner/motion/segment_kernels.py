@@ -101,7 +101,56 @@ static PyObject *py_admissible(PyObject *self, PyObject *const *args, Py_ssize_t
     Py_RETURN_NONE;
 }
 
+/* A list of n floats. */
+static PyObject *float_list(const double *x, long n) {
+    PyObject *list = PyList_New(n);
+    if (list == NULL) return NULL;
+    for (long i = 0; i < n; ++i) {
+        PyObject *f = PyFloat_FromDouble(x[i]);
+        if (f == NULL) {
+            Py_DECREF(list);
+            return NULL;
+        }
+        PyList_SET_ITEM(list, i, f);
+    }
+    return list;
+}
+
+/* watch_times on the waypoint rows themselves, (rows, K, dof, U, ju, vu, au, ku, hu, L, jl, vl, al, kl,
+   ll, miss), the times and the least per joint as lists of floats; None where the rows do not hold
+   (K + 1) dof floats. */
+static PyObject *py_watch_lists(PyObject *self, PyObject *const *args, Py_ssize_t nargs) {
+    arg_t a[16];
+    if (nargs != 16 || parse(args + 1, 15, "lllppppplpppppd", a + 1)) {
+        if (!PyErr_Occurred()) PyErr_SetString(PyExc_TypeError, "expected 16 arguments");
+        return NULL;
+    }
+    long K = a[1].l, dof = a[2].l, E = a[3].l + a[9].l;
+    if (K < 1 || dof < 1) Py_RETURN_NONE;
+    double q[(K + 1) * dof], out[K * E > 0 ? K * E : 1], reach[K * dof];
+    int ok = read_rows(args[0], q, (K + 1) * dof);
+    if (ok < 0) return NULL;
+    if (!ok) Py_RETURN_NONE;
+    watch_times(K, dof, q, a[3].l, a[4].p, a[5].p, a[6].p, a[7].p, a[8].p, a[9].l, a[10].p, a[11].p, a[12].p,
+                a[13].p, a[14].p, a[15].d, out, reach);
+    PyObject *times = float_list(out, K * E);
+    if (times == NULL) return NULL;
+    return Py_BuildValue("(NN)", times, float_list(reach, K * dof));
+}
+
+/* admissible into a new bytearray: (n, dof, v, a, lims). */
+static PyObject *py_admissible_out(PyObject *self, PyObject *const *args, Py_ssize_t nargs) {
+    arg_t a[5];
+    if (parse(args, nargs, "llppp", a)) return NULL;
+    long size = a[0].l * a[1].l;
+    PyObject *out = PyByteArray_FromStringAndSize(NULL, (Py_ssize_t)(8 * (size > 0 ? size : 0)));
+    if (out != NULL) admissible(a[0].l, a[1].l, a[2].p, a[3].p, a[4].p, (double *)PyByteArray_AS_STRING(out));
+    return out;
+}
+
 static PyMethodDef methods[] = {
+    {"watch_lists", (PyCFunction)(void (*)(void))py_watch_lists, METH_FASTCALL, NULL},
+    {"admissible_out", (PyCFunction)(void (*)(void))py_admissible_out, METH_FASTCALL, NULL},
     {"watch_times", (PyCFunction)(void (*)(void))py_watch_times, METH_FASTCALL, NULL},
     {"admissible", (PyCFunction)(void (*)(void))py_admissible, METH_FASTCALL, NULL},
     {NULL, NULL, 0, NULL},
@@ -194,6 +243,8 @@ def watch_times(rows: list[list[float]], table: WatchTable, miss: float) -> tupl
     if library is None:
         return None
     segments, dof = len(rows) - 1, len(rows[0])
+    if type(library) is ModuleType:  # the C API reads the rows and makes the lists (None: ragged rows)
+        return library.watch_lists(rows, segments, dof, *table._args, miss)
     q = array("d", list(chain.from_iterable(rows)))
     out = array("d", bytes(8 * segments * table.count))
     reach = array("d", bytes(8 * segments * dof))
@@ -230,6 +281,9 @@ def admissible_states(v: np.ndarray, a: np.ndarray, limits: bytes) -> np.ndarray
     size = v.size
     if not dof or 24 * dof != len(limits):
         return None
+    if type(library) is ModuleType:  # the C API makes the buffer
+        made = library.admissible_out(size // dof, dof, v.tobytes(), a.tobytes(), limits)
+        return np.frombuffer(made).reshape(v.shape)
     out = array("d", bytes(8 * size))
     library.admissible(size // dof, dof, v.tobytes(), a.tobytes(), limits, out.buffer_info()[0])
     return np.frombuffer(out).reshape(v.shape)

@@ -327,42 +327,6 @@ static PyObject *py_probed_choice(PyObject *self, PyObject *const *args, Py_ssiz
         probed_choice(a[0].l, a[1].l, a[2].l, a[3].l, a[4].p, a[5].p, a[6].p, a[7].p, a[8].p, a[9].p, a[10].p));
 }
 
-/* Up to n floats of a flat sequence into out; the count read, or -1 on an error (set). */
-static Py_ssize_t read_floats(PyObject *items, double *out, Py_ssize_t n) {
-    PyObject *seq = PySequence_Fast(items, "expected a sequence of floats");
-    if (seq == NULL) return -1;
-    Py_ssize_t m = PySequence_Fast_GET_SIZE(seq);
-    PyObject **xs = PySequence_Fast_ITEMS(seq);
-    for (Py_ssize_t i = 0; i < m && i < n; ++i) {
-        out[i] = PyFloat_CheckExact(xs[i]) ? PyFloat_AS_DOUBLE(xs[i]) : PyFloat_AsDouble(xs[i]);
-        if (out[i] == -1.0 && PyErr_Occurred()) {
-            Py_DECREF(seq);
-            return -1;
-        }
-    }
-    Py_DECREF(seq);
-    return m;
-}
-
-/* Rows of floats one after the other into out (n floats); 1 where they hold n floats, 0 where not
-   (ragged: the caller's Python path decides), -1 on an error. */
-static int read_rows(PyObject *rows, double *out, Py_ssize_t n) {
-    PyObject *seq = PySequence_Fast(rows, "expected a sequence of rows");
-    if (seq == NULL) return -1;
-    Py_ssize_t k = PySequence_Fast_GET_SIZE(seq), at = 0;
-    PyObject **items = PySequence_Fast_ITEMS(seq);
-    for (Py_ssize_t r = 0; r < k; ++r) {
-        Py_ssize_t m = read_floats(items[r], out + at, n - at);
-        if (m < 0 || at + m > n) {
-            Py_DECREF(seq);
-            return m < 0 ? -1 : 0;
-        }
-        at += m;
-    }
-    Py_DECREF(seq);
-    return at == n;
-}
-
 /* best_choice's answer as choose_options (planner.motion.vias.kernels) gives it: None for a NaN,
    else (best, choice or None). */
 static PyObject *choice_answer(long found, double best, const long *choice, long dof) {
