@@ -286,3 +286,22 @@ def test_states_and_joint_choice_are_the_same_through_the_c_api_and_ctypes(dof, 
     with pytest.MonkeyPatch.context() as monkeypatch:
         monkeypatch.setattr(kernels, "_LOADED", [kernels._ctypes_library()])
         assert outputs() == through_c_api
+
+
+@settings(max_examples=300, deadline=None)
+@given(st.integers(1, 6), st.data())
+def test_compiled_moved_states_equal_the_python_loop(dof, data):
+    from planner.motion.vias import joint_steps
+
+    if not isinstance(kernels._library(), types.ModuleType):
+        pytest.skip("no Python headers: the Python loop only")
+    floats = st.one_of(st.sampled_from([0.0, -0.0, math.inf, math.nan, 1e-300]), st.floats(-10.0, 10.0))
+    limit_rows = [tuple(data.draw(st.lists(st.floats(0.0, 50.0), min_size=dof, max_size=dof))) for _ in range(3)]
+    state = tuple(data.draw(st.lists(floats, min_size=dof, max_size=dof)) for _ in range(2))
+    joints = tuple(sorted(data.draw(st.sets(st.integers(0, dof - 1)))))
+    moves = data.draw(st.lists(st.one_of(st.sampled_from([0.0, -0.05, 0.05]), st.floats(-1.0, 1.0)), max_size=4))
+    got = joint_steps.moved_states(tuple(limit_rows), state, joints, moves)
+    with pytest.MonkeyPatch.context() as monkeypatch:
+        monkeypatch.setattr(joint_steps, "moved_states_compiled", lambda *args: None)
+        want = joint_steps.moved_states(tuple(limit_rows), state, joints, moves)
+    assert repr(got) == repr(want)  # (repr: NaN and the sign of zeros too)

@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import ctypes
 from array import array
+from collections.abc import Sequence
 from itertools import chain
 from types import ModuleType
 
@@ -22,7 +23,15 @@ import numpy as np
 
 from planner.core.native import C_API_HEAD, load_extension, load_functions
 
-__all__ = ["choose_options", "choose_probed", "choose_joints", "scale_states", "spline_states", "blend_directions"]
+__all__ = [
+    "blend_directions",
+    "choose_joints",
+    "choose_options",
+    "choose_probed",
+    "moved_states_compiled",
+    "scale_states",
+    "spline_states",
+]
 
 _SOURCE = r"""
 #include <math.h>
@@ -481,7 +490,75 @@ static PyObject *py_joints(PyObject *self, PyObject *const *args, Py_ssize_t nar
     return list;
 }
 
+/* moved_states (planner.motion.vias.joint_steps) on plain floats: (velocity, acceleration, twice_jerk,
+   cv, ca, joints, moves), the same operations in the same order; per move (velocities, accelerations)
+   of the joints, lists. */
+static PyObject *py_moved(PyObject *self, PyObject *const *args, Py_ssize_t nargs) {
+    if (nargs != 7) {
+        PyErr_SetString(PyExc_TypeError, "expected 7 arguments");
+        return NULL;
+    }
+    Py_ssize_t dof = PyObject_Length(args[0]), count = PyObject_Length(args[5]), many = PyObject_Length(args[6]);
+    if (dof < 0 || count < 0 || many < 0) return NULL;
+    double vel[dof + 1], acc[dof + 1], tj[dof + 1], cv[dof + 1], ca[dof + 1], moves[many + 1];
+    if (read_floats(args[0], vel, dof) != dof || read_floats(args[1], acc, dof) != dof ||
+        read_floats(args[2], tj, dof) != dof || read_floats(args[3], cv, dof) != dof ||
+        read_floats(args[4], ca, dof) != dof || read_floats(args[6], moves, many) != many) {
+        if (!PyErr_Occurred()) PyErr_SetString(PyExc_ValueError, "limits or states of the wrong length");
+        return NULL;
+    }
+    long joints[count + 1];
+    PyObject *seq = PySequence_Fast(args[5], "joints must be a sequence");
+    if (seq == NULL) return NULL;
+    for (Py_ssize_t m = 0; m < count; ++m) {
+        joints[m] = PyLong_AsLong(PySequence_Fast_GET_ITEM(seq, m));
+        if ((joints[m] == -1 && PyErr_Occurred()) || joints[m] < -dof || joints[m] >= dof) {
+            Py_DECREF(seq);
+            if (!PyErr_Occurred()) PyErr_SetString(PyExc_IndexError, "a joint index out of range");
+            return NULL;
+        }
+        if (joints[m] < 0) joints[m] += dof; /* as Python indexes */
+    }
+    Py_DECREF(seq);
+    PyObject *out = PyList_New(many);
+    if (out == NULL) return NULL;
+    for (Py_ssize_t k = 0; k < many; ++k) {
+        PyObject *nv = PyList_New(count), *na = PyList_New(count), *pair = NULL;
+        if (nv == NULL || na == NULL) goto fail;
+        for (Py_ssize_t m = 0; m < count; ++m) {
+            long j = joints[m];
+            double top = vel[j], most = acc[j], x = cv[j], y = ca[j];
+            x += moves[k] * top;
+            x = x > top ? top : x < -top ? -top : x;
+            double room = top - (x >= 0.0 ? x : -x);
+            double amax = room > 0.0 ? sqrt(tj[j] * room) * (1.0 - 1e-9) : 0.0;
+            if (amax > most) amax = most;
+            PyObject *fx = PyFloat_FromDouble(x), *fy = PyFloat_FromDouble(y > amax ? amax : y < -amax ? -amax : y);
+            if (fx == NULL || fy == NULL) {
+                Py_XDECREF(fx);
+                Py_XDECREF(fy);
+                goto fail;
+            }
+            PyList_SET_ITEM(nv, m, fx);
+            PyList_SET_ITEM(na, m, fy);
+        }
+        pair = PyTuple_Pack(2, nv, na);
+        if (pair == NULL) goto fail;
+        Py_DECREF(nv);
+        Py_DECREF(na);
+        PyList_SET_ITEM(out, k, pair);
+        continue;
+    fail:
+        Py_XDECREF(nv);
+        Py_XDECREF(na);
+        Py_DECREF(out);
+        return NULL;
+    }
+    return out;
+}
+
 static PyMethodDef methods[] = {
+    {"moved", (PyCFunction)(void (*)(void))py_moved, METH_FASTCALL, NULL},
     {"directions", (PyCFunction)(void (*)(void))py_directions, METH_FASTCALL, NULL},
     {"scaled", (PyCFunction)(void (*)(void))py_scaled, METH_FASTCALL, NULL},
     {"spline", (PyCFunction)(void (*)(void))py_spline, METH_FASTCALL, NULL},
@@ -752,3 +829,19 @@ def blend_directions(
     library.via_directions(dof, tp, tn, q.tobytes(), velocity.tobytes(), acceleration.tobytes(), out.buffer_info()[0])
     both = np.frombuffer(out).reshape(2, dof)
     return both[0], both[1]
+
+
+def moved_states_compiled(
+    limits: tuple[Sequence[float], Sequence[float], Sequence[float]],
+    state: tuple[Sequence[float], Sequence[float]],
+    joints: Sequence[int],
+    moves: Sequence[float],
+) -> list[tuple[list[float], list[float]]] | None:
+    """:func:`planner.motion.vias.joint_steps.moved_states` in C (None without the C API: the caller's Python loop).
+
+    The same operations in the same order on the same floats (bit for bit).
+    """
+    library = _library()
+    if type(library) is not ModuleType:
+        return None
+    return library.moved(*limits, *state, joints, moves)
