@@ -132,3 +132,42 @@ def test_watch_and_admissible_are_the_same_through_the_c_api_and_ctypes(dof, n, 
     with pytest.MonkeyPatch.context() as monkeypatch:
         monkeypatch.setattr(segment_kernels, "_LOADED", [segment_kernels._ctypes_library()])
         assert outputs() == through_c_api
+
+
+class _Profile:
+    """A stand-in for a Ruckig profile: its per-phase lists."""
+
+    def __init__(self, j, a, p, v):
+        self.j, self.a, self.p, self.v = j, a, p, v
+
+
+@settings(max_examples=300, deadline=None)
+@given(st.data())
+def test_compiled_zero_jerk_turns_equal_the_python_loop(data):
+    import types
+
+    from planner.motion import segment_kernels
+
+    if not isinstance(segment_kernels._library(), types.ModuleType):
+        pytest.skip("no Python headers: the Python loop only")
+    values = st.one_of(st.sampled_from([0.0, -0.0, 1.0, -1.0, math.inf, math.nan]), st.floats(-5.0, 5.0))
+    phases = data.draw(st.integers(0, 8))
+    jerk = data.draw(st.lists(st.one_of(st.just(0.0), values), min_size=phases, max_size=phases))
+    v, a, p = (data.draw(st.lists(values, min_size=phases + 1, max_size=phases + 1)) for _ in range(3))
+    if data.draw(st.booleans()):  # lists too short for the loop
+        v, a = v[: data.draw(st.integers(0, phases))], a[: data.draw(st.integers(0, phases))]
+    prof = _Profile(jerk, a, p, v)
+
+    def python():
+        with pytest.MonkeyPatch.context() as m:
+            m.setattr(segments, "zero_jerk_turns", lambda *args: None)
+            try:
+                return repr(segments._zero_jerk_turns(prof, v))
+            except (IndexError, ZeroDivisionError) as exc:
+                return type(exc).__name__
+
+    try:
+        got = repr(segments._zero_jerk_turns(prof, v))
+    except (IndexError, ZeroDivisionError) as exc:
+        got = type(exc).__name__
+    assert got == python()  # (repr: NaN and the sign of zeros too)

@@ -21,7 +21,7 @@ import numpy as np
 
 from planner.core.native import C_API_HEAD, load_extension, load_functions
 
-__all__ = ["WatchTable", "admissible_states", "watch_times"]
+__all__ = ["WatchTable", "admissible_states", "watch_times", "zero_jerk_turns"]
 
 _SOURCE = r"""
 #include <math.h>
@@ -148,7 +148,60 @@ static PyObject *py_admissible_out(PyObject *self, PyObject *const *args, Py_ssi
     return out;
 }
 
+/* A sequence attribute of obj read into out (at most n floats); its length, or -1 on an error. */
+static Py_ssize_t read_attribute(PyObject *obj, const char *name, double *out, Py_ssize_t n) {
+    PyObject *seq = PyObject_GetAttrString(obj, name);
+    if (seq == NULL) return -1;
+    Py_ssize_t m = read_floats(seq, out, n);
+    Py_DECREF(seq);
+    return m;
+}
+
+/* _zero_jerk_turns (planner.motion.segments) of one Ruckig profile: (prof, v), v its velocities (a
+   list); the turns (a list), or None where the profile's lists are longer than 16 or shorter than
+   its loop reads, or a turn has a zero acceleration (the Python loop is then the reference). */
+static PyObject *py_zero_jerk_turns(PyObject *self, PyObject *const *args, Py_ssize_t nargs) {
+    if (nargs != 2) {
+        PyErr_SetString(PyExc_TypeError, "expected 2 arguments");
+        return NULL;
+    }
+    double v[17], jerk[17], acc[17], pos[17];
+    Py_ssize_t nv = read_floats(args[1], v, 17), nj = read_attribute(args[0], "j", jerk, 17), na = -2, np = -2;
+    if (nv < 0 || nj < 0) return NULL;
+    if (nv > 16 || nj > 16) Py_RETURN_NONE;
+    PyObject *turns = PyList_New(0);
+    if (turns == NULL) return NULL;
+    for (Py_ssize_t i = 0; i < nj; ++i) {
+        if (jerk[i] != 0.0) continue;
+        if (i + 1 >= nv) goto python;
+        if (!(v[i] * v[i + 1] < 0.0)) continue;
+        if (na == -2) {
+            na = read_attribute(args[0], "a", acc, 17);
+            np = na < 0 ? -1 : read_attribute(args[0], "p", pos, 17);
+            if (na < 0 || np < 0) {
+                Py_DECREF(turns);
+                return NULL;
+            }
+        }
+        if (i >= na || i >= np || na > 16 || np > 16 || acc[i] == 0.0) goto python;
+        double v0 = v[i], a0 = acc[i];
+        double tz = -v0 / a0;
+        PyObject *turn = PyFloat_FromDouble(pos[i] + tz * (v0 + tz * a0 / 2.0));
+        if (turn == NULL || PyList_Append(turns, turn) < 0) {
+            Py_XDECREF(turn);
+            Py_DECREF(turns);
+            return NULL;
+        }
+        Py_DECREF(turn);
+    }
+    return turns;
+python:
+    Py_DECREF(turns);
+    Py_RETURN_NONE;
+}
+
 static PyMethodDef methods[] = {
+    {"zero_jerk_turns", (PyCFunction)(void (*)(void))py_zero_jerk_turns, METH_FASTCALL, NULL},
     {"watch_lists", (PyCFunction)(void (*)(void))py_watch_lists, METH_FASTCALL, NULL},
     {"admissible_out", (PyCFunction)(void (*)(void))py_admissible_out, METH_FASTCALL, NULL},
     {"watch_times", (PyCFunction)(void (*)(void))py_watch_times, METH_FASTCALL, NULL},
@@ -287,3 +340,16 @@ def admissible_states(v: np.ndarray, a: np.ndarray, limits: bytes) -> np.ndarray
     out = array("d", bytes(8 * size))
     library.admissible(size // dof, dof, v.tobytes(), a.tobytes(), limits, out.buffer_info()[0])
     return np.frombuffer(out).reshape(v.shape)
+
+
+def zero_jerk_turns(prof: object, v: list[float]) -> list[float] | None:
+    """``_zero_jerk_turns`` of :mod:`planner.motion.segments` in C, the same operations (None: its Python loop decides).
+
+    Args:
+        prof: One joint's Ruckig profile.
+        v: Its velocities ``prof.v``.
+    """
+    library = _library()
+    if type(library) is not ModuleType:
+        return None
+    return library.zero_jerk_turns(prof, v)

@@ -26,7 +26,7 @@ from ruckig import Trajectory as RuckigTrajectory
 
 from planner.exceptions import InvalidArgumentError, PlanningError
 from planner.motion.limits import RANGE_TOLERANCE, JointLimits, reach_time
-from planner.motion.segment_kernels import WatchTable, watch_times
+from planner.motion.segment_kernels import WatchTable, watch_times, zero_jerk_turns
 from planner.motion.trajectory import LIMIT_TOLERANCE
 
 __all__ = [
@@ -245,6 +245,9 @@ def _zero_jerk_turns(prof, v: list[float] | None = None) -> list[float]:
     """
     if v is None:
         v = prof.v
+    fast = zero_jerk_turns(prof, v)  # compiled, the same operations (None: the loop below)
+    if fast is not None:
+        return fast
     # The phases of zero jerk where the velocity changes sign (the accelerations and the
     # positions are read only where there is one).
     jerk = prof.j
