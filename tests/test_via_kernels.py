@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+import types
 
 import numpy as np
 import pytest
@@ -16,6 +17,7 @@ from planner.motion.vias import base, heuristic, kernels, optimized
 from planner.motion.vias.kernels import (
     _library,
     blend_directions,
+    choose_joints,
     choose_options,
     choose_probed,
     scale_states,
@@ -203,3 +205,103 @@ def test_compiled_probed_choice_leaves_nan_to_python():
     assert choose_probed([[1.0, 2.0]], [[1.0, 2.0]], ([math.nan], [0.5]), (1,)) is None
     assert choose_probed([[1.0, 2.0]], [[1.0, 2.0]], ([], []), ()) is None
     assert optimized._probed_choice([[1.0, 2.0]], [[1.0, 2.0]], ([], (1,), ([0.5], [0.5]))) == [0, 1]
+
+
+@pytest.mark.parametrize("name", ["three_joint", "dh3"])
+def test_plans_are_the_same_through_the_c_api_and_ctypes(name, monkeypatch):
+    from planner.motion import segment_kernels
+
+    if not isinstance(kernels._library(), types.ModuleType):
+        pytest.skip("no Python headers: the kernels are called through ctypes only")
+    robot = load_robot(name)
+    limits = JointLimits.from_robot(robot)
+    rng = np.random.default_rng(12)
+    paths = [robot.random_configurations(rng, 5) for _ in range(12)]
+
+    def arrays(traj):
+        return [traj.duration, *(np.asarray(a).tobytes() for a in (traj.via_velocities, traj.via_accelerations))]
+
+    through_c_api = [arrays(plan_trajectory(q, limits)) for q in paths]
+    monkeypatch.setattr(kernels, "_LOADED", [kernels._ctypes_library()])
+    monkeypatch.setattr(segment_kernels, "_LOADED", [segment_kernels._ctypes_library()])
+    assert [arrays(plan_trajectory(q, limits)) for q in paths] == through_c_api
+
+
+@settings(max_examples=300, deadline=None)
+@given(st.integers(1, 6), st.integers(0, 4), st.integers(1, 6), st.data())
+def test_choices_are_the_same_through_the_c_api_and_ctypes(k, probes, dof, data):
+    if not isinstance(kernels._library(), types.ModuleType):
+        pytest.skip("no Python headers: the kernels are called through ctypes only")
+    values = st.one_of(times, st.just(math.nan))
+    rows1 = [data.draw(st.lists(values, min_size=dof, max_size=dof)) for _ in range(k)]
+    rows2 = [data.draw(st.lists(values, min_size=dof, max_size=dof)) for _ in range(k)]
+    if data.draw(st.booleans()):  # ragged rows (the same total or not)
+        rows1[-1] = rows1[-1][:-1] + data.draw(st.lists(values, max_size=2))
+    joints = tuple(sorted(data.draw(st.sets(st.integers(0, dof - 1), min_size=1))))
+    p1 = data.draw(st.lists(values, min_size=probes * len(joints), max_size=probes * len(joints)))
+    p2 = data.draw(st.lists(values, min_size=len(p1), max_size=len(p1)))
+
+    def both():
+        return repr(choose_options(rows1, rows2)), repr(choose_probed(rows1, rows2, (p1, p2), joints))
+
+    through_c_api = both()
+    with pytest.MonkeyPatch.context() as monkeypatch:
+        monkeypatch.setattr(kernels, "_LOADED", [kernels._ctypes_library()])
+        assert both() == through_c_api  # (repr: NaN and the sign of zeros too)
+
+
+@settings(max_examples=200, deadline=None)
+@given(st.integers(1, 5), st.integers(2, 4), st.data())
+def test_states_and_joint_choice_are_the_same_through_the_c_api_and_ctypes(dof, m, data):
+    if not isinstance(kernels._library(), types.ModuleType):
+        pytest.skip("no Python headers: the kernels are called through ctypes only")
+    floats = st.one_of(st.sampled_from([0.0, -0.0, math.inf, 1e-300]), st.floats(-10.0, 10.0))
+    u, w, v_start, v_end = (np.array(data.draw(st.lists(floats, min_size=dof, max_size=dof))) for _ in range(4))
+    q = np.array([data.draw(st.lists(floats, min_size=dof, max_size=dof)) for _ in range(m + 1)])
+    h = np.array(data.draw(st.lists(st.one_of(st.just(0.0), st.floats(0.01, 5.0)), min_size=m, max_size=m)))
+    grid = data.draw(st.lists(st.floats(0.0, 5.0), max_size=5))
+    limits = JointLimits(
+        np.linspace(1.0, 2.0, dof),
+        np.linspace(2.0, 3.0, dof),
+        np.linspace(20.0, 30.0, dof),
+        -np.ones(dof),
+        np.ones(dof),
+    )
+    size = 3 * m * dof
+    run_times = data.draw(st.lists(st.one_of(times, st.just(math.nan)), min_size=size, max_size=size))
+    tp, tn = data.draw(st.floats(0.01, 5.0)), data.draw(st.floats(0.01, 5.0))
+
+    def outputs():
+        spline = spline_states(q, h, v_start, v_end)
+        return repr(
+            [
+                None if spline is None else [x.tobytes() for x in spline],
+                [x.tobytes() for x in scale_states(grid, u, w, limits.kernel_limits)],
+                [x.tobytes() for x in blend_directions(q[:3], tp, tn, limits.velocity, limits.acceleration)],
+                choose_joints(run_times, (3, m, dof), 2),
+            ]
+        )
+
+    through_c_api = outputs()
+    with pytest.MonkeyPatch.context() as monkeypatch:
+        monkeypatch.setattr(kernels, "_LOADED", [kernels._ctypes_library()])
+        assert outputs() == through_c_api
+
+
+@settings(max_examples=300, deadline=None)
+@given(st.integers(1, 6), st.data())
+def test_compiled_moved_states_equal_the_python_loop(dof, data):
+    from planner.motion.vias import joint_steps
+
+    if not isinstance(kernels._library(), types.ModuleType):
+        pytest.skip("no Python headers: the Python loop only")
+    floats = st.one_of(st.sampled_from([0.0, -0.0, math.inf, math.nan, 1e-300]), st.floats(-10.0, 10.0))
+    limit_rows = [tuple(data.draw(st.lists(st.floats(0.0, 50.0), min_size=dof, max_size=dof))) for _ in range(3)]
+    state = tuple(data.draw(st.lists(floats, min_size=dof, max_size=dof)) for _ in range(2))
+    joints = tuple(sorted(data.draw(st.sets(st.integers(0, dof - 1)))))
+    moves = data.draw(st.lists(st.one_of(st.sampled_from([0.0, -0.05, 0.05]), st.floats(-1.0, 1.0)), max_size=4))
+    got = joint_steps.moved_states(tuple(limit_rows), state, joints, moves)
+    with pytest.MonkeyPatch.context() as monkeypatch:
+        monkeypatch.setattr(joint_steps, "moved_states_compiled", lambda *args: None)
+        want = joint_steps.moved_states(tuple(limit_rows), state, joints, moves)
+    assert repr(got) == repr(want)  # (repr: NaN and the sign of zeros too)

@@ -15,16 +15,29 @@ from __future__ import annotations
 
 import ctypes
 import hashlib
+import importlib.util
 import os
 import shlex
 import shutil
 import subprocess
+import sysconfig
 import tempfile
 import warnings
 from collections.abc import Mapping, Sequence
 from pathlib import Path
+from types import ModuleType
 
-__all__ = ["FLAGS", "build_library", "cache_dir", "find_compiler", "load_functions", "load_library", "native_cache_dir"]
+__all__ = [
+    "C_API_HEAD",
+    "FLAGS",
+    "build_library",
+    "cache_dir",
+    "find_compiler",
+    "load_extension",
+    "load_functions",
+    "load_library",
+    "native_cache_dir",
+]
 
 #: Compiler flags: optimised without value-changing shortcuts (no -ffast-math), a shared library.
 FLAGS = ("-O2", "-fPIC", "-shared")
@@ -144,3 +157,126 @@ def load_functions(source: str, name: str, signatures: Mapping[str, Sequence]) -
                 getattr(lib, function).argtypes = list(argtypes)
         _LOADED[key] = lib
     return _LOADED[key]
+
+
+#: The start of a :func:`load_extension` source: Python's header (first, as it asks) and ``parse``,
+#: which reads the arguments of a METH_FASTCALL function by type codes as ctypes would take them:
+#: ``l`` a C long, ``d`` a double, ``p`` a pointer (bytes: their data; else an integer address).
+#: So one C function can be called through the C API and through ctypes with the same arguments.
+#: ``read_floats`` and ``read_rows`` copy a sequence of floats, or rows of them, into C doubles.
+C_API_HEAD = r"""#define PY_SSIZE_T_CLEAN
+#include <Python.h>
+#include <string.h>
+
+typedef union {
+    long l;
+    double d;
+    void *p;
+} arg_t;
+
+/* The arguments by type code: l a C long, d a double, p a pointer (bytes: its data; else an address). */
+static int parse(PyObject *const *args, Py_ssize_t nargs, const char *codes, arg_t *out) {
+    Py_ssize_t n = (Py_ssize_t)strlen(codes);
+    if (nargs != n) {
+        PyErr_Format(PyExc_TypeError, "expected %zd arguments, got %zd", n, nargs);
+        return -1;
+    }
+    for (Py_ssize_t i = 0; i < n; ++i) {
+        PyObject *o = args[i];
+        if (codes[i] == 'l') {
+            out[i].l = PyLong_AsLong(o);
+            if (out[i].l == -1 && PyErr_Occurred()) return -1;
+        } else if (codes[i] == 'd') {
+            out[i].d = PyFloat_AsDouble(o);
+            if (out[i].d == -1.0 && PyErr_Occurred()) return -1;
+        } else if (PyBytes_Check(o)) {
+            out[i].p = PyBytes_AS_STRING(o);
+        } else {
+            out[i].p = PyLong_AsVoidPtr(o); /* 0: NULL, as ctypes passes it (an empty array's address) */
+            if (out[i].p == NULL && PyErr_Occurred()) return -1;
+        }
+    }
+    return 0;
+}
+
+/* Up to n floats of a flat sequence into out; the count read, or -1 on an error (set). */
+static Py_ssize_t read_floats(PyObject *items, double *out, Py_ssize_t n) {
+    PyObject *seq = PySequence_Fast(items, "expected a sequence of floats");
+    if (seq == NULL) return -1;
+    Py_ssize_t m = PySequence_Fast_GET_SIZE(seq);
+    PyObject **xs = PySequence_Fast_ITEMS(seq);
+    for (Py_ssize_t i = 0; i < m && i < n; ++i) {
+        out[i] = PyFloat_CheckExact(xs[i]) ? PyFloat_AS_DOUBLE(xs[i]) : PyFloat_AsDouble(xs[i]);
+        if (out[i] == -1.0 && PyErr_Occurred()) {
+            Py_DECREF(seq);
+            return -1;
+        }
+    }
+    Py_DECREF(seq);
+    return m;
+}
+
+/* Rows of floats one after the other into out (n floats); 1 where they hold n floats, 0 where not
+   (ragged: the caller's Python path decides), -1 on an error. */
+static int read_rows(PyObject *rows, double *out, Py_ssize_t n) {
+    PyObject *seq = PySequence_Fast(rows, "expected a sequence of rows");
+    if (seq == NULL) return -1;
+    Py_ssize_t k = PySequence_Fast_GET_SIZE(seq), at = 0;
+    PyObject **items = PySequence_Fast_ITEMS(seq);
+    for (Py_ssize_t r = 0; r < k; ++r) {
+        Py_ssize_t m = read_floats(items[r], out + at, n - at);
+        if (m < 0 || at + m > n) {
+            Py_DECREF(seq);
+            return m < 0 ? -1 : 0;
+        }
+        at += m;
+    }
+    Py_DECREF(seq);
+    return at == n;
+}
+"""
+
+_EXTENSIONS: dict[tuple[str, str], ModuleType | None] = {}
+
+
+def load_extension(source: str, name: str) -> ModuleType | None:
+    """`source`, a CPython extension module defining ``PyInit_<name>``, compiled and imported once per process.
+
+    For kernels called many times per plan on a few numbers: a call through the C API costs a
+    small part of a ctypes call (whose argument conversion costs far more than such a kernel's
+    arithmetic). Built like :func:`load_library` (cached on disk under a hash of the source, the
+    compiler, the flags and Python's include folder and extension suffix), with Python's headers.
+
+    Returns:
+        The module (the same object on every call), or None where it cannot be built: compiling
+        switched off (``PLANNER_JIT=0``), no compiler, no ``Python.h`` (no warning), or
+        compiling or importing fails (then with a ``RuntimeWarning``); the callers then take
+        their Python path.
+    """
+    key = (name, source)
+    if key in _EXTENSIONS:
+        return _EXTENSIONS[key]
+    module = None
+    compiler = find_compiler()
+    include = sysconfig.get_paths().get("include")
+    suffix = sysconfig.get_config_var("EXT_SUFFIX") or ".so"
+    if compiler is not None and include and (Path(include) / "Python.h").is_file():
+        flags = (*FLAGS, f"-I{include}")
+        digest = hashlib.sha256("\0".join([source, compiler, *flags, suffix]).encode()).hexdigest()[:24]
+        library = native_cache_dir() / f"{name}_{digest}{suffix}"
+        try:
+            build_library(source, library, compiler, flags, timeout=120)
+            spec = importlib.util.spec_from_file_location(name, library)
+            if spec is None or spec.loader is None:
+                raise ImportError(f"cannot import {library}")
+            module = importlib.util.module_from_spec(spec)
+            spec.loader.exec_module(module)
+        except (OSError, RuntimeError, ImportError, subprocess.SubprocessError) as exc:
+            warnings.warn(
+                f"planner: cannot build the C extension {name!r} ({exc}); using the slower path",
+                RuntimeWarning,
+                stacklevel=2,
+            )
+            module = None
+    _EXTENSIONS[key] = module
+    return module

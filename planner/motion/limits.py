@@ -19,6 +19,7 @@ from planner.core.arrays import read_only
 from planner.core.text import plain
 from planner.core.units import servo_speed_to_velocity
 from planner.exceptions import InvalidLimitsError, PlanningError
+from planner.motion.segment_kernels import admissible_states
 
 if TYPE_CHECKING:
     from planner.model.robot import Robot
@@ -163,6 +164,11 @@ class JointLimits:
     def twice_jerk(self) -> np.ndarray:
         """2 * jerk, shape (dof,) [rad/s^3 or m/s^3] (read-only; for the via-state rule)."""
         return read_only(2.0 * self.jerk)
+
+    @cached_property
+    def kernel_limits(self) -> bytes:
+        """Velocity, acceleration and twice the jerk limits as float64 bytes, one after the other (for C kernels)."""
+        return self.velocity.tobytes() + self.acceleration.tobytes() + self.twice_jerk.tobytes()
 
     @cached_property
     def checked_range(self) -> tuple[np.ndarray, np.ndarray]:
@@ -370,6 +376,9 @@ def admissible_acceleration(v: np.ndarray, a: np.ndarray, limits: JointLimits) -
     Returns:
         The accelerations, each clipped to what its velocity allows (a new array).
     """
+    fast = admissible_states(v, a, limits.kernel_limits)  # compiled, the same operations (None: below)
+    if fast is not None:
+        return fast
     # The same operations as room = max(v_max - |v|, 0), amax = min(a_max, sqrt(2 j_max room) (1 - 1e-9)),
     # max(min(a, amax), -amax), in place on two arrays.
     amax = np.abs(v)

@@ -26,7 +26,7 @@ from ruckig import Trajectory as RuckigTrajectory
 
 from planner.exceptions import InvalidArgumentError, PlanningError
 from planner.motion.limits import RANGE_TOLERANCE, JointLimits, reach_time
-from planner.motion.segment_kernels import WatchTable, watch_times
+from planner.motion.segment_kernels import WatchTable, watch_times, zero_jerk_turns
 from planner.motion.trajectory import LIMIT_TOLERANCE
 
 __all__ = [
@@ -245,6 +245,9 @@ def _zero_jerk_turns(prof, v: list[float] | None = None) -> list[float]:
     """
     if v is None:
         v = prof.v
+    fast = zero_jerk_turns(prof, v)  # compiled, the same operations (None: the loop below)
+    if fast is not None:
+        return fast
     # The phases of zero jerk where the velocity changes sign (the accelerations and the
     # positions are read only where there is one).
     jerk = prof.j
@@ -949,11 +952,16 @@ class SegmentSolver:
         ends to rest, whatever that costs. Ruckig's end positions are read first (one call);
         only a miss is merged.
         """
-        duration, _, traj = self.solve(k, va, aa, vb, ab)
-        if traj is None:
-            return True
+        traj = self.solve(k, va, aa, vb, ab)[2]
+        return traj is None or self.traj_misses_end(k, traj, va, aa, vb, ab)
+
+    def traj_misses_end(
+        self, k: int, traj: RuckigTrajectory, va: np.ndarray, aa: np.ndarray, vb: np.ndarray, ab: np.ndarray
+    ) -> bool:
+        """:meth:`misses_end` with the trajectory :meth:`solve` gave for these states at hand (not None)."""
         known = self._misses_end.get(traj)  # (the searches ask again for some states)
         if known is None:
+            duration = traj.duration  # (what solve returned with it)
             if math.dist(traj.at_time(duration)[0], self.rows[k + 1]) <= _END_DISTANCE:
                 known = False
             else:

@@ -21,6 +21,7 @@ from collections.abc import Collection, Sequence
 import numpy as np
 
 from planner.motion.vias.base import ViaChain, best_choice
+from planner.motion.vias.kernels import moved_states_compiled
 
 __all__ = ["BINDING", "STEPS", "moved_states", "resweep_via", "step_binding_joints"]
 
@@ -52,6 +53,9 @@ def moved_states(
         speed limit, each acceleration the joint's, limited as
         :func:`planner.motion.limits.admissible_acceleration` limits it (the same operations).
     """
+    fast = moved_states_compiled(limits, state, joints, moves)  # compiled, the same operations
+    if fast is not None:
+        return fast
     velocity, acceleration, twice_jerk = limits
     cv, ca = state
     rows = [(velocity[j], acceleration[j], twice_jerk[j], cv[j], ca[j]) for j in joints]

@@ -15,13 +15,23 @@ from __future__ import annotations
 
 import ctypes
 from array import array
+from collections.abc import Sequence
 from itertools import chain
+from types import ModuleType
 
 import numpy as np
 
-from planner.core.native import load_functions
+from planner.core.native import C_API_HEAD, load_extension, load_functions
 
-__all__ = ["choose_options", "choose_probed", "choose_joints", "scale_states", "spline_states", "blend_directions"]
+__all__ = [
+    "blend_directions",
+    "choose_joints",
+    "choose_options",
+    "choose_probed",
+    "moved_states_compiled",
+    "scale_states",
+    "spline_states",
+]
 
 _SOURCE = r"""
 #include <math.h>
@@ -283,6 +293,292 @@ long probed_choice(long K, long P, long count, long dof, const double *t1, const
 }
 """
 
+# The same functions callable from Python through the C API (see planner.core.native.load_extension):
+# each takes the arguments its ctypes signature below does (C longs and doubles; pointers as bytes or
+# as addresses), so the callers are the same for both.
+_BINDINGS = r"""
+static PyObject *py_best_choice(PyObject *self, PyObject *const *args, Py_ssize_t nargs) {
+    arg_t a[6];
+    if (parse(args, nargs, "llpppp", a)) return NULL;
+    return PyLong_FromLong(best_choice(a[0].l, a[1].l, a[2].p, a[3].p, a[4].p, a[5].p));
+}
+
+static PyObject *py_joint_choice(PyObject *self, PyObject *const *args, Py_ssize_t nargs) {
+    arg_t a[6];
+    if (parse(args, nargs, "llllpp", a)) return NULL;
+    return PyLong_FromLong(joint_choice(a[0].l, a[1].l, a[2].l, a[3].l, a[4].p, a[5].p));
+}
+
+static PyObject *py_scaled_states(PyObject *self, PyObject *const *args, Py_ssize_t nargs) {
+    arg_t a[7];
+    if (parse(args, nargs, "llppppp", a)) return NULL;
+    scaled_states(a[0].l, a[1].l, a[2].p, a[3].p, a[4].p, a[5].p, a[6].p);
+    Py_RETURN_NONE;
+}
+
+static PyObject *py_spline_states(PyObject *self, PyObject *const *args, Py_ssize_t nargs) {
+    arg_t a[7];
+    if (parse(args, nargs, "llppppp", a)) return NULL;
+    return PyLong_FromLong(spline_states(a[0].l, a[1].l, a[2].p, a[3].p, a[4].p, a[5].p, a[6].p));
+}
+
+static PyObject *py_via_directions(PyObject *self, PyObject *const *args, Py_ssize_t nargs) {
+    arg_t a[7];
+    if (parse(args, nargs, "lddpppp", a)) return NULL;
+    via_directions(a[0].l, a[1].d, a[2].d, a[3].p, a[4].p, a[5].p, a[6].p);
+    Py_RETURN_NONE;
+}
+
+static PyObject *py_probed_choice(PyObject *self, PyObject *const *args, Py_ssize_t nargs) {
+    arg_t a[11];
+    if (parse(args, nargs, "llllppppppp", a)) return NULL;
+    return PyLong_FromLong(
+        probed_choice(a[0].l, a[1].l, a[2].l, a[3].l, a[4].p, a[5].p, a[6].p, a[7].p, a[8].p, a[9].p, a[10].p));
+}
+
+/* best_choice's answer as choose_options (planner.motion.vias.kernels) gives it: None for a NaN,
+   else (best, choice or None). */
+static PyObject *choice_answer(long found, double best, const long *choice, long dof) {
+    if (found < 0) Py_RETURN_NONE;
+    if (!found) return Py_BuildValue("(dO)", best, Py_None);
+    PyObject *list = PyList_New(dof);
+    if (list == NULL) return NULL;
+    for (long j = 0; j < dof; ++j) {
+        PyObject *x = PyLong_FromLong(choice[j]);
+        if (x == NULL) {
+            Py_DECREF(list);
+            return NULL;
+        }
+        PyList_SET_ITEM(list, j, x);
+    }
+    return Py_BuildValue("(dN)", best, list);
+}
+
+/* choose_options on the rows themselves: (rows1, rows2, K, dof); None where the rows do not hold
+   K dof floats each in all (ragged) or a time is NaN. */
+static PyObject *py_choose_rows(PyObject *self, PyObject *const *args, Py_ssize_t nargs) {
+    if (nargs != 4) {
+        PyErr_SetString(PyExc_TypeError, "expected 4 arguments");
+        return NULL;
+    }
+    long K = PyLong_AsLong(args[2]), dof = PyLong_AsLong(args[3]);
+    if (PyErr_Occurred()) return NULL;
+    double t1[K * dof], t2[K * dof], best = 0.0;
+    long choice[dof];
+    int ok = read_rows(args[0], t1, K * dof);
+    if (ok > 0) ok = read_rows(args[1], t2, K * dof);
+    if (ok < 0) return NULL;
+    if (!ok) Py_RETURN_NONE;
+    long found = best_choice(K, dof, t1, t2, &best, choice);
+    return choice_answer(found, best, choice, dof);
+}
+
+/* choose_probed on the rows and probes themselves: (rows1, rows2, p1, p2, joints, K, P, count, dof),
+   p1 and p2 holding P count floats, joints count indices below dof; None as py_choose_rows. */
+static PyObject *py_choose_probed(PyObject *self, PyObject *const *args, Py_ssize_t nargs) {
+    if (nargs != 9) {
+        PyErr_SetString(PyExc_TypeError, "expected 9 arguments");
+        return NULL;
+    }
+    long K = PyLong_AsLong(args[5]), P = PyLong_AsLong(args[6]), count = PyLong_AsLong(args[7]);
+    long dof = PyLong_AsLong(args[8]);
+    if (PyErr_Occurred()) return NULL;
+    double t1[K * dof], t2[K * dof], p1[P * count], p2[P * count], best = 0.0;
+    long choice[dof], joints[count];
+    int ok = read_rows(args[0], t1, K * dof);
+    if (ok > 0) ok = read_rows(args[1], t2, K * dof);
+    if (ok < 0) return NULL;
+    if (!ok) Py_RETURN_NONE;
+    if (read_floats(args[2], p1, P * count) != P * count || read_floats(args[3], p2, P * count) != P * count) {
+        if (!PyErr_Occurred()) PyErr_SetString(PyExc_ValueError, "probed times of the wrong length");
+        return NULL;
+    }
+    PyObject *seq = PySequence_Fast(args[4], "joints must be a sequence");
+    if (seq == NULL) return NULL;
+    if (PySequence_Fast_GET_SIZE(seq) != count) {
+        Py_DECREF(seq);
+        PyErr_SetString(PyExc_ValueError, "joints of the wrong length");
+        return NULL;
+    }
+    for (long m = 0; m < count; ++m) {
+        joints[m] = PyLong_AsLong(PySequence_Fast_GET_ITEM(seq, m));
+        if (joints[m] == -1 && PyErr_Occurred()) {
+            Py_DECREF(seq);
+            return NULL;
+        }
+        if (joints[m] < 0 || joints[m] >= dof) {
+            Py_DECREF(seq);
+            PyErr_SetString(PyExc_ValueError, "a joint index out of range");
+            return NULL;
+        }
+    }
+    Py_DECREF(seq);
+    long found = probed_choice(K, P, count, dof, t1, t2, p1, p2, joints, &best, choice);
+    return choice_answer(found, best, choice, dof);
+}
+
+/* A new bytearray of n doubles (uninitialised), or NULL on an error. */
+static PyObject *doubles(long n) { return PyByteArray_FromStringAndSize(NULL, (Py_ssize_t)(8 * (n > 0 ? n : 0))); }
+
+/* via_directions into a new bytearray: (dof, tp, tn, q, velocity, acceleration). */
+static PyObject *py_directions(PyObject *self, PyObject *const *args, Py_ssize_t nargs) {
+    arg_t a[6];
+    if (parse(args, nargs, "lddppp", a)) return NULL;
+    PyObject *out = doubles(2 * a[0].l);
+    if (out != NULL)
+        via_directions(a[0].l, a[1].d, a[2].d, a[3].p, a[4].p, a[5].p, (double *)PyByteArray_AS_STRING(out));
+    return out;
+}
+
+/* scaled_states into a new bytearray: (scales (a sequence of floats), dof, u, w, lims). */
+static PyObject *py_scaled(PyObject *self, PyObject *const *args, Py_ssize_t nargs) {
+    arg_t a[5];
+    if (nargs != 5) {
+        PyErr_SetString(PyExc_TypeError, "expected 5 arguments");
+        return NULL;
+    }
+    Py_ssize_t G = PyObject_Length(args[0]);
+    if (G < 0 || parse(args + 1, 4, "lppp", a + 1)) return NULL;
+    double x[G > 0 ? G : 1];
+    if (read_floats(args[0], x, G) != G) return NULL;
+    PyObject *out = doubles(2 * G * a[1].l);
+    if (out != NULL) scaled_states(G, a[1].l, x, a[2].p, a[3].p, a[4].p, (double *)PyByteArray_AS_STRING(out));
+    return out;
+}
+
+/* spline_states into a new bytearray: (m, dof, q, h, vs, ve); None where it returns -1. */
+static PyObject *py_spline(PyObject *self, PyObject *const *args, Py_ssize_t nargs) {
+    arg_t a[6];
+    if (parse(args, nargs, "llpppp", a)) return NULL;
+    PyObject *out = doubles(2 * (a[0].l - 1) * a[1].l);
+    if (out == NULL) return NULL;
+    if (spline_states(a[0].l, a[1].l, a[2].p, a[3].p, a[4].p, a[5].p, (double *)PyByteArray_AS_STRING(out))) {
+        Py_DECREF(out);
+        Py_RETURN_NONE;
+    }
+    return out;
+}
+
+/* joint_choice on a sequence of floats: (times, K, m, dof, rounds); -1 where a NaN is among them,
+   None where every option has an inf, else the choice (a list). */
+static PyObject *py_joints(PyObject *self, PyObject *const *args, Py_ssize_t nargs) {
+    arg_t a[5];
+    if (nargs != 5 || parse(args + 1, 4, "llll", a + 1)) {
+        if (!PyErr_Occurred()) PyErr_SetString(PyExc_TypeError, "expected 5 arguments");
+        return NULL;
+    }
+    long K = a[1].l, m = a[2].l, dof = a[3].l, n = K * m * dof;
+    double t[n > 0 ? n : 1];
+    long choice[dof > 0 ? dof : 1];
+    if (read_floats(args[0], t, n) != n) {
+        if (!PyErr_Occurred()) PyErr_SetString(PyExc_ValueError, "times of the wrong length");
+        return NULL;
+    }
+    long found = joint_choice(K, m, dof, a[4].l, t, choice);
+    if (found < 0) return PyLong_FromLong(-1);
+    if (!found) Py_RETURN_NONE;
+    PyObject *list = PyList_New(dof);
+    if (list == NULL) return NULL;
+    for (long j = 0; j < dof; ++j) {
+        PyObject *x = PyLong_FromLong(choice[j]);
+        if (x == NULL) {
+            Py_DECREF(list);
+            return NULL;
+        }
+        PyList_SET_ITEM(list, j, x);
+    }
+    return list;
+}
+
+/* moved_states (planner.motion.vias.joint_steps) on plain floats: (velocity, acceleration, twice_jerk,
+   cv, ca, joints, moves), the same operations in the same order; per move (velocities, accelerations)
+   of the joints, lists. */
+static PyObject *py_moved(PyObject *self, PyObject *const *args, Py_ssize_t nargs) {
+    if (nargs != 7) {
+        PyErr_SetString(PyExc_TypeError, "expected 7 arguments");
+        return NULL;
+    }
+    Py_ssize_t dof = PyObject_Length(args[0]), count = PyObject_Length(args[5]), many = PyObject_Length(args[6]);
+    if (dof < 0 || count < 0 || many < 0) return NULL;
+    double vel[dof + 1], acc[dof + 1], tj[dof + 1], cv[dof + 1], ca[dof + 1], moves[many + 1];
+    if (read_floats(args[0], vel, dof) != dof || read_floats(args[1], acc, dof) != dof ||
+        read_floats(args[2], tj, dof) != dof || read_floats(args[3], cv, dof) != dof ||
+        read_floats(args[4], ca, dof) != dof || read_floats(args[6], moves, many) != many) {
+        if (!PyErr_Occurred()) PyErr_SetString(PyExc_ValueError, "limits or states of the wrong length");
+        return NULL;
+    }
+    long joints[count + 1];
+    PyObject *seq = PySequence_Fast(args[5], "joints must be a sequence");
+    if (seq == NULL) return NULL;
+    for (Py_ssize_t m = 0; m < count; ++m) {
+        joints[m] = PyLong_AsLong(PySequence_Fast_GET_ITEM(seq, m));
+        if ((joints[m] == -1 && PyErr_Occurred()) || joints[m] < -dof || joints[m] >= dof) {
+            Py_DECREF(seq);
+            if (!PyErr_Occurred()) PyErr_SetString(PyExc_IndexError, "a joint index out of range");
+            return NULL;
+        }
+        if (joints[m] < 0) joints[m] += dof; /* as Python indexes */
+    }
+    Py_DECREF(seq);
+    PyObject *out = PyList_New(many);
+    if (out == NULL) return NULL;
+    for (Py_ssize_t k = 0; k < many; ++k) {
+        PyObject *nv = PyList_New(count), *na = PyList_New(count), *pair = NULL;
+        if (nv == NULL || na == NULL) goto fail;
+        for (Py_ssize_t m = 0; m < count; ++m) {
+            long j = joints[m];
+            double top = vel[j], most = acc[j], x = cv[j], y = ca[j];
+            x += moves[k] * top;
+            x = x > top ? top : x < -top ? -top : x;
+            double room = top - (x >= 0.0 ? x : -x);
+            double amax = room > 0.0 ? sqrt(tj[j] * room) * (1.0 - 1e-9) : 0.0;
+            if (amax > most) amax = most;
+            PyObject *fx = PyFloat_FromDouble(x), *fy = PyFloat_FromDouble(y > amax ? amax : y < -amax ? -amax : y);
+            if (fx == NULL || fy == NULL) {
+                Py_XDECREF(fx);
+                Py_XDECREF(fy);
+                goto fail;
+            }
+            PyList_SET_ITEM(nv, m, fx);
+            PyList_SET_ITEM(na, m, fy);
+        }
+        pair = PyTuple_Pack(2, nv, na);
+        if (pair == NULL) goto fail;
+        Py_DECREF(nv);
+        Py_DECREF(na);
+        PyList_SET_ITEM(out, k, pair);
+        continue;
+    fail:
+        Py_XDECREF(nv);
+        Py_XDECREF(na);
+        Py_DECREF(out);
+        return NULL;
+    }
+    return out;
+}
+
+static PyMethodDef methods[] = {
+    {"moved", (PyCFunction)(void (*)(void))py_moved, METH_FASTCALL, NULL},
+    {"directions", (PyCFunction)(void (*)(void))py_directions, METH_FASTCALL, NULL},
+    {"scaled", (PyCFunction)(void (*)(void))py_scaled, METH_FASTCALL, NULL},
+    {"spline", (PyCFunction)(void (*)(void))py_spline, METH_FASTCALL, NULL},
+    {"joints", (PyCFunction)(void (*)(void))py_joints, METH_FASTCALL, NULL},
+    {"choose_rows", (PyCFunction)(void (*)(void))py_choose_rows, METH_FASTCALL, NULL},
+    {"choose_probed", (PyCFunction)(void (*)(void))py_choose_probed, METH_FASTCALL, NULL},
+    {"best_choice", (PyCFunction)(void (*)(void))py_best_choice, METH_FASTCALL, NULL},
+    {"joint_choice", (PyCFunction)(void (*)(void))py_joint_choice, METH_FASTCALL, NULL},
+    {"scaled_states", (PyCFunction)(void (*)(void))py_scaled_states, METH_FASTCALL, NULL},
+    {"spline_states", (PyCFunction)(void (*)(void))py_spline_states, METH_FASTCALL, NULL},
+    {"via_directions", (PyCFunction)(void (*)(void))py_via_directions, METH_FASTCALL, NULL},
+    {"probed_choice", (PyCFunction)(void (*)(void))py_probed_choice, METH_FASTCALL, NULL},
+    {NULL, NULL, 0, NULL},
+};
+
+static struct PyModuleDef module = {PyModuleDef_HEAD_INIT, "planner_via_kernels", NULL, -1, methods};
+
+PyMODINIT_FUNC PyInit_planner_via_kernels(void) { return PyModule_Create(&module); }
+"""
+
 _SIGNATURES = {
     "best_choice": [ctypes.c_long, ctypes.c_long, *[ctypes.c_void_p] * 4],
     "scaled_states": [ctypes.c_long, ctypes.c_long, *[ctypes.c_void_p] * 5],
@@ -297,7 +593,21 @@ _SIGNATURES = {
 _MOST_ENTRIES = 4096
 
 
-def _library() -> ctypes.CDLL | None:
+#: The library once loaded (the loaders keep it for the process too; this skips their lookup).
+_LOADED: list[ModuleType | ctypes.CDLL | None] = []
+
+
+def _library() -> ModuleType | ctypes.CDLL | None:
+    """The compiled functions: through the C API where Python's headers are at hand, else ctypes (slower calls)."""
+    if _LOADED:
+        return _LOADED[0]
+    library = load_extension(C_API_HEAD + _SOURCE + _BINDINGS, "planner_via_kernels")
+    _LOADED.append(library if library is not None else _ctypes_library())
+    return _LOADED[0]
+
+
+def _ctypes_library() -> ctypes.CDLL | None:
+    """The compiled functions through ctypes (where the C API's headers are missing)."""
     library = load_functions(_SOURCE, "via_kernels", _SIGNATURES)
     if library is not None and library.best_choice.restype is None:
         library.best_choice.restype = ctypes.c_long  # (load_functions sets None: it returns a code)
@@ -329,6 +639,8 @@ def choose_options(rows1: list[list[float]], rows2: list[list[float]]) -> tuple[
     k, dof = len(rows1), len(rows1[0])
     if k * dof > _MOST_ENTRIES:
         return None  # (the C function sorts on its stack)
+    if type(library) is ModuleType:  # the C API reads the rows itself (None: ragged, or a NaN)
+        return library.choose_rows(rows1, rows2, k, dof)
     flat = _flat_rows(rows1, rows2, k * dof)
     if flat is None:
         return None  # ragged rows: the Python path says what is wrong
@@ -372,6 +684,8 @@ def choose_probed(
     extra = len(p1) // count
     if (k + extra) * dof > _MOST_ENTRIES or len(p1) != extra * count or len(p2) != len(p1):
         return None  # (the C function sorts on its stack)
+    if type(library) is ModuleType:  # the C API reads the rows and probes itself (None: ragged, or a NaN)
+        return library.choose_probed(rows1, rows2, p1, p2, joints, k, extra, count, dof)
     flat = _flat_rows(rows1, rows2, k * dof)
     if flat is None:
         return None  # ragged rows: the Python path says what is wrong
@@ -412,6 +726,9 @@ def choose_joints(times: list[float], shape: tuple[int, int, int], rounds: int) 
     count, m, dof = shape
     if library is None or count * m * dof > _MOST_ENTRIES:
         return False  # (the C function keeps the chosen times on its stack)
+    if type(library) is ModuleType:  # the C API reads the times itself
+        found = library.joints(times, count, m, dof, rounds)
+        return False if found == -1 else found
     flat = array("d", times)
     choice = array("l", [0]) * dof  # C longs, as the function's
     found = library.joint_choice(count, m, dof, rounds, flat.buffer_info()[0], choice.buffer_info()[0])
@@ -437,6 +754,9 @@ def scale_states(x: list[float], u: np.ndarray, w: np.ndarray, limits: bytes) ->
     if library is None:
         return None
     count, dof = len(x), len(u)
+    if type(library) is ModuleType:  # the C API reads the scales and makes the buffer
+        both = np.frombuffer(library.scaled(x, dof, u.tobytes(), w.tobytes(), limits)).reshape(2, count, dof)
+        return both[0], both[1]
     out = array("d", bytes(16 * count * dof))
     scales = array("d", x)  # (held here while the C function reads it)
     library.scaled_states(count, dof, scales.buffer_info()[0], u.tobytes(), w.tobytes(), limits, out.buffer_info()[0])
@@ -467,6 +787,12 @@ def spline_states(
     if m < 2 or q.shape != (m + 1, dof) or m * dof > _MOST_ENTRIES:
         return None  # (the C function keeps its rows on its stack)
     q = q.astype(np.float64, copy=False)  # (as the Python form's floats)
+    if type(library) is ModuleType:  # the C API makes the buffer (None: -1 from the C function)
+        made = library.spline(m, dof, q.tobytes(), h.tobytes(), v_start.tobytes(), v_end.tobytes())
+        if made is None:
+            return None
+        both = np.frombuffer(made).reshape(2, m - 1, dof)
+        return both[0], both[1]
     out = array("d", bytes(16 * (m - 1) * dof))
     if library.spline_states(
         m, dof, q.tobytes(), h.tobytes(), v_start.tobytes(), v_end.tobytes(), out.buffer_info()[0]
@@ -496,7 +822,26 @@ def blend_directions(
         return None
     dof = len(velocity)
     q = q.astype(np.float64, copy=False)  # (as the Python form's floats)
+    if type(library) is ModuleType:  # the C API makes the buffer
+        both = np.frombuffer(library.directions(dof, tp, tn, q.tobytes(), velocity.tobytes(), acceleration.tobytes()))
+        return both[:dof], both[dof:]
     out = array("d", bytes(16 * dof))
     library.via_directions(dof, tp, tn, q.tobytes(), velocity.tobytes(), acceleration.tobytes(), out.buffer_info()[0])
     both = np.frombuffer(out).reshape(2, dof)
     return both[0], both[1]
+
+
+def moved_states_compiled(
+    limits: tuple[Sequence[float], Sequence[float], Sequence[float]],
+    state: tuple[Sequence[float], Sequence[float]],
+    joints: Sequence[int],
+    moves: Sequence[float],
+) -> list[tuple[list[float], list[float]]] | None:
+    """:func:`planner.motion.vias.joint_steps.moved_states` in C (None without the C API: the caller's Python loop).
+
+    The same operations in the same order on the same floats (bit for bit).
+    """
+    library = _library()
+    if type(library) is not ModuleType:
+        return None
+    return library.moved(*limits, *state, joints, moves)

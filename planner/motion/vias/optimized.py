@@ -359,8 +359,7 @@ def _capped_grid(top: float) -> list[float]:
 
 def _grid_candidates(x: list[float], u: np.ndarray, w: np.ndarray, lim: JointLimits) -> tuple[np.ndarray, np.ndarray]:
     """The admissible states ``(x u, x^2 w)`` at the scales x, shapes (G, dof) (:func:`_scaled_states`)."""
-    limits = lim.velocity.tobytes() + lim.acceleration.tobytes() + lim.twice_jerk.tobytes()
-    fast = scale_states(x, u, w, limits)  # compiled, the same operations
+    fast = scale_states(x, u, w, lim.kernel_limits)  # compiled, the same operations
     if fast is not None:
         return fast
     return _scaled_states(np.array(x), np.sign(u), np.abs(u), np.sign(w), np.abs(w), lim)
@@ -743,7 +742,7 @@ class OptimizedStrategy(ViaStrategy):
         # Scaling every duration by s scales the spline's via velocities by 1/s and its via
         # accelerations by 1/s^2, except the parts due to the end velocities (by 1 and 1/s):
         # one spline at the durations h0 gives the via states at every scale.
-        zero = np.zeros_like(v_a)
+        zero = np.zeros(dof)
         v_q, acc_q = spline_via_states(q_run, h0, zero, zero)
         vs, accs = v_q * _SPLINE_INV, acc_q * _SPLINE_INV2
         if any(v_a.tolist()) or any(v_b.tolist()):
@@ -969,13 +968,13 @@ class OptimizedStrategy(ViaStrategy):
         pool, halve = [], _TURN_HALVED
         va, aa, vb, ab = chain.v[i - 1], chain.acc[i - 1], chain.v[i + 1], chain.acc[i + 1]
 
-        def misses_end(cv: np.ndarray, ca: np.ndarray) -> bool:
-            return seg.misses_end(i - 1, va, aa, cv, ca) or seg.misses_end(i, cv, ca, vb, ab)
+        def misses_end(cv: np.ndarray, ca: np.ndarray, traj1, traj2) -> bool:  # (trajs: both's for cv, ca)
+            return seg.traj_misses_end(i - 1, traj1, va, aa, cv, ca) or seg.traj_misses_end(i, traj2, cv, ca, vb, ab)
 
         for state in sorted(options, key=lambda c: c[0]):
-            if misses_end(state[1], state[2]):
+            (_, _, traj1), (_, _, traj2) = both(state[1], state[2])  # (finite: both profiles there)
+            if misses_end(state[1], state[2], traj1, traj2):
                 continue  # the range repair would rest at the via
-            (_, _, traj1), (_, _, traj2) = both(state[1], state[2])
             out = seg.turns_beyond(i - 1, traj1) + seg.turns_beyond(i, traj2)
             if not out:
                 pool.append(state)
@@ -993,7 +992,7 @@ class OptimizedStrategy(ViaStrategy):
                 (_, _, traj1), (_, _, traj2) = both(state[1], state[2])
                 out = seg.turns_beyond(i - 1, traj1) + seg.turns_beyond(i, traj2)
                 if not out:
-                    if not misses_end(state[1], state[2]):
+                    if not misses_end(state[1], state[2], traj1, traj2):
                         pool.append(state)
                     break
         best = min(pool, key=lambda c: c[0], default=None)
