@@ -110,6 +110,11 @@ def test_random_lines_against_the_s_curve_and_the_reversal_floor(name, seed):
         # Issue 11's goal (counts <= reference) is missed on many lines (benchmarks/bench_lines.py):
         # a constant path speed between the ramps shows the joint path's own bends. What holds:
         assert np.all(counts <= np.maximum(reference, floor) + EXCESS), (counts, reference, floor)
+        # The issue's "single digits" on every joint, on lines with up to 3 stops inside (at
+        # corners). With more, the S-curve through the same rests has more too (2 per piece):
+        # seed 0's al5c line rests 6 times inside, its S-curve 14, this line 15 (4 per piece).
+        if len(times) <= 5:
+            assert counts.max() <= 9, (counts, len(times) - 2)
         return
 
 
