@@ -230,6 +230,10 @@ def test_without_viser_the_command_names_the_extra():
     )
 
 
+def _sigint_default() -> None:
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
+
+
 @contextlib.contextmanager
 def serving(*args: str, timeout: float = 60.0):
     """Run a serving ``planner`` command until it says where it serves; Ctrl-C it on leaving.
@@ -243,6 +247,9 @@ def serving(*args: str, timeout: float = 60.0):
         stderr=subprocess.PIPE,
         text=True,
         start_new_session=True,
+        # Ctrl-C as from a terminal, even where this test runs with SIGINT ignored (a shell
+        # starts background jobs so, and the child would inherit it and never stop).
+        preexec_fn=_sigint_default,
     )
     url = f"http://127.0.0.1:{port}"
     lines: list[str] = []
