@@ -163,7 +163,8 @@ def load_functions(source: str, name: str, signatures: Mapping[str, Sequence]) -
 #: which reads the arguments of a METH_FASTCALL function by type codes as ctypes would take them:
 #: ``l`` a C long, ``d`` a double, ``p`` a pointer (bytes: their data; else an integer address).
 #: So one C function can be called through the C API and through ctypes with the same arguments.
-#: ``read_floats`` and ``read_rows`` copy a sequence of floats, or rows of them, into C doubles.
+#: ``read_floats`` and ``read_rows`` copy a sequence of floats, or rows of them, into C doubles;
+#: ``float_list`` and ``long_list`` make Python lists of C doubles and longs.
 C_API_HEAD = r"""#define PY_SSIZE_T_CLEAN
 #include <Python.h>
 #include <string.h>
@@ -233,6 +234,36 @@ static int read_rows(PyObject *rows, double *out, Py_ssize_t n) {
     }
     Py_DECREF(seq);
     return at == n;
+}
+
+/* A list of n floats. */
+static PyObject *float_list(const double *x, long n) {
+    PyObject *list = PyList_New(n);
+    if (list == NULL) return NULL;
+    for (long i = 0; i < n; ++i) {
+        PyObject *f = PyFloat_FromDouble(x[i]);
+        if (f == NULL) {
+            Py_DECREF(list);
+            return NULL;
+        }
+        PyList_SET_ITEM(list, i, f);
+    }
+    return list;
+}
+
+/* A list of n integers. */
+static PyObject *long_list(const long *x, long n) {
+    PyObject *list = PyList_New(n);
+    if (list == NULL) return NULL;
+    for (long i = 0; i < n; ++i) {
+        PyObject *f = PyLong_FromLong(x[i]);
+        if (f == NULL) {
+            Py_DECREF(list);
+            return NULL;
+        }
+        PyList_SET_ITEM(list, i, f);
+    }
+    return list;
 }
 """
 

@@ -101,21 +101,6 @@ static PyObject *py_admissible(PyObject *self, PyObject *const *args, Py_ssize_t
     Py_RETURN_NONE;
 }
 
-/* A list of n floats. */
-static PyObject *float_list(const double *x, long n) {
-    PyObject *list = PyList_New(n);
-    if (list == NULL) return NULL;
-    for (long i = 0; i < n; ++i) {
-        PyObject *f = PyFloat_FromDouble(x[i]);
-        if (f == NULL) {
-            Py_DECREF(list);
-            return NULL;
-        }
-        PyList_SET_ITEM(list, i, f);
-    }
-    return list;
-}
-
 /* watch_times on the waypoint rows themselves, (rows, K, dof, U, ju, vu, au, ku, hu, L, jl, vl, al, kl,
    ll, miss), the times and the least per joint as lists of floats; None where the rows do not hold
    (K + 1) dof floats. */

@@ -341,16 +341,8 @@ static PyObject *py_probed_choice(PyObject *self, PyObject *const *args, Py_ssiz
 static PyObject *choice_answer(long found, double best, const long *choice, long dof) {
     if (found < 0) Py_RETURN_NONE;
     if (!found) return Py_BuildValue("(dO)", best, Py_None);
-    PyObject *list = PyList_New(dof);
+    PyObject *list = long_list(choice, dof);
     if (list == NULL) return NULL;
-    for (long j = 0; j < dof; ++j) {
-        PyObject *x = PyLong_FromLong(choice[j]);
-        if (x == NULL) {
-            Py_DECREF(list);
-            return NULL;
-        }
-        PyList_SET_ITEM(list, j, x);
-    }
     return Py_BuildValue("(dN)", best, list);
 }
 
@@ -477,17 +469,7 @@ static PyObject *py_joints(PyObject *self, PyObject *const *args, Py_ssize_t nar
     long found = joint_choice(K, m, dof, a[4].l, t, choice);
     if (found < 0) return PyLong_FromLong(-1);
     if (!found) Py_RETURN_NONE;
-    PyObject *list = PyList_New(dof);
-    if (list == NULL) return NULL;
-    for (long j = 0; j < dof; ++j) {
-        PyObject *x = PyLong_FromLong(choice[j]);
-        if (x == NULL) {
-            Py_DECREF(list);
-            return NULL;
-        }
-        PyList_SET_ITEM(list, j, x);
-    }
-    return list;
+    return long_list(choice, dof);
 }
 
 /* moved_states (planner.motion.vias.joint_steps) on plain floats: (velocity, acceleration, twice_jerk,
